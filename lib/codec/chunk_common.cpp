@@ -1,0 +1,279 @@
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "codec/atlas.h"
+#include "codec/chunk_format.h"
+#include "codec/coders.h"
+#include "core/byte_io.h"
+
+namespace relief {
+
+const char* decomposition_name(Decomposition d) {
+  switch (d) {
+    case Decomposition::kVoxelGrid: return "voxel";
+    case Decomposition::kOctree: return "octree";
+  }
+  return "unknown";
+}
+
+const char* image_codec_name(ImageCodec c) {
+  switch (c) {
+    case ImageCodec::kJpeg: return "jpeg";
+    case ImageCodec::kJpeg2000: return "jpeg2000";
+  }
+  return "unknown";
+}
+
+namespace codec {
+
+namespace {
+
+const char* section_name(SectionId id) {
+  switch (id) {
+    case SectionId::kTree: return "tree";
+    case SectionId::kPatches: return "patches";
+    case SectionId::kOccupancy: return "occupancy";
+    case SectionId::kHeight: return "height";
+    case SectionId::kColor: return "colour";
+    case SectionId::kIntensity: return "intensity";
+  }
+  return "unknown";
+}
+
+bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
+  switch (id) {
+    case SectionId::kTree:
+    case SectionId::kPatches:
+      return c == SectionCodec::kStored || c == SectionCodec::kLzma2;
+    case SectionId::kOccupancy:
+      return c == SectionCodec::kJbig85;
+    case SectionId::kHeight:
+    case SectionId::kColor:
+    case SectionId::kIntensity:
+      return c == (image_codec == ImageCodec::kJpeg ? SectionCodec::kJpeg : SectionCodec::kJpeg2000);
+  }
+  return false;
+}
+
+Status check_header(const ChunkHeader& h) {
+  const auto bad = [](const std::string& m) { return corrupt_data("chunk header: " + m); };
+  if ((h.flags & ~kKnownFlags) != 0) return bad("reserved flag bits set");
+  if (h.decomposition != Decomposition::kVoxelGrid && h.decomposition != Decomposition::kOctree) {
+    return bad("unknown decomposition id " + std::to_string(static_cast<int>(h.decomposition)));
+  }
+  if (h.image_codec != ImageCodec::kJpeg && h.image_codec != ImageCodec::kJpeg2000) {
+    return bad("unknown image codec id " + std::to_string(static_cast<int>(h.image_codec)));
+  }
+  if (h.map_resolution < kMinMapResolution || h.map_resolution > kMaxMapResolution ||
+      h.map_resolution % 8 != 0) {
+    return bad("map resolution " + std::to_string(h.map_resolution) + " is not a multiple of 8 in 8..64");
+  }
+  if (h.tree_depth > kMaxTreeDepth) return bad("tree depth " + std::to_string(h.tree_depth) + " > 21");
+  if (h.height_bits != 8 && !(h.height_bits == 16 && h.image_codec == ImageCodec::kJpeg2000)) {
+    return bad("height bits " + std::to_string(h.height_bits) + " invalid for this image codec");
+  }
+  if (h.decoded_points > h.input_points) return bad("more decoded points than input points");
+  if (h.patch_count > h.decoded_points) return bad("more patches than decoded points");
+  if (h.patch_count == 0) {
+    if (h.decoded_points != 0 || h.tiles_x != 0 || h.tiles_y != 0) return bad("empty chunk with content");
+    return Status::ok();
+  }
+  // 8^depth leaves at most.
+  if (3 * h.tree_depth < 32 && h.patch_count > (std::uint64_t{1} << (3 * h.tree_depth))) {
+    return bad("more patches than cells at depth " + std::to_string(h.tree_depth));
+  }
+  const AtlasLayout layout = atlas_layout(h.patch_count);
+  if (h.tiles_x != layout.tiles_x || h.tiles_y != layout.tiles_y) {
+    return bad("atlas of " + std::to_string(h.tiles_x) + "x" + std::to_string(h.tiles_y) +
+               " tiles does not match " + std::to_string(h.patch_count) + " patches");
+  }
+  if (static_cast<std::uint64_t>(h.tiles_x) * h.map_resolution > kMaxImageSide ||
+      static_cast<std::uint64_t>(h.tiles_y) * h.map_resolution > kMaxImageSide) {
+    return bad("atlas larger than " + std::to_string(kMaxImageSide) + " pixels");
+  }
+  const bool finite = std::isfinite(h.grid_origin.x) && std::isfinite(h.grid_origin.y) &&
+                      std::isfinite(h.grid_origin.z) && std::isfinite(h.grid_edge) &&
+                      std::isfinite(h.height_min) && std::isfinite(h.height_max) &&
+                      std::isfinite(h.intensity_min) && std::isfinite(h.intensity_max);
+  if (!finite) return bad("non-finite grid, height or intensity range");
+  if (!(h.grid_edge > 0)) return bad("grid edge must be positive");
+  if (h.height_max < h.height_min || h.intensity_max < h.intensity_min) return bad("inverted range");
+  return Status::ok();
+}
+
+std::uint64_t expected_raw_size(SectionId id, const ChunkHeader& h) {
+  const std::uint64_t pixels = static_cast<std::uint64_t>(h.tiles_x) * h.tiles_y *
+                               h.map_resolution * h.map_resolution;
+  switch (id) {
+    case SectionId::kTree: return 0;  // variable, bounded separately
+    case SectionId::kPatches: return static_cast<std::uint64_t>(h.patch_count) * kPatchRecordSize;
+    case SectionId::kOccupancy: return pixels;
+    case SectionId::kHeight: return pixels * (h.height_bits / 8u);
+    case SectionId::kColor: return pixels * 3;
+    case SectionId::kIntensity: return pixels;
+  }
+  return 0;
+}
+
+}  // namespace
+
+std::vector<SectionId> required_sections(const ChunkHeader& header) {
+  std::vector<SectionId> ids;
+  if (header.patch_count == 0) return ids;
+  ids = {SectionId::kTree, SectionId::kPatches, SectionId::kOccupancy, SectionId::kHeight};
+  if (header.flags & kFlagColors) ids.push_back(SectionId::kColor);
+  if (header.flags & kFlagIntensity) ids.push_back(SectionId::kIntensity);
+  return ids;
+}
+
+std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<SectionEntry>& sections) {
+  ByteWriter w;
+  w.bytes(kMagic, 4);
+  w.u16(h.version);
+  w.u16(kHeaderSizeV1);
+  w.u8(h.flags);
+  w.u8(static_cast<std::uint8_t>(h.decomposition));
+  w.u8(static_cast<std::uint8_t>(h.image_codec));
+  w.u8(h.map_resolution);
+  w.u8(h.tree_depth);
+  w.u8(h.height_bits);
+  w.u8(static_cast<std::uint8_t>(sections.size()));
+  w.u8(0);  // reserved
+  w.u32(h.input_points);
+  w.u32(h.decoded_points);
+  w.u32(h.patch_count);
+  w.u16(h.tiles_x);
+  w.u16(h.tiles_y);
+  w.f64(h.grid_origin.x);
+  w.f64(h.grid_origin.y);
+  w.f64(h.grid_origin.z);
+  w.f64(h.grid_edge);
+  w.f64(h.height_min);
+  w.f64(h.height_max);
+  w.f32(h.intensity_min);
+  w.f32(h.intensity_max);
+  for (const SectionEntry& s : sections) {
+    w.u8(static_cast<std::uint8_t>(s.id));
+    w.u8(static_cast<std::uint8_t>(s.codec));
+    w.u16(0);  // reserved
+    w.u32(s.raw_size);
+    w.u32(static_cast<std::uint32_t>(s.payload.size()));
+  }
+  for (const SectionEntry& s : sections) w.bytes(s.payload);
+  w.u32(crc32(w.buffer()));
+  return w.take();
+}
+
+Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_checksum) {
+  ByteReader r(blob, "chunk blob");
+  ParsedBlob out;
+  ChunkHeader& h = out.header;
+  if (blob.size() < 6 || std::memcmp(blob.data(), kMagic, 4) != 0) {
+    return corrupt_data("chunk blob: not a Relief chunk (bad magic)");
+  }
+  RELIEF_RETURN_IF_ERROR(r.skip(4, "magic"));
+  RELIEF_RETURN_IF_ERROR(r.u16(h.version, "format_version"));
+  if (h.version == 0 || h.version > kChunkFormatVersion) {
+    return unsupported("chunk blob: format version " + std::to_string(h.version) +
+                       " is not supported by this build (reads 1.." +
+                       std::to_string(kChunkFormatVersion) + ")");
+  }
+  std::uint16_t header_size = 0;
+  std::uint8_t decomposition = 0, image_codec = 0, section_count = 0, reserved8 = 0;
+  RELIEF_RETURN_IF_ERROR(r.u16(header_size, "header_size"));
+  if (header_size != kHeaderSizeV1) {
+    return corrupt_data("chunk blob: header size " + std::to_string(header_size) + ", expected " +
+                        std::to_string(kHeaderSizeV1));
+  }
+  RELIEF_RETURN_IF_ERROR(r.u8(h.flags, "flags"));
+  RELIEF_RETURN_IF_ERROR(r.u8(decomposition, "decomposition"));
+  RELIEF_RETURN_IF_ERROR(r.u8(image_codec, "image_codec"));
+  RELIEF_RETURN_IF_ERROR(r.u8(h.map_resolution, "map_resolution"));
+  RELIEF_RETURN_IF_ERROR(r.u8(h.tree_depth, "tree_depth"));
+  RELIEF_RETURN_IF_ERROR(r.u8(h.height_bits, "height_bits"));
+  RELIEF_RETURN_IF_ERROR(r.u8(section_count, "section_count"));
+  RELIEF_RETURN_IF_ERROR(r.u8(reserved8, "reserved"));
+  RELIEF_RETURN_IF_ERROR(r.u32(h.input_points, "input_points"));
+  RELIEF_RETURN_IF_ERROR(r.u32(h.decoded_points, "decoded_points"));
+  RELIEF_RETURN_IF_ERROR(r.u32(h.patch_count, "patch_count"));
+  RELIEF_RETURN_IF_ERROR(r.u16(h.tiles_x, "tiles_x"));
+  RELIEF_RETURN_IF_ERROR(r.u16(h.tiles_y, "tiles_y"));
+  RELIEF_RETURN_IF_ERROR(r.f64(h.grid_origin.x, "grid_origin_x"));
+  RELIEF_RETURN_IF_ERROR(r.f64(h.grid_origin.y, "grid_origin_y"));
+  RELIEF_RETURN_IF_ERROR(r.f64(h.grid_origin.z, "grid_origin_z"));
+  RELIEF_RETURN_IF_ERROR(r.f64(h.grid_edge, "grid_edge"));
+  RELIEF_RETURN_IF_ERROR(r.f64(h.height_min, "height_min"));
+  RELIEF_RETURN_IF_ERROR(r.f64(h.height_max, "height_max"));
+  RELIEF_RETURN_IF_ERROR(r.f32(h.intensity_min, "intensity_min"));
+  RELIEF_RETURN_IF_ERROR(r.f32(h.intensity_max, "intensity_max"));
+  h.decomposition = static_cast<Decomposition>(decomposition);
+  h.image_codec = static_cast<ImageCodec>(image_codec);
+  if (reserved8 != 0) return corrupt_data("chunk header: reserved byte is not 0");
+  RELIEF_RETURN_IF_ERROR(check_header(h));
+
+  const std::vector<SectionId> want = required_sections(h);
+  if (section_count != want.size()) {
+    return corrupt_data("chunk blob: " + std::to_string(section_count) + " sections, expected " +
+                        std::to_string(want.size()));
+  }
+  std::uint64_t payload_total = 0;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    SectionEntry s;
+    std::uint8_t id = 0, codec = 0;
+    std::uint16_t reserved16 = 0;
+    RELIEF_RETURN_IF_ERROR(r.u8(id, "section id"));
+    RELIEF_RETURN_IF_ERROR(r.u8(codec, "section codec"));
+    RELIEF_RETURN_IF_ERROR(r.u16(reserved16, "section reserved"));
+    RELIEF_RETURN_IF_ERROR(r.u32(s.raw_size, "section raw size"));
+    RELIEF_RETURN_IF_ERROR(r.u32(s.coded_size, "section coded size"));
+    s.id = static_cast<SectionId>(id);
+    s.codec = static_cast<SectionCodec>(codec);
+    const std::string name = "chunk blob: section " + std::to_string(i);
+    if (s.id != want[i]) {
+      return corrupt_data(name + " has id " + std::to_string(id) + ", expected " +
+                          std::to_string(static_cast<int>(want[i])) + " (" + section_name(want[i]) + ")");
+    }
+    if (reserved16 != 0) return corrupt_data(name + ": reserved field is not 0");
+    if (!codec_allowed(s.id, s.codec, h.image_codec)) {
+      return corrupt_data(std::string("chunk blob: ") + section_name(s.id) + " section has codec id " +
+                          std::to_string(codec) + ", not allowed here");
+    }
+    if (s.id == SectionId::kTree) {
+      // Every internal node is one byte and lies on some leaf's path.
+      const std::uint64_t bound = static_cast<std::uint64_t>(h.patch_count) * h.tree_depth + 1;
+      if (s.raw_size > bound) {
+        return corrupt_data("chunk blob: tree section raw size " + std::to_string(s.raw_size) +
+                            " exceeds the bound for " + std::to_string(h.patch_count) + " patches");
+      }
+    } else if (s.raw_size != expected_raw_size(s.id, h)) {
+      return corrupt_data(std::string("chunk blob: ") + section_name(s.id) + " section raw size " +
+                          std::to_string(s.raw_size) + ", expected " +
+                          std::to_string(expected_raw_size(s.id, h)));
+    }
+    if (s.codec == SectionCodec::kStored && s.coded_size != s.raw_size) {
+      return corrupt_data(std::string("chunk blob: stored ") + section_name(s.id) +
+                          " section with coded size != raw size");
+    }
+    payload_total += s.coded_size;
+    out.sections.push_back(s);
+  }
+  const std::uint64_t expected_size = r.position() + payload_total + kChecksumSize;
+  if (expected_size != blob.size()) {
+    return corrupt_data("chunk blob: " + std::to_string(blob.size()) + " bytes, header and sections say " +
+                        std::to_string(expected_size));
+  }
+  for (SectionEntry& s : out.sections) {
+    RELIEF_RETURN_IF_ERROR(r.span(s.payload, s.coded_size, "section payload"));
+  }
+  std::uint32_t stored_crc = 0;
+  RELIEF_RETURN_IF_ERROR(r.u32(stored_crc, "crc32"));
+  if (verify_checksum) {
+    const std::uint32_t actual = crc32(blob.first(blob.size() - kChecksumSize));
+    if (actual != stored_crc) return corrupt_data("chunk blob: checksum mismatch (the blob is damaged)");
+  }
+  return out;
+}
+
+}  // namespace codec
+}  // namespace relief

@@ -1,0 +1,227 @@
+// Chunk decoder (Golla & Klein 2015, section III-E). Mirror: chunk_encoder.cpp.
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "codec/atlas.h"
+#include "codec/chunk_format.h"
+#include "codec/coders.h"
+#include "codec/octree.h"
+#include "codec/patch.h"
+
+namespace relief {
+
+namespace {
+
+using codec::SectionCodec;
+using codec::SectionEntry;
+using codec::SectionId;
+
+Result<std::vector<std::uint8_t>> unpack_bytes(const SectionEntry& s, const char* name) {
+  if (s.codec == SectionCodec::kStored) {
+    return std::vector<std::uint8_t>(s.payload.begin(), s.payload.end());
+  }
+  auto out = codec::lzma_decompress(s.payload, s.raw_size);
+  if (!out) return out.status().with_context(std::string("chunk blob: ") + name + " section");
+  return out;
+}
+
+Result<codec::Image8> decode_image8(const SectionEntry& s, std::uint32_t w, std::uint32_t h,
+                                    std::uint32_t channels, const char* name) {
+  auto img = s.codec == SectionCodec::kJpeg ? codec::jpeg_decode(s.payload, w, h, channels)
+                                            : codec::j2k_decode8(s.payload, w, h, channels);
+  if (!img) return img.status().with_context(std::string("chunk blob: ") + name + " section");
+  return img;
+}
+
+// Number of points each patch contributes at level of detail `lod`: error
+// diffusion along the Morton-ordered patch list, so the total is ~1/lod of the
+// occupied pixels and small neighbouring patches take turns.
+std::vector<std::uint32_t> lod_quota(const std::vector<std::uint32_t>& occupied, std::uint32_t lod) {
+  std::vector<std::uint32_t> quota(occupied.size());
+  if (lod <= 1) return occupied;
+  std::uint64_t seen = 0, emitted = 0;
+  for (std::size_t i = 0; i < occupied.size(); ++i) {
+    seen += occupied[i];
+    // Round half up so one point in lod is kept even for the first patch.
+    const std::uint64_t target = (seen + lod / 2) / lod;
+    const std::uint64_t take = std::min<std::uint64_t>(occupied[i], target - std::min(target, emitted));
+    quota[i] = static_cast<std::uint32_t>(take);
+    emitted += take;
+  }
+  return quota;
+}
+
+}  // namespace
+
+Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
+  RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, true));
+  const codec::ChunkHeader& h = parsed.header;
+  ChunkInfo info;
+  info.format_version = h.version;
+  info.decomposition = h.decomposition;
+  info.image_codec = h.image_codec;
+  info.has_colors = (h.flags & codec::kFlagColors) != 0;
+  info.has_intensity = (h.flags & codec::kFlagIntensity) != 0;
+  info.map_resolution = h.map_resolution;
+  info.height_bits = h.height_bits;
+  info.tree_depth = h.tree_depth;
+  info.input_points = h.input_points;
+  info.decoded_points = h.decoded_points;
+  info.patch_count = h.patch_count;
+  info.atlas_width = static_cast<std::uint32_t>(h.tiles_x) * h.map_resolution;
+  info.atlas_height = static_cast<std::uint32_t>(h.tiles_y) * h.map_resolution;
+  info.grid_origin = h.grid_origin;
+  info.grid_edge = h.grid_edge;
+  info.blob_size = blob.size();
+  for (const SectionEntry& s : parsed.sections) {
+    info.sections.push_back({static_cast<std::uint8_t>(s.id), static_cast<std::uint8_t>(s.codec),
+                             s.raw_size, s.coded_size});
+  }
+  return info;
+}
+
+Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const DecodeOptions& options) {
+  if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
+  RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, options.verify_checksum));
+  const codec::ChunkHeader& h = parsed.header;
+  PointCloud out;
+  if (h.patch_count == 0) return out;
+  if (h.decoded_points > options.max_points) {
+    return limit_exceeded("chunk blob: " + std::to_string(h.decoded_points) +
+                          " points exceed the decoder limit of " + std::to_string(options.max_points));
+  }
+  const auto section = [&](SectionId id) -> const SectionEntry& {
+    for (const SectionEntry& s : parsed.sections) {
+      if (s.id == id) return s;
+    }
+    return parsed.sections.front();  // unreachable: parse_blob checked the set
+  };
+  const bool has_rgb = (h.flags & codec::kFlagColors) != 0;
+  const bool has_i = (h.flags & codec::kFlagIntensity) != 0;
+  const int r = h.map_resolution;
+  const std::uint32_t n = h.patch_count;
+  const std::uint32_t aw = static_cast<std::uint32_t>(h.tiles_x) * static_cast<std::uint32_t>(r);
+  const std::uint32_t ah = static_cast<std::uint32_t>(h.tiles_y) * static_cast<std::uint32_t>(r);
+
+  RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> masks, unpack_bytes(section(SectionId::kTree), "tree"));
+  RELIEF_ASSIGN_OR_RETURN(std::vector<codec::Leaf> leaves,
+                          codec::parse_tree(masks, h.tree_depth,
+                                            h.decomposition == Decomposition::kOctree, n));
+  RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> records,
+                          unpack_bytes(section(SectionId::kPatches), "patches"));
+  auto occ_result = codec::bilevel_decode(section(SectionId::kOccupancy).payload, aw, ah);
+  if (!occ_result) return occ_result.status().with_context("chunk blob: occupancy section");
+  const std::vector<std::uint8_t> occupancy = std::move(occ_result).value();
+
+  // Count occupied pixels per patch; unused tiles must be empty.
+  std::vector<std::uint32_t> occupied(n, 0);
+  std::uint64_t total = 0;
+  for (std::uint32_t ty = 0; ty < h.tiles_y; ++ty) {
+    for (std::uint32_t tx = 0; tx < h.tiles_x; ++tx) {
+      std::uint32_t count = 0;
+      for (int y = 0; y < r; ++y) {
+        const std::uint8_t* row = occupancy.data() + (static_cast<std::size_t>(ty) * r + y) * aw +
+                                  static_cast<std::size_t>(tx) * r;
+        for (int x = 0; x < r; ++x) count += row[x];
+      }
+      if (count == 0) continue;
+      // Inverse Z-order: interleave tx (even bits) and ty (odd bits).
+      std::uint32_t index = 0;
+      for (int b = 0; b < 16; ++b) {
+        index |= ((tx >> b) & 1u) << (2 * b);
+        index |= ((ty >> b) & 1u) << (2 * b + 1);
+      }
+      if (index >= n) return corrupt_data("chunk blob: occupancy set in an unused atlas tile");
+      occupied[index] = count;
+      total += count;
+    }
+  }
+  if (total != h.decoded_points) {
+    return corrupt_data("chunk blob: occupancy holds " + std::to_string(total) +
+                        " pixels, header declares " + std::to_string(h.decoded_points));
+  }
+  for (std::uint32_t i = 0; i < n; ++i) {
+    if (occupied[i] == 0) return corrupt_data("chunk blob: patch " + std::to_string(i) + " has no occupied pixel");
+  }
+
+  const SectionEntry& hs = section(SectionId::kHeight);
+  codec::Image8 height8;
+  codec::Image16 height16;
+  if (h.height_bits == 16) {
+    auto img = codec::j2k_decode16(hs.payload, aw, ah);
+    if (!img) return img.status().with_context("chunk blob: height section");
+    height16 = std::move(img).value();
+  } else {
+    RELIEF_ASSIGN_OR_RETURN(height8, decode_image8(hs, aw, ah, 1, "height"));
+  }
+  codec::Image8 colors, intensity;
+  if (has_rgb) {
+    RELIEF_ASSIGN_OR_RETURN(colors, decode_image8(section(SectionId::kColor), aw, ah, 3, "colour"));
+  }
+  if (has_i) {
+    RELIEF_ASSIGN_OR_RETURN(intensity, decode_image8(section(SectionId::kIntensity), aw, ah, 1, "intensity"));
+  }
+
+  const std::vector<std::uint32_t> quota = lod_quota(occupied, options.lod);
+  std::uint64_t out_count = 0;
+  for (std::uint32_t q : quota) out_count += q;
+  out.reserve(out_count, has_rgb, has_i);
+
+  const double levels = h.height_bits == 16 ? 65535.0 : 255.0;
+  const double h_step = (h.height_max - h.height_min) / levels;
+  const double i_step = static_cast<double>(h.intensity_max - h.intensity_min) / 255.0;
+  const std::vector<std::uint16_t>& lod_order = codec::lod_pixel_order(r);
+  const std::size_t np = n;
+
+  for (std::uint32_t p = 0; p < n; ++p) {
+    if (quota[p] == 0) continue;
+    const codec::Leaf& leaf = leaves[p];
+    const double edge = std::ldexp(h.grid_edge, -leaf.depth);
+    const Vec3d center{h.grid_origin.x + (leaf.ix + 0.5) * edge, h.grid_origin.y + (leaf.iy + 0.5) * edge,
+                       h.grid_origin.z + (leaf.iz + 0.5) * edge};
+    const codec::QuantizedPatch q{records[p], records[np + p], records[2 * np + p], records[3 * np + p],
+                                  records[4 * np + p], records[5 * np + p], records[6 * np + p]};
+    const codec::PatchFrame f = codec::make_frame(q, center, edge, r);
+    std::uint32_t tx = 0, ty = 0;
+    codec::tile_position(p, tx, ty);
+    const std::size_t tile0 = static_cast<std::size_t>(ty) * r * aw + static_cast<std::size_t>(tx) * r;
+    const double h_scale = edge * h_step;
+    const double h_base = edge * h.height_min;
+    // Point = origin + (umin + (x + .5) pu) e1 + (vmin + (y + .5) pv) e2 + h n.
+    const Vec3d base = f.origin + (f.umin + 0.5 * f.pixel_u) * f.e1 + (f.vmin + 0.5 * f.pixel_v) * f.e2 +
+                       h_base * f.n;
+    const Vec3d du = f.pixel_u * f.e1, dv = f.pixel_v * f.e2, dh = h_scale * f.n;
+    const auto emit = [&](int x, int y) {
+      const std::size_t a = tile0 + static_cast<std::size_t>(y) * aw + static_cast<std::size_t>(x);
+      const double hq = h.height_bits == 16 ? height16.pixels[a] : height8.pixels[a];
+      out.positions.push_back({base.x + x * du.x + y * dv.x + hq * dh.x,
+                               base.y + x * du.y + y * dv.y + hq * dh.y,
+                               base.z + x * du.z + y * dv.z + hq * dh.z});
+      if (has_rgb) out.colors.push_back({colors.pixels[a * 3], colors.pixels[a * 3 + 1], colors.pixels[a * 3 + 2]});
+      if (has_i) {
+        out.intensities.push_back(
+            static_cast<float>(h.intensity_min + intensity.pixels[a] * i_step));
+      }
+    };
+    if (quota[p] == occupied[p]) {
+      for (int y = 0; y < r; ++y) {
+        const std::uint8_t* row = occupancy.data() + tile0 + static_cast<std::size_t>(y) * aw;
+        for (int x = 0; x < r; ++x) {
+          if (row[x]) emit(x, y);
+        }
+      }
+    } else {
+      std::uint32_t left = quota[p];
+      for (std::uint16_t pix : lod_order) {
+        const int x = pix % r, y = pix / r;
+        if (!occupancy[tile0 + static_cast<std::size_t>(y) * aw + static_cast<std::size_t>(x)]) continue;
+        emit(x, y);
+        if (--left == 0) break;
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace relief

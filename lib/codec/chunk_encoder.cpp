@@ -1,0 +1,540 @@
+// Chunk encoder (Golla & Klein 2015, section III-B..D). Mirror: chunk_decoder.cpp.
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "codec/atlas.h"
+#include "codec/chunk_format.h"
+#include "codec/coders.h"
+#include "codec/fill.h"
+#include "codec/octree.h"
+#include "codec/patch.h"
+
+namespace relief {
+
+namespace {
+
+using codec::KeyedIndex;
+using codec::Leaf;
+using codec::SectionCodec;
+using codec::SectionEntry;
+using codec::SectionId;
+
+// The encoder refuses chunks above this; the archive splits data long before.
+constexpr std::size_t kMaxChunkPoints = std::size_t{1} << 28;
+// Iterations of the density estimate in suggest_cell_size.
+constexpr int kDensityIterations = 4;
+
+Status check_params(const EncodeParams& p, std::size_t point_count, std::size_t normal_count) {
+  const auto quality_ok = [](int q) { return q >= 1 && q <= 100; };
+  if (p.map_resolution < codec::kMinMapResolution || p.map_resolution > codec::kMaxMapResolution ||
+      p.map_resolution % 8 != 0) {
+    return invalid_argument("map resolution " + std::to_string(p.map_resolution) +
+                            " must be a multiple of 8 between 8 and 64");
+  }
+  if (!quality_ok(p.height_quality) || !quality_ok(p.color_quality) || !quality_ok(p.intensity_quality)) {
+    return invalid_argument("qualities must be between 1 and 100");
+  }
+  if (p.height_bits != 8 && p.height_bits != 16) {
+    return invalid_argument("height bits must be 8 or 16");
+  }
+  if (p.height_bits == 16 && p.image_codec != ImageCodec::kJpeg2000) {
+    return invalid_argument("16-bit heights need the JPEG 2000 image codec (JPEG is 8-bit)");
+  }
+  if (p.image_codec != ImageCodec::kJpeg && p.image_codec != ImageCodec::kJpeg2000) {
+    return invalid_argument("unknown image codec");
+  }
+  if (p.decomposition != Decomposition::kVoxelGrid && p.decomposition != Decomposition::kOctree) {
+    return invalid_argument("unknown decomposition");
+  }
+  if (!std::isfinite(p.cell_size) || p.cell_size < 0) {
+    return invalid_argument("cell size must be a finite non-negative number (0 = automatic)");
+  }
+  if (p.octree_max_points < 1) return invalid_argument("octree max points (n_l) must be at least 1");
+  if (!std::isfinite(p.normal_cone_degrees) || p.normal_cone_degrees < 0 || p.normal_cone_degrees > 180) {
+    return invalid_argument("normal cone angle must be between 0 and 180 degrees");
+  }
+  if (normal_count != 0 && normal_count != point_count) {
+    return invalid_argument(std::to_string(normal_count) + " normals for " +
+                            std::to_string(point_count) + " points");
+  }
+  if (p.grid_origin) {
+    const Vec3d& o = *p.grid_origin;
+    if (!std::isfinite(o.x) || !std::isfinite(o.y) || !std::isfinite(o.z) ||
+        !std::isfinite(p.grid_edge) || !(p.grid_edge > 0)) {
+      return invalid_argument("grid origin must be finite and grid edge positive");
+    }
+  }
+  return Status::ok();
+}
+
+// Per-patch accumulation scratch, reused across patches.
+struct PatchScratch {
+  std::vector<double> u, v, h;
+  std::vector<std::uint32_t> pixel;
+  std::vector<std::uint32_t> count;
+  std::vector<double> sum_h;
+  std::vector<double> sum_rgb;
+  std::vector<double> sum_i;
+  std::vector<std::uint8_t> occupied;
+  std::vector<float> tile_h, tile_rgb, tile_i;
+  codec::FillScratch fill;
+};
+
+struct Encoder {
+  Encoder(const PointCloud& c, const EncodeParams& p, std::span<const Vec3d> n)
+      : cloud(c), params(p), normals(n) {}
+
+  const PointCloud& cloud;
+  const EncodeParams& params;
+  std::span<const Vec3d> normals;
+
+  codec::ChunkHeader header;
+  int r = 16;
+  std::vector<KeyedIndex> sorted;
+  std::vector<std::uint8_t> tree_masks;
+  std::vector<Leaf> leaves;
+
+  // Atlas planes (float until the chunk-wide ranges are known).
+  std::uint32_t atlas_w = 0, atlas_h = 0;
+  std::vector<std::uint8_t> occupancy;
+  std::vector<float> heights;    // normalised (height / cell edge), filled
+  std::vector<std::uint8_t> rgb;
+  std::vector<float> intensity;  // raw intensity, filled
+  std::vector<std::uint8_t> patch_records;  // structure of arrays, 7 planes
+  std::uint64_t decoded_points = 0;
+  double h_lo = std::numeric_limits<double>::infinity();
+  double h_hi = -std::numeric_limits<double>::infinity();
+  float i_lo = std::numeric_limits<float>::infinity();
+  float i_hi = -std::numeric_limits<float>::infinity();
+
+  Status choose_grid();
+  void build_decomposition();
+  void encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s);
+  Result<std::vector<std::uint8_t>> finish();
+};
+
+Status Encoder::choose_grid() {
+  r = params.map_resolution;
+  const double cell = params.cell_size > 0 ? params.cell_size : suggest_cell_size(cloud, r);
+  if (!(cell > 0) || !std::isfinite(cell)) {
+    return invalid_argument("could not derive a cell size from the points; pass one explicitly");
+  }
+  Vec3d origin;
+  double edge = 0;
+  if (params.grid_origin) {
+    origin = *params.grid_origin;
+    edge = params.grid_edge;
+    const Box3d b = cloud.bounds();
+    const double tol = edge * 1e-9;
+    if (b.min.x < origin.x - tol || b.min.y < origin.y - tol || b.min.z < origin.z - tol ||
+        b.max.x > origin.x + edge + tol || b.max.y > origin.y + edge + tol ||
+        b.max.z > origin.z + edge + tol) {
+      return invalid_argument("points lie outside the chunk cube given by grid origin and edge");
+    }
+  } else {
+    const Box3d b = cloud.bounds();
+    origin = b.min;
+    const Vec3d e = b.extent();
+    edge = std::max({e.x, e.y, e.z});
+  }
+  int depth = 0;
+  if (edge > cell) depth = static_cast<int>(std::ceil(std::log2(edge / cell) - 1e-12));
+  if (depth > codec::kMaxTreeDepth) {
+    return invalid_argument("cell size " + std::to_string(cell) + " is too small for a chunk " +
+                            std::to_string(edge) + " across (more than 2^21 cells per axis)");
+  }
+  // Without a given cube, grow it so cells have exactly the requested edge.
+  if (!params.grid_origin) edge = cell * std::ldexp(1.0, depth);
+  header.grid_origin = origin;
+  header.grid_edge = edge;
+  header.tree_depth = static_cast<std::uint8_t>(depth);
+  return Status::ok();
+}
+
+void Encoder::build_decomposition() {
+  const int depth = header.tree_depth;
+  const double cells = std::ldexp(1.0, depth);
+  const double inv_fine = cells / header.grid_edge;
+  const auto max_index = static_cast<std::uint32_t>(cells - 1);
+  const Vec3d o = header.grid_origin;
+  sorted.resize(cloud.size());
+  const auto cell_of = [&](double v) {
+    const double c = std::floor(v * inv_fine);
+    return c <= 0 ? 0u : std::min(max_index, static_cast<std::uint32_t>(c));
+  };
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3d& p = cloud.positions[i];
+    sorted[i] = {codec::morton_encode(cell_of(p.x - o.x), cell_of(p.y - o.y), cell_of(p.z - o.z)),
+                 static_cast<std::uint32_t>(i)};
+  }
+  codec::radix_sort(sorted, 3 * depth);
+
+  codec::LeafPredicate predicate;
+  if (params.decomposition == Decomposition::kOctree) {
+    const double cos_cone = std::cos(params.normal_cone_degrees * 3.14159265358979323846 / 180.0);
+    const bool use_cone = !normals.empty() && params.normal_cone_degrees > 0;
+    predicate = [this, cos_cone, use_cone](std::uint32_t b, std::uint32_t e) {
+      if (e - b > params.octree_max_points) return false;
+      if (!use_cone) return true;
+      // Normals are unoriented: align each to the first before averaging.
+      const Vec3d first = normals[sorted[b].index];
+      Vec3d mean{0, 0, 0};
+      for (std::uint32_t i = b; i < e; ++i) {
+        const Vec3d n = normals[sorted[i].index];
+        mean = mean + (dot(n, first) < 0 ? -1.0 : 1.0) * n;
+      }
+      const double len = norm(mean);
+      if (!(len > 0)) return false;
+      for (std::uint32_t i = b; i < e; ++i) {
+        const Vec3d n = normals[sorted[i].index];
+        if (std::abs(dot(n, mean)) / (len * norm(n)) < cos_cone) return false;
+      }
+      return true;
+    };
+  }
+  leaves = codec::build_tree(sorted, depth, predicate, tree_masks);
+}
+
+void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s) {
+  const std::uint32_t k = leaf.end - leaf.begin;
+  const double edge = std::ldexp(header.grid_edge, -leaf.depth);
+  const Vec3d o = header.grid_origin;
+  const Vec3d center{o.x + (leaf.ix + 0.5) * edge, o.y + (leaf.iy + 0.5) * edge,
+                     o.z + (leaf.iz + 0.5) * edge};
+
+  // PCA relative to the cell centre (keeps georeferenced coordinates precise).
+  Vec3d mean{0, 0, 0};
+  for (std::uint32_t i = leaf.begin; i < leaf.end; ++i) {
+    mean = mean + (cloud.positions[sorted[i].index] - center);
+  }
+  mean = (1.0 / k) * mean;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (std::uint32_t i = leaf.begin; i < leaf.end; ++i) {
+    const Vec3d d = cloud.positions[sorted[i].index] - center - mean;
+    cov(0, 0) += d.x * d.x;
+    cov(0, 1) += d.x * d.y;
+    cov(0, 2) += d.x * d.z;
+    cov(1, 1) += d.y * d.y;
+    cov(1, 2) += d.y * d.z;
+    cov(2, 2) += d.z * d.z;
+  }
+  cov(1, 0) = cov(0, 1);
+  cov(2, 0) = cov(0, 2);
+  cov(2, 1) = cov(1, 2);
+  Vec3d normal{0, 0, 1};
+  if (k >= 3) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+    solver.computeDirect(cov);
+    const Eigen::Vector3d n = solver.eigenvectors().col(0);
+    if (solver.info() == Eigen::Success && n.allFinite() && n.norm() > 0.5) {
+      normal = {n.x(), n.y(), n.z()};
+    }
+  }
+  // Canonical sign: largest component positive (heights keep one orientation).
+  const double ax = std::abs(normal.x), ay = std::abs(normal.y), az = std::abs(normal.z);
+  const double dominant = (az >= ax && az >= ay) ? normal.z : (ay >= ax ? normal.y : normal.x);
+  if (dominant < 0) normal = -1.0 * normal;
+
+  codec::QuantizedPatch q;
+  codec::octahedral_encode(normal, q.oct_u, q.oct_v);
+  const Vec3d n = codec::octahedral_decode(q.oct_u, q.oct_v);
+  const double range = codec::kHalfDiagonal * edge;
+  q.offset = codec::quantize_param(dot(mean, n), range, 0);
+  // Provisional frame for the extents (the offset does not move u, v).
+  Vec3d e1, e2;
+  codec::axis_aligned_frame(n, e1, e2);
+  const double offset = codec::dequantize_param(q.offset, range);
+  s.u.resize(k);
+  s.v.resize(k);
+  s.h.resize(k);
+  double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
+  for (std::uint32_t i = 0; i < k; ++i) {
+    const Vec3d d = cloud.positions[sorted[leaf.begin + i].index] - center;
+    s.u[i] = dot(d, e1);
+    s.v[i] = dot(d, e2);
+    s.h[i] = dot(d, n) - offset;
+    umin = std::min(umin, s.u[i]);
+    umax = std::max(umax, s.u[i]);
+    vmin = std::min(vmin, s.v[i]);
+    vmax = std::max(vmax, s.v[i]);
+  }
+  q.umin = codec::quantize_param(umin, range, -1);
+  q.umax = codec::quantize_param(umax, range, +1);
+  q.vmin = codec::quantize_param(vmin, range, -1);
+  q.vmax = codec::quantize_param(vmax, range, +1);
+  // A zero-width extent (one point, or collinear along the other axis) still
+  // needs a positive pixel pitch.
+  if (q.umax <= q.umin) q.umax < 255 ? ++q.umax : --q.umin;
+  if (q.vmax <= q.vmin) q.vmax < 255 ? ++q.vmax : --q.vmin;
+  const codec::PatchFrame f = codec::make_frame(q, center, edge, r);
+
+  const std::size_t np = patch_records.size() / codec::kPatchRecordSize;
+  const std::uint8_t fields[codec::kPatchRecordSize] = {q.oct_u, q.oct_v, q.offset, q.umin,
+                                                        q.umax,  q.vmin,  q.vmax};
+  for (std::size_t fi = 0; fi < codec::kPatchRecordSize; ++fi) patch_records[fi * np + index] = fields[fi];
+
+  // Bin points into pixels and average.
+  const auto rr = static_cast<std::size_t>(r) * static_cast<std::size_t>(r);
+  s.count.assign(rr, 0);
+  s.sum_h.assign(rr, 0.0);
+  const bool has_rgb = cloud.has_colors(), has_i = cloud.has_intensity();
+  if (has_rgb) s.sum_rgb.assign(rr * 3, 0.0);
+  if (has_i) s.sum_i.assign(rr, 0.0);
+  const double inv_pu = 1.0 / f.pixel_u, inv_pv = 1.0 / f.pixel_v;
+  const int rmax = r - 1;
+  for (std::uint32_t i = 0; i < k; ++i) {
+    const int px = std::clamp(static_cast<int>(std::floor((s.u[i] - f.umin) * inv_pu)), 0, rmax);
+    const int py = std::clamp(static_cast<int>(std::floor((s.v[i] - f.vmin) * inv_pv)), 0, rmax);
+    const auto pi = static_cast<std::size_t>(py * r + px);
+    ++s.count[pi];
+    s.sum_h[pi] += s.h[i];
+    const std::uint32_t src = sorted[leaf.begin + i].index;
+    if (has_rgb) {
+      const Rgb8 c = cloud.colors[src];
+      s.sum_rgb[pi * 3] += c.r;
+      s.sum_rgb[pi * 3 + 1] += c.g;
+      s.sum_rgb[pi * 3 + 2] += c.b;
+    }
+    if (has_i) s.sum_i[pi] += cloud.intensities[src];
+  }
+  s.occupied.assign(rr, 0);
+  s.tile_h.assign(rr, 0.0f);
+  if (has_rgb) s.tile_rgb.assign(rr * 3, 0.0f);
+  if (has_i) s.tile_i.assign(rr, 0.0f);
+  const double inv_edge = 1.0 / edge;
+  for (std::size_t pi = 0; pi < rr; ++pi) {
+    if (s.count[pi] == 0) continue;
+    s.occupied[pi] = 1;
+    ++decoded_points;
+    const double inv = 1.0 / s.count[pi];
+    const double hn = s.sum_h[pi] * inv * inv_edge;
+    s.tile_h[pi] = static_cast<float>(hn);
+    h_lo = std::min(h_lo, static_cast<double>(s.tile_h[pi]));
+    h_hi = std::max(h_hi, static_cast<double>(s.tile_h[pi]));
+    if (has_rgb) {
+      for (int c = 0; c < 3; ++c) s.tile_rgb[pi * 3 + c] = static_cast<float>(s.sum_rgb[pi * 3 + c] * inv);
+    }
+    if (has_i) {
+      s.tile_i[pi] = static_cast<float>(s.sum_i[pi] * inv);
+      i_lo = std::min(i_lo, s.tile_i[pi]);
+      i_hi = std::max(i_hi, s.tile_i[pi]);
+    }
+  }
+  const auto fill = [&](std::vector<float>& tile, int channels) {
+    if (params.fill == FillMethod::kBoxFilter) {
+      codec::fill_box(tile.data(), s.occupied.data(), r, channels);
+    } else {
+      codec::fill_push_pull(tile.data(), s.occupied.data(), r, channels, s.fill);
+    }
+  };
+  fill(s.tile_h, 1);
+  if (has_rgb) fill(s.tile_rgb, 3);
+  if (has_i) fill(s.tile_i, 1);
+
+  // Copy the tile into the atlas planes.
+  std::uint32_t tx = 0, ty = 0;
+  codec::tile_position(static_cast<std::uint32_t>(index), tx, ty);
+  for (int y = 0; y < r; ++y) {
+    const std::size_t row = (static_cast<std::size_t>(ty) * r + y) * atlas_w + static_cast<std::size_t>(tx) * r;
+    const std::size_t src = static_cast<std::size_t>(y) * r;
+    for (int x = 0; x < r; ++x) {
+      occupancy[row + x] = s.occupied[src + x];
+      heights[row + x] = s.tile_h[src + x];
+      if (has_rgb) {
+        for (int c = 0; c < 3; ++c) {
+          const float val = std::clamp(s.tile_rgb[(src + x) * 3 + c], 0.0f, 255.0f);
+          rgb[(row + x) * 3 + c] = static_cast<std::uint8_t>(std::lround(val));
+        }
+      }
+      if (has_i) intensity[row + x] = s.tile_i[src + x];
+    }
+  }
+}
+
+// Compresses with LZMA unless that does not shrink the data.
+Result<SectionEntry> lzma_section(SectionId id, std::vector<std::uint8_t>& raw,
+                                  std::vector<std::vector<std::uint8_t>>& storage) {
+  SectionEntry e;
+  e.id = id;
+  e.raw_size = static_cast<std::uint32_t>(raw.size());
+  RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> packed, codec::lzma_compress(raw));
+  if (packed.size() < raw.size()) {
+    e.codec = SectionCodec::kLzma2;
+    storage.push_back(std::move(packed));
+  } else {
+    e.codec = SectionCodec::kStored;
+    storage.push_back(raw);
+  }
+  return e;
+}
+
+// Quantizes a float plane to `levels` over [lo, hi]; NaN (unused tiles) maps
+// to mid-range so those tiles are flat.
+template <typename Sample>
+std::vector<Sample> quantize_plane(const std::vector<float>& plane, double lo, double hi, double levels) {
+  std::vector<Sample> out(plane.size());
+  const double scale = hi > lo ? levels / (hi - lo) : 0.0;
+  const auto mid = static_cast<Sample>(levels / 2);
+  for (std::size_t i = 0; i < plane.size(); ++i) {
+    const float v = plane[i];
+    if (std::isnan(v)) {
+      out[i] = mid;
+      continue;
+    }
+    const double q = std::round((static_cast<double>(v) - lo) * scale);
+    out[i] = static_cast<Sample>(std::clamp(q, 0.0, levels));
+  }
+  return out;
+}
+
+Result<std::vector<std::uint8_t>> Encoder::finish() {
+  const bool has_rgb = cloud.has_colors(), has_i = cloud.has_intensity();
+  header.decoded_points = static_cast<std::uint32_t>(decoded_points);
+  header.height_min = h_lo;
+  header.height_max = h_hi;
+  if (has_i) {
+    header.intensity_min = i_lo;
+    header.intensity_max = i_hi;
+  }
+  std::vector<std::vector<std::uint8_t>> storage;
+  storage.reserve(6);
+  std::vector<SectionEntry> sections;
+
+  RELIEF_ASSIGN_OR_RETURN(SectionEntry tree, lzma_section(SectionId::kTree, tree_masks, storage));
+  sections.push_back(tree);
+  RELIEF_ASSIGN_OR_RETURN(SectionEntry patches, lzma_section(SectionId::kPatches, patch_records, storage));
+  sections.push_back(patches);
+
+  RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> occ, codec::bilevel_encode(occupancy, atlas_w, atlas_h));
+  sections.push_back({SectionId::kOccupancy, SectionCodec::kJbig85,
+                      static_cast<std::uint32_t>(occupancy.size()), 0, {}});
+  storage.push_back(std::move(occ));
+
+  const bool jpeg = params.image_codec == ImageCodec::kJpeg;
+  const SectionCodec image_codec = jpeg ? SectionCodec::kJpeg : SectionCodec::kJpeg2000;
+  const std::uint32_t pixels = atlas_w * atlas_h;
+  if (params.height_bits == 16) {
+    codec::Image16 img{atlas_w, atlas_h, quantize_plane<std::uint16_t>(heights, h_lo, h_hi, 65535.0)};
+    RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> coded, codec::j2k_encode16(img, params.height_quality));
+    storage.push_back(std::move(coded));
+    sections.push_back({SectionId::kHeight, image_codec, pixels * 2, 0, {}});
+  } else {
+    codec::Image8 img{atlas_w, atlas_h, 1, quantize_plane<std::uint8_t>(heights, h_lo, h_hi, 255.0)};
+    RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> coded,
+                            jpeg ? codec::jpeg_encode(img, params.height_quality, false)
+                                 : codec::j2k_encode8(img, params.height_quality));
+    storage.push_back(std::move(coded));
+    sections.push_back({SectionId::kHeight, image_codec, pixels, 0, {}});
+  }
+  if (has_rgb) {
+    codec::Image8 img{atlas_w, atlas_h, 3, std::move(rgb)};
+    RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> coded,
+                            jpeg ? codec::jpeg_encode(img, params.color_quality, true)
+                                 : codec::j2k_encode8(img, params.color_quality));
+    storage.push_back(std::move(coded));
+    sections.push_back({SectionId::kColor, image_codec, pixels * 3, 0, {}});
+  }
+  if (has_i) {
+    codec::Image8 img{atlas_w, atlas_h, 1, quantize_plane<std::uint8_t>(intensity, i_lo, i_hi, 255.0)};
+    RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> coded,
+                            jpeg ? codec::jpeg_encode(img, params.intensity_quality, false)
+                                 : codec::j2k_encode8(img, params.intensity_quality));
+    storage.push_back(std::move(coded));
+    sections.push_back({SectionId::kIntensity, image_codec, pixels, 0, {}});
+  }
+  for (std::size_t i = 0; i < sections.size(); ++i) {
+    sections[i].payload = storage[i];
+    sections[i].coded_size = static_cast<std::uint32_t>(storage[i].size());
+  }
+  return codec::write_blob(header, sections);
+}
+
+}  // namespace
+
+Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
+                                               std::span<const Vec3d> normals) {
+  RELIEF_RETURN_IF_ERROR(check_params(params, cloud.size(), normals.size()));
+  RELIEF_RETURN_IF_ERROR(cloud.validate("chunk"));
+  for (std::size_t i = 0; i < normals.size(); ++i) {
+    const Vec3d& n = normals[i];
+    if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z) || norm(n) < 1e-12) {
+      return invalid_argument("chunk: normal " + std::to_string(i) + " is not a finite non-zero vector");
+    }
+  }
+  if (cloud.size() > kMaxChunkPoints) {
+    return limit_exceeded("chunk: " + std::to_string(cloud.size()) + " points exceed the limit of " +
+                          std::to_string(kMaxChunkPoints) + " per chunk");
+  }
+  Encoder enc{cloud, params, normals};
+  codec::ChunkHeader& h = enc.header;
+  h.flags = static_cast<std::uint8_t>((cloud.has_colors() ? codec::kFlagColors : 0) |
+                                      (cloud.has_intensity() ? codec::kFlagIntensity : 0));
+  h.decomposition = params.decomposition;
+  h.image_codec = params.image_codec;
+  h.map_resolution = static_cast<std::uint8_t>(params.map_resolution);
+  h.height_bits = static_cast<std::uint8_t>(params.height_bits);
+  h.input_points = static_cast<std::uint32_t>(cloud.size());
+  if (cloud.empty()) {
+    h.grid_edge = 1;
+    return codec::write_blob(h, {});
+  }
+  RELIEF_RETURN_IF_ERROR(enc.choose_grid());
+  enc.build_decomposition();
+  h.patch_count = static_cast<std::uint32_t>(enc.leaves.size());
+  const codec::AtlasLayout layout = codec::atlas_layout(h.patch_count);
+  const auto r = static_cast<std::uint32_t>(params.map_resolution);
+  if (static_cast<std::uint64_t>(layout.tiles_x) * r > codec::kMaxImageSide) {
+    return limit_exceeded("chunk: " + std::to_string(h.patch_count) +
+                          " patches do not fit one atlas image; use a larger cell size or smaller chunks");
+  }
+  h.tiles_x = static_cast<std::uint16_t>(layout.tiles_x);
+  h.tiles_y = static_cast<std::uint16_t>(layout.tiles_y);
+  enc.atlas_w = layout.tiles_x * r;
+  enc.atlas_h = layout.tiles_y * r;
+  const std::size_t pixels = static_cast<std::size_t>(enc.atlas_w) * enc.atlas_h;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  enc.occupancy.assign(pixels, 0);
+  enc.heights.assign(pixels, nan);
+  if (cloud.has_colors()) enc.rgb.assign(pixels * 3, 128);
+  if (cloud.has_intensity()) enc.intensity.assign(pixels, nan);
+  enc.patch_records.assign(enc.leaves.size() * codec::kPatchRecordSize, 0);
+  PatchScratch scratch;
+  for (std::size_t i = 0; i < enc.leaves.size(); ++i) enc.encode_patch(i, enc.leaves[i], scratch);
+  return enc.finish();
+}
+
+double suggest_cell_size(const PointCloud& cloud, int map_resolution) {
+  const Box3d b = cloud.bounds();
+  if (b.empty()) return 1.0;
+  const Vec3d e = b.extent();
+  const double extent = std::max({e.x, e.y, e.z});
+  if (!(extent > 0)) return 1.0;
+  const double n = static_cast<double>(cloud.size());
+  // Count occupied cells of a trial grid and rescale the cell so that it holds
+  // about r^2 points: one point per map pixel on a locally flat surface.
+  const double target = static_cast<double>(map_resolution) * map_resolution;
+  double cell = extent / 16.0;
+  std::vector<std::uint64_t> keys(cloud.size());
+  for (int it = 0; it < kDensityIterations; ++it) {
+    const double inv = 1.0 / cell;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      const Vec3d& p = cloud.positions[i];
+      const auto cx = static_cast<std::uint32_t>(std::min(2097151.0, (p.x - b.min.x) * inv));
+      const auto cy = static_cast<std::uint32_t>(std::min(2097151.0, (p.y - b.min.y) * inv));
+      const auto cz = static_cast<std::uint32_t>(std::min(2097151.0, (p.z - b.min.z) * inv));
+      keys[i] = codec::morton_encode(cx, cy, cz);
+    }
+    std::sort(keys.begin(), keys.end());
+    const double occupied = static_cast<double>(std::unique(keys.begin(), keys.end()) - keys.begin());
+    const double per_cell = n / occupied;
+    // Surface data: points per cell grows with cell^2.
+    const double next = cell * std::sqrt(target / per_cell);
+    cell = std::clamp(next, extent / 2097152.0 * 4, extent * 2);
+  }
+  return cell;
+}
+
+}  // namespace relief

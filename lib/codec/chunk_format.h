@@ -1,0 +1,95 @@
+// Constants and header layout of the chunk blob, shared by the encoder and the
+// decoder. format-spec/chunk.md is the normative description; keep them equal.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "relief/codec.h"
+#include "relief/status.h"
+
+namespace relief::codec {
+
+inline constexpr std::uint8_t kMagic[4] = {'R', 'L', 'F', 'C'};
+inline constexpr std::uint16_t kHeaderSizeV1 = 88;
+inline constexpr std::size_t kSectionEntrySize = 12;
+inline constexpr std::size_t kChecksumSize = 4;
+
+// Header flag bits; all others are reserved and must be 0.
+inline constexpr std::uint8_t kFlagColors = 0x01;
+inline constexpr std::uint8_t kFlagIntensity = 0x02;
+inline constexpr std::uint8_t kKnownFlags = kFlagColors | kFlagIntensity;
+
+// Section ids, in the order they must appear.
+enum class SectionId : std::uint8_t {
+  kTree = 1,
+  kPatches = 2,
+  kOccupancy = 3,
+  kHeight = 4,
+  kColor = 5,
+  kIntensity = 6,
+};
+
+// Section codec ids. Never reuse a value.
+enum class SectionCodec : std::uint8_t {
+  kStored = 0,
+  kJpeg = 1,
+  kJpeg2000 = 2,
+  kLzma2 = 3,
+  kJbig85 = 4,
+};
+
+inline constexpr int kMinMapResolution = 8;
+inline constexpr int kMaxMapResolution = 64;
+// 21 bits per axis keeps a Morton key in 63 bits.
+inline constexpr int kMaxTreeDepth = 21;
+// Bytes per patch in the patches section: oct_u, oct_v, offset, umin, umax, vmin, vmax.
+inline constexpr std::size_t kPatchRecordSize = 7;
+
+struct SectionEntry {
+  SectionId id{};
+  SectionCodec codec{};
+  std::uint32_t raw_size = 0;
+  std::uint32_t coded_size = 0;
+  std::span<const std::uint8_t> payload;  // filled by parse_blob
+};
+
+struct ChunkHeader {
+  std::uint16_t version = kChunkFormatVersion;
+  std::uint8_t flags = 0;
+  Decomposition decomposition = Decomposition::kVoxelGrid;
+  ImageCodec image_codec = ImageCodec::kJpeg;
+  std::uint8_t map_resolution = 16;
+  std::uint8_t tree_depth = 0;
+  std::uint8_t height_bits = 8;
+  std::uint32_t input_points = 0;
+  std::uint32_t decoded_points = 0;
+  std::uint32_t patch_count = 0;
+  std::uint16_t tiles_x = 0;
+  std::uint16_t tiles_y = 0;
+  Vec3d grid_origin;
+  double grid_edge = 0;
+  double height_min = 0;  // heights are stored divided by the patch cell edge
+  double height_max = 0;
+  float intensity_min = 0;
+  float intensity_max = 0;
+};
+
+struct ParsedBlob {
+  ChunkHeader header;
+  std::vector<SectionEntry> sections;
+};
+
+// Serialises header + sections + CRC. Section payloads are copied in order.
+std::vector<std::uint8_t> write_blob(const ChunkHeader& header,
+                                     const std::vector<SectionEntry>& sections);
+
+// Validates magic, version, every header field, the section table and (when
+// asked) the checksum. Payload spans point into `blob`.
+Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_checksum);
+
+// Which sections a header requires, in order.
+std::vector<SectionId> required_sections(const ChunkHeader& header);
+
+}  // namespace relief::codec

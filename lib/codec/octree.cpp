@@ -1,0 +1,149 @@
+#include "codec/octree.h"
+
+#include <string>
+
+namespace relief::codec {
+
+namespace {
+
+std::uint64_t spread3(std::uint32_t v) {
+  std::uint64_t x = v & 0x1fffffu;
+  x = (x | (x << 32)) & 0x1f00000000ffffULL;
+  x = (x | (x << 16)) & 0x1f0000ff0000ffULL;
+  x = (x | (x << 8)) & 0x100f00f00f00f00fULL;
+  x = (x | (x << 4)) & 0x10c30c30c30c30c3ULL;
+  x = (x | (x << 2)) & 0x1249249249249249ULL;
+  return x;
+}
+
+struct TreeBuilder {
+  TreeBuilder(std::span<const KeyedIndex> s, int d, const LeafPredicate& p, std::vector<std::uint8_t>& m)
+      : sorted(s), depth(d), is_leaf(p), masks(m) {}
+
+  std::span<const KeyedIndex> sorted;
+  int depth;
+  const LeafPredicate& is_leaf;
+  std::vector<std::uint8_t>& masks;
+  std::vector<Leaf> leaves;
+
+  void node(std::uint32_t begin, std::uint32_t end, int level, std::uint32_t x, std::uint32_t y,
+            std::uint32_t z) {
+    const auto leaf = [&] {
+      leaves.push_back({begin, end, static_cast<std::uint8_t>(level), x, y, z});
+    };
+    if (level == depth) {
+      leaf();
+      return;
+    }
+    // A run of identical keys cannot be separated by splitting: stop early
+    // (e.g. a scanner standing still), whatever the point count.
+    if (is_leaf && (is_leaf(begin, end) || sorted[begin].key == sorted[end - 1].key)) {
+      masks.push_back(0);
+      leaf();
+      return;
+    }
+    const std::size_t mask_pos = masks.size();
+    masks.push_back(0);
+    const int shift = 3 * (depth - level - 1);
+    std::uint32_t i = begin;
+    while (i < end) {
+      const auto digit = static_cast<std::uint32_t>((sorted[i].key >> shift) & 7u);
+      std::uint32_t j = i + 1;
+      while (j < end && ((sorted[j].key >> shift) & 7u) == digit) ++j;
+      masks[mask_pos] = static_cast<std::uint8_t>(masks[mask_pos] | (1u << digit));
+      node(i, j, level + 1, 2 * x + (digit & 1u), 2 * y + ((digit >> 1) & 1u),
+           2 * z + ((digit >> 2) & 1u));
+      i = j;
+    }
+  }
+};
+
+}  // namespace
+
+std::uint64_t morton_encode(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+  return spread3(x) | (spread3(y) << 1) | (spread3(z) << 2);
+}
+
+void radix_sort(std::vector<KeyedIndex>& items, int key_bits) {
+  if (items.size() < 2 || key_bits <= 0) return;
+  std::vector<KeyedIndex> tmp(items.size());
+  for (int shift = 0; shift < key_bits; shift += 8) {
+    std::size_t count[257] = {};
+    for (const KeyedIndex& it : items) ++count[((it.key >> shift) & 0xffu) + 1];
+    if (count[1] == items.size()) continue;  // every key has this digit 0: skip pass
+    for (int b = 0; b < 256; ++b) count[b + 1] += count[b];
+    for (const KeyedIndex& it : items) tmp[count[(it.key >> shift) & 0xffu]++] = it;
+    items.swap(tmp);
+  }
+}
+
+std::vector<Leaf> build_tree(std::span<const KeyedIndex> sorted, int depth,
+                             const LeafPredicate& is_leaf, std::vector<std::uint8_t>& masks) {
+  TreeBuilder builder(sorted, depth, is_leaf, masks);
+  if (!sorted.empty()) builder.node(0, static_cast<std::uint32_t>(sorted.size()), 0, 0, 0, 0);
+  return std::move(builder.leaves);
+}
+
+namespace {
+
+struct TreeParser {
+  TreeParser(std::span<const std::uint8_t> m, int d, bool early, std::uint32_t count)
+      : masks(m), depth(d), allow_early_leaves(early), leaf_count(count) {}
+
+  std::span<const std::uint8_t> masks;
+  int depth;
+  bool allow_early_leaves;
+  std::uint32_t leaf_count;
+  std::size_t pos = 0;
+  std::vector<Leaf> leaves;
+
+  Status node(int level, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    if (level == depth) return add_leaf(level, x, y, z);
+    if (pos >= masks.size()) {
+      return corrupt_data("tree section: ends early after " + std::to_string(pos) + " bytes");
+    }
+    const std::uint8_t mask = masks[pos++];
+    if (mask == 0) {
+      if (!allow_early_leaves) {
+        return corrupt_data("tree section: empty node mask at byte " + std::to_string(pos - 1) +
+                            " in a voxel-grid chunk");
+      }
+      return add_leaf(level, x, y, z);
+    }
+    for (std::uint32_t digit = 0; digit < 8; ++digit) {
+      if ((mask & (1u << digit)) == 0) continue;
+      RELIEF_RETURN_IF_ERROR(node(level + 1, 2 * x + (digit & 1u), 2 * y + ((digit >> 1) & 1u),
+                                  2 * z + ((digit >> 2) & 1u)));
+    }
+    return Status::ok();
+  }
+
+  Status add_leaf(int level, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    if (leaves.size() >= leaf_count) {
+      return corrupt_data("tree section: more leaves than the " + std::to_string(leaf_count) +
+                          " patches the header declares");
+    }
+    leaves.push_back({0, 0, static_cast<std::uint8_t>(level), x, y, z});
+    return Status::ok();
+  }
+};
+
+}  // namespace
+
+Result<std::vector<Leaf>> parse_tree(std::span<const std::uint8_t> masks, int depth,
+                                     bool allow_early_leaves, std::uint32_t leaf_count) {
+  TreeParser parser(masks, depth, allow_early_leaves, leaf_count);
+  parser.leaves.reserve(leaf_count);
+  if (leaf_count > 0) RELIEF_RETURN_IF_ERROR(parser.node(0, 0, 0, 0));
+  if (parser.leaves.size() != leaf_count) {
+    return corrupt_data("tree section: " + std::to_string(parser.leaves.size()) +
+                        " leaves, header declares " + std::to_string(leaf_count));
+  }
+  if (parser.pos != masks.size()) {
+    return corrupt_data("tree section: " + std::to_string(masks.size() - parser.pos) +
+                        " unused bytes after the last node");
+  }
+  return std::move(parser.leaves);
+}
+
+}  // namespace relief::codec

@@ -1,0 +1,107 @@
+// The chunk codec: one compression chunk of points in, one self-describing blob
+// out, and back (Golla & Klein 2015, section III). The blob layout is specified
+// byte for byte in format-spec/chunk.md.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "relief/status.h"
+#include "relief/types.h"
+
+namespace relief {
+
+// On-disk ids: never renumber.
+enum class Decomposition : std::uint8_t { kVoxelGrid = 0, kOctree = 1 };
+enum class ImageCodec : std::uint8_t { kJpeg = 1, kJpeg2000 = 2 };
+// How unoccupied map pixels are filled before image coding (encoder only).
+enum class FillMethod : std::uint8_t { kPushPull = 0, kBoxFilter = 1 };
+
+// Highest chunk format version this build writes and reads.
+inline constexpr std::uint16_t kChunkFormatVersion = 1;
+
+struct EncodeParams {
+  Decomposition decomposition = Decomposition::kVoxelGrid;
+  // Voxel-grid cell edge, or the smallest octree leaf edge, in coordinate units.
+  // 0 = derive from the point density (see suggest_cell_size).
+  double cell_size = 0;
+  // Octree: split a node while it holds more than this many points (n_l).
+  std::uint32_t octree_max_points = 1024;
+  // Octree: also split while the supplied normals of a node do not fit in a
+  // cone of this half-angle (degrees). 0 disables; ignored without normals.
+  double normal_cone_degrees = 0;
+  // Map resolution r (r x r pixels per patch): a multiple of 8, 8..64.
+  int map_resolution = 16;
+  ImageCodec image_codec = ImageCodec::kJpeg;
+  int height_quality = 85;     // 1..100
+  int color_quality = 75;      // 1..100
+  int intensity_quality = 75;  // 1..100
+  // 8, or 16 (JPEG 2000 only): bits per height sample.
+  int height_bits = 8;
+  FillMethod fill = FillMethod::kPushPull;
+  // The chunk cube the patch grid is aligned to (e.g. the archive voxel).
+  // Unset: the bounding box of the points, grown to a cube.
+  std::optional<Vec3d> grid_origin;
+  double grid_edge = 0;  // with grid_origin: edge of the cube; must contain every point
+};
+
+struct DecodeOptions {
+  // Level of detail: 1 = every point; L = a spatially uniform ~1/L subset,
+  // at least one point from every patch.
+  std::uint32_t lod = 1;
+  // Verify the blob's CRC-32 first (turn off only to exercise the inner decoders).
+  bool verify_checksum = true;
+  // Refuse blobs that claim more decoded points than this (bounds memory).
+  std::uint64_t max_points = std::uint64_t{1} << 26;
+};
+
+struct ChunkSectionInfo {
+  std::uint8_t id = 0;
+  std::uint8_t codec = 0;
+  std::uint32_t raw_size = 0;
+  std::uint32_t coded_size = 0;
+};
+
+struct ChunkInfo {
+  std::uint16_t format_version = 0;
+  Decomposition decomposition = Decomposition::kVoxelGrid;
+  ImageCodec image_codec = ImageCodec::kJpeg;
+  bool has_colors = false;
+  bool has_intensity = false;
+  int map_resolution = 0;
+  int height_bits = 0;
+  int tree_depth = 0;
+  std::uint32_t input_points = 0;    // points given to the encoder
+  std::uint32_t decoded_points = 0;  // points a full decode returns (occupied pixels)
+  std::uint32_t patch_count = 0;
+  std::uint32_t atlas_width = 0;   // pixels
+  std::uint32_t atlas_height = 0;  // pixels
+  Vec3d grid_origin;
+  double grid_edge = 0;
+  std::size_t blob_size = 0;
+  std::vector<ChunkSectionInfo> sections;
+};
+
+// Encodes one chunk. `normals`, when not empty, holds one unit normal per point
+// and enables the octree normal-cone criterion.
+Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
+                                               std::span<const Vec3d> normals = {});
+
+// Decodes a blob made by encode_chunk. Never reads out of bounds, never trusts
+// a size field for allocation beyond DecodeOptions::max_points.
+Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const DecodeOptions& options = {});
+
+// Reads and validates the header and section table only.
+Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob);
+
+// A cell edge from the point density: the median nearest-neighbour spacing of a
+// sample of the points times map_resolution, so one map pixel ~ one point.
+double suggest_cell_size(const PointCloud& cloud, int map_resolution);
+
+const char* decomposition_name(Decomposition d);
+const char* image_codec_name(ImageCodec c);
+
+}  // namespace relief

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Installs what Relief needs from Debian 12 packages, skipping what is present.
+# Idempotent; uses sudo when not root. Set RELIEF_WITH_BENCH=1 to add the peer
+# codecs the benchmarks compare against (draco).
+set -euo pipefail
+
+packages=(
+  cmake g++ make pkg-config
+  libeigen3-dev libopenjp2-7-dev libturbojpeg0-dev liblzma-dev libsqlite3-dev
+  catch2 libjbig-dev libnanoflann-dev
+)
+if [[ "${RELIEF_WITH_BENCH:-0}" == "1" ]]; then
+  packages+=(draco)
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+sudo_cmd=()
+if [[ $(id -u) -ne 0 ]]; then
+  sudo_cmd=(sudo)
+fi
+echo "install-deps: installing ${missing[*]}"
+"${sudo_cmd[@]}" apt-get update -qq
+DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done"

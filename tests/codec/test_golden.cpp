@@ -1,0 +1,106 @@
+// Golden vectors for chunk format version 1 (format-spec/vectors/). A decoder
+// change that alters what an old blob means, or an encoder change that alters
+// the bytes, fails here. Regenerate deliberately with
+//   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
+// and bump the format version if the meaning of existing bytes changed.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+
+#include "relief/codec.h"
+#include "relief/io.h"
+#include "support/synthetic.h"
+
+using namespace relief;
+
+namespace {
+
+struct Vector {
+  const char* name;
+  EncodeParams params;
+  PointCloud (*make)();
+};
+
+PointCloud voxel_scene() {
+  test::SceneOptions o;
+  o.seed = 2024;
+  o.points = 1500;
+  o.colors = true;
+  o.intensity = true;
+  return test::make_terrain(o, 4.0, 0.3);
+}
+
+PointCloud octree_scene() {
+  test::SceneOptions o;
+  o.seed = 2025;
+  o.points = 1500;
+  return test::make_room(o, 3.0);
+}
+
+std::vector<Vector> vectors() {
+  EncodeParams voxel;
+  voxel.cell_size = 0.5;
+  EncodeParams octree;
+  octree.cell_size = 0.1;
+  octree.decomposition = Decomposition::kOctree;
+  octree.octree_max_points = 200;
+  octree.image_codec = ImageCodec::kJpeg2000;
+  octree.height_bits = 16;
+  octree.height_quality = 80;
+  return {{"voxel_jpeg_rgb_intensity_v1", voxel, voxel_scene},
+          {"octree_j2k16_v1", octree, octree_scene}};
+}
+
+std::string vector_path(const std::string& name, const char* ext) {
+  return std::string(RELIEF_SOURCE_DIR) + "/format-spec/vectors/" + name + ext;
+}
+
+std::vector<std::uint8_t> slurp(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+}  // namespace
+
+TEST_CASE("golden chunk blobs of format version 1 decode and re-encode identically", "[golden]") {
+  const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
+  for (const Vector& v : vectors()) {
+    INFO(v.name);
+    const PointCloud in = v.make();
+    auto blob = encode_chunk(in, v.params);
+    REQUIRE(blob.is_ok());
+    const std::string blob_path = vector_path(v.name, ".rlfc");
+    const std::string ply_path = vector_path(v.name, ".decoded.ply");
+    if (regenerate) {
+      std::ofstream(blob_path, std::ios::binary)
+          .write(reinterpret_cast<const char*>(blob->data()), static_cast<std::streamsize>(blob->size()));
+      auto decoded = decode_chunk(*blob);
+      REQUIRE(decoded.is_ok());
+      REQUIRE(write_ply(ply_path, *decoded, {PlyEncoding::kAscii, PlyCoordinateType::kFloat64}).is_ok());
+    }
+    const std::vector<std::uint8_t> golden = slurp(blob_path);
+    REQUIRE(!golden.empty());
+    auto info = inspect_chunk(golden);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == 1);
+    // Encoder stability: the same input and parameters give the same bytes.
+    CHECK(*blob == golden);
+    // Decoder stability: the golden blob means the same points as when it was made.
+    auto decoded = decode_chunk(golden);
+    REQUIRE(decoded.is_ok());
+    auto expected = read_ply(ply_path);
+    REQUIRE(expected.is_ok());
+    REQUIRE(decoded->size() == expected->size());
+    REQUIRE(decoded->has_colors() == expected->has_colors());
+    REQUIRE(decoded->has_intensity() == expected->has_intensity());
+    double worst = 0;
+    for (std::size_t i = 0; i < decoded->size(); ++i) {
+      const Vec3d a = decoded->positions[i], b = expected->positions[i];
+      worst = std::max({worst, std::abs(a.x - b.x), std::abs(a.y - b.y), std::abs(a.z - b.z)});
+    }
+    CHECK(worst < 1e-9);
+    if (decoded->has_colors()) CHECK(decoded->colors == expected->colors);
+  }
+}

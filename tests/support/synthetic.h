@@ -1,0 +1,42 @@
+// Seeded synthetic scenes for tests and benchmarks. The same seed gives the
+// same cloud on every platform (own PRNG, no std::distribution).
+#pragma once
+
+#include <cstdint>
+
+#include "relief/types.h"
+
+namespace relief::test {
+
+// SplitMix64: small, fast and fully specified.
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : state_(seed) {}
+  std::uint64_t next();
+  double uniform();                    // [0, 1)
+  double uniform(double a, double b);  // [a, b)
+  double normal();                     // standard normal (Box-Muller)
+
+ private:
+  std::uint64_t state_;
+};
+
+struct SceneOptions {
+  std::uint64_t seed = 1;
+  std::size_t points = 10000;
+  double noise = 0;        // Gaussian noise sigma along the surface normal
+  bool colors = false;     // smooth colour gradient plus texture
+  bool intensity = false;  // smooth intensity field
+  Vec3d offset{0, 0, 0};   // added to every point (georeferenced-style coordinates)
+};
+
+// Points on a size x size square through the origin with unit normal `normal`.
+PointCloud make_plane(const SceneOptions& o, Vec3d normal, double size);
+// Points on a sphere of the given radius centred at the origin.
+PointCloud make_sphere(const SceneOptions& o, double radius);
+// A wavy terrain z = a sin(x) cos(y) over size x size.
+PointCloud make_terrain(const SceneOptions& o, double size, double amplitude);
+// A room-like scene: floor, walls and a box, size metres across.
+PointCloud make_room(const SceneOptions& o, double size);
+
+}  // namespace relief::test

@@ -1,0 +1,209 @@
+#include "cli_common.h"
+
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <charconv>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <unistd.h>
+
+namespace relief::cli {
+
+int exit_code_for(const Status& status) {
+  if (status.is_ok()) return kExitOk;
+  return 10 + static_cast<int>(status.code());
+}
+
+int fail(const std::string& command, const Status& status) {
+  std::cerr << "relief " << command << ": " << status.message() << " ["
+            << status_code_name(status.code()) << "]\n";
+  return exit_code_for(status);
+}
+
+int usage_error(const std::string& command, const std::string& message, const char* usage) {
+  std::cerr << "relief " << command << ": " << message << "\n\n" << usage;
+  return kExitUsage;
+}
+
+Args::Args(int argc, char** argv, std::vector<std::string> flags, std::vector<std::string> options) {
+  const auto is_in = [](const std::vector<std::string>& v, const std::string& s) {
+    for (const auto& x : v) {
+      if (x == s) return true;
+    }
+    return false;
+  };
+  for (int i = 0; i < argc; ++i) {
+    std::string a = argv[i];
+    if (a.size() > 1 && a[0] == '-' && !(a.size() > 1 && (std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.'))) {
+      std::string name = a, value;
+      bool has_value = false;
+      const auto eq = a.find('=');
+      if (a.rfind("--", 0) == 0 && eq != std::string::npos) {
+        name = a.substr(0, eq);
+        value = a.substr(eq + 1);
+        has_value = true;
+      }
+      if (is_in(flags, name)) {
+        if (has_value) {
+          error_ = "option " + name + " takes no value";
+          return;
+        }
+        values_[name] = "";
+      } else if (is_in(options, name)) {
+        if (!has_value) {
+          if (i + 1 >= argc) {
+            error_ = "option " + name + " needs a value";
+            return;
+          }
+          value = argv[++i];
+        }
+        values_[name] = value;
+      } else {
+        error_ = "unknown option " + name;
+        return;
+      }
+    } else {
+      positional_.push_back(a);
+    }
+  }
+}
+
+bool Args::has(const std::string& name) const { return values_.count(name) != 0; }
+
+std::optional<std::string> Args::get(const std::string& name) const {
+  const auto it = values_.find(name);
+  if (it == values_.end()) return std::nullopt;
+  return it->second;
+}
+
+double Args::get_double(const std::string& name, double fallback) {
+  const auto v = get(name);
+  if (!v) return fallback;
+  double out = 0;
+  const auto* end = v->data() + v->size();
+  const auto res = std::from_chars(v->data(), end, out);
+  if (res.ec != std::errc() || res.ptr != end || !std::isfinite(out)) {
+    if (error_.empty()) error_ = "option " + name + " expects a number, got '" + *v + "'";
+    return fallback;
+  }
+  return out;
+}
+
+long long Args::get_int(const std::string& name, long long fallback, long long lo, long long hi) {
+  const auto v = get(name);
+  if (!v) return fallback;
+  long long out = 0;
+  const auto* end = v->data() + v->size();
+  const auto res = std::from_chars(v->data(), end, out);
+  if (res.ec != std::errc() || res.ptr != end || out < lo || out > hi) {
+    if (error_.empty()) {
+      error_ = "option " + name + " expects a whole number from " + std::to_string(lo) + " to " +
+               std::to_string(hi) + ", got '" + *v + "'";
+    }
+    return fallback;
+  }
+  return out;
+}
+
+const char* const kEncodeOptionsHelp =
+    "Encoding options:\n"
+    "  --cell SIZE            patch cell edge in coordinate units (default: from point density)\n"
+    "  --decomposition voxel|octree   patch decomposition (default voxel)\n"
+    "  --max-points N         octree: split leaves holding more than N points (default 1024)\n"
+    "  --resolution R         map resolution, multiple of 8 in 8..64 (default 16)\n"
+    "  --codec jpeg|jpeg2000  image codec for height/colour/intensity maps (default jpeg)\n"
+    "  --quality Q            height map quality 1..100 (default 85)\n"
+    "  --color-quality Q      colour map quality 1..100 (default 75)\n"
+    "  --intensity-quality Q  intensity map quality 1..100 (default 75)\n"
+    "  --height-bits 8|16     bits per height sample; 16 needs --codec jpeg2000 (default 8)\n"
+    "  --fill pushpull|box    fill of empty map pixels (default pushpull; box = the paper's)\n";
+
+std::vector<std::string> encode_option_names() {
+  return {"--cell", "--decomposition", "--max-points", "--resolution", "--codec", "--quality",
+          "--color-quality", "--intensity-quality", "--height-bits", "--fill"};
+}
+
+std::string parse_encode_params(Args& args, EncodeParams& p) {
+  p.cell_size = args.get_double("--cell", 0);
+  if (args.has("--cell") && !(p.cell_size > 0)) return "--cell must be positive";
+  if (auto d = args.get("--decomposition")) {
+    if (*d == "voxel") {
+      p.decomposition = Decomposition::kVoxelGrid;
+    } else if (*d == "octree") {
+      p.decomposition = Decomposition::kOctree;
+    } else {
+      return "--decomposition must be voxel or octree, got '" + *d + "'";
+    }
+  }
+  p.octree_max_points = static_cast<std::uint32_t>(args.get_int("--max-points", p.octree_max_points, 1, 1 << 30));
+  p.map_resolution = static_cast<int>(args.get_int("--resolution", p.map_resolution, 8, 64));
+  if (auto c = args.get("--codec")) {
+    if (*c == "jpeg") {
+      p.image_codec = ImageCodec::kJpeg;
+    } else if (*c == "jpeg2000" || *c == "j2k") {
+      p.image_codec = ImageCodec::kJpeg2000;
+    } else {
+      return "--codec must be jpeg or jpeg2000, got '" + *c + "'";
+    }
+  }
+  p.height_quality = static_cast<int>(args.get_int("--quality", p.height_quality, 1, 100));
+  p.color_quality = static_cast<int>(args.get_int("--color-quality", p.color_quality, 1, 100));
+  p.intensity_quality = static_cast<int>(args.get_int("--intensity-quality", p.intensity_quality, 1, 100));
+  p.height_bits = static_cast<int>(args.get_int("--height-bits", p.height_bits, 8, 16));
+  if (auto f = args.get("--fill")) {
+    if (*f == "pushpull") {
+      p.fill = FillMethod::kPushPull;
+    } else if (*f == "box") {
+      p.fill = FillMethod::kBoxFilter;
+    } else {
+      return "--fill must be pushpull or box, got '" + *f + "'";
+    }
+  }
+  if (!args.ok()) return args.error();
+  return "";
+}
+
+Result<std::vector<std::uint8_t>> read_file(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return io_error(path + ": cannot open: " + std::strerror(errno));
+  std::vector<std::uint8_t> data;
+  std::uint8_t buf[1 << 16];
+  std::size_t got = 0;
+  while ((got = std::fread(buf, 1, sizeof buf, f)) > 0) data.insert(data.end(), buf, buf + got);
+  const bool failed = std::ferror(f) != 0;
+  std::fclose(f);
+  if (failed) return io_error(path + ": read error");
+  return data;
+}
+
+Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data) {
+  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) return io_error(path + ": cannot create: " + std::strerror(errno));
+  const bool wrote = std::fwrite(data.data(), 1, data.size(), f) == data.size();
+  const bool closed = std::fclose(f) == 0;
+  if (!wrote || !closed) {
+    std::remove(tmp.c_str());
+    return io_error(path + ": write failed (disk full?)");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    std::remove(tmp.c_str());
+    return io_error(path + ": cannot rename into place: " + std::strerror(err));
+  }
+  return Status::ok();
+}
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+double seconds_since(std::int64_t start_ns) { return static_cast<double>(now_ns() - start_ns) * 1e-9; }
+
+}  // namespace relief::cli

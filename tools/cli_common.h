@@ -1,0 +1,61 @@
+// Shared pieces of the `relief` command-line tool: argument parsing, exit
+// codes, file helpers. The CLI sees only the public headers.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "relief/codec.h"
+#include "relief/status.h"
+
+namespace relief::cli {
+
+// Documented in README "Exit codes": 0 ok, 2 usage, 10 + StatusCode otherwise.
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitUsage = 2;
+int exit_code_for(const Status& status);
+
+// Prints "relief <command>: <message>" to stderr and returns the exit code.
+int fail(const std::string& command, const Status& status);
+int usage_error(const std::string& command, const std::string& message, const char* usage);
+
+// A tiny option parser: `--name value`, `--name=value`, `-o value`, flags and
+// positionals. Unknown options are an error.
+class Args {
+ public:
+  // `flags` take no value; `options` take one.
+  Args(int argc, char** argv, std::vector<std::string> flags, std::vector<std::string> options);
+
+  bool ok() const { return error_.empty(); }
+  const std::string& error() const { return error_; }
+  bool has(const std::string& name) const;
+  std::optional<std::string> get(const std::string& name) const;
+  const std::vector<std::string>& positional() const { return positional_; }
+
+  // Typed getters; on a malformed value they record an error and return the default.
+  double get_double(const std::string& name, double fallback);
+  long long get_int(const std::string& name, long long fallback, long long lo, long long hi);
+
+ private:
+  std::map<std::string, std::string> values_;
+  std::vector<std::string> positional_;
+  std::string error_;
+};
+
+// Encoder options shared by encode-chunk and roundtrip.
+extern const char* const kEncodeOptionsHelp;
+std::vector<std::string> encode_option_names();
+// Fills params from args; returns an error message or "".
+std::string parse_encode_params(Args& args, EncodeParams& params);
+
+Result<std::vector<std::uint8_t>> read_file(const std::string& path);
+// Writes beside the target and renames, so a failure never leaves a partial file.
+Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data);
+
+double seconds_since(std::int64_t start_ns);
+std::int64_t now_ns();
+
+}  // namespace relief::cli

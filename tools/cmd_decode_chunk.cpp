@@ -1,0 +1,48 @@
+#include <cstdio>
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "relief/codec.h"
+#include "relief/io.h"
+
+namespace relief::cli {
+
+namespace {
+constexpr const char* kCommand = "decode-chunk";
+constexpr const char* kUsageText =
+    "usage: relief decode-chunk IN.rlfc -o OUT.ply [--lod L] [--ascii] [--quiet]\n"
+    "Decompresses a chunk blob to PLY (binary little endian, double x y z; --ascii for text).\n"
+    "  --lod L   level of detail: keep a spatially uniform ~1/L of the points (default 1)\n";
+}  // namespace
+
+int run_decode_chunk(int argc, char** argv) {
+  Args args(argc, argv, {"--help", "--ascii", "--quiet"}, {"-o", "--lod"});
+  if (args.has("--help")) {
+    std::cout << kUsageText;
+    return kExitOk;
+  }
+  DecodeOptions options;
+  options.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
+  if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file", kUsageText);
+  const auto out_path = args.get("-o");
+  if (!out_path) return usage_error(kCommand, "missing -o OUT", kUsageText);
+  const std::string& in_path = args.positional()[0];
+  auto blob = read_file(in_path);
+  if (!blob) return fail(kCommand, blob.status());
+  const auto t0 = now_ns();
+  auto cloud = decode_chunk(*blob, options);
+  if (!cloud) return fail(kCommand, cloud.status().with_context(in_path));
+  const double secs = seconds_since(t0);
+  PlyWriteOptions w;
+  if (args.has("--ascii")) w.encoding = PlyEncoding::kAscii;
+  if (Status s = write_ply(*out_path, *cloud, w); !s) return fail(kCommand, s);
+  if (!args.has("--quiet")) {
+    std::printf("%s: %zu points, %.2f M points/s\n", out_path->c_str(), cloud->size(),
+                secs > 0 ? static_cast<double>(cloud->size()) / secs * 1e-6 : 0.0);
+  }
+  return kExitOk;
+}
+
+}  // namespace relief::cli

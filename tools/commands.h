@@ -1,0 +1,11 @@
+// One function per subcommand; each lives in its own cmd_*.cpp file.
+#pragma once
+
+namespace relief::cli {
+
+int run_roundtrip(int argc, char** argv);
+int run_encode_chunk(int argc, char** argv);
+int run_decode_chunk(int argc, char** argv);
+int run_eval(int argc, char** argv);
+
+}  // namespace relief::cli

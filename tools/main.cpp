@@ -1,0 +1,43 @@
+// relief: compress point clouds into queryable archives (Golla & Klein 2015).
+#include <cstring>
+#include <iostream>
+#include <string>
+
+#include "cli_common.h"
+#include "commands.h"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: relief <command> [options]\n"
+    "\n"
+    "Commands:\n"
+    "  roundtrip IN.ply          compress one file as a chunk, decompress it, print size and error\n"
+    "  encode-chunk IN.ply -o OUT.rlfc   compress a point file into one chunk blob\n"
+    "  decode-chunk IN.rlfc -o OUT.ply   decompress a chunk blob\n"
+    "  eval ORIGINAL RECONSTRUCTED       error measures between two point files\n"
+    "\n"
+    "Run 'relief <command> --help' for the options of a command.\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0 ||
+      std::strcmp(argv[1], "help") == 0) {
+    std::cout << kUsage;
+    return argc < 2 ? relief::cli::kExitUsage : relief::cli::kExitOk;
+  }
+  if (std::strcmp(argv[1], "--version") == 0) {
+    std::cout << "relief " << RELIEF_VERSION << " (chunk format " << relief::kChunkFormatVersion << ")\n";
+    return 0;
+  }
+  const std::string command = argv[1];
+  const int sub_argc = argc - 2;
+  char** sub_argv = argv + 2;
+  if (command == "roundtrip") return relief::cli::run_roundtrip(sub_argc, sub_argv);
+  if (command == "encode-chunk") return relief::cli::run_encode_chunk(sub_argc, sub_argv);
+  if (command == "decode-chunk") return relief::cli::run_decode_chunk(sub_argc, sub_argv);
+  if (command == "eval") return relief::cli::run_eval(sub_argc, sub_argv);
+  std::cerr << "relief: unknown command '" << command << "'\n\n" << kUsage;
+  return relief::cli::kExitUsage;
+}
