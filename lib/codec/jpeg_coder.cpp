@@ -2,7 +2,8 @@
 //
 // Handles are created once per thread and reused: tjInitCompress and
 // tjInitDecompress allocate the whole libjpeg state, which would otherwise be
-// paid again for every chunk.
+// paid again for every chunk. A handle that saw a failure is replaced (see
+// TjHandle::discard).
 
 #include <turbojpeg.h>
 
@@ -36,35 +37,51 @@ constexpr int kEncodeFlags = TJFLAG_ACCURATEDCT | TJFLAG_NOREALLOC;
 // progressive stream can cause.
 constexpr int kDecodeFlags = TJFLAG_ACCURATEDCT | TJFLAG_STOPONWARNING | TJFLAG_LIMITSCANS;
 
-// One TurboJPEG handle owned by the current thread.
+// One TurboJPEG handle owned by the current thread, created on first use.
 class TjHandle {
  public:
-  explicit TjHandle(bool compress) : handle_(compress ? tjInitCompress() : tjInitDecompress()) {}
-  ~TjHandle() {
-    if (handle_ != nullptr) tjDestroy(handle_);
-  }
+  explicit TjHandle(bool compress) : compress_(compress) {}
+  ~TjHandle() { discard(); }
   TjHandle(const TjHandle&) = delete;
   TjHandle& operator=(const TjHandle&) = delete;
 
-  tjhandle get() const { return handle_; }
+  // nullptr if TurboJPEG cannot allocate a handle.
+  tjhandle get() {
+    if (handle_ == nullptr) handle_ = compress_ ? tjInitCompress() : tjInitDecompress();
+    return handle_;
+  }
+
+  // Drops the handle after a failure. libjpeg-turbo 2.1 can leave a handle
+  // unusable after a fatal error: once tjDecompressHeader3 fails mid-header
+  // (e.g. "Unsupported JPEG data precision"), every later call on that handle
+  // fails with "two SOI markers". Failures are rare, so a fresh handle is
+  // cheap insurance against one bad chunk poisoning the thread.
+  void discard() {
+    if (handle_ != nullptr) tjDestroy(handle_);
+    handle_ = nullptr;
+  }
 
  private:
-  tjhandle handle_;
+  bool compress_;
+  tjhandle handle_ = nullptr;
 };
 
-tjhandle thread_compressor() {
+TjHandle& thread_compressor() {
   thread_local TjHandle handle(true);
-  return handle.get();
+  return handle;
 }
 
-tjhandle thread_decompressor() {
+TjHandle& thread_decompressor() {
   thread_local TjHandle handle(false);
-  return handle.get();
+  return handle;
 }
 
-std::string tj_message(tjhandle handle) {
-  const char* message = tjGetErrorStr2(handle);
-  return message != nullptr ? std::string(message) : std::string("unknown TurboJPEG error");
+// The error text of `holder`'s handle, after which the handle is discarded.
+std::string take_error(TjHandle& holder) {
+  const char* message = tjGetErrorStr2(holder.get());
+  std::string text = message != nullptr ? std::string(message) : "unknown TurboJPEG error";
+  holder.discard();
+  return text;
 }
 
 struct TjFree {
@@ -79,7 +96,8 @@ Result<std::vector<std::uint8_t>> jpeg_encode(const Image8& image, int quality,
   if (quality < 1 || quality > 100) {
     return invalid_argument("jpeg: quality " + std::to_string(quality) + " outside 1..100");
   }
-  tjhandle handle = thread_compressor();
+  TjHandle& holder = thread_compressor();
+  tjhandle handle = holder.get();
   if (handle == nullptr) return internal_error("jpeg: cannot create a TurboJPEG compressor");
 
   const int width = static_cast<int>(image.width);
@@ -101,7 +119,7 @@ Result<std::vector<std::uint8_t>> jpeg_encode(const Image8& image, int quality,
   unsigned long out_size = capacity;
   if (tjCompress2(handle, image.pixels.data(), width, 0, height, pixel_format, &out, &out_size,
                   subsamp, quality, kEncodeFlags) != 0) {
-    return internal_error("jpeg: " + tj_message(handle));
+    return internal_error("jpeg: " + take_error(holder));
   }
   // NOREALLOC guarantees TurboJPEG wrote into our buffer.
   return std::vector<std::uint8_t>(out, out + out_size);
@@ -112,7 +130,8 @@ Result<Image8> jpeg_decode(std::span<const std::uint8_t> data, std::uint32_t wid
   RELIEF_RETURN_IF_ERROR(detail::check_image_side(kCoder, width, height));
   RELIEF_RETURN_IF_ERROR(detail::check_channels(kCoder, channels));
   if (data.empty()) return corrupt_data("jpeg: empty stream");
-  tjhandle handle = thread_decompressor();
+  TjHandle& holder = thread_decompressor();
+  tjhandle handle = holder.get();
   if (handle == nullptr) return internal_error("jpeg: cannot create a TurboJPEG decompressor");
 
   const auto size = static_cast<unsigned long>(data.size());
@@ -122,7 +141,7 @@ Result<Image8> jpeg_decode(std::span<const std::uint8_t> data, std::uint32_t wid
   int colorspace = -1;
   if (tjDecompressHeader3(handle, data.data(), size, &jpeg_width, &jpeg_height, &subsamp,
                           &colorspace) != 0) {
-    return corrupt_data("jpeg: bad header: " + tj_message(handle));
+    return corrupt_data("jpeg: bad header: " + take_error(holder));
   }
   if (jpeg_width != static_cast<int>(width) || jpeg_height != static_cast<int>(height)) {
     return corrupt_data("jpeg: stream is " + std::to_string(jpeg_width) + "x" +
@@ -151,7 +170,7 @@ Result<Image8> jpeg_decode(std::span<const std::uint8_t> data, std::uint32_t wid
   // output buffer is exactly what TurboJPEG will write: no scaling happens.
   if (tjDecompress2(handle, data.data(), size, image.pixels.data(), static_cast<int>(width), 0,
                     static_cast<int>(height), pixel_format, kDecodeFlags) != 0) {
-    return corrupt_data("jpeg: " + tj_message(handle));
+    return corrupt_data("jpeg: " + take_error(holder));
   }
   return image;
 }

@@ -118,7 +118,7 @@ std::vector<std::uint8_t> record_bytes(std::size_t size, std::uint32_t seed) {
   bytes.reserve(size + 8);
   std::uint32_t key = 0;
   while (bytes.size() < size) {
-    key += 1 + rng() % 5;
+    key += static_cast<std::uint32_t>(1 + rng() % 5);
     bytes.push_back(static_cast<std::uint8_t>(key));
     bytes.push_back(static_cast<std::uint8_t>(key >> 8));
     bytes.push_back(static_cast<std::uint8_t>(rng() % 6));
@@ -190,6 +190,8 @@ class StderrCapture {
 // Feeds every strict prefix of `valid` and 200 seeded single-byte flips to
 // `decode`. Each call must either fail with kCorruptData or succeed with an
 // output that `check` accepts (the right size); nothing may crash or print.
+// After every failure the valid stream must still decode: the coders reuse
+// per-thread library state, which a failure must not leave poisoned.
 template <typename Decode, typename Check>
 void fuzz_stream(const std::vector<std::uint8_t>& valid, Decode decode, Check check,
                  std::uint32_t seed) {
@@ -198,6 +200,7 @@ void fuzz_stream(const std::vector<std::uint8_t>& valid, Decode decode, Check ch
   std::size_t failures = 0;
   std::size_t bad_code = 0;
   std::size_t bad_output = 0;
+  std::size_t poisoned = 0;
   auto run = [&](std::span<const std::uint8_t> bytes) {
     auto result = decode(bytes);
     if (result.is_ok()) {
@@ -205,6 +208,7 @@ void fuzz_stream(const std::vector<std::uint8_t>& valid, Decode decode, Check ch
     } else {
       ++failures;
       if (result.status().code() != StatusCode::kCorruptData) ++bad_code;
+      if (!decode(std::span<const std::uint8_t>(valid)).is_ok()) ++poisoned;
     }
   };
   for (std::size_t len = 0; len < valid.size(); ++len) {
@@ -221,6 +225,7 @@ void fuzz_stream(const std::vector<std::uint8_t>& valid, Decode decode, Check ch
   const std::string printed = capture.finish();
   CHECK(bad_code == 0);
   CHECK(bad_output == 0);
+  CHECK(poisoned == 0);
   CHECK(printed.empty());
   // The empty prefix alone must always fail.
   CHECK(failures >= 1);
