@@ -7,8 +7,8 @@
 #include <cstring>
 
 const char* csv_header() {
-  return "file,codec,decomposition,image,cell,quality,height_bits,points_in,points_out,bytes,bpp,"
-         "rmse_snn,psnr,rmse_rgb_snn,hausdorff,enc_mpts_s,dec_mpts_s,dec_lod4_mpts_s,section_bytes";
+  return "file,codec,decomposition,image,fill,cell,quality,height_bits,points_in,points_out,bytes,bpp,"
+         "rmse_snn,psnr,rmse_rgb_snn,hausdorff,enc_mpts_s,dec_mpts_s,dec_in_mpts_s,dec_lod4_mpts_s,section_bytes";
 }
 
 std::string format_number(double v) {
@@ -28,6 +28,7 @@ std::string csv_line(const BenchRow& r) {
   s += ',' + r.codec;
   s += ',' + r.decomposition;
   s += ',' + r.image;
+  s += ',' + r.fill;
   s += ',' + format_number(r.cell);
   s += ',' + (r.quality >= 0 ? std::to_string(r.quality) : std::string());
   s += ',' + (r.height_bits > 0 ? std::to_string(r.height_bits) : std::string());
@@ -41,6 +42,7 @@ std::string csv_line(const BenchRow& r) {
   s += ',' + format_number(r.hausdorff);
   s += ',' + format_number(r.enc_mpts_s);
   s += ',' + format_number(r.dec_mpts_s);
+  s += ',' + format_number(r.dec_in_mpts_s);
   s += ',' + format_number(r.dec_lod4_mpts_s);
   s += ',' + r.section_bytes;
   return s;
@@ -49,7 +51,8 @@ std::string csv_line(const BenchRow& r) {
 std::string row_label(const BenchRow& r) {
   char buf[128];
   if (r.codec == "relief") {
-    const std::string image = r.height_bits == 16 ? r.image + "/16bit" : r.image;
+    std::string image = r.height_bits == 16 ? r.image + "/16bit" : r.image;
+    if (r.fill == "box") image += "/boxfill";
     std::snprintf(buf, sizeof buf, "%s/%s %.2gxc0 q%d", r.decomposition.c_str(), image.c_str(),
                   r.cell_multiplier, r.quality);
   } else {

@@ -16,6 +16,7 @@ struct BenchRow {
   std::string codec;          // "relief" or "draco"
   std::string decomposition;  // relief: "voxel" | "octree"
   std::string image;          // relief: "jpeg" | "jpeg2000"
+  std::string fill;           // relief: "pushpull" | "box" (empty-pixel fill)
   double cell = std::numeric_limits<double>::quiet_NaN();  // relief: cell / smallest leaf edge
   int quality = -1;           // relief: height quality; draco: qp
   int height_bits = 0;        // relief: 8 | 16; 0 = not applicable
@@ -28,7 +29,8 @@ struct BenchRow {
   double rmse_rgb_snn = std::numeric_limits<double>::quiet_NaN();  // NaN: no colour
   double hausdorff = 0;
   double enc_mpts_s = 0;
-  double dec_mpts_s = 0;
+  double dec_mpts_s = 0;      // decoded (output) points / decode seconds
+  double dec_in_mpts_s = std::numeric_limits<double>::quiet_NaN();  // input points / decode seconds (the anchors' convention)
   double dec_lod4_mpts_s = std::numeric_limits<double>::quiet_NaN();
   std::string section_bytes;
 

@@ -30,9 +30,9 @@ constexpr int kMapResolution = 16;
 // r x r map's worth of pixels (16 x 16), so a leaf is split once its points
 // could no longer each get a pixel.
 constexpr std::uint32_t kOctreeLeafPoints = 256;
-const std::vector<double> kCellMultipliers = {0.5, 0.7, 1.0, 1.4, 2.0};
+const std::vector<double> kCellMultipliers = {0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8};
 const std::vector<double> kCellMultipliersQuick = {0.7, 1.4};
-const std::vector<int> kHeightQualities = {50, 75, 90};
+const std::vector<int> kHeightQualities = {30, 50, 75, 90};
 const std::vector<int> kHeightQualitiesQuick = {75};
 // JPEG 2000 with 16-bit heights: one row per cell size at this quality.
 constexpr int kHeightBits16Quality = 90;
@@ -40,7 +40,12 @@ constexpr int kHeightBits16Quality = 90;
 // (method notes, idea 6), but never below this floor.
 constexpr int kColourQualityOffset = 10;
 constexpr int kColourQualityMin = 30;
-const std::vector<int> kDracoQp = {8, 10, 11, 12, 14};
+// Down to qp 6 so Draco's curve covers the coarse errors Relief reaches.
+const std::vector<int> kDracoQp = {6, 7, 8, 9, 10, 11, 12, 14};
+// Fill comparison (push-pull vs the paper's 3 x 5x5 box filter): voxel + JPEG
+// at these cell multipliers and this quality, both fills.
+const std::vector<double> kFillCompareMultipliers = {0.7, 1.0, 1.4};
+constexpr int kFillCompareQuality = 75;
 constexpr int kDracoCompressionLevel = 7;  // what the anchors used
 
 struct Options {
@@ -60,6 +65,7 @@ struct ReliefConfig {
   double multiplier = 1;
   int quality = 75;
   int height_bits = 8;
+  relief::FillMethod fill = relief::FillMethod::kPushPull;
 };
 
 const char* const kUsage =
@@ -143,16 +149,18 @@ std::vector<fs::path> find_point_files(const fs::path& dir, const std::vector<st
   std::error_code ec;
   fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec);
   for (; !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-    if (it->is_directory(ec) && it->path().filename() == "orig") {
+    // A separate error code per entry: one unreadable entry must not end the listing.
+    std::error_code entry_ec;
+    if (it->is_directory(entry_ec) && it->path().filename() == "orig") {
       it.disable_recursion_pending();
       continue;
     }
-    if (!it->is_regular_file(ec) || it->path().extension() != ".ply") continue;
+    if (!it->is_regular_file(entry_ec) || it->path().extension() != ".ply") continue;
     const std::string p = it->path().string();
     const bool wanted = filters.empty() || std::any_of(filters.begin(), filters.end(), [&p](const std::string& f) {
                           return p.find(f) != std::string::npos;
                         });
-    if (wanted) found.emplace_back(it->file_size(ec), it->path());
+    if (wanted) found.emplace_back(it->file_size(entry_ec), it->path());
   }
   if (ec) note("warning: listing %s: %s", dir.c_str(), ec.message().c_str());
   std::sort(found.begin(), found.end());
@@ -174,6 +182,12 @@ std::vector<ReliefConfig> relief_grid(bool quick) {
   }
   for (double m : multipliers) {
     grid.push_back({Decomposition::kVoxelGrid, ImageCodec::kJpeg2000, m, kHeightBits16Quality, 16});
+  }
+  if (!quick) {
+    for (double m : kFillCompareMultipliers) {
+      grid.push_back({Decomposition::kVoxelGrid, ImageCodec::kJpeg, m, kFillCompareQuality, 8,
+                      relief::FillMethod::kBoxFilter});
+    }
   }
   return grid;
 }
@@ -233,12 +247,14 @@ std::optional<BenchRow> run_relief(const relief::PointCloud& cloud, const std::s
   params.height_quality = cfg.quality;
   params.color_quality = std::max(kColourQualityMin, cfg.quality - kColourQualityOffset);
   params.height_bits = cfg.height_bits;
+  params.fill = cfg.fill;
 
   BenchRow row;
   row.file = stem;
   row.codec = "relief";
   row.decomposition = relief::decomposition_name(cfg.decomposition);
   row.image = relief::image_codec_name(cfg.image);
+  row.fill = cfg.fill == relief::FillMethod::kBoxFilter ? "box" : "pushpull";
   row.cell = params.cell_size;
   row.cell_multiplier = cfg.multiplier;
   row.quality = cfg.quality;
@@ -289,6 +305,7 @@ std::optional<BenchRow> run_relief(const relief::PointCloud& cloud, const std::s
   row.enc_mpts_s = mpts_per_s(cloud.size(), median(enc_times));
   row.dec_seconds = full->first;
   row.dec_mpts_s = mpts_per_s(decoded.size(), full->first);
+  row.dec_in_mpts_s = mpts_per_s(cloud.size(), full->first);
   // Full-resolution points over the LOD-4 time, so dec_lod4_mpts_s / dec_mpts_s
   // is the wall-time speed-up of a coarse preview decode.
   row.lod4_seconds = lod4->first;

@@ -166,7 +166,10 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
   const std::vector<std::uint32_t> quota = lod_quota(occupied, options.lod);
   std::uint64_t out_count = 0;
   for (std::uint32_t q : quota) out_count += q;
-  out.reserve(out_count, has_rgb, has_i);
+  out.positions.resize(out_count);
+  if (has_rgb) out.colors.resize(out_count);
+  if (has_i) out.intensities.resize(out_count);
+  std::size_t k = 0;  // next output point
 
   const double levels = h.height_bits == 16 ? 65535.0 : 255.0;
   const double h_step = (h.height_max - h.height_min) / levels;
@@ -195,14 +198,11 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
     const auto emit = [&](int x, int y) {
       const std::size_t a = tile0 + static_cast<std::size_t>(y) * aw + static_cast<std::size_t>(x);
       const double hq = h.height_bits == 16 ? height16.pixels[a] : height8.pixels[a];
-      out.positions.push_back({base.x + x * du.x + y * dv.x + hq * dh.x,
-                               base.y + x * du.y + y * dv.y + hq * dh.y,
-                               base.z + x * du.z + y * dv.z + hq * dh.z});
-      if (has_rgb) out.colors.push_back({colors.pixels[a * 3], colors.pixels[a * 3 + 1], colors.pixels[a * 3 + 2]});
-      if (has_i) {
-        out.intensities.push_back(
-            static_cast<float>(h.intensity_min + intensity.pixels[a] * i_step));
-      }
+      out.positions[k] = {base.x + x * du.x + y * dv.x + hq * dh.x, base.y + x * du.y + y * dv.y + hq * dh.y,
+                          base.z + x * du.z + y * dv.z + hq * dh.z};
+      if (has_rgb) out.colors[k] = {colors.pixels[a * 3], colors.pixels[a * 3 + 1], colors.pixels[a * 3 + 2]};
+      if (has_i) out.intensities[k] = static_cast<float>(h.intensity_min + intensity.pixels[a] * i_step);
+      ++k;
     };
     if (quota[p] == occupied[p]) {
       for (int y = 0; y < r; ++y) {

@@ -70,11 +70,12 @@ Status check_params(const EncodeParams& p, std::size_t point_count, std::size_t 
   return Status::ok();
 }
 
-// Per-patch accumulation scratch, reused across patches.
+// Per-patch accumulation scratch, reused across patches. Only the pixels a
+// patch touches are reset, so a patch costs O(points + r^2 / 8), not O(r^2 * 65 bytes).
 struct PatchScratch {
   std::vector<double> u, v, h;
-  std::vector<std::uint32_t> pixel;
-  std::vector<std::uint32_t> count;
+  std::vector<std::uint32_t> count;    // r*r, all zero between patches
+  std::vector<std::uint32_t> touched;  // pixels with count > 0
   std::vector<double> sum_h;
   std::vector<double> sum_rgb;
   std::vector<double> sum_i;
@@ -205,22 +206,30 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
   const Vec3d center{o.x + (leaf.ix + 0.5) * edge, o.y + (leaf.iy + 0.5) * edge,
                      o.z + (leaf.iz + 0.5) * edge};
 
-  // PCA relative to the cell centre (keeps georeferenced coordinates precise).
-  Vec3d mean{0, 0, 0};
+  // PCA relative to the cell centre (keeps georeferenced coordinates precise;
+  // offsets are at most a cell edge, so one pass of raw moments is accurate).
+  double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
   for (std::uint32_t i = leaf.begin; i < leaf.end; ++i) {
-    mean = mean + (cloud.positions[sorted[i].index] - center);
+    const Vec3d d = cloud.positions[sorted[i].index] - center;
+    sx += d.x;
+    sy += d.y;
+    sz += d.z;
+    sxx += d.x * d.x;
+    sxy += d.x * d.y;
+    sxz += d.x * d.z;
+    syy += d.y * d.y;
+    syz += d.y * d.z;
+    szz += d.z * d.z;
   }
-  mean = (1.0 / k) * mean;
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (std::uint32_t i = leaf.begin; i < leaf.end; ++i) {
-    const Vec3d d = cloud.positions[sorted[i].index] - center - mean;
-    cov(0, 0) += d.x * d.x;
-    cov(0, 1) += d.x * d.y;
-    cov(0, 2) += d.x * d.z;
-    cov(1, 1) += d.y * d.y;
-    cov(1, 2) += d.y * d.z;
-    cov(2, 2) += d.z * d.z;
-  }
+  const double inv_k = 1.0 / k;
+  const Vec3d mean{sx * inv_k, sy * inv_k, sz * inv_k};
+  Eigen::Matrix3d cov;
+  cov(0, 0) = sxx * inv_k - mean.x * mean.x;
+  cov(0, 1) = sxy * inv_k - mean.x * mean.y;
+  cov(0, 2) = sxz * inv_k - mean.x * mean.z;
+  cov(1, 1) = syy * inv_k - mean.y * mean.y;
+  cov(1, 2) = syz * inv_k - mean.y * mean.z;
+  cov(2, 2) = szz * inv_k - mean.z * mean.z;
   cov(1, 0) = cov(0, 1);
   cov(2, 0) = cov(0, 2);
   cov(2, 1) = cov(1, 2);
@@ -278,18 +287,31 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
 
   // Bin points into pixels and average.
   const auto rr = static_cast<std::size_t>(r) * static_cast<std::size_t>(r);
-  s.count.assign(rr, 0);
-  s.sum_h.assign(rr, 0.0);
+  if (s.count.size() != rr) {
+    s.count.assign(rr, 0);
+    s.sum_h.assign(rr, 0.0);
+    s.sum_rgb.assign(rr * 3, 0.0);
+    s.sum_i.assign(rr, 0.0);
+    s.occupied.assign(rr, 0);
+    s.tile_h.assign(rr, 0.0f);
+    s.tile_rgb.assign(rr * 3, 0.0f);
+    s.tile_i.assign(rr, 0.0f);
+  }
+  s.touched.clear();
   const bool has_rgb = cloud.has_colors(), has_i = cloud.has_intensity();
-  if (has_rgb) s.sum_rgb.assign(rr * 3, 0.0);
-  if (has_i) s.sum_i.assign(rr, 0.0);
   const double inv_pu = 1.0 / f.pixel_u, inv_pv = 1.0 / f.pixel_v;
-  const int rmax = r - 1;
+  const double rmax = r - 1;
   for (std::uint32_t i = 0; i < k; ++i) {
-    const int px = std::clamp(static_cast<int>(std::floor((s.u[i] - f.umin) * inv_pu)), 0, rmax);
-    const int py = std::clamp(static_cast<int>(std::floor((s.v[i] - f.vmin) * inv_pv)), 0, rmax);
-    const auto pi = static_cast<std::size_t>(py * r + px);
-    ++s.count[pi];
+    // Clamped to [0, r-1] before truncation, so truncation is floor.
+    const auto px = static_cast<std::size_t>(std::clamp((s.u[i] - f.umin) * inv_pu, 0.0, rmax));
+    const auto py = static_cast<std::size_t>(std::clamp((s.v[i] - f.vmin) * inv_pv, 0.0, rmax));
+    const std::size_t pi = py * static_cast<std::size_t>(r) + px;
+    if (s.count[pi]++ == 0) {
+      s.touched.push_back(static_cast<std::uint32_t>(pi));
+      s.sum_h[pi] = 0;
+      if (has_rgb) s.sum_rgb[pi * 3] = s.sum_rgb[pi * 3 + 1] = s.sum_rgb[pi * 3 + 2] = 0;
+      if (has_i) s.sum_i[pi] = 0;
+    }
     s.sum_h[pi] += s.h[i];
     const std::uint32_t src = sorted[leaf.begin + i].index;
     if (has_rgb) {
@@ -300,16 +322,12 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
     }
     if (has_i) s.sum_i[pi] += cloud.intensities[src];
   }
-  s.occupied.assign(rr, 0);
-  s.tile_h.assign(rr, 0.0f);
-  if (has_rgb) s.tile_rgb.assign(rr * 3, 0.0f);
-  if (has_i) s.tile_i.assign(rr, 0.0f);
+  std::fill(s.occupied.begin(), s.occupied.end(), std::uint8_t{0});
   const double inv_edge = 1.0 / edge;
-  for (std::size_t pi = 0; pi < rr; ++pi) {
-    if (s.count[pi] == 0) continue;
+  for (const std::uint32_t pi : s.touched) {
     s.occupied[pi] = 1;
-    ++decoded_points;
     const double inv = 1.0 / s.count[pi];
+    s.count[pi] = 0;
     const double hn = s.sum_h[pi] * inv * inv_edge;
     s.tile_h[pi] = static_cast<float>(hn);
     h_lo = std::min(h_lo, static_cast<double>(s.tile_h[pi]));
@@ -323,16 +341,20 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
       i_hi = std::max(i_hi, s.tile_i[pi]);
     }
   }
-  const auto fill = [&](std::vector<float>& tile, int channels) {
-    if (params.fill == FillMethod::kBoxFilter) {
-      codec::fill_box(tile.data(), s.occupied.data(), r, channels);
-    } else {
-      codec::fill_push_pull(tile.data(), s.occupied.data(), r, channels, s.fill);
-    }
-  };
-  fill(s.tile_h, 1);
-  if (has_rgb) fill(s.tile_rgb, 3);
-  if (has_i) fill(s.tile_i, 1);
+  decoded_points += s.touched.size();
+  // A fully occupied tile has nothing to fill.
+  if (s.touched.size() < rr) {
+    const auto fill = [&](std::vector<float>& tile, int channels) {
+      if (params.fill == FillMethod::kBoxFilter) {
+        codec::fill_box(tile.data(), s.occupied.data(), r, channels);
+      } else {
+        codec::fill_push_pull(tile.data(), s.occupied.data(), r, channels, s.fill);
+      }
+    };
+    fill(s.tile_h, 1);
+    if (has_rgb) fill(s.tile_rgb, 3);
+    if (has_i) fill(s.tile_i, 1);
+  }
 
   // Copy the tile into the atlas planes.
   std::uint32_t tx = 0, ty = 0;
@@ -345,8 +367,9 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
       heights[row + x] = s.tile_h[src + x];
       if (has_rgb) {
         for (int c = 0; c < 3; ++c) {
+          // Clamped to [0, 255], so adding 0.5 and truncating rounds to nearest.
           const float val = std::clamp(s.tile_rgb[(src + x) * 3 + c], 0.0f, 255.0f);
-          rgb[(row + x) * 3 + c] = static_cast<std::uint8_t>(std::lround(val));
+          rgb[(row + x) * 3 + c] = static_cast<std::uint8_t>(val + 0.5f);
         }
       }
       if (has_i) intensity[row + x] = s.tile_i[src + x];
@@ -384,8 +407,9 @@ std::vector<Sample> quantize_plane(const std::vector<float>& plane, double lo, d
       out[i] = mid;
       continue;
     }
-    const double q = std::round((static_cast<double>(v) - lo) * scale);
-    out[i] = static_cast<Sample>(std::clamp(q, 0.0, levels));
+    // Clamped to [0, levels] first, so +0.5 and truncation round to nearest.
+    const double q = std::clamp((static_cast<double>(v) - lo) * scale, 0.0, levels);
+    out[i] = static_cast<Sample>(q + 0.5);
   }
   return out;
 }

@@ -17,8 +17,11 @@ constexpr int kBoxPasses = 3;
 
 }  // namespace
 
-void fill_push_pull(float* tile, const std::uint8_t* occupied, int r, int channels,
-                    FillScratch& scratch) {
+namespace {
+
+// Channel count as a template parameter lets the compiler unroll the inner loops.
+template <int kChannels>
+void push_pull(float* tile, const std::uint8_t* occupied, int r, FillScratch& scratch) {
   // Level 0 is the tile itself; coarser levels halve (rounding up) down to 1x1.
   Level levels[16];
   int count = 0;
@@ -28,68 +31,81 @@ void fill_push_pull(float* tile, const std::uint8_t* occupied, int r, int channe
     total += static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     if (w == 1 && h == 1) break;
   }
-  const auto nch = static_cast<std::size_t>(channels);
-  scratch.values.resize(total * nch);
+  scratch.values.resize(total * kChannels);
   scratch.weights.resize(total);
   float* val = scratch.values.data();
   float* wt = scratch.weights.data();
 
   const std::size_t n0 = static_cast<std::size_t>(r) * static_cast<std::size_t>(r);
   for (std::size_t i = 0; i < n0; ++i) {
-    wt[i] = occupied[i] ? 1.0f : 0.0f;
-    for (std::size_t c = 0; c < nch; ++c) val[i * nch + c] = occupied[i] ? tile[i * nch + c] : 0.0f;
+    // Unoccupied pixels hold stale values from earlier tiles: never read them.
+    const bool occ = occupied[i] != 0;
+    wt[i] = occ ? 1.0f : 0.0f;
+    for (int c = 0; c < kChannels; ++c) val[i * kChannels + c] = occ ? tile[i * kChannels + c] : 0.0f;
   }
   // Push: weighted means of 2x2 children, weight saturating at 1.
   for (int l = 1; l < count; ++l) {
     const Level& fine = levels[l - 1];
     const Level& coarse = levels[l];
     for (int y = 0; y < coarse.h; ++y) {
+      const int fy0 = 2 * y, fy1 = std::min(2 * y + 1, fine.h - 1);
       for (int x = 0; x < coarse.w; ++x) {
+        const int fx0 = 2 * x, fx1 = std::min(2 * x + 1, fine.w - 1);
+        // Odd sizes: the clamped duplicate child is skipped, not double counted.
+        const std::size_t idx[4] = {
+            fine.offset + static_cast<std::size_t>(fy0 * fine.w + fx0),
+            fine.offset + static_cast<std::size_t>(fy0 * fine.w + fx1),
+            fine.offset + static_cast<std::size_t>(fy1 * fine.w + fx0),
+            fine.offset + static_cast<std::size_t>(fy1 * fine.w + fx1)};
+        const bool use[4] = {true, fx1 != fx0, fy1 != fy0, fx1 != fx0 && fy1 != fy0};
         float wsum = 0;
-        float vsum[4] = {0, 0, 0, 0};
-        for (int dy = 0; dy < 2; ++dy) {
-          for (int dx = 0; dx < 2; ++dx) {
-            const int fx = 2 * x + dx, fy = 2 * y + dy;
-            if (fx >= fine.w || fy >= fine.h) continue;
-            const std::size_t fi = fine.offset + static_cast<std::size_t>(fy * fine.w + fx);
-            wsum += wt[fi];
-            for (std::size_t c = 0; c < nch; ++c) vsum[c] += wt[fi] * val[fi * nch + c];
-          }
+        float vsum[kChannels] = {};
+        for (int k = 0; k < 4; ++k) {
+          if (!use[k]) continue;
+          const float w = wt[idx[k]];
+          wsum += w;
+          for (int c = 0; c < kChannels; ++c) vsum[c] += w * val[idx[k] * kChannels + c];
         }
         const std::size_t ci = coarse.offset + static_cast<std::size_t>(y * coarse.w + x);
         wt[ci] = std::min(1.0f, wsum);
-        for (std::size_t c = 0; c < nch; ++c) val[ci * nch + c] = wsum > 0 ? vsum[c] / wsum : 0.0f;
+        const float inv = wsum > 0 ? 1.0f / wsum : 0.0f;
+        for (int c = 0; c < kChannels; ++c) val[ci * kChannels + c] = vsum[c] * inv;
       }
     }
   }
-  // Pull: blend each pixel with the bilinear sample of the coarser level.
+  // Pull: blend each not fully known pixel with the bilinear sample of the
+  // coarser level (sample position (x + 0.5) / 2 - 0.5, clamped).
+  int x0s[64], x1s[64];
+  float fxs[64];
   for (int l = count - 2; l >= 0; --l) {
     const Level& fine = levels[l];
     const Level& coarse = levels[l + 1];
+    for (int x = 0; x < fine.w; ++x) {
+      const float sx = std::clamp((static_cast<float>(x) + 0.5f) * 0.5f - 0.5f, 0.0f,
+                                  static_cast<float>(coarse.w - 1));
+      x0s[x] = static_cast<int>(sx);
+      x1s[x] = std::min(x0s[x] + 1, coarse.w - 1);
+      fxs[x] = sx - static_cast<float>(x0s[x]);
+    }
     for (int y = 0; y < fine.h; ++y) {
       const float sy = std::clamp((static_cast<float>(y) + 0.5f) * 0.5f - 0.5f, 0.0f,
                                   static_cast<float>(coarse.h - 1));
       const int y0 = static_cast<int>(sy);
       const int y1 = std::min(y0 + 1, coarse.h - 1);
       const float fy = sy - static_cast<float>(y0);
+      const float* row0 = val + (coarse.offset + static_cast<std::size_t>(y0 * coarse.w)) * kChannels;
+      const float* row1 = val + (coarse.offset + static_cast<std::size_t>(y1 * coarse.w)) * kChannels;
       for (int x = 0; x < fine.w; ++x) {
         const std::size_t fi = fine.offset + static_cast<std::size_t>(y * fine.w + x);
         const float w = wt[fi];
         if (w >= 1.0f) continue;
-        const float sx = std::clamp((static_cast<float>(x) + 0.5f) * 0.5f - 0.5f, 0.0f,
-                                    static_cast<float>(coarse.w - 1));
-        const int x0 = static_cast<int>(sx);
-        const int x1 = std::min(x0 + 1, coarse.w - 1);
-        const float fx = sx - static_cast<float>(x0);
-        const std::size_t i00 = coarse.offset + static_cast<std::size_t>(y0 * coarse.w + x0);
-        const std::size_t i01 = coarse.offset + static_cast<std::size_t>(y0 * coarse.w + x1);
-        const std::size_t i10 = coarse.offset + static_cast<std::size_t>(y1 * coarse.w + x0);
-        const std::size_t i11 = coarse.offset + static_cast<std::size_t>(y1 * coarse.w + x1);
-        for (std::size_t c = 0; c < nch; ++c) {
-          const float top = val[i00 * nch + c] * (1 - fx) + val[i01 * nch + c] * fx;
-          const float bottom = val[i10 * nch + c] * (1 - fx) + val[i11 * nch + c] * fx;
-          const float coarse_v = top * (1 - fy) + bottom * fy;
-          val[fi * nch + c] = w * val[fi * nch + c] + (1 - w) * coarse_v;
+        const int a = x0s[x] * kChannels, b = x1s[x] * kChannels;
+        const float fx = fxs[x];
+        for (int c = 0; c < kChannels; ++c) {
+          const float top = row0[a + c] + (row0[b + c] - row0[a + c]) * fx;
+          const float bottom = row1[a + c] + (row1[b + c] - row1[a + c]) * fx;
+          const float coarse_v = top + (bottom - top) * fy;
+          val[fi * kChannels + c] = w * val[fi * kChannels + c] + (1 - w) * coarse_v;
         }
         wt[fi] = 1.0f;
       }
@@ -97,7 +113,18 @@ void fill_push_pull(float* tile, const std::uint8_t* occupied, int r, int channe
   }
   for (std::size_t i = 0; i < n0; ++i) {
     if (occupied[i]) continue;
-    for (std::size_t c = 0; c < nch; ++c) tile[i * nch + c] = val[i * nch + c];
+    for (int c = 0; c < kChannels; ++c) tile[i * kChannels + c] = val[i * kChannels + c];
+  }
+}
+
+}  // namespace
+
+void fill_push_pull(float* tile, const std::uint8_t* occupied, int r, int channels,
+                    FillScratch& scratch) {
+  if (channels == 3) {
+    push_pull<3>(tile, occupied, r, scratch);
+  } else {
+    push_pull<1>(tile, occupied, r, scratch);
   }
 }
 

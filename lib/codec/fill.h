@@ -15,7 +15,7 @@ struct FillScratch {
 };
 
 // Fills the unoccupied pixels of one r x r tile of `channels` interleaved
-// float channels. `occupied` holds r*r flags; at least one must be set.
+// float channels (1 or 3). `occupied` holds r*r flags; at least one must be set.
 // Push-pull (Gortler et al. 1996): a weighted pyramid is built down to 1x1 and
 // pulled back up with bilinear interpolation; occupied pixels keep their values.
 void fill_push_pull(float* tile, const std::uint8_t* occupied, int r, int channels,

@@ -6,16 +6,6 @@ namespace relief::codec {
 
 namespace {
 
-std::uint64_t spread3(std::uint32_t v) {
-  std::uint64_t x = v & 0x1fffffu;
-  x = (x | (x << 32)) & 0x1f00000000ffffULL;
-  x = (x | (x << 16)) & 0x1f0000ff0000ffULL;
-  x = (x | (x << 8)) & 0x100f00f00f00f00fULL;
-  x = (x | (x << 4)) & 0x10c30c30c30c30c3ULL;
-  x = (x | (x << 2)) & 0x1249249249249249ULL;
-  return x;
-}
-
 struct TreeBuilder {
   TreeBuilder(std::span<const KeyedIndex> s, int d, const LeafPredicate& p, std::vector<std::uint8_t>& m)
       : sorted(s), depth(d), is_leaf(p), masks(m) {}
@@ -48,8 +38,17 @@ struct TreeBuilder {
     std::uint32_t i = begin;
     while (i < end) {
       const auto digit = static_cast<std::uint32_t>((sorted[i].key >> shift) & 7u);
-      std::uint32_t j = i + 1;
-      while (j < end && ((sorted[j].key >> shift) & 7u) == digit) ++j;
+      // Keys are sorted, so the run of this digit ends at the first larger one.
+      std::uint32_t lo = i + 1, hi = end;
+      while (lo < hi) {
+        const std::uint32_t mid = lo + (hi - lo) / 2;
+        if (((sorted[mid].key >> shift) & 7u) == digit) {
+          lo = mid + 1;
+        } else {
+          hi = mid;
+        }
+      }
+      const std::uint32_t j = lo;
       masks[mask_pos] = static_cast<std::uint8_t>(masks[mask_pos] | (1u << digit));
       node(i, j, level + 1, 2 * x + (digit & 1u), 2 * y + ((digit >> 1) & 1u),
            2 * z + ((digit >> 2) & 1u));
@@ -59,10 +58,6 @@ struct TreeBuilder {
 };
 
 }  // namespace
-
-std::uint64_t morton_encode(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-  return spread3(x) | (spread3(y) << 1) | (spread3(z) << 2);
-}
 
 void radix_sort(std::vector<KeyedIndex>& items, int key_bits) {
   if (items.size() < 2 || key_bits <= 0) return;

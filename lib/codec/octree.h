@@ -18,8 +18,21 @@ struct KeyedIndex {
   std::uint32_t index;
 };
 
+// Spreads the low 21 bits of v so bit k moves to bit 3k.
+inline std::uint64_t spread_bits3(std::uint32_t v) {
+  std::uint64_t x = v & 0x1fffffu;
+  x = (x | (x << 32)) & 0x1f00000000ffffULL;
+  x = (x | (x << 16)) & 0x1f0000ff0000ffULL;
+  x = (x | (x << 8)) & 0x100f00f00f00f00fULL;
+  x = (x | (x << 4)) & 0x10c30c30c30c30c3ULL;
+  x = (x | (x << 2)) & 0x1249249249249249ULL;
+  return x;
+}
+
 // Interleaves x, y, z (21 bits each): bit 3k is x's bit k, 3k+1 y's, 3k+2 z's.
-std::uint64_t morton_encode(std::uint32_t x, std::uint32_t y, std::uint32_t z);
+inline std::uint64_t morton_encode(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+  return spread_bits3(x) | (spread_bits3(y) << 1) | (spread_bits3(z) << 2);
+}
 
 // Stable LSD radix sort on the low `key_bits` bits of the keys.
 void radix_sort(std::vector<KeyedIndex>& items, int key_bits);
