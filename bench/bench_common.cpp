@@ -53,6 +53,7 @@ std::string row_label(const BenchRow& r) {
   if (r.codec == "relief") {
     std::string image = r.height_bits == 16 ? r.image + "/16bit" : r.image;
     if (r.fill == "box") image += "/boxfill";
+    if (r.fill == "pushpull") image += "/pushpull";
     std::snprintf(buf, sizeof buf, "%s/%s %.2gxc0 q%d", r.decomposition.c_str(), image.c_str(),
                   r.cell_multiplier, r.quality);
   } else {

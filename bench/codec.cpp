@@ -42,8 +42,8 @@ constexpr int kColourQualityOffset = 10;
 constexpr int kColourQualityMin = 30;
 // Down to qp 6 so Draco's curve covers the coarse errors Relief reaches.
 const std::vector<int> kDracoQp = {6, 7, 8, 9, 10, 11, 12, 14};
-// Fill comparison (push-pull vs the paper's 3 x 5x5 box filter): voxel + JPEG
-// at these cell multipliers and this quality, both fills.
+// Fill comparison (the default block projection vs push-pull alone and the
+// paper's 3 x 5x5 box filter): voxel + JPEG at these cells and this quality.
 const std::vector<double> kFillCompareMultipliers = {0.7, 1.0, 1.4};
 constexpr int kFillCompareQuality = 75;
 constexpr int kDracoCompressionLevel = 7;  // what the anchors used
@@ -65,7 +65,7 @@ struct ReliefConfig {
   double multiplier = 1;
   int quality = 75;
   int height_bits = 8;
-  relief::FillMethod fill = relief::FillMethod::kPushPull;
+  relief::FillMethod fill = relief::FillMethod::kBlockProjection;
 };
 
 const char* const kUsage =
@@ -185,8 +185,9 @@ std::vector<ReliefConfig> relief_grid(bool quick) {
   }
   if (!quick) {
     for (double m : kFillCompareMultipliers) {
-      grid.push_back({Decomposition::kVoxelGrid, ImageCodec::kJpeg, m, kFillCompareQuality, 8,
-                      relief::FillMethod::kBoxFilter});
+      for (relief::FillMethod f : {relief::FillMethod::kBoxFilter, relief::FillMethod::kPushPull}) {
+        grid.push_back({Decomposition::kVoxelGrid, ImageCodec::kJpeg, m, kFillCompareQuality, 8, f});
+      }
     }
   }
   return grid;
@@ -254,7 +255,9 @@ std::optional<BenchRow> run_relief(const relief::PointCloud& cloud, const std::s
   row.codec = "relief";
   row.decomposition = relief::decomposition_name(cfg.decomposition);
   row.image = relief::image_codec_name(cfg.image);
-  row.fill = cfg.fill == relief::FillMethod::kBoxFilter ? "box" : "pushpull";
+  row.fill = cfg.fill == relief::FillMethod::kBoxFilter  ? "box"
+             : cfg.fill == relief::FillMethod::kPushPull ? "pushpull"
+                                                         : "project";
   row.cell = params.cell_size;
   row.cell_multiplier = cfg.multiplier;
   row.quality = cfg.quality;

@@ -277,7 +277,7 @@ void print_file_summary(Output& out, const FileSummaryInput& in) {
   const BenchRow* best_dec = nullptr;
   for (const BenchRow& r : in.rows) {
     if (r.codec != "relief" || r.decomposition != "voxel" || r.image != "jpeg" || r.height_bits != 8) continue;
-    if (r.fill == "pushpull" && r.cell_multiplier == 1.0 && r.quality == defaults.height_quality) def = &r;
+    if (r.fill == "project" && r.cell_multiplier == 1.0 && r.quality == defaults.height_quality) def = &r;
     if (std::isfinite(r.enc_mpts_s) && (best_enc == nullptr || r.enc_mpts_s > best_enc->enc_mpts_s)) best_enc = &r;
     if (std::isfinite(r.dec_mpts_s) && (best_dec == nullptr || r.dec_mpts_s > best_dec->dec_mpts_s)) best_dec = &r;
   }
@@ -295,17 +295,20 @@ void print_file_summary(Output& out, const FileSummaryInput& in) {
   } else {
     out.linef("# speed %s: no voxel+jpeg rows", in.stem.c_str());
   }
-  // (e) Fill: push-pull against the paper's box filter at equal settings.
+  // (e) Fill: the default (block projection) against push-pull alone and the
+  // paper's box filter at equal settings.
   for (const BenchRow& box : in.rows) {
-    if (box.codec != "relief" || box.fill != "box") continue;
+    if (box.codec != "relief" || box.fill == "project") continue;
     for (const BenchRow& pp : in.rows) {
-      if (pp.codec != "relief" || pp.fill != "pushpull" || pp.decomposition != box.decomposition ||
+      if (pp.codec != "relief" || pp.fill != "project" || pp.decomposition != box.decomposition ||
           pp.image != box.image || pp.quality != box.quality || pp.height_bits != box.height_bits ||
           pp.cell_multiplier != box.cell_multiplier) {
         continue;
       }
-      out.linef("# fill %s %s: push-pull %zu bytes rmse_snn %.5g vs box %zu bytes rmse_snn %.5g (%+.1f%% bytes)",
-                in.stem.c_str(), row_label(pp).c_str(), pp.bytes, pp.rmse_snn, box.bytes, box.rmse_snn,
+      out.linef("# fill %s %s: projection %zu bytes rmse_snn %.5g rgb %.4g vs %s %zu bytes rmse_snn %.5g rgb %.4g "
+                "(%+.1f%% bytes)",
+                in.stem.c_str(), row_label(pp).c_str(), pp.bytes, pp.rmse_snn, pp.rmse_rgb_snn, box.fill.c_str(),
+                box.bytes, box.rmse_snn, box.rmse_rgb_snn,
                 100.0 * (static_cast<double>(pp.bytes) - static_cast<double>(box.bytes)) /
                     static_cast<double>(box.bytes));
     }

@@ -116,11 +116,12 @@ const char* const kEncodeOptionsHelp =
     "  --max-points N         octree: split leaves holding more than N points (default 1024)\n"
     "  --resolution R         map resolution, multiple of 8 in 8..64 (default 16)\n"
     "  --codec jpeg|jpeg2000  image codec for height/colour/intensity maps (default jpeg)\n"
-    "  --quality Q            height map quality 1..100 (default 85)\n"
-    "  --color-quality Q      colour map quality 1..100 (default 75)\n"
-    "  --intensity-quality Q  intensity map quality 1..100 (default 75)\n"
+    "  --quality Q            height map quality 1..100 (default 75)\n"
+    "  --color-quality Q      colour map quality 1..100 (default 70)\n"
+    "  --intensity-quality Q  intensity map quality 1..100 (default 70)\n"
     "  --height-bits 8|16     bits per height sample; 16 needs --codec jpeg2000 (default 8)\n"
-    "  --fill pushpull|box    fill of empty map pixels (default pushpull; box = the paper's)\n";
+    "  --fill project|pushpull|box   fill of empty map pixels (default project: push-pull, then\n"
+    "                         low-frequency projection per JPEG block; box = the paper's)\n";
 
 std::vector<std::string> encode_option_names() {
   return {"--cell", "--decomposition", "--max-points", "--resolution", "--codec", "--quality",
@@ -155,12 +156,14 @@ std::string parse_encode_params(Args& args, EncodeParams& p) {
   p.intensity_quality = static_cast<int>(args.get_int("--intensity-quality", p.intensity_quality, 1, 100));
   p.height_bits = static_cast<int>(args.get_int("--height-bits", p.height_bits, 8, 16));
   if (auto f = args.get("--fill")) {
-    if (*f == "pushpull") {
+    if (*f == "project") {
+      p.fill = FillMethod::kBlockProjection;
+    } else if (*f == "pushpull") {
       p.fill = FillMethod::kPushPull;
     } else if (*f == "box") {
       p.fill = FillMethod::kBoxFilter;
     } else {
-      return "--fill must be pushpull or box, got '" + *f + "'";
+      return "--fill must be project, pushpull or box, got '" + *f + "'";
     }
   }
   if (!args.ok()) return args.error();

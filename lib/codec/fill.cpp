@@ -14,6 +14,10 @@ struct Level {
 
 constexpr int kBoxRadius = 2;  // 5x5
 constexpr int kBoxPasses = 3;
+constexpr double kPi = 3.14159265358979323846;
+// Alternating projections converge fast: 2 passes capture nearly all of the
+// gain (bench: 1 -> 16 iterations changes height bytes by < 1 %).
+constexpr int kProjectionIterations = 2;
 
 }  // namespace
 
@@ -119,12 +123,84 @@ void push_pull(float* tile, const std::uint8_t* occupied, int r, FillScratch& sc
 
 }  // namespace
 
+namespace {
+
+// Basis of the projection: the DC and the first horizontal and vertical
+// DCT-II cosines of a B-pixel block (orthonormal scaling).
+struct LowBasis {
+  int size = 0;
+  float c0 = 0;        // constant basis value
+  float c1[16] = {};   // first cosine
+};
+
+const LowBasis& low_basis(int size) {
+  static const LowBasis b8 = [] {
+    LowBasis b;
+    b.size = 8;
+    b.c0 = static_cast<float>(std::sqrt(1.0 / 8));
+    for (int n = 0; n < 8; ++n) b.c1[n] = static_cast<float>(std::sqrt(2.0 / 8) * std::cos((2 * n + 1) * kPi / 16));
+    return b;
+  }();
+  static const LowBasis b16 = [] {
+    LowBasis b;
+    b.size = 16;
+    b.c0 = static_cast<float>(std::sqrt(1.0 / 16));
+    for (int n = 0; n < 16; ++n) b.c1[n] = static_cast<float>(std::sqrt(2.0 / 16) * std::cos((2 * n + 1) * kPi / 32));
+    return b;
+  }();
+  return size == 16 ? b16 : b8;
+}
+
+}  // namespace
+
 void fill_push_pull(float* tile, const std::uint8_t* occupied, int r, int channels,
                     FillScratch& scratch) {
   if (channels == 3) {
     push_pull<3>(tile, occupied, r, scratch);
   } else {
     push_pull<1>(tile, occupied, r, scratch);
+  }
+}
+
+void project_blocks_low_frequency(float* tile, const std::uint8_t* occupied, int r, int channels, int block) {
+  const LowBasis& b = low_basis(block);
+  const int nb = block;
+  for (int by = 0; by < r; by += nb) {
+    for (int bx = 0; bx < r; bx += nb) {
+      int occ = 0;
+      for (int y = 0; y < nb; ++y) {
+        for (int x = 0; x < nb; ++x) occ += occupied[(by + y) * r + bx + x];
+      }
+      if (occ == nb * nb) continue;
+      for (int c = 0; c < channels; ++c) {
+        const auto at = [&](int x, int y) -> float& {
+          return tile[(static_cast<std::size_t>(by + y) * r + bx + x) * channels + c];
+        };
+        for (int it = 0; it < (occ == 0 ? 1 : kProjectionIterations); ++it) {
+          // Forward: the three low coefficients of the block.
+          float c00 = 0, c01 = 0, c10 = 0;
+          for (int y = 0; y < nb; ++y) {
+            float row = 0, row_x = 0;
+            for (int x = 0; x < nb; ++x) {
+              row += at(x, y);
+              row_x += at(x, y) * b.c1[x];
+            }
+            c00 += row * b.c0 * b.c0;
+            c01 += row_x * b.c0;
+            c10 += row * b.c0 * b.c1[y];
+          }
+          // An empty block becomes flat (DC only): cheapest for JPEG.
+          if (occ == 0) c01 = c10 = 0;
+          // Inverse, written only where no point constrains the value.
+          for (int y = 0; y < nb; ++y) {
+            for (int x = 0; x < nb; ++x) {
+              if (occupied[(by + y) * r + bx + x]) continue;
+              at(x, y) = c00 * b.c0 * b.c0 + c01 * b.c0 * b.c1[x] + c10 * b.c1[y] * b.c0;
+            }
+          }
+        }
+      }
+    }
   }
 }
 
@@ -145,7 +221,7 @@ void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels) {
       tile[i * nch + c] = static_cast<float>(mean[c] / static_cast<double>(occ));
     }
   }
-  std::vector<float> prev(tile, tile + n * nch);
+  std::vector<float> prev(tile, tile + n * nch);  // box filter: reads the previous pass
   for (int pass = 0; pass < kBoxPasses; ++pass) {
     for (int y = 0; y < r; ++y) {
       for (int x = 0; x < r; ++x) {

@@ -21,6 +21,13 @@ struct FillScratch {
 void fill_push_pull(float* tile, const std::uint8_t* occupied, int r, int channels,
                     FillScratch& scratch);
 
+// Makes every partly empty B x B block (B = 8 or 16, aligned to the tile) as
+// cheap as possible for a block-DCT coder: alternating projections between
+// "the block holds only its DC and first horizontal/vertical cosines" and "the
+// occupied pixels keep their values"; an empty block becomes flat. Run after
+// push-pull, which gives it a smooth start.
+void project_blocks_low_frequency(float* tile, const std::uint8_t* occupied, int r, int channels, int block);
+
 // The paper's fill: unoccupied pixels start at the tile mean, then three passes
 // of a 5x5 box filter update them.
 void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels);

@@ -17,8 +17,13 @@ namespace relief {
 // On-disk ids: never renumber.
 enum class Decomposition : std::uint8_t { kVoxelGrid = 0, kOctree = 1 };
 enum class ImageCodec : std::uint8_t { kJpeg = 1, kJpeg2000 = 2 };
-// How unoccupied map pixels are filled before image coding (encoder only).
-enum class FillMethod : std::uint8_t { kPushPull = 0, kBoxFilter = 1 };
+// How unoccupied map pixels are filled before image coding (encoder only; a
+// decoder never looks at them). kBlockProjection: heights and intensity get
+// push-pull, then each partly empty 8x8 block keeps only its lowest DCT
+// frequencies where no point constrains it; colour gets the box filter.
+// kPushPull: push-pull alone. kBoxFilter: the paper's three passes of a 5x5
+// box filter on every map.
+enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBoxFilter = 2 };
 
 // Highest chunk format version this build writes and reads.
 inline constexpr std::uint16_t kChunkFormatVersion = 1;
@@ -36,12 +41,12 @@ struct EncodeParams {
   // Map resolution r (r x r pixels per patch): a multiple of 8, 8..64.
   int map_resolution = 16;
   ImageCodec image_codec = ImageCodec::kJpeg;
-  int height_quality = 85;     // 1..100
-  int color_quality = 75;      // 1..100
-  int intensity_quality = 75;  // 1..100
+  int height_quality = 75;     // 1..100
+  int color_quality = 70;      // 1..100
+  int intensity_quality = 70;  // 1..100
   // 8, or 16 (JPEG 2000 only): bits per height sample.
   int height_bits = 8;
-  FillMethod fill = FillMethod::kPushPull;
+  FillMethod fill = FillMethod::kBlockProjection;
   // The chunk cube the patch grid is aligned to (e.g. the archive voxel).
   // Unset: the bounding box of the points, grown to a cube.
   std::optional<Vec3d> grid_origin;
