@@ -9,6 +9,7 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <signal.h>
 #include <unistd.h>
 
 namespace relief::cli {
@@ -208,5 +209,94 @@ std::int64_t now_ns() {
 }
 
 double seconds_since(std::int64_t start_ns) { return static_cast<double>(now_ns() - start_ns) * 1e-9; }
+
+std::uint64_t parse_size(const std::string& text) {
+  if (text.empty()) return 0;
+  double v = 0;
+  const char* end = text.data() + text.size();
+  const auto r = std::from_chars(text.data(), end, v);
+  if (r.ec != std::errc() || !(v > 0)) return 0;
+  std::string unit(r.ptr, end);
+  for (char& ch : unit) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  if (!unit.empty() && unit.back() == 'B') unit.pop_back();
+  if (!unit.empty() && unit.back() == 'I') unit.pop_back();  // GiB, MiB
+  double scale = 0;
+  if (unit.empty() || unit == "M") {
+    scale = 1024.0 * 1024.0;
+  } else if (unit == "K") {
+    scale = 1024.0;
+  } else if (unit == "G") {
+    scale = 1024.0 * 1024.0 * 1024.0;
+  } else if (unit == "T") {
+    scale = 1024.0 * 1024.0 * 1024.0 * 1024.0;
+  } else {
+    return 0;
+  }
+  return static_cast<std::uint64_t>(v * scale);
+}
+
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+
+extern "C" void on_sigint(int) {
+  if (g_interrupted.exchange(true)) {
+    // Second Ctrl-C: the user insists.
+    signal(SIGINT, SIG_DFL);
+    raise(SIGINT);
+  }
+}
+
+bool g_progress_drawn = false;
+
+}  // namespace
+
+const std::atomic<bool>* install_interrupt_flag() {
+  struct sigaction sa {};
+  sa.sa_handler = on_sigint;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = 0;  // no SA_RESTART: a blocked read returns EINTR
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  return &g_interrupted;
+}
+
+std::string format_bytes(std::uint64_t bytes) {
+  char buf[32];
+  const double b = static_cast<double>(bytes);
+  if (b >= 1e9) {
+    std::snprintf(buf, sizeof buf, "%.2f GB", b / 1e9);
+  } else if (b >= 1e6) {
+    std::snprintf(buf, sizeof buf, "%.1f MB", b / 1e6);
+  } else if (b >= 1e3) {
+    std::snprintf(buf, sizeof buf, "%.1f kB", b / 1e3);
+  } else {
+    std::snprintf(buf, sizeof buf, "%llu B", static_cast<unsigned long long>(bytes));
+  }
+  return buf;
+}
+
+std::function<void(const IngestProgress&)> progress_printer(bool quiet) {
+  if (quiet || !::isatty(STDERR_FILENO)) return {};
+  return [](const IngestProgress& p) {
+    const double rate = p.seconds > 0 ? static_cast<double>(p.points_read) / p.seconds : 0;
+    char eta[64] = "";
+    if (p.points_total > 0 && rate > 0 && std::string(p.phase) == "reading") {
+      const double left = static_cast<double>(p.points_total - std::min(p.points_total, p.points_read)) / rate;
+      std::snprintf(eta, sizeof eta, " (%.0f%%, reading ETA %.0f s)",
+                    100.0 * static_cast<double>(p.points_read) / static_cast<double>(p.points_total), left);
+    }
+    std::fprintf(stderr, "\r\033[K%s: %.2fM points%s, %llu chunks, %s, %.2f M points/s, %.0f s", p.phase,
+                 static_cast<double>(p.points_read) * 1e-6, eta, static_cast<unsigned long long>(p.chunks_written),
+                 format_bytes(p.bytes_written).c_str(), rate * 1e-6, p.seconds);
+    std::fflush(stderr);
+    g_progress_drawn = true;
+  };
+}
+
+void end_progress_line() {
+  if (g_progress_drawn) std::fputc('\n', stderr);
+  g_progress_drawn = false;
+}
 
 }  // namespace relief::cli

@@ -2,13 +2,16 @@
 // codes, file helpers. The CLI sees only the public headers.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "relief/codec.h"
+#include "relief/ingest.h"
 #include "relief/status.h"
 
 namespace relief::cli {
@@ -57,5 +60,21 @@ Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t
 
 double seconds_since(std::int64_t start_ns);
 std::int64_t now_ns();
+
+// "1G", "512M", "64K" (binary units) or a plain number of MiB; 0 on error.
+std::uint64_t parse_size(const std::string& text);
+
+// Ctrl-C sets the returned flag instead of killing the process (a second
+// Ctrl-C kills it). Blocking reads are interrupted (no SA_RESTART).
+const std::atomic<bool>* install_interrupt_flag();
+
+// A progress line on stderr, redrawn in place; prints nothing unless stderr
+// is a terminal and `quiet` is false.
+std::function<void(const IngestProgress&)> progress_printer(bool quiet);
+// Ends the progress line (newline) if one was drawn.
+void end_progress_line();
+
+// Human-readable byte count: "12.3 MB".
+std::string format_bytes(std::uint64_t bytes);
 
 }  // namespace relief::cli

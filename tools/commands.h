@@ -7,5 +7,8 @@ int run_roundtrip(int argc, char** argv);
 int run_encode_chunk(int argc, char** argv);
 int run_decode_chunk(int argc, char** argv);
 int run_eval(int argc, char** argv);
+int run_compress(int argc, char** argv);
+int run_append(int argc, char** argv);
+int run_stream(int argc, char** argv);
 
 }  // namespace relief::cli

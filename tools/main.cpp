@@ -12,6 +12,9 @@ constexpr const char* kUsage =
     "usage: relief <command> [options]\n"
     "\n"
     "Commands:\n"
+    "  compress IN... -o OUT.relief      compress point files of any size into an archive\n"
+    "  append ARCHIVE IN...              add point files to an archive\n"
+    "  stream ARCHIVE                    compress points arriving on standard input\n"
     "  roundtrip IN.ply          compress one file as a chunk, decompress it, print size and error\n"
     "  encode-chunk IN.ply -o OUT.rlfc   compress a point file into one chunk blob\n"
     "  decode-chunk IN.rlfc -o OUT.ply   decompress a chunk blob\n"
@@ -34,6 +37,9 @@ int main(int argc, char** argv) {
   const std::string command = argv[1];
   const int sub_argc = argc - 2;
   char** sub_argv = argv + 2;
+  if (command == "compress") return relief::cli::run_compress(sub_argc, sub_argv);
+  if (command == "append") return relief::cli::run_append(sub_argc, sub_argv);
+  if (command == "stream") return relief::cli::run_stream(sub_argc, sub_argv);
   if (command == "roundtrip") return relief::cli::run_roundtrip(sub_argc, sub_argv);
   if (command == "encode-chunk") return relief::cli::run_encode_chunk(sub_argc, sub_argv);
   if (command == "decode-chunk") return relief::cli::run_decode_chunk(sub_argc, sub_argv);

@@ -1,6 +1,8 @@
-// PLY reader. The header is parsed into ply::Header; the body is walked
-// element by element in file order so that elements before and after the
-// vertex element are skipped (and checked for completeness) in every encoding.
+// PLY reader. The header is parsed into ply::Header; PlyPointReader then skips
+// the elements before the vertex element and yields vertices in batches, so a
+// file far larger than memory streams through a bounded buffer. read_ply and
+// read_ply_memory drive the same reader to the end and additionally walk the
+// elements after the vertices, so a file cut short anywhere is reported.
 //
 // The common case (binary in host byte order, x y z all float or all double,
 // optional uchar colour and float intensity) is decoded by a small template
@@ -15,6 +17,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -22,6 +25,9 @@
 
 #include "io/byte_source.h"
 #include "io/ply_format.h"
+#include "io/readers.h"
+#include "io/stream_support.h"
+#include "io/text_scan.h"
 #include "relief/io.h"
 
 namespace relief {
@@ -33,87 +39,11 @@ using ply::Property;
 using ply::ScalarType;
 
 // Without a known input size (pipes) the header count is untrusted, so the
-// first allocation is capped and vectors grow as data actually arrives.
+// whole-file reader reserves at most this much up front and vectors grow as
+// data actually arrives.
 constexpr std::uint64_t kBlindReserve = std::uint64_t{1} << 16;
 // ascii records are one per line; a line this long is not a point record.
 constexpr std::size_t kMaxAsciiLine = std::size_t{4} << 20;
-
-// ---------------------------------------------------------------- lines
-
-enum class LineStatus { kLine, kEnd, kTooLong };
-
-// Reads the next line without its "\n" (and "\r" before it). The view stays
-// valid until the next call on `src`. A last line without "\n" still counts.
-Status next_line(ByteSource& src, std::size_t max_len, std::string_view& line, LineStatus& state) {
-  std::span<const std::uint8_t> view;
-  RELIEF_RETURN_IF_ERROR(src.fill(1, view));
-  if (view.empty()) {
-    state = LineStatus::kEnd;
-    return Status::ok();
-  }
-  std::size_t scanned = 0;
-  for (;;) {
-    const auto* nl = static_cast<const std::uint8_t*>(
-        std::memchr(view.data() + scanned, '\n', view.size() - scanned));
-    std::size_t len = 0;
-    std::size_t used = 0;
-    if (nl != nullptr) {
-      len = static_cast<std::size_t>(nl - view.data());
-      used = len + 1;
-    } else if (view.size() > max_len) {
-      state = LineStatus::kTooLong;
-      return Status::ok();
-    } else {
-      const std::size_t have = view.size();
-      RELIEF_RETURN_IF_ERROR(src.fill(have + 1, view));
-      if (view.size() > have) {
-        scanned = have;
-        continue;
-      }
-      len = used = have;  // end of input: the last line has no newline
-    }
-    if (len > max_len) {
-      state = LineStatus::kTooLong;
-      return Status::ok();
-    }
-    if (len > 0 && view[len - 1] == '\r') --len;
-    line = std::string_view(reinterpret_cast<const char*>(view.data()), len);
-    src.consume(used);  // consume() never moves bytes, so `line` stays valid
-    state = LineStatus::kLine;
-    return Status::ok();
-  }
-}
-
-bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
-
-// Returns the next whitespace-separated token of `line` from `pos`, or an
-// empty view when there is none.
-std::string_view next_token(std::string_view line, std::size_t& pos) {
-  while (pos < line.size() && is_space(line[pos])) ++pos;
-  const std::size_t start = pos;
-  while (pos < line.size() && !is_space(line[pos])) ++pos;
-  return line.substr(start, pos - start);
-}
-
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> out;
-  std::size_t pos = 0;
-  for (std::string_view t = next_token(line, pos); !t.empty(); t = next_token(line, pos)) {
-    out.push_back(t);
-  }
-  return out;
-}
-
-std::string quoted(std::string_view s) {
-  // Keep error messages short and printable even when the input is binary junk.
-  constexpr std::size_t kMaxShown = 40;
-  std::string out = "'";
-  for (char c : s.substr(0, kMaxShown)) {
-    out += (c >= 0x20 && c < 0x7f) ? c : '?';
-  }
-  if (s.size() > kMaxShown) out += "...";
-  return out + "'";
-}
 
 // ---------------------------------------------------------------- header
 
@@ -121,9 +51,9 @@ Result<ply::Header> parse_header(ByteSource& src, const std::string& name) {
   std::span<const std::uint8_t> view;
   RELIEF_RETURN_IF_ERROR(src.fill(4, view));
   if (view.empty()) return format_error(name + ": not a PLY file: it is empty");
-  const bool magic = view.size() >= 3 && std::memcmp(view.data(), "ply", 3) == 0 &&
-                     (view.size() == 3 || view[3] == '\n' || view[3] == '\r' ||
-                      view[3] == ' ' || view[3] == '\t');
+  const bool magic =
+      view.size() >= 3 && std::memcmp(view.data(), "ply", 3) == 0 &&
+      (view.size() == 3 || view[3] == '\n' || view[3] == '\r' || view[3] == ' ' || view[3] == '\t');
   if (!magic) return format_error(name + ": not a PLY file: it does not start with 'ply'");
 
   ply::Header header;
@@ -140,14 +70,14 @@ Result<ply::Header> parse_header(ByteSource& src, const std::string& name) {
       return format_error(name + ": header has no end_header line in its first " +
                           std::to_string(ply::kMaxHeaderBytes) + " bytes");
     }
-    const std::vector<std::string_view> tok = split(line);
+    const std::vector<std::string_view> tok = split_tokens(line);
     if (line_no == 1) {
       if (tok.size() != 1 || tok[0] != "ply") {
         return format_error(name + ": not a PLY file: the first line is not 'ply'");
       }
       continue;
     }
-    if (tok.empty()) continue;   // tolerated: some writers leave blank lines
+    if (tok.empty()) continue;  // tolerated: some writers leave blank lines
     const std::string_view kw = tok[0];
     if (kw == "comment" || kw == "obj_info") continue;
     if (kw == "end_header") break;
@@ -186,8 +116,7 @@ Result<ply::Header> parse_header(ByteSource& src, const std::string& name) {
       }
       if (static_cast<std::uint64_t>(count) > ply::kMaxElementCount) {
         return format_error(where + "element " + quoted(tok[1]) + " count " + quoted(tok[2]) +
-                            " is absurdly large (limit " + std::to_string(ply::kMaxElementCount) +
-                            ")");
+                            " is absurdly large (limit " + std::to_string(ply::kMaxElementCount) + ")");
       }
       for (const Element& e : header.elements) {
         if (e.name == tok[1]) return format_error(where + "a second element " + quoted(tok[1]));
@@ -246,8 +175,8 @@ struct VertexPlan {
   std::array<std::size_t, kFieldCount> prop{};
   bool has_color = false;
   bool has_intensity = false;
-  // Colours wider than 8 bits are collected as 16-bit and narrowed at the end,
-  // because whether to shift depends on the maximum over the whole file.
+  // Colours wider than 8 bits follow the 16-bit rule (io/stream_support.h):
+  // whether to shift depends on the levels of the whole file or a sample.
   bool wide_color = false;
 };
 
@@ -318,14 +247,22 @@ T load(const std::uint8_t* p, bool swap) {
 // Every PLY scalar type fits a double exactly.
 double load_scalar(const std::uint8_t* p, ScalarType t, bool swap) {
   switch (t) {
-    case ScalarType::kInt8: return load<std::int8_t>(p, swap);
-    case ScalarType::kUint8: return load<std::uint8_t>(p, swap);
-    case ScalarType::kInt16: return load<std::int16_t>(p, swap);
-    case ScalarType::kUint16: return load<std::uint16_t>(p, swap);
-    case ScalarType::kInt32: return load<std::int32_t>(p, swap);
-    case ScalarType::kUint32: return load<std::uint32_t>(p, swap);
-    case ScalarType::kFloat32: return load<float>(p, swap);
-    case ScalarType::kFloat64: return load<double>(p, swap);
+    case ScalarType::kInt8:
+      return load<std::int8_t>(p, swap);
+    case ScalarType::kUint8:
+      return load<std::uint8_t>(p, swap);
+    case ScalarType::kInt16:
+      return load<std::int16_t>(p, swap);
+    case ScalarType::kUint16:
+      return load<std::uint16_t>(p, swap);
+    case ScalarType::kInt32:
+      return load<std::int32_t>(p, swap);
+    case ScalarType::kUint32:
+      return load<std::uint32_t>(p, swap);
+    case ScalarType::kFloat32:
+      return load<float>(p, swap);
+    case ScalarType::kFloat64:
+      return load<double>(p, swap);
   }
   return 0;
 }
@@ -365,12 +302,24 @@ bool parse_ascii(std::string_view tok, ScalarType t, double& out) {
     std::int64_t lo = 0;
     std::int64_t hi = 0;
     switch (t) {
-      case ScalarType::kInt8: lo = INT8_MIN, hi = INT8_MAX; break;
-      case ScalarType::kUint8: lo = 0, hi = UINT8_MAX; break;
-      case ScalarType::kInt16: lo = INT16_MIN, hi = INT16_MAX; break;
-      case ScalarType::kUint16: lo = 0, hi = UINT16_MAX; break;
-      case ScalarType::kInt32: lo = INT32_MIN, hi = INT32_MAX; break;
-      default: lo = 0, hi = UINT32_MAX; break;
+      case ScalarType::kInt8:
+        lo = INT8_MIN, hi = INT8_MAX;
+        break;
+      case ScalarType::kUint8:
+        lo = 0, hi = UINT8_MAX;
+        break;
+      case ScalarType::kInt16:
+        lo = INT16_MIN, hi = INT16_MAX;
+        break;
+      case ScalarType::kUint16:
+        lo = 0, hi = UINT16_MAX;
+        break;
+      case ScalarType::kInt32:
+        lo = INT32_MIN, hi = INT32_MAX;
+        break;
+      default:
+        lo = 0, hi = UINT32_MAX;
+        break;
     }
     if (v < lo || v > hi) return false;
     out = static_cast<double>(v);
@@ -388,13 +337,7 @@ bool parse_ascii(std::string_view tok, ScalarType t, double& out) {
   return ec == std::errc{} && p == last;
 }
 
-// ---------------------------------------------------------------- sink
-
-// Where vertices go while the body is read.
-struct VertexSink {
-  PointCloud cloud;
-  std::vector<std::uint16_t> wide;  // r g b per point, only for wide colours
-};
+// ---------------------------------------------------------------- errors
 
 // "x.ply: vertex 12"; built only when an error is reported.
 std::string record_label(const std::string& name, std::string_view element, std::uint64_t index) {
@@ -405,29 +348,20 @@ std::string vertex_label(const std::string& name, std::uint64_t index) {
   return record_label(name, "vertex", index);
 }
 
-// Shortest round-trip text, so messages show the value actually read.
-std::string format_double(double v) {
-  std::array<char, 64> buf{};
-  const auto [end, ec] = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return ec == std::errc{} ? std::string(buf.data(), end) : std::string("?");
-}
-
 Status non_finite_vertex(const std::string& name, std::uint64_t index, const Vec3d& p) {
-  return format_error(vertex_label(name, index) + " has a non-finite coordinate (" +
-                      format_double(p.x) + ", " + format_double(p.y) + ", " + format_double(p.z) +
-                      ")");
+  return format_error(vertex_label(name, index) + " has a non-finite coordinate (" + format_double(p.x) +
+                      ", " + format_double(p.y) + ", " + format_double(p.z) + ")");
 }
 
 Status non_finite_intensity(const std::string& name, std::uint64_t index, float v) {
-  return format_error(vertex_label(name, index) + " has a non-finite intensity (" +
-                      format_double(v) + ")");
+  return format_error(vertex_label(name, index) + " has a non-finite intensity (" + format_double(v) + ")");
 }
 
-// Checks points [first, first + n) of the cloud. One branch-free pass in the
-// common all-finite case; the offending index is searched only on failure.
-Status check_finite(const PointCloud& cloud, std::size_t first, std::size_t n,
+// Checks n decoded points; `first` is the file index of p[0], for messages.
+// One branch-free pass in the common all-finite case; the offending index is
+// searched only on failure.
+Status check_finite(const Vec3d* p, const float* intensity, std::size_t n, std::uint64_t first,
                     const std::string& name) {
-  const Vec3d* p = cloud.positions.data() + first;
   double acc = 0;  // x - x is NaN exactly when x is NaN or infinite
   for (std::size_t i = 0; i < n; ++i) acc += (p[i].x - p[i].x) + (p[i].y - p[i].y) + (p[i].z - p[i].z);
   if (acc != 0) {
@@ -437,68 +371,20 @@ Status check_finite(const PointCloud& cloud, std::size_t first, std::size_t n,
       }
     }
   }
-  if (!cloud.intensities.empty()) {
-    const float* v = cloud.intensities.data() + first;
+  if (intensity != nullptr) {
     float facc = 0;
-    for (std::size_t i = 0; i < n; ++i) facc += v[i] - v[i];
+    for (std::size_t i = 0; i < n; ++i) facc += intensity[i] - intensity[i];
     if (facc != 0) {
       for (std::size_t i = 0; i < n; ++i) {
-        if (!std::isfinite(v[i])) return non_finite_intensity(name, first + i, v[i]);
+        if (!std::isfinite(intensity[i])) return non_finite_intensity(name, first + i, intensity[i]);
       }
     }
   }
   return Status::ok();
 }
 
-// Appends one vertex from field values (used by the per-record paths).
-Status push_vertex(const std::array<double, kFieldCount>& v, const VertexPlan& plan,
-                   std::uint64_t index, const std::string& name, VertexSink& sink) {
-  const Vec3d p{v[kX], v[kY], v[kZ]};
-  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-    return non_finite_vertex(name, index, p);
-  }
-  sink.cloud.positions.push_back(p);
-  if (plan.has_color) {
-    if (plan.wide_color) {
-      for (Field f : {kRed, kGreen, kBlue}) sink.wide.push_back(to_level16(v[f]));
-    } else {
-      sink.cloud.colors.push_back({to_level8(v[kRed]), to_level8(v[kGreen]), to_level8(v[kBlue])});
-    }
-  }
-  if (plan.has_intensity) {
-    const float f = to_float(v[kIntensity]);
-    if (!std::isfinite(f)) return non_finite_intensity(name, index, f);
-    sink.cloud.intensities.push_back(f);
-  }
-  return Status::ok();
-}
-
-// Narrows 16-bit colours: shift right by 8 only if some value needs it, so
-// files that store 8-bit levels in a wider type keep their values.
-void finish_colors(VertexSink& sink) {
-  if (sink.wide.empty()) return;
-  const std::uint16_t max = *std::max_element(sink.wide.begin(), sink.wide.end());
-  const int shift = max > 255 ? 8 : 0;
-  const std::size_t n = sink.wide.size() / 3;
-  sink.cloud.colors.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    sink.cloud.colors[i] = {static_cast<std::uint8_t>(sink.wide[3 * i] >> shift),
-                            static_cast<std::uint8_t>(sink.wide[3 * i + 1] >> shift),
-                            static_cast<std::uint8_t>(sink.wide[3 * i + 2] >> shift)};
-  }
-  sink.wide.clear();
-  sink.wide.shrink_to_fit();
-}
-
-void reserve_sink(VertexSink& sink, const VertexPlan& plan, std::uint64_t n) {
-  const auto count = static_cast<std::size_t>(n);
-  sink.cloud.reserve(count, plan.has_color && !plan.wide_color, plan.has_intensity);
-  if (plan.wide_color) sink.wide.reserve(3 * count);
-}
-
 Status truncated(const std::string& name, const Element& el, std::uint64_t got) {
-  const std::string what =
-      el.name == "vertex" ? std::string(" vertices") : " '" + el.name + "' elements";
+  const std::string what = el.name == "vertex" ? std::string(" vertices") : " '" + el.name + "' elements";
   return format_error(name + ": truncated: header declares " + std::to_string(el.count) + what +
                       " but the data ends after " + std::to_string(got));
 }
@@ -512,9 +398,13 @@ struct Layout {
   std::array<ScalarType, kFieldCount> type{};
   bool swap = false;
   bool has_color = false;
+  bool wide_color = false;
   bool has_intensity = false;
+  int color_shift = 0;  // for wide colours narrowed while decoding
 };
 
+// Decodes n records. Colours go to `col`, or as 16-bit levels to `wide` when
+// that is given (then `col` is null); `intensity` is null without intensity.
 using BatchDecoder = void (*)(const std::uint8_t* src, std::size_t n, const Layout& lay, Vec3d* pos,
                               Rgb8* col, std::uint16_t* wide, float* intensity);
 
@@ -539,8 +429,8 @@ void decode_fast(const std::uint8_t* src, std::size_t n, const Layout& lay, Vec3
 }
 
 // Any scalar types, either byte order.
-void decode_generic(const std::uint8_t* src, std::size_t n, const Layout& lay, Vec3d* pos,
-                    Rgb8* col, std::uint16_t* wide, float* intensity) {
+void decode_generic(const std::uint8_t* src, std::size_t n, const Layout& lay, Vec3d* pos, Rgb8* col,
+                    std::uint16_t* wide, float* intensity) {
   auto get = [&](const std::uint8_t* rec, Field f) {
     return load_scalar(rec + lay.offset[f], lay.type[f], lay.swap);
   };
@@ -552,6 +442,10 @@ void decode_generic(const std::uint8_t* src, std::size_t n, const Layout& lay, V
         wide[3 * i] = to_level16(r);
         wide[3 * i + 1] = to_level16(g);
         wide[3 * i + 2] = to_level16(b);
+      } else if (lay.wide_color) {
+        col[i] =
+            Rgb8{narrow_level(to_level16(r), lay.color_shift), narrow_level(to_level16(g), lay.color_shift),
+                 narrow_level(to_level16(b), lay.color_shift)};
       } else {
         col[i] = Rgb8{to_level8(r), to_level8(g), to_level8(b)};
       }
@@ -562,11 +456,11 @@ void decode_generic(const std::uint8_t* src, std::size_t n, const Layout& lay, V
 
 BatchDecoder pick_decoder(const Layout& lay, const VertexPlan& plan) {
   const ScalarType ct = lay.type[kX];
-  const bool same_coord = lay.type[kY] == ct && lay.type[kZ] == ct &&
-                          (ct == ScalarType::kFloat32 || ct == ScalarType::kFloat64);
-  const bool plain_color = !plan.has_color || (lay.type[kRed] == ScalarType::kUint8 &&
-                                               lay.type[kGreen] == ScalarType::kUint8 &&
-                                               lay.type[kBlue] == ScalarType::kUint8);
+  const bool same_coord =
+      lay.type[kY] == ct && lay.type[kZ] == ct && (ct == ScalarType::kFloat32 || ct == ScalarType::kFloat64);
+  const bool plain_color =
+      !plan.has_color || (lay.type[kRed] == ScalarType::kUint8 && lay.type[kGreen] == ScalarType::kUint8 &&
+                          lay.type[kBlue] == ScalarType::kUint8);
   const bool plain_intensity = !plan.has_intensity || lay.type[kIntensity] == ScalarType::kFloat32;
   if (lay.swap || !same_coord || !plain_color || !plain_intensity) return decode_generic;
   const bool dbl = ct == ScalarType::kFloat64;
@@ -580,11 +474,11 @@ BatchDecoder pick_decoder(const Layout& lay, const VertexPlan& plan) {
   return in ? decode_fast<float, false, true> : decode_fast<float, false, false>;
 }
 
-Status read_binary_vertices_fixed(ByteSource& src, const Element& el, const VertexPlan& plan,
-                                  bool swap, const std::string& name, VertexSink& sink) {
+Layout make_layout(const Element& el, const VertexPlan& plan, bool swap) {
   Layout lay;
   lay.swap = swap;
   lay.has_color = plan.has_color;
+  lay.wide_color = plan.wide_color;
   lay.has_intensity = plan.has_intensity;
   std::vector<std::size_t> prop_offset(el.properties.size());
   for (std::size_t i = 0; i < el.properties.size(); ++i) {
@@ -596,54 +490,15 @@ Status read_binary_vertices_fixed(ByteSource& src, const Element& el, const Vert
     lay.offset[f] = prop_offset[plan.prop[f]];
     lay.type[f] = el.properties[plan.prop[f]].type;
   }
-  const std::size_t stride = lay.stride;  // >= 3: x, y and z are present
-
-  // Check the declared count against the bytes actually there before any
-  // allocation is sized by it.
-  std::uint64_t reserve = std::min(el.count, kBlindReserve);
-  if (const auto rem = src.remaining()) {
-    if (el.count > *rem / stride) return truncated(name, el, *rem / stride);
-    reserve = el.count;
-  }
-  reserve_sink(sink, plan, reserve);
-  PointCloud& cloud = sink.cloud;
-
-  const BatchDecoder decode = pick_decoder(lay, plan);
-  std::uint64_t done = 0;
-  while (done < el.count) {
-    std::span<const std::uint8_t> view;
-    RELIEF_RETURN_IF_ERROR(src.fill(stride, view));
-    const std::uint64_t avail = view.size() / stride;
-    if (avail == 0) return truncated(name, el, done);
-    const auto n = static_cast<std::size_t>(std::min(el.count - done, avail));
-    const auto at = static_cast<std::size_t>(done);
-    cloud.positions.resize(at + n);
-    if (plan.has_color) {
-      if (plan.wide_color) {
-        sink.wide.resize(3 * (at + n));
-      } else {
-        cloud.colors.resize(at + n);
-      }
-    }
-    if (plan.has_intensity) cloud.intensities.resize(at + n);
-    decode(view.data(), n, lay, cloud.positions.data() + at,
-           plan.has_color && !plan.wide_color ? cloud.colors.data() + at : nullptr,
-           plan.wide_color ? sink.wide.data() + 3 * at : nullptr,
-           plan.has_intensity ? cloud.intensities.data() + at : nullptr);
-    RELIEF_RETURN_IF_ERROR(check_finite(cloud, at, n, name));
-    src.consume(n * stride);
-    done += n;
-  }
-  return Status::ok();
+  return lay;
 }
 
 // Reads one binary record property by property; used when the element has
 // list properties. `values` receives the fields named in `field_of` (may be
 // empty when the record is only skipped). `complete` is false if the input ended.
-Status read_binary_record(ByteSource& src, const Element& el, bool swap,
-                          const std::vector<int>& field_of,
-                          std::array<double, kFieldCount>& values, bool& complete,
-                          const std::string& name, std::uint64_t index) {
+Status read_binary_record(ByteSource& src, const Element& el, bool swap, const std::vector<int>& field_of,
+                          std::array<double, kFieldCount>& values, bool& complete, const std::string& name,
+                          std::uint64_t index) {
   complete = false;
   for (std::size_t j = 0; j < el.properties.size(); ++j) {
     const Property& prop = el.properties[j];
@@ -656,8 +511,8 @@ Status read_binary_record(ByteSource& src, const Element& el, bool swap,
       src.consume(cs);
       if (count < 0) {
         return format_error(record_label(name, el.name, index) + ": list " + quoted(prop.name) +
-                            " has a negative length (" +
-                            std::to_string(static_cast<std::int64_t>(count)) + ")");
+                            " has a negative length (" + std::to_string(static_cast<std::int64_t>(count)) +
+                            ")");
       }
       // count <= 2^32 and items <= 8 bytes: no overflow.
       const auto bytes = static_cast<std::uint64_t>(count) * ply::scalar_size(prop.type);
@@ -686,23 +541,6 @@ std::vector<int> fields_of_properties(const Element& el, const VertexPlan& plan)
   return field_of;
 }
 
-Status read_binary_vertices_var(ByteSource& src, const Element& el, const VertexPlan& plan,
-                                bool swap, const std::string& name, VertexSink& sink) {
-  // Each record holds at least min_record_size() bytes, which bounds the count.
-  std::uint64_t reserve = std::min(el.count, kBlindReserve);
-  if (const auto rem = src.remaining()) reserve = std::min(el.count, *rem / el.min_record_size());
-  reserve_sink(sink, plan, reserve);
-  const std::vector<int> field_of = fields_of_properties(el, plan);
-  for (std::uint64_t i = 0; i < el.count; ++i) {
-    std::array<double, kFieldCount> values{};
-    bool complete = false;
-    RELIEF_RETURN_IF_ERROR(read_binary_record(src, el, swap, field_of, values, complete, name, i));
-    if (!complete) return truncated(name, el, i);
-    RELIEF_RETURN_IF_ERROR(push_vertex(values, plan, i, name, sink));
-  }
-  return Status::ok();
-}
-
 Status skip_binary_element(ByteSource& src, const Element& el, bool swap, const std::string& name) {
   if (el.fixed_size()) {
     const std::uint64_t size = el.min_record_size();
@@ -724,8 +562,8 @@ Status skip_binary_element(ByteSource& src, const Element& el, bool swap, const 
 // ---------------------------------------------------------------- ascii
 
 // Next non-blank line; `found` is false at the end of the input.
-Status next_record_line(ByteSource& src, std::string_view& line, bool& found,
-                        const std::string& name, const Element& el, std::uint64_t index) {
+Status next_record_line(ByteSource& src, std::string_view& line, bool& found, const std::string& name,
+                        const Element& el, std::uint64_t index) {
   for (;;) {
     LineStatus state = LineStatus::kEnd;
     RELIEF_RETURN_IF_ERROR(next_line(src, kMaxAsciiLine, line, state));
@@ -745,52 +583,38 @@ Status next_record_line(ByteSource& src, std::string_view& line, bool& found,
   }
 }
 
-Status read_ascii_vertices(ByteSource& src, const Element& el, const VertexPlan& plan,
-                           const std::string& name, VertexSink& sink) {
-  // A record needs at least one character and one separator per property.
-  const std::uint64_t min_line = 2 * el.properties.size();
-  std::uint64_t reserve = std::min(el.count, kBlindReserve);
-  if (const auto rem = src.remaining()) reserve = std::min(el.count, *rem / min_line + 1);
-  reserve_sink(sink, plan, reserve);
-  const std::vector<int> field_of = fields_of_properties(el, plan);
-  for (std::uint64_t i = 0; i < el.count; ++i) {
-    std::string_view line;
-    bool found = false;
-    RELIEF_RETURN_IF_ERROR(next_record_line(src, line, found, name, el, i));
-    if (!found) return truncated(name, el, i);
-    std::array<double, kFieldCount> values{};
-    std::size_t pos = 0;
-    for (std::size_t j = 0; j < el.properties.size(); ++j) {
-      const Property& prop = el.properties[j];
-      const std::string_view tok = next_token(line, pos);
-      if (tok.empty()) {
-        return format_error(vertex_label(name, i) + ": the line ends before property " +
-                            quoted(prop.name));
-      }
-      if (prop.is_list) {
-        double count = 0;
-        if (!parse_ascii(tok, prop.count_type, count) || count < 0) {
-          return format_error(vertex_label(name, i) + ": " + quoted(tok) +
-                              " is not a valid length for list " + quoted(prop.name));
-        }
-        for (std::uint64_t k = 0; k < static_cast<std::uint64_t>(count); ++k) {
-          if (next_token(line, pos).empty()) {
-            return format_error(vertex_label(name, i) + ": the line ends inside list " +
-                                quoted(prop.name));
-          }
-        }
-        continue;
-      }
-      if (field_of[j] < 0) continue;
-      if (!parse_ascii(tok, prop.type, values[static_cast<std::size_t>(field_of[j])])) {
-        return format_error(vertex_label(name, i) + ": " + quoted(tok) + " is not a valid " +
-                            ply::scalar_name(prop.type) + " for property " + quoted(prop.name));
-      }
+// Parses one ascii vertex line into `values`.
+Status parse_ascii_vertex(std::string_view line, const Element& el, const std::vector<int>& field_of,
+                          std::array<double, kFieldCount>& values, const std::string& name,
+                          std::uint64_t index) {
+  std::size_t pos = 0;
+  for (std::size_t j = 0; j < el.properties.size(); ++j) {
+    const Property& prop = el.properties[j];
+    const std::string_view tok = next_token(line, pos);
+    if (tok.empty()) {
+      return format_error(vertex_label(name, index) + ": the line ends before property " + quoted(prop.name));
     }
-    if (!next_token(line, pos).empty()) {
-      return format_error(vertex_label(name, i) + ": more values than the header declares");
+    if (prop.is_list) {
+      double count = 0;
+      if (!parse_ascii(tok, prop.count_type, count) || count < 0) {
+        return format_error(vertex_label(name, index) + ": " + quoted(tok) +
+                            " is not a valid length for list " + quoted(prop.name));
+      }
+      for (std::uint64_t k = 0; k < static_cast<std::uint64_t>(count); ++k) {
+        if (next_token(line, pos).empty()) {
+          return format_error(vertex_label(name, index) + ": the line ends inside list " + quoted(prop.name));
+        }
+      }
+      continue;
     }
-    RELIEF_RETURN_IF_ERROR(push_vertex(values, plan, i, name, sink));
+    if (field_of[j] < 0) continue;
+    if (!parse_ascii(tok, prop.type, values[static_cast<std::size_t>(field_of[j])])) {
+      return format_error(vertex_label(name, index) + ": " + quoted(tok) + " is not a valid " +
+                          ply::scalar_name(prop.type) + " for property " + quoted(prop.name));
+    }
+  }
+  if (!next_token(line, pos).empty()) {
+    return format_error(vertex_label(name, index) + ": more values than the header declares");
   }
   return Status::ok();
 }
@@ -805,50 +629,274 @@ Status skip_ascii_element(ByteSource& src, const Element& el, const std::string&
   return Status::ok();
 }
 
-// ---------------------------------------------------------------- driver
+// ---------------------------------------------------------------- reader
 
-Result<PointCloud> read_ply_source(ByteSource& src, const std::string& name) {
-  RELIEF_ASSIGN_OR_RETURN(const ply::Header header, parse_header(src, name));
-  const auto vertex_it = std::find_if(header.elements.begin(), header.elements.end(),
-                                      [](const Element& e) { return e.name == "vertex"; });
-  if (vertex_it == header.elements.end()) {
-    return format_error(name + ": the header declares no vertex element");
+class PlyPointReader final : public BatchPointReader {
+ public:
+  // `check_trailing`: after the last vertex, also walk the elements that
+  // follow and report them if they are cut short (the whole-file readers do;
+  // a stream stops at the last vertex).
+  static Result<std::unique_ptr<PlyPointReader>> open(const InputSpec& input, bool check_trailing) {
+    RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
+    std::unique_ptr<PlyPointReader> reader(new PlyPointReader(input, std::move(src), check_trailing));
+    RELIEF_RETURN_IF_ERROR(reader->start());
+    return reader;
   }
-  RELIEF_ASSIGN_OR_RETURN(const VertexPlan plan, make_plan(*vertex_it, name));
 
-  const bool file_little = header.encoding == PlyEncoding::kBinaryLittleEndian;
-  const bool swap = header.encoding != PlyEncoding::kAscii &&
-                    file_little != (std::endian::native == std::endian::little);
-  VertexSink sink;
-  // Walk every element, including those after the vertices, so a file cut
-  // short anywhere is reported rather than half-read silently.
-  for (const Element& el : header.elements) {
-    const bool is_vertex = &el == &*vertex_it;
-    if (header.encoding == PlyEncoding::kAscii) {
-      RELIEF_RETURN_IF_ERROR(is_vertex ? read_ascii_vertices(src, el, plan, name, sink)
-                                       : skip_ascii_element(src, el, name));
-    } else if (!is_vertex) {
-      RELIEF_RETURN_IF_ERROR(skip_binary_element(src, el, swap, name));
-    } else if (el.fixed_size()) {
-      RELIEF_RETURN_IF_ERROR(read_binary_vertices_fixed(src, el, plan, swap, name, sink));
-    } else {
-      RELIEF_RETURN_IF_ERROR(read_binary_vertices_var(src, el, plan, swap, name, sink));
+  Result<std::size_t> read_into(PointCloud& out, std::vector<std::uint16_t>* wide, std::size_t at,
+                                std::size_t max_points) override;
+
+  bool wide_colors() const { return wide_colors_; }
+
+  // How many vertices to reserve for a whole-file read: the declared count
+  // bounded by what the remaining bytes can hold.
+  std::uint64_t reserve_hint() {
+    const Element& el = header_.elements[vertex_el_];
+    const std::uint64_t left = el.count - done_;
+    const auto rem = src_.remaining();
+    if (!rem) return std::min(left, kBlindReserve);
+    if (header_.encoding == PlyEncoding::kAscii) {
+      // A record needs at least one character and one separator per property.
+      return std::min(left, *rem / (2 * el.properties.size()) + 1);
+    }
+    return std::min(left, *rem / el.min_record_size());
+  }
+
+ protected:
+  Result<std::unique_ptr<BatchPointReader>> reopen() const override {
+    // A pipe cannot be read twice; a regular file or memory can.
+    if (!input_.memory && !src_.size()) return std::unique_ptr<BatchPointReader>();
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> again, open(input_, false));
+    return std::unique_ptr<BatchPointReader>(std::move(again));
+  }
+
+ private:
+  PlyPointReader(InputSpec input, ByteSource src, bool check_trailing)
+      : input_(std::move(input)), src_(std::move(src)), check_trailing_(check_trailing) {}
+
+  Status start();
+  Result<std::size_t> read_fixed(PointCloud& out, std::vector<std::uint16_t>* wide, std::size_t at,
+                                 std::size_t want);
+  Result<std::size_t> read_records(PointCloud& out, std::vector<std::uint16_t>* wide, std::size_t at,
+                                   std::size_t want);
+  Status push_vertex(const std::array<double, kFieldCount>& v, std::uint64_t index, PointCloud& out,
+                     std::vector<std::uint16_t>* wide) const;
+  Status finish_trailing();
+
+  const std::string& name() const { return input_.name; }
+  const Element& vertex() const { return header_.elements[vertex_el_]; }
+
+  InputSpec input_;
+  ByteSource src_;
+  bool check_trailing_;
+  bool trailing_checked_ = false;
+  ply::Header header_;
+  std::size_t vertex_el_ = 0;
+  VertexPlan plan_;
+  bool swap_ = false;
+  bool fixed_binary_ = false;
+  Layout layout_;
+  BatchDecoder decode_ = nullptr;
+  std::vector<int> field_of_;
+  // The remaining bytes are known to hold every vertex, so batches may be
+  // sized before they are read.
+  bool backed_ = false;
+  std::uint64_t done_ = 0;  // vertices delivered so far
+};
+
+Status PlyPointReader::start() {
+  RELIEF_ASSIGN_OR_RETURN(header_, parse_header(src_, name()));
+  const auto it = std::find_if(header_.elements.begin(), header_.elements.end(),
+                               [](const Element& e) { return e.name == "vertex"; });
+  if (it == header_.elements.end()) {
+    return format_error(name() + ": the header declares no vertex element");
+  }
+  vertex_el_ = static_cast<std::size_t>(it - header_.elements.begin());
+  RELIEF_ASSIGN_OR_RETURN(plan_, make_plan(vertex(), name()));
+  const bool binary = header_.encoding != PlyEncoding::kAscii;
+  const bool file_little = header_.encoding == PlyEncoding::kBinaryLittleEndian;
+  swap_ = binary && file_little != (std::endian::native == std::endian::little);
+  field_of_ = fields_of_properties(vertex(), plan_);
+
+  for (std::size_t e = 0; e < vertex_el_; ++e) {
+    const Element& el = header_.elements[e];
+    RELIEF_RETURN_IF_ERROR(binary ? skip_binary_element(src_, el, swap_, name())
+                                  : skip_ascii_element(src_, el, name()));
+  }
+
+  fixed_binary_ = binary && vertex().fixed_size();
+  if (fixed_binary_) {
+    layout_ = make_layout(vertex(), plan_, swap_);
+    decode_ = pick_decoder(layout_, plan_);
+    // Check the declared count against the bytes actually there before any
+    // allocation is sized by it.
+    if (const auto rem = src_.remaining()) {
+      const std::uint64_t holds = *rem / layout_.stride;  // stride >= 3: x, y, z
+      if (vertex().count > holds) return truncated(name(), vertex(), holds);
+      backed_ = true;
     }
   }
-  finish_colors(sink);
-  return std::move(sink.cloud);
+
+  info_.path = name();
+  info_.format = "ply";
+  info_.point_count = vertex().count;
+  info_.has_colors = plan_.has_color;
+  info_.has_intensity = plan_.has_intensity;
+  wide_colors_ = plan_.wide_color;
+  return Status::ok();
+}
+
+Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::uint16_t>* wide,
+                                              std::size_t at, std::size_t max_points) {
+  const std::uint64_t left = vertex().count - done_;
+  const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(max_points, left));
+  std::size_t got = 0;
+  if (fixed_binary_) {
+    RELIEF_ASSIGN_OR_RETURN(got, read_fixed(out, wide, at, want));
+  } else {
+    RELIEF_ASSIGN_OR_RETURN(got, read_records(out, wide, at, want));
+  }
+  done_ += got;
+  if (done_ == vertex().count && check_trailing_ && !trailing_checked_) {
+    trailing_checked_ = true;
+    RELIEF_RETURN_IF_ERROR(finish_trailing());
+  }
+  return got;
+}
+
+Result<std::size_t> PlyPointReader::read_fixed(PointCloud& out, std::vector<std::uint16_t>* wide,
+                                               std::size_t at, std::size_t want) {
+  const bool to_wide = wide != nullptr && plan_.wide_color;
+  const bool col8 = plan_.has_color && !to_wide;
+  auto size_to = [&](std::size_t n) {
+    size_batch(out, n, col8, plan_.has_intensity);
+    if (to_wide) wide->resize(3 * n);
+  };
+  // Sized once when the data is known to be there, so that a batch reused at
+  // the same size is never touched twice; otherwise grown as data arrives.
+  if (backed_) size_to(at + want);
+  layout_.color_shift = color_shift_;
+  const std::size_t stride = layout_.stride;
+  std::size_t got = 0;
+  while (got < want) {
+    std::span<const std::uint8_t> view;
+    RELIEF_RETURN_IF_ERROR(src_.fill(stride, view));
+    const std::size_t avail = view.size() / stride;
+    if (avail == 0) return truncated(name(), vertex(), done_ + got);
+    const std::size_t n = std::min(want - got, avail);
+    const std::size_t i0 = at + got;
+    if (!backed_) size_to(i0 + n);
+    float* intensity = plan_.has_intensity ? out.intensities.data() + i0 : nullptr;
+    decode_(view.data(), n, layout_, out.positions.data() + i0, col8 ? out.colors.data() + i0 : nullptr,
+            to_wide ? wide->data() + 3 * i0 : nullptr, intensity);
+    RELIEF_RETURN_IF_ERROR(check_finite(out.positions.data() + i0, intensity, n, done_ + got, name()));
+    src_.consume(n * stride);
+    got += n;
+  }
+  size_to(at + got);
+  return got;
+}
+
+Status PlyPointReader::push_vertex(const std::array<double, kFieldCount>& v, std::uint64_t index,
+                                   PointCloud& out, std::vector<std::uint16_t>* wide) const {
+  const Vec3d p{v[kX], v[kY], v[kZ]};
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+    return non_finite_vertex(name(), index, p);
+  }
+  out.positions.push_back(p);
+  if (plan_.has_color) {
+    if (wide != nullptr && plan_.wide_color) {
+      for (const Field f : {kRed, kGreen, kBlue}) wide->push_back(to_level16(v[f]));
+    } else if (plan_.wide_color) {
+      out.colors.push_back({narrow_level(to_level16(v[kRed]), color_shift_),
+                            narrow_level(to_level16(v[kGreen]), color_shift_),
+                            narrow_level(to_level16(v[kBlue]), color_shift_)});
+    } else {
+      out.colors.push_back({to_level8(v[kRed]), to_level8(v[kGreen]), to_level8(v[kBlue])});
+    }
+  }
+  if (plan_.has_intensity) {
+    const float f = to_float(v[kIntensity]);
+    if (!std::isfinite(f)) return non_finite_intensity(name(), index, f);
+    out.intensities.push_back(f);
+  }
+  return Status::ok();
+}
+
+// Binary records with lists, and ascii lines: one record at a time.
+Result<std::size_t> PlyPointReader::read_records(PointCloud& out, std::vector<std::uint16_t>* wide,
+                                                 std::size_t at, std::size_t want) {
+  const bool to_wide = wide != nullptr && plan_.wide_color;
+  size_batch(out, at, plan_.has_color && !to_wide, plan_.has_intensity);
+  if (to_wide) wide->resize(3 * at);
+  const bool ascii = header_.encoding == PlyEncoding::kAscii;
+  for (std::size_t i = 0; i < want; ++i) {
+    const std::uint64_t index = done_ + i;
+    std::array<double, kFieldCount> values{};
+    if (ascii) {
+      std::string_view line;
+      bool found = false;
+      RELIEF_RETURN_IF_ERROR(next_record_line(src_, line, found, name(), vertex(), index));
+      if (!found) return truncated(name(), vertex(), index);
+      RELIEF_RETURN_IF_ERROR(parse_ascii_vertex(line, vertex(), field_of_, values, name(), index));
+    } else {
+      bool complete = false;
+      RELIEF_RETURN_IF_ERROR(
+          read_binary_record(src_, vertex(), swap_, field_of_, values, complete, name(), index));
+      if (!complete) return truncated(name(), vertex(), index);
+    }
+    RELIEF_RETURN_IF_ERROR(push_vertex(values, index, out, wide));
+  }
+  return want;
+}
+
+Status PlyPointReader::finish_trailing() {
+  const bool binary = header_.encoding != PlyEncoding::kAscii;
+  for (std::size_t e = vertex_el_ + 1; e < header_.elements.size(); ++e) {
+    const Element& el = header_.elements[e];
+    RELIEF_RETURN_IF_ERROR(binary ? skip_binary_element(src_, el, swap_, name())
+                                  : skip_ascii_element(src_, el, name()));
+  }
+  return Status::ok();
+}
+
+Result<PointCloud> read_ply_input(const InputSpec& input) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> reader, PlyPointReader::open(input, true));
+  const PointStreamInfo& info = reader->info();
+  const bool wide_colors = reader->wide_colors();
+  PointCloud cloud;
+  std::vector<std::uint16_t> wide;
+  const auto reserve = static_cast<std::size_t>(reader->reserve_hint());
+  cloud.reserve(reserve, info.has_colors && !wide_colors, info.has_intensity);
+  if (wide_colors) wide.reserve(3 * reserve);
+  // One call reads every vertex when the data is known to hold them; the loop
+  // covers the inputs that are read record by record or from a pipe.
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const std::size_t n, reader->read_into(cloud, &wide, cloud.size(),
+                                                                   std::numeric_limits<std::size_t>::max()));
+    if (n == 0) break;
+  }
+  if (wide_colors) {
+    // The whole file is at hand, so the 16-bit rule uses every level rather
+    // than a sample.
+    const int shift = color_shift_for(max_level(wide.data(), wide.size()));
+    cloud.colors.resize(cloud.size());
+    narrow_colors(wide.data(), cloud.size(), shift, cloud.colors.data());
+  }
+  return cloud;
 }
 
 }  // namespace
 
-Result<PointCloud> read_ply(const std::string& path) {
-  RELIEF_ASSIGN_OR_RETURN(ByteSource src, ByteSource::open_file(path));
-  return read_ply_source(src, path);
+Result<std::unique_ptr<PointReader>> open_ply_reader(const InputSpec& input) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> reader, PlyPointReader::open(input, false));
+  return std::unique_ptr<PointReader>(std::move(reader));
 }
 
+Result<PointCloud> read_ply(const std::string& path) { return read_ply_input(InputSpec{path, std::nullopt}); }
+
 Result<PointCloud> read_ply_memory(std::span<const std::uint8_t> data, const std::string& name) {
-  ByteSource src = ByteSource::from_memory(data);
-  return read_ply_source(src, name);
+  return read_ply_input(InputSpec{name, data});
 }
 
 }  // namespace relief

@@ -1,29 +1,41 @@
-// Format dispatch by file extension. New readers (LAS, XYZ, PCD) register
-// here; the extension comparison ignores case because exports from Windows
-// tools often arrive as ".PLY".
+// Format dispatch by file extension. The comparison ignores case because
+// exports from Windows tools often arrive as ".PLY" or ".LAS".
 
 #include <algorithm>
 #include <array>
 #include <cctype>
 #include <filesystem>
 #include <string>
+#include <string_view>
 
+#include "io/readers.h"
 #include "relief/io.h"
 
 namespace relief {
 
 namespace {
 
-using Reader = Result<PointCloud> (*)(const std::string& path);
+enum class Kind { kPly, kLas, kLaz, kXyz, kPcd };
 
-struct Format {
-  const char* extension;  // lower case, with the dot
-  Reader read;
+struct Extension {
+  std::string_view extension;  // lower case, with the dot
+  Kind kind;
 };
 
-constexpr std::array<Format, 1> kFormats = {{
-    {".ply", read_ply},
+constexpr std::array<Extension, 8> kExtensions = {{
+    {".ply", Kind::kPly},
+    {".las", Kind::kLas},
+    {".laz", Kind::kLaz},
+    {".xyz", Kind::kXyz},
+    {".txt", Kind::kXyz},
+    {".csv", Kind::kXyz},
+    {".pts", Kind::kXyz},
+    {".pcd", Kind::kPcd},
 }};
+
+// Batches for read_point_file: large enough to amortise the per-call work,
+// small enough that the batch buffer is not a second copy of the cloud.
+constexpr std::size_t kWholeFileBatch = std::size_t{1} << 20;
 
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(),
@@ -33,23 +45,62 @@ std::string lower(std::string s) {
 
 std::string supported_list() {
   std::string out;
-  for (const Format& f : kFormats) {
+  for (const Extension& e : kExtensions) {
+    if (e.kind == Kind::kLaz) continue;  // recognised, but only to explain why it is refused
     if (!out.empty()) out += ", ";
-    out += f.extension;
+    out += e.extension;
   }
   return out;
 }
 
+template <typename T>
+void append(std::vector<T>& to, const std::vector<T>& from) {
+  to.insert(to.end(), from.begin(), from.end());
+}
+
 }  // namespace
 
-Result<PointCloud> read_point_file(const std::string& path) {
+Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
+                                                       const ReaderOptions& options) {
   const std::string ext = lower(std::filesystem::path(path).extension().string());
-  for (const Format& f : kFormats) {
-    if (ext == f.extension) return f.read(path);
+  const auto it = std::find_if(kExtensions.begin(), kExtensions.end(),
+                               [&](const Extension& e) { return e.extension == ext; });
+  if (it == kExtensions.end()) {
+    const std::string shown = ext.empty() ? "no extension" : "extension '" + ext + "'";
+    return unsupported(path + ": unsupported point file format (" + shown +
+                       "); supported formats: " + supported_list());
   }
-  const std::string shown = ext.empty() ? "no extension" : "extension '" + ext + "'";
-  return unsupported(path + ": unsupported point file format (" + shown +
-                     "); supported formats: " + supported_list());
+  const InputSpec input{path, std::nullopt};
+  switch (it->kind) {
+    case Kind::kPly:
+      return open_ply_reader(input);
+    case Kind::kLas:
+      return open_las_reader(input);
+    case Kind::kLaz:
+      return unsupported(path + ": " + kLazUnsupported);
+    case Kind::kXyz:
+      return open_xyz_reader(input, options);
+    case Kind::kPcd:
+      return open_pcd_reader(input);
+  }
+  return internal_error(path + ": unhandled point file kind");
+}
+
+Result<PointCloud> read_point_file(const std::string& path) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path));
+  // The first batch becomes the cloud itself; later ones are appended.
+  PointCloud cloud;
+  RELIEF_ASSIGN_OR_RETURN(std::size_t n, reader->read(cloud, kWholeFileBatch));
+  if (n == 0) return cloud;
+  PointCloud batch;
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(n, reader->read(batch, kWholeFileBatch));
+    if (n == 0) break;
+    append(cloud.positions, batch.positions);
+    append(cloud.colors, batch.colors);
+    append(cloud.intensities, batch.intensities);
+  }
+  return cloud;
 }
 
 }  // namespace relief

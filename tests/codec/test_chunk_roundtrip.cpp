@@ -340,3 +340,26 @@ TEST_CASE("fills leave occupied pixels alone and make empty 8x8 blocks flat", "[
   CHECK(counts[0] == counts[1]);
   CHECK(counts[1] == counts[2]);
 }
+
+TEST_CASE("encode parameters round-trip through their text form", "[codec]") {
+  EncodeParams p;
+  p.decomposition = Decomposition::kOctree;
+  p.cell_size = 0.1 + 0.2;  // not exactly representable in short decimal
+  p.octree_max_points = 333;
+  p.normal_cone_degrees = 12.5;
+  p.map_resolution = 24;
+  p.image_codec = ImageCodec::kJpeg2000;
+  p.height_quality = 61;
+  p.color_quality = 42;
+  p.intensity_quality = 17;
+  p.height_bits = 16;
+  p.fill = FillMethod::kBoxFilter;
+  const std::string text = encode_params_to_string(p);
+  auto back = encode_params_from_string(text);
+  REQUIRE(back.is_ok());
+  CHECK(encode_params_to_string(*back) == text);
+  CHECK(back->cell_size == p.cell_size);
+  CHECK_FALSE(encode_params_from_string("cell=abc").is_ok());
+  CHECK_FALSE(encode_params_from_string("colour=1").is_ok());
+  CHECK_FALSE(encode_params_from_string("decomposition=kd").is_ok());
+}

@@ -109,4 +109,12 @@ double suggest_cell_size(const PointCloud& cloud, int map_resolution);
 const char* decomposition_name(Decomposition d);
 const char* image_codec_name(ImageCodec c);
 
+// Text form of the parameters an archive records, e.g.
+// "decomposition=voxel;cell=0.25;max_points=1024;cone=0;r=16;image=jpeg;q=75;
+//  color_q=70;intensity_q=70;height_bits=8;fill=project" (one line, no spaces).
+// The grid cube is not included (it is per chunk). Doubles round-trip exactly.
+std::string encode_params_to_string(const EncodeParams& params);
+// Parses that form; unknown keys or malformed values -> kFormatError naming the key.
+Result<EncodeParams> encode_params_from_string(const std::string& text);
+
 }  // namespace relief

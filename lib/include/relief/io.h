@@ -2,6 +2,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -31,7 +33,53 @@ Result<PointCloud> read_ply_memory(std::span<const std::uint8_t> data, const std
 // target and renamed, and nothing is left behind on failure.
 Status write_ply(const std::string& path, const PointCloud& cloud, const PlyWriteOptions& options = {});
 
-// Reads any supported point file, chosen by extension (.ply).
+// Reads any supported point file, chosen by extension (see open_point_reader).
 Result<PointCloud> read_point_file(const std::string& path);
+
+// ---- Streaming readers: inputs far larger than memory are read in batches.
+
+struct PointStreamInfo {
+  std::string path;
+  std::string format;                        // "ply", "las", "xyz", "pcd"
+  std::optional<std::uint64_t> point_count;  // when the header states it
+  bool has_colors = false;
+  bool has_intensity = false;
+  // Coordinate reference system as the file gives it: WKT (LAS WKT VLR, PLY/PCD
+  // never), or for a LAS GeoTIFF key directory "EPSG:<code>" when it names a
+  // projected or geographic CRS code, else "GeoTIFF keys: <key>=<value>, ...".
+  // Empty when the file has none.
+  std::string crs;
+  std::optional<Box3d> header_bounds;        // LAS header min/max
+  // Coordinate precision the file stores (LAS scale factors), 0 when not known.
+  Vec3d scale{0, 0, 0};
+  // Records dropped so far by design rather than error: PCD points with a NaN
+  // coordinate (organised clouds mark pixels without depth that way). They are
+  // included in point_count, which is what the header declares.
+  std::uint64_t skipped_points = 0;
+};
+
+struct ReaderOptions {
+  // ASCII XYZ/CSV: the meaning of each column, comma separated, from x y z
+  // r g b (0..255) i (intensity) and _ (skip); default "x,y,z". Columns may be
+  // separated by commas, semicolons, tabs or spaces; lines starting with '#'
+  // or '//' and a first line that is not numeric (a header) are skipped.
+  std::string xyz_columns = "x,y,z";
+};
+
+class PointReader {
+ public:
+  virtual ~PointReader() = default;
+  virtual const PointStreamInfo& info() const = 0;
+  // Replaces `batch` with the next up to `max_points` points (attributes as
+  // info() says). Returns how many were read; 0 at the end. Errors name the file
+  // and the point index. A file shorter than its header declares is an error.
+  virtual Result<std::size_t> read(PointCloud& batch, std::size_t max_points) = 0;
+};
+
+// Opens a point file for streaming, by extension: .ply, .las, .xyz/.txt/.csv,
+// .pcd (ascii and binary). A .laz file gives kUnsupported "LAZ is not supported
+// yet, decompress with laszip first". Unknown extensions give kUnsupported.
+Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
+                                                       const ReaderOptions& options = {});
 
 }  // namespace relief

@@ -1,0 +1,296 @@
+// bench/ingest: end-to-end ingest speed and peak memory of `relief compress`,
+// and archive size against chunk size (the paper's Fig. 5). Prints CSV.
+//
+//   build/bench/ingest [--sizes 1,10,100] [--threads 1,2] [--repeat 3] [--data DIR]
+//                      [--tmp DIR] [--no-shared] [--no-chunk-sweep]
+//
+// Each measurement runs the CLI in a child process: wall time from fork to
+// exit, peak RSS from wait4(). Generated inputs are written to --tmp (default
+// /tmp) as binary PLY and removed afterwards.
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "relief/archive.h"
+#include "relief/io.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Options {
+  std::vector<int> sizes_m = {1, 10, 100};
+  std::vector<int> threads = {1, 2};
+  int repeat = 3;
+  std::string data_dir = RELIEF_BENCH_DATA_DIR;
+  std::string tmp = "/tmp";
+  std::string cli = RELIEF_BENCH_CLI;
+  bool shared = true;
+  bool chunk_sweep = true;
+};
+
+struct RunResult {
+  int code = -1;
+  double seconds = 0;
+  long peak_rss_kib = 0;
+};
+
+RunResult run(const std::vector<std::string>& argv) {
+  RunResult r;
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = ::fork();
+  if (pid < 0) return r;
+  if (pid == 0) {
+    std::vector<char*> args;
+    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  struct rusage usage {};
+  ::wait4(pid, &status, 0, &usage);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.peak_rss_kib = usage.ru_maxrss;
+  return r;
+}
+
+// SplitMix64, as the test generator.
+struct Rng {
+  std::uint64_t s;
+  std::uint64_t next() {
+    std::uint64_t z = (s += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  }
+  double uniform() { return static_cast<double>(next() >> 11) * (1.0 / 9007199254740992.0); }
+};
+
+void put_f64(unsigned char* p, double v) { std::memcpy(p, &v, 8); }  // x86-64 is little-endian
+
+// A synthetic city of `points` points written straight to a binary PLY (never
+// held in memory): blocks of 20 m with ground, facades and roofs, coloured.
+bool write_city(const std::string& path, std::uint64_t points) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) return false;
+  std::fprintf(f,
+               "ply\nformat binary_little_endian 1.0\nelement vertex %llu\nproperty double x\nproperty double y\n"
+               "property double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+               static_cast<unsigned long long>(points));
+  // Density ~ 100 points per square metre: the city grows with the count.
+  const double area = static_cast<double>(points) / 100.0;
+  const double side = std::sqrt(area);
+  constexpr double kBlock = 20.0;
+  Rng rng{42};
+  constexpr std::size_t kRecord = 27;
+  std::vector<unsigned char> buf(kRecord * 65536);
+  std::size_t fill = 0;
+  for (std::uint64_t i = 0; i < points; ++i) {
+    // Spatially coherent order, as a scanner writes: sweep blocks row by row.
+    const double t = static_cast<double>(i) / static_cast<double>(points);
+    const double by = std::floor(t * side / kBlock) * kBlock;
+    const double bx = rng.uniform() * side;
+    const double u = rng.uniform() * kBlock, v = rng.uniform() * kBlock;
+    const double bxs = std::floor(bx / kBlock) * kBlock;
+    const double height = 6.0 + 10.0 * std::fmod(bxs * 0.37 + by * 0.11, 1.0);
+    double x, y, z;
+    unsigned char c[3];
+    const std::uint64_t kind = rng.next() % 4;
+    if (kind == 0) {  // facade
+      x = bxs + 4.0;
+      y = by + 4.0 + u * 0.6;
+      z = v / kBlock * height;
+      c[0] = 180, c[1] = 170, c[2] = 150;
+    } else if (kind == 1) {  // roof
+      x = bxs + 4.0 + u * 0.6;
+      y = by + 4.0 + v * 0.6;
+      z = height + 0.05 * std::sin(u);
+      c[0] = 120, c[1] = 60, c[2] = 50;
+    } else {  // ground
+      x = bxs + u;
+      y = by + v;
+      z = 0.2 * std::sin(x * 0.05) * std::cos(y * 0.07);
+      c[0] = 70, c[1] = static_cast<unsigned char>(110 + 40 * std::sin(x)), c[2] = 60;
+    }
+    unsigned char* p = buf.data() + fill;
+    put_f64(p, x + 500000.0);
+    put_f64(p + 8, y + 4000000.0);
+    put_f64(p + 16, z + 100.0);
+    p[24] = c[0], p[25] = c[1], p[26] = c[2];
+    fill += kRecord;
+    if (fill == buf.size()) {
+      if (std::fwrite(buf.data(), 1, fill, f) != fill) return std::fclose(f), false;
+      fill = 0;
+    }
+  }
+  const bool ok = std::fwrite(buf.data(), 1, fill, f) == fill;
+  return std::fclose(f) == 0 && ok;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+std::uint64_t archive_blob_bytes(const std::string& path, std::uint64_t* chunks, std::uint64_t* points) {
+  auto a = relief::Archive::open(path, relief::Archive::Mode::kReadOnly);
+  if (!a) return 0;
+  auto info = (*a)->info();
+  if (!info) return 0;
+  if (chunks) *chunks = info->chunk_count;
+  if (points) *points = info->input_points;
+  return info->blob_bytes;
+}
+
+void remove_archive(const std::string& path) {
+  for (const char* s : {"", "-wal", "-shm"}) fs::remove(path + s);
+}
+
+// One ingest configuration: median wall time and peak RSS over `repeat` runs.
+void measure(const Options& o, const std::string& label, const std::string& input, std::uint64_t points,
+             unsigned threads, const std::vector<std::string>& extra) {
+  const std::string out = o.tmp + "/relief-bench-ingest.relief";
+  std::vector<double> secs;
+  long rss = 0;
+  std::uint64_t blob = 0, chunks = 0;
+  for (int k = 0; k < o.repeat; ++k) {
+    remove_archive(out);
+    std::vector<std::string> argv = {o.cli, "compress", input, "-o", out, "--threads", std::to_string(threads),
+                                     "--quiet"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    const RunResult r = run(argv);
+    if (r.code != 0) {
+      std::fprintf(stderr, "error: %s: relief compress exited %d\n", label.c_str(), r.code);
+      remove_archive(out);
+      return;
+    }
+    secs.push_back(r.seconds);
+    rss = std::max(rss, r.peak_rss_kib);
+    blob = archive_blob_bytes(out, &chunks, nullptr);
+  }
+  const std::uint64_t file_bytes = fs::file_size(out);
+  remove_archive(out);
+  const double s = median(secs);
+  std::printf("ingest,%s,%llu,%u,%.3f,%.3f,%.1f,%llu,%llu,%.4f\n", label.c_str(),
+              static_cast<unsigned long long>(points), threads, s, static_cast<double>(points) / s * 1e-6,
+              static_cast<double>(rss) / 1024.0, static_cast<unsigned long long>(chunks),
+              static_cast<unsigned long long>(file_bytes),
+              8.0 * static_cast<double>(blob) / static_cast<double>(points));
+  std::fflush(stdout);
+}
+
+std::vector<int> parse_list(const char* s) {
+  std::vector<int> v;
+  for (const char* p = s; *p;) {
+    v.push_back(std::atoi(p));
+    const char* c = std::strchr(p, ',');
+    if (!c) break;
+    p = c + 1;
+  }
+  return v;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : ""; };
+    if (a == "--sizes") {
+      o.sizes_m = parse_list(value());
+    } else if (a == "--threads") {
+      o.threads = parse_list(value());
+    } else if (a == "--repeat") {
+      o.repeat = std::max(1, std::atoi(value()));
+    } else if (a == "--data") {
+      o.data_dir = value();
+    } else if (a == "--tmp") {
+      o.tmp = value();
+    } else if (a == "--no-shared") {
+      o.shared = false;
+    } else if (a == "--no-chunk-sweep") {
+      o.chunk_sweep = false;
+    } else {
+      std::fprintf(stderr,
+                   "usage: ingest [--sizes 1,10,100] [--threads 1,2] [--repeat N] [--data DIR] [--tmp DIR]\n"
+                   "              [--no-shared] [--no-chunk-sweep]\n");
+      return a == "--help" ? 0 : 2;
+    }
+  }
+  std::printf("kind,input,points,threads,seconds,mpts_s,peak_rss_mib,chunks,archive_bytes,bpp\n");
+  for (int m : o.sizes_m) {
+    const std::uint64_t n = static_cast<std::uint64_t>(m) * 1000000;
+    const std::string in = o.tmp + "/relief-bench-city-" + std::to_string(m) + "M.ply";
+    std::fprintf(stderr, "generating %d M points -> %s\n", m, in.c_str());
+    if (!write_city(in, n)) {
+      std::fprintf(stderr, "error: cannot write %s\n", in.c_str());
+      continue;
+    }
+    for (int t : o.threads) {
+      std::fprintf(stderr, "compressing %d M points, %d thread(s)\n", m, t);
+      measure(o, "city-" + std::to_string(m) + "M", in, n, static_cast<unsigned>(t), {"--cell", "0.8"});
+    }
+    fs::remove(in);
+  }
+  if (o.shared) {
+    if (!fs::exists(o.data_dir)) {
+      std::printf("# skipped shared data: %s absent\n", o.data_dir.c_str());
+    } else {
+      for (const char* f : {"small/stanford_bunny.ply", "small/kitti_000000.ply", "small/kinect_milk_scene_rgb.ply",
+                            "medium/lone_star_tls_519k.ply", "medium/fr_aerial_rgb_698k.ply"}) {
+        const std::string path = o.data_dir + "/" + f;
+        if (!fs::exists(path)) continue;
+        auto info = relief::open_point_reader(path);
+        if (!info) continue;
+        const std::uint64_t n = (*info)->info().point_count.value_or(0);
+        for (int t : o.threads) measure(o, fs::path(path).stem().string(), path, n, static_cast<unsigned>(t), {});
+      }
+    }
+  }
+  if (o.chunk_sweep) {
+    // Fig. 5: archive size against chunk volume relative to the scene's
+    // bounding cube, on the aerial tile.
+    const std::string path = o.data_dir + "/medium/fr_aerial_rgb_698k.ply";
+    auto cloud = relief::read_ply(path);
+    if (cloud) {
+      const relief::Vec3d e = cloud->bounds().extent();
+      const double side = std::max({e.x, e.y, e.z});
+      constexpr double cell = 4.0;  // the aerial tile's automatic cell is ~6 m
+      std::printf("kind,input,chunk_edge,log10_volume_fraction,chunks,blob_bytes,growth_vs_whole\n");
+      double whole = 0;
+      const std::string out = o.tmp + "/relief-bench-sweep.relief";
+      // Chunk edges are cell * 2^k so cells tile every chunk exactly; 512 m
+      // holds the whole 370 m tile in one chunk.
+      for (int k = 7; k >= 1; --k) {
+        const double edge = cell * std::ldexp(1.0, k);
+        remove_archive(out);
+        const RunResult r = run({o.cli, "compress", path, "-o", out, "--cell", "4", "--chunk-edge",
+                                 std::to_string(edge), "--quiet"});
+        if (r.code != 0) continue;
+        std::uint64_t chunks = 0;
+        const std::uint64_t blob = archive_blob_bytes(out, &chunks, nullptr);
+        if (whole == 0) whole = static_cast<double>(blob);
+        const double frac = std::pow(std::min(1.0, edge / side), 3.0);
+        std::printf("chunks,fr_aerial_rgb_698k,%.0f,%.2f,%llu,%llu,%+.1f%%\n", edge, std::log10(frac),
+                    static_cast<unsigned long long>(chunks), static_cast<unsigned long long>(blob),
+                    100.0 * (static_cast<double>(blob) / whole - 1.0));
+        std::fflush(stdout);
+      }
+      remove_archive(out);
+    }
+  }
+  return 0;
+}

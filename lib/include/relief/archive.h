@@ -1,0 +1,134 @@
+// The Relief archive: one SQLite file holding compressed chunks keyed by the
+// voxel index of a world grid (format-spec/archive.md). Blobs are opaque bytes
+// here; the codec (relief/codec.h) makes and reads them.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "relief/status.h"
+#include "relief/types.h"
+
+namespace relief {
+
+// PRAGMA application_id: "RLIF" big-endian.
+inline constexpr std::int32_t kArchiveApplicationId = 0x524C4946;
+// PRAGMA user_version: the archive format version this build writes and reads.
+inline constexpr int kArchiveFormatVersion = 1;
+
+struct ChunkKey {
+  std::int64_t ix = 0, iy = 0, iz = 0;
+  friend bool operator==(const ChunkKey&, const ChunkKey&) = default;
+  friend auto operator<=>(const ChunkKey&, const ChunkKey&) = default;
+};
+
+// The world grid: chunk (ix, iy, iz) covers [origin + i * edge, origin + (i + 1) * edge).
+struct ArchiveGrid {
+  Vec3d origin{0, 0, 0};
+  double chunk_edge = 0;  // > 0
+
+  ChunkKey key_of(const Vec3d& p) const;
+  Box3d chunk_box(const ChunkKey& key) const;
+};
+
+// One input file as recorded in the archive.
+struct ArchiveSource {
+  std::string path;
+  std::string format;  // "ply", "las", "xyz", "pcd", "stream"
+  std::uint64_t point_count = 0;
+  std::string crs;     // as the file gave it, empty when none
+  std::int64_t scan_id = 0;
+};
+
+// A scan is what one compress, append or stream run adds.
+struct ArchiveScan {
+  std::int64_t id = 0;
+  bool complete = false;  // false: the run was killed or is still going
+  std::string created_at;  // UTC, ISO 8601
+};
+
+struct ArchiveInfo {
+  int format_version = 0;
+  ArchiveGrid grid;
+  std::string codec_params;  // the codec's defaults for this archive (encode_params_to_string)
+  std::string creator;       // tool and version that created the archive
+  std::string crs;           // of the first source that had one; empty when none
+  bool has_colors = false;
+  bool has_intensity = false;
+  // Totals over all chunk rows (every scan, complete or not).
+  std::uint64_t input_points = 0;
+  std::uint64_t decoded_points = 0;
+  std::uint64_t chunk_count = 0;
+  std::uint64_t blob_bytes = 0;
+  Box3d bounds;  // of the decoded points; empty for an empty archive
+  std::uint64_t file_bytes = 0;  // size of the SQLite file (+ WAL) on disk
+  std::vector<ArchiveSource> sources;
+  std::vector<ArchiveScan> scans;
+};
+
+// Index entry of a stored chunk (no blob).
+struct ChunkRef {
+  std::int64_t id = 0;
+  ChunkKey key;
+  std::uint32_t seq = 0;  // 0, 1, ... for several blobs in one voxel (appended scans)
+  std::int64_t scan_id = 0;
+  Box3d bounds;           // of the decoded points, exact (double)
+  std::uint64_t input_points = 0;
+  std::uint64_t decoded_points = 0;
+  std::uint64_t blob_size = 0;
+};
+
+// A chunk to write (ingest) or a chunk read back (query).
+struct ChunkRow {
+  ChunkRef ref;                // id and seq are assigned by put_chunks
+  std::uint32_t codec = 1;     // 1 = Relief chunk blob (format-spec/chunk.md)
+  std::string codec_params;    // encode_params_to_string of what made the blob
+  std::vector<std::uint8_t> blob;
+};
+
+class Archive {
+ public:
+  enum class Mode { kReadOnly, kReadWrite };
+
+  // Creates a new archive at `path` (kIoError if the file exists or cannot be
+  // created). The file is complete and valid as soon as this returns.
+  static Result<std::unique_ptr<Archive>> create(const std::string& path, const ArchiveGrid& grid,
+                                                 const std::string& codec_params,
+                                                 const std::string& creator);
+  // Opens an existing archive. Not a SQLite file, not a Relief archive (wrong
+  // application_id) -> kFormatError naming the file; a newer format version ->
+  // kUnsupported. Read-only handles may be opened while a writer appends (WAL).
+  static Result<std::unique_ptr<Archive>> open(const std::string& path, Mode mode);
+
+  virtual ~Archive() = default;
+  virtual const std::string& path() const = 0;
+
+  virtual Result<ArchiveInfo> info() const = 0;
+
+  // ---- Writing (read-write handles only; kInvalidArgument otherwise).
+  // Starts a scan with its sources, committed at once with complete = false.
+  virtual Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources) = 0;
+  // Stores the rows in one transaction: assigns each the next free seq of its
+  // voxel key and its id; updates the totals. Either all rows land or none.
+  virtual Status put_chunks(std::vector<ChunkRow>& rows) = 0;
+  // Marks the scan complete and records its sources' CRS and attributes.
+  virtual Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
+                             const std::string& crs) = 0;
+  // Removes every chunk and source of the scan in one transaction (a failed append).
+  virtual Status abort_scan(std::int64_t scan_id) = 0;
+
+  // ---- Reading.
+  // Chunks whose decoded-point bounds intersect `box` (closed boxes), through
+  // the spatial index, ordered by id.
+  virtual Result<std::vector<ChunkRef>> find_chunks(const Box3d& box) const = 0;
+  virtual Result<std::vector<ChunkRef>> all_chunks() const = 0;
+  // Reads one blob and verifies its CRC-32: a mismatch is kCorruptData naming
+  // the chunk (key, seq, id) and the archive file.
+  virtual Result<ChunkRow> read_chunk(std::int64_t id) const = 0;
+  // Blob bytes read by read_chunk so far (for tests and benchmarks).
+  virtual std::uint64_t blob_bytes_read() const = 0;
+};
+
+}  // namespace relief

@@ -1,0 +1,114 @@
+// Filling an archive: out-of-core, parallel ingest of point files, append, and
+// live streaming (Golla & Klein 2015, section III-A).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "relief/codec.h"
+#include "relief/io.h"
+#include "relief/status.h"
+#include "relief/types.h"
+
+namespace relief {
+
+struct IngestProgress {
+  std::uint64_t points_read = 0;
+  std::uint64_t points_total = 0;  // 0 when the inputs do not say
+  std::uint64_t chunks_written = 0;
+  std::uint64_t bytes_written = 0;
+  double seconds = 0;
+  const char* phase = "";  // "reading", "encoding", "streaming"
+};
+
+struct IngestOptions {
+  // Codec parameters. cell_size 0 = derived from the density of the first
+  // input's first points (suggest_cell_size).
+  EncodeParams codec;
+  // Edge of the world-grid chunks. 0 = kDefaultCellsPerChunk cells.
+  double chunk_edge = 0;
+  // When > 0: choose codec.cell_size for this RMSE_SNN (coordinate units) by
+  // encoding a sample of the first input at trial cell sizes (choose_cell_for_error).
+  double error_target = 0;
+  // Upper bound for the process's working memory (buffers, one bucket, the
+  // encoders' scratch). Peak RSS stays near it whatever the input size.
+  std::uint64_t memory_budget = std::uint64_t{1} << 30;
+  unsigned threads = 0;     // encoder threads; 0 = all cores
+  std::string tmp_dir;      // temporary bucket files; empty = beside the archive
+  ReaderOptions reader;
+  // Called from the ingest's own thread about twice a second and at the end.
+  std::function<void(const IngestProgress&)> progress;
+  // When set to true (e.g. by a SIGINT handler) the ingest stops at the next
+  // check, keeps what is committed, removes its temporary files and returns
+  // a kIoError-coded "interrupted" status.
+  const std::atomic<bool>* cancel = nullptr;
+  std::string creator = "relief";
+};
+
+// Cells per chunk edge when chunk_edge is 0 (a power of two: the chunk cube
+// splits into cells exactly).
+inline constexpr int kDefaultCellsPerChunk = 32;
+
+struct IngestResult {
+  std::uint64_t points_read = 0;
+  std::uint64_t points_decoded = 0;  // points a full decode of the new chunks returns
+  std::uint64_t chunks_written = 0;
+  std::uint64_t blob_bytes = 0;
+  double seconds = 0;
+  double cell_size = 0;
+  double chunk_edge = 0;
+  std::int64_t scan_id = 0;
+};
+
+// Creates `archive_path` from `inputs`. The path must not exist. On any error
+// the new archive is removed; killed mid-way (kill -9), the archive holds every
+// chunk committed so far and opens normally.
+Result<IngestResult> compress_files(const std::vector<std::string>& inputs, const std::string& archive_path,
+                                    const IngestOptions& options);
+
+// Adds `inputs` to an existing archive with the archive's grid and codec
+// parameters (options.codec and chunk_edge are ignored). On error the scan's
+// chunks are removed again; the archive is as before.
+Result<IngestResult> append_files(const std::string& archive_path, const std::vector<std::string>& inputs,
+                                  const IngestOptions& options);
+
+// The largest cell size whose RMSE_SNN on `sample` stays at or below
+// `target`, found by bisection in log space over real encode/decode round
+// trips of the sample (other parameters as in `base`). `achieved` receives the
+// sample's RMSE at the chosen cell.
+Result<double> choose_cell_for_error(const PointCloud& sample, const EncodeParams& base, double target,
+                                     double* achieved = nullptr);
+
+// ---- Live streaming (`relief stream`).
+
+struct StreamOptions {
+  IngestOptions ingest;
+  // A chunk is encoded once this many consecutive batches brought it no point
+  // (the paper's "until new incoming data no longer falls into that voxel").
+  std::uint32_t idle_batches = 2;
+  // Bound on buffered points: above it the chunks idle longest (then the
+  // largest) are encoded early.
+  std::uint64_t max_buffered_points = 4'000'000;
+  // Encode every batch at once, chunk by chunk, without buffering (the
+  // paper's "immediate" mode: lower latency, larger archive).
+  bool immediate = false;
+};
+
+// Feeds points into an archive as a scanner produces them. Creates the
+// archive when it does not exist (then options.ingest.codec.cell_size and
+// chunk_edge must be set), else appends with the archive's parameters.
+class StreamIngest {
+ public:
+  static Result<std::unique_ptr<StreamIngest>> open(const std::string& archive_path, const StreamOptions& options,
+                                                    bool has_colors, bool has_intensity);
+  virtual ~StreamIngest() = default;
+  // One batch of incoming points (one read, or one scan line set).
+  virtual Status push(const PointCloud& batch) = 0;
+  // Encodes everything still buffered and marks the scan complete.
+  virtual Result<IngestResult> finish() = 0;
+};
+
+}  // namespace relief

@@ -1,0 +1,55 @@
+// Parallel chunk encoding with a single writer: worker threads encode chunks
+// (and decode each blob back, for its exact bounds and as a check); the calling
+// thread commits finished rows in batched transactions. Internal to ingest.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "relief/archive.h"
+#include "relief/codec.h"
+#include "relief/ingest.h"
+
+namespace relief::ingest {
+
+struct ChunkTask {
+  ChunkKey key;
+  PointCloud points;
+};
+
+struct PipelineTotals {
+  std::uint64_t chunks = 0;
+  std::uint64_t points_in = 0;
+  std::uint64_t points_decoded = 0;
+  std::uint64_t blob_bytes = 0;
+};
+
+class ChunkPipeline {
+ public:
+  ChunkPipeline(Archive& archive, const EncodeParams& params, const ArchiveGrid& grid, std::int64_t scan_id,
+                unsigned threads, const std::atomic<bool>* cancel);
+
+  // Encodes and stores every task; returns when all are committed or on the
+  // first error (nothing of a failed batch is committed). `tick` is called
+  // from this thread between commits.
+  Status run(std::vector<ChunkTask>& tasks, const std::function<void()>& tick);
+
+  const PipelineTotals& totals() const { return totals_; }
+
+ private:
+  Status encode_one(ChunkTask& task, ChunkRow& row) const;
+
+  Archive& archive_;
+  EncodeParams params_;
+  std::string params_text_;
+  ArchiveGrid grid_;
+  std::int64_t scan_id_;
+  unsigned threads_;
+  const std::atomic<bool>* cancel_;
+  PipelineTotals totals_;
+};
+
+}  // namespace relief::ingest

@@ -1,0 +1,83 @@
+// Pieces shared by compress/append and streaming. Internal to ingest.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ingest/chunk_pipeline.h"
+#include "relief/archive.h"
+#include "relief/ingest.h"
+#include "relief/io.h"
+
+namespace relief::ingest {
+
+struct InputSet {
+  std::vector<std::unique_ptr<PointReader>> readers;
+  std::vector<ArchiveSource> sources;
+  bool colors = false;     // every input has colours
+  bool intensity = false;  // every input has intensity
+  std::uint64_t estimated_points = 0;
+  std::uint64_t known_total = 0;
+  bool all_counts_known = true;
+  std::string crs;  // of the first input that has one
+};
+
+// Opens every input up front, so a missing or unsupported file fails before
+// anything is created.
+Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options);
+// Drops attributes the archive does not carry.
+void conform_attributes(PointCloud& batch, bool colors, bool intensity);
+
+// Sorts a slice by chunk key and cuts it into encode tasks of at most
+// `part_points` points (a larger chunk becomes several blobs of one voxel).
+std::vector<ChunkTask> group_into_tasks(const PointCloud& slice, const ArchiveGrid& grid, std::uint64_t part_points,
+                                        std::vector<std::pair<ChunkKey, std::uint32_t>>& order);
+
+// Reads every input into the archive as one scan (see compress.cpp).
+Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params, InputSet& in,
+                                PointCloud pending, const IngestOptions& options, const std::string& tmp_parent);
+
+void remove_archive_files(const std::string& path);
+std::string default_tmp_parent(const std::string& archive_path, const IngestOptions& options);
+
+// Throttles progress callbacks to a few per second.
+class Progress {
+ public:
+  Progress(std::function<void(const IngestProgress&)> fn, std::uint64_t total)
+      : fn_(std::move(fn)), total_(total), start_(std::chrono::steady_clock::now()) {}
+
+  void update(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes) {
+    if (!fn_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_ < std::chrono::milliseconds(kIntervalMs)) return;
+    last_ = now;
+    emit(phase, points, chunks, bytes, now);
+  }
+  void finish(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes) {
+    if (fn_) emit(phase, points, chunks, bytes, std::chrono::steady_clock::now());
+  }
+
+ private:
+  static constexpr int kIntervalMs = 500;
+  void emit(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes,
+            std::chrono::steady_clock::time_point now) {
+    IngestProgress p;
+    p.phase = phase;
+    p.points_read = points;
+    p.points_total = total_;
+    p.chunks_written = chunks;
+    p.bytes_written = bytes;
+    p.seconds = std::chrono::duration<double>(now - start_).count();
+    fn_(p);
+  }
+  std::function<void(const IngestProgress&)> fn_;
+  std::uint64_t total_;
+  std::chrono::steady_clock::time_point start_;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+}  // namespace relief::ingest

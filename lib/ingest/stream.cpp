@@ -1,0 +1,198 @@
+// Live streaming into an archive (Golla & Klein 2015, III-A): incoming points
+// are buffered per chunk until data stops falling into that chunk, or encoded
+// batch by batch in immediate mode.
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+
+#include "core/parallel.h"
+#include "ingest/chunk_pipeline.h"
+#include "ingest/ingest_common.h"
+#include "relief/ingest.h"
+
+namespace relief {
+
+namespace {
+
+using ingest::ChunkPipeline;
+using ingest::ChunkTask;
+
+// Encoder scratch per point, as in compress.cpp: bounds the size of one blob.
+constexpr std::uint64_t kStreamPartPoints = 2'000'000;
+
+class StreamIngestImpl final : public StreamIngest {
+ public:
+  StreamIngestImpl(std::unique_ptr<Archive> archive, const ArchiveGrid& grid, const EncodeParams& params,
+                   const StreamOptions& options, std::int64_t scan_id, bool colors, bool intensity)
+      : archive_(std::move(archive)),
+        grid_(grid),
+        params_(params),
+        options_(options),
+        scan_id_(scan_id),
+        colors_(colors),
+        intensity_(intensity),
+        pipeline_(*archive_, params, grid, scan_id, resolve_threads(options.ingest.threads), options.ingest.cancel),
+        progress_(options.ingest.progress, 0),
+        start_(std::chrono::steady_clock::now()) {}
+
+  Status push(const PointCloud& batch) override {
+    if (finished_) return invalid_argument("stream already finished");
+    RELIEF_RETURN_IF_ERROR(batch.validate("stream batch"));
+    if (batch.has_colors() != colors_ || batch.has_intensity() != intensity_) {
+      return invalid_argument("stream batch attributes differ from the archive's");
+    }
+    points_read_ += batch.size();
+    ++batch_index_;
+    if (options_.immediate) {
+      std::vector<std::pair<ChunkKey, std::uint32_t>> order;
+      std::vector<ChunkTask> tasks = ingest::group_into_tasks(batch, grid_, kStreamPartPoints, order);
+      return encode(tasks);
+    }
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      Pending& p = buffered_[grid_.key_of(batch.positions[i])];
+      p.points.positions.push_back(batch.positions[i]);
+      if (colors_) p.points.colors.push_back(batch.colors[i]);
+      if (intensity_) p.points.intensities.push_back(batch.intensities[i]);
+      p.last_batch = batch_index_;
+    }
+    buffered_points_ += batch.size();
+    // Chunks that this many batches left untouched are complete.
+    std::vector<ChunkKey> ready;
+    for (const auto& [key, p] : buffered_) {
+      if (batch_index_ - p.last_batch >= options_.idle_batches) ready.push_back(key);
+    }
+    // Over the bound: the longest idle, then the largest, go early.
+    if (buffered_points_ > options_.max_buffered_points) {
+      std::vector<std::pair<std::pair<std::uint64_t, std::size_t>, ChunkKey>> rank;
+      for (const auto& [key, p] : buffered_) {
+        if (batch_index_ - p.last_batch >= options_.idle_batches) continue;
+        rank.push_back({{p.last_batch, ~p.points.size()}, key});
+      }
+      std::sort(rank.begin(), rank.end());
+      std::uint64_t freed = 0;
+      for (const ChunkKey& k : ready) freed += buffered_[k].points.size();
+      for (const auto& r : rank) {
+        if (buffered_points_ - freed <= options_.max_buffered_points / 2) break;
+        ready.push_back(r.second);
+        freed += buffered_[r.second].points.size();
+      }
+    }
+    return flush(ready);
+  }
+
+  Result<IngestResult> finish() override {
+    if (finished_) return invalid_argument("stream already finished");
+    std::vector<ChunkKey> all;
+    for (const auto& [key, p] : buffered_) all.push_back(key);
+    RELIEF_RETURN_IF_ERROR(flush(all));
+    RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, ""));
+    finished_ = true;
+    IngestResult r;
+    r.points_read = points_read_;
+    r.points_decoded = pipeline_.totals().points_decoded;
+    r.chunks_written = pipeline_.totals().chunks;
+    r.blob_bytes = pipeline_.totals().blob_bytes;
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    r.cell_size = params_.cell_size;
+    r.chunk_edge = grid_.chunk_edge;
+    r.scan_id = scan_id_;
+    progress_.finish("done", points_read_, r.chunks_written, r.blob_bytes);
+    return r;
+  }
+
+ private:
+  struct Pending {
+    PointCloud points;
+    std::uint64_t last_batch = 0;
+  };
+
+  Status flush(const std::vector<ChunkKey>& keys) {
+    if (keys.empty()) return Status::ok();
+    std::vector<ChunkTask> tasks;
+    for (const ChunkKey& key : keys) {
+      auto it = buffered_.find(key);
+      if (it == buffered_.end()) continue;
+      PointCloud& pts = it->second.points;
+      buffered_points_ -= pts.size();
+      // Cut very large chunks into several blobs of the same voxel.
+      for (std::size_t first = 0; first < pts.size(); first += kStreamPartPoints) {
+        const std::size_t last = std::min(pts.size(), first + static_cast<std::size_t>(kStreamPartPoints));
+        ChunkTask t;
+        t.key = key;
+        t.points.positions.assign(pts.positions.begin() + static_cast<std::ptrdiff_t>(first),
+                                  pts.positions.begin() + static_cast<std::ptrdiff_t>(last));
+        if (colors_) {
+          t.points.colors.assign(pts.colors.begin() + static_cast<std::ptrdiff_t>(first),
+                                 pts.colors.begin() + static_cast<std::ptrdiff_t>(last));
+        }
+        if (intensity_) {
+          t.points.intensities.assign(pts.intensities.begin() + static_cast<std::ptrdiff_t>(first),
+                                      pts.intensities.begin() + static_cast<std::ptrdiff_t>(last));
+        }
+        tasks.push_back(std::move(t));
+      }
+      buffered_.erase(it);
+    }
+    return encode(tasks);
+  }
+
+  Status encode(std::vector<ChunkTask>& tasks) {
+    return pipeline_.run(tasks, [&] {
+      progress_.update("streaming", points_read_, pipeline_.totals().chunks, pipeline_.totals().blob_bytes);
+    });
+  }
+
+  std::unique_ptr<Archive> archive_;
+  ArchiveGrid grid_;
+  EncodeParams params_;
+  StreamOptions options_;
+  std::int64_t scan_id_;
+  bool colors_;
+  bool intensity_;
+  ChunkPipeline pipeline_;
+  ingest::Progress progress_;
+  std::chrono::steady_clock::time_point start_;
+  std::map<ChunkKey, Pending> buffered_;
+  std::uint64_t buffered_points_ = 0;
+  std::uint64_t batch_index_ = 0;
+  std::uint64_t points_read_ = 0;
+  bool finished_ = false;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& archive_path,
+                                                         const StreamOptions& options, bool has_colors,
+                                                         bool has_intensity) {
+  struct stat st {};
+  std::unique_ptr<Archive> archive;
+  ArchiveGrid grid;
+  EncodeParams params = options.ingest.codec;
+  if (::stat(archive_path.c_str(), &st) == 0) {
+    RELIEF_ASSIGN_OR_RETURN(archive, Archive::open(archive_path, Archive::Mode::kReadWrite));
+    RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
+    RELIEF_ASSIGN_OR_RETURN(params, encode_params_from_string(info.codec_params));
+    grid = info.grid;
+    if (info.chunk_count > 0 && (info.has_colors != has_colors || info.has_intensity != has_intensity)) {
+      return invalid_argument(archive_path + ": the stream's attributes differ from the archive's");
+    }
+  } else {
+    if (!(params.cell_size > 0)) {
+      return invalid_argument("a new archive needs a cell size for streaming (--cell)");
+    }
+    grid.chunk_edge =
+        options.ingest.chunk_edge > 0 ? options.ingest.chunk_edge : params.cell_size * kDefaultCellsPerChunk;
+    RELIEF_ASSIGN_OR_RETURN(archive, Archive::create(archive_path, grid, encode_params_to_string(params),
+                                                     options.ingest.creator));
+  }
+  ArchiveSource src;
+  src.path = "-";
+  src.format = "stream";
+  RELIEF_ASSIGN_OR_RETURN(std::int64_t scan_id, archive->begin_scan({src}));
+  return std::unique_ptr<StreamIngest>(
+      new StreamIngestImpl(std::move(archive), grid, params, options, scan_id, has_colors, has_intensity));
+}
+
+}  // namespace relief

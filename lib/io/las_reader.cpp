@@ -1,0 +1,524 @@
+// LAS 1.0 - 1.4 reader for uncompressed files, point data record formats 0-10.
+//
+// Only the fields a point cloud here carries are decoded: X Y Z (scaled
+// integers, x = X * scale + offset computed in double), intensity, and RGB for
+// the formats that have it. Every other field, and the extra bytes a record may
+// have beyond its format's minimum, is skipped by stepping over the record
+// length the header gives. The header is validated against the file size
+// before anything is allocated from it; VLRs before the points and extended
+// VLRs after them (LAS 1.4, read through a second handle that seeks there) are
+// scanned for the coordinate reference system.
+//
+// LAS colours are 16-bit. They become 8-bit by the rule in io/stream_support.h:
+// from a sample of the first 2^20 points (the whole file when smaller), shift
+// every level right by 8 if any sampled level is above 255, else keep the
+// levels (files that store 8-bit levels in the 16-bit fields).
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "io/byte_source.h"
+#include "io/readers.h"
+#include "io/stream_support.h"
+#include "io/text_scan.h"
+#include "relief/io.h"
+
+namespace relief {
+
+namespace {
+
+constexpr std::size_t kVlrHeaderSize = 54;
+constexpr std::size_t kEvlrHeaderSize = 60;
+// Projection records we keep in memory; real WKT strings are a few KiB.
+constexpr std::uint64_t kMaxProjectionRecord = std::uint64_t{16} << 20;
+constexpr std::uint16_t kWktRecordId = 2112;
+constexpr std::uint16_t kGeoKeyRecordId = 34735;
+constexpr std::string_view kProjectionUserId = "LASF_Projection";
+
+// Public header size by minor version: 1.0-1.2, 1.3, 1.4.
+constexpr std::size_t header_size_for(int minor) { return minor <= 2 ? 227 : minor == 3 ? 235 : 375; }
+constexpr std::size_t kLargestHeader = 375;
+constexpr std::size_t kSmallestHeader = 227;
+
+struct PointFormat {
+  std::size_t min_length;  // bytes of the record without extra bytes
+  std::size_t rgb_offset;  // 0 when the format has no colour
+};
+
+// Formats 0-5 share the legacy 20-byte core; 6-10 the 30-byte 1.4 core.
+constexpr std::array<PointFormat, 11> kPointFormats = {{
+    {20, 0},   // 0
+    {28, 0},   // 1: + GPS time
+    {26, 20},  // 2: + RGB
+    {34, 28},  // 3: + GPS time + RGB
+    {57, 0},   // 4: 1 + wave packet
+    {63, 28},  // 5: 3 + wave packet
+    {30, 0},   // 6
+    {36, 30},  // 7: + RGB
+    {38, 30},  // 8: + RGB + NIR
+    {59, 0},   // 9: 6 + wave packet
+    {67, 30},  // 10: 8 + wave packet
+}};
+
+struct LasHeader {
+  int version_minor = 0;
+  std::uint16_t header_size = 0;
+  std::uint32_t point_offset = 0;
+  std::uint32_t vlr_count = 0;
+  int format = 0;
+  std::uint16_t record_length = 0;
+  std::uint64_t point_count = 0;
+  Vec3d scale;
+  Vec3d offset;
+  std::optional<Box3d> bounds;
+  std::uint64_t evlr_start = 0;
+  std::uint32_t evlr_count = 0;
+};
+
+Vec3d load_vec3(const std::uint8_t* p) {
+  return {load_le<double>(p), load_le<double>(p + 8), load_le<double>(p + 16)};
+}
+
+bool all_finite(const Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+std::string version_text(int major, int minor) { return std::to_string(major) + "." + std::to_string(minor); }
+
+// Parses and checks the public header block held in `h` (h.size() bytes).
+Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::string& name) {
+  if (h.empty()) return format_error(name + ": not a LAS file: it is empty");
+  if (h.size() < 4 || std::memcmp(h.data(), "LASF", 4) != 0) {
+    return format_error(name + ": not a LAS file: it does not start with 'LASF'");
+  }
+  if (h.size() < kSmallestHeader) {
+    return format_error(name + ": truncated: the LAS header needs " + std::to_string(kSmallestHeader) +
+                        " bytes but the file has " + std::to_string(h.size()));
+  }
+  const int major = h[24];
+  const int minor = h[25];
+  if (major != 1 || minor > 4) {
+    return unsupported(name + ": LAS version " + version_text(major, minor) +
+                       " is not supported (1.0 to 1.4 are)");
+  }
+  LasHeader out;
+  out.version_minor = minor;
+  out.header_size = load_le<std::uint16_t>(h.data() + 94);
+  const std::size_t need = header_size_for(minor);
+  if (out.header_size < need) {
+    return format_error(name + ": header size " + std::to_string(out.header_size) + " is smaller than the " +
+                        std::to_string(need) + " bytes of a LAS " + version_text(major, minor) + " header");
+  }
+  if (h.size() < need) {
+    return format_error(name + ": truncated: the LAS " + version_text(major, minor) + " header needs " +
+                        std::to_string(need) + " bytes but the file has " + std::to_string(h.size()));
+  }
+  // The top two bits of the format byte mark LASzip-compressed points.
+  const std::uint8_t format_byte = h[104];
+  if ((format_byte & 0xC0) != 0) return unsupported(name + ": " + kLazUnsupported);
+  out.format = format_byte;
+  if (out.format >= static_cast<int>(kPointFormats.size())) {
+    return unsupported(name + ": LAS point data format " + std::to_string(out.format) +
+                       " is not supported (0 to 10 are)");
+  }
+  out.record_length = load_le<std::uint16_t>(h.data() + 105);
+  const std::size_t min_length = kPointFormats[static_cast<std::size_t>(out.format)].min_length;
+  if (out.record_length < min_length) {
+    return format_error(name + ": point record length " + std::to_string(out.record_length) +
+                        " is shorter than the " + std::to_string(min_length) +
+                        " bytes of point data format " + std::to_string(out.format));
+  }
+  out.point_offset = load_le<std::uint32_t>(h.data() + 96);
+  if (out.point_offset < out.header_size) {
+    return format_error(name + ": offset to point data " + std::to_string(out.point_offset) +
+                        " lies inside the " + std::to_string(out.header_size) + "-byte header");
+  }
+  out.vlr_count = load_le<std::uint32_t>(h.data() + 100);
+  out.point_count = load_le<std::uint32_t>(h.data() + 107);
+  if (minor >= 4) {
+    out.evlr_start = load_le<std::uint64_t>(h.data() + 235);
+    out.evlr_count = load_le<std::uint32_t>(h.data() + 243);
+    // 1.4 writers set the legacy count to 0 for formats 6-10 and for more
+    // than 2^32 points; the 64-bit count is the authoritative one.
+    const auto count64 = load_le<std::uint64_t>(h.data() + 247);
+    if (count64 != 0) out.point_count = count64;
+  }
+  out.scale = load_vec3(h.data() + 131);
+  out.offset = load_vec3(h.data() + 155);
+  // Checked once here so that no decoded coordinate can be NaN or infinite:
+  // |X| <= 2^31, so |X * scale + offset| <= 2^31 |scale| + |offset|.
+  for (const auto& [s, o] : {std::pair{out.scale.x, out.offset.x}, std::pair{out.scale.y, out.offset.y},
+                             std::pair{out.scale.z, out.offset.z}}) {
+    const double reach = std::abs(s) * 2147483648.0 + std::abs(o);
+    if (!std::isfinite(s) || !std::isfinite(o) || s == 0 || !std::isfinite(reach)) {
+      return format_error(name + ": invalid scale " + format_double(s) + " or offset " + format_double(o) +
+                          " (they must be finite and the scale non-zero)");
+    }
+  }
+  // Stored as max x, min x, max y, min y, max z, min z.
+  Box3d b;
+  b.max.x = load_le<double>(h.data() + 179);
+  b.min.x = load_le<double>(h.data() + 187);
+  b.max.y = load_le<double>(h.data() + 195);
+  b.min.y = load_le<double>(h.data() + 203);
+  b.max.z = load_le<double>(h.data() + 211);
+  b.min.z = load_le<double>(h.data() + 219);
+  if (all_finite(b.min) && all_finite(b.max)) out.bounds = b;
+  return out;
+}
+
+// ---------------------------------------------------------------- CRS
+
+struct ProjectionRecords {
+  std::optional<std::string> wkt;
+  std::optional<std::vector<std::uint8_t>> geokeys;
+};
+
+bool is_projection_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+  // The user id is a 16-byte field padded with NULs.
+  const auto* chars = reinterpret_cast<const char*>(user_id.data());
+  const std::string_view id(chars, ::strnlen(chars, user_id.size()));
+  return id == kProjectionUserId && (record_id == kWktRecordId || record_id == kGeoKeyRecordId);
+}
+
+void keep_projection_record(std::uint16_t record_id, std::span<const std::uint8_t> payload,
+                            ProjectionRecords& out) {
+  if (record_id == kWktRecordId) {
+    if (out.wkt) return;  // the first one wins
+    // Written NUL-terminated, sometimes with padding after the terminator.
+    const auto* chars = reinterpret_cast<const char*>(payload.data());
+    std::string wkt(chars, ::strnlen(chars, payload.size()));
+    while (!wkt.empty() &&
+           (wkt.back() == ' ' || wkt.back() == '\n' || wkt.back() == '\r' || wkt.back() == '\t')) {
+      wkt.pop_back();
+    }
+    if (!wkt.empty()) out.wkt = std::move(wkt);
+  } else if (!out.geokeys) {
+    out.geokeys.emplace(payload.begin(), payload.end());
+  }
+}
+
+// The GeoKeyDirectoryTag: u16 KeyDirectoryVersion, KeyRevision, MinorRevision,
+// NumberOfKeys, then per key u16 KeyID, TIFFTagLocation, Count, Value_Offset.
+// A key with TIFFTagLocation 0 holds its value directly in Value_Offset.
+std::string crs_from_geokeys(std::span<const std::uint8_t> bytes) {
+  constexpr std::uint16_t kGeographicType = 2048;
+  constexpr std::uint16_t kProjectedCsType = 3072;
+  constexpr std::uint16_t kUserDefined = 32767;
+  const std::size_t words = bytes.size() / 2;
+  if (words < 4) return "";
+  auto word = [&](std::size_t i) { return load_le<std::uint16_t>(bytes.data() + 2 * i); };
+  const std::size_t keys = std::min<std::size_t>(word(3), (words - 4) / 4);  // never past the record
+  std::optional<std::uint16_t> projected;
+  std::optional<std::uint16_t> geographic;
+  std::string listed;
+  for (std::size_t k = 0; k < keys; ++k) {
+    const std::uint16_t id = word(4 + 4 * k);
+    const std::uint16_t location = word(5 + 4 * k);
+    const std::uint16_t value = word(7 + 4 * k);
+    if (location != 0) continue;  // the value lives in another tag
+    if (!listed.empty()) listed += ", ";
+    listed += std::to_string(id) + "=" + std::to_string(value);
+    // 0 means undefined and 32767 user-defined: neither is an EPSG code.
+    const bool code = value != 0 && value != kUserDefined;
+    if (id == kProjectedCsType && code) projected = value;
+    if (id == kGeographicType && code) geographic = value;
+  }
+  if (projected) return "EPSG:" + std::to_string(*projected);
+  if (geographic) return "EPSG:" + std::to_string(*geographic);
+  if (listed.empty()) return "";
+  return "GeoTIFF keys: " + listed;
+}
+
+// ---------------------------------------------------------------- points
+
+enum class ColorOut { kNone, kNarrow, kWide };
+
+struct LasLayout {
+  std::size_t record_length = 0;
+  std::size_t rgb_offset = 0;
+  Vec3d scale;
+  Vec3d offset;
+  int color_shift = 0;
+};
+
+template <ColorOut kColor>
+void decode_las(const std::uint8_t* src, std::size_t n, const LasLayout& lay, Vec3d* pos, float* intensity,
+                Rgb8* col, std::uint16_t* wide) {
+  const std::size_t stride = lay.record_length;
+  const Vec3d s = lay.scale;
+  const Vec3d o = lay.offset;
+  for (std::size_t i = 0; i < n; ++i, src += stride) {
+    const auto x = load_le<std::int32_t>(src);
+    const auto y = load_le<std::int32_t>(src + 4);
+    const auto z = load_le<std::int32_t>(src + 8);
+    pos[i] = Vec3d{static_cast<double>(x) * s.x + o.x, static_cast<double>(y) * s.y + o.y,
+                   static_cast<double>(z) * s.z + o.z};
+    intensity[i] = static_cast<float>(load_le<std::uint16_t>(src + 12));
+    if constexpr (kColor != ColorOut::kNone) {
+      const std::uint8_t* c = src + lay.rgb_offset;
+      const auto r = load_le<std::uint16_t>(c);
+      const auto g = load_le<std::uint16_t>(c + 2);
+      const auto b = load_le<std::uint16_t>(c + 4);
+      if constexpr (kColor == ColorOut::kWide) {
+        wide[3 * i] = r;
+        wide[3 * i + 1] = g;
+        wide[3 * i + 2] = b;
+      } else {
+        col[i] = Rgb8{narrow_level(r, lay.color_shift), narrow_level(g, lay.color_shift),
+                      narrow_level(b, lay.color_shift)};
+      }
+    }
+  }
+}
+
+class LasPointReader final : public BatchPointReader {
+ public:
+  static Result<std::unique_ptr<LasPointReader>> open(const InputSpec& input) {
+    RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
+    std::unique_ptr<LasPointReader> reader(new LasPointReader(input, std::move(src)));
+    RELIEF_RETURN_IF_ERROR(reader->start());
+    return reader;
+  }
+
+  Result<std::size_t> read_into(PointCloud& out, std::vector<std::uint16_t>* wide, std::size_t at,
+                                std::size_t max_points) override;
+
+ protected:
+  Result<std::unique_ptr<BatchPointReader>> reopen() const override {
+    if (!input_.memory && !src_.size()) return std::unique_ptr<BatchPointReader>();
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> again, open(input_));
+    return std::unique_ptr<BatchPointReader>(std::move(again));
+  }
+
+ private:
+  LasPointReader(InputSpec input, ByteSource src) : input_(std::move(input)), src_(std::move(src)) {}
+
+  Status start();
+  Status check_size();
+  Status read_vlrs(ProjectionRecords& records);
+  Status read_evlrs(ProjectionRecords& records);
+  Status truncated(std::uint64_t holds) const {
+    return format_error(name() + ": truncated: header declares " + std::to_string(header_.point_count) +
+                        " points but the file holds " + std::to_string(holds));
+  }
+  const std::string& name() const { return input_.name; }
+
+  InputSpec input_;
+  ByteSource src_;
+  LasHeader header_;
+  LasLayout layout_;
+  bool has_rgb_ = false;
+  // The file size is known and holds every declared point, so batches may be
+  // sized before they are read.
+  bool backed_ = false;
+  std::uint64_t done_ = 0;
+};
+
+Status LasPointReader::start() {
+  std::span<const std::uint8_t> view;
+  RELIEF_RETURN_IF_ERROR(src_.fill(kLargestHeader, view));
+  RELIEF_ASSIGN_OR_RETURN(header_, parse_header(view.first(std::min(view.size(), kLargestHeader)), name()));
+  RELIEF_RETURN_IF_ERROR(check_size());
+
+  ProjectionRecords records;
+  RELIEF_RETURN_IF_ERROR(read_vlrs(records));
+  RELIEF_RETURN_IF_ERROR(read_evlrs(records));
+
+  const PointFormat& pf = kPointFormats[static_cast<std::size_t>(header_.format)];
+  has_rgb_ = pf.rgb_offset != 0;
+  layout_.record_length = header_.record_length;
+  layout_.rgb_offset = pf.rgb_offset;
+  layout_.scale = header_.scale;
+  layout_.offset = header_.offset;
+
+  info_.path = name();
+  info_.format = "las";
+  info_.point_count = header_.point_count;
+  info_.has_colors = has_rgb_;
+  info_.has_intensity = true;  // every point format has it
+  // WKT wins over GeoTIFF keys: it is the newer, complete description.
+  if (records.wkt) {
+    info_.crs = *records.wkt;
+  } else if (records.geokeys) {
+    info_.crs = crs_from_geokeys(*records.geokeys);
+  }
+  info_.header_bounds = header_.bounds;
+  info_.scale = header_.scale;
+  wide_colors_ = has_rgb_;  // LAS colours are 16-bit
+  return Status::ok();
+}
+
+// Checks the declared layout against the file size, when it is known, before
+// anything trusts it.
+Status LasPointReader::check_size() {
+  const auto size = src_.size();
+  if (!size) return Status::ok();  // a pipe: checked as the data arrives
+  if (header_.point_offset > *size) {
+    return format_error(name() + ": truncated: the point data should start at byte " +
+                        std::to_string(header_.point_offset) + " but the file has " + std::to_string(*size) +
+                        " bytes");
+  }
+  std::uint64_t end = *size;
+  if (header_.evlr_count > 0) {
+    if (header_.evlr_start < header_.point_offset) {
+      return format_error(name() + ": the extended VLRs start at byte " + std::to_string(header_.evlr_start) +
+                          ", before the point data at byte " + std::to_string(header_.point_offset));
+    }
+    if (header_.evlr_start > *size) {
+      return format_error(name() + ": truncated: the extended VLRs start at byte " +
+                          std::to_string(header_.evlr_start) + " but the file has " + std::to_string(*size) +
+                          " bytes");
+    }
+    end = header_.evlr_start;
+  }
+  const std::uint64_t holds =
+      end >= header_.point_offset ? (end - header_.point_offset) / header_.record_length : 0;
+  if (header_.point_count > holds) return truncated(holds);
+  backed_ = true;
+  return Status::ok();
+}
+
+Status LasPointReader::read_vlrs(ProjectionRecords& records) {
+  std::uint64_t skipped = 0;
+  RELIEF_RETURN_IF_ERROR(src_.skip(header_.header_size, skipped));
+  std::uint64_t pos = header_.header_size;
+  const std::uint64_t limit = header_.point_offset;
+  const std::string count_text = std::to_string(header_.vlr_count);
+  for (std::uint32_t i = 0; i < header_.vlr_count; ++i) {
+    const std::string which = name() + ": VLR " + std::to_string(i + 1) + " of " + count_text;
+    if (limit - pos < kVlrHeaderSize) {
+      return format_error(which + " does not fit before the point data at byte " + std::to_string(limit));
+    }
+    std::span<const std::uint8_t> view;
+    RELIEF_RETURN_IF_ERROR(src_.fill(kVlrHeaderSize, view));
+    if (view.size() < kVlrHeaderSize) return format_error(which + " is cut short by the end of the file");
+    const auto record_id = load_le<std::uint16_t>(view.data() + 18);
+    const auto length = load_le<std::uint16_t>(view.data() + 20);
+    const bool wanted = is_projection_record(view.subspan(2, 16), record_id);
+    src_.consume(kVlrHeaderSize);
+    pos += kVlrHeaderSize;
+    if (limit - pos < length) {
+      return format_error(which + " (" + std::to_string(length) +
+                          " bytes) runs past the start of the point data at byte " + std::to_string(limit));
+    }
+    if (wanted) {
+      RELIEF_RETURN_IF_ERROR(src_.fill(length, view));
+      if (view.size() < length) return format_error(which + " is cut short by the end of the file");
+      keep_projection_record(record_id, view.first(length), records);
+      src_.consume(length);
+    } else {
+      RELIEF_RETURN_IF_ERROR(src_.skip(length, skipped));
+      if (skipped < length) return format_error(which + " is cut short by the end of the file");
+    }
+    pos += length;
+  }
+  // Writers may leave user bytes between the VLRs and the points.
+  RELIEF_RETURN_IF_ERROR(src_.skip(limit - pos, skipped));
+  if (skipped < limit - pos) return truncated(0);
+  return Status::ok();
+}
+
+// LAS 1.4 extended VLRs follow the points; a second handle seeks to them so
+// the point stream stays sequential. A pipe cannot seek, so there they are
+// not read (the CRS may then be missing).
+Status LasPointReader::read_evlrs(ProjectionRecords& records) {
+  const auto size = src_.size();
+  if (header_.evlr_count == 0 || !size) return Status::ok();
+  RELIEF_ASSIGN_OR_RETURN(ByteSource evlr_src, input_.open());
+  std::uint64_t skipped = 0;
+  RELIEF_RETURN_IF_ERROR(evlr_src.skip(header_.evlr_start, skipped));
+  std::uint64_t pos = header_.evlr_start;  // <= size, see check_size()
+  const std::string count_text = std::to_string(header_.evlr_count);
+  for (std::uint32_t i = 0; i < header_.evlr_count; ++i) {
+    const std::string which = name() + ": extended VLR " + std::to_string(i + 1) + " of " + count_text;
+    std::span<const std::uint8_t> view;
+    RELIEF_RETURN_IF_ERROR(evlr_src.fill(kEvlrHeaderSize, view));
+    if (*size - pos < kEvlrHeaderSize || view.size() < kEvlrHeaderSize) {
+      return format_error(which + " is cut short by the end of the file");
+    }
+    const auto record_id = load_le<std::uint16_t>(view.data() + 18);
+    const auto length = load_le<std::uint64_t>(view.data() + 20);
+    const bool wanted = is_projection_record(view.subspan(2, 16), record_id);
+    evlr_src.consume(kEvlrHeaderSize);
+    pos += kEvlrHeaderSize;
+    if (*size - pos < length) {
+      return format_error(which + " (" + std::to_string(length) + " bytes) runs past the end of the file");
+    }
+    if (wanted) {
+      if (length > kMaxProjectionRecord) {
+        return format_error(which + ": a projection record of " + std::to_string(length) +
+                            " bytes is absurdly large");
+      }
+      const auto len = static_cast<std::size_t>(length);
+      RELIEF_RETURN_IF_ERROR(evlr_src.fill(len, view));
+      if (view.size() < len) return format_error(which + " is cut short by the end of the file");
+      keep_projection_record(record_id, view.first(len), records);
+      evlr_src.consume(len);
+    } else {
+      RELIEF_RETURN_IF_ERROR(evlr_src.skip(length, skipped));
+      if (skipped < length) return format_error(which + " is cut short by the end of the file");
+    }
+    pos += length;
+  }
+  return Status::ok();
+}
+
+Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::uint16_t>* wide,
+                                              std::size_t at, std::size_t max_points) {
+  const auto want =
+      static_cast<std::size_t>(std::min<std::uint64_t>(max_points, header_.point_count - done_));
+  const bool to_wide = wide != nullptr && has_rgb_;
+  const bool col8 = has_rgb_ && !to_wide;
+  auto size_to = [&](std::size_t n) {
+    size_batch(out, n, col8, true);
+    if (to_wide) wide->resize(3 * n);
+  };
+  // Sized once when the file is known to hold the points, so that a batch
+  // reused at the same size is not touched twice; otherwise grown as data
+  // arrives, so a lying header on a pipe allocates nothing.
+  if (backed_) size_to(at + want);
+  layout_.color_shift = color_shift_;
+  const std::size_t stride = layout_.record_length;
+  std::size_t got = 0;
+  while (got < want) {
+    std::span<const std::uint8_t> view;
+    RELIEF_RETURN_IF_ERROR(src_.fill(stride, view));
+    const std::size_t avail = view.size() / stride;
+    if (avail == 0) return truncated(done_ + got);
+    const std::size_t n = std::min(want - got, avail);
+    const std::size_t i0 = at + got;
+    if (!backed_) size_to(i0 + n);
+    Vec3d* pos = out.positions.data() + i0;
+    float* intensity = out.intensities.data() + i0;
+    if (to_wide) {
+      decode_las<ColorOut::kWide>(view.data(), n, layout_, pos, intensity, nullptr, wide->data() + 3 * i0);
+    } else if (col8) {
+      decode_las<ColorOut::kNarrow>(view.data(), n, layout_, pos, intensity, out.colors.data() + i0, nullptr);
+    } else {
+      decode_las<ColorOut::kNone>(view.data(), n, layout_, pos, intensity, nullptr, nullptr);
+    }
+    src_.consume(n * stride);
+    got += n;
+  }
+  size_to(at + got);
+  done_ += got;
+  return got;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> reader, LasPointReader::open(input));
+  return std::unique_ptr<PointReader>(std::move(reader));
+}
+
+}  // namespace relief

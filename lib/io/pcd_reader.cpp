@@ -1,0 +1,495 @@
+// PCD reader (PCL point cloud data, header versions 0.6 and 0.7), DATA ascii
+// and binary. Fields x y z (F 4 or F 8) are required; rgb or rgba (4 bytes
+// packed as 0x00RRGGBB, whatever the TYPE says, as PCL does) and intensity (any
+// numeric type) are read when present; every other field is skipped, COUNT
+// values at a time.
+//
+// Points with a NaN coordinate are skipped and counted in
+// PointStreamInfo::skipped_points: organised clouds (WIDTH x HEIGHT images)
+// mark pixels without depth that way, so they are not errors. An infinite
+// coordinate has no such meaning and is reported.
+
+#include <algorithm>
+#include <bit>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "io/byte_source.h"
+#include "io/readers.h"
+#include "io/stream_support.h"
+#include "io/text_scan.h"
+#include "relief/io.h"
+
+namespace relief {
+
+namespace {
+
+// Limits on untrusted headers. Real PCD headers are ~10 lines; descriptors
+// such as SHOT have COUNT in the hundreds. Keeping point_size <= 2^20 and the
+// point count <= 2^40 keeps every byte count far below 2^64.
+constexpr std::size_t kMaxHeaderLine = std::size_t{64} << 10;
+constexpr std::size_t kMaxHeaderBytes = std::size_t{1} << 20;
+constexpr std::size_t kMaxFields = 1024;
+constexpr std::uint64_t kMaxFieldCount = std::uint64_t{1} << 16;
+constexpr std::size_t kMaxPointSize = std::size_t{1} << 20;
+constexpr std::uint64_t kMaxPoints = std::uint64_t{1} << 40;
+// One ascii point per line.
+constexpr std::size_t kMaxAsciiLine = std::size_t{4} << 20;
+
+struct PcdField {
+  std::string name;
+  std::size_t size = 4;
+  char type = 'F';
+  std::size_t count = 1;
+  std::size_t offset = 0;  // byte offset in a binary record
+  std::size_t column = 0;  // first value in an ascii line
+};
+
+enum class PcdData { kAscii, kBinary, kBinaryCompressed };
+
+struct PcdHeader {
+  std::vector<PcdField> fields;
+  PcdData data = PcdData::kAscii;
+  std::uint64_t point_count = 0;
+  std::size_t point_size = 0;  // bytes per binary record
+  std::size_t columns = 0;     // values per ascii line
+};
+
+bool parse_u64(std::string_view tok, std::uint64_t& out) {
+  const auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), out);
+  return ec == std::errc{} && p == tok.data() + tok.size() && !tok.empty();
+}
+
+std::string upper(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return out;
+}
+
+Result<PcdHeader> parse_header(ByteSource& src, const std::string& name) {
+  PcdHeader h;
+  std::vector<std::string> sizes, types, counts;  // copies: lines do not outlive next_line
+  std::optional<std::uint64_t> width, height, points;
+  bool have_fields = false;
+  bool have_data = false;
+  std::size_t line_no = 0;
+  while (!have_data) {
+    std::string_view line;
+    LineStatus state = LineStatus::kEnd;
+    RELIEF_RETURN_IF_ERROR(next_line(src, kMaxHeaderLine, line, state));
+    ++line_no;
+    if (state == LineStatus::kEnd) {
+      if (line_no == 1) return format_error(name + ": not a PCD file: it is empty");
+      return format_error(name + ": the PCD header has no DATA line");
+    }
+    if (state == LineStatus::kTooLong || src.position() > kMaxHeaderBytes) {
+      return format_error(name + ": the PCD header has no DATA line in its first " +
+                          std::to_string(kMaxHeaderBytes) + " bytes");
+    }
+    const std::string where = name + ": header line " + std::to_string(line_no) + ": ";
+    const std::vector<std::string_view> tok = split_tokens(line);
+    if (tok.empty() || tok[0].starts_with('#')) continue;
+    const std::string kw = upper(tok[0]);
+    const std::vector<std::string_view> args(tok.begin() + 1, tok.end());
+    auto one_number = [&](std::optional<std::uint64_t>& out) -> Status {
+      std::uint64_t v = 0;
+      if (args.size() != 1 || !parse_u64(args[0], v)) {
+        return format_error(where + kw + " needs one non-negative integer");
+      }
+      if (v > kMaxPoints) return format_error(where + kw + " " + std::to_string(v) + " is absurdly large");
+      out = v;
+      return Status::ok();
+    };
+    auto copy = [&](std::vector<std::string>& out) { out.assign(args.begin(), args.end()); };
+    if (kw == "VERSION" || kw == "VIEWPOINT") {
+      // The viewpoint is the sensor pose; PCL does not apply it to the points either.
+      continue;
+    } else if (kw == "FIELDS" || kw == "COLUMNS") {  // COLUMNS: the 0.5 spelling
+      if (args.empty()) return format_error(where + "FIELDS lists no field");
+      if (args.size() > kMaxFields) {
+        return format_error(where + "more than " + std::to_string(kMaxFields) + " fields");
+      }
+      h.fields.clear();
+      for (std::string_view a : args) h.fields.push_back({std::string(a), 4, 'F', 1, 0, 0});
+      have_fields = true;
+    } else if (kw == "SIZE") {
+      copy(sizes);
+    } else if (kw == "TYPE") {
+      copy(types);
+    } else if (kw == "COUNT") {
+      copy(counts);
+    } else if (kw == "WIDTH") {
+      RELIEF_RETURN_IF_ERROR(one_number(width));
+    } else if (kw == "HEIGHT") {
+      RELIEF_RETURN_IF_ERROR(one_number(height));
+    } else if (kw == "POINTS") {
+      RELIEF_RETURN_IF_ERROR(one_number(points));
+    } else if (kw == "DATA") {
+      if (args.size() != 1) return format_error(where + "expected 'DATA ascii' or 'DATA binary'");
+      if (args[0] == "ascii") {
+        h.data = PcdData::kAscii;
+      } else if (args[0] == "binary") {
+        h.data = PcdData::kBinary;
+      } else if (args[0] == "binary_compressed") {
+        h.data = PcdData::kBinaryCompressed;
+      } else {
+        return format_error(where + "unknown DATA kind " + quoted(args[0]));
+      }
+      have_data = true;
+    } else {
+      return format_error(where + "unknown header keyword " + quoted(tok[0]));
+    }
+  }
+  if (h.data == PcdData::kBinaryCompressed) {
+    return unsupported(name +
+                       ": PCD binary_compressed is not supported yet; convert with "
+                       "pcl_convert_pcd_ascii_binary");
+  }
+  if (!have_fields) return format_error(name + ": the PCD header has no FIELDS line");
+  const std::size_t n = h.fields.size();
+  auto matches = [&](const std::vector<std::string>& v, const char* what) -> Status {
+    if (v.size() != n) {
+      return format_error(name + ": the PCD header lists " + std::to_string(n) + " fields but " +
+                          std::to_string(v.size()) + " " + what + " values");
+    }
+    return Status::ok();
+  };
+  RELIEF_RETURN_IF_ERROR(matches(sizes, "SIZE"));
+  RELIEF_RETURN_IF_ERROR(matches(types, "TYPE"));
+  if (!counts.empty()) RELIEF_RETURN_IF_ERROR(matches(counts, "COUNT"));
+  for (std::size_t i = 0; i < n; ++i) {
+    PcdField& f = h.fields[i];
+    const std::string what = name + ": field " + quoted(f.name) + ": ";
+    std::uint64_t size = 0;
+    if (!parse_u64(sizes[i], size) || (size != 1 && size != 2 && size != 4 && size != 8)) {
+      return format_error(what + "SIZE " + quoted(sizes[i]) + " is not 1, 2, 4 or 8");
+    }
+    if (types[i] != "F" && types[i] != "I" && types[i] != "U") {
+      return format_error(what + "TYPE " + quoted(types[i]) + " is not F, I or U");
+    }
+    f.size = static_cast<std::size_t>(size);
+    f.type = types[i][0];
+    if (f.type == 'F' && f.size != 4 && f.size != 8) {
+      return format_error(what + "a floating-point field must have SIZE 4 or 8, not " + sizes[i]);
+    }
+    std::uint64_t count = 1;
+    if (!counts.empty() && (!parse_u64(counts[i], count) || count == 0 || count > kMaxFieldCount)) {
+      return format_error(what + "COUNT " + quoted(counts[i]) + " is not between 1 and " +
+                          std::to_string(kMaxFieldCount));
+    }
+    f.count = static_cast<std::size_t>(count);
+    f.offset = h.point_size;
+    f.column = h.columns;
+    h.point_size += f.size * f.count;
+    h.columns += f.count;
+    if (h.point_size > kMaxPointSize) {
+      return format_error(name + ": a PCD point of more than " + std::to_string(kMaxPointSize) +
+                          " bytes is absurdly large");
+    }
+  }
+  // WIDTH x HEIGHT is the image size of an organised cloud (HEIGHT 1 otherwise).
+  std::optional<std::uint64_t> image;
+  if (width) {
+    const std::uint64_t rows = height.value_or(1);
+    if (rows != 0 && *width > kMaxPoints / rows) {
+      return format_error(name + ": WIDTH x HEIGHT is absurdly large");
+    }
+    image = *width * rows;
+  }
+  if (points) {
+    // A mismatch means the header cannot be trusted.
+    if (image && *image != *points) {
+      return format_error(name + ": POINTS " + std::to_string(*points) + " differs from WIDTH x HEIGHT = " +
+                          std::to_string(*width) + " x " + std::to_string(height.value_or(1)));
+    }
+    h.point_count = *points;
+  } else {
+    if (!image) return format_error(name + ": the PCD header has neither POINTS nor WIDTH");
+    h.point_count = *image;
+  }
+  return h;
+}
+
+const PcdField* find_field(const PcdHeader& h, std::string_view field_name) {
+  for (const PcdField& f : h.fields) {
+    if (f.name == field_name) return &f;
+  }
+  return nullptr;
+}
+
+// Any PCD scalar as a double (64-bit integers may round; they never hold
+// coordinates here).
+double load_value(const std::uint8_t* p, char type, std::size_t size) {
+  if (type == 'F') return size == 4 ? static_cast<double>(load_le<float>(p)) : load_le<double>(p);
+  if (type == 'I') {
+    switch (size) {
+      case 1:
+        return static_cast<std::int8_t>(p[0]);
+      case 2:
+        return load_le<std::int16_t>(p);
+      case 4:
+        return load_le<std::int32_t>(p);
+      default:
+        return static_cast<double>(load_le<std::int64_t>(p));
+    }
+  }
+  switch (size) {
+    case 1:
+      return p[0];
+    case 2:
+      return load_le<std::uint16_t>(p);
+    case 4:
+      return load_le<std::uint32_t>(p);
+    default:
+      return static_cast<double>(load_le<std::uint64_t>(p));
+  }
+}
+
+bool parse_double(std::string_view tok, double& out) {
+  const char* first = tok.data();
+  const char* const last = tok.data() + tok.size();
+  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') ++first;
+  const auto [p, ec] = std::from_chars(first, last, out);
+  return ec == std::errc{} && p == last && first != last;
+}
+
+// A packed colour in an ascii body. PCL writes it as the unsigned integer of
+// its bits (since 1.x, because opaque colours are NaN as floats); older
+// writers printed the float value, whose bits are the colour.
+bool parse_packed_color(std::string_view tok, char type, std::uint32_t& bits) {
+  std::int64_t whole = 0;
+  const auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), whole);
+  if (ec == std::errc{} && p == tok.data() + tok.size() && !tok.empty()) {
+    if (whole < std::numeric_limits<std::int32_t>::min() ||
+        whole > std::numeric_limits<std::uint32_t>::max()) {
+      return false;
+    }
+    bits = static_cast<std::uint32_t>(whole);  // I 4 values wrap to the same bits
+    return true;
+  }
+  if (type != 'F') return false;
+  float f = 0;
+  const auto [q, ec2] = std::from_chars(tok.data(), tok.data() + tok.size(), f);
+  if (ec2 != std::errc{} || q != tok.data() + tok.size()) return false;
+  bits = std::bit_cast<std::uint32_t>(f);
+  return true;
+}
+
+class PcdPointReader final : public PointReader {
+ public:
+  PcdPointReader(std::string name, ByteSource src, PcdHeader header)
+      : src_(std::move(src)), header_(std::move(header)) {
+    x_ = find_field(header_, "x");
+    y_ = find_field(header_, "y");
+    z_ = find_field(header_, "z");
+    rgb_ = find_field(header_, "rgb");
+    if (rgb_ == nullptr) rgb_ = find_field(header_, "rgba");
+    intensity_ = find_field(header_, "intensity");
+    info_.path = std::move(name);
+    info_.format = "pcd";
+    info_.point_count = header_.point_count;
+    info_.has_colors = rgb_ != nullptr;
+    info_.has_intensity = intensity_ != nullptr;
+    roles_.assign(header_.columns, kSkip);
+    roles_[x_->column] = kX;
+    roles_[y_->column] = kY;
+    roles_[z_->column] = kZ;
+    if (rgb_ != nullptr) roles_[rgb_->column] = kRgb;
+    if (intensity_ != nullptr) roles_[intensity_->column] = kIntensity;
+  }
+
+  // Checks what the constructor relies on; call before using the reader.
+  Status check() {
+    for (const PcdField* f : {x_, y_, z_}) {
+      if (f == nullptr) return format_error(name() + ": the PCD file has no x, y and z fields");
+      if (f->type != 'F' || f->count != 1) {
+        return format_error(name() + ": field " + quoted(f->name) + " must be a single F 4 or F 8 value");
+      }
+    }
+    if (rgb_ != nullptr && (rgb_->size != 4 || rgb_->count != 1)) {
+      return format_error(name() + ": field " + quoted(rgb_->name) + " must be one 4-byte packed colour");
+    }
+    if (intensity_ != nullptr && intensity_->count != 1) {
+      return format_error(name() + ": field 'intensity' must have COUNT 1");
+    }
+    if (header_.data == PcdData::kBinary) {
+      if (const auto rem = src_.remaining()) {
+        const std::uint64_t holds = *rem / header_.point_size;
+        if (header_.point_count > holds) return truncated(holds);
+      }
+    }
+    return Status::ok();
+  }
+
+  const PointStreamInfo& info() const override { return info_; }
+  Result<std::size_t> read(PointCloud& batch, std::size_t max_points) override;
+
+ private:
+  // Column roles in an ascii line.
+  enum : std::uint8_t { kSkip, kX, kY, kZ, kRgb, kIntensity };
+
+  struct Values {
+    double x = 0, y = 0, z = 0, intensity = 0;
+    std::uint32_t rgb = 0;
+  };
+
+  const std::string& name() const { return info_.path; }
+  Status truncated(std::uint64_t got) const {
+    return format_error(name() + ": truncated: header declares " + std::to_string(header_.point_count) +
+                        " points but the data ends after " + std::to_string(got));
+  }
+  Status point_error(std::uint64_t index, const std::string& what) const {
+    return format_error(name() + ": point " + std::to_string(index) + ": " + what);
+  }
+  void decode_binary(const std::uint8_t* rec, Values& v) const {
+    v.x = load_value(rec + x_->offset, 'F', x_->size);
+    v.y = load_value(rec + y_->offset, 'F', y_->size);
+    v.z = load_value(rec + z_->offset, 'F', z_->size);
+    if (rgb_ != nullptr) v.rgb = load_le<std::uint32_t>(rec + rgb_->offset);
+    if (intensity_ != nullptr)
+      v.intensity = load_value(rec + intensity_->offset, intensity_->type, intensity_->size);
+  }
+  Status parse_ascii(std::string_view line, std::uint64_t index, Values& v) const;
+  // Appends the point unless it is a no-depth (NaN) point.
+  Status accept(const Values& v, std::uint64_t index, PointCloud& batch, bool& kept);
+
+  ByteSource src_;
+  PcdHeader header_;
+  PointStreamInfo info_;
+  const PcdField* x_ = nullptr;
+  const PcdField* y_ = nullptr;
+  const PcdField* z_ = nullptr;
+  const PcdField* rgb_ = nullptr;
+  const PcdField* intensity_ = nullptr;
+  std::vector<std::uint8_t> roles_;
+  std::uint64_t done_ = 0;  // records consumed, kept or skipped
+};
+
+Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, Values& v) const {
+  std::size_t pos = 0;
+  for (std::size_t c = 0; c < header_.columns; ++c) {
+    const std::string_view tok = next_token(line, pos);
+    if (tok.empty()) {
+      return point_error(index, "expected " + std::to_string(header_.columns) + " values but the line has " +
+                                    std::to_string(c));
+    }
+    const std::uint8_t role = roles_[c];
+    if (role == kSkip) continue;
+    bool ok = true;
+    switch (role) {
+      case kX:
+        ok = parse_double(tok, v.x);
+        break;
+      case kY:
+        ok = parse_double(tok, v.y);
+        break;
+      case kZ:
+        ok = parse_double(tok, v.z);
+        break;
+      case kRgb:
+        ok = parse_packed_color(tok, rgb_->type, v.rgb);
+        break;
+      default:
+        ok = parse_double(tok, v.intensity);
+        break;
+    }
+    if (!ok)
+      return point_error(index,
+                         quoted(tok) + " in column " + std::to_string(c + 1) + " is not a valid value");
+  }
+  return Status::ok();
+}
+
+Status PcdPointReader::accept(const Values& v, std::uint64_t index, PointCloud& batch, bool& kept) {
+  kept = false;
+  if (std::isnan(v.x) || std::isnan(v.y) || std::isnan(v.z)) {
+    ++info_.skipped_points;
+    return Status::ok();
+  }
+  if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
+    return point_error(index, "non-finite coordinate (" + format_double(v.x) + ", " + format_double(v.y) +
+                                  ", " + format_double(v.z) + ")");
+  }
+  float intensity = 0;
+  if (intensity_ != nullptr) {
+    if (!std::isfinite(v.intensity) || std::abs(v.intensity) > std::numeric_limits<float>::max()) {
+      return point_error(index, "intensity " + format_double(v.intensity) + " is not a finite float");
+    }
+    intensity = static_cast<float>(v.intensity);
+  }
+  batch.positions.push_back({v.x, v.y, v.z});
+  if (rgb_ != nullptr) {
+    batch.colors.push_back({static_cast<std::uint8_t>(v.rgb >> 16), static_cast<std::uint8_t>(v.rgb >> 8),
+                            static_cast<std::uint8_t>(v.rgb)});
+  }
+  if (intensity_ != nullptr) batch.intensities.push_back(intensity);
+  kept = true;
+  return Status::ok();
+}
+
+Result<std::size_t> PcdPointReader::read(PointCloud& batch, std::size_t max_points) {
+  size_batch(batch, 0, rgb_ != nullptr, intensity_ != nullptr);  // keeps the capacity
+  std::size_t got = 0;
+  const std::size_t stride = header_.point_size;
+  while (got < max_points && done_ < header_.point_count) {
+    if (header_.data == PcdData::kBinary) {
+      std::span<const std::uint8_t> view;
+      RELIEF_RETURN_IF_ERROR(src_.fill(stride, view));
+      const std::uint64_t avail = std::min<std::uint64_t>(view.size() / stride, header_.point_count - done_);
+      if (avail == 0) return truncated(done_);
+      std::size_t used = 0;
+      while (used < avail && got < max_points) {
+        Values v;
+        decode_binary(view.data() + used * stride, v);
+        bool kept = false;
+        RELIEF_RETURN_IF_ERROR(accept(v, done_ + used, batch, kept));
+        got += kept ? 1 : 0;
+        ++used;
+      }
+      src_.consume(used * stride);
+      done_ += used;
+    } else {
+      std::string_view line;
+      LineStatus state = LineStatus::kEnd;
+      RELIEF_RETURN_IF_ERROR(next_line(src_, kMaxAsciiLine, line, state));
+      if (state == LineStatus::kEnd) return truncated(done_);
+      if (state == LineStatus::kTooLong) {
+        return point_error(done_, "line longer than " + std::to_string(kMaxAsciiLine) + " bytes");
+      }
+      std::size_t pos = 0;
+      if (next_token(line, pos).empty()) continue;  // blank line
+      Values v;
+      RELIEF_RETURN_IF_ERROR(parse_ascii(line, done_, v));
+      bool kept = false;
+      RELIEF_RETURN_IF_ERROR(accept(v, done_, batch, kept));
+      got += kept ? 1 : 0;
+      ++done_;
+    }
+  }
+  return got;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input) {
+  RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
+  RELIEF_ASSIGN_OR_RETURN(PcdHeader header, parse_header(src, input.name));
+  for (const char* axis : {"x", "y", "z"}) {
+    if (find_field(header, axis) == nullptr) {
+      return format_error(input.name + ": the PCD header has no '" + axis + "' field");
+    }
+  }
+  std::unique_ptr<PcdPointReader> reader(new PcdPointReader(input.name, std::move(src), std::move(header)));
+  RELIEF_RETURN_IF_ERROR(reader->check());
+  return std::unique_ptr<PointReader>(std::move(reader));
+}
+
+}  // namespace relief

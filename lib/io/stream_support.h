@@ -1,0 +1,122 @@
+// Pieces shared by the streaming point readers: reopening an input, little-
+// endian loads, batch sizing and the 16-bit colour rule. Internal to lib/io.
+#pragma once
+
+#include <algorithm>
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "io/byte_source.h"
+#include "relief/io.h"
+
+namespace relief {
+
+// Where a reader's bytes come from. Kept by the readers because some need the
+// input a second time (the colour sample, LAS extended VLRs after the points).
+struct InputSpec {
+  std::string name;  // the path, or for memory input the name used in messages
+  std::optional<std::span<const std::uint8_t>> memory;
+
+  Result<ByteSource> open() const {
+    if (memory) return ByteSource::from_memory(*memory);
+    return ByteSource::open_file(name);
+  }
+};
+
+// Reads a little-endian scalar from possibly unaligned bytes.
+template <typename T>
+T load_le(const std::uint8_t* p) {
+  T v;
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(&v, p, sizeof(T));
+  } else {
+    std::uint8_t b[sizeof(T)];
+    for (std::size_t i = 0; i < sizeof(T); ++i) b[i] = p[sizeof(T) - 1 - i];
+    std::memcpy(&v, b, sizeof(T));
+  }
+  return v;
+}
+
+// Sizes the arrays of `out` to `n` points: positions always, colours and
+// intensities when wanted, else empty. A batch reused at the same size costs
+// nothing, which matters when a reader is called a few hundred times per file.
+inline void size_batch(PointCloud& out, std::size_t n, bool colors, bool intensity) {
+  out.positions.resize(n);
+  out.colors.resize(colors ? n : 0);
+  out.intensities.resize(intensity ? n : 0);
+}
+
+// ---- 16-bit colours
+//
+// LAS stores 16-bit colour levels, and so do some PLY files, but plenty of
+// writers put 8-bit levels (0..255) into those 16-bit fields. The rule, shared
+// with the whole-file PLY reader: shift every level right by 8 when the file
+// has a level above 255, else keep the levels as they are. A stream cannot see
+// the whole file first, so streaming readers decide once per file from a
+// sample: the first kColorSamplePoints points (or the whole file when smaller).
+// The sample does not depend on the caller's batch size: when the first batch
+// is smaller than the sample, the reader reads the sample through a second
+// reader over the same input (only a pipe, which cannot be read twice, falls
+// back to the first batch). When the sample decided "keep", a later level
+// above 255 saturates at 255.
+inline constexpr std::uint64_t kColorSamplePoints = std::uint64_t{1} << 20;
+
+inline int color_shift_for(std::uint16_t max_level) { return max_level > 255 ? 8 : 0; }
+
+inline std::uint8_t narrow_level(std::uint16_t v, int shift) {
+  return static_cast<std::uint8_t>(std::min(v >> shift, 255));
+}
+
+inline std::uint16_t max_level(const std::uint16_t* levels, std::size_t count) {
+  std::uint16_t m = 0;
+  for (std::size_t i = 0; i < count; ++i) m = std::max(m, levels[i]);
+  return m;
+}
+
+// `wide` holds r, g, b per point.
+inline void narrow_colors(const std::uint16_t* wide, std::size_t n, int shift, Rgb8* out) {
+  for (std::size_t i = 0; i < n; ++i) {
+    out[i] = Rgb8{narrow_level(wide[3 * i], shift), narrow_level(wide[3 * i + 1], shift),
+                  narrow_level(wide[3 * i + 2], shift)};
+  }
+}
+
+// Base of the readers that may see 16-bit colours (PLY, LAS): implements
+// read() on top of read_into() and applies the colour rule above.
+class BatchPointReader : public PointReader {
+ public:
+  const PointStreamInfo& info() const final { return info_; }
+  Result<std::size_t> read(PointCloud& batch, std::size_t max_points) final;
+
+  // Decodes up to `max_points` points into `out` from index `at` and returns
+  // how many (0 at the end). On return every array info() announces holds
+  // at + n entries and the others are empty. When `wide` is given and the file
+  // has 16-bit colours, the levels go to (*wide)[3 * at ...] as r, g, b and
+  // out.colors is left empty; otherwise colours are narrowed with
+  // color_shift_.
+  virtual Result<std::size_t> read_into(PointCloud& out, std::vector<std::uint16_t>* wide, std::size_t at,
+                                        std::size_t max_points) = 0;
+
+ protected:
+  // A new reader at the first point of the same input, or null when the
+  // input cannot be read twice (a pipe).
+  virtual Result<std::unique_ptr<BatchPointReader>> reopen() const = 0;
+
+  PointStreamInfo info_;
+  bool wide_colors_ = false;  // colours need the 16-bit rule
+  int color_shift_ = 0;       // valid once decided
+
+ private:
+  Result<std::uint16_t> sample_max_level(std::uint64_t sample);
+
+  bool shift_known_ = false;
+};
+
+}  // namespace relief

@@ -1,0 +1,39 @@
+// Line and token scanning for the text formats (PLY headers and ascii bodies,
+// PCD headers and ascii bodies, XYZ/CSV). Internal to lib/io.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "io/byte_source.h"
+#include "relief/status.h"
+
+namespace relief {
+
+enum class LineStatus { kLine, kEnd, kTooLong };
+
+// Reads the next line without its "\n" (and a "\r" before it). `line` stays
+// valid until the next call on `src`. A last line without "\n" still counts.
+// A line longer than `max_len` gives kTooLong and consumes nothing.
+Status next_line(ByteSource& src, std::size_t max_len, std::string_view& line, LineStatus& state);
+
+// Blank characters of the text formats; "\n" never reaches the tokenisers.
+inline bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+// The next blank-separated token of `line` from `pos` (advanced past it), or
+// an empty view when none is left.
+std::string_view next_token(std::string_view line, std::size_t& pos);
+
+// Every blank-separated token of `line`.
+std::vector<std::string_view> split_tokens(std::string_view line);
+
+// `s` in single quotes, cut to a short printable form: error messages must
+// stay readable when the input is binary junk.
+std::string quoted(std::string_view s);
+
+// Shortest round-trip text, so messages show the value actually read.
+std::string format_double(double v);
+
+}  // namespace relief

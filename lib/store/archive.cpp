@@ -1,0 +1,1095 @@
+// The Relief archive on SQLite (format-spec/archive.md). Blobs are opaque
+// bytes here: the store never links the codec.
+#include "relief/archive.h"
+
+#include <fcntl.h>
+#include <lzma.h>
+#include <unistd.h>
+
+#include <array>
+#include <atomic>
+#include <cerrno>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <optional>
+#include <set>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+#include "store/schema.h"
+#include "store/sqlite_util.h"
+
+namespace relief {
+namespace {
+
+namespace fs = std::filesystem;
+using store::Statement;
+using store::StatementScope;
+using store::Transaction;
+
+// SQLite integers are int64; counts above this cannot be stored.
+constexpr std::uint64_t kMaxStoredCount =
+    static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+constexpr std::int64_t kMaxUint32 = std::numeric_limits<std::uint32_t>::max();
+constexpr std::int64_t kMaxInt64 = std::numeric_limits<std::int64_t>::max();
+constexpr std::int64_t kMinInt64 = std::numeric_limits<std::int64_t>::min();
+
+// ---- Small helpers
+
+// Shortest text that parses back to the same double (std::to_chars without a
+// precision is exactly that), so grid values round-trip bit for bit.
+std::string format_double(double value) {
+  std::array<char, 32> buffer{};
+  const auto result = std::to_chars(buffer.data(), buffer.data() + buffer.size(), value);
+  return std::string(buffer.data(), result.ptr);
+}
+
+// The whole text as a finite double; no leading space, sign '+', or suffix.
+std::optional<double> parse_double(const std::string& text) {
+  double value = 0;
+  const char* end = text.data() + text.size();
+  const auto result = std::from_chars(text.data(), end, value);
+  if (result.ec != std::errc() || result.ptr != end || !std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
+std::string utc_now_iso8601() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  std::array<char, 32> buffer{};
+  const std::size_t size = std::strftime(buffer.data(), buffer.size(), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return std::string(buffer.data(), size);
+}
+
+std::string key_text(const ChunkKey& key) {
+  // Appends rather than "(" + std::to_string(...): GCC 12 warns falsely
+  // (-Wrestrict, bug 105329) on a literal plus a temporary string.
+  std::string text = "(";
+  text += std::to_string(key.ix);
+  text += ',';
+  text += std::to_string(key.iy);
+  text += ',';
+  text += std::to_string(key.iz);
+  text += ')';
+  return text;
+}
+
+std::string hex32(std::uint32_t value) {
+  std::array<char, 16> buffer{};
+  std::snprintf(buffer.data(), buffer.size(), "0x%08X", value);
+  return buffer.data();
+}
+
+// The same CRC-32 (IEEE 802.3) that closes every chunk blob.
+std::uint32_t blob_crc32(const std::vector<std::uint8_t>& blob) {
+  return lzma_crc32(blob.data(), blob.size(), 0);
+}
+
+bool box_is_finite(const Box3d& box) {
+  return std::isfinite(box.min.x) && std::isfinite(box.min.y) && std::isfinite(box.min.z) &&
+         std::isfinite(box.max.x) && std::isfinite(box.max.y) && std::isfinite(box.max.z);
+}
+
+bool box_has_nan(const Box3d& box) {
+  return std::isnan(box.min.x) || std::isnan(box.min.y) || std::isnan(box.min.z) || std::isnan(box.max.x) ||
+         std::isnan(box.max.y) || std::isnan(box.max.z);
+}
+
+Status append_detail(const Status& status, const std::string& detail) {
+  return Status(status.code(), status.message() + " " + detail);
+}
+
+Status check_grid(const std::string& path, const ArchiveGrid& grid) {
+  if (!std::isfinite(grid.origin.x) || !std::isfinite(grid.origin.y) || !std::isfinite(grid.origin.z)) {
+    return invalid_argument(path + ": the grid origin must be finite");
+  }
+  if (!std::isfinite(grid.chunk_edge) || !(grid.chunk_edge > 0)) {
+    return invalid_argument(path + ": the chunk edge must be a finite number > 0, got " +
+                            format_double(grid.chunk_edge));
+  }
+  return Status::ok();
+}
+
+// ---- Statements, prepared once per connection and reused.
+
+enum class Sql : std::size_t {
+  kMetaGet,
+  kMetaAll,
+  kMetaPut,
+  kScanInsert,
+  kScanExists,
+  kScanFinish,
+  kScanSummary,
+  kScanFirstCrs,
+  kScanDelete,
+  kSourceInsert,
+  kSourceDeleteOfScan,
+  kChunkNextSeq,
+  kChunkInsert,
+  kIndexInsert,
+  kIndexDeleteOfScan,
+  kChunkDeleteOfScan,
+  kFindChunks,
+  kAllChunks,
+  kReadChunk,
+  kTotals,
+  kSources,
+  kScans,
+  kCount,
+};
+
+// Columns of a ChunkRef, in the order every chunk SELECT returns them.
+// length(blob) comes from the record header: the blob's pages are not read.
+constexpr std::string_view kRefColumns =
+    "id, ix, iy, iz, seq, scan_id, min_x, min_y, min_z, max_x, max_y, max_z, "
+    "input_points, decoded_points, length(blob)";
+enum RefColumn : int {
+  kColId,
+  kColIx,
+  kColIy,
+  kColIz,
+  kColSeq,
+  kColScanId,
+  kColMinX,
+  kColMinY,
+  kColMinZ,
+  kColMaxX,
+  kColMaxY,
+  kColMaxZ,
+  kColInputPoints,
+  kColDecodedPoints,
+  kColBlobSize,
+  kRefColumnCount,
+};
+// read_chunk's extra columns, after the ChunkRef ones.
+enum ReadColumn : int {
+  kColCodec = kRefColumnCount,
+  kColCodecParams,
+  kColCrc32,
+  kColBlob,
+};
+
+struct SqlText {
+  const char* what;  // for error messages
+  std::string sql;
+};
+
+SqlText sql_text(Sql id) {
+  const std::string ref_columns(kRefColumns);
+  // The R*Tree holds float bounds rounded outward, so it can only say "maybe";
+  // the outer WHERE repeats the test on the exact doubles of relief_chunk.
+  constexpr const char* kOverlap =
+      "max_x >= ?1 AND min_x <= ?4 AND max_y >= ?2 AND min_y <= ?5 AND "
+      "max_z >= ?3 AND min_z <= ?6";
+  switch (id) {
+    case Sql::kMetaGet:
+      return {"read metadata", "SELECT value FROM relief_meta WHERE key = ?1"};
+    case Sql::kMetaAll:
+      return {"read metadata", "SELECT key, value FROM relief_meta"};
+    case Sql::kMetaPut:
+      return {"write metadata",
+              "INSERT INTO relief_meta(key, value) VALUES(?1, ?2) "
+              "ON CONFLICT(key) DO UPDATE SET value = excluded.value"};
+    case Sql::kScanInsert:
+      return {"insert scan",
+              "INSERT INTO relief_scan(created_at, complete, has_rgb, has_intensity, crs) "
+              "VALUES(?1, 0, 0, 0, '')"};
+    case Sql::kScanExists:
+      return {"find scan", "SELECT 1 FROM relief_scan WHERE id = ?1"};
+    case Sql::kScanFinish:
+      return {"finish scan",
+              "UPDATE relief_scan SET complete = 1, has_rgb = ?2, has_intensity = ?3, crs = ?4 "
+              "WHERE id = ?1"};
+    case Sql::kScanSummary:
+      return {"summarise scans",
+              "SELECT COALESCE(MAX(has_rgb), 0), COALESCE(MAX(has_intensity), 0) "
+              "FROM relief_scan WHERE complete = 1"};
+    case Sql::kScanFirstCrs:
+      return {"summarise scans",
+              "SELECT crs FROM relief_scan WHERE complete = 1 AND crs <> '' ORDER BY id LIMIT 1"};
+    case Sql::kScanDelete:
+      return {"delete scan", "DELETE FROM relief_scan WHERE id = ?1"};
+    case Sql::kSourceInsert:
+      return {"insert source",
+              "INSERT INTO relief_source(scan_id, path, format, point_count, crs) "
+              "VALUES(?1, ?2, ?3, ?4, ?5)"};
+    case Sql::kSourceDeleteOfScan:
+      return {"delete sources", "DELETE FROM relief_source WHERE scan_id = ?1"};
+    case Sql::kChunkNextSeq:
+      // Served by the UNIQUE(ix, iy, iz, seq) index: one b-tree descent.
+      return {"find next seq",
+              "SELECT COALESCE(MAX(seq) + 1, 0) FROM relief_chunk "
+              "WHERE ix = ?1 AND iy = ?2 AND iz = ?3"};
+    case Sql::kChunkInsert:
+      return {"insert chunk",
+              "INSERT INTO relief_chunk(ix, iy, iz, seq, scan_id, min_x, min_y, min_z, "
+              "max_x, max_y, max_z, input_points, decoded_points, codec, codec_params, crc32, "
+              "blob) VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, "
+              "?16, ?17)"};
+    case Sql::kIndexInsert:
+      return {"insert into the spatial index",
+              "INSERT INTO relief_chunk_index(id, min_x, max_x, min_y, max_y, min_z, max_z) "
+              "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)"};
+    case Sql::kIndexDeleteOfScan:
+      return {"delete from the spatial index",
+              "DELETE FROM relief_chunk_index WHERE id IN "
+              "(SELECT id FROM relief_chunk WHERE scan_id = ?1)"};
+    case Sql::kChunkDeleteOfScan:
+      return {"delete chunks", "DELETE FROM relief_chunk WHERE scan_id = ?1"};
+    case Sql::kFindChunks:
+      return {"find chunks", "SELECT " + ref_columns +
+                                 " FROM relief_chunk WHERE id IN (SELECT id FROM "
+                                 "relief_chunk_index WHERE " +
+                                 kOverlap + ") AND " + kOverlap + " ORDER BY id"};
+    case Sql::kAllChunks:
+      return {"list chunks", "SELECT " + ref_columns + " FROM relief_chunk ORDER BY id"};
+    case Sql::kReadChunk:
+      return {"read chunk", "SELECT " + ref_columns +
+                                ", codec, codec_params, crc32, blob FROM relief_chunk "
+                                "WHERE id = ?1"};
+    case Sql::kTotals:
+      return {"sum chunks",
+              "SELECT COUNT(*), COALESCE(SUM(input_points), 0), COALESCE(SUM(decoded_points), 0), "
+              "COALESCE(SUM(length(blob)), 0), MIN(min_x), MIN(min_y), MIN(min_z), MAX(max_x), "
+              "MAX(max_y), MAX(max_z) FROM relief_chunk"};
+    case Sql::kSources:
+      return {"list sources",
+              "SELECT path, format, point_count, crs, scan_id FROM relief_source ORDER BY id"};
+    case Sql::kScans:
+      return {"list scans", "SELECT id, complete, created_at FROM relief_scan ORDER BY id"};
+    case Sql::kCount:
+      break;
+  }
+  return {"?", ""};
+}
+
+// Reads columns as a hostile file could fill them: SQLite's column types are
+// advisory, so a crafted archive can put text where a count belongs. The first
+// problem is kept and reported as a format error naming the row.
+class RowReader {
+ public:
+  RowReader(const Statement& statement, const std::string& path, std::string row)
+      : statement_(statement), path_(path), row_(std::move(row)) {}
+
+  void rename_row(std::string row) { row_ = std::move(row); }
+
+  std::int64_t integer(int column, const char* name, std::int64_t min, std::int64_t max) {
+    if (statement_.column_type(column) != SQLITE_INTEGER) {
+      fail(name, "is not an integer");
+      return min;
+    }
+    const std::int64_t value = statement_.column_int64(column);
+    if (value < min || value > max) {
+      fail(name, "is out of range (" + std::to_string(value) + ")");
+      return min;
+    }
+    return value;
+  }
+
+  // A REAL column that may be NULL; integers are accepted as numbers.
+  std::optional<double> real_or_null(int column, const char* name) {
+    const int type = statement_.column_type(column);
+    if (type == SQLITE_NULL) return std::nullopt;
+    if (type != SQLITE_FLOAT && type != SQLITE_INTEGER) {
+      fail(name, "is not a number");
+      return std::nullopt;
+    }
+    return statement_.column_double(column);
+  }
+
+  std::string text(int column, const char* name) {
+    if (statement_.column_type(column) != SQLITE_TEXT) {
+      fail(name, "is not text");
+      return {};
+    }
+    return statement_.column_text(column);
+  }
+
+  void fail(const char* name, const std::string& problem) {
+    if (error_.empty()) error_ = std::string("column ") + name + " " + problem;
+  }
+
+  Status status() const {
+    if (error_.empty()) return Status::ok();
+    return format_error(path_ + ": " + row_ + ": " + error_);
+  }
+
+ private:
+  const Statement& statement_;
+  const std::string& path_;
+  std::string row_;
+  std::string error_;
+};
+
+// Reads the ChunkRef columns (kRefColumns) of the current row.
+Status read_ref(const Statement& statement, const std::string& path, ChunkRef& ref) {
+  RowReader row(statement, path, "relief_chunk row");
+  ref.id = row.integer(kColId, "id", kMinInt64, kMaxInt64);
+  row.rename_row("chunk id " + std::to_string(ref.id));
+  ref.key.ix = row.integer(kColIx, "ix", kMinInt64, kMaxInt64);
+  ref.key.iy = row.integer(kColIy, "iy", kMinInt64, kMaxInt64);
+  ref.key.iz = row.integer(kColIz, "iz", kMinInt64, kMaxInt64);
+  ref.seq = static_cast<std::uint32_t>(row.integer(kColSeq, "seq", 0, kMaxUint32));
+  ref.scan_id = row.integer(kColScanId, "scan_id", kMinInt64, kMaxInt64);
+  ref.input_points = static_cast<std::uint64_t>(row.integer(kColInputPoints, "input_points", 0, kMaxInt64));
+  ref.decoded_points =
+      static_cast<std::uint64_t>(row.integer(kColDecodedPoints, "decoded_points", 0, kMaxInt64));
+  ref.blob_size = static_cast<std::uint64_t>(row.integer(kColBlobSize, "blob", 0, kMaxInt64));
+
+  constexpr std::array<const char*, 6> kBoundNames = {"min_x", "min_y", "min_z", "max_x", "max_y", "max_z"};
+  std::array<std::optional<double>, 6> bounds;
+  int present = 0;
+  for (int i = 0; i < 6; ++i) {
+    bounds[static_cast<std::size_t>(i)] =
+        row.real_or_null(kColMinX + i, kBoundNames[static_cast<std::size_t>(i)]);
+    if (bounds[static_cast<std::size_t>(i)]) ++present;
+  }
+  ref.bounds = Box3d{};
+  if (present == 6) {
+    ref.bounds.min = {*bounds[0], *bounds[1], *bounds[2]};
+    ref.bounds.max = {*bounds[3], *bounds[4], *bounds[5]};
+    if (!box_is_finite(ref.bounds) || ref.bounds.empty()) {
+      row.fail("min_x..max_z", "do not form a finite box with min <= max");
+    }
+  } else if (present != 0) {
+    row.fail("min_x..max_z", "are partly NULL (all six or none)");
+  }
+  return row.status();
+}
+
+// ---- Creating the file
+
+void remove_database_files(const std::string& file) {
+  std::error_code ignored;
+  for (const char* suffix : {"", "-journal", "-wal", "-shm"}) fs::remove(file + suffix, ignored);
+}
+
+// Moves the finished temporary file to `path` without ever replacing a file
+// that appeared there meanwhile (plain rename() would silently overwrite it).
+Status move_into_place(const std::string& temp, const std::string& path) {
+  const std::string exists = path + ": already exists (created by another process meanwhile)";
+  const auto cannot_move = [&](int error) {
+    return io_error(path + ": cannot move the new archive into place: " + std::strerror(error));
+  };
+#ifdef RENAME_NOREPLACE
+  if (::renameat2(AT_FDCWD, temp.c_str(), AT_FDCWD, path.c_str(), RENAME_NOREPLACE) == 0) {
+    return Status::ok();
+  }
+  const int rename_error = errno;
+  if (rename_error == EEXIST) return io_error(exists);
+  // EINVAL/ENOSYS/ENOTSUP: the file system cannot do it; try a hard link.
+  if (rename_error != EINVAL && rename_error != ENOSYS && rename_error != ENOTSUP &&
+      rename_error != EOPNOTSUPP) {
+    return cannot_move(rename_error);
+  }
+#endif
+  // link() also refuses an existing name.
+  if (::link(temp.c_str(), path.c_str()) == 0) {
+    ::unlink(temp.c_str());
+    return Status::ok();
+  }
+  if (errno == EEXIST) return io_error(exists);
+  // No hard links either (e.g. FAT, some network file systems): rename after
+  // one more look, accepting a tiny race window there.
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(path, ec))) return io_error(exists);
+  if (std::rename(temp.c_str(), path.c_str()) != 0) return cannot_move(errno);
+  return Status::ok();
+}
+
+// A rename is only durable once the directory entry is on disk. Best effort:
+// some file systems refuse fsync on a directory, and the archive is valid
+// either way; only its name might not survive a power loss.
+void sync_directory_of(const std::string& path) {
+  fs::path directory = fs::path(path).parent_path();
+  if (directory.empty()) directory = ".";
+  const int fd = ::open(directory.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+// Writes a complete, empty archive to `temp` and closes it.
+Status write_new_archive(const std::string& temp, const std::string& path, const ArchiveGrid& grid,
+                         const std::string& codec_params, const std::string& creator) {
+  RELIEF_ASSIGN_OR_RETURN(store::Connection connection,
+                          store::open_connection(temp, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, path,
+                                                 "cannot create the archive (temporary file " + temp + ")"));
+  sqlite3* db = connection.get();
+  {
+    // The whole schema in one transaction in rollback-journal mode (the
+    // default for a new file, synchronous = FULL): COMMIT leaves it on disk.
+    Transaction transaction(db, path);
+    RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+    const std::string header = "PRAGMA application_id = " + std::to_string(kArchiveApplicationId) +
+                               "; PRAGMA user_version = " + std::to_string(kArchiveFormatVersion) + ";";
+    RELIEF_RETURN_IF_ERROR(store::exec(db, header.c_str(), path, "write the file header"));
+    RELIEF_RETURN_IF_ERROR(store::exec(db, store::kCreateSchemaSql, path, "create the schema"));
+
+    const std::array<std::pair<const char*, std::string>, 10> meta = {{
+        {store::kMetaFormatVersion, std::to_string(kArchiveFormatVersion)},
+        {store::kMetaOriginX, format_double(grid.origin.x)},
+        {store::kMetaOriginY, format_double(grid.origin.y)},
+        {store::kMetaOriginZ, format_double(grid.origin.z)},
+        {store::kMetaChunkEdge, format_double(grid.chunk_edge)},
+        {store::kMetaCodecParams, codec_params},
+        {store::kMetaCreator, creator},
+        {store::kMetaCreatedAt, utc_now_iso8601()},
+        {store::kMetaCrs, ""},
+        {store::kMetaAttributes, ""},
+    }};
+    const SqlText put = sql_text(Sql::kMetaPut);
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> statement,
+                            Statement::prepare(db, put.sql, path, put.what));
+    for (const auto& [key, value] : meta) {
+      StatementScope scope(*statement);
+      statement->bind_text(1, key);
+      statement->bind_text(2, value);
+      RELIEF_RETURN_IF_ERROR(statement->run());
+    }
+    statement.reset();
+    RELIEF_RETURN_IF_ERROR(transaction.commit());
+  }
+  {
+    // WAL is a property of the file: set once here, every later connection
+    // uses it. Readers then never block the appending writer, nor it them.
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> statement,
+                            Statement::prepare(db, "PRAGMA journal_mode = WAL", path, "switch to WAL"));
+    StatementScope scope(*statement);
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    const std::string mode = row ? statement->column_text(0) : std::string();
+    if (mode != "wal") {
+      return io_error(path + ": cannot switch the archive to WAL journal mode (got '" + mode +
+                      "'); the archive needs a local file system with shared memory");
+    }
+  }
+  // The last connection's close checkpoints the WAL into the file and removes
+  // it; a failed close means the file may be incomplete.
+  RELIEF_RETURN_IF_ERROR(store::close_connection(std::move(connection), path));
+  std::error_code ec;
+  if (fs::exists(temp + "-wal", ec)) {
+    return internal_error(path + ": creating: SQLite left a write-ahead log beside " + temp);
+  }
+  return Status::ok();
+}
+
+// ---- Opening: identification (format-spec/archive.md, section 2)
+
+Result<std::int64_t> pragma_integer(sqlite3* db, const char* pragma, const std::string& path) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> statement, Statement::prepare(db, pragma, path, pragma));
+  StatementScope scope(*statement);
+  RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+  if (!row) return internal_error(path + ": " + pragma + " returned nothing");
+  return statement->column_int64(0);
+}
+
+// Returns the format version of a Relief archive, or why the file is not one
+// this build can read. Nothing here writes to the file.
+Result<int> identify(sqlite3* db, const std::string& path) {
+  Result<std::int64_t> application_id = pragma_integer(db, "PRAGMA application_id", path);
+  if (!application_id.is_ok()) {
+    // SQLITE_NOTADB or SQLITE_CORRUPT while reading the header page.
+    if (application_id.status().code() == StatusCode::kFormatError) {
+      return format_error(path + ": not a Relief archive (not a SQLite database, or its header is damaged)");
+    }
+    return application_id.status();
+  }
+  if (*application_id != kArchiveApplicationId) {
+    return format_error(path + ": not a Relief archive (SQLite application_id " +
+                        hex32(static_cast<std::uint32_t>(*application_id)) + ", expected " +
+                        hex32(static_cast<std::uint32_t>(kArchiveApplicationId)) + " \"RLIF\")");
+  }
+  RELIEF_ASSIGN_OR_RETURN(const std::int64_t version, pragma_integer(db, "PRAGMA user_version", path));
+  if (version > kArchiveFormatVersion) {
+    return unsupported(path + ": archive format version " + std::to_string(version) +
+                       " is newer than this build supports (" + std::to_string(kArchiveFormatVersion) + ")");
+  }
+  if (version < 1) {
+    return format_error(path + ": not a valid Relief archive: format version (user_version) " +
+                        std::to_string(version) + " is invalid");
+  }
+  return static_cast<int>(version);
+}
+
+// ---- The archive
+
+class SqliteArchive final : public Archive {
+ public:
+  SqliteArchive(std::string path, store::Connection connection, Mode mode, int format_version)
+      : path_(std::move(path)),
+        connection_(std::move(connection)),
+        mode_(mode),
+        format_version_(format_version) {}
+
+  // Checks the schema and grid, then sets up a writer's connection.
+  Status initialise();
+
+  const std::string& path() const override { return path_; }
+  Result<ArchiveInfo> info() const override;
+  Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources) override;
+  Status put_chunks(std::vector<ChunkRow>& rows) override;
+  Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
+                     const std::string& crs) override;
+  Status abort_scan(std::int64_t scan_id) override;
+  Result<std::vector<ChunkRef>> find_chunks(const Box3d& box) const override;
+  Result<std::vector<ChunkRef>> all_chunks() const override;
+  Result<ChunkRow> read_chunk(std::int64_t id) const override;
+  std::uint64_t blob_bytes_read() const override { return blob_bytes_read_.load(std::memory_order_relaxed); }
+
+ private:
+  sqlite3* db() const { return connection_.get(); }
+  Result<Statement*> statement(Sql id) const;
+  Status require_writable(const char* operation) const;
+  Result<std::optional<std::string>> meta_value(const char* key) const;
+  Status put_meta(const char* key, const std::string& value);
+  Result<bool> scan_exists(std::int64_t scan_id);
+  Status refresh_scan_summary();
+  Result<std::vector<ChunkRef>> collect_refs(Statement& statement) const;
+
+  std::string path_;
+  // Declared before the statements so that it is destroyed after them: a
+  // connection closes cleanly only once its statements are finalised.
+  store::Connection connection_;
+  Mode mode_;
+  int format_version_;
+  ArchiveGrid grid_;  // fixed at creation, read once on open
+  mutable std::array<std::unique_ptr<Statement>, static_cast<std::size_t>(Sql::kCount)> statements_;
+  // Atomic so another thread may read it while the owner reads chunks.
+  mutable std::atomic<std::uint64_t> blob_bytes_read_{0};
+};
+
+Result<Statement*> SqliteArchive::statement(Sql id) const {
+  std::unique_ptr<Statement>& slot = statements_[static_cast<std::size_t>(id)];
+  if (!slot) {
+    SqlText text = sql_text(id);
+    RELIEF_ASSIGN_OR_RETURN(slot, Statement::prepare(db(), text.sql, path_, text.what));
+  }
+  return slot.get();
+}
+
+Status SqliteArchive::require_writable(const char* operation) const {
+  if (mode_ == Mode::kReadWrite) return Status::ok();
+  return invalid_argument(path_ + ": " + operation + ": the archive was opened read-only");
+}
+
+Result<std::optional<std::string>> SqliteArchive::meta_value(const char* key) const {
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kMetaGet));
+  StatementScope scope(*statement);
+  statement->bind_text(1, key);
+  RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+  if (!row) return std::optional<std::string>();
+  if (statement->column_type(0) != SQLITE_TEXT) {
+    return format_error(path_ + ": metadata " + key + " is not text");
+  }
+  return std::optional<std::string>(statement->column_text(0));
+}
+
+Status SqliteArchive::put_meta(const char* key, const std::string& value) {
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kMetaPut));
+  StatementScope scope(*statement);
+  statement->bind_text(1, key);
+  statement->bind_text(2, value);
+  return statement->run();
+}
+
+Status SqliteArchive::initialise() {
+  {
+    RELIEF_ASSIGN_OR_RETURN(
+        std::unique_ptr<Statement> table,
+        Statement::prepare(db(), "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?1", path_,
+                           "read the schema"));
+    for (std::string_view name : store::kRequiredTables) {
+      StatementScope scope(*table);
+      table->bind_text(1, name);
+      RELIEF_ASSIGN_OR_RETURN(const bool found, table->step());
+      if (!found) {
+        return format_error(path_ + ": not a valid Relief archive: table " + std::string(name) +
+                            " is missing");
+      }
+    }
+  }
+
+  const std::array<std::pair<const char*, double*>, 4> grid_keys = {{
+      {store::kMetaOriginX, &grid_.origin.x},
+      {store::kMetaOriginY, &grid_.origin.y},
+      {store::kMetaOriginZ, &grid_.origin.z},
+      {store::kMetaChunkEdge, &grid_.chunk_edge},
+  }};
+  for (const auto& [key, target] : grid_keys) {
+    RELIEF_ASSIGN_OR_RETURN(const std::optional<std::string> text, meta_value(key));
+    if (!text) return format_error(path_ + ": not a valid Relief archive: metadata " + key + " is missing");
+    const std::optional<double> value = parse_double(*text);
+    if (!value) {
+      return format_error(path_ + ": metadata " + key + " is not a finite number: '" + *text + "'");
+    }
+    *target = *value;
+  }
+  if (!(grid_.chunk_edge > 0)) {
+    return format_error(path_ + ": metadata chunk_edge must be > 0, got " + format_double(grid_.chunk_edge));
+  }
+  if (mode_ == Mode::kReadWrite) {
+    // A no-op on archives this library made (WAL is persistent); it repairs a
+    // file someone switched back with the sqlite3 shell.
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> journal,
+                            Statement::prepare(db(), "PRAGMA journal_mode = WAL", path_, "switch to WAL"));
+    StatementScope scope(*journal);
+    RELIEF_ASSIGN_OR_RETURN(const bool row, journal->step());
+    const std::string journal_mode = row ? journal->column_text(0) : std::string();
+    if (journal_mode != "wal") {
+      return io_error(path_ + ": cannot use WAL journal mode (got '" + journal_mode +
+                      "'); the archive needs a local file system with shared memory");
+    }
+    // NORMAL in WAL mode: a commit survives a crash of the process at once
+    // and a power loss from the next checkpoint on; never corrupts the file.
+    RELIEF_RETURN_IF_ERROR(store::exec(db(), "PRAGMA synchronous = NORMAL; PRAGMA foreign_keys = ON", path_,
+                                       "configure the connection"));
+  }
+  return Status::ok();
+}
+
+Result<bool> SqliteArchive::scan_exists(std::int64_t scan_id) {
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanExists));
+  StatementScope scope(*statement);
+  statement->bind_int64(1, scan_id);
+  return statement->step();
+}
+
+// relief_meta's crs and attributes summarise the complete scans; they are
+// rewritten in the same transaction as every change of relief_scan, so a
+// killed process cannot leave them stale.
+Status SqliteArchive::refresh_scan_summary() {
+  std::string attributes;
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanSummary));
+    StatementScope scope(*statement);
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (row && statement->column_int64(0) != 0) attributes = store::kAttributeRgb;
+    if (row && statement->column_int64(1) != 0) {
+      if (!attributes.empty()) attributes += ",";
+      attributes += store::kAttributeIntensity;
+    }
+  }
+  std::string crs;
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanFirstCrs));
+    StatementScope scope(*statement);
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (row) crs = statement->column_text(0);
+  }
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaAttributes, attributes));
+  return put_meta(store::kMetaCrs, crs);
+}
+
+Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>& sources) {
+  RELIEF_RETURN_IF_ERROR(require_writable("begin_scan"));
+  for (const ArchiveSource& source : sources) {
+    if (source.point_count > kMaxStoredCount) {
+      return invalid_argument(path_ + ": begin_scan: source " + source.path +
+                              " has too many points to record (" + std::to_string(source.point_count) + ")");
+    }
+  }
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  const std::string created_at = utc_now_iso8601();
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanInsert));
+    StatementScope scope(*statement);
+    statement->bind_text(1, created_at);
+    RELIEF_RETURN_IF_ERROR(statement->run());
+  }
+  const std::int64_t scan_id = sqlite3_last_insert_rowid(db());
+  RELIEF_ASSIGN_OR_RETURN(Statement * insert, statement(Sql::kSourceInsert));
+  for (const ArchiveSource& source : sources) {
+    StatementScope scope(*insert);
+    insert->bind_int64(1, scan_id);
+    insert->bind_text(2, source.path);
+    insert->bind_text(3, source.format);
+    insert->bind_int64(4, static_cast<std::int64_t>(source.point_count));
+    insert->bind_text(5, source.crs);
+    RELIEF_RETURN_IF_ERROR(insert->run());
+  }
+  RELIEF_RETURN_IF_ERROR(transaction.commit());
+  return scan_id;
+}
+
+Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
+  RELIEF_RETURN_IF_ERROR(require_writable("put_chunks"));
+  if (rows.empty()) return Status::ok();
+
+  // Everything that can be checked without the file is checked before the
+  // write lock is taken, and so are the checksums (the slow part).
+  std::vector<std::uint32_t> checksums(rows.size());
+  std::set<std::int64_t> scan_ids;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const ChunkRow& row = rows[i];
+    const ChunkRef& ref = row.ref;
+    const std::string which =
+        path_ + ": put_chunks: row " + std::to_string(i) + ", chunk " + key_text(ref.key) + ": ";
+    if (box_has_nan(ref.bounds)) return invalid_argument(which + "bounds contain NaN");
+    if (ref.bounds.empty()) {
+      if (ref.decoded_points != 0) {
+        return invalid_argument(which + std::to_string(ref.decoded_points) +
+                                " decoded points but empty bounds");
+      }
+    } else {
+      if (!box_is_finite(ref.bounds)) return invalid_argument(which + "bounds are not finite");
+      if (ref.decoded_points == 0) {
+        return invalid_argument(which + "bounds given for a chunk without decoded points");
+      }
+    }
+    if (ref.input_points > kMaxStoredCount || ref.decoded_points > kMaxStoredCount) {
+      return invalid_argument(which + "point counts too large to store");
+    }
+    checksums[i] = blob_crc32(row.blob);
+    scan_ids.insert(ref.scan_id);
+  }
+
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  for (const std::int64_t scan_id : scan_ids) {
+    RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
+    if (!exists) {
+      return invalid_argument(path_ + ": put_chunks: no scan with id " + std::to_string(scan_id) +
+                              " (begin_scan makes one)");
+    }
+  }
+
+  RELIEF_ASSIGN_OR_RETURN(Statement * next_seq, statement(Sql::kChunkNextSeq));
+  RELIEF_ASSIGN_OR_RETURN(Statement * insert, statement(Sql::kChunkInsert));
+  RELIEF_ASSIGN_OR_RETURN(Statement * index, statement(Sql::kIndexInsert));
+  // Written back only after COMMIT: on failure the caller's rows are untouched.
+  std::vector<std::pair<std::int64_t, std::uint32_t>> assigned(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const ChunkRow& row = rows[i];
+    const ChunkRef& ref = row.ref;
+    const std::string which = "(chunk " + key_text(ref.key) + ")";
+
+    std::int64_t seq = 0;
+    {
+      StatementScope scope(*next_seq);
+      next_seq->bind_int64(1, ref.key.ix);
+      next_seq->bind_int64(2, ref.key.iy);
+      next_seq->bind_int64(3, ref.key.iz);
+      RELIEF_ASSIGN_OR_RETURN(const bool found, next_seq->step());
+      if (found) seq = next_seq->column_int64(0);
+    }
+    if (seq < 0 || seq > kMaxUint32) {
+      return limit_exceeded(path_ + ": put_chunks: voxel " + key_text(ref.key) +
+                            " already holds the most blobs a voxel can (seq up to 2^32 - 1)");
+    }
+
+    const bool has_bounds = !ref.bounds.empty();
+    {
+      StatementScope scope(*insert);
+      insert->bind_int64(1, ref.key.ix);
+      insert->bind_int64(2, ref.key.iy);
+      insert->bind_int64(3, ref.key.iz);
+      insert->bind_int64(4, seq);
+      insert->bind_int64(5, ref.scan_id);
+      if (has_bounds) {
+        insert->bind_double(6, ref.bounds.min.x);
+        insert->bind_double(7, ref.bounds.min.y);
+        insert->bind_double(8, ref.bounds.min.z);
+        insert->bind_double(9, ref.bounds.max.x);
+        insert->bind_double(10, ref.bounds.max.y);
+        insert->bind_double(11, ref.bounds.max.z);
+      } else {
+        for (int column = 6; column <= 11; ++column) insert->bind_null(column);
+      }
+      insert->bind_int64(12, static_cast<std::int64_t>(ref.input_points));
+      insert->bind_int64(13, static_cast<std::int64_t>(ref.decoded_points));
+      insert->bind_int64(14, static_cast<std::int64_t>(row.codec));
+      insert->bind_text(15, row.codec_params);
+      insert->bind_int64(16, static_cast<std::int64_t>(checksums[i]));
+      insert->bind_blob(17, row.blob.data(), row.blob.size());
+      const Status status = insert->run();
+      if (!status.is_ok()) return append_detail(status, which);
+    }
+    const std::int64_t id = sqlite3_last_insert_rowid(db());
+
+    // A chunk without decoded points has no extent and no index entry: no
+    // box query can find points in it.
+    if (has_bounds) {
+      StatementScope scope(*index);
+      index->bind_int64(1, id);
+      index->bind_double(2, ref.bounds.min.x);
+      index->bind_double(3, ref.bounds.max.x);
+      index->bind_double(4, ref.bounds.min.y);
+      index->bind_double(5, ref.bounds.max.y);
+      index->bind_double(6, ref.bounds.min.z);
+      index->bind_double(7, ref.bounds.max.z);
+      const Status status = index->run();
+      if (!status.is_ok()) return append_detail(status, which);
+    }
+    assigned[i] = {id, static_cast<std::uint32_t>(seq)};
+  }
+  RELIEF_RETURN_IF_ERROR(transaction.commit());
+
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    rows[i].ref.id = assigned[i].first;
+    rows[i].ref.seq = assigned[i].second;
+    rows[i].ref.blob_size = rows[i].blob.size();
+  }
+  return Status::ok();
+}
+
+Status SqliteArchive::finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
+                                  const std::string& crs) {
+  RELIEF_RETURN_IF_ERROR(require_writable("finish_scan"));
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanFinish));
+    StatementScope scope(*statement);
+    statement->bind_int64(1, scan_id);
+    statement->bind_int64(2, has_colors ? 1 : 0);
+    statement->bind_int64(3, has_intensity ? 1 : 0);
+    statement->bind_text(4, crs);
+    RELIEF_RETURN_IF_ERROR(statement->run());
+  }
+  if (sqlite3_changes(db()) == 0) {
+    return invalid_argument(path_ + ": finish_scan: no scan with id " + std::to_string(scan_id));
+  }
+  RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
+  return transaction.commit();
+}
+
+Status SqliteArchive::abort_scan(std::int64_t scan_id) {
+  RELIEF_RETURN_IF_ERROR(require_writable("abort_scan"));
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
+  if (!exists) {
+    return invalid_argument(path_ + ": abort_scan: no scan with id " + std::to_string(scan_id));
+  }
+  // Children before parents: the index entries are found through the chunk
+  // rows, and the foreign keys want chunks and sources gone before the scan.
+  for (const Sql id :
+       {Sql::kIndexDeleteOfScan, Sql::kChunkDeleteOfScan, Sql::kSourceDeleteOfScan, Sql::kScanDelete}) {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(id));
+    StatementScope scope(*statement);
+    statement->bind_int64(1, scan_id);
+    RELIEF_RETURN_IF_ERROR(statement->run());
+  }
+  RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
+  return transaction.commit();
+}
+
+Result<std::vector<ChunkRef>> SqliteArchive::collect_refs(Statement& statement) const {
+  std::vector<ChunkRef> refs;
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement.step());
+    if (!row) break;
+    ChunkRef ref;
+    RELIEF_RETURN_IF_ERROR(read_ref(statement, path_, ref));
+    refs.push_back(ref);
+  }
+  return refs;
+}
+
+Result<std::vector<ChunkRef>> SqliteArchive::find_chunks(const Box3d& box) const {
+  if (box_has_nan(box)) return invalid_argument(path_ + ": find_chunks: the box contains NaN");
+  if (box.empty()) return std::vector<ChunkRef>();
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kFindChunks));
+  StatementScope scope(*statement);
+  statement->bind_double(1, box.min.x);
+  statement->bind_double(2, box.min.y);
+  statement->bind_double(3, box.min.z);
+  statement->bind_double(4, box.max.x);
+  statement->bind_double(5, box.max.y);
+  statement->bind_double(6, box.max.z);
+  return collect_refs(*statement);
+}
+
+Result<std::vector<ChunkRef>> SqliteArchive::all_chunks() const {
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kAllChunks));
+  StatementScope scope(*statement);
+  return collect_refs(*statement);
+}
+
+Result<ChunkRow> SqliteArchive::read_chunk(std::int64_t id) const {
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kReadChunk));
+  StatementScope scope(*statement);
+  statement->bind_int64(1, id);
+  RELIEF_ASSIGN_OR_RETURN(const bool found, statement->step());
+  if (!found) return invalid_argument(path_ + ": read_chunk: no chunk with id " + std::to_string(id));
+
+  ChunkRow row;
+  RELIEF_RETURN_IF_ERROR(read_ref(*statement, path_, row.ref));
+  RowReader reader(*statement, path_, "chunk id " + std::to_string(id));
+  row.codec = static_cast<std::uint32_t>(reader.integer(kColCodec, "codec", 0, kMaxUint32));
+  row.codec_params = reader.text(kColCodecParams, "codec_params");
+  const auto stored_crc = static_cast<std::uint32_t>(reader.integer(kColCrc32, "crc32", 0, kMaxUint32));
+  if (statement->column_type(kColBlob) != SQLITE_BLOB) reader.fail("blob", "is not a BLOB");
+  RELIEF_RETURN_IF_ERROR(reader.status());
+  RELIEF_RETURN_IF_ERROR(statement->column_bytes(kColBlob, row.blob));
+  blob_bytes_read_.fetch_add(row.blob.size(), std::memory_order_relaxed);
+
+  if (blob_crc32(row.blob) != stored_crc) {
+    return corrupt_data(path_ + ": chunk " + key_text(row.ref.key) + " seq " + std::to_string(row.ref.seq) +
+                        " (id " + std::to_string(id) + "): checksum mismatch, the blob is damaged");
+  }
+  return row;
+}
+
+Result<ArchiveInfo> SqliteArchive::info() const {
+  ArchiveInfo info;
+  info.format_version = format_version_;
+  info.grid = grid_;
+
+  // One snapshot for all the SELECTs: a writer appending meanwhile is either
+  // wholly in the totals, sources and scans, or not at all.
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kRead));
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kMetaAll));
+    StatementScope scope(*statement);
+    std::map<std::string, std::string> meta;
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+      if (!row) break;
+      meta[statement->column_text(0)] = statement->column_text(1);
+    }
+    info.codec_params = meta[store::kMetaCodecParams];
+    info.creator = meta[store::kMetaCreator];
+    info.crs = meta[store::kMetaCrs];
+    // "rgb,intensity": names separated by commas; unknown names are ignored.
+    const std::string& attributes = meta[store::kMetaAttributes];
+    std::size_t start = 0;
+    while (start <= attributes.size()) {
+      std::size_t end = attributes.find(',', start);
+      if (end == std::string::npos) end = attributes.size();
+      const std::string_view name(attributes.data() + start, end - start);
+      if (name == store::kAttributeRgb) info.has_colors = true;
+      if (name == store::kAttributeIntensity) info.has_intensity = true;
+      start = end + 1;
+    }
+  }
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kTotals));
+    StatementScope scope(*statement);
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (!row) return internal_error(path_ + ": sum chunks: no result row");
+    RowReader reader(*statement, path_, "chunk totals");
+    info.chunk_count = static_cast<std::uint64_t>(reader.integer(0, "count", 0, kMaxInt64));
+    info.input_points = static_cast<std::uint64_t>(reader.integer(1, "input_points", 0, kMaxInt64));
+    info.decoded_points = static_cast<std::uint64_t>(reader.integer(2, "decoded_points", 0, kMaxInt64));
+    info.blob_bytes = static_cast<std::uint64_t>(reader.integer(3, "blob", 0, kMaxInt64));
+    std::array<std::optional<double>, 6> bounds;
+    bool all = true;
+    for (int i = 0; i < 6; ++i) {
+      bounds[static_cast<std::size_t>(i)] = reader.real_or_null(4 + i, "bounds");
+      all = all && bounds[static_cast<std::size_t>(i)].has_value();
+    }
+    RELIEF_RETURN_IF_ERROR(reader.status());
+    if (all) {
+      info.bounds.min = {*bounds[0], *bounds[1], *bounds[2]};
+      info.bounds.max = {*bounds[3], *bounds[4], *bounds[5]};
+    }
+  }
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kSources));
+    StatementScope scope(*statement);
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+      if (!row) break;
+      RowReader reader(*statement, path_, "relief_source row");
+      ArchiveSource source;
+      source.path = reader.text(0, "path");
+      source.format = reader.text(1, "format");
+      source.point_count = static_cast<std::uint64_t>(reader.integer(2, "point_count", 0, kMaxInt64));
+      source.crs = reader.text(3, "crs");
+      source.scan_id = reader.integer(4, "scan_id", kMinInt64, kMaxInt64);
+      RELIEF_RETURN_IF_ERROR(reader.status());
+      info.sources.push_back(std::move(source));
+    }
+  }
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScans));
+    StatementScope scope(*statement);
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+      if (!row) break;
+      RowReader reader(*statement, path_, "relief_scan row");
+      ArchiveScan scan;
+      scan.id = reader.integer(0, "id", kMinInt64, kMaxInt64);
+      scan.complete = reader.integer(1, "complete", 0, 1) == 1;
+      scan.created_at = reader.text(2, "created_at");
+      RELIEF_RETURN_IF_ERROR(reader.status());
+      info.scans.push_back(std::move(scan));
+    }
+  }
+  RELIEF_RETURN_IF_ERROR(transaction.commit());
+
+  // What the archive costs on disk right now: the file plus the WAL that a
+  // checkpoint has not yet folded into it.
+  for (const std::string& file : {path_, path_ + "-wal"}) {
+    std::error_code ec;
+    const std::uintmax_t size = fs::file_size(file, ec);
+    if (!ec) info.file_bytes += static_cast<std::uint64_t>(size);
+  }
+  return info;
+}
+
+}  // namespace
+
+// ---- Public entry points
+
+Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const ArchiveGrid& grid,
+                                                 const std::string& codec_params,
+                                                 const std::string& creator) {
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(path, ec))) {
+    return io_error(path + ": already exists (an archive is never overwritten)");
+  }
+  RELIEF_RETURN_IF_ERROR(check_grid(path, grid));
+
+  // Built beside the target and renamed into place when complete: a crash
+  // during creation leaves at most a temporary file, never a half-made
+  // archive under the real name.
+  const std::string temp = path + ".tmp-" + std::to_string(::getpid());
+  remove_database_files(temp);  // left by a crashed process that had our pid
+  Status status = write_new_archive(temp, path, grid, codec_params, creator);
+  if (status.is_ok()) status = move_into_place(temp, path);
+  if (!status.is_ok()) {
+    remove_database_files(temp);
+    return status;
+  }
+  sync_directory_of(path);
+  return open(path, Mode::kReadWrite);
+}
+
+Result<std::unique_ptr<Archive>> Archive::open(const std::string& path, Mode mode) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (!fs::exists(status)) {
+    if (ec && ec != std::errc::no_such_file_or_directory) {
+      return io_error(path + ": cannot open: " + ec.message());
+    }
+    return io_error(path + ": no such file");
+  }
+  if (fs::is_directory(status)) return io_error(path + ": is a directory, not an archive");
+  // SQLite treats an empty file as an empty database; say what it really is.
+  if (fs::is_regular_file(status) && fs::file_size(path, ec) == 0 && !ec) {
+    return format_error(path + ": not a Relief archive (empty file)");
+  }
+
+  const int flags = mode == Mode::kReadOnly ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
+  RELIEF_ASSIGN_OR_RETURN(store::Connection connection,
+                          store::open_connection(path, flags, path, "cannot open"));
+  RELIEF_ASSIGN_OR_RETURN(const int version, identify(connection.get(), path));
+  auto archive = std::make_unique<SqliteArchive>(path, std::move(connection), mode, version);
+  RELIEF_RETURN_IF_ERROR(archive->initialise());
+  return std::unique_ptr<Archive>(std::move(archive));
+}
+
+}  // namespace relief

@@ -1,0 +1,84 @@
+// The archive schema, format version 1 (format-spec/archive.md, section 3).
+// Kept in one place so the spec's CREATE statements and the writer agree.
+#pragma once
+
+#include <array>
+#include <string_view>
+
+namespace relief::store {
+
+// Tables a version-1 reader needs; open() refuses a file that lacks one.
+inline constexpr std::array<std::string_view, 5> kRequiredTables = {
+    "relief_meta", "relief_scan", "relief_source", "relief_chunk", "relief_chunk_index"};
+
+// Run inside the creating transaction, after the header pragmas.
+//
+// AUTOINCREMENT on scans and chunks: ids are never reused after abort_scan, so
+// an id a reader saw can never name a different chunk later.
+// The blob is the last column of relief_chunk: SQLite stores a row's columns
+// in order and a large blob spills to overflow pages, so index scans and
+// length(blob) read the other columns without touching the blob's pages.
+inline constexpr char kCreateSchemaSql[] = R"sql(
+CREATE TABLE relief_meta (
+  key   TEXT PRIMARY KEY NOT NULL,
+  value TEXT NOT NULL
+);
+CREATE TABLE relief_scan (
+  id            INTEGER PRIMARY KEY AUTOINCREMENT,
+  created_at    TEXT NOT NULL,
+  complete      INTEGER NOT NULL DEFAULT 0 CHECK (complete IN (0, 1)),
+  has_rgb       INTEGER NOT NULL DEFAULT 0 CHECK (has_rgb IN (0, 1)),
+  has_intensity INTEGER NOT NULL DEFAULT 0 CHECK (has_intensity IN (0, 1)),
+  crs           TEXT NOT NULL DEFAULT ''
+);
+CREATE TABLE relief_source (
+  id          INTEGER PRIMARY KEY,
+  scan_id     INTEGER NOT NULL REFERENCES relief_scan(id),
+  path        TEXT NOT NULL,
+  format      TEXT NOT NULL,
+  point_count INTEGER NOT NULL CHECK (point_count >= 0),
+  crs         TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX relief_source_scan ON relief_source(scan_id);
+CREATE TABLE relief_chunk (
+  id             INTEGER PRIMARY KEY AUTOINCREMENT,
+  ix             INTEGER NOT NULL,
+  iy             INTEGER NOT NULL,
+  iz             INTEGER NOT NULL,
+  seq            INTEGER NOT NULL CHECK (seq BETWEEN 0 AND 4294967295),
+  scan_id        INTEGER NOT NULL REFERENCES relief_scan(id),
+  min_x          REAL,
+  min_y          REAL,
+  min_z          REAL,
+  max_x          REAL,
+  max_y          REAL,
+  max_z          REAL,
+  input_points   INTEGER NOT NULL CHECK (input_points >= 0),
+  decoded_points INTEGER NOT NULL CHECK (decoded_points >= 0),
+  codec          INTEGER NOT NULL,
+  codec_params   TEXT NOT NULL DEFAULT '',
+  crc32          INTEGER NOT NULL CHECK (crc32 BETWEEN 0 AND 4294967295),
+  blob           BLOB NOT NULL,
+  UNIQUE (ix, iy, iz, seq)
+);
+CREATE INDEX relief_chunk_scan ON relief_chunk(scan_id);
+CREATE VIRTUAL TABLE relief_chunk_index USING rtree(id, min_x, max_x, min_y, max_y, min_z, max_z);
+)sql";
+
+// relief_meta keys.
+inline constexpr char kMetaFormatVersion[] = "format_version";
+inline constexpr char kMetaOriginX[] = "grid_origin_x";
+inline constexpr char kMetaOriginY[] = "grid_origin_y";
+inline constexpr char kMetaOriginZ[] = "grid_origin_z";
+inline constexpr char kMetaChunkEdge[] = "chunk_edge";
+inline constexpr char kMetaCodecParams[] = "codec_params";
+inline constexpr char kMetaCreator[] = "creator";
+inline constexpr char kMetaCreatedAt[] = "created_at";
+inline constexpr char kMetaCrs[] = "crs";
+inline constexpr char kMetaAttributes[] = "attributes";
+
+// Names in the comma-separated `attributes` value.
+inline constexpr char kAttributeRgb[] = "rgb";
+inline constexpr char kAttributeIntensity[] = "intensity";
+
+}  // namespace relief::store

@@ -1,0 +1,366 @@
+// Ingest: out-of-core compress, append, streaming, memory budget, kill -9.
+#include <catch2/catch.hpp>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <thread>
+
+#include "relief/archive.h"
+#include "relief/codec.h"
+#include "relief/ingest.h"
+#include "relief/io.h"
+#include "relief/metrics.h"
+#include "support/synthetic.h"
+
+using namespace relief;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    static int counter = 0;
+    path = fs::temp_directory_path() /
+           ("relief-ingest-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    fs::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+  std::string file(const std::string& name) const { return (path / name).string(); }
+};
+
+// A multi-chunk scene: a room plus a wavy terrain, with colour and intensity.
+PointCloud scene(std::uint64_t seed, std::size_t points, Vec3d offset = {0, 0, 0}) {
+  test::SceneOptions o;
+  o.seed = seed;
+  o.points = points / 2;
+  o.colors = true;
+  o.intensity = true;
+  o.offset = offset;
+  PointCloud a = test::make_room(o, 8.0);
+  o.seed = seed + 1;
+  PointCloud b = test::make_terrain(o, 8.0, 0.4);
+  a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
+  a.colors.insert(a.colors.end(), b.colors.begin(), b.colors.end());
+  a.intensities.insert(a.intensities.end(), b.intensities.begin(), b.intensities.end());
+  return a;
+}
+
+IngestOptions small_chunks() {
+  IngestOptions o;
+  o.codec.cell_size = 0.25;
+  o.chunk_edge = 2.0;  // the scene spans 4 x 4 x 2 chunks
+  o.threads = 2;
+  return o;
+}
+
+// Every chunk of the archive, decoded and concatenated.
+PointCloud decode_all(const std::string& path, std::set<std::int64_t>* scans = nullptr) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  PointCloud all;
+  for (const ChunkRef& ref : *refs) {
+    auto row = (*archive)->read_chunk(ref.id);
+    REQUIRE(row.is_ok());
+    auto pts = decode_chunk(row->blob);
+    REQUIRE(pts.is_ok());
+    CHECK(pts->size() == ref.decoded_points);
+    for (const Vec3d& p : pts->positions) {
+      // The index bounds hold every decoded point.
+      CHECK((p.x >= ref.bounds.min.x && p.x <= ref.bounds.max.x && p.y >= ref.bounds.min.y &&
+             p.y <= ref.bounds.max.y && p.z >= ref.bounds.min.z && p.z <= ref.bounds.max.z));
+    }
+    all.positions.insert(all.positions.end(), pts->positions.begin(), pts->positions.end());
+    all.colors.insert(all.colors.end(), pts->colors.begin(), pts->colors.end());
+    all.intensities.insert(all.intensities.end(), pts->intensities.begin(), pts->intensities.end());
+    if (scans) scans->insert(ref.scan_id);
+  }
+  return all;
+}
+
+std::string cli() { return RELIEF_CLI; }
+
+// Runs a command and returns (exit code, peak RSS in KiB of the child).
+std::pair<int, long> run_measured(const std::vector<std::string>& argv) {
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    std::vector<char*> args;
+    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  struct rusage usage {};
+  ::wait4(pid, &status, 0, &usage);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, usage.ru_maxrss};
+}
+
+}  // namespace
+
+TEST_CASE("a multi-chunk scene is ingested, reopened and every chunk decodes within bounds", "[ingest]") {
+  TempDir tmp;
+  const PointCloud in = scene(1, 120000);
+  REQUIRE(write_ply(tmp.file("scene.ply"), in).is_ok());
+  auto r = compress_files({tmp.file("scene.ply")}, tmp.file("scene.relief"), small_chunks());
+  REQUIRE(r.is_ok());
+  CHECK(r->points_read == in.size());
+  CHECK(r->chunks_written >= 8);
+  auto archive = Archive::open(tmp.file("scene.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  REQUIRE(info.is_ok());
+  CHECK(info->input_points == in.size());
+  CHECK(info->chunk_count == r->chunks_written);
+  CHECK(info->has_colors);
+  CHECK(info->has_intensity);
+  CHECK(info->grid.chunk_edge == 2.0);
+  REQUIRE(info->scans.size() == 1);
+  CHECK(info->scans[0].complete);
+  REQUIRE(info->sources.size() == 1);
+  CHECK(info->sources[0].point_count == in.size());
+  const PointCloud out = decode_all(tmp.file("scene.relief"));
+  CHECK(out.size() == r->points_decoded);
+  auto m = compare_clouds(in, out);
+  REQUIRE(m.is_ok());
+  // Pixel pitch 0.25 / 16: the in-plane bound ~0.41 pitch, plus coding.
+  CHECK(m->rmse_snn < 0.6 * 0.25 / 16 + 0.01);
+  CHECK(m->rmse_rgb_snn < 20);
+  // Temporary bucket files are gone.
+  for (const auto& e : fs::directory_iterator(tmp.path)) {
+    CHECK(e.path().filename().string().rfind("relief-ingest-", 0) != 0);
+  }
+}
+
+TEST_CASE("append adds a second scan and queries see both", "[ingest]") {
+  TempDir tmp;
+  const PointCloud a = scene(2, 40000);
+  const PointCloud b = scene(3, 40000, {0.05, 0.05, 0.0});
+  REQUIRE(write_ply(tmp.file("a.ply"), a).is_ok());
+  REQUIRE(write_ply(tmp.file("b.ply"), b).is_ok());
+  REQUIRE(compress_files({tmp.file("a.ply")}, tmp.file("x.relief"), small_chunks()).is_ok());
+  const std::size_t first = decode_all(tmp.file("x.relief")).size();
+  IngestOptions o;
+  o.threads = 2;
+  auto r = append_files(tmp.file("x.relief"), {tmp.file("b.ply")}, o);
+  REQUIRE(r.is_ok());
+  std::set<std::int64_t> scans;
+  const PointCloud both = decode_all(tmp.file("x.relief"), &scans);
+  CHECK(scans.size() == 2);
+  CHECK(both.size() == first + r->points_decoded);
+  // Voxels now hold two blobs (seq 0 and 1).
+  auto archive = Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly);
+  auto refs = (*archive)->all_chunks();
+  bool second_blob = false;
+  for (const ChunkRef& ref : *refs) second_blob = second_blob || ref.seq == 1;
+  CHECK(second_blob);
+  PointCloud ab = a;
+  ab.positions.insert(ab.positions.end(), b.positions.begin(), b.positions.end());
+  CHECK(compare_clouds(ab, both)->rmse_nn_qp < 0.02);
+}
+
+TEST_CASE("a failed append leaves the archive as it was", "[ingest]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("a.ply"), scene(4, 20000)).is_ok());
+  REQUIRE(compress_files({tmp.file("a.ply")}, tmp.file("x.relief"), small_chunks()).is_ok());
+  const auto before = (*Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly))->info().value();
+  // A good file then a truncated one: the good file's chunks must not stay.
+  REQUIRE(write_ply(tmp.file("b.ply"), scene(5, 20000)).is_ok());
+  const auto size = fs::file_size(tmp.file("b.ply"));
+  fs::copy_file(tmp.file("b.ply"), tmp.file("cut.ply"));
+  fs::resize_file(tmp.file("cut.ply"), size - 1000);
+  auto r = append_files(tmp.file("x.relief"), {tmp.file("b.ply"), tmp.file("cut.ply")}, IngestOptions{});
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().message().find("cut.ply") != std::string::npos);
+  const auto after = (*Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly))->info().value();
+  CHECK(after.chunk_count == before.chunk_count);
+  CHECK(after.input_points == before.input_points);
+  CHECK(after.blob_bytes == before.blob_bytes);
+}
+
+TEST_CASE("bad inputs to compress leave no archive", "[ingest]") {
+  TempDir tmp;
+  const std::string out = tmp.file("x.relief");
+  SECTION("missing file") {
+    auto r = compress_files({tmp.file("missing.ply")}, out, small_chunks());
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kIoError);
+    CHECK(r.status().message().find("missing.ply") != std::string::npos);
+  }
+  SECTION("truncated PLY (found mid-way)") {
+    REQUIRE(write_ply(tmp.file("a.ply"), scene(6, 30000)).is_ok());
+    fs::resize_file(tmp.file("a.ply"), fs::file_size(tmp.file("a.ply")) - 100);
+    auto r = compress_files({tmp.file("a.ply")}, out, small_chunks());
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kFormatError);
+  }
+  SECTION("LAZ") {
+    { std::ofstream(tmp.file("a.laz")) << "LASF"; }
+    auto r = compress_files({tmp.file("a.laz")}, out, small_chunks());
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().message().find("laszip") != std::string::npos);
+  }
+  SECTION("existing output is refused and untouched") {
+    { std::ofstream(out) << "keep me"; }
+    REQUIRE(write_ply(tmp.file("a.ply"), scene(7, 1000)).is_ok());
+    auto r = compress_files({tmp.file("a.ply")}, out, small_chunks());
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(fs::file_size(out) == 7);
+    return;
+  }
+  CHECK_FALSE(fs::exists(out));
+  CHECK_FALSE(fs::exists(out + "-wal"));
+  for (const auto& e : fs::directory_iterator(tmp.path)) {
+    CHECK(e.path().filename().string().rfind("relief-ingest-", 0) != 0);
+  }
+}
+
+TEST_CASE("streaming buffers a chunk until data stops falling into it", "[ingest][stream]") {
+  TempDir tmp;
+  const std::string path = tmp.file("s.relief");
+  StreamOptions so;
+  so.ingest = small_chunks();
+  so.idle_batches = 2;
+  auto stream = StreamIngest::open(path, so, false, false);
+  REQUIRE(stream.is_ok());
+  const auto chunks = [&] {
+    auto a = Archive::open(path, Archive::Mode::kReadOnly);
+    REQUIRE(a.is_ok());
+    return (*a)->info()->chunk_count;
+  };
+  // Batches 1 and 2 fall into chunk (0,0,0); batch 3 and 4 elsewhere.
+  const auto patch = [](double x0, std::uint64_t seed) {
+    test::SceneOptions o;
+    o.seed = seed;
+    o.points = 3000;
+    PointCloud p = test::make_plane(o, {0, 0, 1}, 1.5);
+    for (Vec3d& q : p.positions) q = {q.x + x0, q.y + 1.0, 1.0};
+    return p;
+  };
+  REQUIRE((*stream)->push(patch(1.0, 1)).is_ok());
+  REQUIRE((*stream)->push(patch(1.0, 2)).is_ok());
+  CHECK(chunks() == 0);  // still receiving
+  REQUIRE((*stream)->push(patch(5.0, 3)).is_ok());
+  CHECK(chunks() == 0);  // idle for one batch only
+  REQUIRE((*stream)->push(patch(5.0, 4)).is_ok());
+  CHECK(chunks() == 1);  // idle for two batches: encoded as one blob
+  auto done = (*stream)->finish();
+  REQUIRE(done.is_ok());
+  CHECK(done->points_read == 12000);
+  CHECK(chunks() == 2);
+}
+
+TEST_CASE("immediate streaming encodes every batch at once", "[ingest][stream]") {
+  TempDir tmp;
+  const std::string path = tmp.file("s.relief");
+  StreamOptions so;
+  so.ingest = small_chunks();
+  so.immediate = true;
+  auto stream = StreamIngest::open(path, so, true, true);
+  REQUIRE(stream.is_ok());
+  const PointCloud a = scene(8, 20000);
+  REQUIRE((*stream)->push(a).is_ok());
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  const auto after_one = (*archive)->info()->chunk_count;
+  CHECK(after_one > 0);
+  REQUIRE((*stream)->push(a).is_ok());
+  CHECK((*archive)->info()->chunk_count == 2 * after_one);  // one blob per chunk and batch
+  REQUIRE((*stream)->finish().is_ok());
+  CHECK(decode_all(path).size() > 0);
+}
+
+TEST_CASE("relief stream reads a pipe; end of input writes everything", "[ingest][stream][cli]") {
+  TempDir tmp;
+  const std::string path = tmp.file("p.relief");
+  const std::string cmd = cli() + " stream " + path + " --cell 0.25 --chunk-edge 2 --columns x,y,z,i --quiet";
+  FILE* pipe = ::popen(cmd.c_str(), "w");
+  REQUIRE(pipe != nullptr);
+  const PointCloud a = scene(9, 20000);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    std::fprintf(pipe, "%.9f %.9f %.9f %.3f\n", a.positions[i].x, a.positions[i].y, a.positions[i].z,
+                 static_cast<double>(a.intensities[i]));
+    if (i % 5000 == 4999) std::fprintf(pipe, "\n");  // end of a scan
+  }
+  const int status = ::pclose(pipe);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  CHECK(info->input_points == a.size());
+  CHECK(info->has_intensity);
+  CHECK_FALSE(info->has_colors);
+  REQUIRE(info->scans.size() == 1);
+  CHECK(info->scans[0].complete);
+}
+
+TEST_CASE("a memory budget far below the input size bounds peak RSS", "[ingest][memory]") {
+  TempDir tmp;
+  // 3 M points with double coordinates, colour and intensity: ~93 MB as
+  // PLY and ~93 MB as a PointCloud; the budget is 64 MiB (the minimum).
+  {
+    PointCloud big = scene(10, 3000000);
+    REQUIRE(write_ply(tmp.file("big.ply"), big).is_ok());
+  }
+  const auto [code, rss_kib] = run_measured({cli(), "compress", tmp.file("big.ply"), "-o", tmp.file("big.relief"),
+                                             "--cell", "0.1", "--chunk-edge", "1", "--memory", "64M", "--quiet"});
+  REQUIRE(code == 0);
+  INFO("peak RSS " << rss_kib / 1024 << " MiB");
+  // Budget plus the process's own baseline (binary, libraries, allocator slack).
+  CHECK(rss_kib < (64 + 40) * 1024);
+  auto archive = Archive::open(tmp.file("big.relief"), Archive::Mode::kReadOnly);
+  CHECK((*archive)->info()->input_points == 3000000);
+}
+
+TEST_CASE("an ingest killed with SIGKILL leaves an archive that opens and reads", "[ingest][crash]") {
+  TempDir tmp;
+  {
+    PointCloud big = scene(11, 2000000);
+    REQUIRE(write_ply(tmp.file("big.ply"), big).is_ok());
+  }
+  const std::string out = tmp.file("k.relief");
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    const std::string c = cli();
+    const std::string in = tmp.file("big.ply");
+    ::execl(c.c_str(), c.c_str(), "compress", in.c_str(), "-o", out.c_str(), "--cell", "0.05", "--chunk-edge",
+            "0.8", "--threads", "1", "--quiet", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Wait until some chunks are committed, then kill without warning.
+  bool some = false;
+  for (int i = 0; i < 600 && !some; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (!fs::exists(out)) continue;
+    auto a = Archive::open(out, Archive::Mode::kReadOnly);
+    if (a.is_ok()) {
+      auto info = (*a)->info();
+      some = info.is_ok() && info->chunk_count > 0;
+    }
+  }
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(some);
+  auto archive = Archive::open(out, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  REQUIRE(info.is_ok());
+  CHECK(info->chunk_count > 0);
+  const PointCloud got = decode_all(out);
+  CHECK(got.size() > 0);
+}

@@ -1,0 +1,1049 @@
+// Streaming readers: LAS files built here for every version and point format
+// (with scale/offset, CRS records and extra bytes), XYZ/CSV column specs and
+// delimiters, PCD ascii and binary, PLY in small batches against read_ply,
+// the real shared LAS samples, and inputs that must be rejected cleanly.
+
+#include <sys/stat.h>
+#include <unistd.h>
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <bit>
+#include <cmath>
+#include <csignal>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "relief/io.h"
+#include "support/synthetic.h"
+
+namespace fs = std::filesystem;
+using Catch::Matchers::Contains;
+using Catch::Matchers::StartsWith;
+
+namespace relief {
+namespace {
+
+// ---------------------------------------------------------------- helpers
+
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("relief-readers-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+void write_file(const std::string& path, const std::string& bytes) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+// Reads a whole stream in batches of `batch_size`, checking the batch
+// contract on the way. Returns the status of the first failure.
+Result<PointCloud> read_stream(PointReader& reader, std::size_t batch_size) {
+  PointCloud all;
+  PointCloud batch;
+  for (;;) {
+    Result<std::size_t> n = reader.read(batch, batch_size);
+    if (!n.is_ok()) return n.status();
+    REQUIRE(*n <= batch_size);
+    REQUIRE(batch.size() == *n);
+    REQUIRE(batch.colors.size() == (reader.info().has_colors ? *n : 0));
+    REQUIRE(batch.intensities.size() == (reader.info().has_intensity ? *n : 0));
+    if (*n == 0) break;
+    all.positions.insert(all.positions.end(), batch.positions.begin(), batch.positions.end());
+    all.colors.insert(all.colors.end(), batch.colors.begin(), batch.colors.end());
+    all.intensities.insert(all.intensities.end(), batch.intensities.begin(), batch.intensities.end());
+  }
+  return all;
+}
+
+Result<PointCloud> read_path(const std::string& path, std::size_t batch_size,
+                             const ReaderOptions& options = {}) {
+  Result<std::unique_ptr<PointReader>> r = open_point_reader(path, options);
+  if (!r.is_ok()) return r.status();
+  return read_stream(**r, batch_size);
+}
+
+// Exact comparison (bitwise for coordinates and intensities); reports the
+// first mismatch only.
+void require_same(const PointCloud& got, const PointCloud& want) {
+  REQUIRE(got.size() == want.size());
+  REQUIRE(got.colors.size() == want.colors.size());
+  REQUIRE(got.intensities.size() == want.intensities.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    const bool same_pos = std::memcmp(&got.positions[i], &want.positions[i], sizeof(Vec3d)) == 0;
+    const bool same_color = !want.has_colors() || got.colors[i] == want.colors[i];
+    const bool same_intensity =
+        !want.has_intensity() ||
+        std::bit_cast<std::uint32_t>(got.intensities[i]) == std::bit_cast<std::uint32_t>(want.intensities[i]);
+    if (same_pos && same_color && same_intensity) continue;
+    INFO("point " << i << ": got (" << got.positions[i].x << ", " << got.positions[i].y << ", "
+                  << got.positions[i].z << ") want (" << want.positions[i].x << ", " << want.positions[i].y
+                  << ", " << want.positions[i].z << ")");
+    CHECK(same_pos);
+    CHECK(same_color);
+    REQUIRE(same_intensity);
+    FAIL("point mismatch");
+  }
+}
+
+void require_error(const Status& s, StatusCode code, const std::string& path,
+                   const std::string& fragment = "") {
+  INFO(s.to_string());
+  REQUIRE_FALSE(s.is_ok());
+  CHECK(s.code() == code);
+  CHECK_THAT(s.message(), StartsWith(path + ": "));
+  if (!fragment.empty()) CHECK_THAT(s.message(), Contains(fragment));
+}
+
+// Little-endian byte building for hand-made binary files.
+class Bytes {
+ public:
+  template <typename T>
+  Bytes& put(T v) {
+    char b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    if (std::endian::native == std::endian::big) std::reverse(b, b + sizeof(T));
+    out_.append(b, sizeof(T));
+    return *this;
+  }
+  // A fixed-size, NUL-padded text field.
+  Bytes& text(const std::string& s, std::size_t width) {
+    std::string f = s.substr(0, width);
+    f.resize(width, '\0');
+    out_ += f;
+    return *this;
+  }
+  Bytes& raw(const std::string& s) {
+    out_ += s;
+    return *this;
+  }
+  Bytes& zeros(std::size_t n) {
+    out_.append(n, '\0');
+    return *this;
+  }
+  std::size_t size() const { return out_.size(); }
+  const std::string& str() const { return out_; }
+
+ private:
+  std::string out_;
+};
+
+// ---------------------------------------------------------------- LAS writer
+
+struct LasPoint {
+  std::int32_t x = 0, y = 0, z = 0;
+  std::uint16_t intensity = 0;
+  std::uint16_t r = 0, g = 0, b = 0;
+};
+
+struct LasRecord {
+  std::string user_id;
+  std::uint16_t record_id = 0;
+  std::string payload;
+};
+
+struct LasSpec {
+  int minor = 2;
+  int format = 3;
+  std::uint16_t extra_bytes = 0;
+  Vec3d scale{0.01, 0.001, 0.25};
+  Vec3d offset{484000.0, 6632000.0, -12.5};
+  std::vector<LasPoint> points;
+  std::vector<LasRecord> vlrs;
+  std::vector<LasRecord> evlrs;  // 1.4 only
+  std::size_t padding = 0;       // user bytes between the VLRs and the points
+  std::optional<std::uint64_t> declared_count;
+  std::uint8_t format_flags = 0;  // 0x80: the LAZ compression bit
+};
+
+constexpr std::array<std::size_t, 11> kLasMinLength = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+constexpr std::array<std::size_t, 11> kLasRgbOffset = {0, 0, 20, 28, 0, 28, 0, 30, 30, 0, 30};
+
+std::string geokeys(const std::vector<std::array<std::uint16_t, 4>>& keys) {
+  Bytes b;
+  b.put<std::uint16_t>(1).put<std::uint16_t>(1).put<std::uint16_t>(0);
+  b.put(static_cast<std::uint16_t>(keys.size()));
+  for (const auto& k : keys) {
+    for (const std::uint16_t w : k) b.put(w);
+  }
+  return b.str();
+}
+
+LasRecord wkt_record(const std::string& wkt) { return {"LASF_Projection", 2112, wkt + std::string(1, '\0')}; }
+LasRecord geokey_record(const std::vector<std::array<std::uint16_t, 4>>& keys) {
+  return {"LASF_Projection", 34735, geokeys(keys)};
+}
+
+std::string make_las(const LasSpec& s) {
+  const std::size_t header_size = s.minor <= 2 ? 227 : s.minor == 3 ? 235 : 375;
+  const std::size_t record_length = kLasMinLength[static_cast<std::size_t>(s.format)] + s.extra_bytes;
+  std::size_t vlr_bytes = 0;
+  for (const LasRecord& v : s.vlrs) vlr_bytes += 54 + v.payload.size();
+  const std::size_t point_offset = header_size + vlr_bytes + s.padding;
+  const std::uint64_t count = s.declared_count.value_or(s.points.size());
+  const std::size_t evlr_start = point_offset + s.points.size() * record_length;
+
+  Vec3d lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const LasPoint& p : s.points) {
+    const Vec3d v{p.x * s.scale.x + s.offset.x, p.y * s.scale.y + s.offset.y, p.z * s.scale.z + s.offset.z};
+    lo = {std::min(lo.x, v.x), std::min(lo.y, v.y), std::min(lo.z, v.z)};
+    hi = {std::max(hi.x, v.x), std::max(hi.y, v.y), std::max(hi.z, v.z)};
+  }
+
+  Bytes b;
+  b.raw("LASF").put<std::uint16_t>(7).put<std::uint16_t>(s.minor >= 4 ? 16 : 0);  // source id, WKT bit
+  b.zeros(16);                                                                    // GUID
+  b.put<std::uint8_t>(1).put(static_cast<std::uint8_t>(s.minor));
+  b.text("relief test", 32).text("test_readers.cpp", 32);
+  b.put<std::uint16_t>(42).put<std::uint16_t>(2024);
+  b.put(static_cast<std::uint16_t>(header_size)).put(static_cast<std::uint32_t>(point_offset));
+  b.put(static_cast<std::uint32_t>(s.vlrs.size()));
+  b.put(static_cast<std::uint8_t>(s.format | s.format_flags)).put(static_cast<std::uint16_t>(record_length));
+  const bool legacy = s.format < 6 && count <= 0xFFFFFFFFu;
+  b.put(static_cast<std::uint32_t>(legacy ? count : 0));
+  for (int i = 0; i < 5; ++i) b.put<std::uint32_t>(0);
+  b.put(s.scale.x).put(s.scale.y).put(s.scale.z).put(s.offset.x).put(s.offset.y).put(s.offset.z);
+  b.put(hi.x).put(lo.x).put(hi.y).put(lo.y).put(hi.z).put(lo.z);
+  if (s.minor >= 3) b.put<std::uint64_t>(0);  // waveform data packets
+  if (s.minor >= 4) {
+    b.put(static_cast<std::uint64_t>(s.evlrs.empty() ? 0 : evlr_start));
+    b.put(static_cast<std::uint32_t>(s.evlrs.size()));
+    b.put(count);
+    for (int i = 0; i < 15; ++i) b.put<std::uint64_t>(0);
+  }
+  REQUIRE(b.size() == header_size);
+  for (const LasRecord& v : s.vlrs) {
+    b.put<std::uint16_t>(0).text(v.user_id, 16).put(v.record_id);
+    b.put(static_cast<std::uint16_t>(v.payload.size())).text("test record", 32).raw(v.payload);
+  }
+  b.zeros(s.padding);
+  REQUIRE(b.size() == point_offset);
+  const std::size_t rgb = kLasRgbOffset[static_cast<std::size_t>(s.format)];
+  for (const LasPoint& p : s.points) {
+    Bytes rec;
+    rec.put(p.x).put(p.y).put(p.z).put(p.intensity);
+    // Fill the fields that are not decoded with a pattern, so a wrong offset shows.
+    while (rec.size() < record_length) rec.put<std::uint8_t>(static_cast<std::uint8_t>(0xA5 ^ rec.size()));
+    std::string r = rec.str();
+    if (rgb != 0) {
+      for (int c = 0; c < 3; ++c) {
+        const std::uint16_t level = c == 0 ? p.r : c == 1 ? p.g : p.b;
+        r[rgb + 2 * c] = static_cast<char>(level & 0xFF);
+        r[rgb + 2 * c + 1] = static_cast<char>(level >> 8);
+      }
+    }
+    b.raw(r);
+  }
+  for (const LasRecord& v : s.evlrs) {
+    b.put<std::uint16_t>(0).text(v.user_id, 16).put(v.record_id);
+    b.put(static_cast<std::uint64_t>(v.payload.size())).text("test extended record", 32).raw(v.payload);
+  }
+  return b.str();
+}
+
+std::vector<LasPoint> las_points(std::size_t n, bool wide_colors) {
+  std::vector<LasPoint> pts;
+  test::Rng rng(n * 31 + 7);
+  for (std::size_t i = 0; i < n; ++i) {
+    LasPoint p;
+    p.x = static_cast<std::int32_t>(rng.next() % 2000000) - 1000000;
+    p.y = static_cast<std::int32_t>(rng.next());  // any 32-bit value
+    p.z = static_cast<std::int32_t>(rng.next() % 4000) - 100;
+    p.intensity = static_cast<std::uint16_t>(rng.next());
+    const std::uint16_t range = wide_colors ? 65535 : 255;
+    p.r = static_cast<std::uint16_t>(rng.next() % (range + 1u));
+    p.g = static_cast<std::uint16_t>(rng.next() % (range + 1u));
+    p.b = static_cast<std::uint16_t>(rng.next() % (range + 1u));
+    pts.push_back(p);
+  }
+  if (wide_colors && n > 0) pts[0].r = 65535;  // at least one level above 255
+  return pts;
+}
+
+PointCloud las_expected(const LasSpec& s, bool colors) {
+  int shift = 0;
+  for (const LasPoint& p : s.points) {
+    if (std::max({p.r, p.g, p.b}) > 255) shift = 8;
+  }
+  PointCloud c;
+  for (const LasPoint& p : s.points) {
+    c.positions.push_back({static_cast<double>(p.x) * s.scale.x + s.offset.x,
+                           static_cast<double>(p.y) * s.scale.y + s.offset.y,
+                           static_cast<double>(p.z) * s.scale.z + s.offset.z});
+    c.intensities.push_back(static_cast<float>(p.intensity));
+    if (colors) {
+      c.colors.push_back({static_cast<std::uint8_t>(p.r >> shift), static_cast<std::uint8_t>(p.g >> shift),
+                          static_cast<std::uint8_t>(p.b >> shift)});
+    }
+  }
+  return c;
+}
+
+// ---------------------------------------------------------------- LAS
+
+TEST_CASE("LAS every version and point format reads back", "[io]") {
+  const auto [minor, format] = GENERATE(table<int, int>({
+      {0, 0},
+      {0, 1},
+      {0, 2},
+      {0, 3},
+      {2, 0},
+      {2, 1},
+      {2, 2},
+      {2, 3},
+      {3, 3},
+      {4, 0},
+      {4, 1},
+      {4, 2},
+      {4, 3},
+      {4, 6},
+      {4, 7},
+      {4, 8},
+      {4, 10},
+  }));
+  const std::uint16_t extra = GENERATE(std::uint16_t{0}, std::uint16_t{5});
+  const bool wide = GENERATE(false, true);
+  CAPTURE(minor, format, extra, wide);
+  const bool colors = kLasRgbOffset[static_cast<std::size_t>(format)] != 0;
+
+  LasSpec s;
+  s.minor = minor;
+  s.format = format;
+  s.extra_bytes = extra;
+  s.points = las_points(300, wide);
+  s.vlrs = {{"LASF_Spec", 4, std::string(192, 'e')}, wkt_record("PROJCS[\"test\"]")};
+  s.padding = 3;
+  TempDir dir;
+  const std::string path = dir.file("points.las");
+  write_file(path, make_las(s));
+
+  Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+  INFO(r.status().to_string());
+  REQUIRE(r.is_ok());
+  const PointStreamInfo& info = (*r)->info();
+  CHECK(info.path == path);
+  CHECK(info.format == "las");
+  CHECK(info.point_count == std::optional<std::uint64_t>(300));
+  CHECK(info.has_colors == colors);
+  CHECK(info.has_intensity);
+  CHECK(info.crs == "PROJCS[\"test\"]");
+  CHECK(info.scale == s.scale);
+  const PointCloud expected = las_expected(s, colors);
+  REQUIRE(info.header_bounds.has_value());
+  CHECK(info.header_bounds->min == expected.bounds().min);
+  CHECK(info.header_bounds->max == expected.bounds().max);
+
+  const std::size_t batch = GENERATE(std::size_t{1} << 20, std::size_t{7});
+  CAPTURE(batch);
+  const Result<PointCloud> got = read_stream(**r, batch);
+  INFO(got.status().to_string());
+  REQUIRE(got.is_ok());
+  require_same(*got, expected);
+}
+
+TEST_CASE("LAS 16-bit colours are shifted only when the sample needs it", "[io]") {
+  TempDir dir;
+  LasSpec s;
+  s.format = 2;
+  s.points = las_points(100, false);
+  SECTION("8-bit levels in 16-bit fields are kept") {
+    write_file(dir.file("a.las"), make_las(s));
+    for (const std::size_t batch : {std::size_t{1000}, std::size_t{3}}) {
+      const Result<PointCloud> got = read_path(dir.file("a.las"), batch);
+      REQUIRE(got.is_ok());
+      require_same(*got, las_expected(s, true));
+      CHECK(got->colors[5] == Rgb8{static_cast<std::uint8_t>(s.points[5].r),
+                                   static_cast<std::uint8_t>(s.points[5].g),
+                                   static_cast<std::uint8_t>(s.points[5].b)});
+    }
+  }
+  SECTION("one level above 255 shifts every point, even before the first batch sees it") {
+    s.points[97].b = 256;
+    write_file(dir.file("b.las"), make_las(s));
+    for (const std::size_t batch : {std::size_t{1000}, std::size_t{3}}) {
+      const Result<PointCloud> got = read_path(dir.file("b.las"), batch);
+      REQUIRE(got.is_ok());
+      require_same(*got, las_expected(s, true));
+      CHECK(got->colors[97].b == 1);
+    }
+  }
+}
+
+TEST_CASE("LAS coordinate reference systems", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("crs.las");
+  auto crs_of = [&](const LasSpec& s) {
+    write_file(path, make_las(s));
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    INFO(r.status().to_string());
+    REQUIRE(r.is_ok());
+    return (*r)->info().crs;
+  };
+  LasSpec s;
+  s.format = 1;
+  s.points = las_points(4, false);
+  SECTION("none") { CHECK(crs_of(s).empty()); }
+  SECTION("projected GeoTIFF code") {
+    s.vlrs = {geokey_record({{1024, 0, 1, 1}, {1025, 0, 1, 1}, {3072, 0, 1, 32612}, {2048, 0, 1, 4326}})};
+    CHECK(crs_of(s) == "EPSG:32612");
+  }
+  SECTION("geographic GeoTIFF code") {
+    s.vlrs = {geokey_record({{1024, 0, 1, 2}, {2048, 0, 1, 4326}})};
+    CHECK(crs_of(s) == "EPSG:4326");
+  }
+  SECTION("no usable code lists the direct keys") {
+    s.vlrs = {geokey_record({{1024, 0, 1, 1}, {3072, 0, 1, 32767}, {3076, 34736, 1, 0}})};
+    CHECK(crs_of(s) == "GeoTIFF keys: 1024=1, 3072=32767");
+  }
+  SECTION("a key count beyond the record is cut to the record") {
+    std::string keys = geokeys({{1024, 0, 1, 1}, {2048, 0, 1, 4267}});
+    keys[6] = 99;  // NumberOfKeys
+    s.vlrs = {{"LASF_Projection", 34735, keys}};
+    CHECK(crs_of(s) == "EPSG:4267");
+  }
+  SECTION("WKT wins over GeoTIFF keys, in either order") {
+    s.vlrs = {geokey_record({{3072, 0, 1, 2154}}), wkt_record("PROJCRS[\"RGF93 / Lambert-93\"]")};
+    CHECK(crs_of(s) == "PROJCRS[\"RGF93 / Lambert-93\"]");
+    std::swap(s.vlrs[0], s.vlrs[1]);
+    CHECK(crs_of(s) == "PROJCRS[\"RGF93 / Lambert-93\"]");
+  }
+  SECTION("LAS 1.4 extended VLRs after the points") {
+    s.minor = 4;
+    s.format = 6;
+    s.vlrs = {geokey_record({{3072, 0, 1, 2154}})};
+    s.evlrs = {{"other", 1, std::string(70000, 'x')}, wkt_record("GEOGCRS[\"from an EVLR\"]")};
+    CHECK(crs_of(s) == "GEOGCRS[\"from an EVLR\"]");
+    const Result<PointCloud> got = read_path(path, 2);
+    REQUIRE(got.is_ok());
+    require_same(*got, las_expected(s, false));
+  }
+  SECTION("records of other users are not read as a CRS") {
+    s.vlrs = {{"LASF_Projectionx", 2112, "nope"}, {"Someone", 34735, geokeys({{3072, 0, 1, 1}})}};
+    CHECK(crs_of(s).empty());
+  }
+}
+
+TEST_CASE("LAS rejects a file truncated at any length", "[io]") {
+  LasSpec s;
+  s.minor = 4;
+  s.format = 7;
+  s.points = las_points(3, true);
+  s.vlrs = {wkt_record("PROJCS[\"x\"]")};
+  s.evlrs = {geokey_record({{3072, 0, 1, 2154}})};
+  const std::string file = make_las(s);
+  TempDir dir;
+  const std::string path = dir.file("cut.las");
+  write_file(path, file);
+  REQUIRE(read_path(path, 100).is_ok());
+  for (std::size_t len = 0; len < file.size(); ++len) {
+    write_file(path, file.substr(0, len));
+    const Result<PointCloud> r = read_path(path, 100);
+    INFO("prefix length " << len);
+    require_error(r.status(), StatusCode::kFormatError, path);
+  }
+}
+
+TEST_CASE("LAS rejects lying and broken headers", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("bad.las");
+  LasSpec s;
+  s.format = 3;
+  s.points = las_points(10, true);
+  auto status_of = [&](const std::string& bytes) {
+    write_file(path, bytes);
+    return read_path(path, 1000).status();
+  };
+  SECTION("a count larger than the data") {
+    s.declared_count = 11;
+    require_error(status_of(make_las(s)), StatusCode::kFormatError, path,
+                  "truncated: header declares 11 points but the file holds 10");
+  }
+  SECTION("a huge count is refused before anything is allocated") {
+    s.minor = 4;
+    s.declared_count = std::uint64_t{1} << 50;
+    require_error(status_of(make_las(s)), StatusCode::kFormatError, path,
+                  "header declares 1125899906842624 points but the file holds 10");
+  }
+  SECTION("a count larger than the data before the extended VLRs") {
+    s.minor = 4;
+    s.declared_count = 12;
+    s.evlrs = {{"filler", 7, std::string(500, 'f')}};
+    require_error(status_of(make_las(s)), StatusCode::kFormatError, path,
+                  "truncated: header declares 12 points but the file holds 10");
+  }
+  SECTION("not a LAS file") {
+    std::string bytes = make_las(s);
+    bytes[0] = 'X';
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "LASF");
+    require_error(status_of(""), StatusCode::kFormatError, path, "empty");
+    require_error(status_of("LASF"), StatusCode::kFormatError, path, "truncated");
+  }
+  SECTION("LAZ compression bit") {
+    s.format_flags = 0x80;
+    require_error(status_of(make_las(s)), StatusCode::kUnsupported, path,
+                  "LAZ is not supported yet, decompress with laszip first");
+    s.format_flags = 0x40;
+    require_error(status_of(make_las(s)), StatusCode::kUnsupported, path, "LAZ");
+  }
+  SECTION("unsupported version and point format") {
+    std::string bytes = make_las(s);
+    bytes[24] = 2;
+    require_error(status_of(bytes), StatusCode::kUnsupported, path, "version 2.2");
+    bytes = make_las(s);
+    bytes[104] = 11;
+    require_error(status_of(bytes), StatusCode::kUnsupported, path, "point data format 11");
+  }
+  SECTION("record length shorter than the format") {
+    std::string bytes = make_las(s);
+    bytes[105] = 33;  // format 3 needs 34
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "record length 33");
+  }
+  SECTION("header size and point offset") {
+    std::string bytes = make_las(s);
+    bytes[94] = static_cast<char>(200);  // header size below 227
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "header size 200");
+    bytes = make_las(s);
+    bytes[96] = 100;  // offset to point data inside the header
+    bytes[97] = 0;
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "offset to point data 100");
+    bytes = make_las(s);
+    bytes[99] = 0x7F;  // offset far beyond the end
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "truncated");
+  }
+  SECTION("a VLR running into the points") {
+    s.vlrs = {wkt_record("PROJCS[\"x\"]")};
+    std::string bytes = make_las(s);
+    bytes[227 + 20] = static_cast<char>(0xFF);  // record length low byte
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "VLR 1 of 1");
+    bytes = make_las(s);
+    bytes[100] = 2;  // two VLRs declared, one present
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "VLR 2 of 2");
+  }
+  SECTION("scale zero or not finite") {
+    std::string bytes = make_las(s);
+    std::memset(bytes.data() + 131, 0, 8);
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "scale");
+    bytes = make_las(s);
+    const double inf = std::numeric_limits<double>::infinity();
+    std::memcpy(bytes.data() + 163, &inf, 8);  // y offset
+    require_error(status_of(bytes), StatusCode::kFormatError, path, "offset");
+  }
+}
+
+TEST_CASE("LAS read from a pipe, where the size is unknown", "[io]") {
+  LasSpec s;
+  s.minor = 4;
+  s.format = 8;
+  s.points = las_points(60000, true);
+  s.evlrs = {wkt_record("PROJCS[\"after the points\"]")};
+  const std::string file = make_las(s);
+  TempDir dir;
+  const std::string fifo = dir.file("pipe.las");
+  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+  std::signal(SIGPIPE, SIG_IGN);  // if the reader stops early the writer fails instead
+  std::thread writer([&] { write_file(fifo, file); });
+  Result<std::unique_ptr<PointReader>> r = open_point_reader(fifo);
+  Result<PointCloud> got = r.is_ok() ? read_stream(**r, 25000) : Result<PointCloud>(r.status());
+  r = Status(StatusCode::kInternal, "closed");  // closes the pipe before joining
+  writer.join();
+  INFO(got.status().to_string());
+  REQUIRE(got.is_ok());
+  require_same(*got, las_expected(s, true));  // the first batch holds levels > 255
+}
+
+TEST_CASE("LAZ files are refused by extension without being read", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("missing.LAZ");  // does not exist
+  const Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().code() == StatusCode::kUnsupported);
+  CHECK(r.status().message() == path + ": LAZ is not supported yet, decompress with laszip first");
+}
+
+// ---------------------------------------------------------------- real data
+
+std::optional<std::string> shared_file(const std::string& rel) {
+  const std::string path = std::string(RELIEF_SHARED_DATA_DIR) + "/" + rel;
+  if (!fs::exists(path)) {
+    WARN("skipped: " << path << " is absent (optional real-data tests)");
+    return std::nullopt;
+  }
+  return path;
+}
+
+TEST_CASE("LAS reads the shared aerial tile exactly as its PLY conversion", "[io]") {
+  const auto las = shared_file("medium/orig/fr_aerial_rgb_698k.las");
+  const auto ply = shared_file("medium/fr_aerial_rgb_698k.ply");
+  if (!las || !ply) return;
+  Result<std::unique_ptr<PointReader>> r = open_point_reader(*las);
+  REQUIRE(r.is_ok());
+  const PointStreamInfo& info = (*r)->info();
+  CHECK(info.point_count == std::optional<std::uint64_t>(697721));
+  CHECK(info.has_colors);
+  CHECK(info.has_intensity);
+  CHECK_THAT(info.crs, StartsWith("PROJCRS[\"RGF93 / Lambert-93\""));
+  CHECK(info.scale == Vec3d{0.01, 0.01, 0.01});
+  REQUIRE(info.header_bounds.has_value());
+  CHECK(info.header_bounds->min.x == 484649.36);
+  CHECK(info.header_bounds->max.y == 6632999.99);
+  const Result<PointCloud> got = read_stream(**r, std::size_t{1} << 20);
+  REQUIRE(got.is_ok());
+  const Result<PointCloud> want = read_ply(*ply);
+  REQUIRE(want.is_ok());
+  require_same(*got, *want);  // coordinates, 16-bit colours >> 8 and intensity
+  const auto [lo, hi] = std::minmax_element(got->intensities.begin(), got->intensities.end());
+  CHECK(*lo == 311.0f);
+  CHECK(*hi == 3004.0f);
+}
+
+TEST_CASE("LAS reads the shared terrestrial scan exactly as its PLY conversion", "[io]") {
+  const auto las = shared_file("medium/orig/lone_star_tls_519k.las");
+  const auto ply = shared_file("medium/lone_star_tls_519k.ply");
+  if (!las || !ply) return;
+  Result<std::unique_ptr<PointReader>> r = open_point_reader(*las);
+  REQUIRE(r.is_ok());
+  const PointStreamInfo& info = (*r)->info();
+  CHECK(info.point_count == std::optional<std::uint64_t>(518862));
+  CHECK_FALSE(info.has_colors);
+  CHECK(info.crs == "EPSG:4326");  // its GeoKeys name GeographicTypeGeoKey 4326 directly
+  CHECK(info.scale == Vec3d{0.00025, 0.00025, 0.00025});
+  const Result<PointCloud> got = read_stream(**r, 100000);
+  REQUIRE(got.is_ok());
+  const Result<PointCloud> want = read_ply(*ply);
+  REQUIRE(want.is_ok());
+  require_same(*got, *want);
+  const auto [lo, hi] = std::minmax_element(got->intensities.begin(), got->intensities.end());
+  CHECK(*lo == 17.0f);
+  CHECK(*hi == 2744.0f);
+}
+
+// ---------------------------------------------------------------- XYZ
+
+PointCloud xyz_cloud(std::initializer_list<std::array<double, 3>> pts) {
+  PointCloud c;
+  for (const auto& p : pts) c.positions.push_back({p[0], p[1], p[2]});
+  return c;
+}
+
+TEST_CASE("XYZ default columns, comments, blank lines and a header", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("plain.xyz");
+  write_file(path,
+             "# exported by hand\n"
+             "X Y Z\n"
+             "\n"
+             "1.5 2.25 -3\n"
+             "  // another comment\n"
+             "484649.36\t6632629.73\t99.65   \r\n"
+             "+7 8e2 -0.0 and more columns\n"
+             "6.1 6.2 6.3");  // no final newline
+  Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+  REQUIRE(r.is_ok());
+  CHECK((*r)->info().format == "xyz");
+  CHECK_FALSE((*r)->info().point_count.has_value());
+  CHECK_FALSE((*r)->info().has_colors);
+  CHECK_FALSE((*r)->info().has_intensity);
+  const Result<PointCloud> got = read_stream(**r, 2);
+  REQUIRE(got.is_ok());
+  require_same(*got,
+               xyz_cloud({{1.5, 2.25, -3}, {484649.36, 6632629.73, 99.65}, {7, 800, -0.0}, {6.1, 6.2, 6.3}}));
+}
+
+TEST_CASE("XYZ column specs and delimiters", "[io]") {
+  TempDir dir;
+  PointCloud want = xyz_cloud({{1, 2, 3}, {4.5, -5.5, 6e-3}});
+  want.colors = {{10, 20, 30}, {255, 0, 128}};
+  want.intensities = {0.5f, 1200.0f};
+  ReaderOptions o;
+  o.xyz_columns = "x,y,z,r,g,b,i";
+  SECTION("comma separated with a header, UTF-8 BOM and CRLF") {
+    const std::string path = dir.file("a.csv");
+    write_file(path,
+               "\xEF\xBB\xBFx,y,z,red,green,blue,intensity\r\n1,2,3,10,20,30,0.5\r\n"
+               "4.5, -5.5, 6e-3, 255, 0, 128, 1200\r\n");
+    const Result<PointCloud> got = read_path(path, 100, o);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    require_same(*got, want);
+  }
+  SECTION("semicolons, reordered and skipped columns") {
+    o.xyz_columns = "i;_,z, y ,x,b,g,r";  // the spec itself is comma separated
+    const Result<std::unique_ptr<PointReader>> bad = open_point_reader(dir.file("b.txt"), o);
+    REQUIRE_FALSE(bad.is_ok());
+    CHECK(bad.status().code() == StatusCode::kInvalidArgument);
+    o.xyz_columns = "i,_,z, y ,x,b,g,r";
+    const std::string path = dir.file("b.txt");
+    write_file(path, "0.5;99;3;2;1;30;20;10\n1200 ; x ; 6e-3;-5.5;4.5;128;0;255;extra\n");
+    const Result<PointCloud> got = read_path(path, 1, o);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    require_same(*got, want);
+  }
+  SECTION("tabs and runs of spaces") {
+    const std::string path = dir.file("c.xyz");
+    write_file(path, "1\t2\t3\t10\t20\t30\t0.5\n   4.5    -5.5 \t 6e-3  255 0 128  1200  \n");
+    const Result<PointCloud> got = read_path(path, 100, o);
+    REQUIRE(got.is_ok());
+    require_same(*got, want);
+  }
+  SECTION("a PTS file starts with its point count") {
+    o.xyz_columns = "x,y,z,i,r,g,b";
+    const std::string path = dir.file("d.PTS");
+    write_file(path, "2\n1 2 3 0.5 10 20 30\n4.5 -5.5 6e-3 1200 255 0 128\n");
+    const Result<PointCloud> got = read_path(path, 100, o);
+    REQUIRE(got.is_ok());
+    require_same(*got, want);
+  }
+  SECTION("invalid specs") {
+    for (const char* spec : {"x,y", "x,y,z,r,g", "x,y,z,q", "x,x,y,z", "x,,y,z", ""}) {
+      o.xyz_columns = spec;
+      const Result<std::unique_ptr<PointReader>> r = open_point_reader(dir.file("e.xyz"), o);
+      INFO(spec);
+      require_error(r.status(), StatusCode::kInvalidArgument, dir.file("e.xyz"));
+    }
+  }
+}
+
+TEST_CASE("XYZ rejects bad lines naming the line", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("bad.xyz");
+  auto status_of = [&](const std::string& text, const std::string& columns = "x,y,z") {
+    write_file(path, text);
+    ReaderOptions o;
+    o.xyz_columns = columns;
+    return read_path(path, 100, o).status();
+  };
+  require_error(status_of("1 2 3\n\n4 5\n"), StatusCode::kFormatError, path,
+                "line 3: expected at least 3 columns but found 2");
+  require_error(status_of("1 2 3\n4 abc 6\n"), StatusCode::kFormatError, path,
+                "line 2: column 2 'abc' is not a number");
+  require_error(status_of("1,2,3\n4,,6\n"), StatusCode::kFormatError, path, "line 2: column 2 is empty");
+  require_error(status_of("1 2 3\nnan 2 3\n"), StatusCode::kFormatError, path, "line 2: non-finite");
+  require_error(status_of("1 2 3\n1 inf 3\n"), StatusCode::kFormatError, path, "line 2: non-finite");
+  require_error(status_of("1 2 3\n1 2 1e999\n"), StatusCode::kFormatError, path, "line 2");
+  require_error(status_of("1 2 3 0 0 256\n", "x,y,z,r,g,b"), StatusCode::kFormatError, path,
+                "line 1: colour level 256 is outside 0..255");
+  require_error(status_of("1 2 3 1e300\n", "x,y,z,i"), StatusCode::kFormatError, path, "line 1: intensity");
+  // Only the first line may be a header.
+  require_error(status_of("x y z\nalpha beta gamma\n"), StatusCode::kFormatError, path, "line 2");
+  // European decimal commas with ';' separators are not silently split.
+  require_error(status_of("1,5;2,5;3,5\n"), StatusCode::kFormatError, path, "line 1");
+  const std::string missing = dir.file("missing.csv");
+  require_error(read_path(missing, 10).status(), StatusCode::kIoError, missing, "No such file");
+}
+
+// ---------------------------------------------------------------- PCD
+
+std::string pcd_header(const std::string& fields, const std::string& size, const std::string& type,
+                       const std::string& count, std::size_t width, std::size_t height,
+                       const std::string& data) {
+  return "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS " + fields + "\nSIZE " + size +
+         "\nTYPE " + type + "\nCOUNT " + count + "\nWIDTH " + std::to_string(width) + "\nHEIGHT " +
+         std::to_string(height) + "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(width * height) +
+         "\nDATA " + data + "\n";
+}
+
+std::uint32_t packed(std::uint8_t r, std::uint8_t g, std::uint8_t b) {
+  return (std::uint32_t{r} << 16) | (std::uint32_t{g} << 8) | b;
+}
+
+TEST_CASE("PCD ascii with packed colour, intensity and a NaN point", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("scan.pcd");
+  const float old_style = std::bit_cast<float>(packed(1, 2, 3));  // float printed by old writers
+  char old_text[64];
+  std::snprintf(old_text, sizeof old_text, "%.9g", static_cast<double>(old_style));
+  write_file(path, pcd_header("x y z normal rgb intensity", "4 4 8 4 4 2", "F F F F F U", "1 1 1 3 1 1", 2, 2,
+                              "ascii") +
+                       "1.5 2.5 3.25 0 0 1 " + std::to_string(packed(10, 20, 30)) +
+                       " 7\n"
+                       "nan nan nan 0 0 0 0 0\n"
+                       "\n"
+                       "-1 -2 -3 0.1 0.2 0.3 " +
+                       old_text +
+                       " 65535\n"
+                       "4 5 6 nan nan nan 4294967295 0\n");
+  Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+  INFO(r.status().to_string());
+  REQUIRE(r.is_ok());
+  CHECK((*r)->info().format == "pcd");
+  CHECK((*r)->info().point_count == std::optional<std::uint64_t>(4));
+  CHECK((*r)->info().has_colors);
+  CHECK((*r)->info().has_intensity);
+  const Result<PointCloud> got = read_stream(**r, 2);
+  INFO(got.status().to_string());
+  REQUIRE(got.is_ok());
+  PointCloud want = xyz_cloud({{1.5, 2.5, 3.25}, {-1, -2, -3}, {4, 5, 6}});
+  want.colors = {{10, 20, 30}, {1, 2, 3}, {255, 255, 255}};
+  want.intensities = {7, 65535, 0};
+  require_same(*got, want);
+  CHECK((*r)->info().skipped_points == 1);
+}
+
+std::string pcd_binary_body(const std::vector<std::array<float, 3>>& pts, bool with_rgb) {
+  Bytes b;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    b.put(pts[i][0]).put(pts[i][1]).put(pts[i][2]);
+    b.put<std::uint16_t>(0xBEEF).put<std::uint16_t>(0xCAFE);  // "label" with COUNT 2
+    if (with_rgb) b.put(std::bit_cast<float>(packed(static_cast<std::uint8_t>(i), 100, 200)));
+    b.put(static_cast<double>(i) * 0.25);  // intensity as F 8
+  }
+  return b.str();
+}
+
+TEST_CASE("PCD binary, organised with NaN pixels", "[io]") {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const std::vector<std::array<float, 3>> pts = {{0.5f, 1.5f, -2.0f}, {nan, nan, nan}, {3, 4, 5},
+                                                 {nan, 0, 0},         {nan, nan, nan}, {-1e6f, 2e-3f, 7}};
+  const std::string file =
+      pcd_header("x y z label rgb intensity", "4 4 4 2 4 8", "F F F U F F", "1 1 1 2 1 1", 3, 2, "binary") +
+      pcd_binary_body(pts, true);
+  TempDir dir;
+  const std::string path = dir.file("organised.pcd");
+  write_file(path, file);
+  for (const std::size_t batch : {std::size_t{1}, std::size_t{2}, std::size_t{100}}) {
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    REQUIRE(r.is_ok());
+    const Result<PointCloud> got = read_stream(**r, batch);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    PointCloud want;
+    want.positions = {{0.5f, 1.5f, -2.0f}, {3, 4, 5}, {-1e6f, 2e-3f, 7}};
+    want.colors = {{0, 100, 200}, {2, 100, 200}, {5, 100, 200}};
+    want.intensities = {0.0f, 0.5f, 1.25f};
+    require_same(*got, want);
+    CHECK((*r)->info().skipped_points == 3);
+  }
+
+  SECTION("truncated at any length") {
+    const std::size_t header_end = file.find("DATA binary\n") + 12;
+    for (std::size_t len = 0; len < file.size(); ++len) {
+      write_file(path, file.substr(0, len));
+      const Result<PointCloud> got = read_path(path, 100);
+      INFO("prefix length " << len);
+      require_error(got.status(), StatusCode::kFormatError, path);
+      if (len >= header_end)
+        CHECK_THAT(got.status().message(), Contains("truncated: header declares 6 points"));
+    }
+  }
+}
+
+TEST_CASE("PCD double coordinates, no colour, 0.6 header without COUNT", "[io]") {
+  Bytes b;
+  b.put(484649.36).put(6632629.73).put(99.65);
+  b.put(-1.0).put(0.0).put(1e-300);
+  const std::string file =
+      "VERSION .6\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary\n" +
+      b.str();
+  TempDir dir;
+  const std::string path = dir.file("f8.pcd");
+  write_file(path, file);
+  const Result<PointCloud> got = read_path(path, 10);
+  INFO(got.status().to_string());
+  REQUIRE(got.is_ok());
+  require_same(*got, xyz_cloud({{484649.36, 6632629.73, 99.65}, {-1.0, 0.0, 1e-300}}));
+}
+
+TEST_CASE("PCD rejects what it cannot read", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("bad.pcd");
+  auto status_of = [&](const std::string& text) {
+    write_file(path, text);
+    return read_path(path, 100).status();
+  };
+  const std::string xyz_ascii = pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, "ascii");
+  SECTION("binary_compressed") {
+    require_error(status_of(pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, "binary_compressed") +
+                            std::string(16, '\0')),
+                  StatusCode::kUnsupported, path,
+                  "PCD binary_compressed is not supported yet; convert with pcl_convert_pcd_ascii_binary");
+  }
+  SECTION("truncated ascii body") {
+    require_error(status_of(xyz_ascii + "1 2 3\n"), StatusCode::kFormatError, path,
+                  "truncated: header declares 2 points but the data ends after 1");
+  }
+  SECTION("bad ascii values") {
+    require_error(status_of(xyz_ascii + "1 2 3\n1 2\n"), StatusCode::kFormatError, path,
+                  "point 1: expected 3 values but the line has 2");
+    require_error(status_of(xyz_ascii + "1 2 3\n1 x 3\n"), StatusCode::kFormatError, path, "point 1: 'x'");
+    require_error(status_of(xyz_ascii + "1 2 3\n1 inf 3\n"), StatusCode::kFormatError, path,
+                  "point 1: non-finite coordinate");
+  }
+  SECTION("huge binary count is refused before reading") {
+    require_error(
+        status_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1000000000000\nHEIGHT 1\n"
+                  "POINTS 1000000000000\nDATA binary\n" +
+                  std::string(24, '\0')),
+        StatusCode::kFormatError, path, "header declares 1000000000000 points but the data ends after 2");
+  }
+  SECTION("broken headers") {
+    require_error(status_of(""), StatusCode::kFormatError, path, "empty");
+    require_error(status_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\n"), StatusCode::kFormatError,
+                  path, "DATA");
+    require_error(status_of("FIELDS x y\nSIZE 4 4\nTYPE F F\nWIDTH 1\nDATA ascii\n1 2\n"),
+                  StatusCode::kFormatError, path, "'z'");
+    require_error(status_of("FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n"),
+                  StatusCode::kFormatError, path, "SIZE");
+    require_error(status_of("FIELDS x y z\nSIZE 2 4 4\nTYPE I F F\nWIDTH 1\nDATA ascii\n1 2 3\n"),
+                  StatusCode::kFormatError, path, "'x'");
+    require_error(
+        status_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT 2\nPOINTS 5\nDATA ascii\n"),
+        StatusCode::kFormatError, path, "POINTS 5 differs");
+    require_error(status_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nFROB 1\nDATA ascii\n"),
+                  StatusCode::kFormatError, path, "header line 5: unknown header keyword 'FROB'");
+    require_error(status_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 0 1\nWIDTH 1\nDATA ascii\n"),
+                  StatusCode::kFormatError, path, "COUNT");
+  }
+}
+
+// ---------------------------------------------------------------- PLY streaming
+
+TEST_CASE("PLY streaming in small batches equals read_ply", "[io]") {
+  test::SceneOptions o;
+  o.points = 5000;
+  o.colors = true;
+  o.intensity = true;
+  const PointCloud cloud = test::make_room(o, 8.0);
+  const PlyEncoding enc =
+      GENERATE(PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian);
+  CAPTURE(static_cast<int>(enc));
+  TempDir dir;
+  const std::string path = dir.file("stream.ply");
+  REQUIRE(write_ply(path, cloud, {enc, PlyCoordinateType::kFloat64}).is_ok());
+  const Result<PointCloud> whole = read_ply(path);
+  REQUIRE(whole.is_ok());
+  for (const std::size_t batch : {std::size_t{1}, std::size_t{7}, std::size_t{4096}, std::size_t{1} << 20}) {
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    REQUIRE(r.is_ok());
+    CHECK((*r)->info().format == "ply");
+    CHECK((*r)->info().point_count == std::optional<std::uint64_t>(5000));
+    CHECK((*r)->info().has_colors);
+    CHECK((*r)->info().has_intensity);
+    const Result<PointCloud> got = read_stream(**r, batch);
+    REQUIRE(got.is_ok());
+    require_same(*got, *whole);
+  }
+  const Result<PointCloud> via_dispatch = read_point_file(path);
+  REQUIRE(via_dispatch.is_ok());
+  require_same(*via_dispatch, *whole);
+}
+
+TEST_CASE("PLY streaming skips leading elements and stops after the vertices", "[io]") {
+  const std::string file =
+      "ply\nformat ascii 1.0\nelement camera 2\nproperty float a\nproperty list uchar int ids\n"
+      "element vertex 3\nproperty double x\nproperty double y\nproperty double z\n"
+      "property ushort red\nproperty ushort green\nproperty ushort blue\n"
+      "element face 9\nproperty list uchar int vertex_indices\nend_header\n"
+      "1 2 5 6\n2 0\n"
+      "1 2 3 100 200 300\n4 5 6 65535 0 255\n7 8 9 0 0 0\n"
+      "3 0 1 2\n";  // eight faces are missing
+  TempDir dir;
+  const std::string path = dir.file("mesh.ply");
+  write_file(path, file);
+  for (const std::size_t batch : {std::size_t{1}, std::size_t{100}}) {
+    const Result<PointCloud> got = read_path(path, batch);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    PointCloud want = xyz_cloud({{1, 2, 3}, {4, 5, 6}, {7, 8, 9}});
+    want.colors = {{0, 0, 1}, {255, 0, 0}, {0, 0, 0}};
+    require_same(*got, want);
+  }
+  // The whole-file reader checks every element.
+  require_error(read_ply(path).status(), StatusCode::kFormatError, path, "'face' elements");
+}
+
+TEST_CASE("PLY streaming reports truncated vertex data with the index", "[io]") {
+  Bytes b;
+  for (int i = 0; i < 5; ++i) b.put(1.0f * static_cast<float>(i)).put(2.0f).put(3.0f);
+  const std::string header =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 9\n"
+      "property float x\nproperty float y\nproperty float z\nend_header\n";
+  TempDir dir;
+  const std::string path = dir.file("cut.ply");
+  write_file(path, header + b.str());
+  require_error(read_path(path, 2).status(), StatusCode::kFormatError, path,
+                "truncated: header declares 9 vertices but the data ends after 5");
+  write_file(path,
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+             "property float z\nend_header\n1 2 3\n4 5 6\n");
+  require_error(read_path(path, 2).status(), StatusCode::kFormatError, path,
+                "truncated: header declares 3 vertices but the data ends after 2");
+  write_file(path,
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+             "property float z\nend_header\n1 2 3\n4 nan 6\n7 8 9\n");
+  require_error(read_path(path, 1).status(), StatusCode::kFormatError, path, "vertex 1");
+}
+
+// ---------------------------------------------------------------- dispatch
+
+TEST_CASE("open_point_reader dispatch, missing files and unknown extensions", "[io]") {
+  TempDir dir;
+  for (const char* name : {"a.ply", "b.LAS", "c.xyz", "d.txt", "e.csv", "f.pts", "g.Pcd"}) {
+    const std::string path = dir.file(name);
+    const Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    INFO(name);
+    require_error(r.status(), StatusCode::kIoError, path, "No such file");
+  }
+  for (const char* name : {"cloud.e57", "cloud", "cloud.ply.gz"}) {
+    const std::string path = dir.file(name);
+    const Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    INFO(name);
+    require_error(r.status(), StatusCode::kUnsupported, path, ".ply, .las, .xyz, .txt, .csv, .pts, .pcd");
+    require_error(read_point_file(path).status(), StatusCode::kUnsupported, path);
+  }
+  // The format comes from the extension, not the contents.
+  const std::string ply_named_las = dir.file("really-ply.las");
+  REQUIRE(write_ply(ply_named_las, xyz_cloud({{1, 2, 3}})).is_ok());
+  require_error(read_point_file(ply_named_las).status(), StatusCode::kFormatError, ply_named_las, "LASF");
+}
+
+TEST_CASE("read_point_file reads every format", "[io]") {
+  TempDir dir;
+  LasSpec s;
+  s.format = 2;
+  s.points = las_points(50, true);
+  write_file(dir.file("a.las"), make_las(s));
+  const Result<PointCloud> las = read_point_file(dir.file("a.las"));
+  REQUIRE(las.is_ok());
+  require_same(*las, las_expected(s, true));
+
+  write_file(dir.file("b.xyz"), "1 2 3\n4 5 6\n");
+  const Result<PointCloud> xyz = read_point_file(dir.file("b.xyz"));
+  REQUIRE(xyz.is_ok());
+  require_same(*xyz, xyz_cloud({{1, 2, 3}, {4, 5, 6}}));
+
+  write_file(dir.file("c.pcd"),
+             pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, "ascii") + "1 2 3\nnan 0 0\n");
+  const Result<PointCloud> pcd = read_point_file(dir.file("c.pcd"));
+  REQUIRE(pcd.is_ok());
+  require_same(*pcd, xyz_cloud({{1, 2, 3}}));
+}
+
+}  // namespace
+}  // namespace relief

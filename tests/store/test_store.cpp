@@ -1,0 +1,955 @@
+// Tests of the SQLite archive (lib/store, format-spec/archive.md). Raw SQLite
+// is used on purpose to fake, damage and inspect archives behind the store's back.
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <catch2/catch.hpp>
+
+#include "relief/archive.h"
+#include "support/synthetic.h"
+
+namespace relief {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// A fresh directory per test case, removed afterwards.
+class TempDir {
+ public:
+  TempDir() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("relief_store_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    fs::permissions(path_, fs::perms::owner_all, fs::perm_options::add, ignored);
+    fs::remove_all(path_, ignored);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+  const fs::path& path() const { return path_; }
+
+  std::vector<std::string> entries() const {
+    std::vector<std::string> names;
+    for (const auto& entry : fs::directory_iterator(path_)) {
+      names.push_back(entry.path().filename().string());
+    }
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+
+ private:
+  fs::path path_;
+};
+
+// ---- Raw SQLite access, bypassing the store.
+
+class RawDb {
+ public:
+  explicit RawDb(const std::string& file) {
+    const int rc = sqlite3_open_v2(file.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
+    REQUIRE(rc == SQLITE_OK);
+    sqlite3_busy_timeout(db_, 5000);
+  }
+  ~RawDb() { sqlite3_close(db_); }
+  RawDb(const RawDb&) = delete;
+  RawDb& operator=(const RawDb&) = delete;
+
+  void exec(const std::string& sql) {
+    char* error = nullptr;
+    const int rc = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error);
+    const std::string message = error != nullptr ? error : "";
+    sqlite3_free(error);
+    INFO(sql << ": " << message);
+    REQUIRE(rc == SQLITE_OK);
+  }
+
+  std::int64_t integer(const std::string& sql) {
+    sqlite3_stmt* stmt = nullptr;
+    REQUIRE(sqlite3_prepare_v2(db_, sql.c_str(), -1, &stmt, nullptr) == SQLITE_OK);
+    REQUIRE(sqlite3_step(stmt) == SQLITE_ROW);
+    const std::int64_t value = sqlite3_column_int64(stmt, 0);
+    sqlite3_finalize(stmt);
+    return value;
+  }
+
+  double real(const std::string& sql) {
+    sqlite3_stmt* stmt = nullptr;
+    REQUIRE(sqlite3_prepare_v2(db_, sql.c_str(), -1, &stmt, nullptr) == SQLITE_OK);
+    REQUIRE(sqlite3_step(stmt) == SQLITE_ROW);
+    const double value = sqlite3_column_double(stmt, 0);
+    sqlite3_finalize(stmt);
+    return value;
+  }
+
+  std::string text(const std::string& sql) {
+    sqlite3_stmt* stmt = nullptr;
+    REQUIRE(sqlite3_prepare_v2(db_, sql.c_str(), -1, &stmt, nullptr) == SQLITE_OK);
+    REQUIRE(sqlite3_step(stmt) == SQLITE_ROW);
+    const unsigned char* text = sqlite3_column_text(stmt, 0);
+    const std::string value = text != nullptr ? reinterpret_cast<const char*>(text) : "";
+    sqlite3_finalize(stmt);
+    return value;
+  }
+
+  std::vector<std::uint8_t> blob(std::int64_t chunk_id) {
+    sqlite3_stmt* stmt = nullptr;
+    REQUIRE(sqlite3_prepare_v2(db_, "SELECT blob FROM relief_chunk WHERE id = ?1", -1, &stmt, nullptr) ==
+            SQLITE_OK);
+    sqlite3_bind_int64(stmt, 1, chunk_id);
+    REQUIRE(sqlite3_step(stmt) == SQLITE_ROW);
+    const auto* data = static_cast<const std::uint8_t*>(sqlite3_column_blob(stmt, 0));
+    const int size = sqlite3_column_bytes(stmt, 0);
+    std::vector<std::uint8_t> bytes(data, data + size);
+    sqlite3_finalize(stmt);
+    return bytes;
+  }
+
+  void set_blob(std::int64_t chunk_id, const std::vector<std::uint8_t>& bytes) {
+    sqlite3_stmt* stmt = nullptr;
+    REQUIRE(sqlite3_prepare_v2(db_, "UPDATE relief_chunk SET blob = ?2 WHERE id = ?1", -1, &stmt, nullptr) ==
+            SQLITE_OK);
+    sqlite3_bind_int64(stmt, 1, chunk_id);
+    sqlite3_bind_blob(stmt, 2, bytes.data(), static_cast<int>(bytes.size()), SQLITE_TRANSIENT);
+    REQUIRE(sqlite3_step(stmt) == SQLITE_DONE);
+    sqlite3_finalize(stmt);
+  }
+
+ private:
+  sqlite3* db_ = nullptr;
+};
+
+std::vector<std::uint8_t> file_bytes(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), {});
+}
+
+void write_file(const std::string& file, const std::string& content) {
+  std::ofstream out(file, std::ios::binary);
+  out << content;
+}
+
+// ---- Archive helpers
+
+ArchiveGrid grid_25m() {
+  ArchiveGrid grid;
+  grid.origin = {0, 0, 0};
+  grid.chunk_edge = 25;
+  return grid;
+}
+
+std::unique_ptr<Archive> create_ok(const std::string& file, const ArchiveGrid& grid = grid_25m()) {
+  Result<std::unique_ptr<Archive>> archive =
+      Archive::create(file, grid, "grid=voxel;cell=0.5", "relief-test 0.1");
+  INFO(archive.status().to_string());
+  REQUIRE(archive.is_ok());
+  return std::move(archive).value();
+}
+
+std::unique_ptr<Archive> open_ok(const std::string& file, Archive::Mode mode) {
+  Result<std::unique_ptr<Archive>> archive = Archive::open(file, mode);
+  INFO(archive.status().to_string());
+  REQUIRE(archive.is_ok());
+  return std::move(archive).value();
+}
+
+ArchiveInfo info_ok(const Archive& archive) {
+  Result<ArchiveInfo> info = archive.info();
+  INFO(info.status().to_string());
+  REQUIRE(info.is_ok());
+  return std::move(info).value();
+}
+
+std::int64_t begin_ok(Archive& archive, const std::vector<ArchiveSource>& sources = {}) {
+  Result<std::int64_t> scan = archive.begin_scan(sources);
+  INFO(scan.status().to_string());
+  REQUIRE(scan.is_ok());
+  return *scan;
+}
+
+void put_ok(Archive& archive, std::vector<ChunkRow>& rows) {
+  const Status status = archive.put_chunks(rows);
+  INFO(status.to_string());
+  REQUIRE(status.is_ok());
+}
+
+std::vector<ChunkRef> find_ok(const Archive& archive, const Box3d& box) {
+  Result<std::vector<ChunkRef>> refs = archive.find_chunks(box);
+  INFO(refs.status().to_string());
+  REQUIRE(refs.is_ok());
+  return std::move(refs).value();
+}
+
+std::vector<ChunkRef> all_ok(const Archive& archive) {
+  Result<std::vector<ChunkRef>> refs = archive.all_chunks();
+  INFO(refs.status().to_string());
+  REQUIRE(refs.is_ok());
+  return std::move(refs).value();
+}
+
+ChunkRow read_ok(const Archive& archive, std::int64_t id) {
+  Result<ChunkRow> row = archive.read_chunk(id);
+  INFO(row.status().to_string());
+  REQUIRE(row.is_ok());
+  return std::move(row).value();
+}
+
+std::vector<std::uint8_t> random_blob(std::size_t size, std::uint64_t seed) {
+  test::Rng rng(seed);
+  std::vector<std::uint8_t> blob(size);
+  for (std::uint8_t& byte : blob) byte = static_cast<std::uint8_t>(rng.next() >> 56);
+  return blob;
+}
+
+Box3d box_of(Vec3d min, Vec3d max) {
+  Box3d box;
+  box.min = min;
+  box.max = max;
+  return box;
+}
+
+Box3d cube(double min, double max) { return box_of({min, min, min}, {max, max, max}); }
+
+ChunkRow make_row(ChunkKey key, std::int64_t scan_id, const Box3d& bounds, std::uint64_t points,
+                  std::size_t blob_size, std::uint64_t seed) {
+  ChunkRow row;
+  row.ref.key = key;
+  row.ref.scan_id = scan_id;
+  row.ref.bounds = bounds;
+  row.ref.input_points = points + 7;
+  row.ref.decoded_points = bounds.empty() ? 0 : points;
+  row.codec = 1;
+  row.codec_params = "seed=" + std::to_string(seed);
+  row.blob = random_blob(blob_size, seed);
+  return row;
+}
+
+std::vector<std::int64_t> ids_of(const std::vector<ChunkRef>& refs) {
+  std::vector<std::int64_t> ids;
+  for (const ChunkRef& ref : refs) ids.push_back(ref.id);
+  return ids;
+}
+
+bool starts_with(const std::string& text, const std::string& prefix) { return text.rfind(prefix, 0) == 0; }
+
+// ---- Grid
+
+TEST_CASE("ArchiveGrid keys follow floor((p - origin) / edge)", "[store]") {
+  const ArchiveGrid grid = grid_25m();
+  // The worked example of format-spec/archive.md.
+  CHECK(grid.key_of({484649.36, 6632629.73, 99.65}) == ChunkKey{19385, 265305, 3});
+  const Box3d box = grid.chunk_box({19385, 265305, 3});
+  CHECK(box.min == Vec3d{484625, 6632625, 75});
+  CHECK(box.max == Vec3d{484650, 6632650, 100});
+
+  // floor, not truncation toward zero; faces belong to the upper chunk.
+  CHECK(grid.key_of({-0.5, -25, -25.000001}) == ChunkKey{-1, -1, -2});
+  CHECK(grid.key_of({25, 0, 49.999999}) == ChunkKey{1, 0, 1});
+
+  ArchiveGrid shifted;
+  shifted.origin = {100, 200, -10};
+  shifted.chunk_edge = 2.5;
+  CHECK(shifted.key_of({100, 202.5, -10.1}) == ChunkKey{0, 1, -1});
+  CHECK(shifted.chunk_box({0, 1, -1}).min == Vec3d{100, 202.5, -12.5});
+
+  SECTION("keys beyond int64 saturate instead of overflowing") {
+    ArchiveGrid tiny;
+    tiny.chunk_edge = 1e-300;
+    const std::int64_t max = std::numeric_limits<std::int64_t>::max();
+    const std::int64_t min = std::numeric_limits<std::int64_t>::min();
+    CHECK(tiny.key_of({1e300, -1e300, 0}) == ChunkKey{max, min, 0});
+    CHECK(tiny.key_of({std::nan(""), 0, 0}).ix == 0);
+    CHECK(tiny.chunk_box({max, 0, 0}).max.x > 0);  // i + 1 computed without overflow
+  }
+}
+
+// ---- Create and open
+
+TEST_CASE("create then open round-trips the metadata", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  ArchiveGrid grid;
+  grid.origin = {0.1, 1e7 + 0.3, -123.456};  // not representable as short decimals in binary
+  grid.chunk_edge = 0.7;
+  {
+    auto archive = create_ok(path, grid);
+    CHECK(archive->path() == path);
+    const ArchiveInfo info = info_ok(*archive);
+    CHECK(info.format_version == 1);
+    CHECK(info.grid.origin == grid.origin);
+    CHECK(info.grid.chunk_edge == grid.chunk_edge);
+    CHECK(info.codec_params == "grid=voxel;cell=0.5");
+    CHECK(info.creator == "relief-test 0.1");
+    CHECK(info.crs.empty());
+    CHECK_FALSE(info.has_colors);
+    CHECK_FALSE(info.has_intensity);
+    CHECK(info.chunk_count == 0);
+    CHECK(info.input_points == 0);
+    CHECK(info.blob_bytes == 0);
+    CHECK(info.bounds.empty());
+    CHECK(info.file_bytes >= fs::file_size(path));
+    CHECK(info.sources.empty());
+    CHECK(info.scans.empty());
+  }
+  // No temporary file, journal or WAL left once the handle is closed.
+  CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+
+  {
+    RawDb raw(path);
+    CHECK(raw.integer("PRAGMA application_id") == 0x524C4946);
+    CHECK(raw.integer("PRAGMA user_version") == 1);
+    CHECK(raw.text("PRAGMA journal_mode") == "wal");
+    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'grid_origin_y'") == "10000000.3");
+    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'chunk_edge'") == "0.7");
+    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "1");
+    const std::string created = raw.text("SELECT value FROM relief_meta WHERE key = 'created_at'");
+    CHECK(created.size() == 20);
+    CHECK(created.back() == 'Z');
+  }
+
+  for (const Archive::Mode mode : {Archive::Mode::kReadOnly, Archive::Mode::kReadWrite}) {
+    auto archive = open_ok(path, mode);
+    const ArchiveInfo info = info_ok(*archive);
+    CHECK(info.grid.origin == grid.origin);
+    CHECK(info.grid.chunk_edge == grid.chunk_edge);
+    CHECK(info.creator == "relief-test 0.1");
+  }
+}
+
+TEST_CASE("create refuses existing paths and bad places and leaves nothing behind", "[store]") {
+  TempDir dir;
+
+  SECTION("existing file") {
+    const std::string path = dir.file("taken.relief");
+    write_file(path, "precious");
+    Result<std::unique_ptr<Archive>> archive = Archive::create(path, grid_25m(), "", "");
+    REQUIRE_FALSE(archive.is_ok());
+    CHECK(archive.status().code() == StatusCode::kIoError);
+    CHECK(starts_with(archive.status().message(), path + ": "));
+    CHECK_THAT(archive.status().message(), Catch::Contains("already exists"));
+    CHECK(file_bytes(path) == std::vector<std::uint8_t>{'p', 'r', 'e', 'c', 'i', 'o', 'u', 's'});
+    CHECK(dir.entries() == std::vector<std::string>{"taken.relief"});
+  }
+
+  SECTION("existing archive") {
+    const std::string path = dir.file("a.relief");
+    create_ok(path);
+    Result<std::unique_ptr<Archive>> again = Archive::create(path, grid_25m(), "", "");
+    CHECK(again.status().code() == StatusCode::kIoError);
+    CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+  }
+
+  SECTION("directory that does not exist") {
+    const std::string path = dir.file("missing/a.relief");
+    Result<std::unique_ptr<Archive>> archive = Archive::create(path, grid_25m(), "", "");
+    REQUIRE_FALSE(archive.is_ok());
+    CHECK(archive.status().code() == StatusCode::kIoError);
+    CHECK(starts_with(archive.status().message(), path + ": "));
+    CHECK(dir.entries().empty());
+  }
+
+  SECTION("parent is a regular file") {
+    write_file(dir.file("plain"), "x");
+    const std::string path = dir.file("plain/a.relief");
+    Result<std::unique_ptr<Archive>> archive = Archive::create(path, grid_25m(), "", "");
+    CHECK(archive.status().code() == StatusCode::kIoError);
+    CHECK(starts_with(archive.status().message(), path + ": "));
+    CHECK(dir.entries() == std::vector<std::string>{"plain"});
+  }
+
+  SECTION("directory without write permission") {
+    if (::geteuid() == 0) {
+      WARN("running as root: permissions do not stop root, skipped");
+      return;
+    }
+    const fs::path locked = dir.path() / "locked";
+    fs::create_directories(locked);
+    fs::permissions(locked, fs::perms::owner_read | fs::perms::owner_exec);
+    const std::string path = (locked / "a.relief").string();
+    Result<std::unique_ptr<Archive>> archive = Archive::create(path, grid_25m(), "", "");
+    CHECK(archive.status().code() == StatusCode::kIoError);
+    CHECK(starts_with(archive.status().message(), path + ": "));
+    fs::permissions(locked, fs::perms::owner_all);
+    CHECK(fs::is_empty(locked));
+  }
+
+  SECTION("invalid grid") {
+    const std::string path = dir.file("a.relief");
+    ArchiveGrid grid = grid_25m();
+    grid.chunk_edge = 0;
+    CHECK(Archive::create(path, grid, "", "").status().code() == StatusCode::kInvalidArgument);
+    grid.chunk_edge = std::nan("");
+    CHECK(Archive::create(path, grid, "", "").status().code() == StatusCode::kInvalidArgument);
+    grid = grid_25m();
+    grid.origin.y = kInf;
+    CHECK(Archive::create(path, grid, "", "").status().code() == StatusCode::kInvalidArgument);
+    CHECK(dir.entries().empty());
+  }
+}
+
+TEST_CASE("open rejects what is not an archive of a known version", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("x.relief");
+  const auto open_status = [&](Archive::Mode mode) { return Archive::open(path, mode).status(); };
+
+  SECTION("missing file") {
+    const Status status = open_status(Archive::Mode::kReadOnly);
+    CHECK(status.code() == StatusCode::kIoError);
+    CHECK(starts_with(status.message(), path + ": "));
+    CHECK(dir.entries().empty());
+  }
+
+  SECTION("a directory") {
+    fs::create_directories(path);
+    CHECK(open_status(Archive::Mode::kReadOnly).code() == StatusCode::kIoError);
+  }
+
+  SECTION("not a SQLite file") {
+    const std::string text(2000, 'x');
+    write_file(path, text);
+    for (const Archive::Mode mode : {Archive::Mode::kReadOnly, Archive::Mode::kReadWrite}) {
+      const Status status = open_status(mode);
+      CHECK(status.code() == StatusCode::kFormatError);
+      CHECK(starts_with(status.message(), path + ": not a Relief archive"));
+    }
+    CHECK(file_bytes(path) == std::vector<std::uint8_t>(text.begin(), text.end()));
+    CHECK(dir.entries() == std::vector<std::string>{"x.relief"});
+  }
+
+  SECTION("empty file") {
+    write_file(path, "");
+    const Status status = open_status(Archive::Mode::kReadWrite);
+    CHECK(status.code() == StatusCode::kFormatError);
+    CHECK(starts_with(status.message(), path + ": not a Relief archive"));
+    CHECK(fs::file_size(path) == 0);
+  }
+
+  SECTION("a SQLite database of another application") {
+    {
+      RawDb raw(path);
+      raw.exec("PRAGMA application_id = 1196444487; CREATE TABLE t(x); INSERT INTO t VALUES(1)");
+    }
+    const std::vector<std::uint8_t> before = file_bytes(path);
+    for (const Archive::Mode mode : {Archive::Mode::kReadOnly, Archive::Mode::kReadWrite}) {
+      const Status status = open_status(mode);
+      CHECK(status.code() == StatusCode::kFormatError);
+      CHECK(starts_with(status.message(), path + ": not a Relief archive"));
+      CHECK_THAT(status.message(), Catch::Contains("0x47504B47"));
+    }
+    // Identification reads only: the foreign file is untouched (no WAL switch).
+    CHECK(file_bytes(path) == before);
+  }
+
+  SECTION("a newer format version") {
+    create_ok(path);
+    RawDb(path).exec("PRAGMA user_version = 2");
+    for (const Archive::Mode mode : {Archive::Mode::kReadOnly, Archive::Mode::kReadWrite}) {
+      const Status status = open_status(mode);
+      CHECK(status.code() == StatusCode::kUnsupported);
+      CHECK(status.message() == path + ": archive format version 2 is newer than this build supports (1)");
+    }
+  }
+
+  SECTION("format version 0") {
+    create_ok(path);
+    RawDb(path).exec("PRAGMA user_version = 0");
+    const Status status = open_status(Archive::Mode::kReadOnly);
+    CHECK(status.code() == StatusCode::kFormatError);
+    CHECK(starts_with(status.message(), path + ": "));
+  }
+
+  SECTION("a missing table") {
+    create_ok(path);
+    RawDb(path).exec("DROP TABLE relief_source");
+    const Status status = open_status(Archive::Mode::kReadOnly);
+    CHECK(status.code() == StatusCode::kFormatError);
+    CHECK_THAT(status.message(), Catch::Contains("relief_source"));
+  }
+
+  SECTION("damaged grid metadata") {
+    create_ok(path);
+    RawDb(path).exec("UPDATE relief_meta SET value = 'wide' WHERE key = 'chunk_edge'");
+    const Status status = open_status(Archive::Mode::kReadOnly);
+    CHECK(status.code() == StatusCode::kFormatError);
+    CHECK_THAT(status.message(), Catch::Contains("chunk_edge"));
+  }
+}
+
+// ---- Writing and reading chunks
+
+TEST_CASE("put_chunks assigns ids and per-voxel seqs; read_chunk returns the bytes", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t scan = begin_ok(*archive, {{"a.ply", "ply", 100, "", 0}});
+
+  std::vector<ChunkRow> first = {
+      make_row({0, 0, 0}, scan, cube(1, 2), 40, 300, 1), make_row({1, 0, 0}, scan, cube(26, 27), 50, 1000, 2),
+      make_row({0, 0, 0}, scan, cube(3, 4), 60, 5000, 3),  // same voxel in one call
+  };
+  put_ok(*archive, first);
+  CHECK(first[0].ref.seq == 0);
+  CHECK(first[1].ref.seq == 0);
+  CHECK(first[2].ref.seq == 1);
+  CHECK(first[0].ref.id > 0);
+  CHECK(first[1].ref.id > first[0].ref.id);
+  CHECK(first[2].ref.id > first[1].ref.id);
+
+  const std::int64_t min = std::numeric_limits<std::int64_t>::min();
+  std::vector<ChunkRow> second = {
+      make_row({0, 0, 0}, scan, cube(5, 6), 70, 64, 4),  // an appended scan's blob
+      make_row({5, -3, min}, scan, cube(-1, 0), 1, 100000, 5),
+  };
+  put_ok(*archive, second);
+  CHECK(second[0].ref.seq == 2);
+  CHECK(second[1].ref.seq == 0);
+
+  std::vector<ChunkRow> expected = first;
+  expected.insert(expected.end(), second.begin(), second.end());
+
+  const std::vector<ChunkRef> refs = all_ok(*archive);
+  REQUIRE(refs.size() == expected.size());
+  std::uint64_t bytes = 0;
+  for (std::size_t i = 0; i < refs.size(); ++i) {
+    const ChunkRow& want = expected[i];
+    CHECK(refs[i].id == want.ref.id);
+    CHECK(refs[i].key == want.ref.key);
+    CHECK(refs[i].seq == want.ref.seq);
+    CHECK(refs[i].scan_id == scan);
+    CHECK(refs[i].bounds.min == want.ref.bounds.min);
+    CHECK(refs[i].bounds.max == want.ref.bounds.max);
+    CHECK(refs[i].input_points == want.ref.input_points);
+    CHECK(refs[i].decoded_points == want.ref.decoded_points);
+    CHECK(refs[i].blob_size == want.blob.size());
+
+    const ChunkRow row = read_ok(*archive, want.ref.id);
+    CHECK(row.blob == want.blob);
+    CHECK(row.codec == want.codec);
+    CHECK(row.codec_params == want.codec_params);
+    CHECK(row.ref.key == want.ref.key);
+    CHECK(row.ref.seq == want.ref.seq);
+    bytes += want.blob.size();
+  }
+  CHECK(archive->blob_bytes_read() == bytes);
+
+  // Still there for a fresh reader.
+  auto reader = open_ok(path, Archive::Mode::kReadOnly);
+  CHECK(ids_of(all_ok(*reader)) == ids_of(refs));
+  CHECK(read_ok(*reader, second[1].ref.id).blob == second[1].blob);
+
+  SECTION("unknown id") {
+    const Result<ChunkRow> missing = archive->read_chunk(9999);
+    CHECK(missing.status().code() == StatusCode::kInvalidArgument);
+    CHECK(starts_with(missing.status().message(), path + ": "));
+  }
+}
+
+TEST_CASE("a chunk without decoded points has no extent but is stored", "[store]") {
+  TempDir dir;
+  auto archive = create_ok(dir.file("a.relief"));
+  const std::int64_t scan = begin_ok(*archive);
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, Box3d{}, 0, 0, 1)};
+  put_ok(*archive, rows);
+  const ChunkRow row = read_ok(*archive, rows[0].ref.id);
+  CHECK(row.blob.empty());
+  CHECK(row.ref.bounds.empty());
+  CHECK(find_ok(*archive, cube(-1e300, 1e300)).empty());
+  CHECK(all_ok(*archive).size() == 1);
+  CHECK(info_ok(*archive).bounds.empty());
+}
+
+TEST_CASE("find_chunks filters by the exact double bounds", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t scan = begin_ok(*archive);
+
+  const double big = 1e7;
+  std::vector<ChunkRow> rows = {
+      make_row({0, 0, 0}, scan, cube(0.1, 0.2), 10, 10, 1),                             // A
+      make_row({400000, 400000, 400000}, scan, cube(big + 0.3, big + 0.7), 10, 10, 2),  // B
+      make_row({-1, -1, -1}, scan, cube(-5, -1), 10, 10, 3),                            // C
+      make_row({0, 0, 0}, scan, box_of({0.1, 0.1, 0.3}, {0.2, 0.2, 0.4}), 10, 10, 4),   // D above A
+  };
+  put_ok(*archive, rows);
+  const std::int64_t a = rows[0].ref.id;
+  const std::int64_t b = rows[1].ref.id;
+  const std::int64_t c = rows[2].ref.id;
+  const std::int64_t d = rows[3].ref.id;
+
+  // The R*Tree keeps float bounds rounded outward, so on its own it would
+  // answer "maybe" to every box just outside A and B below.
+  {
+    RawDb raw(path);
+    const std::string where = " FROM relief_chunk_index WHERE id = " + std::to_string(b);
+    CHECK(raw.real("SELECT min_x" + where) < big + 0.3);
+    CHECK(raw.real("SELECT max_x" + where) > big + 0.7);
+  }
+
+  const auto up = [](double v) { return std::nextafter(v, kInf); };
+  const auto down = [](double v) { return std::nextafter(v, -kInf); };
+  using Ids = std::vector<std::int64_t>;
+
+  // Inside, containing, crossing.
+  CHECK(ids_of(find_ok(*archive, cube(0.15, 0.16))) == Ids{a});
+  CHECK(ids_of(find_ok(*archive, cube(big + 0.4, big + 0.5))) == Ids{b});
+  CHECK(ids_of(find_ok(*archive, cube(-10, 10))) == Ids{a, c, d});
+  CHECK(ids_of(find_ok(*archive, cube(-1e300, 1e300))) == Ids{a, b, c, d});
+  CHECK(ids_of(find_ok(*archive, cube(-kInf, kInf))) == Ids{a, b, c, d});
+  CHECK(ids_of(find_ok(*archive, box_of({0.15, 0.15, 0}, {0.16, 0.16, 0.35}))) == Ids{a, d});
+
+  // Touching is intersecting (closed boxes); one ulp away is not.
+  CHECK(ids_of(find_ok(*archive, cube(0.2, 0.25))) == Ids{a});
+  CHECK(find_ok(*archive, box_of({up(0.2), 0, 0}, {1, 1, 1})).empty());
+  CHECK(ids_of(find_ok(*archive, box_of({-0.5, -0.5, -0.5}, {0.1, 0.1, 0.1}))) == Ids{a});
+  CHECK(find_ok(*archive, box_of({-0.5, -0.5, -0.5}, {down(0.1), 1, 1})).empty());
+  CHECK(ids_of(find_ok(*archive, cube(big + 0.7, big + 0.9))) == Ids{b});
+  CHECK(find_ok(*archive, cube(big + 0.8, big + 0.9)).empty());
+  CHECK(find_ok(*archive, cube(up(big + 0.7), big + 0.9)).empty());
+  CHECK(ids_of(find_ok(*archive, cube(big - 5, big + 0.3))) == Ids{b});
+  CHECK(find_ok(*archive, cube(big - 5, down(big + 0.3))).empty());
+  CHECK(find_ok(*archive, cube(big - 5, big + 0.1)).empty());
+
+  // Overlapping on two axes only.
+  CHECK(find_ok(*archive, box_of({0.15, 0.15, 0.25}, {0.16, 0.16, 0.29})).empty());
+  CHECK(find_ok(*archive, box_of({-3, 0.15, 0.15}, {-2, 0.16, 0.16})).empty());
+
+  // Empty and NaN query boxes.
+  CHECK(find_ok(*archive, Box3d{}).empty());
+  const Result<std::vector<ChunkRef>> nan = archive->find_chunks(cube(std::nan(""), 1));
+  CHECK(nan.status().code() == StatusCode::kInvalidArgument);
+
+  // Several blobs of one voxel are all returned.
+  const std::vector<ChunkRef> voxel = find_ok(*archive, cube(0.1, 0.4));
+  REQUIRE(voxel.size() == 2);
+  CHECK(voxel[0].seq == 0);
+  CHECK(voxel[1].seq == 1);
+}
+
+TEST_CASE("read_chunk reports a damaged blob as corrupt data naming chunk and file", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t scan = begin_ok(*archive);
+  std::vector<ChunkRow> rows = {make_row({1, 2, 3}, scan, cube(30, 40), 5, 2000, 1),
+                                make_row({1, 2, 4}, scan, cube(30, 40), 5, 2000, 2)};
+  put_ok(*archive, rows);
+  const std::int64_t id = rows[0].ref.id;
+  const std::string expected =
+      path + ": chunk (1,2,3) seq 0 (id " + std::to_string(id) + "): checksum mismatch, the blob is damaged";
+
+  SECTION("a flipped byte in the blob") {
+    RawDb raw(path);
+    std::vector<std::uint8_t> blob = raw.blob(id);
+    blob[1234] ^= 0x10;
+    raw.set_blob(id, blob);
+  }
+  SECTION("a changed checksum") {
+    RawDb(path).exec("UPDATE relief_chunk SET crc32 = (crc32 + 1) % 4294967296 WHERE id = " +
+                     std::to_string(id));
+  }
+  SECTION("a truncated blob") {
+    RawDb raw(path);
+    std::vector<std::uint8_t> blob = raw.blob(id);
+    blob.resize(1000);
+    raw.set_blob(id, blob);
+  }
+
+  const Result<ChunkRow> row = archive->read_chunk(id);
+  REQUIRE_FALSE(row.is_ok());
+  CHECK(row.status().code() == StatusCode::kCorruptData);
+  CHECK(row.status().message() == expected);
+  // The neighbour is fine.
+  CHECK(read_ok(*archive, rows[1].ref.id).blob == rows[1].blob);
+}
+
+TEST_CASE("columns of the wrong type are format errors, not crashes", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t scan = begin_ok(*archive);
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 20, 1)};
+  put_ok(*archive, rows);
+
+  // The CHECK constraints pass text ('lots' sorts above every number).
+  RawDb(path).exec("UPDATE relief_chunk SET input_points = 'lots'");
+  const Result<std::vector<ChunkRef>> refs = archive->all_chunks();
+  CHECK(refs.status().code() == StatusCode::kFormatError);
+  CHECK(starts_with(refs.status().message(), path + ": "));
+  CHECK_THAT(refs.status().message(), Catch::Contains("input_points"));
+  CHECK(archive->read_chunk(rows[0].ref.id).status().code() == StatusCode::kFormatError);
+  CHECK(archive->info().status().code() == StatusCode::kFormatError);
+}
+
+// ---- Scans
+
+TEST_CASE("scans: finish records attributes, abort removes everything of the scan", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+
+  const std::int64_t first =
+      begin_ok(*archive, {{"one.las", "las", 1000, "EPSG:25832", 0}, {"two.las", "las", 500, "", 0}});
+  std::vector<ChunkRow> kept = {make_row({0, 0, 0}, first, cube(1, 2), 100, 64, 1),
+                                make_row({1, 0, 0}, first, cube(26, 27), 200, 64, 2)};
+  put_ok(*archive, kept);
+  REQUIRE(archive->finish_scan(first, true, false, "EPSG:25832").is_ok());
+
+  const std::int64_t second = begin_ok(*archive, {{"three.xyz", "xyz", 77, "", 0}});
+  CHECK(second > first);
+  std::vector<ChunkRow> doomed = {make_row({0, 0, 0}, second, cube(1.5, 2.5), 300, 64, 3),
+                                  make_row({9, 9, 9}, second, cube(230, 240), 400, 64, 4)};
+  put_ok(*archive, doomed);
+  CHECK(doomed[0].ref.seq == 1);
+
+  {
+    const ArchiveInfo info = info_ok(*archive);
+    CHECK(info.chunk_count == 4);
+    REQUIRE(info.scans.size() == 2);
+    CHECK(info.scans[0].complete);
+    CHECK_FALSE(info.scans[1].complete);
+    CHECK(info.sources.size() == 3);
+    CHECK(info.has_colors);
+    CHECK_FALSE(info.has_intensity);
+    CHECK(info.crs == "EPSG:25832");
+  }
+
+  REQUIRE(archive->abort_scan(second).is_ok());
+  CHECK(ids_of(all_ok(*archive)) == ids_of({kept[0].ref, kept[1].ref}));
+  CHECK(ids_of(find_ok(*archive, cube(-1e9, 1e9))) == ids_of({kept[0].ref, kept[1].ref}));
+  {
+    RawDb raw(path);
+    CHECK(raw.integer("SELECT COUNT(*) FROM relief_chunk_index") == 2);
+    CHECK(raw.integer("SELECT COUNT(*) FROM relief_source WHERE scan_id = " + std::to_string(second)) == 0);
+  }
+  const ArchiveInfo info = info_ok(*archive);
+  REQUIRE(info.scans.size() == 1);
+  CHECK(info.scans[0].id == first);
+  REQUIRE(info.sources.size() == 2);
+  CHECK(info.sources[0].path == "one.las");
+  CHECK(info.sources[0].format == "las");
+  CHECK(info.sources[0].point_count == 1000);
+  CHECK(info.sources[0].crs == "EPSG:25832");
+  CHECK(info.sources[0].scan_id == first);
+  CHECK(info.input_points == kept[0].ref.input_points + kept[1].ref.input_points);
+
+  // Ids are never reused; the voxel's next seq follows what is left.
+  const std::int64_t third = begin_ok(*archive);
+  std::vector<ChunkRow> later = {make_row({0, 0, 0}, third, cube(1, 2), 1, 8, 5)};
+  put_ok(*archive, later);
+  CHECK(later[0].ref.id > doomed[1].ref.id);
+  CHECK(later[0].ref.seq == 1);
+  CHECK(third > second);
+
+  SECTION("unknown scans are refused") {
+    CHECK(archive->abort_scan(12345).code() == StatusCode::kInvalidArgument);
+    CHECK(archive->finish_scan(12345, false, false, "").code() == StatusCode::kInvalidArgument);
+    std::vector<ChunkRow> orphan = {make_row({0, 0, 0}, 12345, cube(1, 2), 1, 8, 6)};
+    const Status status = archive->put_chunks(orphan);
+    CHECK(status.code() == StatusCode::kInvalidArgument);
+    CHECK(starts_with(status.message(), path + ": "));
+    CHECK(orphan[0].ref.id == 0);
+  }
+}
+
+TEST_CASE("info sums every chunk row and reports the scans", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t s1 = begin_ok(*archive, {{"a.ply", "ply", 10, "", 0}});
+  std::vector<ChunkRow> rows = {
+      make_row({0, 0, 0}, s1, box_of({1, 2, 3}, {4, 5, 6}), 100, 1000, 1),
+      make_row({-1, 0, 0}, s1, box_of({-7, 0.5, 0.25}, {-6, 1, 2}), 200, 2000, 2),
+  };
+  put_ok(*archive, rows);
+  REQUIRE(archive->finish_scan(s1, false, true, "").is_ok());
+  const std::int64_t s2 = begin_ok(*archive, {{"b.pcd", "pcd", 20, "EPSG:4326", 0}});
+  std::vector<ChunkRow> more = {make_row({0, 0, 1}, s2, box_of({3, 4, 30}, {4, 8, 31}), 50, 500, 3)};
+  put_ok(*archive, more);
+  REQUIRE(archive->finish_scan(s2, true, false, "EPSG:4326").is_ok());
+
+  const ArchiveInfo info = info_ok(*archive);
+  CHECK(info.chunk_count == 3);
+  CHECK(info.decoded_points == 350);
+  CHECK(info.input_points == 350 + 3 * 7);
+  CHECK(info.blob_bytes == 3500);
+  CHECK(info.bounds.min == Vec3d{-7, 0.5, 0.25});
+  CHECK(info.bounds.max == Vec3d{4, 8, 31});
+  CHECK(info.has_colors);
+  CHECK(info.has_intensity);
+  CHECK(info.crs == "EPSG:4326");  // the first complete scan with a CRS
+  CHECK(info.file_bytes >= fs::file_size(path));
+  REQUIRE(info.scans.size() == 2);
+  CHECK(info.scans[0].complete);
+  CHECK(info.scans[1].complete);
+  CHECK(info.scans[1].created_at.size() == 20);
+  REQUIRE(info.sources.size() == 2);
+  CHECK(info.sources[1].scan_id == s2);
+  CHECK(info.sources[1].crs == "EPSG:4326");
+}
+
+TEST_CASE("a scan left unfinished keeps its committed chunks readable", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  std::vector<ChunkRow> rows;
+  {
+    auto archive = create_ok(path);
+    const std::int64_t scan = begin_ok(*archive, {{"big.las", "las", 1 << 20, "", 0}});
+    rows = {make_row({3, 3, 3}, scan, cube(80, 90), 10, 300, 1)};
+    put_ok(*archive, rows);
+    // The process "dies" here: no finish_scan.
+  }
+  auto archive = open_ok(path, Archive::Mode::kReadOnly);
+  const ArchiveInfo info = info_ok(*archive);
+  REQUIRE(info.scans.size() == 1);
+  CHECK_FALSE(info.scans[0].complete);
+  CHECK(info.chunk_count == 1);
+  CHECK(read_ok(*archive, rows[0].ref.id).blob == rows[0].blob);
+}
+
+// ---- Transactions and concurrency
+
+TEST_CASE("put_chunks is all or nothing", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t scan = begin_ok(*archive);
+  std::vector<ChunkRow> before = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 16, 1)};
+  put_ok(*archive, before);
+
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 16, 2),
+                                make_row({7, 0, 0}, scan, cube(176, 177), 5, 16, 3),
+                                make_row({8, 0, 0}, scan, cube(201, 202), 5, 16, 4)};
+
+  SECTION("the second row's index insert collides with a stray index entry") {
+    // Ids are handed out in order, so the second new row gets id + 2.
+    RawDb(path).exec("INSERT INTO relief_chunk_index VALUES(" + std::to_string(before[0].ref.id + 2) +
+                     ", 0, 1, 0, 1, 0, 1)");
+  }
+  SECTION("a trigger refuses the second row") {
+    RawDb(path).exec(
+        "CREATE TRIGGER refuse BEFORE INSERT ON relief_chunk WHEN NEW.ix = 7 "
+        "BEGIN SELECT RAISE(ABORT, 'refused by test'); END");
+  }
+
+  const Status status = archive->put_chunks(rows);
+  REQUIRE_FALSE(status.is_ok());
+  CHECK(starts_with(status.message(), path + ": "));
+  for (const ChunkRow& row : rows) {
+    CHECK(row.ref.id == 0);
+    CHECK(row.ref.seq == 0);
+  }
+  CHECK(ids_of(all_ok(*archive)) == std::vector<std::int64_t>{before[0].ref.id});
+  CHECK(info_ok(*archive).chunk_count == 1);
+  // The handle is still usable: a later call lands normally.
+  std::vector<ChunkRow> fine = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 16, 5)};
+  put_ok(*archive, fine);
+  CHECK(fine[0].ref.seq == 1);
+}
+
+TEST_CASE("invalid rows and read-only handles are refused before anything is written", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t scan = begin_ok(*archive);
+
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 16, 1),
+                                make_row({1, 0, 0}, scan, cube(26, 27), 5, 16, 2)};
+  SECTION("NaN bounds") { rows[1].ref.bounds.max.y = std::nan(""); }
+  SECTION("infinite bounds") { rows[1].ref.bounds.max.y = kInf; }
+  SECTION("points without bounds") { rows[1].ref.bounds = Box3d{}; }
+  SECTION("bounds without points") { rows[1].ref.decoded_points = 0; }
+  SECTION("a count SQLite cannot hold") { rows[1].ref.input_points = ~std::uint64_t{0}; }
+  const Status status = archive->put_chunks(rows);
+  CHECK(status.code() == StatusCode::kInvalidArgument);
+  CHECK(starts_with(status.message(), path + ": "));
+  CHECK(all_ok(*archive).empty());
+
+  auto reader = open_ok(path, Archive::Mode::kReadOnly);
+  std::vector<ChunkRow> good = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 16, 1)};
+  CHECK(reader->begin_scan({}).status().code() == StatusCode::kInvalidArgument);
+  CHECK(reader->put_chunks(good).code() == StatusCode::kInvalidArgument);
+  CHECK(reader->finish_scan(scan, false, false, "").code() == StatusCode::kInvalidArgument);
+  CHECK(reader->abort_scan(scan).code() == StatusCode::kInvalidArgument);
+}
+
+TEST_CASE("a read-only handle sees whole transactions while a writer appends", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto writer = create_ok(path);
+  const std::int64_t scan = begin_ok(*writer);
+  auto reader = open_ok(path, Archive::Mode::kReadOnly);  // opened while the writer is open
+
+  constexpr int kBatches = 40;
+  constexpr std::uint64_t kRowsPerBatch = 5;
+  constexpr std::uint64_t kPointsPerRow = 10;
+  std::atomic<bool> done{false};
+  std::string writer_error;  // Catch2 assertions are not thread-safe
+  std::thread appender([&] {
+    for (int batch = 0; batch < kBatches && writer_error.empty(); ++batch) {
+      std::vector<ChunkRow> rows;
+      for (std::uint64_t i = 0; i < kRowsPerBatch; ++i) {
+        const double x = 25.0 * static_cast<double>(i);
+        rows.push_back(make_row({static_cast<std::int64_t>(i), 0, 0}, scan, cube(x + 1, x + 2), kPointsPerRow,
+                                2000, static_cast<std::uint64_t>(batch) * 10 + i));
+      }
+      const Status status = writer->put_chunks(rows);
+      if (!status.is_ok()) writer_error = status.to_string();
+    }
+    done = true;
+  });
+
+  int observations = 0;
+  bool consistent = true;
+  std::string reader_error;
+  while (!done || observations < 3) {
+    const Result<ArchiveInfo> info = reader->info();
+    const Result<std::vector<ChunkRef>> refs = reader->all_chunks();
+    if (!info.is_ok() || !refs.is_ok()) {
+      reader_error = info.is_ok() ? refs.status().to_string() : info.status().to_string();
+      break;
+    }
+    ++observations;
+    // Each put_chunks commits kRowsPerBatch rows at once; nothing in between.
+    consistent = consistent && info->chunk_count % kRowsPerBatch == 0 && refs->size() % kRowsPerBatch == 0 &&
+                 info->decoded_points == info->chunk_count * kPointsPerRow;
+    if (!refs->empty()) {
+      const Result<ChunkRow> row = reader->read_chunk(refs->back().id);
+      if (!row.is_ok()) {
+        reader_error = row.status().to_string();
+        break;
+      }
+    }
+    if (done && observations >= 3) break;
+  }
+  appender.join();
+  INFO(writer_error);
+  INFO(reader_error);
+  CHECK(writer_error.empty());
+  CHECK(reader_error.empty());
+  CHECK(consistent);
+  CHECK(info_ok(*reader).chunk_count == kBatches * kRowsPerBatch);
+}
+
+}  // namespace
+}  // namespace relief

@@ -1,0 +1,45 @@
+// relief append ARCHIVE IN...: add point files to an existing archive.
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "ingest_options.h"
+#include "relief/ingest.h"
+
+namespace relief::cli {
+
+int run_append(int argc, char** argv) {
+  static const std::string usage = std::string(
+      "usage: relief append ARCHIVE IN... [options]\n"
+      "Adds point files to an existing archive with the archive's grid and codec parameters.\n"
+      "If it fails, the archive is left as it was.\n\n") + kIngestOptionsHelp;
+  Args args(argc, argv, {"--help", "--quiet"}, ingest_option_names());
+  if (args.has("--help")) {
+    std::cout << usage;
+    return kExitOk;
+  }
+  if (!args.ok()) return usage_error("append", args.error(), usage.c_str());
+  if (args.positional().size() < 2) return usage_error("append", "expected ARCHIVE and at least one input", usage.c_str());
+  IngestOptions o;
+  if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
+    return usage_error("append", err, usage.c_str());
+  }
+  const bool quiet = args.has("--quiet");
+  o.progress = progress_printer(quiet);
+  o.cancel = install_interrupt_flag();
+  const std::string archive = args.positional()[0];
+  const std::vector<std::string> inputs(args.positional().begin() + 1, args.positional().end());
+  auto r = append_files(archive, inputs, o);
+  end_progress_line();
+  if (!r) {
+    if (o.cancel->load()) {
+      std::cerr << "relief append: interrupted; " << archive << " keeps the chunks committed so far\n";
+      return 130;
+    }
+    return fail("append", r.status());
+  }
+  if (!quiet) print_ingest_summary(archive, *r);
+  return kExitOk;
+}
+
+}  // namespace relief::cli

@@ -1,0 +1,68 @@
+// relief compress IN... -o OUT.relief: out-of-core ingest into a new archive.
+#include <cstdio>
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "ingest_options.h"
+#include "relief/ingest.h"
+
+namespace relief::cli {
+
+namespace {
+
+constexpr const char* kCommand = "compress";
+
+}  // namespace
+
+int run_compress(int argc, char** argv) {
+  static const std::string usage = std::string(
+      "usage: relief compress IN... -o OUT.relief [--chunk-edge METRES] [options]\n"
+      "Compresses point files (PLY, LAS 1.0-1.4, XYZ/CSV, PCD) of any size into a new archive.\n"
+      "  --chunk-edge M         edge of the archive's chunks (default 32 cells)\n"
+      "  --error-target M       choose the cell size for this RMSE_SNN (by trial encodes of the\n"
+      "                         first points; overrides --cell)\n\n") +
+      kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
+  std::vector<std::string> options = encode_option_names();
+  for (const std::string& o : ingest_option_names()) options.push_back(o);
+  options.insert(options.end(), {"-o", "--chunk-edge", "--error-target"});
+  Args args(argc, argv, {"--help", "--quiet"}, options);
+  if (args.has("--help")) {
+    std::cout << usage;
+    return kExitOk;
+  }
+  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
+  if (args.positional().empty()) return usage_error(kCommand, "expected at least one input file", usage.c_str());
+  const auto out = args.get("-o");
+  if (!out) return usage_error(kCommand, "missing -o OUT.relief", usage.c_str());
+  IngestOptions o;
+  if (const std::string err = parse_encode_params(args, o.codec); !err.empty()) {
+    return usage_error(kCommand, err, usage.c_str());
+  }
+  o.chunk_edge = args.get_double("--chunk-edge", 0);
+  o.error_target = args.get_double("--error-target", 0);
+  if (args.has("--error-target") && !(o.error_target > 0)) {
+    return usage_error(kCommand, "--error-target must be positive", usage.c_str());
+  }
+  if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
+    return usage_error(kCommand, err, usage.c_str());
+  }
+  if (args.has("--chunk-edge") && !(o.chunk_edge > 0)) return usage_error(kCommand, "--chunk-edge must be positive", usage.c_str());
+  const bool quiet = args.has("--quiet");
+  o.progress = progress_printer(quiet);
+  o.cancel = install_interrupt_flag();
+  auto r = compress_files(args.positional(), *out, o);
+  end_progress_line();
+  if (!r) {
+    if (o.cancel->load()) {
+      std::cerr << "relief compress: interrupted; " << *out
+                << " keeps the chunks committed so far (an incomplete scan)\n";
+      return 130;
+    }
+    return fail(kCommand, r.status());
+  }
+  if (!quiet) print_ingest_summary(*out, *r);
+  return kExitOk;
+}
+
+}  // namespace relief::cli

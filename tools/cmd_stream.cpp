@@ -1,0 +1,271 @@
+// relief stream ARCHIVE: compress points arriving on standard input.
+#include <unistd.h>
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "ingest_options.h"
+#include "relief/ingest.h"
+
+namespace relief::cli {
+
+namespace {
+
+constexpr const char* kCommand = "stream";
+constexpr std::size_t kReadBlock = 1 << 16;
+
+struct Layout {
+  bool colors = false;
+  bool intensity = false;
+  // ASCII: column roles ('x','y','z','r','g','b','i','_').
+  std::vector<char> columns;
+};
+
+// Reads standard input in blocks; interrupted reads end the stream.
+class StdinBlocks {
+ public:
+  // Appends what is available to `buf`; false at EOF or interruption.
+  bool more(std::string& buf, const std::atomic<bool>* interrupted) {
+    char block[kReadBlock];
+    for (;;) {
+      if (interrupted->load()) return false;
+      const ssize_t n = ::read(STDIN_FILENO, block, sizeof block);
+      if (n > 0) {
+        buf.append(block, static_cast<std::size_t>(n));
+        return true;
+      }
+      if (n == 0) return false;
+      if (errno != EINTR) {
+        error_ = std::strerror(errno);
+        return false;
+      }
+    }
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  std::string error_;
+};
+
+Status parse_line(std::string_view line, std::uint64_t line_no, const Layout& layout, PointCloud& batch) {
+  Vec3d p;
+  Rgb8 c;
+  float intensity = 0;
+  std::size_t col = 0;
+  std::size_t pos = 0;
+  while (col < layout.columns.size()) {
+    while (pos < line.size() && (line[pos] == ' ' || line[pos] == '\t' || line[pos] == ',' || line[pos] == ';')) ++pos;
+    if (pos >= line.size()) {
+      return format_error("stdin: line " + std::to_string(line_no) + ": expected " +
+                          std::to_string(layout.columns.size()) + " columns, found " + std::to_string(col));
+    }
+    double v = 0;
+    const auto r = std::from_chars(line.data() + pos, line.data() + line.size(), v);
+    if (r.ec != std::errc() || !std::isfinite(v)) {
+      return format_error("stdin: line " + std::to_string(line_no) + ": column " + std::to_string(col + 1) +
+                          " is not a finite number");
+    }
+    pos = static_cast<std::size_t>(r.ptr - line.data());
+    const auto u8 = [](double d) { return static_cast<std::uint8_t>(std::clamp(std::lround(d), 0L, 255L)); };
+    switch (layout.columns[col]) {
+      case 'x': p.x = v; break;
+      case 'y': p.y = v; break;
+      case 'z': p.z = v; break;
+      case 'r': c.r = u8(v); break;
+      case 'g': c.g = u8(v); break;
+      case 'b': c.b = u8(v); break;
+      case 'i': intensity = static_cast<float>(v); break;
+      default: break;
+    }
+    ++col;
+  }
+  batch.positions.push_back(p);
+  if (layout.colors) batch.colors.push_back(c);
+  if (layout.intensity) batch.intensities.push_back(intensity);
+  return Status::ok();
+}
+
+double get_f64(const unsigned char* p) {
+  std::uint64_t b = 0;
+  for (int i = 0; i < 8; ++i) b |= static_cast<std::uint64_t>(p[i]) << (8 * i);
+  double v;
+  std::memcpy(&v, &b, 8);
+  return v;
+}
+
+float get_f32(const unsigned char* p) {
+  std::uint32_t b = 0;
+  for (int i = 0; i < 4; ++i) b |= static_cast<std::uint32_t>(p[i]) << (8 * i);
+  float v;
+  std::memcpy(&v, &b, 4);
+  return v;
+}
+
+}  // namespace
+
+int run_stream(int argc, char** argv) {
+  static const std::string usage = std::string(
+      "usage: relief stream ARCHIVE [--format xyz|binary] [options]\n"
+      "Compresses points read from standard input as a scanner produces them. Each chunk is\n"
+      "buffered until --idle batches in a row bring it no point (or the buffer bound is hit),\n"
+      "then encoded. On end of input or Ctrl-C everything received is written. A new archive\n"
+      "needs --cell (and optionally --chunk-edge); an existing one keeps its parameters.\n\n"
+      "  --format xyz           text lines 'x y z [..]' per --columns; a blank line ends a scan (batch)\n"
+      "  --format binary        little-endian records: f64 x y z, then u8 r g b and f32 intensity\n"
+      "                         if --attributes names them\n"
+      "  --attributes LIST      binary: rgb, intensity or rgb,intensity (default none)\n"
+      "  --batch N              points per batch when no blank line comes first (default 65536)\n"
+      "  --idle N               batches without new points before a chunk is encoded (default 2)\n"
+      "  --max-buffered N       bound on buffered points (default 4000000)\n"
+      "  --immediate            encode every batch at once (no buffering)\n"
+      "  --chunk-edge M         chunk edge of a new archive (default 32 cells)\n\n") +
+      kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
+  std::vector<std::string> options = encode_option_names();
+  for (const std::string& o : ingest_option_names()) options.push_back(o);
+  options.insert(options.end(), {"--format", "--attributes", "--batch", "--idle", "--max-buffered", "--chunk-edge"});
+  Args args(argc, argv, {"--help", "--quiet", "--immediate"}, options);
+  if (args.has("--help")) {
+    std::cout << usage;
+    return kExitOk;
+  }
+  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE", usage.c_str());
+  StreamOptions so;
+  if (const std::string err = parse_encode_params(args, so.ingest.codec); !err.empty()) {
+    return usage_error(kCommand, err, usage.c_str());
+  }
+  if (const std::string err = parse_ingest_options(args, so.ingest); !err.empty()) {
+    return usage_error(kCommand, err, usage.c_str());
+  }
+  so.ingest.chunk_edge = args.get_double("--chunk-edge", 0);
+  so.immediate = args.has("--immediate");
+  so.idle_batches = static_cast<std::uint32_t>(args.get_int("--idle", 2, 1, 1 << 30));
+  so.max_buffered_points = static_cast<std::uint64_t>(args.get_int("--max-buffered", 4000000, 1, 1LL << 40));
+  const auto batch_points = static_cast<std::size_t>(args.get_int("--batch", 65536, 1, 1 << 26));
+  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
+  const std::string format = args.get("--format").value_or("xyz");
+  if (format != "xyz" && format != "binary") {
+    return usage_error(kCommand, "--format must be xyz or binary", usage.c_str());
+  }
+  Layout layout;
+  if (format == "xyz") {
+    const std::string spec = so.ingest.reader.xyz_columns;
+    for (std::size_t i = 0; i < spec.size(); ++i) {
+      if (spec[i] == ',') continue;
+      const char ch = spec[i] == 'i' ? 'i' : spec[i];
+      if (std::string("xyzrgbi_").find(ch) == std::string::npos || (i + 1 < spec.size() && spec[i + 1] != ',')) {
+        return usage_error(kCommand, "--columns takes a comma list of x y z r g b i _", usage.c_str());
+      }
+      layout.columns.push_back(ch);
+    }
+    const auto has = [&](char ch) { return std::count(layout.columns.begin(), layout.columns.end(), ch); };
+    if (has('x') != 1 || has('y') != 1 || has('z') != 1) {
+      return usage_error(kCommand, "--columns needs x, y and z once each", usage.c_str());
+    }
+    layout.colors = has('r') == 1 && has('g') == 1 && has('b') == 1;
+    layout.intensity = has('i') == 1;
+  } else {
+    const std::string attrs = args.get("--attributes").value_or("");
+    layout.colors = attrs.find("rgb") != std::string::npos;
+    layout.intensity = attrs.find("intensity") != std::string::npos;
+  }
+  const bool quiet = args.has("--quiet");
+  so.ingest.progress = progress_printer(quiet);
+  // Ctrl-C ends the input; the pipeline itself must still write what arrived.
+  const std::atomic<bool>* interrupted = install_interrupt_flag();
+  so.ingest.cancel = nullptr;
+  const std::string archive = args.positional()[0];
+  auto stream = StreamIngest::open(archive, so, layout.colors, layout.intensity);
+  if (!stream) return fail(kCommand, stream.status());
+
+  StdinBlocks input;
+  std::string buf;
+  std::size_t pos = 0;
+  PointCloud batch;
+  std::uint64_t line_no = 0;
+  Status status;
+  const std::size_t record = 24 + (layout.colors ? 3 : 0) + (layout.intensity ? 4 : 0);
+  const auto push = [&]() -> Status {
+    if (batch.empty()) return Status::ok();
+    Status s = (*stream)->push(batch);
+    batch = PointCloud();
+    return s;
+  };
+  bool eof = false;
+  while (status && !eof) {
+    eof = !input.more(buf, interrupted);
+    if (format == "xyz") {
+      for (;;) {
+        const std::size_t nl = buf.find('\n', pos);
+        if (nl == std::string::npos) {
+          if (!eof) break;
+          if (pos >= buf.size()) break;
+        }
+        const std::size_t end = nl == std::string::npos ? buf.size() : nl;
+        std::string_view line(buf.data() + pos, end - pos);
+        pos = nl == std::string::npos ? buf.size() : nl + 1;
+        ++line_no;
+        if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+        const auto first = line.find_first_not_of(" \t");
+        if (first == std::string_view::npos) {  // blank line: end of a scan
+          status = push();
+          if (!status) break;
+          continue;
+        }
+        if (line[first] == '#') continue;
+        status = parse_line(line, line_no, layout, batch);
+        if (!status) break;
+        if (batch.size() >= batch_points) {
+          status = push();
+          if (!status) break;
+        }
+      }
+    } else {
+      while (buf.size() - pos >= record) {
+        const auto* p = reinterpret_cast<const unsigned char*>(buf.data() + pos);
+        const Vec3d v{get_f64(p), get_f64(p + 8), get_f64(p + 16)};
+        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
+          status = format_error("stdin: record " + std::to_string(line_no) + " has a non-finite coordinate");
+          break;
+        }
+        batch.positions.push_back(v);
+        std::size_t off = 24;
+        if (layout.colors) {
+          batch.colors.push_back({p[off], p[off + 1], p[off + 2]});
+          off += 3;
+        }
+        if (layout.intensity) batch.intensities.push_back(get_f32(p + off));
+        pos += record;
+        ++line_no;
+        if (batch.size() >= batch_points) {
+          status = push();
+          if (!status) break;
+        }
+      }
+      if (eof && status && buf.size() > pos) {
+        std::cerr << "relief stream: ignoring " << buf.size() - pos << " trailing bytes (a partial record)\n";
+      }
+    }
+    buf.erase(0, pos);
+    pos = 0;
+  }
+  if (status) status = push();
+  if (!input.error().empty()) std::cerr << "relief stream: reading stdin: " << input.error() << "\n";
+  // Whatever went wrong with the input, what arrived before is written.
+  auto done = (*stream)->finish();
+  end_progress_line();
+  if (!done) return fail(kCommand, done.status());
+  if (!quiet) {
+    if (interrupted->load()) std::cerr << "relief stream: interrupted; everything received is in " << archive << "\n";
+    print_ingest_summary(archive, *done);
+  }
+  if (!status) return fail(kCommand, status);
+  return kExitOk;
+}
+
+}  // namespace relief::cli

@@ -1,0 +1,41 @@
+#include "ingest_options.h"
+
+#include <cstdio>
+
+namespace relief::cli {
+
+const char* const kIngestOptionsHelp =
+    "Ingest options:\n"
+    "  --memory SIZE          working-memory budget, e.g. 512M, 2G (default 1G; plain number = MiB)\n"
+    "  --threads N            encoder threads (default: all cores)\n"
+    "  --tmp DIR              directory for temporary bucket files (default: beside the archive)\n"
+    "  --columns SPEC         ASCII XYZ/CSV columns, e.g. x,y,z,i or x,y,z,r,g,b (default x,y,z)\n"
+    "  --quiet                no progress or summary\n";
+
+std::vector<std::string> ingest_option_names() { return {"--memory", "--threads", "--tmp", "--columns"}; }
+
+std::string parse_ingest_options(Args& args, IngestOptions& o) {
+  if (auto m = args.get("--memory")) {
+    o.memory_budget = parse_size(*m);
+    if (o.memory_budget == 0) return "--memory expects a size such as 512M or 2G, got '" + *m + "'";
+  }
+  o.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
+  if (auto t = args.get("--tmp")) o.tmp_dir = *t;
+  if (auto c = args.get("--columns")) o.reader.xyz_columns = *c;
+  o.creator = std::string("relief ") + RELIEF_VERSION;
+  if (!args.ok()) return args.error();
+  return "";
+}
+
+void print_ingest_summary(const std::string& path, const IngestResult& r) {
+  const double n = static_cast<double>(r.points_read);
+  std::printf("%s: %llu points -> %llu chunks, %s of blobs (%.3f bits/point), %llu points decodable\n",
+              path.c_str(), static_cast<unsigned long long>(r.points_read),
+              static_cast<unsigned long long>(r.chunks_written), format_bytes(r.blob_bytes).c_str(),
+              n > 0 ? 8.0 * static_cast<double>(r.blob_bytes) / n : 0.0,
+              static_cast<unsigned long long>(r.points_decoded));
+  std::printf("cell %.6g, chunk edge %.6g, %.2f s, %.2f M points/s\n", r.cell_size, r.chunk_edge, r.seconds,
+              r.seconds > 0 ? n / r.seconds * 1e-6 : 0.0);
+}
+
+}  // namespace relief::cli

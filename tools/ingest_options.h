@@ -1,0 +1,18 @@
+// Options and output shared by the ingest subcommands (compress, append, stream).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "cli_common.h"
+#include "relief/ingest.h"
+
+namespace relief::cli {
+
+extern const char* const kIngestOptionsHelp;
+std::vector<std::string> ingest_option_names();
+// Fills memory, threads, tmp dir, columns and creator; returns an error or "".
+std::string parse_ingest_options(Args& args, IngestOptions& o);
+void print_ingest_summary(const std::string& path, const IngestResult& r);
+
+}  // namespace relief::cli
