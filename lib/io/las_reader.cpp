@@ -210,6 +210,7 @@ void keep_projection_record(std::uint16_t record_id, std::span<const std::uint8_
 // NumberOfKeys, then per key u16 KeyID, TIFFTagLocation, Count, Value_Offset.
 // A key with TIFFTagLocation 0 holds its value directly in Value_Offset.
 std::string crs_from_geokeys(std::span<const std::uint8_t> bytes) {
+  constexpr std::uint16_t kModelType = 1024;  // GTModelTypeGeoKey: 1 projected, 2 geographic
   constexpr std::uint16_t kGeographicType = 2048;
   constexpr std::uint16_t kProjectedCsType = 3072;
   constexpr std::uint16_t kUserDefined = 32767;
@@ -219,6 +220,7 @@ std::string crs_from_geokeys(std::span<const std::uint8_t> bytes) {
   const std::size_t keys = std::min<std::size_t>(word(3), (words - 4) / 4);  // never past the record
   std::optional<std::uint16_t> projected;
   std::optional<std::uint16_t> geographic;
+  std::optional<std::uint16_t> model;
   std::string listed;
   for (std::size_t k = 0; k < keys; ++k) {
     const std::uint16_t id = word(4 + 4 * k);
@@ -231,9 +233,14 @@ std::string crs_from_geokeys(std::span<const std::uint8_t> bytes) {
     const bool code = value != 0 && value != kUserDefined;
     if (id == kProjectedCsType && code) projected = value;
     if (id == kGeographicType && code) geographic = value;
+    if (id == kModelType) model = value;
   }
-  if (projected) return "EPSG:" + std::to_string(*projected);
-  if (geographic) return "EPSG:" + std::to_string(*geographic);
+  // A code stands for the CRS only when the model type agrees with it (or is
+  // absent); otherwise the keys are recorded as given, so a file whose keys
+  // name a geographic base under another model type (e.g. 1024=3) is not
+  // mistaken for latitude/longitude data.
+  if (projected && (!model || *model == 1)) return "EPSG:" + std::to_string(*projected);
+  if (geographic && !projected && (!model || *model == 2)) return "EPSG:" + std::to_string(*geographic);
   if (listed.empty()) return "";
   return "GeoTIFF keys: " + listed;
 }

@@ -417,12 +417,16 @@ TEST_CASE("LAS coordinate reference systems", "[io]") {
     s.vlrs = {geokey_record({{1024, 0, 1, 2}, {2048, 0, 1, 4326}})};
     CHECK(crs_of(s) == "EPSG:4326");
   }
+  SECTION("a geographic code under another model type is recorded as given") {
+    s.vlrs = {geokey_record({{1025, 0, 1, 2}, {1024, 0, 1, 3}, {2048, 0, 1, 4326}})};
+    CHECK(crs_of(s) == "GeoTIFF keys: 1025=2, 1024=3, 2048=4326");
+  }
   SECTION("no usable code lists the direct keys") {
     s.vlrs = {geokey_record({{1024, 0, 1, 1}, {3072, 0, 1, 32767}, {3076, 34736, 1, 0}})};
     CHECK(crs_of(s) == "GeoTIFF keys: 1024=1, 3072=32767");
   }
   SECTION("a key count beyond the record is cut to the record") {
-    std::string keys = geokeys({{1024, 0, 1, 1}, {2048, 0, 1, 4267}});
+    std::string keys = geokeys({{1024, 0, 1, 2}, {2048, 0, 1, 4267}});
     keys[6] = 99;  // NumberOfKeys
     s.vlrs = {{"LASF_Projection", 34735, keys}};
     CHECK(crs_of(s) == "EPSG:4267");
@@ -631,7 +635,9 @@ TEST_CASE("LAS reads the shared terrestrial scan exactly as its PLY conversion",
   const PointStreamInfo& info = (*r)->info();
   CHECK(info.point_count == std::optional<std::uint64_t>(518862));
   CHECK_FALSE(info.has_colors);
-  CHECK(info.crs == "EPSG:4326");  // its GeoKeys name GeographicTypeGeoKey 4326 directly
+  // Its keys are 1025=2, 1024=3 (geocentric model), 2048=4326: not a plain
+  // geographic CRS, so they are recorded as given (PROVENANCE: UTM zone 12N).
+  CHECK(info.crs == "GeoTIFF keys: 1025=2, 1024=3, 2048=4326");
   CHECK(info.scale == Vec3d{0.00025, 0.00025, 0.00025});
   const Result<PointCloud> got = read_stream(**r, 100000);
   REQUIRE(got.is_ok());
