@@ -26,8 +26,8 @@ using codec::SectionId;
 constexpr std::size_t kMaxChunkPoints = std::size_t{1} << 28;
 // JPEG codes 8x8 blocks.
 constexpr int kLumaBlock = 8;
-// Iterations of the density estimate in suggest_cell_size.
-constexpr int kDensityIterations = 4;
+// Finest level of the density estimate in suggest_cell_size (extent / 2^20).
+constexpr int kDensityLevels = 20;
 
 Status check_params(const EncodeParams& p, std::size_t point_count, std::size_t normal_count) {
   const auto quality_ok = [](int q) { return q >= 1 && q <= 100; };
@@ -97,6 +97,11 @@ struct Encoder {
   codec::ChunkHeader header;
   int r = 16;
   std::vector<KeyedIndex> sorted;
+  // The points in `sorted` order: patches read contiguous ranges instead of
+  // chasing the permutation (which is cache-miss bound on large chunks).
+  std::vector<Vec3d> pos;
+  std::vector<Rgb8> col;
+  std::vector<float> inten;
   std::vector<std::uint8_t> tree_masks;
   std::vector<Leaf> leaves;
 
@@ -174,6 +179,16 @@ void Encoder::build_decomposition() {
                  static_cast<std::uint32_t>(i)};
   }
   codec::radix_sort(sorted, 3 * depth);
+  pos.resize(sorted.size());
+  for (std::size_t i = 0; i < sorted.size(); ++i) pos[i] = cloud.positions[sorted[i].index];
+  if (cloud.has_colors()) {
+    col.resize(sorted.size());
+    for (std::size_t i = 0; i < sorted.size(); ++i) col[i] = cloud.colors[sorted[i].index];
+  }
+  if (cloud.has_intensity()) {
+    inten.resize(sorted.size());
+    for (std::size_t i = 0; i < sorted.size(); ++i) inten[i] = cloud.intensities[sorted[i].index];
+  }
 
   codec::LeafPredicate predicate;
   if (params.decomposition == Decomposition::kOctree) {
@@ -212,7 +227,7 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
   // offsets are at most a cell edge, so one pass of raw moments is accurate).
   double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
   for (std::uint32_t i = leaf.begin; i < leaf.end; ++i) {
-    const Vec3d d = cloud.positions[sorted[i].index] - center;
+    const Vec3d d = pos[i] - center;
     sx += d.x;
     sy += d.y;
     sz += d.z;
@@ -263,7 +278,7 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
   s.h.resize(k);
   double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
   for (std::uint32_t i = 0; i < k; ++i) {
-    const Vec3d d = cloud.positions[sorted[leaf.begin + i].index] - center;
+    const Vec3d d = pos[leaf.begin + i] - center;
     s.u[i] = dot(d, e1);
     s.v[i] = dot(d, e2);
     s.h[i] = dot(d, n) - offset;
@@ -315,14 +330,14 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
       if (has_i) s.sum_i[pi] = 0;
     }
     s.sum_h[pi] += s.h[i];
-    const std::uint32_t src = sorted[leaf.begin + i].index;
+    const std::size_t src = leaf.begin + i;
     if (has_rgb) {
-      const Rgb8 c = cloud.colors[src];
+      const Rgb8 c = col[src];
       s.sum_rgb[pi * 3] += c.r;
       s.sum_rgb[pi * 3 + 1] += c.g;
       s.sum_rgb[pi * 3 + 2] += c.b;
     }
-    if (has_i) s.sum_i[pi] += cloud.intensities[src];
+    if (has_i) s.sum_i[pi] += inten[src];
   }
   std::fill(s.occupied.begin(), s.occupied.end(), std::uint8_t{0});
   const double inv_edge = 1.0 / edge;
@@ -348,7 +363,7 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
   if (s.touched.size() < rr) {
     const auto fill = [&](std::vector<float>& tile, int channels, int block) {
       if (params.fill == FillMethod::kBoxFilter) {
-        codec::fill_box(tile.data(), s.occupied.data(), r, channels);
+        codec::fill_box(tile.data(), s.occupied.data(), r, channels, s.fill);
         return;
       }
       codec::fill_push_pull(tile.data(), s.occupied.data(), r, channels, s.fill);
@@ -361,7 +376,7 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
       // Colour: the paper's box filter measured smallest at equal colour error
       // (bench/codec fill rows), better than projecting 8x8 or 16x16 blocks.
       if (params.fill == FillMethod::kBlockProjection) {
-        codec::fill_box(s.tile_rgb.data(), s.occupied.data(), r, 3);
+        codec::fill_box(s.tile_rgb.data(), s.occupied.data(), r, 3, s.fill);
       } else {
         fill(s.tile_rgb, 3, kLumaBlock);
       }
@@ -549,29 +564,52 @@ double suggest_cell_size(const PointCloud& cloud, int map_resolution) {
   const Vec3d e = b.extent();
   const double extent = std::max({e.x, e.y, e.z});
   if (!(extent > 0)) return 1.0;
-  const double n = static_cast<double>(cloud.size());
-  // Count occupied cells of a trial grid and rescale the cell so that it holds
-  // about r^2 points: one point per map pixel on a locally flat surface.
-  const double target = static_cast<double>(map_resolution) * map_resolution;
-  double cell = extent / 16.0;
-  std::vector<std::uint64_t> keys(cloud.size());
-  for (int it = 0; it < kDensityIterations; ++it) {
-    const double inv = 1.0 / cell;
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      const Vec3d& p = cloud.positions[i];
-      const auto cx = static_cast<std::uint32_t>(std::min(2097151.0, (p.x - b.min.x) * inv));
-      const auto cy = static_cast<std::uint32_t>(std::min(2097151.0, (p.y - b.min.y) * inv));
-      const auto cz = static_cast<std::uint32_t>(std::min(2097151.0, (p.z - b.min.z) * inv));
-      keys[i] = codec::morton_encode(cx, cy, cz);
-    }
-    std::sort(keys.begin(), keys.end());
-    const double occupied = static_cast<double>(std::unique(keys.begin(), keys.end()) - keys.begin());
-    const double per_cell = n / occupied;
-    // Surface data: points per cell grows with cell^2.
-    const double next = cell * std::sqrt(target / per_cell);
-    cell = std::clamp(next, extent / 2097152.0 * 4, extent * 2);
+  // One sort of the finest Morton keys gives the number of occupied cells at
+  // every power-of-two cell size (distinct key prefixes). Pick the level whose
+  // cells hold about r^2 points -- one point per map pixel on a locally flat
+  // surface -- and refine between levels with the surface model
+  // points-per-cell ~ cell^2.
+  constexpr int kLevels = kDensityLevels;
+  const double finest = extent / std::ldexp(1.0, kLevels);
+  const double inv = 1.0 / finest;
+  const double max_index = std::ldexp(1.0, kLevels) - 1;
+  std::vector<codec::KeyedIndex> keys(cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3d& p = cloud.positions[i];
+    const auto cx = static_cast<std::uint32_t>(std::min(max_index, (p.x - b.min.x) * inv));
+    const auto cy = static_cast<std::uint32_t>(std::min(max_index, (p.y - b.min.y) * inv));
+    const auto cz = static_cast<std::uint32_t>(std::min(max_index, (p.z - b.min.z) * inv));
+    keys[i] = {codec::morton_encode(cx, cy, cz), 0};
   }
-  return cell;
+  codec::radix_sort(keys, 3 * kLevels);
+  // first_diff[L]: adjacent keys whose prefixes first differ at level L, so
+  // occupied(L) = 1 + sum of first_diff[0..L].
+  std::vector<std::uint64_t> first_diff(kLevels + 1, 0);
+  for (std::size_t i = 1; i < keys.size(); ++i) {
+    const std::uint64_t x = keys[i].key ^ keys[i - 1].key;
+    if (x == 0) continue;
+    const int top_bit = 63 - __builtin_clzll(x);
+    // Bits [3(k-L-1), 3(k-L)) hold level L's digit (level 1 = the top triple).
+    const int level = kLevels - top_bit / 3;
+    ++first_diff[static_cast<std::size_t>(level)];
+  }
+  const double n = static_cast<double>(cloud.size());
+  const double target = static_cast<double>(map_resolution) * map_resolution;
+  double occupied = 1;
+  double prev_cell = extent, prev_per_cell = n;
+  for (int level = 1; level <= kLevels; ++level) {
+    occupied += static_cast<double>(first_diff[static_cast<std::size_t>(level)]);
+    const double cell = extent / std::ldexp(1.0, level);
+    const double per_cell = n / occupied;
+    if (per_cell <= target) {
+      // Between prev (>= target) and this level: per_cell ~ cell^2.
+      const double c = prev_cell * std::sqrt(target / prev_per_cell);
+      return std::clamp(c, cell, prev_cell);
+    }
+    prev_cell = cell;
+    prev_per_cell = per_cell;
+  }
+  return finest;
 }
 
 }  // namespace relief

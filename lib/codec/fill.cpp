@@ -204,7 +204,7 @@ void project_blocks_low_frequency(float* tile, const std::uint8_t* occupied, int
   }
 }
 
-void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels) {
+void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels, FillScratch& scratch) {
   const auto nch = static_cast<std::size_t>(channels);
   const std::size_t n = static_cast<std::size_t>(r) * static_cast<std::size_t>(r);
   double mean[4] = {0, 0, 0, 0};
@@ -214,32 +214,48 @@ void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels) {
     ++occ;
     for (std::size_t c = 0; c < nch; ++c) mean[c] += tile[i * nch + c];
   }
-  if (occ == 0) return;
+  if (occ == 0 || occ == n) return;
   for (std::size_t i = 0; i < n; ++i) {
     if (occupied[i]) continue;
     for (std::size_t c = 0; c < nch; ++c) {
       tile[i * nch + c] = static_cast<float>(mean[c] / static_cast<double>(occ));
     }
   }
-  std::vector<float> prev(tile, tile + n * nch);  // box filter: reads the previous pass
+  // Each pass: every unoccupied pixel takes the mean of the 5x5 window (cut
+  // at the tile border) of the previous pass, read from a summed-area table
+  // (one table per pass, so updates within a pass do not feed each other).
+  const std::size_t w = static_cast<std::size_t>(r) + 1;
+  std::vector<float>& sat = scratch.values;
+  sat.assign(w * w * nch, 0.0f);
   for (int pass = 0; pass < kBoxPasses; ++pass) {
     for (int y = 0; y < r; ++y) {
       for (int x = 0; x < r; ++x) {
         const std::size_t i = static_cast<std::size_t>(y * r + x);
-        if (occupied[i]) continue;
-        float sum[4] = {0, 0, 0, 0};
-        int cnt = 0;
-        for (int yy = std::max(0, y - kBoxRadius); yy <= std::min(r - 1, y + kBoxRadius); ++yy) {
-          for (int xx = std::max(0, x - kBoxRadius); xx <= std::min(r - 1, x + kBoxRadius); ++xx) {
-            const std::size_t j = static_cast<std::size_t>(yy * r + xx);
-            for (std::size_t c = 0; c < nch; ++c) sum[c] += prev[j * nch + c];
-            ++cnt;
-          }
+        const std::size_t s00 = (static_cast<std::size_t>(y) * w + static_cast<std::size_t>(x)) * nch;
+        const std::size_t s01 = s00 + nch;                // (y, x + 1)
+        const std::size_t s10 = s00 + w * nch;            // (y + 1, x)
+        const std::size_t s11 = s10 + nch;                // (y + 1, x + 1)
+        for (std::size_t c = 0; c < nch; ++c) {
+          sat[s11 + c] = tile[i * nch + c] + sat[s01 + c] + sat[s10 + c] - sat[s00 + c];
         }
-        for (std::size_t c = 0; c < nch; ++c) tile[i * nch + c] = sum[c] / static_cast<float>(cnt);
       }
     }
-    std::copy(tile, tile + n * nch, prev.begin());
+    for (int y = 0; y < r; ++y) {
+      const auto y0 = static_cast<std::size_t>(std::max(0, y - kBoxRadius));
+      const auto y1 = static_cast<std::size_t>(std::min(r - 1, y + kBoxRadius)) + 1;
+      for (int x = 0; x < r; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y * r + x);
+        if (occupied[i]) continue;
+        const auto x0 = static_cast<std::size_t>(std::max(0, x - kBoxRadius));
+        const auto x1 = static_cast<std::size_t>(std::min(r - 1, x + kBoxRadius)) + 1;
+        const float inv = 1.0f / static_cast<float>((y1 - y0) * (x1 - x0));
+        for (std::size_t c = 0; c < nch; ++c) {
+          const float sum = sat[(y1 * w + x1) * nch + c] - sat[(y0 * w + x1) * nch + c] -
+                            sat[(y1 * w + x0) * nch + c] + sat[(y0 * w + x0) * nch + c];
+          tile[i * nch + c] = sum * inv;
+        }
+      }
+    }
   }
 }
 

@@ -30,6 +30,6 @@ void project_blocks_low_frequency(float* tile, const std::uint8_t* occupied, int
 
 // The paper's fill: unoccupied pixels start at the tile mean, then three passes
 // of a 5x5 box filter update them.
-void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels);
+void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels, FillScratch& scratch);
 
 }  // namespace relief::codec

@@ -27,6 +27,16 @@ ChunkPipeline::ChunkPipeline(Archive& archive, const EncodeParams& params, const
       cancel_(cancel) {}
 
 Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
+  if (task.source != nullptr) {
+    const PointCloud& src = *task.source;
+    task.points.reserve(task.count, src.has_colors(), src.has_intensity());
+    for (std::size_t k = 0; k < task.count; ++k) {
+      const std::uint32_t i = task.index[k];
+      task.points.positions.push_back(src.positions[i]);
+      if (src.has_colors()) task.points.colors.push_back(src.colors[i]);
+      if (src.has_intensity()) task.points.intensities.push_back(src.intensities[i]);
+    }
+  }
   EncodeParams p = params_;
   const Box3d cube = grid_.chunk_box(task.key);
   p.grid_origin = cube.min;

@@ -15,9 +15,15 @@
 
 namespace relief::ingest {
 
+// One chunk (or part of one) to encode: either its own points, or `count`
+// indices into a shared `source` cloud, gathered by the worker that encodes
+// it (so a large grouped slice is never copied chunk by chunk up front).
 struct ChunkTask {
   ChunkKey key;
   PointCloud points;
+  const PointCloud* source = nullptr;
+  const std::uint32_t* index = nullptr;
+  std::size_t count = 0;
 };
 
 struct PipelineTotals {

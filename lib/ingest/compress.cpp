@@ -7,6 +7,8 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
+#include <unordered_map>
 
 #include "core/parallel.h"
 #include "ingest/bucket_files.h"
@@ -23,7 +25,7 @@ namespace {
 
 // Working memory per point while a bucket slice is grouped: the decoded
 // record (positions, colour, intensity) plus its key and sort entry.
-constexpr std::uint64_t kGroupBytesPerPoint = 24 + 3 + 4 + 24 + 16;
+constexpr std::uint64_t kGroupBytesPerPoint = 24 + 3 + 4 + 4 + 4;
 // Encoder scratch per point of a chunk being encoded (sorted keys, plane
 // coordinates, the copy handed to the encoder, its decode check).
 constexpr std::uint64_t kEncodeBytesPerPoint = 220;
@@ -94,63 +96,93 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const auto buckets = static_cast<std::uint32_t>(std::clamp<std::uint64_t>(want, kMinBuckets, kMaxBuckets));
   const std::size_t write_buffer = static_cast<std::size_t>(std::min<std::uint64_t>(budget / 8, 256u << 20));
 
-  RELIEF_ASSIGN_OR_RETURN(BucketFiles files,
-                          BucketFiles::create(tmp_parent, buckets, write_buffer, in.colors, in.intensity));
-
   Progress progress(options.progress, in.all_counts_known ? in.known_total : 0);
   const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
 
-  // ---- Pass 1: distribute every point into its chunk's bucket.
-  std::vector<ChunkKey> keys;
-  PointCloud batch = std::move(pending);
   std::uint64_t points_read = 0;
-  for (std::size_t i = 0; i < in.readers.size(); ++i) {
-    PointReader& reader = *in.readers[i];
-    std::uint64_t from_this = 0;
-    for (;;) {
-      if (i > 0 || from_this > 0 || batch.empty()) {
-        RELIEF_ASSIGN_OR_RETURN(std::size_t got, reader.read(batch, static_cast<std::size_t>(read_batch)));
-        if (got == 0) break;
+  const auto read_all = [&](const std::function<Status(PointCloud&)>& sink) -> Status {
+    PointCloud batch = std::move(pending);
+    for (std::size_t i = 0; i < in.readers.size(); ++i) {
+      PointReader& reader = *in.readers[i];
+      std::uint64_t from_this = 0;
+      for (;;) {
+        if (i > 0 || from_this > 0 || batch.empty()) {
+          RELIEF_ASSIGN_OR_RETURN(std::size_t got, reader.read(batch, static_cast<std::size_t>(read_batch)));
+          if (got == 0) break;
+        }
+        conform_attributes(batch, in.colors, in.intensity);
+        RELIEF_RETURN_IF_ERROR(sink(batch));
+        from_this += batch.size();
+        points_read += batch.size();
+        batch.positions.clear();
+        progress.update("reading", points_read, 0, 0);
+        if (cancelled()) return io_error("interrupted");
       }
-      conform_attributes(batch, in.colors, in.intensity);
+      in.sources[i].point_count = from_this;
+    }
+    return Status::ok();
+  };
+  const auto encode_cloud = [&](ChunkPipeline& pipeline, const PointCloud& cloud, Grouping& grouping) -> Status {
+    std::vector<ChunkTask> tasks = group_into_tasks(cloud, grid, part_points, grouping);
+    return pipeline.run(tasks, [&] {
+      progress.update("encoding", points_read, pipeline.totals().chunks, pipeline.totals().blob_bytes);
+    });
+  };
+
+  std::int64_t scan_id = 0;
+  std::unique_ptr<ChunkPipeline> pipeline;
+  Grouping grouping;
+  // Without bucket files their buffers' share is free: the whole input may
+  // take half the budget, the encoders keep their third.
+  const std::uint64_t in_memory_points = (budget / 2) / kGroupBytesPerPoint;
+  if (in.all_counts_known && in.known_total <= in_memory_points) {
+    // The whole input fits in memory: no temporary files.
+    PointCloud all;
+    all.reserve(static_cast<std::size_t>(in.known_total), in.colors, in.intensity);
+    RELIEF_RETURN_IF_ERROR(read_all([&](PointCloud& batch) -> Status {
+      if (all.size() + batch.size() > in_memory_points) {
+        return format_error("inputs hold more points than their headers say");
+      }
+      all.positions.insert(all.positions.end(), batch.positions.begin(), batch.positions.end());
+      all.colors.insert(all.colors.end(), batch.colors.begin(), batch.colors.end());
+      all.intensities.insert(all.intensities.end(), batch.intensities.begin(), batch.intensities.end());
+      return Status::ok();
+    }));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
+    pipeline = std::make_unique<ChunkPipeline>(archive, params, grid, scan_id, threads, options.cancel);
+    RELIEF_RETURN_IF_ERROR(encode_cloud(*pipeline, all, grouping));
+  } else {
+    // ---- External distribution sort: every point into its chunk's bucket file.
+    RELIEF_ASSIGN_OR_RETURN(BucketFiles files,
+                            BucketFiles::create(tmp_parent, buckets, write_buffer, in.colors, in.intensity));
+    std::vector<ChunkKey> keys;
+    RELIEF_RETURN_IF_ERROR(read_all([&](PointCloud& batch) -> Status {
       keys.resize(batch.size());
       for (std::size_t k = 0; k < batch.size(); ++k) keys[k] = grid.key_of(batch.positions[k]);
-      RELIEF_RETURN_IF_ERROR(files.append(batch, keys));
-      from_this += batch.size();
-      points_read += batch.size();
-      batch.positions.clear();
-      progress.update("reading", points_read, 0, 0);
-      if (cancelled()) return io_error("interrupted");
+      return files.append(batch, keys);
+    }));
+    RELIEF_RETURN_IF_ERROR(files.finish_writing());
+    // ---- Each bucket, slice by slice: group by chunk, encode, store.
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
+    pipeline = std::make_unique<ChunkPipeline>(archive, params, grid, scan_id, threads, options.cancel);
+    PointCloud slice;
+    for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
+      const std::uint64_t n = files.bucket_points(b);
+      for (std::uint64_t first = 0; first < n; first += slice_points) {
+        const std::uint64_t count = std::min(slice_points, n - first);
+        RELIEF_RETURN_IF_ERROR(files.read(b, first, count, slice));
+        RELIEF_RETURN_IF_ERROR(encode_cloud(*pipeline, slice, grouping));
+      }
+      files.discard(b);
     }
-    in.sources[i].point_count = from_this;
-  }
-  RELIEF_RETURN_IF_ERROR(files.finish_writing());
-
-  // ---- Pass 2: each bucket, slice by slice: group by chunk, encode, store.
-  RELIEF_ASSIGN_OR_RETURN(std::int64_t scan_id, archive.begin_scan(in.sources));
-  ChunkPipeline pipeline(archive, params, grid, scan_id, threads, options.cancel);
-  PointCloud slice;
-  std::vector<std::pair<ChunkKey, std::uint32_t>> order;
-  for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
-    const std::uint64_t n = files.bucket_points(b);
-    for (std::uint64_t first = 0; first < n; first += slice_points) {
-      const std::uint64_t count = std::min(slice_points, n - first);
-      RELIEF_RETURN_IF_ERROR(files.read(b, first, count, slice));
-      std::vector<ChunkTask> tasks = group_into_tasks(slice, grid, part_points, order);
-      slice = PointCloud();
-      RELIEF_RETURN_IF_ERROR(pipeline.run(tasks, [&] {
-        progress.update("encoding", points_read, pipeline.totals().chunks, pipeline.totals().blob_bytes);
-      }));
-    }
-    files.discard(b);
   }
   RELIEF_RETURN_IF_ERROR(archive.finish_scan(scan_id, in.colors, in.intensity, in.crs));
 
   IngestResult result;
   result.points_read = points_read;
-  result.points_decoded = pipeline.totals().points_decoded;
-  result.chunks_written = pipeline.totals().chunks;
-  result.blob_bytes = pipeline.totals().blob_bytes;
+  result.points_decoded = pipeline->totals().points_decoded;
+  result.chunks_written = pipeline->totals().chunks;
+  result.blob_bytes = pipeline->totals().blob_bytes;
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result.cell_size = params.cell_size;
   result.chunk_edge = grid.chunk_edge;
@@ -159,30 +191,47 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   return result;
 }
 
-std::vector<ChunkTask> group_into_tasks(const PointCloud& slice, const ArchiveGrid& grid, std::uint64_t part_points,
-                                        std::vector<std::pair<ChunkKey, std::uint32_t>>& order) {
-  order.resize(slice.size());
-  for (std::size_t i = 0; i < slice.size(); ++i) {
-    order[i] = {grid.key_of(slice.positions[i]), static_cast<std::uint32_t>(i)};
-  }
-  std::sort(order.begin(), order.end());
-  std::vector<ChunkTask> tasks;
-  const bool colors = slice.has_colors(), intensity = slice.has_intensity();
-  std::size_t i = 0;
-  while (i < order.size()) {
-    std::size_t j = i;
-    while (j < order.size() && order[j].first == order[i].first && j - i < part_points) ++j;
-    ChunkTask t;
-    t.key = order[i].first;
-    t.points.reserve(j - i, colors, intensity);
-    for (std::size_t k = i; k < j; ++k) {
-      const std::uint32_t src = order[k].second;
-      t.points.positions.push_back(slice.positions[src]);
-      if (colors) t.points.colors.push_back(slice.colors[src]);
-      if (intensity) t.points.intensities.push_back(slice.intensities[src]);
+std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGrid& grid, std::uint64_t part_points,
+                                        Grouping& g) {
+  // Chunk id per point: points in storage order mostly stay in one chunk for
+  // a while, so the previous key is checked before the hash map.
+  const std::size_t n = cloud.size();
+  g.keys.clear();
+  g.ids.resize(n);
+  std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> lookup;
+  ChunkKey last{};
+  std::uint32_t last_id = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const ChunkKey k = grid.key_of(cloud.positions[i]);
+    if (g.keys.empty() || !(k == last)) {
+      auto [it, inserted] = lookup.try_emplace(k, static_cast<std::uint32_t>(g.keys.size()));
+      if (inserted) g.keys.push_back(k);
+      last = k;
+      last_id = it->second;
     }
-    tasks.push_back(std::move(t));
-    i = j;
+    g.ids[i] = last_id;
+  }
+  // Counting sort of point indices by chunk id.
+  std::vector<std::uint64_t> start(g.keys.size() + 1, 0);
+  for (std::uint32_t id : g.ids) ++start[id + 1];
+  for (std::size_t k = 0; k < g.keys.size(); ++k) start[k + 1] += start[k];
+  g.order.resize(n);
+  std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) g.order[fill[g.ids[i]]++] = static_cast<std::uint32_t>(i);
+  // Tasks in key order (deterministic archives), cut into parts.
+  std::vector<std::uint32_t> by_key(g.keys.size());
+  for (std::uint32_t k = 0; k < by_key.size(); ++k) by_key[k] = k;
+  std::sort(by_key.begin(), by_key.end(), [&](std::uint32_t a, std::uint32_t b) { return g.keys[a] < g.keys[b]; });
+  std::vector<ChunkTask> tasks;
+  for (std::uint32_t k : by_key) {
+    for (std::uint64_t first = start[k]; first < start[k + 1]; first += part_points) {
+      ChunkTask t;
+      t.key = g.keys[k];
+      t.source = &cloud;
+      t.index = g.order.data() + first;
+      t.count = static_cast<std::size_t>(std::min(part_points, start[k + 1] - first));
+      tasks.push_back(std::move(t));
+    }
   }
   return tasks;
 }

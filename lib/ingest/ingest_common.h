@@ -32,10 +32,28 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
 // Drops attributes the archive does not carry.
 void conform_attributes(PointCloud& batch, bool colors, bool intensity);
 
-// Sorts a slice by chunk key and cuts it into encode tasks of at most
-// `part_points` points (a larger chunk becomes several blobs of one voxel).
-std::vector<ChunkTask> group_into_tasks(const PointCloud& slice, const ArchiveGrid& grid, std::uint64_t part_points,
-                                        std::vector<std::pair<ChunkKey, std::uint32_t>>& order);
+struct ChunkKeyHash {
+  std::size_t operator()(const ChunkKey& k) const {
+    std::uint64_t h = static_cast<std::uint64_t>(k.ix) * 0x9e3779b97f4a7c15ULL;
+    h ^= static_cast<std::uint64_t>(k.iy) * 0xc2b2ae3d27d4eb4fULL + (h << 6) + (h >> 2);
+    h ^= static_cast<std::uint64_t>(k.iz) * 0x165667b19e3779f9ULL + (h << 6) + (h >> 2);
+    return static_cast<std::size_t>(h);
+  }
+};
+
+// Working arrays of group_into_tasks, reused across slices; tasks point into
+// `order`, so it must outlive them.
+struct Grouping {
+  std::vector<ChunkKey> keys;
+  std::vector<std::uint32_t> ids;
+  std::vector<std::uint32_t> order;
+};
+
+// Groups a cloud by chunk key (counting sort) into encode tasks of at most
+// `part_points` points that index into `cloud` (a larger chunk becomes several
+// blobs of one voxel). `cloud` and `g` must outlive the tasks.
+std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGrid& grid, std::uint64_t part_points,
+                                        Grouping& g);
 
 // Reads every input into the archive as one scan (see compress.cpp).
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params, InputSet& in,

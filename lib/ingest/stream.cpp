@@ -46,8 +46,8 @@ class StreamIngestImpl final : public StreamIngest {
     points_read_ += batch.size();
     ++batch_index_;
     if (options_.immediate) {
-      std::vector<std::pair<ChunkKey, std::uint32_t>> order;
-      std::vector<ChunkTask> tasks = ingest::group_into_tasks(batch, grid_, kStreamPartPoints, order);
+      ingest::Grouping grouping;
+      std::vector<ChunkTask> tasks = ingest::group_into_tasks(batch, grid_, kStreamPartPoints, grouping);
       return encode(tasks);
     }
     for (std::size_t i = 0; i < batch.size(); ++i) {
