@@ -23,6 +23,8 @@
 
 #include "relief/archive.h"
 #include "relief/io.h"
+#include "relief/metrics.h"
+#include "relief/query.h"
 
 namespace fs = std::filesystem;
 
@@ -37,6 +39,7 @@ struct Options {
   std::string cli = RELIEF_BENCH_CLI;
   bool shared = true;
   bool chunk_sweep = true;
+  bool error_targets = true;
 };
 
 struct RunResult {
@@ -223,10 +226,12 @@ int main(int argc, char** argv) {
       o.shared = false;
     } else if (a == "--no-chunk-sweep") {
       o.chunk_sweep = false;
+    } else if (a == "--no-error-targets") {
+      o.error_targets = false;
     } else {
       std::fprintf(stderr,
                    "usage: ingest [--sizes 1,10,100] [--threads 1,2] [--repeat N] [--data DIR] [--tmp DIR]\n"
-                   "              [--no-shared] [--no-chunk-sweep]\n");
+                   "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n");
       return a == "--help" ? 0 : 2;
     }
   }
@@ -241,7 +246,8 @@ int main(int argc, char** argv) {
     }
     for (int t : o.threads) {
       std::fprintf(stderr, "compressing %d M points, %d thread(s)\n", m, t);
-      measure(o, "city-" + std::to_string(m) + "M", in, n, static_cast<unsigned>(t), {"--cell", "0.8"});
+      // The automatic cell (from the first million points' density), as users get it.
+      measure(o, "city-" + std::to_string(m) + "M", in, n, static_cast<unsigned>(t), {});
     }
     fs::remove(in);
   }
@@ -291,6 +297,56 @@ int main(int argc, char** argv) {
       }
       remove_archive(out);
     }
+  }
+  if (o.error_targets && fs::exists(o.data_dir)) {
+    // --error-target: wanted RMSE_SNN against what the whole file gets.
+    std::printf("kind,input,target_rmse,achieved_rmse,ratio,cell,bpp\n");
+    const std::string out = o.tmp + "/relief-bench-target.relief";
+    struct Case {
+      const char* file;
+      double targets[3];
+    };
+    const Case cases[] = {{"small/stanford_bunny.ply", {0.0005, 0.001, 0.002}},
+                          {"small/kinect_milk_scene_rgb.ply", {0.001, 0.002, 0.004}},
+                          {"small/kitti_000000.ply", {0.05, 0.1, 0.2}},
+                          {"medium/lone_star_tls_519k.ply", {0.03, 0.05, 0.1}},
+                          {"medium/fr_aerial_rgb_698k.ply", {0.1, 0.2, 0.4}}};
+    for (const Case& c : cases) {
+      const std::string path = o.data_dir + "/" + c.file;
+      auto original = relief::read_ply(path);
+      if (!original) continue;
+      for (double target : c.targets) {
+        remove_archive(out);
+        char t[32];
+        std::snprintf(t, sizeof t, "%.6g", target);
+        const RunResult r = run({o.cli, "compress", path, "-o", out, "--error-target", t, "--quiet"});
+        if (r.code != 0) {
+          std::printf("target,%s,%s,failed (exit %d),,,\n", fs::path(path).stem().c_str(), t, r.code);
+          continue;
+        }
+        auto reader = relief::ArchiveReader::open(out);
+        if (!reader) continue;
+        relief::PointCloud decoded;
+        auto q = (*reader)->query_all({}, [&](const relief::PointCloud& b) {
+          decoded.positions.insert(decoded.positions.end(), b.positions.begin(), b.positions.end());
+          return relief::Status::ok();
+        });
+        if (!q || decoded.empty()) continue;
+        relief::PointCloud geometry;
+        geometry.positions = original->positions;
+        auto m = relief::compare_clouds(geometry, decoded);
+        if (!m) continue;
+        auto params = (*reader)->info().codec_params;
+        const double bpp = 8.0 * static_cast<double>((*reader)->info().blob_bytes) /
+                           static_cast<double>(original->size());
+        const auto cell_at = params.find("cell=");
+        const std::string cell = cell_at == std::string::npos ? "" : params.substr(cell_at + 5, params.find(';', cell_at) - cell_at - 5);
+        std::printf("target,%s,%s,%.6g,%.3f,%s,%.4f\n", fs::path(path).stem().c_str(), t, m->rmse_snn,
+                    m->rmse_snn / target, cell.c_str(), bpp);
+        std::fflush(stdout);
+      }
+    }
+    remove_archive(out);
   }
   return 0;
 }

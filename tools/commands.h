@@ -10,5 +10,9 @@ int run_eval(int argc, char** argv);
 int run_compress(int argc, char** argv);
 int run_append(int argc, char** argv);
 int run_stream(int argc, char** argv);
+int run_preview(int argc, char** argv);
+int run_query(int argc, char** argv);
+int run_decompress(int argc, char** argv);
+int run_info(int argc, char** argv);
 
 }  // namespace relief::cli

@@ -15,6 +15,10 @@ constexpr const char* kUsage =
     "  compress IN... -o OUT.relief      compress point files of any size into an archive\n"
     "  append ARCHIVE IN...              add point files to an archive\n"
     "  stream ARCHIVE                    compress points arriving on standard input\n"
+    "  preview ARCHIVE -o VIEW.png       a quick-look image, top-down or oblique, of all or a box\n"
+    "  query ARCHIVE --box B -o OUT      the points inside a box, at any level of detail\n"
+    "  decompress ARCHIVE -o OUT         every point of an archive\n"
+    "  info ARCHIVE [--json]             what an archive holds\n"
     "  roundtrip IN.ply          compress one file as a chunk, decompress it, print size and error\n"
     "  encode-chunk IN.ply -o OUT.rlfc   compress a point file into one chunk blob\n"
     "  decode-chunk IN.rlfc -o OUT.ply   decompress a chunk blob\n"
@@ -40,6 +44,10 @@ int main(int argc, char** argv) {
   if (command == "compress") return relief::cli::run_compress(sub_argc, sub_argv);
   if (command == "append") return relief::cli::run_append(sub_argc, sub_argv);
   if (command == "stream") return relief::cli::run_stream(sub_argc, sub_argv);
+  if (command == "preview") return relief::cli::run_preview(sub_argc, sub_argv);
+  if (command == "query") return relief::cli::run_query(sub_argc, sub_argv);
+  if (command == "decompress") return relief::cli::run_decompress(sub_argc, sub_argv);
+  if (command == "info") return relief::cli::run_info(sub_argc, sub_argv);
   if (command == "roundtrip") return relief::cli::run_roundtrip(sub_argc, sub_argv);
   if (command == "encode-chunk") return relief::cli::run_encode_chunk(sub_argc, sub_argv);
   if (command == "decode-chunk") return relief::cli::run_decode_chunk(sub_argc, sub_argv);

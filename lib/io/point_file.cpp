@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "io/point_writers.h"
 #include "io/readers.h"
 #include "relief/io.h"
 
@@ -53,6 +54,34 @@ std::string supported_list() {
   return out;
 }
 
+// Output formats. .csv gets commas so spreadsheets split the columns; the
+// other text extensions get spaces.
+enum class WriterKind { kPly, kLas, kLaz, kXyz, kCsv };
+
+struct WriterExtension {
+  std::string_view extension;  // lower case, with the dot
+  WriterKind kind;
+};
+
+constexpr std::array<WriterExtension, 6> kWriterExtensions = {{
+    {".ply", WriterKind::kPly},
+    {".las", WriterKind::kLas},
+    {".laz", WriterKind::kLaz},
+    {".xyz", WriterKind::kXyz},
+    {".txt", WriterKind::kXyz},
+    {".csv", WriterKind::kCsv},
+}};
+
+std::string supported_writer_list() {
+  std::string out;
+  for (const WriterExtension& e : kWriterExtensions) {
+    if (e.kind == WriterKind::kLaz) continue;  // recognised, but only to explain why it is refused
+    if (!out.empty()) out += ", ";
+    out += e.extension;
+  }
+  return out + " (or - for XYZ text on standard output)";
+}
+
 template <typename T>
 void append(std::vector<T>& to, const std::vector<T>& from) {
   to.insert(to.end(), from.begin(), from.end());
@@ -84,6 +113,31 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
       return open_pcd_reader(input);
   }
   return internal_error(path + ": unhandled point file kind");
+}
+
+Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options) {
+  if (path == "-") return open_xyz_writer(path, options, ' ');
+  const std::string ext = lower(std::filesystem::path(path).extension().string());
+  const auto it = std::find_if(kWriterExtensions.begin(), kWriterExtensions.end(),
+                               [&](const WriterExtension& e) { return e.extension == ext; });
+  if (it == kWriterExtensions.end()) {
+    const std::string shown = ext.empty() ? "no extension" : "extension '" + ext + "'";
+    return unsupported(path + ": unsupported output format (" + shown +
+                       "); supported output formats: " + supported_writer_list());
+  }
+  switch (it->kind) {
+    case WriterKind::kPly:
+      return open_ply_writer(path, options);
+    case WriterKind::kLas:
+      return open_las_writer(path, options);
+    case WriterKind::kLaz:
+      return unsupported(path + ": " + kLazOutputUnsupported);
+    case WriterKind::kXyz:
+      return open_xyz_writer(path, options, ' ');
+    case WriterKind::kCsv:
+      return open_xyz_writer(path, options, ',');
+  }
+  return internal_error(path + ": unhandled output kind");
 }
 
 Result<PointCloud> read_point_file(const std::string& path) {

@@ -82,4 +82,39 @@ class PointReader {
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
+// ---- Streaming writers: outputs larger than memory are written in batches.
+
+struct WriterOptions {
+  bool colors = false;
+  bool intensity = false;
+  // LAS: coordinate reference system to write back, in the form
+  // PointStreamInfo::crs uses (WKT, "EPSG:<code>" or "GeoTIFF keys: ...").
+  std::string crs;
+  // LAS: bounds of the data to come (to choose offset and to check that the
+  // scale fits int32); an empty box lets the writer choose from the first batch.
+  Box3d expected_bounds;
+  // LAS: coordinate resolution (scale factor). 0 = automatic: 0.1 mm (finer
+  // than any map pixel Relief produces, so decoded coordinates survive), or the
+  // smallest power of ten that keeps the extent within 32-bit integers.
+  double scale = 0;
+  PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
+};
+
+class PointWriter {
+ public:
+  virtual ~PointWriter() = default;
+  // Appends points; a batch must carry exactly the attributes the options name.
+  virtual Status write(const PointCloud& batch) = 0;
+  // Completes the file (counts, bounds) and moves it into place. Without
+  // finish() (or on any error) the destination is left untouched.
+  virtual Status finish() = 0;
+  virtual std::uint64_t points_written() const = 0;
+};
+
+// Opens a writer by extension: .ply (binary little endian by default),
+// .las (LAS 1.2, point format 2/0, or 1.4 formats 7/6 when the CRS is WKT),
+// .xyz/.txt/.csv (text "x y z [r g b] [i]"). "-" writes XYZ text to stdout.
+// The file is written beside the destination and renamed by finish().
+Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options);
+
 }  // namespace relief

@@ -1,0 +1,62 @@
+// Spatial queries and previews: decode only the chunks a box touches, at any
+// level of detail, and stream the points inside the box in batches.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "relief/archive.h"
+#include "relief/status.h"
+#include "relief/types.h"
+
+namespace relief {
+
+struct QueryOptions {
+  // 1 = every point; L = a spatially uniform ~1/L subset (decodes faster).
+  std::uint32_t lod = 1;
+  unsigned threads = 0;  // decoder threads; 0 = all cores
+  // A chunk whose checksum or decoding fails: false = the query fails with an
+  // error naming the chunk and file; true = it is reported through
+  // on_warning and skipped.
+  bool skip_corrupt = false;
+  std::function<void(const std::string&)> on_warning;
+};
+
+struct QueryStats {
+  std::uint64_t chunks_in_index = 0;  // chunks the spatial index returned
+  std::uint64_t chunks_decoded = 0;
+  std::uint64_t chunks_skipped = 0;   // corrupt, with skip_corrupt
+  std::uint64_t blob_bytes_read = 0;
+  std::uint64_t points = 0;           // points delivered
+  double seconds = 0;
+};
+
+// Receives the query's points batch by batch (one or more chunks at a time, in
+// chunk id order). Returning an error stops the query with that error.
+using PointSink = std::function<Status(const PointCloud& batch)>;
+
+class ArchiveReader {
+ public:
+  // Opens an archive read-only (also while another process appends to it).
+  static Result<std::unique_ptr<ArchiveReader>> open(const std::string& path);
+  virtual ~ArchiveReader() = default;
+
+  virtual const std::string& path() const = 0;
+  virtual const ArchiveInfo& info() const = 0;
+
+  // Streams every decoded point inside `box` (closed: min <= p <= max) to
+  // `sink`. Chunks come from the spatial index; only they are read and
+  // decoded, in parallel, at most a few at a time (memory stays bounded by a
+  // few chunks whatever the box). An empty or inverted box is kInvalidArgument.
+  virtual Result<QueryStats> query(const Box3d& box, const QueryOptions& options, const PointSink& sink) = 0;
+  // Every point of the archive.
+  virtual Result<QueryStats> query_all(const QueryOptions& options, const PointSink& sink) = 0;
+};
+
+// A box for "all heights" from a 2D box: z from -inf to +inf.
+Box3d box_2d(double xmin, double ymin, double xmax, double ymax);
+
+}  // namespace relief

@@ -1,0 +1,653 @@
+// Streaming LAS writer, field by field after the ASPRS LAS 1.2 and 1.4 (R15)
+// specifications.
+//
+// Version and point format: LAS 1.2 with point data record format 2 (RGB) or
+// 0, which every LAS tool reads. A WKT coordinate system needs LAS 1.4 (the
+// WKT VLR and the global-encoding WKT bit are 1.4 features, and 1.4 wants the
+// 1.4 point formats with WKT), so then the file is LAS 1.4 with format 7
+// (RGB) or 6. "EPSG:<code>" and "GeoTIFF keys: ..." are written as a GeoTIFF
+// GeoKeyDirectoryTag VLR in the 1.2 file.
+//
+// Every point is "return 1 of 1", classification 0 (never classified), no
+// GPS time, scan angle or user data. Intensity (float) becomes the 16-bit
+// field by clamping to [0, 65535] and rounding to nearest; 8-bit colour
+// levels become 16-bit ones by v * 257 (0 -> 0, 255 -> 65535).
+//
+// Coordinates are stored as X = round((x - offset) / scale) in int32, per
+// axis. Scale: WriterOptions::scale when > 0, else 0.1 mm (1e-4; 1e-9 degrees,
+// about 0.1 mm on the ground, for x and y of a geographic CRS), raised by
+// powers of ten until the expected extent, plus 10 % headroom above it, fits
+// 32 bits. Offset: the expected minimum rounded down to a multiple of
+// scale * 1e4 (whole metres at 0.1 mm), so offsets are round numbers and
+// every expected point maps to 0 or above. The expected extent is
+// WriterOptions::expected_bounds, or else the first non-empty batch's bounds
+// grown by 10 % of their size on each side. A point that still does not fit
+// (data far beyond the expected bounds) is an error naming it, never a
+// silently wrapped coordinate.
+//
+// The header is written first with what is known and rewritten by finish()
+// with the point count and the bounds of the coordinates actually stored
+// (after quantisation, so they match what readers decode).
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <ctime>
+#include <initializer_list>
+#include <limits>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "io/output_file.h"
+#include "io/point_writers.h"
+#include "io/text_scan.h"
+
+#ifndef RELIEF_VERSION
+#define RELIEF_VERSION "unknown"
+#endif
+
+namespace relief {
+
+namespace {
+
+constexpr std::uint16_t kHeaderSize12 = 227;
+constexpr std::uint16_t kHeaderSize14 = 375;
+constexpr std::size_t kVlrHeaderSize = 54;
+constexpr std::size_t kEvlrHeaderSize = 60;
+constexpr std::size_t kMaxVlrPayload = 65535;  // the VLR length field is 16 bits
+constexpr std::uint16_t kWktRecordId = 2112;
+constexpr std::uint16_t kGeoKeyRecordId = 34735;
+constexpr std::string_view kProjectionUserId = "LASF_Projection";
+constexpr std::uint16_t kWktGlobalEncodingBit = 1u << 4;
+constexpr std::string_view kEpsgPrefix = "EPSG:";
+constexpr std::string_view kGeoKeysPrefix = "GeoTIFF keys:";
+
+// GeoKeys (GeoTIFF 1.0 names).
+constexpr std::uint16_t kGtModelTypeKey = 1024;  // 1 projected, 2 geographic
+constexpr std::uint16_t kGtRasterTypeKey = 1025;  // 1 RasterPixelIsArea
+constexpr std::uint16_t kGeographicTypeKey = 2048;
+constexpr std::uint16_t kProjectedCsTypeKey = 3072;
+constexpr std::uint16_t kUserDefined = 32767;
+
+constexpr std::string_view kSystemIdentifier = "Relief";
+constexpr std::string_view kGeneratingSoftware = "relief " RELIEF_VERSION;
+
+// Exponents of the automatic scale: 1e-4 (0.1 mm), or 1e-9 degrees.
+constexpr int kMetricScaleExponent = -4;
+constexpr int kDegreeScaleExponent = -9;
+// An automatic scale holds the expected extent plus this fraction above it.
+constexpr double kAutoHeadroom = 0.1;
+// The offset is a multiple of scale * 10^kOffsetUnitExponent.
+constexpr int kOffsetUnitExponent = 4;
+// The scaled value must round into int32: (-2^31 - 0.5, 2^31 - 1 + 0.5).
+constexpr double kLowestScaled = -2147483648.5;
+constexpr double kHighestScaled = 2147483647.5;
+
+template <typename T>
+void store_le(std::uint8_t* p, T v) {
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(p, &v, sizeof(T));
+  } else {
+    std::uint8_t b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    for (std::size_t i = 0; i < sizeof(T); ++i) p[i] = b[sizeof(T) - 1 - i];
+  }
+}
+
+// Copies `s` into a fixed-width character field that is already zeroed; the
+// field keeps at least one NUL when `s` is shorter than it.
+void put_field(std::uint8_t* p, std::string_view s, std::size_t width) {
+  std::memcpy(p, s.data(), std::min(s.size(), width));
+}
+
+double power_of_ten(int e) {
+  double p = 1;
+  for (int i = 0; i < (e < 0 ? -e : e); ++i) p *= 10;  // exact up to 1e22
+  return e < 0 ? 1 / p : p;                             // the division rounds correctly
+}
+
+double& axis(Vec3d& v, int a) { return a == 0 ? v.x : a == 1 ? v.y : v.z; }
+double axis(const Vec3d& v, int a) { return a == 0 ? v.x : a == 1 ? v.y : v.z; }
+constexpr std::array<const char*, 3> kAxisNames = {"x", "y", "z"};
+
+// "(x, y, z)", built by appending (GCC 12 warns falsely on "(" + string&&).
+std::string vec_text(const Vec3d& v) {
+  std::string s = "(";
+  s += format_double(v.x);
+  s += ", ";
+  s += format_double(v.y);
+  s += ", ";
+  s += format_double(v.z);
+  s += ")";
+  return s;
+}
+
+bool all_finite(const Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+
+std::string trimmed(std::string_view s) {
+  while (!s.empty() && is_blank(s.front())) s.remove_prefix(1);
+  while (!s.empty() && is_blank(s.back())) s.remove_suffix(1);
+  return std::string(s);
+}
+
+// A decimal number that fits 32 bits, nothing else (no sign, no blanks).
+bool parse_u32(std::string_view s, std::uint32_t& out) {
+  if (s.empty()) return false;
+  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
+  return ec == std::errc{} && p == s.data() + s.size();
+}
+
+// ---------------------------------------------------------------- CRS
+
+struct GeoKey {
+  std::uint16_t id;
+  std::uint16_t value;
+};
+
+struct CrsPlan {
+  bool wkt = false;
+  std::string wkt_text;
+  std::vector<GeoKey> keys;  // sorted by id; empty without GeoTIFF keys
+  bool geographic = false;   // x and y are degrees
+};
+
+// Position of the first of `keywords` in `s` (npos when none occurs).
+std::size_t find_first_of_words(std::string_view s, std::initializer_list<std::string_view> keywords) {
+  std::size_t best = std::string_view::npos;
+  for (std::string_view k : keywords) best = std::min(best, s.find(k));
+  return best;
+}
+
+// Whether a WKT (1 or 2) CRS has longitude/latitude axes. The outermost
+// horizontal CRS comes first in the text: a projected CRS names its
+// geographic base inside itself, a compound CRS its horizontal part before
+// the vertical one. Guessing "geographic" wrongly only costs a finer scale
+// than needed; guessing "projected" wrongly would round degrees to 1e-4
+// (about 11 m), so the test errs towards geographic.
+bool wkt_is_geographic(std::string_view wkt) {
+  const std::size_t projected = find_first_of_words(wkt, {"PROJCS[", "PROJCRS[", "PROJECTEDCRS["});
+  std::size_t geographic = find_first_of_words(wkt, {"GEOGCS[", "GEOGCRS[", "GEOGRAPHICCRS["});
+  // WKT2 GEODCRS is geographic with an ellipsoidal coordinate system, else
+  // geocentric (metres).
+  const std::size_t geodetic = find_first_of_words(wkt, {"GEODCRS[", "GEODETICCRS["});
+  if (geodetic < geographic && wkt.find("ellipsoidal", geodetic) != std::string_view::npos) {
+    geographic = geodetic;
+  }
+  return geographic < projected;
+}
+
+Result<CrsPlan> plan_crs(const std::string& crs, const std::string& path) {
+  CrsPlan plan;
+  if (crs.empty()) return plan;
+  const std::string where = path + ": CRS " + quoted(crs) + ": ";
+  const std::string_view text(crs);
+  if (text.substr(0, kEpsgPrefix.size()) == kEpsgPrefix) {
+    std::uint32_t code = 0;
+    // A GeoKey holds a 16-bit value; 0 and 32767 mean "undefined" and
+    // "user-defined", not a code.
+    if (!parse_u32(trimmed(text.substr(kEpsgPrefix.size())), code) || code == 0 || code > 65535 ||
+        code == kUserDefined) {
+      return invalid_argument(where + "expected EPSG:<code> with a code from 1 to 65535 (not 32767)");
+    }
+    const auto value = static_cast<std::uint16_t>(code);
+    // EPSG puts the geographic 2D CRSs in 4000-4999; everything else written
+    // here is taken as projected.
+    plan.geographic = code >= 4000 && code <= 4999;
+    if (plan.geographic) {
+      plan.keys = {{kGtModelTypeKey, 2}, {kGtRasterTypeKey, 1}, {kGeographicTypeKey, value}};
+    } else {
+      plan.keys = {{kGtModelTypeKey, 1}, {kGtRasterTypeKey, 1}, {kProjectedCsTypeKey, value}};
+    }
+    return plan;
+  }
+  if (text.substr(0, kGeoKeysPrefix.size()) == kGeoKeysPrefix) {
+    std::string_view rest = text.substr(kGeoKeysPrefix.size());
+    for (;;) {
+      const std::size_t comma = std::min(rest.find(','), rest.size());
+      const std::string item = trimmed(rest.substr(0, comma));
+      const std::size_t eq = item.find('=');
+      std::uint32_t id = 0;
+      std::uint32_t value = 0;
+      if (eq == std::string::npos || !parse_u32(trimmed(std::string_view(item).substr(0, eq)), id) ||
+          !parse_u32(trimmed(std::string_view(item).substr(eq + 1)), value) || id > 65535 || value > 65535) {
+        return invalid_argument(where + "expected 'GeoTIFF keys: <key>=<value>, ...' with 16-bit numbers, got " +
+                                quoted(item));
+      }
+      plan.keys.push_back({static_cast<std::uint16_t>(id), static_cast<std::uint16_t>(value)});
+      if (comma == rest.size()) break;
+      rest.remove_prefix(comma + 1);
+    }
+    // GeoTIFF wants the key entries in increasing KeyID order.
+    std::stable_sort(plan.keys.begin(), plan.keys.end(),
+                     [](const GeoKey& a, const GeoKey& b) { return a.id < b.id; });
+    for (std::size_t i = 0; i < plan.keys.size(); ++i) {
+      if (i > 0 && plan.keys[i].id == plan.keys[i - 1].id) {
+        return invalid_argument(where + "key " + std::to_string(plan.keys[i].id) + " appears twice");
+      }
+      if (plan.keys[i].id == kGtModelTypeKey) plan.geographic = plan.keys[i].value == 2;
+    }
+    return plan;
+  }
+  plan.wkt = true;
+  plan.wkt_text = crs;
+  plan.geographic = wkt_is_geographic(text);
+  return plan;
+}
+
+// The GeoKeyDirectoryTag: KeyDirectoryVersion 1, KeyRevision 1, MinorRevision
+// 0, NumberOfKeys, then per key KeyID, TIFFTagLocation 0 (the value is held
+// directly), Count 1, Value; all u16.
+std::vector<std::uint8_t> geokey_directory(const std::vector<GeoKey>& keys) {
+  std::vector<std::uint16_t> words = {1, 1, 0, static_cast<std::uint16_t>(keys.size())};
+  for (const GeoKey& k : keys) words.insert(words.end(), {k.id, 0, 1, k.value});
+  std::vector<std::uint8_t> bytes(2 * words.size());
+  for (std::size_t i = 0; i < words.size(); ++i) store_le(bytes.data() + 2 * i, words[i]);
+  return bytes;
+}
+
+// VLR header: reserved u16, user id char[16], record id u16, length after
+// header u16, description char[32] (54 bytes), then the payload.
+void append_vlr(std::vector<std::uint8_t>& out, std::uint16_t record_id, std::string_view description,
+                std::span<const std::uint8_t> payload) {
+  std::array<std::uint8_t, kVlrHeaderSize> h{};
+  put_field(h.data() + 2, kProjectionUserId, 16);
+  store_le(h.data() + 18, record_id);
+  store_le(h.data() + 20, static_cast<std::uint16_t>(payload.size()));
+  put_field(h.data() + 22, description, 32);
+  out.insert(out.end(), h.begin(), h.end());
+  out.insert(out.end(), payload.begin(), payload.end());
+}
+
+// EVLR header (LAS 1.4): as a VLR but the length is u64 at 20 and the
+// description at 28 (60 bytes).
+std::vector<std::uint8_t> make_evlr(std::uint16_t record_id, std::string_view description,
+                                    std::span<const std::uint8_t> payload) {
+  std::vector<std::uint8_t> out(kEvlrHeaderSize, 0);
+  put_field(out.data() + 2, kProjectionUserId, 16);
+  store_le(out.data() + 18, record_id);
+  store_le(out.data() + 20, static_cast<std::uint64_t>(payload.size()));
+  put_field(out.data() + 28, description, 32);
+  out.insert(out.end(), payload.begin(), payload.end());
+  return out;
+}
+
+// ---------------------------------------------------------------- points
+
+struct Quantizer {
+  Vec3d scale{0, 0, 0};
+  Vec3d offset{0, 0, 0};
+  Vec3d inverse{0, 0, 0};  // 1 / scale: exact (1e4) for the usual scales, unlike dividing by 1e-4
+};
+
+struct IntBounds {
+  std::array<std::int32_t, 3> min{std::numeric_limits<std::int32_t>::max(),
+                                  std::numeric_limits<std::int32_t>::max(),
+                                  std::numeric_limits<std::int32_t>::max()};
+  std::array<std::int32_t, 3> max{std::numeric_limits<std::int32_t>::min(),
+                                  std::numeric_limits<std::int32_t>::min(),
+                                  std::numeric_limits<std::int32_t>::min()};
+};
+
+bool in_int32_range(double v) { return v > kLowestScaled && v < kHighestScaled; }
+
+// Rounds half away from zero; `v` is in int32 range. Truncation and a
+// branch-free correction are much cheaper than a libm call per coordinate.
+std::int32_t round_to_int32(double v) {
+  const auto t = static_cast<std::int64_t>(v);
+  const double frac = v - static_cast<double>(t);  // exact: |v| < 2^32
+  return static_cast<std::int32_t>(t + static_cast<std::int64_t>(frac >= 0.5) -
+                                   static_cast<std::int64_t>(frac <= -0.5));
+}
+
+std::uint16_t intensity_level(float v) {
+  return static_cast<std::uint16_t>(std::clamp(v, 0.0f, 65535.0f) + 0.5f);
+}
+
+std::uint16_t wide_level(std::uint8_t v) { return static_cast<std::uint16_t>(v * 257); }
+
+// Record layouts: the legacy formats 0/2 and the 1.4 formats 6/7.
+template <bool kExtended, bool kColors>
+struct Layout {
+  static constexpr std::size_t kLength = kExtended ? (kColors ? 36 : 30) : (kColors ? 26 : 20);
+  static constexpr std::size_t kRgb = kExtended ? 30 : 20;
+};
+
+using RecordTemplate = std::array<std::uint8_t, 36>;
+
+// Encodes points [first, first + n) of `batch` at `dst`. Returns n, or the
+// index (from first) of the first point whose coordinates do not fit (which
+// includes NaN and infinities).
+template <bool kExtended, bool kColors, bool kIntensity>
+std::size_t encode_las(const PointCloud& batch, std::size_t first, std::size_t n, const Quantizer& q,
+                       const RecordTemplate& blank, std::uint8_t* dst, IntBounds& b) {
+  using L = Layout<kExtended, kColors>;
+  const Vec3d* pos = batch.positions.data() + first;
+  const Vec3d o = q.offset;
+  const Vec3d inv = q.inverse;
+  std::int32_t min_x = b.min[0], min_y = b.min[1], min_z = b.min[2];
+  std::int32_t max_x = b.max[0], max_y = b.max[1], max_z = b.max[2];
+  std::size_t i = 0;
+  for (; i < n; ++i, dst += L::kLength) {
+    const double vx = (pos[i].x - o.x) * inv.x;
+    const double vy = (pos[i].y - o.y) * inv.y;
+    const double vz = (pos[i].z - o.z) * inv.z;
+    if (!(in_int32_range(vx) && in_int32_range(vy) && in_int32_range(vz))) break;
+    const std::int32_t x = round_to_int32(vx);
+    const std::int32_t y = round_to_int32(vy);
+    const std::int32_t z = round_to_int32(vz);
+    min_x = std::min(min_x, x);
+    min_y = std::min(min_y, y);
+    min_z = std::min(min_z, z);
+    max_x = std::max(max_x, x);
+    max_y = std::max(max_y, y);
+    max_z = std::max(max_z, z);
+    std::memcpy(dst, blank.data(), L::kLength);
+    store_le(dst, x);
+    store_le(dst + 4, y);
+    store_le(dst + 8, z);
+    if constexpr (kIntensity) store_le(dst + 12, intensity_level(batch.intensities[first + i]));
+    if constexpr (kColors) {
+      const Rgb8& c = batch.colors[first + i];
+      store_le(dst + L::kRgb, wide_level(c.r));
+      store_le(dst + L::kRgb + 2, wide_level(c.g));
+      store_le(dst + L::kRgb + 4, wide_level(c.b));
+    }
+  }
+  b.min = {min_x, min_y, min_z};
+  b.max = {max_x, max_y, max_z};
+  return i;
+}
+
+using EncodeFn = std::size_t (*)(const PointCloud&, std::size_t, std::size_t, const Quantizer&,
+                                 const RecordTemplate&, std::uint8_t*, IntBounds&);
+
+template <bool kExtended>
+EncodeFn pick_encoder(bool colors, bool intensity) {
+  if (colors) {
+    return intensity ? &encode_las<kExtended, true, true> : &encode_las<kExtended, true, false>;
+  }
+  return intensity ? &encode_las<kExtended, false, true> : &encode_las<kExtended, false, false>;
+}
+
+// ---------------------------------------------------------------- writer
+
+class LasStreamWriter final : public StreamPointWriter {
+ public:
+  LasStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options, CrsPlan crs)
+      : StreamPointWriter(std::move(out), options), crs_(std::move(crs)) {
+    extended_ = crs_.wkt;
+    minor_ = extended_ ? 4 : 2;
+    format_ = static_cast<std::uint8_t>(extended_ ? (options.colors ? 7 : 6) : (options.colors ? 2 : 0));
+    record_length_ = static_cast<std::uint16_t>(extended_ ? (options.colors ? 36 : 30)
+                                                         : (options.colors ? 26 : 20));
+    header_size_ = extended_ ? kHeaderSize14 : kHeaderSize12;
+    // Return number 1 of 1: bits 0-2 and 3-5 of byte 14 in the legacy
+    // formats, bits 0-3 and 4-7 in formats 6-10.
+    blank_[14] = extended_ ? 0x11 : 0x09;
+    encode_ = extended_ ? pick_encoder<true>(options.colors, options.intensity)
+                        : pick_encoder<false>(options.colors, options.intensity);
+    const std::time_t now = std::time(nullptr);
+    std::tm utc{};
+    if (::gmtime_r(&now, &utc) != nullptr) {
+      creation_day_ = static_cast<std::uint16_t>(utc.tm_yday + 1);  // 1 January is day 1
+      creation_year_ = static_cast<std::uint16_t>(utc.tm_year + 1900);
+    }
+  }
+
+  // Chooses scale and offset now when the extent is known, and writes the
+  // provisional header and the VLRs.
+  Status start() {
+    if (!options_.expected_bounds.empty()) RELIEF_RETURN_IF_ERROR(place(options_.expected_bounds, true));
+    build_vlrs();
+    const std::vector<std::uint8_t> h = header();
+    RELIEF_RETURN_IF_ERROR(out_->append(h.data(), h.size()));
+    return out_->append(vlrs_.data(), vlrs_.size());
+  }
+
+ protected:
+  bool checks_coordinates() const override { return true; }
+
+  Status write_points(const PointCloud& batch) override {
+    const std::size_t n = batch.size();
+    if (n == 0) return Status::ok();
+    if (!extended_ && points_written() + n > std::numeric_limits<std::uint32_t>::max()) {
+      return limit_exceeded(out_->path() + ": a LAS 1.2 file holds at most 4294967295 points");
+    }
+    if (!placed_) RELIEF_RETURN_IF_ERROR(place_from(batch));
+    std::size_t i = 0;
+    while (i < n) {
+      std::span<std::uint8_t> room;
+      RELIEF_RETURN_IF_ERROR(out_->room(record_length_, room));
+      const std::size_t k = std::min(n - i, room.size() / record_length_);
+      const std::size_t done = encode_(batch, i, k, q_, blank_, room.data(), bounds_);
+      out_->advance(done * record_length_);
+      if (done < k) return out_of_range(batch, i + done);
+      i += k;
+    }
+    return Status::ok();
+  }
+
+  Status complete() override {
+    if (!placed_) place_default();
+    if (evlr_wkt_) {
+      // A WKT too long for a VLR follows the points as an extended VLR.
+      evlr_start_ = out_->position();
+      const std::vector<std::uint8_t> e = make_evlr(kWktRecordId, "OGC WKT coordinate system", wkt_payload());
+      RELIEF_RETURN_IF_ERROR(out_->append(e.data(), e.size()));
+    }
+    const std::vector<std::uint8_t> h = header();
+    return out_->patch(0, h.data(), h.size());
+  }
+
+ private:
+  std::vector<std::uint8_t> wkt_payload() const {
+    std::vector<std::uint8_t> p(crs_.wkt_text.begin(), crs_.wkt_text.end());
+    p.push_back(0);  // the specification asks for a NUL-terminated string
+    return p;
+  }
+
+  void build_vlrs() {
+    if (crs_.wkt) {
+      const std::vector<std::uint8_t> payload = wkt_payload();
+      if (payload.size() > kMaxVlrPayload) {
+        evlr_wkt_ = true;
+      } else {
+        append_vlr(vlrs_, kWktRecordId, "OGC WKT coordinate system", payload);
+        ++vlr_count_;
+      }
+    } else if (!crs_.keys.empty()) {
+      append_vlr(vlrs_, kGeoKeyRecordId, "GeoTIFF GeoKeyDirectoryTag", geokey_directory(crs_.keys));
+      ++vlr_count_;
+    }
+  }
+
+  // Scale exponent of the automatic scale for axis `a`.
+  int base_exponent(int a) const {
+    return crs_.geographic && a < 2 ? kDegreeScaleExponent : kMetricScaleExponent;
+  }
+
+  // Sets scale and offset for data within `box` (finite, not empty). With
+  // `strict`, a caller's scale that cannot hold the box is an error.
+  Status place(const Box3d& box, bool strict) {
+    for (int a = 0; a < 3; ++a) {
+      const double lo = axis(box.min, a);
+      const double hi = axis(box.max, a);
+      double scale = 0;
+      double offset = 0;
+      auto fits = [&](double top) {
+        const double inv = 1 / scale;
+        return in_int32_range((top - offset) * inv) && in_int32_range((lo - offset) * inv);
+      };
+      if (options_.scale > 0) {
+        scale = options_.scale;
+        const double unit = scale * power_of_ten(kOffsetUnitExponent);
+        offset = std::floor(lo / unit) * unit;
+        if (!std::isfinite(offset) || (strict && !fits(hi))) {
+          return invalid_argument(out_->path() + ": scale " + format_double(scale) + " cannot hold the " +
+                                  kAxisNames[static_cast<std::size_t>(a)] + " extent " + format_double(lo) +
+                                  " .. " + format_double(hi) +
+                                  " in LAS 32-bit coordinates; use a coarser scale or 0 for automatic");
+        }
+      } else {
+        // Headroom above the extent: decoded points may stray slightly beyond
+        // the bounds they were promised (lossy codecs), and an extent just
+        // under a power-of-ten limit would then fail on them. Below the
+        // offset there is always room: the whole negative int32 range.
+        const double top = hi + kAutoHeadroom * (hi - lo);
+        for (int e = base_exponent(a);; ++e) {
+          scale = power_of_ten(e);
+          const double unit = power_of_ten(e + kOffsetUnitExponent);
+          offset = std::floor(lo / unit) * unit;
+          if (std::isfinite(offset) && fits(top)) break;
+          if (e > 300) return internal_error(out_->path() + ": no LAS scale fits the extent");
+        }
+      }
+      axis(q_.scale, a) = scale;
+      axis(q_.offset, a) = offset;
+      axis(q_.inverse, a) = 1 / scale;
+    }
+    placed_ = true;
+    return Status::ok();
+  }
+
+  // Places from the first batch: its bounds grown by 10 % on each side, so
+  // later batches somewhat beyond the first still fit the chosen scale.
+  Status place_from(const PointCloud& batch) {
+    Box3d box;
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      if (!all_finite(batch.positions[i])) {
+        return point_error(points_written() + i, "has a non-finite coordinate (NaN or Inf)");
+      }
+      box.add(batch.positions[i]);
+    }
+    const Vec3d e = box.extent();
+    for (int a = 0; a < 3; ++a) {
+      axis(box.min, a) -= 0.1 * axis(e, a);
+      axis(box.max, a) += 0.1 * axis(e, a);
+    }
+    return place(box, false);
+  }
+
+  // No points and no expected bounds: the scale the options ask for, offset 0.
+  void place_default() {
+    for (int a = 0; a < 3; ++a) {
+      const double scale = options_.scale > 0 ? options_.scale : power_of_ten(base_exponent(a));
+      axis(q_.scale, a) = scale;
+      axis(q_.offset, a) = 0;
+      axis(q_.inverse, a) = 1 / scale;
+    }
+    placed_ = true;
+  }
+
+  Status out_of_range(const PointCloud& batch, std::size_t i) const {
+    const Vec3d& p = batch.positions[i];
+    const std::uint64_t index = points_written() + i;
+    if (!all_finite(p)) return point_error(index, "has a non-finite coordinate (NaN or Inf)");
+    std::string what = vec_text(p);
+    what += " does not fit the LAS 32-bit coordinates at scale ";
+    what += vec_text(q_.scale);
+    what += " and offset ";
+    what += vec_text(q_.offset);
+    what += "; the expected bounds must cover all the data";
+    return point_error(index, what);
+  }
+
+  std::vector<std::uint8_t> header() const {
+    std::vector<std::uint8_t> h(header_size_, 0);
+    std::uint8_t* p = h.data();
+    std::memcpy(p, "LASF", 4);
+    // 4: file source id 0; 8-23: GUID all zero.
+    store_le(p + 6, static_cast<std::uint16_t>(crs_.wkt ? kWktGlobalEncodingBit : 0));
+    p[24] = 1;
+    p[25] = minor_;
+    put_field(p + 26, kSystemIdentifier, 32);
+    put_field(p + 58, kGeneratingSoftware, 32);
+    store_le(p + 90, creation_day_);
+    store_le(p + 92, creation_year_);
+    store_le(p + 94, header_size_);
+    store_le(p + 96, static_cast<std::uint32_t>(header_size_ + vlrs_.size()));
+    store_le(p + 100, vlr_count_);
+    p[104] = format_;
+    store_le(p + 105, record_length_);
+    const std::uint64_t n = points_written();
+    // Formats 6-10 are not legacy compatible: 1.4 wants the legacy counts 0.
+    const bool legacy = format_ < 6 && n <= std::numeric_limits<std::uint32_t>::max();
+    const auto legacy_count = static_cast<std::uint32_t>(legacy ? n : 0);
+    store_le(p + 107, legacy_count);
+    store_le(p + 111, legacy_count);  // every point is return 1; returns 2-5 stay 0
+    for (int a = 0; a < 3; ++a) {
+      const auto k = static_cast<std::size_t>(8 * a);
+      store_le(p + 131 + k, axis(q_.scale, a));
+      store_le(p + 155 + k, axis(q_.offset, a));
+      double lo = 0;
+      double hi = 0;
+      if (n > 0) {
+        const auto ia = static_cast<std::size_t>(a);
+        // As readers decode them: X * scale + offset.
+        lo = static_cast<double>(bounds_.min[ia]) * axis(q_.scale, a) + axis(q_.offset, a);
+        hi = static_cast<double>(bounds_.max[ia]) * axis(q_.scale, a) + axis(q_.offset, a);
+      }
+      store_le(p + 179 + 2 * k, hi);  // max x, min x, max y, min y, max z, min z
+      store_le(p + 187 + 2 * k, lo);
+    }
+    if (minor_ >= 4) {
+      // 227: start of waveform data 0 (none).
+      store_le(p + 235, evlr_start_);
+      store_le<std::uint32_t>(p + 243, evlr_wkt_ ? 1 : 0);
+      store_le(p + 247, n);
+      store_le(p + 255, n);  // points by return 1 of 15
+    }
+    return h;
+  }
+
+  CrsPlan crs_;
+  bool extended_ = false;  // LAS 1.4, formats 6/7
+  std::uint8_t minor_ = 2;
+  std::uint8_t format_ = 0;
+  std::uint16_t record_length_ = 0;
+  std::uint16_t header_size_ = 0;
+  std::uint16_t creation_day_ = 0;
+  std::uint16_t creation_year_ = 0;
+  std::vector<std::uint8_t> vlrs_;
+  std::uint32_t vlr_count_ = 0;
+  bool evlr_wkt_ = false;
+  std::uint64_t evlr_start_ = 0;
+  RecordTemplate blank_{};
+  EncodeFn encode_ = nullptr;
+  bool placed_ = false;
+  Quantizer q_;
+  IntBounds bounds_;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, const WriterOptions& options) {
+  // Arguments first, so that a bad option is reported as such even when the
+  // destination is also unwritable.
+  if (!(options.scale >= 0) || !std::isfinite(options.scale)) {
+    return invalid_argument(path + ": LAS scale " + format_double(options.scale) +
+                            " must be positive, or 0 for automatic");
+  }
+  const Box3d& eb = options.expected_bounds;
+  if (!eb.empty() && (!all_finite(eb.min) || !all_finite(eb.max))) {
+    return invalid_argument(path + ": the expected bounds are not finite");
+  }
+  RELIEF_ASSIGN_OR_RETURN(CrsPlan crs, plan_crs(options.crs, path));
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<OutputFile> out, OutputFile::create(path));
+  if (out->is_stdout()) {
+    return invalid_argument("LAS cannot be written to standard output (its header is completed last)");
+  }
+  auto writer = std::make_unique<LasStreamWriter>(std::move(out), options, std::move(crs));
+  RELIEF_RETURN_IF_ERROR(writer->start());
+  return std::unique_ptr<PointWriter>(std::move(writer));
+}
+
+}  // namespace relief

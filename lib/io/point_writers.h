@@ -1,0 +1,87 @@
+// Streaming point writers: the constructors used by the dispatch in
+// point_file.cpp and the batch bookkeeping they share (argument checks,
+// sticky errors, commit). Internal to lib/io.
+#pragma once
+
+#include <charconv>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "io/output_file.h"
+#include "relief/io.h"
+
+namespace relief {
+
+// Each creates its output (the temporary file, or stdout for XYZ "-") and
+// writes what of the header it can, so a bad destination fails here.
+Result<std::unique_ptr<PointWriter>> open_ply_writer(const std::string& path, const WriterOptions& options);
+Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, const WriterOptions& options);
+// `separator` goes between the columns: ' ' for .xyz/.txt/stdout, ',' for .csv.
+Result<std::unique_ptr<PointWriter>> open_xyz_writer(const std::string& path, const WriterOptions& options,
+                                                     char separator);
+
+// The message for LAZ output, after "<path>: ".
+inline constexpr const char* kLazOutputUnsupported =
+    "LAZ output is not supported; write .las and compress with laszip";
+
+// Base of the writers: checks every batch against the options, counts points
+// and makes the first error sticky. After an error the output is discarded at
+// once (the temporary file is removed: it may be large) and every later call
+// returns that error, so a caller that ignores one failure still cannot
+// commit a file with a hole in it.
+class StreamPointWriter : public PointWriter {
+ public:
+  Status write(const PointCloud& batch) final;
+  Status finish() final;
+  std::uint64_t points_written() const final { return count_; }
+
+ protected:
+  StreamPointWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options)
+      : out_(std::move(out)), options_(options) {}
+
+  // Encodes a batch that passed the checks; points_written() does not yet
+  // include it, so the first point of the batch is point points_written().
+  virtual Status write_points(const PointCloud& batch) = 0;
+  // Completes the file before it is committed (counts, bounds, trailers).
+  virtual Status complete() = 0;
+  // True when write_points() itself rejects non-finite coordinates (the LAS
+  // range check does), so the base skips its own pass over them.
+  virtual bool checks_coordinates() const { return false; }
+
+  // "<path>: point <index> <what>" as kInvalidArgument.
+  Status point_error(std::uint64_t index, const std::string& what) const;
+
+  std::unique_ptr<OutputFile> out_;
+  WriterOptions options_;
+
+ private:
+  Status check_batch(const PointCloud& batch) const;
+  Status fail(Status status);
+
+  std::uint64_t count_ = 0;
+  Status error_;
+  bool finished_ = false;
+};
+
+// ---- text output shared by ascii PLY and XYZ
+
+// Longest line: three shortest doubles (<= 24 characters each), three colour
+// levels, a shortest float (<= 15) and the separators.
+inline constexpr std::size_t kMaxTextRecord = 128;
+
+// Shortest text that parses back to exactly `v` (double or float).
+template <typename T>
+std::uint8_t* put_shortest(std::uint8_t* p, T v) {
+  char* c = reinterpret_cast<char*>(p);
+  // kMaxTextRecord leaves room for the longest value, so this cannot fail.
+  return reinterpret_cast<std::uint8_t*>(std::to_chars(c, c + 32, v).ptr);
+}
+
+// Lines "x y z [r g b] [i]" (colours and intensity when the options say),
+// columns separated by `separator`.
+Status write_text_points(OutputFile& out, const PointCloud& batch, const WriterOptions& options,
+                         char separator);
+
+}  // namespace relief

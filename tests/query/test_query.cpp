@@ -1,0 +1,270 @@
+// Spatial queries: exact box results, chunks touched, level of detail,
+// corrupted chunks, readers during an append.
+#include <catch2/catch.hpp>
+#include <sqlite3.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <thread>
+
+#include "relief/archive.h"
+#include "relief/ingest.h"
+#include "relief/io.h"
+#include "relief/query.h"
+#include "support/synthetic.h"
+
+using namespace relief;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    static int counter = 0;
+    path = fs::temp_directory_path() / ("relief-query-test-" + std::to_string(::getpid()) + "-" +
+                                        std::to_string(counter++));
+    fs::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+  std::string file(const std::string& name) const { return (path / name).string(); }
+};
+
+PointCloud scene(std::uint64_t seed, std::size_t points) {
+  test::SceneOptions o;
+  o.seed = seed;
+  o.points = points;
+  o.colors = true;
+  return test::make_terrain(o, 16.0, 0.5);
+}
+
+// A 16 x 16 m terrain in 2 m chunks: 64 chunks.
+std::string build(const TempDir& tmp, const std::string& name, std::uint64_t seed = 1, std::size_t points = 200000) {
+  REQUIRE(write_ply(tmp.file(name + ".ply"), scene(seed, points)).is_ok());
+  IngestOptions o;
+  o.codec.cell_size = 0.25;
+  o.chunk_edge = 2.0;
+  REQUIRE(compress_files({tmp.file(name + ".ply")}, tmp.file(name + ".relief"), o).is_ok());
+  return tmp.file(name + ".relief");
+}
+
+PointCloud run_query(ArchiveReader& r, const Box3d* box, QueryStats* stats = nullptr, QueryOptions o = {}) {
+  PointCloud all;
+  const PointSink sink = [&](const PointCloud& b) {
+    all.positions.insert(all.positions.end(), b.positions.begin(), b.positions.end());
+    all.colors.insert(all.colors.end(), b.colors.begin(), b.colors.end());
+    return Status::ok();
+  };
+  auto s = box ? r.query(*box, o, sink) : r.query_all(o, sink);
+  REQUIRE(s.is_ok());
+  if (stats) *stats = *s;
+  return all;
+}
+
+bool inside(const Vec3d& p, const Box3d& b) {
+  return p.x >= b.min.x && p.x <= b.max.x && p.y >= b.min.y && p.y <= b.max.y && p.z >= b.min.z && p.z <= b.max.z;
+}
+
+bool intersects(const Box3d& a, const Box3d& b) {
+  return a.min.x <= b.max.x && a.max.x >= b.min.x && a.min.y <= b.max.y && a.max.y >= b.min.y &&
+         a.min.z <= b.max.z && a.max.z >= b.min.z;
+}
+
+std::vector<std::tuple<double, double, double>> sorted_points(const PointCloud& c) {
+  std::vector<std::tuple<double, double, double>> v;
+  for (const Vec3d& p : c.positions) v.emplace_back(p.x, p.y, p.z);
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("a box query returns exactly the full decompress's points inside the box", "[query]") {
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "a"));
+  REQUIRE(reader.is_ok());
+  const PointCloud full = run_query(**reader, nullptr);
+  CHECK(full.size() == (*reader)->info().decoded_points);
+  const std::vector<Box3d> boxes = {
+      {{3.1, 2.7, -10}, {7.9, 9.3, 10}},          // crosses chunk borders
+      {{0.0, 0.0, -0.1}, {2.0, 2.0, 0.1}},        // one chunk, thin in z
+      {{-5, -5, -5}, {30, 30, 30}},               // everything
+      {{4.0, 4.0, -1}, {4.0, 6.0, 1}},            // zero width: a plane of points at most
+      box_2d(10.25, 1.5, 13.75, 14.5),            // 2D: all heights
+  };
+  for (const Box3d& box : boxes) {
+    QueryStats stats;
+    const PointCloud got = run_query(**reader, &box, &stats);
+    PointCloud want;
+    for (std::size_t i = 0; i < full.size(); ++i) {
+      if (inside(full.positions[i], box)) {
+        want.positions.push_back(full.positions[i]);
+        want.colors.push_back(full.colors[i]);
+      }
+    }
+    INFO("box " << box.min.x << "," << box.min.y << " .. " << box.max.x << "," << box.max.y);
+    CHECK(sorted_points(got) == sorted_points(want));
+    CHECK(got.colors.size() == got.size());
+    CHECK(stats.points == got.size());
+  }
+}
+
+TEST_CASE("boxes outside the data return nothing and read nothing", "[query]") {
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "b"));
+  REQUIRE(reader.is_ok());
+  for (const Box3d& box : {Box3d{{100, 100, -1}, {200, 200, 1}}, Box3d{{0, 0, 50}, {16, 16, 60}},
+                           box_2d(-30, -30, -20, -20)}) {
+    QueryStats stats;
+    CHECK(run_query(**reader, &box, &stats).empty());
+    CHECK(stats.chunks_decoded == 0);
+    CHECK(stats.blob_bytes_read == 0);
+  }
+  const PointSink ignore = [](const PointCloud&) { return Status::ok(); };
+  CHECK((*reader)->query(Box3d{{5, 5, 5}, {4, 6, 6}}, {}, ignore).status().code() == StatusCode::kInvalidArgument);
+  CHECK((*reader)->query(Box3d{{std::nan(""), 0, 0}, {1, 1, 1}}, {}, ignore).status().code() ==
+        StatusCode::kInvalidArgument);
+}
+
+TEST_CASE("a query reads only the chunks whose bounds intersect the box", "[query]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "c");
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  std::uint64_t total_bytes = 0;
+  for (const ChunkRef& r : *refs) total_bytes += r.blob_size;
+  auto reader = ArchiveReader::open(path);
+  const Box3d box{{4.5, 4.5, -10}, {5.5, 7.5, 10}};
+  std::uint64_t want_chunks = 0, want_bytes = 0;
+  for (const ChunkRef& r : *refs) {
+    if (intersects(r.bounds, box)) {
+      ++want_chunks;
+      want_bytes += r.blob_size;
+    }
+  }
+  QueryStats stats;
+  run_query(**reader, &box, &stats);
+  CHECK(stats.chunks_decoded == want_chunks);
+  CHECK(stats.blob_bytes_read == want_bytes);
+  CHECK(want_chunks < refs->size() / 4);
+  CHECK(stats.blob_bytes_read < total_bytes / 4);
+}
+
+TEST_CASE("level of detail L returns about 1/L of the points, spread uniformly", "[query][lod]") {
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "d", 5, 400000));
+  const PointCloud full = run_query(**reader, nullptr);
+  for (std::uint32_t lod : {4u, 16u}) {
+    QueryOptions o;
+    o.lod = lod;
+    const PointCloud sub = run_query(**reader, nullptr, nullptr, o);
+    INFO("lod " << lod);
+    const double expected = static_cast<double>(full.size()) / lod;
+    CHECK(std::abs(static_cast<double>(sub.size()) - expected) < 0.05 * expected + 64);
+    // Coarse 8 x 8 histogram over the 16 m square: every cell ~1/L of its full count.
+    int a[8][8] = {}, b[8][8] = {};
+    const auto cell = [](double v) { return std::clamp(static_cast<int>(v / 2.0), 0, 7); };
+    for (const Vec3d& p : full.positions) a[cell(p.x)][cell(p.y)]++;
+    for (const Vec3d& p : sub.positions) b[cell(p.x)][cell(p.y)]++;
+    for (int i = 0; i < 8; ++i) {
+      for (int j = 0; j < 8; ++j) {
+        const double want = static_cast<double>(a[i][j]) / lod;
+        CHECK(std::abs(b[i][j] - want) < 0.2 * want + 8);
+      }
+    }
+  }
+}
+
+TEST_CASE("a corrupted chunk is reported by name, or skipped with a warning", "[query][corrupt]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "e");
+  {
+    // Flip one byte in the middle of one blob, behind the archive's back.
+    sqlite3* db = nullptr;
+    REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
+    sqlite3_stmt* get = nullptr;
+    REQUIRE(sqlite3_prepare_v2(db, "SELECT id, blob FROM relief_chunk ORDER BY id LIMIT 1", -1, &get, nullptr) ==
+            SQLITE_OK);
+    REQUIRE(sqlite3_step(get) == SQLITE_ROW);
+    const sqlite3_int64 id = sqlite3_column_int64(get, 0);
+    const auto* data = static_cast<const unsigned char*>(sqlite3_column_blob(get, 1));
+    std::vector<unsigned char> blob(data, data + sqlite3_column_bytes(get, 1));
+    sqlite3_finalize(get);
+    blob[blob.size() / 2] ^= 0x10;
+    sqlite3_stmt* put = nullptr;
+    REQUIRE(sqlite3_prepare_v2(db, "UPDATE relief_chunk SET blob = ?1 WHERE id = ?2", -1, &put, nullptr) == SQLITE_OK);
+    sqlite3_bind_blob(put, 1, blob.data(), static_cast<int>(blob.size()), SQLITE_TRANSIENT);
+    sqlite3_bind_int64(put, 2, id);
+    REQUIRE(sqlite3_step(put) == SQLITE_DONE);
+    sqlite3_finalize(put);
+    sqlite3_close(db);
+  }
+  auto reader = ArchiveReader::open(path);
+  REQUIRE(reader.is_ok());
+  const PointSink ignore = [](const PointCloud&) { return Status::ok(); };
+  auto failed = (*reader)->query_all({}, ignore);
+  REQUIRE_FALSE(failed.is_ok());
+  CHECK(failed.status().code() == StatusCode::kCorruptData);
+  CHECK(failed.status().message().find(path) != std::string::npos);
+  CHECK(failed.status().message().find("chunk (") != std::string::npos);
+  QueryOptions o;
+  o.skip_corrupt = true;
+  std::vector<std::string> warnings;
+  o.on_warning = [&](const std::string& w) { warnings.push_back(w); };
+  QueryStats stats;
+  const PointCloud rest = run_query(**reader, nullptr, &stats, o);
+  CHECK(stats.chunks_skipped == 1);
+  REQUIRE(warnings.size() == 1);
+  CHECK(warnings[0].find("checksum") != std::string::npos);
+  CHECK(rest.size() > 0);
+}
+
+TEST_CASE("readers during an append see a consistent archive", "[query][concurrency]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "f", 7, 100000);
+  REQUIRE(write_ply(tmp.file("more.ply"), scene(8, 300000)).is_ok());
+  std::atomic<bool> done{false};
+  std::atomic<int> errors{0};
+  std::atomic<int> reads{0};
+  std::thread reader_thread([&] {
+    std::uint64_t last_chunks = 0;
+    while (!done.load()) {
+      auto r = ArchiveReader::open(path);
+      if (!r) {
+        ++errors;
+        continue;
+      }
+      std::uint64_t points = 0, chunks = 0;
+      const PointSink count = [&](const PointCloud& b) {
+        points += b.size();
+        return Status::ok();
+      };
+      auto s = (*r)->query_all({}, count);
+      if (!s) {
+        ++errors;
+        continue;
+      }
+      chunks = s->chunks_decoded;
+      // A snapshot never shrinks, and its points match its chunk count's info.
+      if (chunks < last_chunks) ++errors;
+      last_chunks = chunks;
+      ++reads;
+    }
+  });
+  IngestOptions o;
+  o.threads = 1;
+  auto appended = append_files(path, {tmp.file("more.ply")}, o);
+  done = true;
+  reader_thread.join();
+  REQUIRE(appended.is_ok());
+  CHECK(errors.load() == 0);
+  CHECK(reads.load() > 0);
+}

@@ -1,0 +1,31 @@
+// relief decompress ARCHIVE -o OUT: every point of an archive.
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "query_output.h"
+
+namespace relief::cli {
+
+int run_decompress(int argc, char** argv) {
+  constexpr const char* kUsage =
+      "usage: relief decompress ARCHIVE -o OUT [--lod L] [--skip-corrupt] [--threads N] [--quiet]\n"
+      "Writes every point of the archive (.ply, .las, .xyz; '-' = XYZ text on stdout).\n";
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt"}, {"--lod", "-o", "--threads"});
+  if (args.has("--help")) {
+    std::cout << kUsage;
+    return kExitOk;
+  }
+  QueryOptions q;
+  q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
+  q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
+  q.skip_corrupt = args.has("--skip-corrupt");
+  q.on_warning = [](const std::string& w) { std::cerr << "relief decompress: warning: " << w << "\n"; };
+  if (!args.ok()) return usage_error("decompress", args.error(), kUsage);
+  if (args.positional().size() != 1) return usage_error("decompress", "expected one ARCHIVE", kUsage);
+  const auto out = args.get("-o");
+  if (!out) return usage_error("decompress", "missing -o OUT", kUsage);
+  return run_query_to_file("decompress", args.positional()[0], nullptr, *out, q, args.has("--quiet"));
+}
+
+}  // namespace relief::cli

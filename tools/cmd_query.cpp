@@ -1,0 +1,48 @@
+// relief query ARCHIVE --box ... -o OUT: the points inside a box.
+#include <iostream>
+
+#include "box_arg.h"
+#include "cli_common.h"
+#include "commands.h"
+#include "query_output.h"
+
+namespace relief::cli {
+
+namespace {
+constexpr const char* kCommand = "query";
+constexpr const char* kUsageText =
+    "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L] -o OUT\n"
+    "Writes the archive's points inside the box (bounds included). Only the chunks the box\n"
+    "touches are read and decoded.\n"
+    "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"
+    "  --lod L          level of detail: a spatially uniform ~1/L of the points (default 1)\n"
+    "  -o OUT           .ply, .las or .xyz/.txt/.csv; '-' writes XYZ text to stdout\n"
+    "  --skip-corrupt   report damaged chunks and go on instead of failing\n"
+    "  --threads N      decoder threads (default: all cores)\n"
+    "  --quiet          no summary on stderr\n";
+}  // namespace
+
+int run_query(int argc, char** argv) {
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt"}, {"--box", "--lod", "-o", "--threads"});
+  if (args.has("--help")) {
+    std::cout << kUsageText;
+    return kExitOk;
+  }
+  QueryOptions q;
+  q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
+  q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
+  q.skip_corrupt = args.has("--skip-corrupt");
+  q.on_warning = [](const std::string& w) { std::cerr << "relief query: warning: " << w << "\n"; };
+  if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE", kUsageText);
+  const auto box_text = args.get("--box");
+  if (!box_text) return usage_error(kCommand, "missing --box", kUsageText);
+  Box3d box;
+  std::string error;
+  if (!parse_box(*box_text, box, error)) return usage_error(kCommand, error, kUsageText);
+  const auto out = args.get("-o");
+  if (!out) return usage_error(kCommand, "missing -o OUT", kUsageText);
+  return run_query_to_file(kCommand, args.positional()[0], &box, *out, q, args.has("--quiet"));
+}
+
+}  // namespace relief::cli

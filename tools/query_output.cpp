@@ -1,0 +1,47 @@
+#include "query_output.h"
+
+#include <cstdio>
+#include <iostream>
+
+#include "relief/io.h"
+
+namespace relief::cli {
+
+int run_query_to_file(const std::string& command, const std::string& archive_path, const Box3d* box,
+                      const std::string& out_path, const QueryOptions& options, bool quiet) {
+  auto reader = ArchiveReader::open(archive_path);
+  if (!reader) return fail(command, reader.status());
+  const ArchiveInfo& info = (*reader)->info();
+  WriterOptions w;
+  w.colors = info.has_colors;
+  w.intensity = info.has_intensity;
+  w.crs = info.crs;
+  w.expected_bounds = info.bounds;
+  if (box != nullptr && !info.bounds.empty()) {
+    // The written data lies in the box and in the archive.
+    Box3d b = info.bounds;
+    b.min = {std::max(b.min.x, box->min.x), std::max(b.min.y, box->min.y), std::max(b.min.z, box->min.z)};
+    b.max = {std::min(b.max.x, box->max.x), std::min(b.max.y, box->max.y), std::min(b.max.z, box->max.z)};
+    if (!b.empty()) w.expected_bounds = b;
+  }
+  auto writer = open_point_writer(out_path, w);
+  if (!writer) return fail(command, writer.status());
+  const auto t0 = now_ns();
+  const PointSink sink = [&](const PointCloud& batch) { return (*writer)->write(batch); };
+  auto stats = box != nullptr ? (*reader)->query(*box, options, sink) : (*reader)->query_all(options, sink);
+  if (!stats) return fail(command, stats.status());
+  if (Status s = (*writer)->finish(); !s) return fail(command, s);
+  const double secs = seconds_since(t0);
+  if (!quiet && out_path != "-") {
+    std::fprintf(stderr,
+                 "%s: %llu points from %llu of %llu chunks (%s read, %llu skipped), lod %u, %.3f s, %.2f M points/s\n",
+                 out_path.c_str(), static_cast<unsigned long long>(stats->points),
+                 static_cast<unsigned long long>(stats->chunks_decoded),
+                 static_cast<unsigned long long>(info.chunk_count), format_bytes(stats->blob_bytes_read).c_str(),
+                 static_cast<unsigned long long>(stats->chunks_skipped), options.lod, secs,
+                 secs > 0 ? static_cast<double>(stats->points) / secs * 1e-6 : 0.0);
+  }
+  return kExitOk;
+}
+
+}  // namespace relief::cli
