@@ -51,7 +51,8 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
     case SectionId::kHeight:
     case SectionId::kColor:
     case SectionId::kIntensity:
-      return c == (image_codec == ImageCodec::kJpeg ? SectionCodec::kJpeg : SectionCodec::kJpeg2000);
+      if (image_codec == ImageCodec::kJpeg) return c == SectionCodec::kJpeg || c == SectionCodec::kJpegAbbreviated;
+      return c == SectionCodec::kJpeg2000;
   }
   return false;
 }

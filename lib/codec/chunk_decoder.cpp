@@ -6,6 +6,7 @@
 #include "codec/atlas.h"
 #include "codec/chunk_format.h"
 #include "codec/coders.h"
+#include "codec/jpeg_tables.h"
 #include "codec/octree.h"
 #include "codec/patch.h"
 
@@ -28,8 +29,17 @@ Result<std::vector<std::uint8_t>> unpack_bytes(const SectionEntry& s, const char
 
 Result<codec::Image8> decode_image8(const SectionEntry& s, std::uint32_t w, std::uint32_t h,
                                     std::uint32_t channels, const char* name) {
-  auto img = s.codec == SectionCodec::kJpeg ? codec::jpeg_decode(s.payload, w, h, channels)
-                                            : codec::j2k_decode8(s.payload, w, h, channels);
+  Result<codec::Image8> img = corrupt_data("empty");
+  if (s.codec == SectionCodec::kJpegAbbreviated) {
+    if (s.payload.empty()) return corrupt_data(std::string("chunk blob: ") + name + " section is empty");
+    auto full = codec::jpeg_restore(s.payload.subspan(1), s.payload[0], channels);
+    if (!full) return full.status().with_context(std::string("chunk blob: ") + name + " section");
+    img = codec::jpeg_decode(*full, w, h, channels);
+  } else if (s.codec == SectionCodec::kJpeg) {
+    img = codec::jpeg_decode(s.payload, w, h, channels);
+  } else {
+    img = codec::j2k_decode8(s.payload, w, h, channels);
+  }
   if (!img) return img.status().with_context(std::string("chunk blob: ") + name + " section");
   return img;
 }

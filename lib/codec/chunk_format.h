@@ -38,6 +38,9 @@ enum class SectionCodec : std::uint8_t {
   kJpeg2000 = 2,
   kLzma2 = 3,
   kJbig85 = 4,
+  // JPEG without its tables: u8 quality, then the stream minus APP0/DQT/DHT
+  // (jpeg_tables.h). The decoder re-inserts the standard tables.
+  kJpegAbbreviated = 5,
 };
 
 inline constexpr int kMinMapResolution = 8;

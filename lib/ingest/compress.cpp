@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <unordered_map>
 
 #include "core/parallel.h"
@@ -100,6 +101,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
 
   std::uint64_t points_read = 0;
+  float intensity_lo = std::numeric_limits<float>::infinity();
+  float intensity_hi = -std::numeric_limits<float>::infinity();
   const auto read_all = [&](const std::function<Status(PointCloud&)>& sink) -> Status {
     PointCloud batch = std::move(pending);
     for (std::size_t i = 0; i < in.readers.size(); ++i) {
@@ -111,6 +114,10 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
           if (got == 0) break;
         }
         conform_attributes(batch, in.colors, in.intensity);
+        for (const float v : batch.intensities) {
+          intensity_lo = std::min(intensity_lo, v);
+          intensity_hi = std::max(intensity_hi, v);
+        }
         RELIEF_RETURN_IF_ERROR(sink(batch));
         from_this += batch.size();
         points_read += batch.size();
@@ -129,6 +136,13 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     });
   };
 
+  // Every chunk of the scan quantises intensity over the scan's range, so the
+  // step does not depend on how the points fall into chunks.
+  const auto with_ranges = [&] {
+    EncodeParams p = params;
+    if (in.intensity && intensity_lo <= intensity_hi) p.intensity_range = std::make_pair(intensity_lo, intensity_hi);
+    return p;
+  };
   std::int64_t scan_id = 0;
   std::unique_ptr<ChunkPipeline> pipeline;
   Grouping grouping;
@@ -149,7 +163,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return Status::ok();
     }));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
-    pipeline = std::make_unique<ChunkPipeline>(archive, params, grid, scan_id, threads, options.cancel);
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel);
     RELIEF_RETURN_IF_ERROR(encode_cloud(*pipeline, all, grouping));
   } else {
     // ---- External distribution sort: every point into its chunk's bucket file.
@@ -164,7 +178,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
-    pipeline = std::make_unique<ChunkPipeline>(archive, params, grid, scan_id, threads, options.cancel);
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel);
     PointCloud slice;
     for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
       const std::uint64_t n = files.bucket_points(b);

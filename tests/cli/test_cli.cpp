@@ -11,8 +11,11 @@
 
 #include "relief/io.h"
 #include "support/synthetic.h"
+#include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
+
+using relief::test::TempDir;
 
 namespace {
 
@@ -34,18 +37,6 @@ Run run(const std::string& args) {
   return r;
 }
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() / ("relief-cli-" + std::to_string(::getpid()));
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
 
 std::string sample() { return std::string(RELIEF_SOURCE_DIR) + "/tests/data/kinect_milk_scene_rgb.ply"; }
 
@@ -116,7 +107,7 @@ TEST_CASE("bad input gives a clear error, a documented exit code and no output f
     const Run r = run("encode-chunk " + sample() + " -o " + tmp.file("no/such/dir/x.rlfc"));
     CHECK(r.code == 12);
     CHECK(r.output.find("x.rlfc") != std::string::npos);
-    CHECK(fs::is_empty(tmp.path));
+    CHECK(fs::is_empty(tmp.path()));
   }
   SECTION("truncated and corrupted blobs: corrupt-data") {
     REQUIRE(run("encode-chunk " + sample() + " -o " + tmp.file("ok.rlfc") + " --quiet").code == 0);

@@ -18,26 +18,15 @@
 #include "relief/io.h"
 #include "relief/metrics.h"
 #include "support/synthetic.h"
+#include "support/temp_dir.h"
 
 using namespace relief;
 namespace fs = std::filesystem;
 
+using relief::test::TempDir;
+
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() /
-           ("relief-ingest-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
 
 // A multi-chunk scene: a room plus a wavy terrain, with colour and intensity.
 PointCloud scene(std::uint64_t seed, std::size_t points, Vec3d offset = {0, 0, 0}) {
@@ -140,7 +129,7 @@ TEST_CASE("a multi-chunk scene is ingested, reopened and every chunk decodes wit
   CHECK(m->rmse_snn < 0.6 * 0.25 / 16 + 0.01);
   CHECK(m->rmse_rgb_snn < 20);
   // Temporary bucket files are gone.
-  for (const auto& e : fs::directory_iterator(tmp.path)) {
+  for (const auto& e : fs::directory_iterator(tmp.path())) {
     CHECK(e.path().filename().string().rfind("relief-ingest-", 0) != 0);
   }
 }
@@ -223,7 +212,7 @@ TEST_CASE("bad inputs to compress leave no archive", "[ingest]") {
   }
   CHECK_FALSE(fs::exists(out));
   CHECK_FALSE(fs::exists(out + "-wal"));
-  for (const auto& e : fs::directory_iterator(tmp.path)) {
+  for (const auto& e : fs::directory_iterator(tmp.path())) {
     CHECK(e.path().filename().string().rfind("relief-ingest-", 0) != 0);
   }
 }

@@ -16,26 +16,15 @@
 #include "relief/io.h"
 #include "relief/query.h"
 #include "support/synthetic.h"
+#include "support/temp_dir.h"
 
 using namespace relief;
 namespace fs = std::filesystem;
 
+using relief::test::TempDir;
+
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() / ("relief-query-test-" + std::to_string(::getpid()) + "-" +
-                                        std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
 
 PointCloud scene(std::uint64_t seed, std::size_t points) {
   test::SceneOptions o;

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <utility>
 #include <span>
 #include <string>
 #include <vector>
@@ -47,6 +48,9 @@ struct EncodeParams {
   // 8, or 16 (JPEG 2000 only): bits per height sample.
   int height_bits = 8;
   FillMethod fill = FillMethod::kBlockProjection;
+  // Intensity is quantised to 8 bits over this range (an archive passes its
+  // global range so every chunk uses the same step). Unset: the chunk's own range.
+  std::optional<std::pair<float, float>> intensity_range;
   // The chunk cube the patch grid is aligned to (e.g. the archive voxel).
   // Unset: the bounding box of the points, grown to a cube.
   std::optional<Vec3d> grid_origin;

@@ -1,0 +1,214 @@
+// bench/query: latency and bytes read of box queries at several levels of
+// detail, full decompression speed, and the time of an lod-16 preview of a
+// ~10 M-point archive. Prints CSV.
+//
+//   build/bench/query [--data DIR] [--tmp DIR] [--repeat N] [--chunk-edge M]
+//
+// Boxes are 2D (all heights) covering 0.1 %, 1 %, 10 % and 100 % of the
+// scene's x-y bounding-box area, at 9 positions each (a 3 x 3 grid over the
+// area the box can slide in); latency is the median, bytes read the mean.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "relief/ingest.h"
+#include "relief/io.h"
+#include "relief/query.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void remove_archive(const std::string& p) {
+  for (const char* s : {"", "-wal", "-shm"}) fs::remove(p + s);
+}
+
+// Wall time of a child process.
+double run_timed(const std::vector<std::string>& argv, int* code) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::vector<char*> args;
+    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  *code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return seconds_since(t0);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string data = RELIEF_BENCH_DATA_DIR;
+  std::string tmp = "/tmp";
+  std::string cli = RELIEF_BENCH_CLI;
+  int repeat = 3;
+  double chunk_edge = 24.0;  // 4 cells of the aerial tile's ~6 m default cell
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : ""; };
+    if (a == "--data") {
+      data = value();
+    } else if (a == "--tmp") {
+      tmp = value();
+    } else if (a == "--repeat") {
+      repeat = std::max(1, std::atoi(value()));
+    } else if (a == "--chunk-edge") {
+      chunk_edge = std::atof(value());
+    } else {
+      std::fprintf(stderr, "usage: query [--data DIR] [--tmp DIR] [--repeat N] [--chunk-edge M]\n");
+      return a == "--help" ? 0 : 2;
+    }
+  }
+  const std::string input = data + "/medium/fr_aerial_rgb_698k.ply";
+  if (!fs::exists(input)) {
+    std::printf("# skipped: %s absent\n", input.c_str());
+    return 0;
+  }
+  // ---- The largest shared file, in chunks small enough for local queries.
+  const std::string archive = tmp + "/relief-bench-query.relief";
+  remove_archive(archive);
+  relief::IngestOptions o;
+  o.chunk_edge = chunk_edge;
+  auto made = relief::compress_files({input}, archive, o);
+  if (!made) {
+    std::fprintf(stderr, "error: %s\n", made.status().to_string().c_str());
+    return 1;
+  }
+  auto reader = relief::ArchiveReader::open(archive);
+  if (!reader) return 1;
+  const relief::ArchiveInfo& info = (*reader)->info();
+  const relief::Box3d b = info.bounds;
+  std::printf("# archive: %s, %llu points in, %llu decodable, %llu chunks (edge %.0f m), %llu blob bytes, %.3f bpp\n",
+              input.c_str(), static_cast<unsigned long long>(info.input_points),
+              static_cast<unsigned long long>(info.decoded_points), static_cast<unsigned long long>(info.chunk_count),
+              chunk_edge, static_cast<unsigned long long>(info.blob_bytes),
+              8.0 * static_cast<double>(info.blob_bytes) / static_cast<double>(info.input_points));
+  std::printf("kind,box_area_pct,lod,median_ms,points,chunks_read,bytes_read_pct\n");
+  const double w = b.max.x - b.min.x, h = b.max.y - b.min.y;
+  for (double pct : {0.1, 1.0, 10.0, 100.0}) {
+    const double side = std::sqrt(pct / 100.0);
+    for (std::uint32_t lod : {1u, 4u, 16u}) {
+      std::vector<double> ms;
+      double bytes = 0, points = 0, chunks = 0;
+      int boxes = 0;
+      for (int gy = 0; gy < 3; ++gy) {
+        for (int gx = 0; gx < 3; ++gx) {
+          const double x0 = b.min.x + (1 - side) * w * (0.1 + 0.4 * gx);
+          const double y0 = b.min.y + (1 - side) * h * (0.1 + 0.4 * gy);
+          const relief::Box3d box = relief::box_2d(x0, y0, x0 + side * w, y0 + side * h);
+          relief::QueryOptions q;
+          q.lod = lod;
+          q.threads = 2;
+          std::vector<double> times;
+          relief::QueryStats last;
+          for (int k = 0; k < repeat; ++k) {
+            const auto t0 = std::chrono::steady_clock::now();
+            auto s = (*reader)->query(box, q, [](const relief::PointCloud&) { return relief::Status::ok(); });
+            times.push_back(seconds_since(t0) * 1e3);
+            if (s) last = *s;
+          }
+          ms.push_back(median(times));
+          bytes += static_cast<double>(last.blob_bytes_read);
+          points += static_cast<double>(last.points);
+          chunks += static_cast<double>(last.chunks_decoded);
+          ++boxes;
+        }
+      }
+      std::printf("box,%.1f,%u,%.2f,%.0f,%.1f,%.2f\n", pct, lod, median(ms), points / boxes, chunks / boxes,
+                  100.0 * bytes / boxes / static_cast<double>(info.blob_bytes));
+      std::fflush(stdout);
+    }
+  }
+  // ---- A ~10 M-point archive: 15 shifted copies of the tile side by side.
+  const std::string big = tmp + "/relief-bench-query-10m.relief";
+  remove_archive(big);
+  std::vector<std::string> copies;
+  {
+    auto cloud = relief::read_ply(input);
+    if (!cloud) return 1;
+    for (int k = 0; k < 15; ++k) {
+      relief::PointCloud c = *cloud;
+      for (relief::Vec3d& p : c.positions) {
+        p.x += (k % 5) * 400.0;
+        p.y += (k / 5) * 400.0;
+      }
+      copies.push_back(tmp + "/relief-bench-copy-" + std::to_string(k) + ".ply");
+      if (!relief::write_ply(copies.back(), c)) return 1;
+    }
+  }
+  relief::IngestOptions bo;
+  auto made_big = relief::compress_files(copies, big, bo);
+  for (const std::string& c : copies) fs::remove(c);
+  if (!made_big) {
+    std::fprintf(stderr, "error: %s\n", made_big.status().to_string().c_str());
+    return 1;
+  }
+  auto big_reader = relief::ArchiveReader::open(big);
+  if (!big_reader) return 1;
+  std::printf("# 10M archive: %llu points in, %llu decodable, %llu chunks\n",
+              static_cast<unsigned long long>((*big_reader)->info().input_points),
+              static_cast<unsigned long long>((*big_reader)->info().decoded_points),
+              static_cast<unsigned long long>((*big_reader)->info().chunk_count));
+  std::printf("kind,archive,threads,median_s,points,mpts_s\n");
+  for (unsigned threads : {1u, 2u}) {
+    std::vector<double> times;
+    std::uint64_t points = 0;
+    for (int k = 0; k < repeat; ++k) {
+      relief::QueryOptions q;
+      q.threads = threads;
+      const auto t0 = std::chrono::steady_clock::now();
+      auto s = (*big_reader)->query_all(q, [](const relief::PointCloud&) { return relief::Status::ok(); });
+      times.push_back(seconds_since(t0));
+      if (s) points = s->points;
+    }
+    std::printf("decompress_library,10M,%u,%.3f,%llu,%.2f\n", threads, median(times),
+                static_cast<unsigned long long>(points), static_cast<double>(points) / median(times) * 1e-6);
+  }
+  {
+    std::vector<double> times;
+    int code = 0;
+    const std::string out = tmp + "/relief-bench-decompressed.ply";
+    for (int k = 0; k < repeat; ++k) {
+      times.push_back(run_timed({cli, "decompress", big, "-o", out, "--threads", "2", "--quiet"}, &code));
+    }
+    const auto points = (*big_reader)->info().decoded_points;
+    std::printf("decompress_cli_to_ply,10M,2,%.3f,%llu,%.2f\n", median(times),
+                static_cast<unsigned long long>(points), static_cast<double>(points) / median(times) * 1e-6);
+    fs::remove(out);
+  }
+  {
+    std::vector<double> times;
+    int code = 0;
+    const std::string png = tmp + "/relief-bench-preview.png";
+    for (int k = 0; k < repeat; ++k) {
+      times.push_back(run_timed({cli, "preview", big, "--lod", "16", "-o", png, "--quiet"}, &code));
+    }
+    std::printf("preview_lod16_png,10M,2,%.3f,,\n", median(times));
+    fs::remove(png);
+  }
+  remove_archive(archive);
+  remove_archive(big);
+  return 0;
+}
