@@ -27,9 +27,10 @@ namespace {
 // Working memory per point while a bucket slice is grouped: the decoded
 // record (positions, colour, intensity) plus its key and sort entry.
 constexpr std::uint64_t kGroupBytesPerPoint = 24 + 3 + 4 + 4 + 4;
-// Encoder scratch per point of a chunk being encoded (sorted keys, plane
-// coordinates, the copy handed to the encoder, its decode check).
-constexpr std::uint64_t kEncodeBytesPerPoint = 220;
+// Memory per point of a chunk being encoded: the worker's gathered copy (31)
+// plus encoder scratch and the decode check, measured at ~62 bytes per point
+// on dense data; sparse data adds atlas pixels, hence the headroom.
+constexpr std::uint64_t kEncodeBytesPerPoint = 128;
 constexpr std::uint32_t kMinBuckets = 4;
 constexpr std::uint32_t kMaxBuckets = 4096;
 // Points per read from an input.

@@ -365,3 +365,27 @@ TEST_CASE("encode parameters round-trip through their text form", "[codec]") {
   CHECK_FALSE(encode_params_from_string("colour=1").is_ok());
   CHECK_FALSE(encode_params_from_string("decomposition=kd").is_ok());
 }
+
+TEST_CASE("JPEG sections are stored abbreviated at every quality", "[codec][jpeg]") {
+  // If the canonical tables ever stopped matching what TurboJPEG writes, the
+  // encoder would silently fall back to full streams; this pins that down.
+  test::SceneOptions o;
+  o.seed = 31;
+  o.points = 20000;
+  o.colors = true;
+  o.intensity = true;
+  const PointCloud in = test::make_terrain(o, 6.0, 0.3);
+  for (int q : {1, 10, 49, 50, 51, 75, 95, 100}) {
+    EncodeParams p = params_with_cell(0.4);
+    p.height_quality = p.color_quality = p.intensity_quality = q;
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    INFO("quality " << q);
+    for (const ChunkSectionInfo& s : info->sections) {
+      if (s.id >= 4) CHECK(static_cast<int>(s.codec) == 5);
+    }
+    CHECK(decode_chunk(*blob).is_ok());
+  }
+}
