@@ -13,7 +13,7 @@ int run_append(int argc, char** argv) {
       "usage: relief append ARCHIVE IN... [options]\n"
       "Adds point files to an existing archive with the archive's grid and codec parameters.\n"
       "If it fails, the archive is left as it was.\n\n") + kIngestOptionsHelp;
-  Args args(argc, argv, {"--help", "--quiet"}, ingest_option_names());
+  Args args(argc, argv, {"--help", "--quiet", "--verify"}, ingest_option_names());
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;

@@ -26,7 +26,7 @@ int run_compress(int argc, char** argv) {
   std::vector<std::string> options = encode_option_names();
   for (const std::string& o : ingest_option_names()) options.push_back(o);
   options.insert(options.end(), {"-o", "--chunk-edge", "--error-target"});
-  Args args(argc, argv, {"--help", "--quiet"}, options);
+  Args args(argc, argv, {"--help", "--quiet", "--verify"}, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;

@@ -128,7 +128,7 @@ int run_stream(int argc, char** argv) {
   std::vector<std::string> options = encode_option_names();
   for (const std::string& o : ingest_option_names()) options.push_back(o);
   options.insert(options.end(), {"--format", "--attributes", "--batch", "--idle", "--max-buffered", "--chunk-edge"});
-  Args args(argc, argv, {"--help", "--quiet", "--immediate"}, options);
+  Args args(argc, argv, {"--help", "--quiet", "--immediate", "--verify"}, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;

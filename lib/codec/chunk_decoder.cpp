@@ -9,6 +9,7 @@
 #include "codec/jpeg_tables.h"
 #include "codec/octree.h"
 #include "codec/patch.h"
+#include "codec/reconstruct.h"
 
 namespace relief {
 
@@ -181,55 +182,26 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
   if (has_i) out.intensities.resize(out_count);
   std::size_t k = 0;  // next output point
 
-  const double levels = h.height_bits == 16 ? 65535.0 : 255.0;
-  const double h_step = (h.height_max - h.height_min) / levels;
   const double i_step = static_cast<double>(h.intensity_max - h.intensity_min) / 255.0;
-  const std::vector<std::uint16_t>& lod_order = codec::lod_pixel_order(r);
-  const std::size_t np = n;
-
+  codec::MapsView maps;
+  maps.header = &h;
+  maps.leaves = &leaves;
+  maps.records = records.data();
+  maps.occupancy = occupancy.data();
+  if (h.height_bits == 16) {
+    maps.height16 = height16.pixels.data();
+  } else {
+    maps.height8 = height8.pixels.data();
+  }
+  maps.atlas_width = aw;
   for (std::uint32_t p = 0; p < n; ++p) {
     if (quota[p] == 0) continue;
-    const codec::Leaf& leaf = leaves[p];
-    const double edge = std::ldexp(h.grid_edge, -leaf.depth);
-    const Vec3d center{h.grid_origin.x + (leaf.ix + 0.5) * edge, h.grid_origin.y + (leaf.iy + 0.5) * edge,
-                       h.grid_origin.z + (leaf.iz + 0.5) * edge};
-    const codec::QuantizedPatch q{records[p], records[np + p], records[2 * np + p], records[3 * np + p],
-                                  records[4 * np + p], records[5 * np + p], records[6 * np + p]};
-    const codec::PatchFrame f = codec::make_frame(q, center, edge, r);
-    std::uint32_t tx = 0, ty = 0;
-    codec::tile_position(p, tx, ty);
-    const std::size_t tile0 = static_cast<std::size_t>(ty) * r * aw + static_cast<std::size_t>(tx) * r;
-    const double h_scale = edge * h_step;
-    const double h_base = edge * h.height_min;
-    // Point = origin + (umin + (x + .5) pu) e1 + (vmin + (y + .5) pv) e2 + h n.
-    const Vec3d base = f.origin + (f.umin + 0.5 * f.pixel_u) * f.e1 + (f.vmin + 0.5 * f.pixel_v) * f.e2 +
-                       h_base * f.n;
-    const Vec3d du = f.pixel_u * f.e1, dv = f.pixel_v * f.e2, dh = h_scale * f.n;
-    const auto emit = [&](int x, int y) {
-      const std::size_t a = tile0 + static_cast<std::size_t>(y) * aw + static_cast<std::size_t>(x);
-      const double hq = h.height_bits == 16 ? height16.pixels[a] : height8.pixels[a];
-      out.positions[k] = {base.x + x * du.x + y * dv.x + hq * dh.x, base.y + x * du.y + y * dv.y + hq * dh.y,
-                          base.z + x * du.z + y * dv.z + hq * dh.z};
+    codec::reconstruct_patch(maps, p, quota[p], occupied[p], [&](std::size_t a, const Vec3d& pos) {
+      out.positions[k] = pos;
       if (has_rgb) out.colors[k] = {colors.pixels[a * 3], colors.pixels[a * 3 + 1], colors.pixels[a * 3 + 2]};
       if (has_i) out.intensities[k] = static_cast<float>(h.intensity_min + intensity.pixels[a] * i_step);
       ++k;
-    };
-    if (quota[p] == occupied[p]) {
-      for (int y = 0; y < r; ++y) {
-        const std::uint8_t* row = occupancy.data() + tile0 + static_cast<std::size_t>(y) * aw;
-        for (int x = 0; x < r; ++x) {
-          if (row[x]) emit(x, y);
-        }
-      }
-    } else {
-      std::uint32_t left = quota[p];
-      for (std::uint16_t pix : lod_order) {
-        const int x = pix % r, y = pix / r;
-        if (!occupancy[tile0 + static_cast<std::size_t>(y) * aw + static_cast<std::size_t>(x)]) continue;
-        emit(x, y);
-        if (--left == 0) break;
-      }
-    }
+    });
   }
   return out;
 }

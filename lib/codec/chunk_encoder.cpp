@@ -12,6 +12,7 @@
 #include "codec/jpeg_tables.h"
 #include "codec/octree.h"
 #include "codec/patch.h"
+#include "codec/reconstruct.h"
 
 namespace relief {
 
@@ -125,8 +126,13 @@ struct Encoder {
   float i_lo = std::numeric_limits<float>::infinity();
   float i_hi = -std::numeric_limits<float>::infinity();
 
+  EncodeStats* stats = nullptr;
+  std::vector<std::uint8_t> height_stream;      // the full coded height map, when stats are wanted
+  std::vector<std::uint32_t> patch_occupied;    // occupied pixels per patch
+
   Status choose_grid();
   void build_decomposition();
+  Status decoded_stats(const std::vector<std::uint8_t>& coded_heights, EncodeStats& out) const;
   void encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s);
   Result<std::vector<std::uint8_t>> finish();
 };
@@ -366,6 +372,7 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
     }
   }
   decoded_points += s.touched.size();
+  patch_occupied[index] = static_cast<std::uint32_t>(s.touched.size());
   // A fully occupied tile has nothing to fill.
   if (s.touched.size() < rr) {
     const auto fill = [&](std::vector<float>& tile, int channels, int block) {
@@ -452,8 +459,10 @@ std::vector<Sample> quantize_plane(const std::vector<float>& plane, double lo, d
 // A JPEG section: abbreviated (tables implied by the quality) when the stream
 // carries exactly the standard tables, else the full stream.
 Result<SectionEntry> jpeg_section(SectionId id, const codec::Image8& img, int quality, bool subsample,
-                                  std::vector<std::vector<std::uint8_t>>& storage) {
+                                  std::vector<std::vector<std::uint8_t>>& storage,
+                                  std::vector<std::uint8_t>* full_copy = nullptr) {
   RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> coded, codec::jpeg_encode(img, quality, subsample));
+  if (full_copy) *full_copy = coded;
   SectionEntry e{id, SectionCodec::kJpeg, static_cast<std::uint32_t>(img.pixels.size()), 0, {}};
   if (auto brief = codec::jpeg_abbreviate(coded, quality, img.channels)) {
     brief->insert(brief->begin(), static_cast<std::uint8_t>(quality));
@@ -505,15 +514,18 @@ Result<std::vector<std::uint8_t>> Encoder::finish() {
   if (params.height_bits == 16) {
     codec::Image16 img{atlas_w, atlas_h, quantize_plane<std::uint16_t>(heights, h_lo, h_hi, 65535.0)};
     RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> coded, codec::j2k_encode16(img, params.height_quality));
+    if (stats) height_stream = coded;
     storage.push_back(std::move(coded));
     sections.push_back({SectionId::kHeight, image_codec, pixels * 2, 0, {}});
   } else {
     codec::Image8 img{atlas_w, atlas_h, 1, quantize_plane<std::uint8_t>(heights, h_lo, h_hi, 255.0)};
     if (jpeg) {
-      RELIEF_ASSIGN_OR_RETURN(SectionEntry s, jpeg_section(SectionId::kHeight, img, params.height_quality, false, storage));
+      RELIEF_ASSIGN_OR_RETURN(SectionEntry s, jpeg_section(SectionId::kHeight, img, params.height_quality, false,
+                                                           storage, stats ? &height_stream : nullptr));
       sections.push_back(s);
     } else {
       RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> coded, codec::j2k_encode8(img, params.height_quality));
+      if (stats) height_stream = coded;
       storage.push_back(std::move(coded));
       sections.push_back({SectionId::kHeight, image_codec, pixels, 0, {}});
     }
@@ -545,13 +557,46 @@ Result<std::vector<std::uint8_t>> Encoder::finish() {
     sections[i].payload = storage[i];
     sections[i].coded_size = static_cast<std::uint32_t>(storage[i].size());
   }
+  if (stats) RELIEF_RETURN_IF_ERROR(decoded_stats(height_stream, *stats));
   return codec::write_blob(header, sections);
+}
+
+// The decoded points' count and exact bounds, from this encoder's occupancy
+// and patch records and the decoded height map: the same reconstruction a
+// decoder runs (reconstruct.h), without decoding occupancy or attributes.
+Status Encoder::decoded_stats(const std::vector<std::uint8_t>& coded_heights, EncodeStats& out) const {
+  codec::Image8 h8;
+  codec::Image16 h16;
+  codec::MapsView maps;
+  if (params.height_bits == 16) {
+    RELIEF_ASSIGN_OR_RETURN(h16, codec::j2k_decode16(coded_heights, atlas_w, atlas_h));
+    maps.height16 = h16.pixels.data();
+  } else if (params.image_codec == ImageCodec::kJpeg) {
+    RELIEF_ASSIGN_OR_RETURN(h8, codec::jpeg_decode(coded_heights, atlas_w, atlas_h, 1));
+    maps.height8 = h8.pixels.data();
+  } else {
+    RELIEF_ASSIGN_OR_RETURN(h8, codec::j2k_decode8(coded_heights, atlas_w, atlas_h, 1));
+    maps.height8 = h8.pixels.data();
+  }
+  maps.header = &header;
+  maps.leaves = &leaves;
+  maps.records = patch_records.data();
+  maps.occupancy = occupancy.data();
+  maps.atlas_width = atlas_w;
+  Box3d bounds;
+  for (std::uint32_t p = 0; p < header.patch_count; ++p) {
+    codec::reconstruct_patch(maps, p, patch_occupied[p], patch_occupied[p],
+                             [&](std::size_t, const Vec3d& point) { bounds.add(point); });
+  }
+  out.decoded_points = header.decoded_points;
+  out.decoded_bounds = bounds;
+  return Status::ok();
 }
 
 }  // namespace
 
 Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
-                                               std::span<const Vec3d> normals) {
+                                               std::span<const Vec3d> normals, EncodeStats* stats) {
   RELIEF_RETURN_IF_ERROR(check_params(params, cloud.size(), normals.size()));
   RELIEF_RETURN_IF_ERROR(cloud.validate("chunk"));
   for (std::size_t i = 0; i < normals.size(); ++i) {
@@ -575,6 +620,7 @@ Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const En
   h.input_points = static_cast<std::uint32_t>(cloud.size());
   if (cloud.empty()) {
     h.grid_edge = 1;
+    if (stats) *stats = EncodeStats{};
     return codec::write_blob(h, {});
   }
   RELIEF_RETURN_IF_ERROR(enc.choose_grid());
@@ -597,6 +643,8 @@ Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const En
   if (cloud.has_colors()) enc.rgb.assign(pixels * 3, 128);
   if (cloud.has_intensity()) enc.intensity.assign(pixels, nan);
   enc.patch_records.assign(enc.leaves.size() * codec::kPatchRecordSize, 0);
+  enc.patch_occupied.assign(enc.leaves.size(), 0);
+  enc.stats = stats;
   PatchScratch scratch;
   for (std::size_t i = 0; i < enc.leaves.size(); ++i) enc.encode_patch(i, enc.leaves[i], scratch);
   return enc.finish();

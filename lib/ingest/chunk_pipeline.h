@@ -1,6 +1,7 @@
 // Parallel chunk encoding with a single writer: worker threads encode chunks
-// (and decode each blob back, for its exact bounds and as a check); the calling
-// thread commits finished rows in batched transactions. Internal to ingest.
+// (the encoder reports each blob's exact decoded bounds; with verify, every
+// blob is also decoded back as a check); the calling thread commits finished
+// rows in batched transactions. Internal to ingest.
 #pragma once
 
 #include <atomic>
@@ -36,7 +37,7 @@ struct PipelineTotals {
 class ChunkPipeline {
  public:
   ChunkPipeline(Archive& archive, const EncodeParams& params, const ArchiveGrid& grid, std::int64_t scan_id,
-                unsigned threads, const std::atomic<bool>* cancel);
+                unsigned threads, const std::atomic<bool>* cancel, bool verify);
 
   // Encodes and stores every task; returns when all are committed or on the
   // first error (nothing of a failed batch is committed). `tick` is called
@@ -55,6 +56,7 @@ class ChunkPipeline {
   std::int64_t scan_id_;
   unsigned threads_;
   const std::atomic<bool>* cancel_;
+  bool verify_;
   PipelineTotals totals_;
 };
 

@@ -164,7 +164,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return Status::ok();
     }));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
-    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel);
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
+                                               options.verify_blobs);
     RELIEF_RETURN_IF_ERROR(encode_cloud(*pipeline, all, grouping));
   } else {
     // ---- External distribution sort: every point into its chunk's bucket file.
@@ -179,7 +180,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
-    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel);
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
+                                               options.verify_blobs);
     PointCloud slice;
     for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
       const std::uint64_t n = files.bucket_points(b);

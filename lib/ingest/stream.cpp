@@ -33,7 +33,8 @@ class StreamIngestImpl final : public StreamIngest {
         scan_id_(scan_id),
         colors_(colors),
         intensity_(intensity),
-        pipeline_(*archive_, params, grid, scan_id, resolve_threads(options.ingest.threads), options.ingest.cancel),
+        pipeline_(*archive_, params, grid, scan_id, resolve_threads(options.ingest.threads), options.ingest.cancel,
+                  options.ingest.verify_blobs),
         progress_(options.ingest.progress, 0),
         start_(std::chrono::steady_clock::now()) {}
 

@@ -3,7 +3,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -152,4 +154,131 @@ TEST_CASE("usage errors exit 2 and --help exits 0", "[cli]") {
     CHECK(h.output.find("usage: relief") != std::string::npos);
   }
   CHECK(run("--version").output.find("chunk format 1") != std::string::npos);
+}
+
+TEST_CASE("compress: bad inputs exit non-zero with a clear error and leave no archive", "[cli][ingest]") {
+  TempDir tmp;
+  const std::string out = tmp.file("x.relief");
+  const auto no_archive = [&] {
+    CHECK_FALSE(fs::exists(out));
+    CHECK_FALSE(fs::exists(out + "-wal"));
+    for (const auto& e : fs::directory_iterator(tmp.path())) {
+      CHECK(e.path().filename().string().rfind("relief-ingest-", 0) != 0);
+    }
+  };
+  // A valid LAS written by our own writer, then damaged.
+  relief::test::SceneOptions o;
+  o.points = 20000;
+  o.intensity = true;
+  const relief::PointCloud cloud = relief::test::make_terrain(o, 10.0, 0.5);
+  {
+    relief::WriterOptions w;
+    w.intensity = true;
+    auto writer = relief::open_point_writer(tmp.file("ok.las"), w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(cloud).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  }
+  SECTION("truncated LAS") {
+    fs::copy_file(tmp.file("ok.las"), tmp.file("cut.las"));
+    fs::resize_file(tmp.file("cut.las"), fs::file_size(tmp.file("cut.las")) - 500);
+    const Run r = run("compress " + tmp.file("cut.las") + " -o " + out + " --quiet");
+    CHECK(r.code == 13);
+    CHECK(r.output.find("cut.las") != std::string::npos);
+    no_archive();
+  }
+  SECTION("PLY whose header count lies") {
+    write_text(tmp.file("lie.ply"),
+               "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\nproperty float y\n"
+               "property float z\nend_header\n0 0 0\n1 1 1\n");
+    const Run r = run("compress " + tmp.file("lie.ply") + " -o " + out + " --quiet");
+    CHECK(r.code == 13);
+    no_archive();
+  }
+  SECTION("NaN coordinate in an XYZ file") {
+    write_text(tmp.file("nan.xyz"), "0 0 0\n1 1 1\n2 nan 2\n");
+    const Run r = run("compress " + tmp.file("nan.xyz") + " -o " + out + " --quiet --cell 1");
+    CHECK(r.code == 13);
+    CHECK(r.output.find("nan.xyz") != std::string::npos);
+    no_archive();
+  }
+  SECTION("missing input") {
+    const Run r = run("compress " + tmp.file("nope.las") + " -o " + out);
+    CHECK(r.code == 12);
+    no_archive();
+  }
+  SECTION("LAZ") {
+    write_text(tmp.file("scan.laz"), "LASF");
+    const Run r = run("compress " + tmp.file("scan.laz") + " -o " + out);
+    CHECK(r.code == 15);
+    CHECK(r.output.find("laszip") != std::string::npos);
+    no_archive();
+  }
+  SECTION("unwritable output") {
+    const Run r = run("compress " + tmp.file("ok.las") + " -o " + tmp.file("no/dir/x.relief"));
+    CHECK(r.code == 12);
+    CHECK_FALSE(fs::exists(tmp.file("no")));
+  }
+  SECTION("existing output is not touched") {
+    write_text(out, "precious");
+    const Run r = run("compress " + tmp.file("ok.las") + " -o " + out);
+    CHECK(r.code == 12);
+    CHECK(fs::file_size(out) == 8);
+  }
+}
+
+TEST_CASE("query and decompress: LAS output keeps coordinates within the scale", "[cli][query]") {
+  TempDir tmp;
+  REQUIRE(run("compress " + sample() + " -o " + tmp.file("k.relief") + " --quiet").code == 0);
+  REQUIRE(run("query " + tmp.file("k.relief") + " --box -0.5,-0.2,-2.1,0.5,0.5,-0.5 -o " + tmp.file("q.las") +
+              " --quiet")
+              .code == 0);
+  REQUIRE(run("query " + tmp.file("k.relief") + " --box -0.5,-0.2,-2.1,0.5,0.5,-0.5 -o " + tmp.file("q.ply") +
+              " --quiet")
+              .code == 0);
+  auto las = relief::read_point_file(tmp.file("q.las"));
+  auto ply = relief::read_point_file(tmp.file("q.ply"));
+  REQUIRE(las.is_ok());
+  REQUIRE(ply.is_ok());
+  REQUIRE(las->size() == ply->size());
+  REQUIRE(las->size() > 1000);
+  double worst = 0;
+  for (std::size_t i = 0; i < las->size(); ++i) {
+    worst = std::max({worst, std::abs(las->positions[i].x - ply->positions[i].x),
+                      std::abs(las->positions[i].y - ply->positions[i].y),
+                      std::abs(las->positions[i].z - ply->positions[i].z)});
+  }
+  CHECK(worst <= 0.00005 + 1e-12);  // half the 0.1 mm scale
+  CHECK(las->colors == ply->colors);
+  // decompress to stdout as XYZ text.
+  const Run d = run("decompress " + tmp.file("k.relief") + " -o - --quiet");
+  CHECK(d.code == 0);
+  CHECK(std::count(d.output.begin(), d.output.end(), '\n') > 50000);
+}
+
+TEST_CASE("query and info: clear errors for bad archives and boxes", "[cli][query]") {
+  TempDir tmp;
+  REQUIRE(run("compress " + sample() + " -o " + tmp.file("k.relief") + " --quiet").code == 0);
+  const std::string a = tmp.file("k.relief");
+  CHECK(run("query " + tmp.file("missing.relief") + " --box 0,0,1,1 -o " + tmp.file("o.ply")).code == 12);
+  write_text(tmp.file("text.relief"), "not sqlite at all, not at all, really not");
+  const Run foreign = run("info " + tmp.file("text.relief"));
+  CHECK(foreign.code == 13);
+  CHECK(foreign.output.find("not a Relief archive") != std::string::npos);
+  for (const char* box : {"1,1,0,0", "a,b,c,d", "1,2,3", "0,0,0,1,1,nan", "5,0,0,4,1,1"}) {
+    const Run r = run("query " + a + " --box " + box + " -o " + tmp.file("o.ply"));
+    INFO(box);
+    CHECK(r.code == 2);
+    CHECK(r.output.find("--box") != std::string::npos);
+  }
+  CHECK_FALSE(fs::exists(tmp.file("o.ply")));
+  const Run info = run("info " + a + " --json");
+  CHECK(info.code == 0);
+  CHECK(info.output.find("\"format_version\": 1") != std::string::npos);
+  CHECK(info.output.find("\"points_in\": 241407") != std::string::npos);
+  for (const char* cmd : {"compress", "append", "stream", "query", "decompress", "info", "preview"}) {
+    const Run h = run(std::string(cmd) + " --help");
+    CHECK(h.code == 0);
+    CHECK(h.output.find("usage: relief") != std::string::npos);
+  }
 }

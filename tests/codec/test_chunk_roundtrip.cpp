@@ -389,3 +389,35 @@ TEST_CASE("JPEG sections are stored abbreviated at every quality", "[codec][jpeg
     CHECK(decode_chunk(*blob).is_ok());
   }
 }
+
+TEST_CASE("the encoder's decoded count and bounds equal a real decode exactly", "[codec]") {
+  test::SceneOptions o;
+  o.seed = 41;
+  o.points = 30000;
+  o.colors = true;
+  o.noise = 0.003;
+  const PointCloud in = test::make_room(o, 3.0);
+  for (int variant = 0; variant < 4; ++variant) {
+    EncodeParams p = params_with_cell(0.2);
+    if (variant == 1) p.image_codec = ImageCodec::kJpeg2000;
+    if (variant == 2) {
+      p.image_codec = ImageCodec::kJpeg2000;
+      p.height_bits = 16;
+    }
+    if (variant == 3) {
+      p.decomposition = Decomposition::kOctree;
+      p.octree_max_points = 200;
+      p.cell_size = 0.05;
+    }
+    EncodeStats stats;
+    auto blob = encode_chunk(in, p, {}, &stats);
+    REQUIRE(blob.is_ok());
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    INFO("variant " << variant);
+    CHECK(stats.decoded_points == out->size());
+    const Box3d b = out->bounds();
+    CHECK(stats.decoded_bounds.min == b.min);
+    CHECK(stats.decoded_bounds.max == b.max);
+  }
+}

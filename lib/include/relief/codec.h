@@ -94,10 +94,17 @@ struct ChunkInfo {
   std::vector<ChunkSectionInfo> sections;
 };
 
+// What a full decode of a blob will return, known to the encoder.
+struct EncodeStats {
+  std::uint32_t decoded_points = 0;
+  Box3d decoded_bounds;  // exact bounds of decode_chunk's points (lod 1)
+};
+
 // Encodes one chunk. `normals`, when not empty, holds one unit normal per point
-// and enables the octree normal-cone criterion.
+// and enables the octree normal-cone criterion. With `stats`, also reports the
+// decoded count and exact bounds (it decodes only the height map to do so).
 Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
-                                               std::span<const Vec3d> normals = {});
+                                               std::span<const Vec3d> normals = {}, EncodeStats* stats = nullptr);
 
 // Decodes a blob made by encode_chunk. Never reads out of bounds, never trusts
 // a size field for allocation beyond DecodeOptions::max_points.

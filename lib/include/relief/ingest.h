@@ -37,6 +37,11 @@ struct IngestOptions {
   // encoders' scratch). Peak RSS stays near it whatever the input size.
   std::uint64_t memory_budget = std::uint64_t{1} << 30;
   unsigned threads = 0;     // encoder threads; 0 = all cores
+  // Decode every blob completely before committing it and compare with what
+  // the encoder expects (count and bounds). The index bounds are exact either
+  // way (the encoder reconstructs them from its own maps); this adds a full
+  // decode, ~10 % of the ingest time, as a belt-and-braces check.
+  bool verify_blobs = false;
   std::string tmp_dir;      // temporary bucket files; empty = beside the archive
   ReaderOptions reader;
   // Called from the ingest's own thread about twice a second and at the end.
