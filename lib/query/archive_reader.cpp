@@ -2,7 +2,6 @@
 // decode at the requested level of detail, clipping, in-order delivery.
 #include <atomic>
 #include <chrono>
-#include <future>
 #include <cmath>
 #include <limits>
 #include <thread>
@@ -92,12 +91,12 @@ class Reader final : public ArchiveReader {
       PointCloud points;
       Status status;
     };
-    // Reads and decodes one wave of chunks. Blobs are read on the calling
-    // thread (one SQLite connection, never used by two threads at once);
-    // checksum failures surface here.
-    const auto load_wave = [&](std::size_t first) {
+    std::vector<Slot> slots;
+    for (std::size_t first = 0; first < refs.size(); first += wave) {
       const std::size_t count = std::min(wave, refs.size() - first);
-      std::vector<Slot> slots(count);
+      slots.assign(count, Slot{});
+      // Blobs are read on this thread (one SQLite connection); checksum
+      // failures surface here.
       for (std::size_t k = 0; k < count; ++k) {
         slots[k].ref = refs[first + k];
         auto row = archive_->read_chunk(slots[k].ref.id);
@@ -128,22 +127,9 @@ class Reader final : public ArchiveReader {
       for (unsigned t = 0; t < helpers; ++t) pool.emplace_back(decode_worker);
       decode_worker();
       for (std::thread& t : pool) t.join();
-      return slots;
-    };
-    // Pipelined: wave k+1 is read and decoded in the background while the
-    // sink consumes wave k (a writer and the decoders overlap). At most two
-    // waves are in memory.
-    std::future<std::vector<Slot>> ahead;
-    if (!refs.empty()) ahead = std::async(std::launch::async, load_wave, std::size_t{0});
-    for (std::size_t first = 0; first < refs.size(); first += wave) {
-      std::vector<Slot> slots = ahead.get();
-      if (first + wave < refs.size()) ahead = std::async(std::launch::async, load_wave, first + wave);
       for (Slot& s : slots) {
         if (!s.status) {
-          if (!options.skip_corrupt) {
-            if (ahead.valid()) ahead.wait();
-            return s.status;
-          }
+          if (!options.skip_corrupt) return s.status;
           ++stats.chunks_skipped;
           if (options.on_warning) options.on_warning("skipped: " + s.status.message());
           continue;
@@ -151,11 +137,7 @@ class Reader final : public ArchiveReader {
         ++stats.chunks_decoded;
         if (s.points.empty()) continue;
         stats.points += s.points.size();
-        Status delivered = sink(s.points);
-        if (!delivered) {
-          if (ahead.valid()) ahead.wait();
-          return delivered;
-        }
+        RELIEF_RETURN_IF_ERROR(sink(s.points));
         s.points = PointCloud();
       }
     }
