@@ -95,12 +95,22 @@ struct PatchScratch {
 };
 
 struct Encoder {
-  Encoder(const PointCloud& c, const EncodeParams& p, std::span<const Vec3d> n)
-      : cloud(c), params(p), normals(n) {}
+  Encoder(const PointCloud& c, std::span<const std::uint32_t> s, const EncodeParams& p, std::span<const Vec3d> n)
+      : cloud(c), subset(s), count(s.empty() ? c.size() : s.size()), params(p), normals(n) {}
 
   const PointCloud& cloud;
+  // The points to encode: cloud[subset[i]], or the whole cloud when empty.
+  std::span<const std::uint32_t> subset;
+  std::size_t count;
   const EncodeParams& params;
   std::span<const Vec3d> normals;
+
+  std::size_t src(std::size_t i) const { return subset.empty() ? i : subset[i]; }
+  Box3d input_bounds() const {
+    Box3d b;
+    for (std::size_t i = 0; i < count; ++i) b.add(cloud.positions[src(i)]);
+    return b;
+  }
 
   codec::ChunkHeader header;
   int r = 16;
@@ -148,7 +158,7 @@ Status Encoder::choose_grid() {
   if (params.grid_origin) {
     origin = *params.grid_origin;
     edge = params.grid_edge;
-    const Box3d b = cloud.bounds();
+    const Box3d b = input_bounds();
     const double tol = edge * 1e-9;
     if (b.min.x < origin.x - tol || b.min.y < origin.y - tol || b.min.z < origin.z - tol ||
         b.max.x > origin.x + edge + tol || b.max.y > origin.y + edge + tol ||
@@ -156,7 +166,7 @@ Status Encoder::choose_grid() {
       return invalid_argument("points lie outside the chunk cube given by grid origin and edge");
     }
   } else {
-    const Box3d b = cloud.bounds();
+    const Box3d b = input_bounds();
     origin = b.min;
     const Vec3d e = b.extent();
     edge = std::max({e.x, e.y, e.z});
@@ -181,26 +191,26 @@ void Encoder::build_decomposition() {
   const double inv_fine = cells / header.grid_edge;
   const auto max_index = static_cast<std::uint32_t>(cells - 1);
   const Vec3d o = header.grid_origin;
-  sorted.resize(cloud.size());
+  sorted.resize(count);
   const auto cell_of = [&](double v) {
     const double c = std::floor(v * inv_fine);
     return c <= 0 ? 0u : std::min(max_index, static_cast<std::uint32_t>(c));
   };
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const Vec3d& p = cloud.positions[i];
+  for (std::size_t i = 0; i < count; ++i) {
+    const Vec3d& p = cloud.positions[src(i)];
     sorted[i] = {codec::morton_encode(cell_of(p.x - o.x), cell_of(p.y - o.y), cell_of(p.z - o.z)),
                  static_cast<std::uint32_t>(i)};
   }
   codec::radix_sort(sorted, 3 * depth);
   pos.resize(sorted.size());
-  for (std::size_t i = 0; i < sorted.size(); ++i) pos[i] = cloud.positions[sorted[i].index];
+  for (std::size_t i = 0; i < sorted.size(); ++i) pos[i] = cloud.positions[src(sorted[i].index)];
   if (cloud.has_colors()) {
     col.resize(sorted.size());
-    for (std::size_t i = 0; i < sorted.size(); ++i) col[i] = cloud.colors[sorted[i].index];
+    for (std::size_t i = 0; i < sorted.size(); ++i) col[i] = cloud.colors[src(sorted[i].index)];
   }
   if (cloud.has_intensity()) {
     inten.resize(sorted.size());
-    for (std::size_t i = 0; i < sorted.size(); ++i) inten[i] = cloud.intensities[sorted[i].index];
+    for (std::size_t i = 0; i < sorted.size(); ++i) inten[i] = cloud.intensities[src(sorted[i].index)];
   }
 
   codec::LeafPredicate predicate;
@@ -595,21 +605,49 @@ Status Encoder::decoded_stats(const std::vector<std::uint8_t>& coded_heights, En
 
 }  // namespace
 
-Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
-                                               std::span<const Vec3d> normals, EncodeStats* stats) {
-  RELIEF_RETURN_IF_ERROR(check_params(params, cloud.size(), normals.size()));
-  RELIEF_RETURN_IF_ERROR(cloud.validate("chunk"));
+namespace {
+
+// The points of a subset must be finite; the attribute arrays must match.
+Status validate_subset(const PointCloud& cloud, std::span<const std::uint32_t> subset) {
+  if ((!cloud.colors.empty() && cloud.colors.size() != cloud.size()) ||
+      (!cloud.intensities.empty() && cloud.intensities.size() != cloud.size())) {
+    return invalid_argument("chunk: attribute arrays do not match the positions");
+  }
+  for (const std::uint32_t i : subset) {
+    if (i >= cloud.size()) return invalid_argument("chunk: subset index " + std::to_string(i) + " out of range");
+    const Vec3d& p = cloud.positions[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) ||
+        (cloud.has_intensity() && !std::isfinite(cloud.intensities[i]))) {
+      return invalid_argument("chunk: point " + std::to_string(i) + " has a non-finite coordinate or intensity");
+    }
+  }
+  return Status::ok();
+}
+
+Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, std::span<const std::uint32_t> subset,
+                                              const EncodeParams& params, std::span<const Vec3d> normals,
+                                              EncodeStats* stats) {
+  const std::size_t count = subset.empty() ? cloud.size() : subset.size();
+  RELIEF_RETURN_IF_ERROR(check_params(params, count, normals.size()));
+  if (subset.empty()) {
+    RELIEF_RETURN_IF_ERROR(cloud.validate("chunk"));
+  } else {
+    RELIEF_RETURN_IF_ERROR(validate_subset(cloud, subset));
+  }
   for (std::size_t i = 0; i < normals.size(); ++i) {
     const Vec3d& n = normals[i];
     if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z) || norm(n) < 1e-12) {
       return invalid_argument("chunk: normal " + std::to_string(i) + " is not a finite non-zero vector");
     }
   }
-  if (cloud.size() > kMaxChunkPoints) {
-    return limit_exceeded("chunk: " + std::to_string(cloud.size()) + " points exceed the limit of " +
+  if (count > kMaxChunkPoints) {
+    return limit_exceeded("chunk: " + std::to_string(count) + " points exceed the limit of " +
                           std::to_string(kMaxChunkPoints) + " per chunk");
   }
-  Encoder enc{cloud, params, normals};
+  if (!subset.empty() && params.cell_size == 0) {
+    return invalid_argument("chunk: encoding a subset needs an explicit cell size");
+  }
+  Encoder enc{cloud, subset, params, normals};
   codec::ChunkHeader& h = enc.header;
   h.flags = static_cast<std::uint8_t>((cloud.has_colors() ? codec::kFlagColors : 0) |
                                       (cloud.has_intensity() ? codec::kFlagIntensity : 0));
@@ -617,8 +655,8 @@ Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const En
   h.image_codec = params.image_codec;
   h.map_resolution = static_cast<std::uint8_t>(params.map_resolution);
   h.height_bits = static_cast<std::uint8_t>(params.height_bits);
-  h.input_points = static_cast<std::uint32_t>(cloud.size());
-  if (cloud.empty()) {
+  h.input_points = static_cast<std::uint32_t>(count);
+  if (count == 0) {
     h.grid_edge = 1;
     if (stats) *stats = EncodeStats{};
     return codec::write_blob(h, {});
@@ -648,6 +686,19 @@ Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const En
   PatchScratch scratch;
   for (std::size_t i = 0; i < enc.leaves.size(); ++i) enc.encode_patch(i, enc.leaves[i], scratch);
   return enc.finish();
+}
+
+}  // namespace
+
+Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
+                                               std::span<const Vec3d> normals, EncodeStats* stats) {
+  return encode_impl(cloud, {}, params, normals, stats);
+}
+
+Result<std::vector<std::uint8_t>> encode_chunk_subset(const PointCloud& cloud, std::span<const std::uint32_t> subset,
+                                                      const EncodeParams& params, EncodeStats* stats) {
+  if (subset.empty()) return encode_impl(PointCloud(), {}, params, {}, stats);
+  return encode_impl(cloud, subset, params, {}, stats);
 }
 
 double suggest_cell_size(const PointCloud& cloud, int map_resolution) {

@@ -28,16 +28,6 @@ ChunkPipeline::ChunkPipeline(Archive& archive, const EncodeParams& params, const
       verify_(verify) {}
 
 Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
-  if (task.source != nullptr) {
-    const PointCloud& src = *task.source;
-    task.points.reserve(task.count, src.has_colors(), src.has_intensity());
-    for (std::size_t k = 0; k < task.count; ++k) {
-      const std::uint32_t i = task.index[k];
-      task.points.positions.push_back(src.positions[i]);
-      if (src.has_colors()) task.points.colors.push_back(src.colors[i]);
-      if (src.has_intensity()) task.points.intensities.push_back(src.intensities[i]);
-    }
-  }
   EncodeParams p = params_;
   const Box3d cube = grid_.chunk_box(task.key);
   p.grid_origin = cube.min;
@@ -45,7 +35,10 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
   // The encoder reports the exact bounds of what a reader will decode: the
   // spatial index must contain every decoded point.
   EncodeStats stats;
-  auto blob = encode_chunk(task.points, p, {}, &stats);
+  // Tasks that index into a shared cloud are encoded in place (no copy).
+  auto blob = task.source != nullptr
+                  ? encode_chunk_subset(*task.source, std::span<const std::uint32_t>(task.index, task.count), p, &stats)
+                  : encode_chunk(task.points, p, {}, &stats);
   if (!blob) return blob.status();
   if (verify_) {
     auto decoded = decode_chunk(*blob);
@@ -59,7 +52,7 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
   row.ref.key = task.key;
   row.ref.scan_id = scan_id_;
   row.ref.bounds = stats.decoded_bounds;
-  row.ref.input_points = task.points.size();
+  row.ref.input_points = task.source != nullptr ? task.count : task.points.size();
   row.ref.decoded_points = stats.decoded_points;
   row.ref.blob_size = blob->size();
   row.codec = 1;

@@ -421,3 +421,32 @@ TEST_CASE("the encoder's decoded count and bounds equal a real decode exactly", 
     CHECK(stats.decoded_bounds.max == b.max);
   }
 }
+
+TEST_CASE("encoding a subset in place equals encoding the gathered points", "[codec]") {
+  test::SceneOptions o;
+  o.seed = 51;
+  o.points = 40000;
+  o.colors = true;
+  o.intensity = true;
+  const PointCloud all = test::make_room(o, 4.0);
+  std::vector<std::uint32_t> subset;
+  PointCloud gathered;
+  for (std::uint32_t i = 0; i < all.size(); i += 3) {
+    subset.push_back(i);
+    gathered.positions.push_back(all.positions[i]);
+    gathered.colors.push_back(all.colors[i]);
+    gathered.intensities.push_back(all.intensities[i]);
+  }
+  const EncodeParams p = params_with_cell(0.25);
+  EncodeStats a_stats, b_stats;
+  auto a = encode_chunk(gathered, p, {}, &a_stats);
+  auto b = encode_chunk_subset(all, subset, p, &b_stats);
+  REQUIRE(a.is_ok());
+  REQUIRE(b.is_ok());
+  CHECK(*a == *b);
+  CHECK(a_stats.decoded_points == b_stats.decoded_points);
+  subset.push_back(static_cast<std::uint32_t>(all.size()));  // out of range
+  CHECK(encode_chunk_subset(all, subset, p).status().code() == StatusCode::kInvalidArgument);
+  EncodeParams automatic;
+  CHECK(encode_chunk_subset(all, {subset.data(), 10}, automatic).status().code() == StatusCode::kInvalidArgument);
+}

@@ -106,6 +106,12 @@ struct EncodeStats {
 Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
                                                std::span<const Vec3d> normals = {}, EncodeStats* stats = nullptr);
 
+// Encodes the points cloud[subset[i]] as one chunk, without copying them out
+// first (an ingest groups a large cloud by chunk and encodes index lists).
+// params.cell_size must be set.
+Result<std::vector<std::uint8_t>> encode_chunk_subset(const PointCloud& cloud, std::span<const std::uint32_t> subset,
+                                                      const EncodeParams& params, EncodeStats* stats = nullptr);
+
 // Decodes a blob made by encode_chunk. Never reads out of bounds, never trusts
 // a size field for allocation beyond DecodeOptions::max_points.
 Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const DecodeOptions& options = {});
