@@ -353,3 +353,41 @@ TEST_CASE("an ingest killed with SIGKILL leaves an archive that opens and reads"
   const PointCloud got = decode_all(out);
   CHECK(got.size() > 0);
 }
+
+TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "[ingest][crash]") {
+  TempDir tmp;
+  {
+    PointCloud big = scene(12, 3000000);
+    REQUIRE(write_ply(tmp.file("big.ply"), big).is_ok());
+  }
+  fs::create_directories(tmp.file("spill"));
+  const std::string out = tmp.file("i.relief");
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    const std::string c = cli();
+    const std::string in = tmp.file("big.ply");
+    const std::string spill = tmp.file("spill");
+    // 64 MiB cannot hold 3 M points: the bucket files are used.
+    ::execl(c.c_str(), c.c_str(), "compress", in.c_str(), "-o", out.c_str(), "--cell", "0.05", "--chunk-edge",
+            "0.8", "--memory", "64M", "--threads", "1", "--tmp", spill.c_str(), "--quiet", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Interrupt once the bucket directory exists.
+  bool spilled = false;
+  for (int i = 0; i < 1000 && !spilled; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    spilled = !fs::is_empty(tmp.file("spill"));
+  }
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(spilled);
+  REQUIRE(WIFEXITED(status));
+  // Signalled as soon as it spills, long before a 3 M-point ingest ends.
+  CHECK(WEXITSTATUS(status) == 130);
+  CHECK(fs::is_empty(tmp.file("spill")));
+  auto archive = Archive::open(out, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  CHECK((*archive)->info().is_ok());
+}
