@@ -12,6 +12,7 @@
 #include <string>
 
 #include "relief/io.h"
+#include "support/run_cli.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -21,23 +22,9 @@ using relief::test::TempDir;
 
 namespace {
 
-struct Run {
-  int code = -1;
-  std::string output;  // stdout and stderr together
-};
+using Run = relief::test::CliRun;
 
-Run run(const std::string& args) {
-  const std::string cmd = std::string(RELIEF_CLI) + " " + args + " 2>&1";
-  Run r;
-  FILE* p = popen(cmd.c_str(), "r");
-  REQUIRE(p != nullptr);
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+Run run(const std::string& args) { return relief::test::run_cli(RELIEF_CLI, args); }
 
 
 std::string sample() { return std::string(RELIEF_SOURCE_DIR) + "/tests/data/kinect_milk_scene_rgb.ply"; }

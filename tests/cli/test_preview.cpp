@@ -17,7 +17,9 @@
 #include "box_arg.h"
 #include "preview_render.h"
 #include "relief/io.h"
+#include "support/run_cli.h"
 #include "support/synthetic.h"
+#include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
 using relief::Box3d;
@@ -31,42 +33,13 @@ using relief::cli::PreviewView;
 
 namespace {
 
-struct Run {
-  int code = -1;
-  std::string output;  // stdout and stderr together
-};
+using Run = relief::test::CliRun;
 
-Run run_cli(const std::string& args) {
-  const std::string cmd = std::string(RELIEF_CLI) + " " + args + " 2>&1";
-  Run r;
-  FILE* p = popen(cmd.c_str(), "r");
-  REQUIRE(p != nullptr);
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+Run run_cli(const std::string& args) { return relief::test::run_cli(RELIEF_CLI, args); }
 
 // Own prefix and a counter: test_cli.cpp's temporary directories live in the
 // same process and must not collide with these.
-struct PreviewTempDir {
-  fs::path path;
-  PreviewTempDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() /
-           ("relief-preview-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~PreviewTempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  PreviewTempDir(const PreviewTempDir&) = delete;
-  PreviewTempDir& operator=(const PreviewTempDir&) = delete;
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
+using PreviewTempDir = relief::test::TempDir;
 
 // Two archives of a 40 x 40 m wavy terrain (x and y from 0 to 40), one with
 // colours, one without; made once for all the tests.
@@ -438,7 +411,7 @@ TEST_CASE("relief preview: top-down and oblique, coloured and not", "[cli][previ
   }
   // Only the PNGs are left (the temporary file was renamed into place).
   int files = 0;
-  for (const auto& e : fs::directory_iterator(tmp.path)) {
+  for (const auto& e : fs::directory_iterator(tmp.path())) {
     CHECK(e.path().extension() == ".png");
     ++files;
   }
@@ -545,5 +518,5 @@ TEST_CASE("relief preview: errors exit with documented codes and leave no file",
     CHECK(r.code == 12);
     CHECK(r.output.find("v.png") != std::string::npos);
   }
-  CHECK(fs::is_empty(tmp.path));
+  CHECK(fs::is_empty(tmp.path()));
 }
