@@ -308,8 +308,14 @@ TEST_CASE("a memory budget far below the input size bounds peak RSS", "[ingest][
                                              "--cell", "0.1", "--chunk-edge", "1", "--memory", "64M", "--quiet"});
   REQUIRE(code == 0);
   INFO("peak RSS " << rss_kib / 1024 << " MiB");
+#if defined(__SANITIZE_ADDRESS__)
+  // AddressSanitizer's shadow memory and quarantine inflate RSS several-fold:
+  // the bound is checked in the normal build only.
+  WARN("peak RSS bound not checked under AddressSanitizer (" << rss_kib / 1024 << " MiB)");
+#else
   // Budget plus the process's own baseline (binary, libraries, allocator slack).
   CHECK(rss_kib < (64 + 40) * 1024);
+#endif
   auto archive = Archive::open(tmp.file("big.relief"), Archive::Mode::kReadOnly);
   CHECK((*archive)->info()->input_points == 3000000);
 }
