@@ -12,7 +12,7 @@ struct Level {
   std::size_t offset = 0;  // into the scratch arrays, in pixels
 };
 
-constexpr int kBoxRadius = 2;  // 5x5
+constexpr std::size_t kBoxRadius = 2;  // 5x5
 constexpr int kBoxPasses = 3;
 constexpr double kPi = 3.14159265358979323846;
 // Alternating projections converge fast: 2 passes capture nearly all of the
@@ -222,38 +222,50 @@ void fill_box(float* tile, const std::uint8_t* occupied, int r, int channels, Fi
     }
   }
   // Each pass: every unoccupied pixel takes the mean of the 5x5 window (cut
-  // at the tile border) of the previous pass, read from a summed-area table
-  // (one table per pass, so updates within a pass do not feed each other).
-  const std::size_t w = static_cast<std::size_t>(r) + 1;
-  std::vector<float>& sat = scratch.values;
-  sat.assign(w * w * nch, 0.0f);
+  // at the tile border) of the previous pass. The window sums are separable:
+  // running 5-tap sums along rows, then along columns, O(1) per pixel.
+  const auto ur = static_cast<std::size_t>(r);
+  std::vector<float>& rows = scratch.values;   // horizontal window sums
+  std::vector<float>& box = scratch.weights;   // full window sums
+  rows.resize(n * nch);
+  box.resize(n * nch);
   for (int pass = 0; pass < kBoxPasses; ++pass) {
-    for (int y = 0; y < r; ++y) {
-      for (int x = 0; x < r; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y * r + x);
-        const std::size_t s00 = (static_cast<std::size_t>(y) * w + static_cast<std::size_t>(x)) * nch;
-        const std::size_t s01 = s00 + nch;                // (y, x + 1)
-        const std::size_t s10 = s00 + w * nch;            // (y + 1, x)
-        const std::size_t s11 = s10 + nch;                // (y + 1, x + 1)
-        for (std::size_t c = 0; c < nch; ++c) {
-          sat[s11 + c] = tile[i * nch + c] + sat[s01 + c] + sat[s10 + c] - sat[s00 + c];
+    for (std::size_t y = 0; y < ur; ++y) {
+      for (std::size_t c = 0; c < nch; ++c) {
+        const float* in = tile + y * ur * nch + c;
+        float* out = rows.data() + y * ur * nch + c;
+        float acc = 0;
+        // Window [x - 2, x + 2]: add the entering pixel, drop the leaving one.
+        for (std::size_t x = 0; x < std::min<std::size_t>(kBoxRadius, ur); ++x) acc += in[x * nch];
+        for (std::size_t x = 0; x < ur; ++x) {
+          if (x + kBoxRadius < ur) acc += in[(x + kBoxRadius) * nch];
+          if (x > static_cast<std::size_t>(kBoxRadius)) acc -= in[(x - kBoxRadius - 1) * nch];
+          out[x * nch] = acc;
         }
       }
     }
-    for (int y = 0; y < r; ++y) {
-      const auto y0 = static_cast<std::size_t>(std::max(0, y - kBoxRadius));
-      const auto y1 = static_cast<std::size_t>(std::min(r - 1, y + kBoxRadius)) + 1;
-      for (int x = 0; x < r; ++x) {
-        const std::size_t i = static_cast<std::size_t>(y * r + x);
-        if (occupied[i]) continue;
-        const auto x0 = static_cast<std::size_t>(std::max(0, x - kBoxRadius));
-        const auto x1 = static_cast<std::size_t>(std::min(r - 1, x + kBoxRadius)) + 1;
-        const float inv = 1.0f / static_cast<float>((y1 - y0) * (x1 - x0));
-        for (std::size_t c = 0; c < nch; ++c) {
-          const float sum = sat[(y1 * w + x1) * nch + c] - sat[(y0 * w + x1) * nch + c] -
-                            sat[(y1 * w + x0) * nch + c] + sat[(y0 * w + x0) * nch + c];
-          tile[i * nch + c] = sum * inv;
+    for (std::size_t x = 0; x < ur; ++x) {
+      for (std::size_t c = 0; c < nch; ++c) {
+        const float* in = rows.data() + x * nch + c;
+        float* out = box.data() + x * nch + c;
+        const std::size_t stride = ur * nch;
+        float acc = 0;
+        for (std::size_t y = 0; y < std::min<std::size_t>(kBoxRadius, ur); ++y) acc += in[y * stride];
+        for (std::size_t y = 0; y < ur; ++y) {
+          if (y + kBoxRadius < ur) acc += in[(y + kBoxRadius) * stride];
+          if (y > static_cast<std::size_t>(kBoxRadius)) acc -= in[(y - kBoxRadius - 1) * stride];
+          out[y * stride] = acc;
         }
+      }
+    }
+    for (std::size_t y = 0; y < ur; ++y) {
+      const std::size_t ny = std::min(ur - 1, y + kBoxRadius) - (y > kBoxRadius ? y - kBoxRadius : 0) + 1;
+      for (std::size_t x = 0; x < ur; ++x) {
+        const std::size_t i = y * ur + x;
+        if (occupied[i]) continue;
+        const std::size_t nx = std::min(ur - 1, x + kBoxRadius) - (x > kBoxRadius ? x - kBoxRadius : 0) + 1;
+        const float inv = 1.0f / static_cast<float>(nx * ny);
+        for (std::size_t c = 0; c < nch; ++c) tile[i * nch + c] = box[i * nch + c] * inv;
       }
     }
   }
