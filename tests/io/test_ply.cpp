@@ -22,7 +22,9 @@
 #include <vector>
 
 #include "relief/io.h"
+#include "support/same_cloud.h"
 #include "support/synthetic.h"
+#include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
 using Catch::Matchers::Contains;
@@ -34,33 +36,7 @@ namespace {
 constexpr const char* kMemName = "mem.ply";
 
 // A fresh directory under the system temp dir, removed with everything in it.
-class TempDir {
- public:
-  TempDir() {
-    static std::atomic<int> counter{0};
-    path_ = fs::temp_directory_path() /
-            ("relief-io-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  const fs::path& path() const { return path_; }
-  std::vector<std::string> entries() const {
-    std::vector<std::string> out;
-    for (const auto& e : fs::directory_iterator(path_)) out.push_back(e.path().filename().string());
-    std::sort(out.begin(), out.end());
-    return out;
-  }
-
- private:
-  fs::path path_;
-};
+using relief::test::TempDir;
 
 std::span<const std::uint8_t> as_bytes(const std::string& s) {
   return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
@@ -189,26 +165,7 @@ std::string mixed_file(PlyEncoding enc, bool vertex_list, std::size_t n, PointCl
 
 // Exact comparison (bitwise for coordinates and intensities), reporting the
 // first mismatch only so that large clouds cost one assertion.
-void require_same(const PointCloud& got, const PointCloud& want) {
-  REQUIRE(got.size() == want.size());
-  REQUIRE(got.colors.size() == want.colors.size());
-  REQUIRE(got.intensities.size() == want.intensities.size());
-  for (std::size_t i = 0; i < want.size(); ++i) {
-    const bool same_pos = std::memcmp(&got.positions[i], &want.positions[i], sizeof(Vec3d)) == 0;
-    const bool same_color = !want.has_colors() || got.colors[i] == want.colors[i];
-    const bool same_intensity =
-        !want.has_intensity() || std::bit_cast<std::uint32_t>(got.intensities[i]) ==
-                                     std::bit_cast<std::uint32_t>(want.intensities[i]);
-    if (same_pos && same_color && same_intensity) continue;
-    INFO("point " << i << ": got (" << got.positions[i].x << ", " << got.positions[i].y << ", "
-                  << got.positions[i].z << ") want (" << want.positions[i].x << ", "
-                  << want.positions[i].y << ", " << want.positions[i].z << ")");
-    CHECK(same_pos);
-    CHECK(same_color);
-    REQUIRE(same_intensity);
-    FAIL("point mismatch");
-  }
-}
+using relief::test::require_same;
 
 // The float32 writer rounds every coordinate to float, and nothing else.
 PointCloud rounded_to_float(PointCloud c) {

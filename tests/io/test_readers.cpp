@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "relief/io.h"
+#include "support/same_cloud.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -74,26 +75,7 @@ Result<PointCloud> read_path(const std::string& path, std::size_t batch_size,
 
 // Exact comparison (bitwise for coordinates and intensities); reports the
 // first mismatch only.
-void require_same(const PointCloud& got, const PointCloud& want) {
-  REQUIRE(got.size() == want.size());
-  REQUIRE(got.colors.size() == want.colors.size());
-  REQUIRE(got.intensities.size() == want.intensities.size());
-  for (std::size_t i = 0; i < want.size(); ++i) {
-    const bool same_pos = std::memcmp(&got.positions[i], &want.positions[i], sizeof(Vec3d)) == 0;
-    const bool same_color = !want.has_colors() || got.colors[i] == want.colors[i];
-    const bool same_intensity =
-        !want.has_intensity() ||
-        std::bit_cast<std::uint32_t>(got.intensities[i]) == std::bit_cast<std::uint32_t>(want.intensities[i]);
-    if (same_pos && same_color && same_intensity) continue;
-    INFO("point " << i << ": got (" << got.positions[i].x << ", " << got.positions[i].y << ", "
-                  << got.positions[i].z << ") want (" << want.positions[i].x << ", " << want.positions[i].y
-                  << ", " << want.positions[i].z << ")");
-    CHECK(same_pos);
-    CHECK(same_color);
-    REQUIRE(same_intensity);
-    FAIL("point mismatch");
-  }
-}
+using relief::test::require_same;
 
 void require_error(const Status& s, StatusCode code, const std::string& path,
                    const std::string& fragment = "") {
