@@ -95,22 +95,15 @@ struct PatchScratch {
 };
 
 struct Encoder {
-  Encoder(const PointCloud& c, std::span<const std::uint32_t> s, const EncodeParams& p, std::span<const Vec3d> n)
-      : cloud(c), subset(s), count(s.empty() ? c.size() : s.size()), params(p), normals(n) {}
+  Encoder(const PointCloud& c, const EncodeParams& p, std::span<const Vec3d> n)
+      : cloud(c), count(c.size()), params(p), normals(n) {}
 
   const PointCloud& cloud;
-  // The points to encode: cloud[subset[i]], or the whole cloud when empty.
-  std::span<const std::uint32_t> subset;
   std::size_t count;
   const EncodeParams& params;
   std::span<const Vec3d> normals;
 
-  std::size_t src(std::size_t i) const { return subset.empty() ? i : subset[i]; }
-  Box3d input_bounds() const {
-    Box3d b;
-    for (std::size_t i = 0; i < count; ++i) b.add(cloud.positions[src(i)]);
-    return b;
-  }
+  Box3d input_bounds() const { return cloud.bounds(); }
 
   codec::ChunkHeader header;
   int r = 16;
@@ -197,20 +190,20 @@ void Encoder::build_decomposition() {
     return c <= 0 ? 0u : std::min(max_index, static_cast<std::uint32_t>(c));
   };
   for (std::size_t i = 0; i < count; ++i) {
-    const Vec3d& p = cloud.positions[src(i)];
+    const Vec3d& p = cloud.positions[i];
     sorted[i] = {codec::morton_encode(cell_of(p.x - o.x), cell_of(p.y - o.y), cell_of(p.z - o.z)),
                  static_cast<std::uint32_t>(i)};
   }
   codec::radix_sort(sorted, 3 * depth);
   pos.resize(sorted.size());
-  for (std::size_t i = 0; i < sorted.size(); ++i) pos[i] = cloud.positions[src(sorted[i].index)];
+  for (std::size_t i = 0; i < sorted.size(); ++i) pos[i] = cloud.positions[sorted[i].index];
   if (cloud.has_colors()) {
     col.resize(sorted.size());
-    for (std::size_t i = 0; i < sorted.size(); ++i) col[i] = cloud.colors[src(sorted[i].index)];
+    for (std::size_t i = 0; i < sorted.size(); ++i) col[i] = cloud.colors[sorted[i].index];
   }
   if (cloud.has_intensity()) {
     inten.resize(sorted.size());
-    for (std::size_t i = 0; i < sorted.size(); ++i) inten[i] = cloud.intensities[src(sorted[i].index)];
+    for (std::size_t i = 0; i < sorted.size(); ++i) inten[i] = cloud.intensities[sorted[i].index];
   }
 
   codec::LeafPredicate predicate;
@@ -607,33 +600,48 @@ Status Encoder::decoded_stats(const std::vector<std::uint8_t>& coded_heights, En
 
 namespace {
 
-// The points of a subset must be finite; the attribute arrays must match.
-Status validate_subset(const PointCloud& cloud, std::span<const std::uint32_t> subset) {
+// Copies cloud[subset[i]] into `out` in subset order, checking each index and
+// each point on the way: one pass of (cache-missing) reads from the shared
+// cloud, after which the encoder works on contiguous memory.
+Status gather_subset(const PointCloud& cloud, std::span<const std::uint32_t> subset, PointCloud& out) {
   if ((!cloud.colors.empty() && cloud.colors.size() != cloud.size()) ||
       (!cloud.intensities.empty() && cloud.intensities.size() != cloud.size())) {
     return invalid_argument("chunk: attribute arrays do not match the positions");
   }
-  for (const std::uint32_t i : subset) {
+  const std::size_t n = subset.size();
+  out.positions.resize(n);
+  out.colors.resize(cloud.has_colors() ? n : 0);
+  out.intensities.resize(cloud.has_intensity() ? n : 0);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint32_t i = subset[k];
     if (i >= cloud.size()) return invalid_argument("chunk: subset index " + std::to_string(i) + " out of range");
     const Vec3d& p = cloud.positions[i];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) ||
-        (cloud.has_intensity() && !std::isfinite(cloud.intensities[i]))) {
-      return invalid_argument("chunk: point " + std::to_string(i) + " has a non-finite coordinate or intensity");
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      return invalid_argument("chunk: point " + std::to_string(i) + " has a non-finite coordinate");
+    }
+    out.positions[k] = p;
+  }
+  if (cloud.has_colors()) {
+    for (std::size_t k = 0; k < n; ++k) out.colors[k] = cloud.colors[subset[k]];
+  }
+  if (cloud.has_intensity()) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const float v = cloud.intensities[subset[k]];
+      if (!std::isfinite(v)) {
+        return invalid_argument("chunk: point " + std::to_string(subset[k]) + " has a non-finite intensity");
+      }
+      out.intensities[k] = v;
     }
   }
   return Status::ok();
 }
 
-Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, std::span<const std::uint32_t> subset,
-                                              const EncodeParams& params, std::span<const Vec3d> normals,
-                                              EncodeStats* stats) {
-  const std::size_t count = subset.empty() ? cloud.size() : subset.size();
+// `validated`: the caller has already checked the points (gather_subset).
+Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, const EncodeParams& params,
+                                              std::span<const Vec3d> normals, EncodeStats* stats, bool validated) {
+  const std::size_t count = cloud.size();
   RELIEF_RETURN_IF_ERROR(check_params(params, count, normals.size()));
-  if (subset.empty()) {
-    RELIEF_RETURN_IF_ERROR(cloud.validate("chunk"));
-  } else {
-    RELIEF_RETURN_IF_ERROR(validate_subset(cloud, subset));
-  }
+  if (!validated) RELIEF_RETURN_IF_ERROR(cloud.validate("chunk"));
   for (std::size_t i = 0; i < normals.size(); ++i) {
     const Vec3d& n = normals[i];
     if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z) || norm(n) < 1e-12) {
@@ -644,10 +652,7 @@ Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, std::span
     return limit_exceeded("chunk: " + std::to_string(count) + " points exceed the limit of " +
                           std::to_string(kMaxChunkPoints) + " per chunk");
   }
-  if (!subset.empty() && params.cell_size == 0) {
-    return invalid_argument("chunk: encoding a subset needs an explicit cell size");
-  }
-  Encoder enc{cloud, subset, params, normals};
+  Encoder enc{cloud, params, normals};
   codec::ChunkHeader& h = enc.header;
   h.flags = static_cast<std::uint8_t>((cloud.has_colors() ? codec::kFlagColors : 0) |
                                       (cloud.has_intensity() ? codec::kFlagIntensity : 0));
@@ -692,13 +697,16 @@ Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, std::span
 
 Result<std::vector<std::uint8_t>> encode_chunk(const PointCloud& cloud, const EncodeParams& params,
                                                std::span<const Vec3d> normals, EncodeStats* stats) {
-  return encode_impl(cloud, {}, params, normals, stats);
+  return encode_impl(cloud, params, normals, stats, false);
 }
 
 Result<std::vector<std::uint8_t>> encode_chunk_subset(const PointCloud& cloud, std::span<const std::uint32_t> subset,
                                                       const EncodeParams& params, EncodeStats* stats) {
-  if (subset.empty()) return encode_impl(PointCloud(), {}, params, {}, stats);
-  return encode_impl(cloud, subset, params, {}, stats);
+  if (subset.empty()) return encode_impl(PointCloud(), params, {}, stats, true);
+  if (params.cell_size == 0) return invalid_argument("chunk: encoding a subset needs an explicit cell size");
+  PointCloud gathered;
+  RELIEF_RETURN_IF_ERROR(gather_subset(cloud, subset, gathered));
+  return encode_impl(gathered, params, {}, stats, true);
 }
 
 double suggest_cell_size(const PointCloud& cloud, int map_resolution) {

@@ -5,15 +5,6 @@
 
 namespace relief {
 
-void Box3d::add(const Vec3d& p) {
-  min.x = std::min(min.x, p.x);
-  min.y = std::min(min.y, p.y);
-  min.z = std::min(min.z, p.z);
-  max.x = std::max(max.x, p.x);
-  max.y = std::max(max.y, p.y);
-  max.z = std::max(max.z, p.z);
-}
-
 Vec3d Box3d::extent() const {
   if (empty()) return {};
   return {max.x - min.x, max.y - min.y, max.z - min.z};

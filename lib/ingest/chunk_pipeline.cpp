@@ -1,9 +1,6 @@
 #include "ingest/chunk_pipeline.h"
 
-#include <condition_variable>
-#include <deque>
-#include <mutex>
-#include <thread>
+#include <utility>
 
 namespace relief::ingest {
 
@@ -63,84 +60,130 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
   return Status::ok();
 }
 
-Status ChunkPipeline::run(std::vector<ChunkTask>& tasks, const std::function<void()>& tick) {
-  std::mutex mu;
-  std::condition_variable cv;
-  std::deque<ChunkRow> ready;
-  std::atomic<std::size_t> next{0};
-  std::atomic<bool> failed{false};
-  Status first_error;
-  std::size_t finished_workers = 0;
-  const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(threads_, std::max<std::size_t>(1, tasks.size())));
-
-  auto worker = [&] {
-    for (;;) {
-      if (failed.load() || (cancel_ && cancel_->load())) break;
-      const std::size_t i = next.fetch_add(1);
-      if (i >= tasks.size()) break;
-      ChunkRow row;
-      Status s = encode_one(tasks[i], row);
-      std::lock_guard<std::mutex> lock(mu);
-      if (!s) {
-        if (!failed.exchange(true)) {
-          const ChunkKey k = tasks[i].key;
-          first_error = s.with_context("chunk (" + std::to_string(k.ix) + "," + std::to_string(k.iy) + "," +
-                                       std::to_string(k.iz) + ")");
-        }
-        break;
-      }
-      ready.push_back(std::move(row));
-      cv.notify_one();
-    }
-    std::lock_guard<std::mutex> lock(mu);
-    ++finished_workers;
-    cv.notify_one();
-  };
-  std::vector<std::thread> pool;
-  pool.reserve(workers);
-  for (unsigned t = 0; t < workers; ++t) pool.emplace_back(worker);
-
-  Status status;
-  std::vector<ChunkRow> batch;
-  std::size_t batch_bytes = 0;
-  const auto commit = [&]() -> Status {
-    if (batch.empty()) return Status::ok();
-    RELIEF_RETURN_IF_ERROR(archive_.put_chunks(batch));
-    for (const ChunkRow& r : batch) {
-      ++totals_.chunks;
-      totals_.points_in += r.ref.input_points;
-      totals_.points_decoded += r.ref.decoded_points;
-      totals_.blob_bytes += r.blob.size();
-    }
-    batch.clear();
-    batch_bytes = 0;
-    if (tick) tick();
-    return Status::ok();
-  };
-  for (;;) {
-    std::unique_lock<std::mutex> lock(mu);
-    cv.wait_for(lock, std::chrono::milliseconds(200),
-                [&] { return !ready.empty() || finished_workers == workers; });
-    const bool all_done = finished_workers == workers;
-    while (!ready.empty()) {
-      batch_bytes += ready.front().blob.size();
-      batch.push_back(std::move(ready.front()));
-      ready.pop_front();
-    }
-    lock.unlock();
-    if (status && (batch.size() >= kBatchRows || batch_bytes >= kBatchBytes || (all_done && !failed.load()))) {
-      status = commit();
-      if (!status) failed.store(true);
-    } else if (tick) {
-      tick();
-    }
-    if (all_done) break;
+ChunkPipeline::~ChunkPipeline() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+    queue_.clear();
   }
-  for (std::thread& t : pool) t.join();
-  if (!status) return status;
-  if (failed.load()) return first_error;
-  if (cancel_ && cancel_->load()) return io_error("interrupted");
+  work_cv_.notify_all();
+  for (std::thread& t : pool_) t.join();
+}
+
+void ChunkPipeline::submit(std::vector<ChunkTask> tasks, std::shared_ptr<const void> owner) {
+  if (tasks.empty()) return;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const std::uint64_t id = next_submission_++;
+    pending_[id] = {tasks.size(), std::move(owner)};
+    for (ChunkTask& t : tasks) queue_.push_back(Item{std::move(t), id});
+    while (pool_.size() < threads_) pool_.emplace_back([this] { work(); });
+  }
+  work_cv_.notify_all();
+}
+
+void ChunkPipeline::work() {
+  for (;;) {
+    Item item;
+    {
+      std::unique_lock<std::mutex> lock(mu_);
+      work_cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+      if (stop_) return;
+      item = std::move(queue_.front());
+      queue_.pop_front();
+      ++running_;
+    }
+    ChunkRow row;
+    // After Ctrl-C the remaining tasks are skipped; wait() reports it.
+    const bool skip = cancel_ != nullptr && cancel_->load();
+    Status s = skip ? Status::ok() : encode_one(item.task, row);
+    const ChunkKey k = item.task.key;
+    item.task = ChunkTask();
+    std::shared_ptr<const void> release;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      --running_;
+      if (!s) {
+        if (!failed_) {
+          failed_ = true;
+          first_error_ = s.with_context("chunk (" + std::to_string(k.ix) + "," + std::to_string(k.iy) + "," +
+                                        std::to_string(k.iz) + ")");
+        }
+      } else if (!skip) {
+        ready_.push_back(std::move(row));
+      }
+      auto it = pending_.find(item.submission);
+      if (it != pending_.end() && --it->second.first == 0) {
+        release = std::move(it->second.second);
+        pending_.erase(it);
+      }
+    }
+    done_cv_.notify_all();
+    release.reset();  // frees the submission's memory outside the lock
+  }
+}
+
+Status ChunkPipeline::commit() {
+  if (batch_.empty()) return Status::ok();
+  RELIEF_RETURN_IF_ERROR(archive_.put_chunks(batch_));
+  for (const ChunkRow& r : batch_) {
+    ++totals_.chunks;
+    totals_.points_in += r.ref.input_points;
+    totals_.points_decoded += r.ref.decoded_points;
+    totals_.blob_bytes += r.blob.size();
+  }
+  batch_.clear();
+  batch_bytes_ = 0;
   return Status::ok();
+}
+
+Status ChunkPipeline::wait(std::size_t max_pending, const std::function<void()>& tick) {
+  for (;;) {
+    std::unique_lock<std::mutex> lock(mu_);
+    done_cv_.wait_for(lock, std::chrono::milliseconds(200),
+                      [&] { return !ready_.empty() || failed_ || pending_.size() <= max_pending; });
+    if (!failed_ && cancel_ && cancel_->load()) {
+      failed_ = true;
+      first_error_ = io_error("interrupted");
+    }
+    if (failed_) {
+      // Drop what has not started, let running tasks finish, keep nothing
+      // of the uncommitted batch.
+      queue_.clear();
+      done_cv_.wait(lock, [&] { return running_ == 0; });
+      pending_.clear();
+      ready_.clear();
+      batch_.clear();
+      batch_bytes_ = 0;
+      return first_error_;
+    }
+    while (!ready_.empty()) {
+      batch_bytes_ += ready_.front().blob.size();
+      batch_.push_back(std::move(ready_.front()));
+      ready_.pop_front();
+    }
+    const bool all_done = pending_.empty() && running_ == 0 && queue_.empty();
+    const bool enough = pending_.size() <= max_pending;
+    lock.unlock();
+    if (batch_.size() >= kBatchRows || batch_bytes_ >= kBatchBytes || (max_pending == 0 && all_done)) {
+      Status s = commit();
+      if (!s) {
+        std::lock_guard<std::mutex> relock(mu_);
+        if (!failed_) {
+          failed_ = true;
+          first_error_ = std::move(s);
+        }
+        continue;
+      }
+    }
+    if (tick) tick();
+    if (max_pending == 0 ? all_done : enough) return Status::ok();
+  }
+}
+
+Status ChunkPipeline::run(std::vector<ChunkTask> tasks, const std::function<void()>& tick) {
+  submit(std::move(tasks), nullptr);
+  return wait(0, tick);
 }
 
 }  // namespace relief::ingest

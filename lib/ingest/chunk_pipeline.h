@@ -5,9 +5,14 @@
 #pragma once
 
 #include <atomic>
-#include <chrono>
 #include <cstdint>
+#include <condition_variable>
+#include <deque>
 #include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
 #include <vector>
 
 #include "relief/archive.h"
@@ -38,16 +43,35 @@ class ChunkPipeline {
  public:
   ChunkPipeline(Archive& archive, const EncodeParams& params, const ArchiveGrid& grid, std::int64_t scan_id,
                 unsigned threads, const std::atomic<bool>* cancel, bool verify);
+  // Stops the workers; tasks not yet started are dropped.
+  ~ChunkPipeline();
+  ChunkPipeline(const ChunkPipeline&) = delete;
+  ChunkPipeline& operator=(const ChunkPipeline&) = delete;
 
-  // Encodes and stores every task; returns when all are committed or on the
-  // first error (nothing of a failed batch is committed). `tick` is called
-  // from this thread between commits.
-  Status run(std::vector<ChunkTask>& tasks, const std::function<void()>& tick);
+  // Queues tasks for the workers, which start on them at once. `owner` keeps
+  // the memory the tasks index into alive; it is released as soon as the last
+  // of these tasks is encoded (or dropped after an error).
+  void submit(std::vector<ChunkTask> tasks, std::shared_ptr<const void> owner);
+  // Commits finished rows (in batched transactions) until at most
+  // `max_pending` submissions still have tasks not yet encoded; with 0, until
+  // everything submitted is committed. On the first error (or cancellation)
+  // queued tasks are dropped, running ones finish, and the error is returned;
+  // nothing of a failed batch is committed. `tick` is called from this thread
+  // between commits.
+  Status wait(std::size_t max_pending, const std::function<void()>& tick);
+  // submit + wait(0).
+  Status run(std::vector<ChunkTask> tasks, const std::function<void()>& tick);
 
   const PipelineTotals& totals() const { return totals_; }
 
  private:
+  struct Item {
+    ChunkTask task;
+    std::uint64_t submission;
+  };
   Status encode_one(ChunkTask& task, ChunkRow& row) const;
+  void work();
+  Status commit();
 
   Archive& archive_;
   EncodeParams params_;
@@ -58,6 +82,23 @@ class ChunkPipeline {
   const std::atomic<bool>* cancel_;
   bool verify_;
   PipelineTotals totals_;
+
+  std::mutex mu_;
+  std::condition_variable work_cv_;  // workers wait for tasks
+  std::condition_variable done_cv_;  // the committing thread waits for rows
+  std::deque<Item> queue_;
+  std::deque<ChunkRow> ready_;
+  // Per submission: tasks not yet finished, and the memory they use.
+  std::map<std::uint64_t, std::pair<std::size_t, std::shared_ptr<const void>>> pending_;
+  std::uint64_t next_submission_ = 0;
+  std::size_t running_ = 0;  // tasks being encoded
+  bool failed_ = false;
+  bool stop_ = false;
+  Status first_error_;
+  std::vector<std::thread> pool_;
+  // Rows received but not yet committed (touched by the committing thread only).
+  std::vector<ChunkRow> batch_;
+  std::size_t batch_bytes_ = 0;
 };
 
 }  // namespace relief::ingest

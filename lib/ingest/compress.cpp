@@ -9,12 +9,16 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <unordered_map>
 
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "ingest/bucket_files.h"
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
+#include "ingest/prefetch.h"
 #include "relief/archive.h"
 #include "relief/ingest.h"
 
@@ -33,10 +37,47 @@ constexpr std::uint64_t kGroupBytesPerPoint = 24 + 3 + 4 + 4 + 4;
 constexpr std::uint64_t kEncodeBytesPerPoint = 128;
 constexpr std::uint32_t kMinBuckets = 4;
 constexpr std::uint32_t kMaxBuckets = 4096;
+// Memory per point of a batch on its way from a reader: the decoded points
+// (31), their chunk keys (24), the packed bucket records (19) and the pack
+// scratch (4). Up to three batches are alive (being read, queued, consumed).
+constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 19 + 4;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
 constexpr std::uint64_t kUnknownBytesPerPoint = 12;
+
+// A bucket slice being encoded, and a pool that recycles them: a slice's
+// buffers are reused by the next one instead of being freshly faulted in.
+struct Slice {
+  PointCloud points;
+  Grouping grouping;
+  std::vector<std::uint8_t> io_buffer;
+};
+
+class SlicePool {
+ public:
+  // A slice that returns to the pool when the last reference goes (from any
+  // thread). The pool must outlive every slice it hands out.
+  std::shared_ptr<Slice> acquire() {
+    std::unique_ptr<Slice> s;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (!free_.empty()) {
+        s = std::move(free_.back());
+        free_.pop_back();
+      }
+    }
+    if (!s) s = std::make_unique<Slice>();
+    return std::shared_ptr<Slice>(s.release(), [this](Slice* p) {
+      std::lock_guard<std::mutex> lock(mu_);
+      free_.emplace_back(p);
+    });
+  }
+
+ private:
+  std::mutex mu_;
+  std::vector<std::unique_ptr<Slice>> free_;
+};
 
 std::uint64_t file_size_or_zero(const std::string& path) {
   std::error_code ec;
@@ -85,18 +126,18 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const auto t0 = std::chrono::steady_clock::now();
   const unsigned threads = resolve_threads(options.threads);
   const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, 64u << 20);
-  const std::size_t rec = record_size(in.colors, in.intensity);
 
-  // Budget: 1/8 for bucket write buffers, 1/3 for one loaded bucket slice,
-  // 1/3 for the encoders; the rest is headroom (reader blocks, SQLite cache).
-  const std::uint64_t slice_points = std::max<std::uint64_t>(1, (budget / 3) / kGroupBytesPerPoint);
+  // Budget while reading: 3/16 for batches in flight (plus, without bucket
+  // files, the whole input in half the budget). While encoding: 1/3 for two
+  // bucket slices (one encoding, the next loading), 1/3 for the encoders; the rest is headroom (SQLite
+  // cache, allocator slack).
+  const std::uint64_t slice_points = std::max<std::uint64_t>(1, (budget / 6) / kGroupBytesPerPoint);
   const std::uint64_t part_points = std::max<std::uint64_t>(1024, (budget / 3) / (threads * kEncodeBytesPerPoint));
   const std::uint64_t read_batch =
-      std::max<std::uint64_t>(1024, std::min<std::uint64_t>(kReadBatch, (budget / 16) / (kGroupBytesPerPoint + rec)));
+      std::max<std::uint64_t>(1024, std::min<std::uint64_t>(kReadBatch, (budget / 16) / kBatchBytesPerPoint));
   // Enough buckets that a bucket usually fits one slice (x2 for skew).
   const std::uint64_t want = (2 * std::max<std::uint64_t>(1, in.estimated_points)) / slice_points + 1;
   const auto buckets = static_cast<std::uint32_t>(std::clamp<std::uint64_t>(want, kMinBuckets, kMaxBuckets));
-  const std::size_t write_buffer = static_cast<std::size_t>(std::min<std::uint64_t>(budget / 8, 256u << 20));
 
   Progress progress(options.progress, in.all_counts_known ? in.known_total : 0);
   const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
@@ -104,35 +145,48 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   std::uint64_t points_read = 0;
   float intensity_lo = std::numeric_limits<float>::infinity();
   float intensity_hi = -std::numeric_limits<float>::infinity();
-  const auto read_all = [&](const std::function<Status(PointCloud&)>& sink) -> Status {
-    PointCloud batch = std::move(pending);
-    for (std::size_t i = 0; i < in.readers.size(); ++i) {
-      PointReader& reader = *in.readers[i];
-      std::uint64_t from_this = 0;
-      for (;;) {
-        if (i > 0 || from_this > 0 || batch.empty()) {
-          RELIEF_ASSIGN_OR_RETURN(std::size_t got, reader.read(batch, static_cast<std::size_t>(read_batch)));
-          if (got == 0) break;
-        }
-        conform_attributes(batch, in.colors, in.intensity);
-        for (const float v : batch.intensities) {
-          intensity_lo = std::min(intensity_lo, v);
-          intensity_hi = std::max(intensity_hi, v);
-        }
-        RELIEF_RETURN_IF_ERROR(sink(batch));
-        from_this += batch.size();
-        points_read += batch.size();
-        batch.positions.clear();
-        progress.update("reading", points_read, 0, 0);
-        if (cancelled()) return io_error("interrupted");
+  // Reads every input. A background thread reads ahead and runs `stage` on
+  // each batch (after dropping attributes the archive does not carry); the
+  // calling thread hands the staged batches to `sink` in input order.
+  const auto read_all = [&](const std::function<Status(ReadBatch&)>& stage,
+                            const std::function<Status(ReadBatch&)>& sink) -> Status {
+    const auto full_stage = [&](ReadBatch& b) -> Status {
+      conform_attributes(b.points, in.colors, in.intensity);
+      for (const float v : b.points.intensities) {
+        intensity_lo = std::min(intensity_lo, v);
+        intensity_hi = std::max(intensity_hi, v);
       }
-      in.sources[i].point_count = from_this;
+      return stage(b);
+    };
+    std::vector<std::uint64_t> per_source(in.readers.size(), 0);
+    const auto take = [&](ReadBatch& b) -> Status {
+      RELIEF_RETURN_IF_ERROR(sink(b));
+      per_source[b.reader] += b.points.size();
+      points_read += b.points.size();
+      progress.update("reading", points_read, 0, 0);
+      if (cancelled()) return io_error("interrupted");
+      return Status::ok();
+    };
+    ReadBatch batch;
+    batch.points = std::move(pending);
+    std::uint64_t first = 0;
+    if (!batch.points.empty()) {
+      // The batch read up front (for the cell size) is the first of input 0.
+      RELIEF_RETURN_IF_ERROR(full_stage(batch));
+      RELIEF_RETURN_IF_ERROR(take(batch));
+      first = batch.points.size();
     }
+    Prefetcher prefetch(in.readers, static_cast<std::size_t>(read_batch), 1, first, full_stage);
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(batch));
+      if (!more) break;
+      RELIEF_RETURN_IF_ERROR(take(batch));
+    }
+    for (std::size_t i = 0; i < in.sources.size(); ++i) in.sources[i].point_count = per_source[i];
     return Status::ok();
   };
-  const auto encode_cloud = [&](ChunkPipeline& pipeline, const PointCloud& cloud, Grouping& grouping) -> Status {
-    std::vector<ChunkTask> tasks = group_into_tasks(cloud, grid, part_points, grouping);
-    return pipeline.run(tasks, [&] {
+  const auto encode_tasks = [&](ChunkPipeline& pipeline, std::vector<ChunkTask>& tasks) -> Status {
+    return pipeline.run(std::move(tasks), [&] {
       progress.update("encoding", points_read, pipeline.totals().chunks, pipeline.totals().blob_bytes);
     });
   };
@@ -145,6 +199,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     return p;
   };
   std::int64_t scan_id = 0;
+  // Declared before the pipeline: its workers return slices here.
+  SlicePool slices;
   std::unique_ptr<ChunkPipeline> pipeline;
   Grouping grouping;
   // Without bucket files their buffers' share is free: the whole input may
@@ -154,7 +210,15 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     // The whole input fits in memory: no temporary files.
     PointCloud all;
     all.reserve(static_cast<std::size_t>(in.known_total), in.colors, in.intensity);
-    RELIEF_RETURN_IF_ERROR(read_all([&](PointCloud& batch) -> Status {
+    grouping.ids.reserve(static_cast<std::size_t>(in.known_total));
+    core::advise_huge_pages(all.positions);
+    core::advise_huge_pages(all.colors);
+    core::advise_huge_pages(all.intensities);
+    core::advise_huge_pages(grouping.ids);
+    // The reading thread copies each batch into `all` (the first touch of
+    // that memory is its larger cost); this thread keys the points.
+    const auto copy_in = [&](ReadBatch& b) -> Status {
+      const PointCloud& batch = b.points;
       if (all.size() + batch.size() > in_memory_points) {
         return format_error("inputs hold more points than their headers say");
       }
@@ -162,36 +226,53 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       all.colors.insert(all.colors.end(), batch.colors.begin(), batch.colors.end());
       all.intensities.insert(all.intensities.end(), batch.intensities.begin(), batch.intensities.end());
       return Status::ok();
+    };
+    RELIEF_RETURN_IF_ERROR(read_all(copy_in, [&](ReadBatch& b) -> Status {
+      grouping.add(b.points.positions.data(), b.points.size(), grid);
+      return Status::ok();
     }));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
-    RELIEF_RETURN_IF_ERROR(encode_cloud(*pipeline, all, grouping));
+    std::vector<ChunkTask> tasks = make_tasks(all, part_points, grouping);
+    RELIEF_RETURN_IF_ERROR(encode_tasks(*pipeline, tasks));
   } else {
-    // ---- External distribution sort: every point into its chunk's bucket file.
+    // ---- External distribution sort: every point into its chunk's bucket
+    // file. The reading thread keys and packs each batch; this one writes.
     RELIEF_ASSIGN_OR_RETURN(BucketFiles files,
-                            BucketFiles::create(tmp_parent, buckets, write_buffer, in.colors, in.intensity));
-    std::vector<ChunkKey> keys;
-    RELIEF_RETURN_IF_ERROR(read_all([&](PointCloud& batch) -> Status {
-      keys.resize(batch.size());
-      for (std::size_t k = 0; k < batch.size(); ++k) keys[k] = grid.key_of(batch.positions[k]);
-      return files.append(batch, keys);
-    }));
+                            BucketFiles::create(tmp_parent, buckets, grid, in.colors, in.intensity));
+    const auto pack_batch = [&](ReadBatch& b) -> Status {
+      b.keys.resize(b.points.size());
+      grid.keys_of(b.points.positions.data(), b.points.size(), b.keys.data());
+      files.pack(b.points, b.keys.data(), b.packed);
+      return Status::ok();
+    };
+    RELIEF_RETURN_IF_ERROR(read_all(pack_batch, [&](ReadBatch& b) -> Status { return files.write(b.packed); }));
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
-    PointCloud slice;
+    // The next slice loads while the workers encode the current one; each
+    // slice goes back to the pool as soon as its last chunk is encoded.
+    const auto tick = [&] {
+      progress.update("encoding", points_read, pipeline->totals().chunks, pipeline->totals().blob_bytes);
+    };
     for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
-      const std::uint64_t n = files.bucket_points(b);
-      for (std::uint64_t first = 0; first < n; first += slice_points) {
-        const std::uint64_t count = std::min(slice_points, n - first);
-        RELIEF_RETURN_IF_ERROR(files.read(b, first, count, slice));
-        RELIEF_RETURN_IF_ERROR(encode_cloud(*pipeline, slice, grouping));
+      std::uint64_t offset = 0;
+      while (offset < files.bucket_bytes(b)) {
+        std::shared_ptr<Slice> slice = slices.acquire();
+        RELIEF_RETURN_IF_ERROR(
+            files.read_slice(b, &offset, slice_points, slice->points, slice->grouping, slice->io_buffer));
+        std::vector<ChunkTask> tasks = make_tasks(slice->points, part_points, slice->grouping);
+        pipeline->submit(std::move(tasks), slice);
+        slice.reset();
+        // At most this slice still encoding while the next one loads.
+        RELIEF_RETURN_IF_ERROR(pipeline->wait(1, tick));
       }
       files.discard(b);
     }
+    RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
   }
   RELIEF_RETURN_IF_ERROR(archive.finish_scan(scan_id, in.colors, in.intensity, in.crs));
 
@@ -208,26 +289,43 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   return result;
 }
 
-std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGrid& grid, std::uint64_t part_points,
-                                        Grouping& g) {
-  // Chunk id per point: points in storage order mostly stay in one chunk for
-  // a while, so the previous key is checked before the hash map.
-  const std::size_t n = cloud.size();
-  g.keys.clear();
-  g.ids.resize(n);
-  std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> lookup;
+void Grouping::clear() {
+  keys.clear();
+  ids.clear();
+  lookup.clear();
+}
+
+void Grouping::add(const Vec3d* points, std::size_t n, const ArchiveGrid& grid) {
+  batch_keys.resize(n);
+  grid.keys_of(points, n, batch_keys.data());
+  const std::size_t base = ids.size();
+  ids.resize(base + n);
+  // Points in storage order mostly stay in one chunk for a while, so the
+  // previous key is checked before the hash map.
   ChunkKey last{};
   std::uint32_t last_id = 0;
+  bool have_last = false;
   for (std::size_t i = 0; i < n; ++i) {
-    const ChunkKey k = grid.key_of(cloud.positions[i]);
-    if (g.keys.empty() || !(k == last)) {
-      auto [it, inserted] = lookup.try_emplace(k, static_cast<std::uint32_t>(g.keys.size()));
-      if (inserted) g.keys.push_back(k);
+    const ChunkKey& k = batch_keys[i];
+    if (!have_last || !(k == last)) {
+      auto [it, inserted] = lookup.try_emplace(k, static_cast<std::uint32_t>(keys.size()));
+      if (inserted) keys.push_back(k);
       last = k;
       last_id = it->second;
+      have_last = true;
     }
-    g.ids[i] = last_id;
+    ids[base + i] = last_id;
   }
+}
+
+void Grouping::add_run(const ChunkKey& key, std::size_t count) {
+  auto [it, inserted] = lookup.try_emplace(key, static_cast<std::uint32_t>(keys.size()));
+  if (inserted) keys.push_back(key);
+  ids.insert(ids.end(), count, it->second);
+}
+
+std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g) {
+  const std::size_t n = cloud.size();
   // Counting sort of point indices by chunk id.
   std::vector<std::uint64_t> start(g.keys.size() + 1, 0);
   for (std::uint32_t id : g.ids) ++start[id + 1];
@@ -251,6 +349,13 @@ std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGr
     }
   }
   return tasks;
+}
+
+std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGrid& grid, std::uint64_t part_points,
+                                        Grouping& g) {
+  g.clear();
+  g.add(cloud.positions.data(), cloud.size(), grid);
+  return make_tasks(cloud, part_points, g);
 }
 
 void remove_archive_files(const std::string& path) {

@@ -6,6 +6,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "ingest/chunk_pipeline.h"
@@ -41,17 +42,31 @@ struct ChunkKeyHash {
   }
 };
 
-// Working arrays of group_into_tasks, reused across slices; tasks point into
-// `order`, so it must outlive them.
+// Chunk ids of a cloud's points, assigned batch by batch as the points
+// arrive (so keying overlaps reading), then turned into encode tasks by a
+// counting sort. Reused across slices; tasks point into `order`, so it must
+// outlive them.
 struct Grouping {
-  std::vector<ChunkKey> keys;
-  std::vector<std::uint32_t> ids;
-  std::vector<std::uint32_t> order;
+  std::vector<ChunkKey> keys;        // distinct keys, indexed by chunk id
+  std::vector<std::uint32_t> ids;    // chunk id of every point added so far
+  std::vector<std::uint32_t> order;  // point indices grouped by chunk id
+  std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> lookup;
+  std::vector<ChunkKey> batch_keys;
+
+  void clear();
+  // Appends the chunk ids of points[0..n) to `ids`.
+  void add(const Vec3d* points, std::size_t n, const ArchiveGrid& grid);
+  // Appends `count` points of chunk `key`.
+  void add_run(const ChunkKey& key, std::size_t count);
 };
 
-// Groups a cloud by chunk key (counting sort) into encode tasks of at most
-// `part_points` points that index into `cloud` (a larger chunk becomes several
-// blobs of one voxel). `cloud` and `g` must outlive the tasks.
+// Groups the points of `cloud` (whose ids `g` holds, one per point) by chunk
+// key into encode tasks of at most `part_points` points that index into
+// `cloud` (a larger chunk becomes several blobs of one voxel), in key order.
+// `cloud` and `g` must outlive the tasks.
+std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g);
+
+// clear + add + make_tasks for a whole cloud.
 std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGrid& grid, std::uint64_t part_points,
                                         Grouping& g);
 

@@ -140,7 +140,7 @@ class StreamIngestImpl final : public StreamIngest {
   }
 
   Status encode(std::vector<ChunkTask>& tasks) {
-    return pipeline_.run(tasks, [&] {
+    return pipeline_.run(std::move(tasks), [&] {
       progress_.update("streaming", points_read_, pipeline_.totals().chunks, pipeline_.totals().blob_bytes);
     });
   }

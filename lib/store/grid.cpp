@@ -35,6 +35,30 @@ ChunkKey ArchiveGrid::key_of(const Vec3d& p) const {
           axis_key(p.z, origin.z, chunk_edge)};
 }
 
+void ArchiveGrid::keys_of(const Vec3d* points, std::size_t n, ChunkKey* out) const {
+  // floor without a libm call: truncate, then step down when truncation
+  // rounded up (negative non-integers). Exact for |q| < 2^62, where the int64
+  // conversion is exact and cannot overflow; anything else goes through the
+  // saturating axis_key.
+  constexpr double kFast = 4611686018427387904.0;  // 2^62
+  const double e = chunk_edge;
+  const auto fast_floor = [](double q) {
+    const auto t = static_cast<std::int64_t>(q);
+    return t - (static_cast<double>(t) > q ? 1 : 0);
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3d& p = points[i];
+    const double qx = (p.x - origin.x) / e;
+    const double qy = (p.y - origin.y) / e;
+    const double qz = (p.z - origin.z) / e;
+    if (std::abs(qx) < kFast && std::abs(qy) < kFast && std::abs(qz) < kFast) {
+      out[i] = {fast_floor(qx), fast_floor(qy), fast_floor(qz)};
+    } else {
+      out[i] = key_of(p);
+    }
+  }
+}
+
 Box3d ArchiveGrid::chunk_box(const ChunkKey& key) const {
   // The nominal cube of the key. key_of rounds twice (subtraction, division),
   // so a point within an ulp or so of a face may be keyed to the cube beside

@@ -30,6 +30,8 @@ struct ArchiveGrid {
   double chunk_edge = 0;  // > 0
 
   ChunkKey key_of(const Vec3d& p) const;
+  // key_of of points[0..n) into out[0..n): the same keys, computed in bulk.
+  void keys_of(const Vec3d* points, std::size_t n, ChunkKey* out) const;
   Box3d chunk_box(const ChunkKey& key) const;
 };
 

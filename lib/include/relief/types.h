@@ -26,7 +26,15 @@ struct Box3d {
   Vec3d max{-1e308, -1e308, -1e308};
 
   bool empty() const { return min.x > max.x || min.y > max.y || min.z > max.z; }
-  void add(const Vec3d& p);
+  void add(const Vec3d& p) {
+    // Inline: ingest and the codec call this once per point.
+    min.x = p.x < min.x ? p.x : min.x;
+    min.y = p.y < min.y ? p.y : min.y;
+    min.z = p.z < min.z ? p.z : min.z;
+    max.x = p.x > max.x ? p.x : max.x;
+    max.y = p.y > max.y ? p.y : max.y;
+    max.z = p.z > max.z ? p.z : max.z;
+  }
   // Length of the diagonal; 0 for an empty box.
   double diagonal() const;
   Vec3d extent() const;
