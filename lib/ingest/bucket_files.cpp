@@ -7,7 +7,9 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <new>
 
 namespace relief::ingest {
 
@@ -67,34 +69,41 @@ std::uint32_t quantize(double v, double lo, double inv_step) {
   return q >= kMaxQ ? 0xffffffffu : static_cast<std::uint32_t>(q);
 }
 
-Status write_all(int fd, const std::uint8_t* data, std::size_t n, const std::string& path) {
-  while (n > 0) {
-    const ssize_t w = ::write(fd, data, n);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      return io_error(path + ": write failed: " + std::strerror(errno));
-    }
-    data += w;
-    n -= static_cast<std::size_t>(w);
-  }
-  return Status::ok();
-}
-
-Status read_exact(int fd, std::uint8_t* data, std::size_t n, std::uint64_t offset, const std::string& path) {
-  std::size_t got = 0;
-  while (got < n) {
-    const ssize_t r = ::pread(fd, data + got, n - got, static_cast<off_t>(offset + got));
-    if (r < 0 && errno == EINTR) continue;
-    if (r <= 0) return io_error(path + ": read failed: " + (r < 0 ? std::strerror(errno) : "unexpected end"));
-    got += static_cast<std::size_t>(r);
-  }
-  return Status::ok();
-}
+std::size_t round_up(std::size_t n, std::size_t a) { return (n + a - 1) / a * a; }
 
 }  // namespace
 
+AlignedBuffer::~AlignedBuffer() { std::free(data_); }
+
+AlignedBuffer::AlignedBuffer(AlignedBuffer&& o) noexcept : data_(o.data_), capacity_(o.capacity_) {
+  o.data_ = nullptr;
+  o.capacity_ = 0;
+}
+
+AlignedBuffer& AlignedBuffer::operator=(AlignedBuffer&& o) noexcept {
+  if (this != &o) {
+    std::free(data_);
+    data_ = o.data_;
+    capacity_ = o.capacity_;
+    o.data_ = nullptr;
+    o.capacity_ = 0;
+  }
+  return *this;
+}
+
+void AlignedBuffer::reserve(std::size_t bytes, std::size_t keep) {
+  if (bytes <= capacity_) return;
+  const std::size_t cap = round_up(bytes, kAlign);
+  auto* p = static_cast<std::uint8_t*>(std::aligned_alloc(kAlign, cap));
+  if (p == nullptr) throw std::bad_alloc();
+  if (keep > 0) std::memcpy(p, data_, keep);
+  std::free(data_);
+  data_ = p;
+  capacity_ = cap;
+}
+
 Result<BucketFiles> BucketFiles::create(const std::string& parent, std::uint32_t buckets, const ArchiveGrid& grid,
-                                        bool colors, bool intensity) {
+                                        bool colors, bool intensity, std::size_t staging_bytes) {
   BucketFiles b;
   std::string pattern = (parent.empty() ? std::string(".") : parent) + "/relief-ingest-XXXXXX";
   std::vector<char> templ(pattern.begin(), pattern.end());
@@ -110,9 +119,30 @@ Result<BucketFiles> BucketFiles::create(const std::string& parent, std::uint32_t
   b.files_.assign(buckets, -1);
   b.counts_.assign(buckets, 0);
   b.bytes_.assign(buckets, 0);
+  b.staging_.resize(buckets);
+  b.staged_.assign(buckets, 0);
+  b.file_pos_.assign(buckets, 0);
+  b.staging_target_ = std::max<std::size_t>(2 * AlignedBuffer::kAlign,
+                                            round_up(staging_bytes / std::max<std::uint32_t>(1, buckets),
+                                                     AlignedBuffer::kAlign));
+  b.direct_ = true;
   for (std::uint32_t i = 0; i < buckets; ++i) {
     b.paths_.push_back(b.dir_ + "/bucket-" + std::to_string(i));
-    const int fd = ::open(b.paths_.back().c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    const char* path = b.paths_.back().c_str();
+    int fd = -1;
+#if defined(O_DIRECT)
+    if (b.direct_) {
+      fd = ::open(path, O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC | O_DIRECT, 0600);
+      // File systems without direct I/O (tmpfs) refuse it: use the page cache.
+      if (fd < 0 && errno == EINVAL) {
+        ::unlink(path);
+        b.direct_ = false;
+      }
+    }
+#else
+    b.direct_ = false;
+#endif
+    if (fd < 0 && !b.direct_) fd = ::open(path, O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     if (fd < 0) return io_error(b.paths_.back() + ": cannot create: " + std::strerror(errno));
     b.files_[i] = fd;
   }
@@ -129,6 +159,11 @@ BucketFiles& BucketFiles::operator=(BucketFiles&& o) noexcept {
     files_ = std::move(o.files_);
     counts_ = std::move(o.counts_);
     bytes_ = std::move(o.bytes_);
+    staging_ = std::move(o.staging_);
+    staged_ = std::move(o.staged_);
+    file_pos_ = std::move(o.file_pos_);
+    staging_target_ = o.staging_target_;
+    direct_ = o.direct_;
     grid_ = o.grid_;
     colors_ = o.colors_;
     intensity_ = o.intensity_;
@@ -161,78 +196,71 @@ std::uint32_t BucketFiles::bucket_of(const ChunkKey& key) const {
   return static_cast<std::uint32_t>(h % files_.size());
 }
 
-void BucketFiles::pack(const PointCloud& points, const ChunkKey* keys, PackedBatch& out) const {
+Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
   const std::size_t n = points.size();
+  if (n == 0) return Status::ok();
   // Chunk id of every point (runs of one key are common: check the last one first).
-  out.lookup.clear();
-  out.chunk_keys.clear();
-  out.chunk_min.clear();
-  out.chunk_counts.clear();
-  out.chunk_of_point.resize(n);
+  lookup_.clear();
+  chunk_keys_.clear();
+  chunk_min_.clear();
+  chunk_counts_.clear();
+  chunk_of_point_.resize(n);
   std::uint32_t last_id = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    if (out.chunk_keys.empty() || !(keys[i] == out.chunk_keys[last_id])) {
-      auto [it, inserted] = out.lookup.try_emplace(keys[i], static_cast<std::uint32_t>(out.chunk_keys.size()));
+    if (chunk_keys_.empty() || !(keys[i] == chunk_keys_[last_id])) {
+      auto [it, inserted] = lookup_.try_emplace(keys[i], static_cast<std::uint32_t>(chunk_keys_.size()));
       if (inserted) {
-        out.chunk_keys.push_back(keys[i]);
-        out.chunk_min.push_back(grid_.chunk_box(keys[i]).min);
-        out.chunk_counts.push_back(0);
+        chunk_keys_.push_back(keys[i]);
+        chunk_min_.push_back(grid_.chunk_box(keys[i]).min);
+        chunk_counts_.push_back(0);
       }
       last_id = it->second;
     }
-    out.chunk_of_point[i] = last_id;
-    ++out.chunk_counts[last_id];
+    chunk_of_point_[i] = last_id;
+    ++chunk_counts_[last_id];
   }
-  // Chunks ordered by bucket; each bucket's chunks form one block.
-  const std::size_t chunks = out.chunk_keys.size();
+  // Chunks ordered by bucket; each bucket's chunks form one block, laid out
+  // in that bucket's staging buffer.
+  const std::size_t chunks = chunk_keys_.size();
   std::vector<std::pair<std::uint32_t, std::uint32_t>> by_bucket(chunks);
-  for (std::uint32_t c = 0; c < chunks; ++c) by_bucket[c] = {bucket_of(out.chunk_keys[c]), c};
+  for (std::uint32_t c = 0; c < chunks; ++c) by_bucket[c] = {bucket_of(chunk_keys_[c]), c};
   std::sort(by_bucket.begin(), by_bucket.end());
-  out.blocks.clear();
-  out.chunk_cursor.assign(chunks, 0);
-  std::size_t total = 0;
+  chunk_cursor_.assign(chunks, nullptr);
   for (std::size_t i = 0; i < chunks;) {
+    const std::uint32_t bucket = by_bucket[i].first;
     std::size_t j = i;
     std::uint32_t block_points = 0;
-    while (j < chunks && by_bucket[j].first == by_bucket[i].first) block_points += out.chunk_counts[by_bucket[j++].second];
-    PackedBatch::Block b;
-    b.bucket = by_bucket[i].first;
-    b.offset = total;
-    b.points = block_points;
-    b.size = kBlockHeader + (j - i) * kChunkEntry + static_cast<std::size_t>(block_points) * record_;
-    out.blocks.push_back(b);
-    total += b.size;
-    i = j;
-  }
-  out.bytes.resize(total);
-  std::uint8_t* base = out.bytes.data();
-  // Headers, and where each chunk's records start.
-  std::size_t c = 0;
-  for (const PackedBatch::Block& b : out.blocks) {
-    std::uint8_t* h = base + b.offset;
-    std::size_t first = c;
-    while (c < chunks && by_bucket[c].first == b.bucket) ++c;
-    put_u32(h, b.points);
-    put_u32(h + 4, static_cast<std::uint32_t>(c - first));
-    std::size_t rec = b.offset + kBlockHeader + (c - first) * kChunkEntry;
-    for (std::size_t k = first; k < c; ++k) {
+    while (j < chunks && by_bucket[j].first == bucket) block_points += chunk_counts_[by_bucket[j++].second];
+    const std::size_t size = kBlockHeader + (j - i) * kChunkEntry + static_cast<std::size_t>(block_points) * record_;
+    if (staged_[bucket] + size > staging_target_) RELIEF_RETURN_IF_ERROR(flush(bucket, false));
+    AlignedBuffer& buf = staging_[bucket];
+    buf.reserve(std::max(staging_target_, staged_[bucket] + size), staged_[bucket]);
+    std::uint8_t* h = buf.data() + staged_[bucket];
+    put_u32(h, block_points);
+    put_u32(h + 4, static_cast<std::uint32_t>(j - i));
+    std::uint8_t* rec = h + kBlockHeader + (j - i) * kChunkEntry;
+    for (std::size_t k = i; k < j; ++k) {
       const std::uint32_t id = by_bucket[k].second;
-      std::uint8_t* e = h + kBlockHeader + (k - first) * kChunkEntry;
-      put_i64(e, out.chunk_keys[id].ix);
-      put_i64(e + 8, out.chunk_keys[id].iy);
-      put_i64(e + 16, out.chunk_keys[id].iz);
-      put_u32(e + 24, out.chunk_counts[id]);
-      out.chunk_cursor[id] = rec;
-      rec += static_cast<std::size_t>(out.chunk_counts[id]) * record_;
+      std::uint8_t* e = h + kBlockHeader + (k - i) * kChunkEntry;
+      put_i64(e, chunk_keys_[id].ix);
+      put_i64(e + 8, chunk_keys_[id].iy);
+      put_i64(e + 16, chunk_keys_[id].iz);
+      put_u32(e + 24, chunk_counts_[id]);
+      chunk_cursor_[id] = rec;
+      rec += static_cast<std::size_t>(chunk_counts_[id]) * record_;
     }
+    staged_[bucket] += size;
+    counts_[bucket] += block_points;
+    bytes_[bucket] += size;
+    i = j;
   }
   // Records, each to its chunk's next slot.
   const double inv_step = kScale / grid_.chunk_edge;
   for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t id = out.chunk_of_point[i];
-    std::uint8_t* r = base + out.chunk_cursor[id];
-    out.chunk_cursor[id] += record_;
-    const Vec3d& lo = out.chunk_min[id];
+    const std::uint32_t id = chunk_of_point_[i];
+    std::uint8_t* r = chunk_cursor_[id];
+    chunk_cursor_[id] += record_;
+    const Vec3d& lo = chunk_min_[id];
     const Vec3d& p = points.positions[i];
     put_u32(r, quantize(p.x, lo.x, inv_step));
     put_u32(r + 4, quantize(p.y, lo.y, inv_step));
@@ -246,21 +274,64 @@ void BucketFiles::pack(const PointCloud& points, const ChunkKey* keys, PackedBat
     }
     if (intensity_) put_f32(r + off, points.intensities[i]);
   }
+  return Status::ok();
 }
 
-Status BucketFiles::write(const PackedBatch& batch) {
-  for (const PackedBatch::Block& b : batch.blocks) {
-    RELIEF_RETURN_IF_ERROR(write_all(files_[b.bucket], batch.bytes.data() + b.offset, b.size, paths_[b.bucket]));
-    counts_[b.bucket] += b.points;
-    bytes_[b.bucket] += b.size;
+Status BucketFiles::flush(std::uint32_t bucket, bool all) {
+  AlignedBuffer& buf = staging_[bucket];
+  const std::size_t staged = staged_[bucket];
+  std::size_t out = staged / AlignedBuffer::kAlign * AlignedBuffer::kAlign;
+  if (all && out < staged) {
+    out = round_up(staged, AlignedBuffer::kAlign);
+    std::memset(buf.data() + staged, 0, out - staged);
+  }
+  if (out == 0) return Status::ok();
+  std::size_t done = 0;
+  while (done < out) {
+    const ssize_t w = ::pwrite(files_[bucket], buf.data() + done, out - done,
+                               static_cast<off_t>(file_pos_[bucket] + done));
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      return io_error(paths_[bucket] + ": write failed: " + std::strerror(errno));
+    }
+    done += static_cast<std::size_t>(w);
+  }
+  file_pos_[bucket] += out;
+  const std::size_t rest = all ? 0 : staged - out;
+  if (rest > 0) std::memmove(buf.data(), buf.data() + out, rest);
+  staged_[bucket] = rest;
+  return Status::ok();
+}
+
+Status BucketFiles::finish_writing() {
+  for (std::uint32_t b = 0; b < files_.size(); ++b) {
+    RELIEF_RETURN_IF_ERROR(flush(b, true));
+    staging_[b] = AlignedBuffer();
   }
   return Status::ok();
 }
 
-Status BucketFiles::finish_writing() { return Status::ok(); }
+Status BucketFiles::read_range(std::uint32_t bucket, std::uint64_t from, std::size_t n, AlignedBuffer& buf) const {
+  const std::uint64_t start = from / AlignedBuffer::kAlign * AlignedBuffer::kAlign;
+  const std::size_t len = round_up(static_cast<std::size_t>(from - start) + n, AlignedBuffer::kAlign);
+  if (start + len > file_pos_[bucket]) {
+    return corrupt_data(paths_[bucket] + ": temporary file shorter than written");
+  }
+  buf.reserve(len, 0);
+  std::size_t got = 0;
+  while (got < len) {
+    const ssize_t r = ::pread(files_[bucket], buf.data() + got, len - got, static_cast<off_t>(start + got));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) {
+      return io_error(paths_[bucket] + ": read failed: " + (r < 0 ? std::strerror(errno) : "unexpected end"));
+    }
+    got += static_cast<std::size_t>(r);
+  }
+  return Status::ok();
+}
 
 Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std::uint64_t max_points,
-                               PointCloud& out, Grouping& g, std::vector<std::uint8_t>& buf) const {
+                               PointCloud& out, Grouping& g, AlignedBuffer& buf) const {
   out.positions.clear();
   out.colors.clear();
   out.intensities.clear();
@@ -270,27 +341,39 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
     return corrupt_data(path + ": temporary file damaged at byte " + std::to_string(*offset) + ": " + what);
   };
   const double step = grid_.chunk_edge / kScale;
+  // A window of file bytes [win_from, win_to) in buf at win_skip.
+  constexpr std::size_t kWindow = 8u << 20;
+  std::uint64_t win_from = 0, win_to = 0;
+  std::size_t win_skip = 0;
+  const auto load = [&](std::uint64_t from, std::size_t n) -> Status {
+    const std::uint64_t end = std::min<std::uint64_t>(bytes_[bucket], from + std::max(n, kWindow));
+    RELIEF_RETURN_IF_ERROR(read_range(bucket, from, static_cast<std::size_t>(end - from), buf));
+    win_from = from;
+    win_to = end;
+    win_skip = static_cast<std::size_t>(from % AlignedBuffer::kAlign);
+    return Status::ok();
+  };
+  const auto view = [&](std::uint64_t at) { return buf.data() + win_skip + (at - win_from); };
   while (*offset < bytes_[bucket]) {
-    std::uint8_t header[kBlockHeader];
     if (bytes_[bucket] - *offset < kBlockHeader) return damaged("truncated block header");
-    RELIEF_RETURN_IF_ERROR(read_exact(files_[bucket], header, kBlockHeader, *offset, path));
-    const std::uint32_t points = get_u32(header);
-    const std::uint32_t chunks = get_u32(header + 4);
+    if (*offset < win_from || *offset + kBlockHeader > win_to) RELIEF_RETURN_IF_ERROR(load(*offset, kBlockHeader));
+    const std::uint32_t points = get_u32(view(*offset));
+    const std::uint32_t chunks = get_u32(view(*offset) + 4);
     if (!out.empty() && out.size() + points > max_points) break;
     const std::uint64_t size = kBlockHeader + static_cast<std::uint64_t>(chunks) * kChunkEntry +
                                static_cast<std::uint64_t>(points) * record_;
     if (chunks == 0 || chunks > points || size > bytes_[bucket] - *offset) return damaged("block overruns the file");
-    buf.resize(static_cast<std::size_t>(size - kBlockHeader));
-    RELIEF_RETURN_IF_ERROR(read_exact(files_[bucket], buf.data(), buf.size(), *offset + kBlockHeader, path));
+    if (*offset + size > win_to) RELIEF_RETURN_IF_ERROR(load(*offset, static_cast<std::size_t>(size)));
+    const std::uint8_t* block = view(*offset) + kBlockHeader;
     const std::size_t at = out.size();
     out.positions.resize(at + points);
     if (colors_) out.colors.resize(at + points);
     if (intensity_) out.intensities.resize(at + points);
-    const std::uint8_t* r = buf.data() + static_cast<std::size_t>(chunks) * kChunkEntry;
+    const std::uint8_t* r = block + static_cast<std::size_t>(chunks) * kChunkEntry;
     std::size_t k = at;
     std::uint64_t listed = 0;
     for (std::uint32_t c = 0; c < chunks; ++c) {
-      const std::uint8_t* e = buf.data() + static_cast<std::size_t>(c) * kChunkEntry;
+      const std::uint8_t* e = block + static_cast<std::size_t>(c) * kChunkEntry;
       const ChunkKey key{get_i64(e), get_i64(e + 8), get_i64(e + 16)};
       const std::uint32_t count = get_u32(e + 24);
       listed += count;

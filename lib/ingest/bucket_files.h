@@ -32,30 +32,35 @@
 
 namespace relief::ingest {
 
-// One input batch encoded as blocks, one per bucket it touches.
-struct PackedBatch {
-  std::vector<std::uint8_t> bytes;
-  struct Block {
-    std::uint32_t bucket;
-    std::size_t offset;  // into bytes
-    std::size_t size;
-    std::uint32_t points;
-  };
-  std::vector<Block> blocks;
-  // Scratch of pack(), kept to avoid reallocation.
-  std::vector<std::uint32_t> chunk_of_point;
-  std::vector<ChunkKey> chunk_keys;
-  std::vector<Vec3d> chunk_min;
-  std::vector<std::uint32_t> chunk_counts;
-  std::vector<std::uint64_t> chunk_cursor;
-  std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> lookup;
+// A buffer aligned for direct I/O.
+class AlignedBuffer {
+ public:
+  static constexpr std::size_t kAlign = 4096;
+  AlignedBuffer() = default;
+  ~AlignedBuffer();
+  AlignedBuffer(AlignedBuffer&& o) noexcept;
+  AlignedBuffer& operator=(AlignedBuffer&& o) noexcept;
+  AlignedBuffer(const AlignedBuffer&) = delete;
+  AlignedBuffer& operator=(const AlignedBuffer&) = delete;
+
+  // Capacity at least `bytes` (a multiple of kAlign), keeping the first `keep` bytes.
+  void reserve(std::size_t bytes, std::size_t keep);
+  std::uint8_t* data() const { return data_; }
+  std::size_t capacity() const { return capacity_; }
+
+ private:
+  std::uint8_t* data_ = nullptr;
+  std::size_t capacity_ = 0;
 };
 
 class BucketFiles {
  public:
-  // Creates a private directory under `parent` with `buckets` files.
+  // Creates a private directory under `parent` with `buckets` files, staging
+  // about `staging_bytes` in all. The files use direct I/O (O_DIRECT) where
+  // the file system supports it: gigabytes of temporary records then neither
+  // fill the page cache nor pay for its page allocation, twice.
   static Result<BucketFiles> create(const std::string& parent, std::uint32_t buckets, const ArchiveGrid& grid,
-                                    bool colors, bool intensity);
+                                    bool colors, bool intensity, std::size_t staging_bytes);
   BucketFiles(BucketFiles&&) noexcept;
   BucketFiles& operator=(BucketFiles&&) noexcept;
   BucketFiles(const BucketFiles&) = delete;
@@ -68,12 +73,11 @@ class BucketFiles {
   // Bytes of one point record.
   std::size_t record_bytes() const { return record_; }
 
-  // Encodes points[i] (chunk keys[i]) as blocks. Touches no file and no
-  // mutable state, so it may run on another thread than write().
-  void pack(const PointCloud& points, const ChunkKey* keys, PackedBatch& out) const;
-  // Appends the blocks of a packed batch to their bucket files.
-  Status write(const PackedBatch& batch);
-  // Closes the write side; call once before reading.
+  // Appends points[i] (chunk keys[i]) to their buckets, one block per bucket
+  // touched. Each bucket stages its bytes in an aligned buffer and writes
+  // whole 4 KiB pages as it fills.
+  Status append(const PointCloud& points, const ChunkKey* keys);
+  // Writes what is staged (the last page zero-padded); call once before reading.
   Status finish_writing();
 
   std::uint64_t bucket_points(std::uint32_t bucket) const { return counts_[bucket]; }
@@ -82,7 +86,8 @@ class BucketFiles {
   // (replaced) with their chunk ids in `g` (cleared); `buf` is scratch.
   // Advances `*offset`; the bucket is done when it reaches bucket_bytes().
   Status read_slice(std::uint32_t bucket, std::uint64_t* offset, std::uint64_t max_points, PointCloud& out,
-                    Grouping& g, std::vector<std::uint8_t>& buf) const;
+                    Grouping& g, AlignedBuffer& buf) const;
+  bool direct_io() const { return direct_; }
   std::uint64_t bucket_bytes(std::uint32_t bucket) const { return bytes_[bucket]; }
   // Deletes one bucket's file early (frees disk as the ingest proceeds).
   void discard(std::uint32_t bucket);
@@ -92,12 +97,29 @@ class BucketFiles {
  private:
   BucketFiles() = default;
   void remove_all();
+  // Writes the whole pages staged for a bucket (all of it, padded, if `all`).
+  Status flush(std::uint32_t bucket, bool all);
+  // Reads file bytes [from, from + n) into buf, which then holds them at
+  // offset `from % kAlign`.
+  Status read_range(std::uint32_t bucket, std::uint64_t from, std::size_t n, AlignedBuffer& buf) const;
 
   std::string dir_;
   std::vector<std::string> paths_;
   std::vector<int> files_;  // file descriptors, -1 when closed
   std::vector<std::uint64_t> counts_;
-  std::vector<std::uint64_t> bytes_;
+  std::vector<std::uint64_t> bytes_;       // logical bytes written per bucket
+  std::vector<AlignedBuffer> staging_;
+  std::vector<std::size_t> staged_;        // bytes staged per bucket
+  std::vector<std::uint64_t> file_pos_;    // bytes on disk per bucket (page multiple)
+  std::size_t staging_target_ = 0;         // flush a bucket's pages at this fill
+  bool direct_ = false;
+  // append() scratch.
+  std::vector<std::uint32_t> chunk_of_point_;
+  std::vector<ChunkKey> chunk_keys_;
+  std::vector<Vec3d> chunk_min_;
+  std::vector<std::uint32_t> chunk_counts_;
+  std::vector<std::uint8_t*> chunk_cursor_;
+  std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> lookup_;
   ArchiveGrid grid_;
   bool colors_ = false;
   bool intensity_ = false;

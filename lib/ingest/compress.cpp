@@ -38,9 +38,9 @@ constexpr std::uint64_t kEncodeBytesPerPoint = 128;
 constexpr std::uint32_t kMinBuckets = 4;
 constexpr std::uint32_t kMaxBuckets = 4096;
 // Memory per point of a batch on its way from a reader: the decoded points
-// (31), their chunk keys (24), the packed bucket records (19) and the pack
-// scratch (4). Up to three batches are alive (being read, queued, consumed).
-constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 19 + 4;
+// (31) and their chunk keys (24); the bucket writer's scratch (4). Up to three
+// batches are alive (being read, queued, consumed).
+constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 4;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
@@ -51,7 +51,7 @@ constexpr std::uint64_t kUnknownBytesPerPoint = 12;
 struct Slice {
   PointCloud points;
   Grouping grouping;
-  std::vector<std::uint8_t> io_buffer;
+  AlignedBuffer io_buffer;
 };
 
 class SlicePool {
@@ -127,7 +127,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const unsigned threads = resolve_threads(options.threads);
   const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, 64u << 20);
 
-  // Budget while reading: 3/16 for batches in flight (plus, without bucket
+  // Budget while reading: 1/8 for bucket staging buffers, 3/16 for batches in flight (plus, without bucket
   // files, the whole input in half the budget). While encoding: 1/3 for two
   // bucket slices (one encoding, the next loading), 1/3 for the encoders; the rest is headroom (SQLite
   // cache, allocator slack).
@@ -138,6 +138,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   // Enough buckets that a bucket usually fits one slice (x2 for skew).
   const std::uint64_t want = (2 * std::max<std::uint64_t>(1, in.estimated_points)) / slice_points + 1;
   const auto buckets = static_cast<std::uint32_t>(std::clamp<std::uint64_t>(want, kMinBuckets, kMaxBuckets));
+  const auto staging_bytes = static_cast<std::size_t>(std::min<std::uint64_t>(budget / 8, 256u << 20));
 
   Progress progress(options.progress, in.all_counts_known ? in.known_total : 0);
   const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
@@ -238,16 +239,16 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     RELIEF_RETURN_IF_ERROR(encode_tasks(*pipeline, tasks));
   } else {
     // ---- External distribution sort: every point into its chunk's bucket
-    // file. The reading thread keys and packs each batch; this one writes.
-    RELIEF_ASSIGN_OR_RETURN(BucketFiles files,
-                            BucketFiles::create(tmp_parent, buckets, grid, in.colors, in.intensity));
-    const auto pack_batch = [&](ReadBatch& b) -> Status {
+    // file. The reading thread keys each batch; this one packs and writes.
+    RELIEF_ASSIGN_OR_RETURN(BucketFiles files, BucketFiles::create(tmp_parent, buckets, grid, in.colors,
+                                                                   in.intensity, staging_bytes));
+    const auto key_batch = [&](ReadBatch& b) -> Status {
       b.keys.resize(b.points.size());
       grid.keys_of(b.points.positions.data(), b.points.size(), b.keys.data());
-      files.pack(b.points, b.keys.data(), b.packed);
       return Status::ok();
     };
-    RELIEF_RETURN_IF_ERROR(read_all(pack_batch, [&](ReadBatch& b) -> Status { return files.write(b.packed); }));
+    RELIEF_RETURN_IF_ERROR(
+        read_all(key_batch, [&](ReadBatch& b) -> Status { return files.append(b.points, b.keys.data()); }));
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));

@@ -15,7 +15,6 @@
 #include <thread>
 #include <vector>
 
-#include "ingest/bucket_files.h"
 #include "relief/archive.h"
 #include "relief/io.h"
 #include "relief/status.h"
@@ -25,7 +24,6 @@ namespace relief::ingest {
 struct ReadBatch {
   PointCloud points;
   std::vector<ChunkKey> keys;  // for the stage's use
-  PackedBatch packed;          // for the stage's use
   std::size_t reader = 0;      // index of the input the points came from
   std::uint64_t first = 0;     // index of points[0] among all points read
 };
