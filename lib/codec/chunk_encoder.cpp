@@ -732,34 +732,48 @@ double suggest_cell_size(const PointCloud& cloud, int map_resolution) {
     const auto cz = static_cast<std::uint32_t>(std::min(max_index, (p.z - b.min.z) * inv));
     keys[i] = {codec::morton_encode(cx, cy, cz), 0};
   }
-  codec::radix_sort(keys, 3 * kLevels);
-  // first_diff[L]: adjacent keys whose prefixes first differ at level L, so
-  // occupied(L) = 1 + sum of first_diff[0..L].
-  std::vector<std::uint64_t> first_diff(kLevels + 1, 0);
-  for (std::size_t i = 1; i < keys.size(); ++i) {
-    const std::uint64_t x = keys[i].key ^ keys[i - 1].key;
-    if (x == 0) continue;
-    const int top_bit = 63 - __builtin_clzll(x);
-    // Bits [3(k-L-1), 3(k-L)) hold level L's digit (level 1 = the top triple).
-    const int level = kLevels - top_bit / 3;
-    ++first_diff[static_cast<std::size_t>(level)];
-  }
   const double n = static_cast<double>(cloud.size());
   const double target = static_cast<double>(map_resolution) * map_resolution;
-  double occupied = 1;
-  double prev_cell = extent, prev_per_cell = n;
-  for (int level = 1; level <= kLevels; ++level) {
-    occupied += static_cast<double>(first_diff[static_cast<std::size_t>(level)]);
-    const double cell = extent / std::ldexp(1.0, level);
-    const double per_cell = n / occupied;
-    if (per_cell <= target) {
-      // Between prev (>= target) and this level: per_cell ~ cell^2.
-      const double c = prev_cell * std::sqrt(target / prev_per_cell);
-      return std::clamp(c, cell, prev_cell);
+  // Sorts keys by their top `levels` levels and walks those levels; returns 0
+  // when none of them reaches the target.
+  const auto pick = [&](std::vector<codec::KeyedIndex>& sorted, int levels) -> double {
+    codec::radix_sort(sorted, 3 * levels);
+    // first_diff[L]: adjacent keys whose prefixes first differ at level L, so
+    // occupied(L) = 1 + sum of first_diff[0..L].
+    std::vector<std::uint64_t> first_diff(static_cast<std::size_t>(levels) + 1, 0);
+    for (std::size_t i = 1; i < sorted.size(); ++i) {
+      const std::uint64_t x = sorted[i].key ^ sorted[i - 1].key;
+      if (x == 0) continue;
+      const int top_bit = 63 - __builtin_clzll(x);
+      // Bits [3(k-L-1), 3(k-L)) hold level L's digit (level 1 = the top triple).
+      const int level = levels - top_bit / 3;
+      ++first_diff[static_cast<std::size_t>(level)];
     }
-    prev_cell = cell;
-    prev_per_cell = per_cell;
-  }
+    double occupied = 1;
+    double prev_cell = extent, prev_per_cell = n;
+    for (int level = 1; level <= levels; ++level) {
+      occupied += static_cast<double>(first_diff[static_cast<std::size_t>(level)]);
+      const double cell = extent / std::ldexp(1.0, level);
+      const double per_cell = n / occupied;
+      if (per_cell <= target) {
+        // Between prev (>= target) and this level: per_cell ~ cell^2.
+        const double c = prev_cell * std::sqrt(target / prev_per_cell);
+        return std::clamp(c, cell, prev_cell);
+      }
+      prev_cell = cell;
+      prev_per_cell = per_cell;
+    }
+    return 0;
+  };
+  // Most clouds reach the target within the top levels. Their prefixes are the
+  // top bits of the keys, and sorting by those alone (half the radix passes)
+  // gives exactly the same counts for those levels; the full sort is needed
+  // only when no coarse level gets there.
+  constexpr int kCoarseLevels = 8;
+  std::vector<codec::KeyedIndex> coarse(keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i) coarse[i] = {keys[i].key >> (3 * (kLevels - kCoarseLevels)), 0};
+  if (const double c = pick(coarse, kCoarseLevels); c > 0) return c;
+  if (const double c = pick(keys, kLevels); c > 0) return c;
   return finest;
 }
 

@@ -349,6 +349,10 @@ std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_po
       tasks.push_back(std::move(t));
     }
   }
+  // Largest first, so the last tasks to finish are short ones and no worker
+  // idles long at the end (which chunk lands where does not depend on it).
+  std::stable_sort(tasks.begin(), tasks.end(),
+                   [](const ChunkTask& a, const ChunkTask& b) { return a.count > b.count; });
   return tasks;
 }
 
