@@ -1,0 +1,156 @@
+// The external sort's bucket files (internal to lib/ingest): fixed-point
+// blocks round-trip every point into the right chunk, slices respect their
+// bound, and a damaged file is an error, not a crash.
+#include <catch2/catch.hpp>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+#include <vector>
+
+#include "ingest/bucket_files.h"
+#include "ingest/ingest_common.h"
+#include "relief/archive.h"
+#include "support/temp_dir.h"
+
+using namespace relief;
+using relief::ingest::AlignedBuffer;
+using relief::ingest::BucketFiles;
+using relief::ingest::Grouping;
+using relief::test::TempDir;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Points over a few chunks on both sides of the origin, some exactly on a
+// chunk face and some an ulp beside one; intensity = point index (exact in
+// float below 2^24) identifies each point after the round trip.
+PointCloud points_over_chunks(const ArchiveGrid& grid, std::size_t n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-2.5, 2.5);
+  PointCloud c;
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec3d p{grid.origin.x + u(rng) * grid.chunk_edge, grid.origin.y + u(rng) * grid.chunk_edge,
+            grid.origin.z + u(rng) * grid.chunk_edge};
+    if (i % 97 == 0) p.x = grid.origin.x + std::round(u(rng)) * grid.chunk_edge;  // on a face
+    if (i % 89 == 0) p.y = std::nextafter(grid.origin.y + std::round(u(rng)) * grid.chunk_edge, -1e300);
+    c.positions.push_back(p);
+    c.colors.push_back({static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(i >> 8),
+                        static_cast<std::uint8_t>(i >> 16)});
+    c.intensities.push_back(static_cast<float>(i));
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("bucket files return every point to its chunk within the fixed-point step", "[ingest][buckets]") {
+  TempDir tmp;
+  ArchiveGrid grid;
+  grid.origin = {484000.25, 6632000.5, -12.0};  // georeferenced: large coordinates
+  grid.chunk_edge = 7.5;
+  const std::size_t n = 60000;
+  const PointCloud pts = points_over_chunks(grid, n, 7);
+  std::vector<ChunkKey> keys(n);
+  grid.keys_of(pts.positions.data(), n, keys.data());
+  for (std::size_t i = 0; i < n; i += 101) CHECK(keys[i] == grid.key_of(pts.positions[i]));
+
+  // A tiny staging share: every bucket flushes many times.
+  auto files = BucketFiles::create(tmp.path(), 5, grid, true, true, 5 * 8192);
+  REQUIRE(files.is_ok());
+  // Several batches, as the reader delivers them.
+  for (std::size_t first = 0; first < n; first += 7000) {
+    const std::size_t m = std::min<std::size_t>(7000, n - first);
+    PointCloud batch;
+    batch.positions.assign(pts.positions.begin() + first, pts.positions.begin() + first + m);
+    batch.colors.assign(pts.colors.begin() + first, pts.colors.begin() + first + m);
+    batch.intensities.assign(pts.intensities.begin() + first, pts.intensities.begin() + first + m);
+    REQUIRE(files->append(batch, keys.data() + first).is_ok());
+  }
+  REQUIRE(files->finish_writing().is_ok());
+
+  const double step = grid.chunk_edge / 4294967296.0;
+  std::vector<int> seen(n, 0);
+  std::uint64_t total = 0;
+  PointCloud slice;
+  Grouping g;
+  AlignedBuffer buf;
+  for (std::uint32_t b = 0; b < files->bucket_count(); ++b) {
+    total += files->bucket_points(b);
+    std::uint64_t offset = 0;
+    while (offset < files->bucket_bytes(b)) {
+      const std::uint64_t before = offset;
+      REQUIRE(files->read_slice(b, &offset, 9000, slice, g, buf).is_ok());
+      REQUIRE(offset > before);
+      REQUIRE(g.ids.size() == slice.size());
+      // A slice holds whole blocks (at most one batch each) within the bound.
+      CHECK(slice.size() <= 9000);
+      for (std::size_t k = 0; k < slice.size(); ++k) {
+        const auto i = static_cast<std::size_t>(slice.intensities[k]);
+        REQUIRE(i < n);
+        ++seen[i];
+        const ChunkKey key = g.keys[g.ids[k]];
+        CHECK(key == keys[i]);
+        CHECK(files->bucket_of(key) == b);
+        CHECK(slice.colors[k] == pts.colors[i]);
+        const Vec3d& p = slice.positions[k];
+        const Vec3d& q = pts.positions[i];
+        // Half a step, plus rounding of the large coordinates (and the clamp
+        // of points an ulp outside their nominal cube).
+        const double tol = step / 2 + 4e-9;
+        CHECK(std::abs(p.x - q.x) <= tol);
+        CHECK(std::abs(p.y - q.y) <= tol);
+        CHECK(std::abs(p.z - q.z) <= tol);
+        // Every restored point lies in its chunk's cube.
+        const Box3d cube = grid.chunk_box(key);
+        CHECK((p.x >= cube.min.x && p.x <= cube.max.x && p.y >= cube.min.y && p.y <= cube.max.y &&
+               p.z >= cube.min.z && p.z <= cube.max.z));
+      }
+    }
+  }
+  CHECK(total == n);
+  std::size_t once = 0;
+  for (int s : seen) once += s == 1 ? 1 : 0;
+  CHECK(once == n);
+}
+
+TEST_CASE("a damaged bucket file is reported, not decoded", "[ingest][buckets]") {
+  TempDir tmp;
+  ArchiveGrid grid;
+  grid.chunk_edge = 2.0;
+  const PointCloud pts = points_over_chunks(grid, 5000, 11);
+  std::vector<ChunkKey> keys(pts.size());
+  grid.keys_of(pts.positions.data(), pts.size(), keys.data());
+  auto files = BucketFiles::create(tmp.path(), 1, grid, true, true, 1 << 20);
+  REQUIRE(files.is_ok());
+  REQUIRE(files->append(pts, keys.data()).is_ok());
+  REQUIRE(files->finish_writing().is_ok());
+  const std::string path = files->directory() + "/bucket-0";
+  REQUIRE(fs::exists(path));
+
+  SECTION("a block header that claims more points than the file holds") {
+    const int fd = ::open(path.c_str(), O_WRONLY);
+    REQUIRE(fd >= 0);
+    const std::uint8_t lie[4] = {0xff, 0xff, 0xff, 0x7f};
+    REQUIRE(::pwrite(fd, lie, 4, 0) == 4);
+    ::close(fd);
+  }
+  SECTION("a chunk entry whose key belongs to no chunk of this bucket's counts") {
+    const int fd = ::open(path.c_str(), O_WRONLY);
+    REQUIRE(fd >= 0);
+    // The first entry's count (bytes 8 + 24 .. 8 + 28) set beyond the block.
+    const std::uint8_t lie[4] = {0xff, 0xff, 0x00, 0x00};
+    REQUIRE(::pwrite(fd, lie, 4, 8 + 24) == 4);
+    ::close(fd);
+  }
+  PointCloud slice;
+  Grouping g;
+  AlignedBuffer buf;
+  std::uint64_t offset = 0;
+  const Status s = files->read_slice(0, &offset, 1u << 20, slice, g, buf);
+  REQUIRE_FALSE(s.is_ok());
+  CHECK(s.message().find("bucket-0") != std::string::npos);
+  CHECK(s.message().find("damaged") != std::string::npos);
+}
