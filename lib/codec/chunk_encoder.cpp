@@ -724,14 +724,18 @@ double suggest_cell_size(const PointCloud& cloud, int map_resolution) {
   const double finest = extent / std::ldexp(1.0, kLevels);
   const double inv = 1.0 / finest;
   const double max_index = std::ldexp(1.0, kLevels) - 1;
+  // Morton keys of the finest cells, shifted down to their top `levels` levels.
   std::vector<codec::KeyedIndex> keys(cloud.size());
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    const Vec3d& p = cloud.positions[i];
-    const auto cx = static_cast<std::uint32_t>(std::min(max_index, (p.x - b.min.x) * inv));
-    const auto cy = static_cast<std::uint32_t>(std::min(max_index, (p.y - b.min.y) * inv));
-    const auto cz = static_cast<std::uint32_t>(std::min(max_index, (p.z - b.min.z) * inv));
-    keys[i] = {codec::morton_encode(cx, cy, cz), 0};
-  }
+  const auto make_keys = [&](int levels) {
+    const int shift = 3 * (kLevels - levels);
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      const Vec3d& p = cloud.positions[i];
+      const auto cx = static_cast<std::uint32_t>(std::min(max_index, (p.x - b.min.x) * inv));
+      const auto cy = static_cast<std::uint32_t>(std::min(max_index, (p.y - b.min.y) * inv));
+      const auto cz = static_cast<std::uint32_t>(std::min(max_index, (p.z - b.min.z) * inv));
+      keys[i] = {codec::morton_encode(cx, cy, cz) >> shift, 0};
+    }
+  };
   const double n = static_cast<double>(cloud.size());
   const double target = static_cast<double>(map_resolution) * map_resolution;
   // Sorts keys by their top `levels` levels and walks those levels; returns 0
@@ -770,9 +774,9 @@ double suggest_cell_size(const PointCloud& cloud, int map_resolution) {
   // gives exactly the same counts for those levels; the full sort is needed
   // only when no coarse level gets there.
   constexpr int kCoarseLevels = 8;
-  std::vector<codec::KeyedIndex> coarse(keys.size());
-  for (std::size_t i = 0; i < keys.size(); ++i) coarse[i] = {keys[i].key >> (3 * (kLevels - kCoarseLevels)), 0};
-  if (const double c = pick(coarse, kCoarseLevels); c > 0) return c;
+  make_keys(kCoarseLevels);
+  if (const double c = pick(keys, kCoarseLevels); c > 0) return c;
+  make_keys(kLevels);
   if (const double c = pick(keys, kLevels); c > 0) return c;
   return finest;
 }

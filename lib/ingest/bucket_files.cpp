@@ -336,13 +336,18 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
   out.colors.clear();
   out.intensities.clear();
   g.clear();
+  // Capacity for the whole slice up front: growing block by block would
+  // double the vectors past the slice's share of the memory budget.
+  const auto cap = static_cast<std::size_t>(std::min(max_points, counts_[bucket]));
+  out.reserve(cap, colors_, intensity_);
+  g.ids.reserve(cap);
   const std::string& path = paths_[bucket];
   const auto damaged = [&](const std::string& what) {
     return corrupt_data(path + ": temporary file damaged at byte " + std::to_string(*offset) + ": " + what);
   };
   const double step = grid_.chunk_edge / kScale;
   // A window of file bytes [win_from, win_to) in buf at win_skip.
-  constexpr std::size_t kWindow = 8u << 20;
+  constexpr std::size_t kWindow = 2u << 20;
   std::uint64_t win_from = 0, win_to = 0;
   std::size_t win_skip = 0;
   const auto load = [&](std::uint64_t from, std::size_t n) -> Status {

@@ -41,6 +41,10 @@ constexpr std::uint32_t kMaxBuckets = 4096;
 // (31) and their chunk keys (24); the bucket writer's scratch (4). Up to three
 // batches are alive (being read, queued, consumed).
 constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 4;
+// Memory per point of the first batch, read before the archive exists to derive
+// the cell size: the points (31) and suggest_cell_size's keys and radix
+// scratch (32).
+constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
@@ -51,7 +55,6 @@ constexpr std::uint64_t kUnknownBytesPerPoint = 12;
 struct Slice {
   PointCloud points;
   Grouping grouping;
-  AlignedBuffer io_buffer;
 };
 
 class SlicePool {
@@ -176,6 +179,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       RELIEF_RETURN_IF_ERROR(full_stage(batch));
       RELIEF_RETURN_IF_ERROR(take(batch));
       first = batch.points.size();
+      batch = ReadBatch();  // larger than the batches to come: not recycled
     }
     Prefetcher prefetch(in.readers, static_cast<std::size_t>(read_batch), 1, first, full_stage);
     for (;;) {
@@ -259,12 +263,13 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     const auto tick = [&] {
       progress.update("encoding", points_read, pipeline->totals().chunks, pipeline->totals().blob_bytes);
     };
+    AlignedBuffer read_buffer;  // only this thread reads the bucket files
     for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
       std::uint64_t offset = 0;
       while (offset < files.bucket_bytes(b)) {
         std::shared_ptr<Slice> slice = slices.acquire();
         RELIEF_RETURN_IF_ERROR(
-            files.read_slice(b, &offset, slice_points, slice->points, slice->grouping, slice->io_buffer));
+            files.read_slice(b, &offset, slice_points, slice->points, slice->grouping, read_buffer));
         std::vector<ChunkTask> tasks = make_tasks(slice->points, part_points, slice->grouping);
         pipeline->submit(std::move(tasks), slice);
         slice.reset();
@@ -390,7 +395,11 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   if (params.cell_size == 0 || options.error_target > 0) {
     // The first points set the cell size (from their density, or by trial
     // encodes for an error target); they are then ingested like every batch.
-    RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, kReadBatch));
+    // At most a quarter of the budget for it (with the cell-size scratch).
+    const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, 64u << 20);
+    const auto first_points =
+        static_cast<std::size_t>(std::min<std::uint64_t>(kReadBatch, (budget / 4) / kFirstBatchBytesPerPoint));
+    RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, first_points));
     if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
     conform_attributes(first, in.colors, in.intensity);
     if (options.error_target > 0) {
