@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -213,29 +214,55 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const std::uint64_t in_memory_points = (budget / 2) / kGroupBytesPerPoint;
   if (in.all_counts_known && in.known_total <= in_memory_points) {
     // The whole input fits in memory: no temporary files.
+    const auto total = static_cast<std::size_t>(in.known_total);
     PointCloud all;
-    all.reserve(static_cast<std::size_t>(in.known_total), in.colors, in.intensity);
-    grouping.ids.reserve(static_cast<std::size_t>(in.known_total));
+    all.reserve(total, in.colors, in.intensity);
+    grouping.ids.reserve(total);
     core::advise_huge_pages(all.positions);
     core::advise_huge_pages(all.colors);
     core::advise_huge_pages(all.intensities);
     core::advise_huge_pages(grouping.ids);
-    // The reading thread copies each batch into `all` (the first touch of
-    // that memory is its larger cost); this thread keys the points.
+    // First writes to fresh memory are the dearest part of filling `all` (the
+    // kernel zeroes every page; on a VM, a slow first touch). This thread,
+    // which only keys points, therefore extends `all` (zero-filling it) ahead
+    // of the reading thread, which copies each batch into place. The reader is
+    // never more than one batch ahead of this thread (queue depth 1), and each
+    // batch after the first holds at most `read_batch` points, so covering two
+    // batches beyond the one just keyed means it never waits.
+    Vec3d* const positions = all.positions.data();
+    Rgb8* const colors = all.colors.data();
+    float* const intensities = all.intensities.data();
+    std::atomic<std::size_t> covered{0};
+    const auto cover = [&](std::uint64_t upto) {
+      const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(upto, total));
+      if (n <= all.positions.size()) return;
+      all.positions.resize(n);
+      if (in.colors) all.colors.resize(n);
+      if (in.intensity) all.intensities.resize(n);
+      covered.store(n, std::memory_order_release);
+    };
     const auto copy_in = [&](ReadBatch& b) -> Status {
       const PointCloud& batch = b.points;
-      if (all.size() + batch.size() > in_memory_points) {
-        return format_error("inputs hold more points than their headers say");
+      const std::size_t n = batch.size();
+      if (b.first + n > total) return format_error("inputs hold more points than their headers say");
+      if (b.first + n > covered.load(std::memory_order_acquire)) {
+        return internal_error("in-memory ingest: the reader overtook the buffer");
       }
-      all.positions.insert(all.positions.end(), batch.positions.begin(), batch.positions.end());
-      all.colors.insert(all.colors.end(), batch.colors.begin(), batch.colors.end());
-      all.intensities.insert(all.intensities.end(), batch.intensities.begin(), batch.intensities.end());
+      std::copy(batch.positions.begin(), batch.positions.end(), positions + b.first);
+      if (in.colors) std::copy(batch.colors.begin(), batch.colors.end(), colors + b.first);
+      if (in.intensity) std::copy(batch.intensities.begin(), batch.intensities.end(), intensities + b.first);
       return Status::ok();
     };
+    cover(pending.size() + 2 * read_batch);
     RELIEF_RETURN_IF_ERROR(read_all(copy_in, [&](ReadBatch& b) -> Status {
+      cover(b.first + b.points.size() + 2 * read_batch);
       grouping.add(b.points.positions.data(), b.points.size(), grid);
       return Status::ok();
     }));
+    if (points_read != total) {
+      return format_error("inputs hold fewer points than their headers say (" + std::to_string(points_read) +
+                          " of " + std::to_string(total) + ")");
+    }
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
