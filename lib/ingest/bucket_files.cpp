@@ -199,31 +199,19 @@ std::uint32_t BucketFiles::bucket_of(const ChunkKey& key) const {
 Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
   const std::size_t n = points.size();
   if (n == 0) return Status::ok();
-  // Chunk id of every point (runs of one key are common: check the last one first).
-  lookup_.clear();
-  chunk_keys_.clear();
-  chunk_min_.clear();
-  chunk_counts_.clear();
-  chunk_of_point_.resize(n);
-  std::uint32_t last_id = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (chunk_keys_.empty() || !(keys[i] == chunk_keys_[last_id])) {
-      auto [it, inserted] = lookup_.try_emplace(keys[i], static_cast<std::uint32_t>(chunk_keys_.size()));
-      if (inserted) {
-        chunk_keys_.push_back(keys[i]);
-        chunk_min_.push_back(grid_.chunk_box(keys[i]).min);
-        chunk_counts_.push_back(0);
-      }
-      last_id = it->second;
-    }
-    chunk_of_point_[i] = last_id;
-    ++chunk_counts_[last_id];
-  }
+  // Chunk id of every point, and each chunk's point count and cube corner.
+  batch_.clear();
+  batch_.add_keys(keys, n);
+  const std::vector<ChunkKey>& chunk_keys = batch_.keys;
+  const std::size_t chunks = chunk_keys.size();
+  chunk_counts_.assign(chunks, 0);
+  for (const std::uint32_t id : batch_.ids) ++chunk_counts_[id];
+  chunk_min_.resize(chunks);
+  for (std::size_t c = 0; c < chunks; ++c) chunk_min_[c] = grid_.chunk_box(chunk_keys[c]).min;
   // Chunks ordered by bucket; each bucket's chunks form one block, laid out
   // in that bucket's staging buffer.
-  const std::size_t chunks = chunk_keys_.size();
   std::vector<std::pair<std::uint32_t, std::uint32_t>> by_bucket(chunks);
-  for (std::uint32_t c = 0; c < chunks; ++c) by_bucket[c] = {bucket_of(chunk_keys_[c]), c};
+  for (std::uint32_t c = 0; c < chunks; ++c) by_bucket[c] = {bucket_of(chunk_keys[c]), c};
   std::sort(by_bucket.begin(), by_bucket.end());
   chunk_cursor_.assign(chunks, nullptr);
   for (std::size_t i = 0; i < chunks;) {
@@ -242,9 +230,9 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
     for (std::size_t k = i; k < j; ++k) {
       const std::uint32_t id = by_bucket[k].second;
       std::uint8_t* e = h + kBlockHeader + (k - i) * kChunkEntry;
-      put_i64(e, chunk_keys_[id].ix);
-      put_i64(e + 8, chunk_keys_[id].iy);
-      put_i64(e + 16, chunk_keys_[id].iz);
+      put_i64(e, chunk_keys[id].ix);
+      put_i64(e + 8, chunk_keys[id].iy);
+      put_i64(e + 16, chunk_keys[id].iz);
       put_u32(e + 24, chunk_counts_[id]);
       chunk_cursor_[id] = rec;
       rec += static_cast<std::size_t>(chunk_counts_[id]) * record_;
@@ -257,7 +245,7 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
   // Records, each to its chunk's next slot.
   const double inv_step = kScale / grid_.chunk_edge;
   for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t id = chunk_of_point_[i];
+    const std::uint32_t id = batch_.ids[i];
     std::uint8_t* r = chunk_cursor_[id];
     chunk_cursor_[id] += record_;
     const Vec3d& lo = chunk_min_[id];

@@ -22,7 +22,6 @@
 
 #include <cstdint>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "ingest/ingest_common.h"
@@ -114,12 +113,10 @@ class BucketFiles {
   std::size_t staging_target_ = 0;         // flush a bucket's pages at this fill
   bool direct_ = false;
   // append() scratch.
-  std::vector<std::uint32_t> chunk_of_point_;
-  std::vector<ChunkKey> chunk_keys_;
+  Grouping batch_;  // chunk ids of the batch being appended
   std::vector<Vec3d> chunk_min_;
   std::vector<std::uint32_t> chunk_counts_;
   std::vector<std::uint8_t*> chunk_cursor_;
-  std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> lookup_;
   ArchiveGrid grid_;
   bool colors_ = false;
   bool intensity_ = false;

@@ -331,6 +331,10 @@ void Grouping::clear() {
 void Grouping::add(const Vec3d* points, std::size_t n, const ArchiveGrid& grid) {
   batch_keys.resize(n);
   grid.keys_of(points, n, batch_keys.data());
+  add_keys(batch_keys.data(), n);
+}
+
+void Grouping::add_keys(const ChunkKey* point_keys, std::size_t n) {
   const std::size_t base = ids.size();
   ids.resize(base + n);
   // Points in storage order mostly stay in one chunk for a while, so the
@@ -339,7 +343,7 @@ void Grouping::add(const Vec3d* points, std::size_t n, const ArchiveGrid& grid) 
   std::uint32_t last_id = 0;
   bool have_last = false;
   for (std::size_t i = 0; i < n; ++i) {
-    const ChunkKey& k = batch_keys[i];
+    const ChunkKey& k = point_keys[i];
     if (!have_last || !(k == last)) {
       auto [it, inserted] = lookup.try_emplace(k, static_cast<std::uint32_t>(keys.size()));
       if (inserted) keys.push_back(k);

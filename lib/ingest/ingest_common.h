@@ -56,6 +56,8 @@ struct Grouping {
   void clear();
   // Appends the chunk ids of points[0..n) to `ids`.
   void add(const Vec3d* points, std::size_t n, const ArchiveGrid& grid);
+  // The same for points whose chunk keys are already known.
+  void add_keys(const ChunkKey* point_keys, std::size_t n);
   // Appends `count` points of chunk `key`.
   void add_run(const ChunkKey& key, std::size_t count);
 };
