@@ -309,17 +309,23 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   }
   RELIEF_RETURN_IF_ERROR(archive.finish_scan(scan_id, in.colors, in.intensity, in.crs));
 
-  IngestResult result;
-  result.points_read = points_read;
-  result.points_decoded = pipeline->totals().points_decoded;
-  result.chunks_written = pipeline->totals().chunks;
-  result.blob_bytes = pipeline->totals().blob_bytes;
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  result.cell_size = params.cell_size;
-  result.chunk_edge = grid.chunk_edge;
-  result.scan_id = scan_id;
-  progress.finish("done", points_read, result.chunks_written, result.blob_bytes);
-  return result;
+  return scan_result(pipeline->totals(), points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
+}
+
+IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read,
+                         std::chrono::steady_clock::time_point start, double cell_size, double chunk_edge,
+                         std::int64_t scan_id, Progress& progress) {
+  IngestResult r;
+  r.points_read = points_read;
+  r.points_decoded = totals.points_decoded;
+  r.chunks_written = totals.chunks;
+  r.blob_bytes = totals.blob_bytes;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.cell_size = cell_size;
+  r.chunk_edge = chunk_edge;
+  r.scan_id = scan_id;
+  progress.finish("done", points_read, r.chunks_written, r.blob_bytes);
+  return r;
 }
 
 void Grouping::clear() {

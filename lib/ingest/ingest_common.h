@@ -115,4 +115,9 @@ class Progress {
   std::chrono::steady_clock::time_point last_{};
 };
 
+// The result of a finished scan, reported to `progress` as done.
+IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read,
+                         std::chrono::steady_clock::time_point start, double cell_size, double chunk_edge,
+                         std::int64_t scan_id, Progress& progress);
+
 }  // namespace relief::ingest

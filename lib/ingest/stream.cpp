@@ -90,17 +90,8 @@ class StreamIngestImpl final : public StreamIngest {
     RELIEF_RETURN_IF_ERROR(flush(all));
     RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, ""));
     finished_ = true;
-    IngestResult r;
-    r.points_read = points_read_;
-    r.points_decoded = pipeline_.totals().points_decoded;
-    r.chunks_written = pipeline_.totals().chunks;
-    r.blob_bytes = pipeline_.totals().blob_bytes;
-    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    r.cell_size = params_.cell_size;
-    r.chunk_edge = grid_.chunk_edge;
-    r.scan_id = scan_id_;
-    progress_.finish("done", points_read_, r.chunks_written, r.blob_bytes);
-    return r;
+    return ingest::scan_result(pipeline_.totals(), points_read_, start_, params_.cell_size, grid_.chunk_edge,
+                               scan_id_, progress_);
   }
 
  private:
