@@ -7,9 +7,6 @@
 // Each measurement runs the CLI in a child process: wall time from fork to
 // exit, peak RSS from wait4(). Generated inputs are written to --tmp (default
 // /tmp) as binary PLY and removed afterwards.
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -21,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "run_child.h"
 #include "relief/archive.h"
 #include "relief/io.h"
 #include "relief/metrics.h"
@@ -42,32 +40,7 @@ struct Options {
   bool error_targets = true;
 };
 
-struct RunResult {
-  int code = -1;
-  double seconds = 0;
-  long peak_rss_kib = 0;
-};
-
-RunResult run(const std::vector<std::string>& argv) {
-  RunResult r;
-  const auto t0 = std::chrono::steady_clock::now();
-  const pid_t pid = ::fork();
-  if (pid < 0) return r;
-  if (pid == 0) {
-    std::vector<char*> args;
-    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
-  int status = 0;
-  struct rusage usage {};
-  ::wait4(pid, &status, 0, &usage);
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.peak_rss_kib = usage.ru_maxrss;
-  return r;
-}
+using relief::bench::run_child;
 
 // SplitMix64, as the test generator.
 struct Rng {
@@ -173,7 +146,7 @@ void measure(const Options& o, const std::string& label, const std::string& inpu
     std::vector<std::string> argv = {o.cli, "compress", input, "-o", out, "--threads", std::to_string(threads),
                                      "--quiet"};
     argv.insert(argv.end(), extra.begin(), extra.end());
-    const RunResult r = run(argv);
+    const auto r = run_child(argv);
     if (r.code != 0) {
       std::fprintf(stderr, "error: %s: relief compress exited %d\n", label.c_str(), r.code);
       remove_archive(out);
@@ -283,7 +256,7 @@ int main(int argc, char** argv) {
       for (int k = 7; k >= 1; --k) {
         const double edge = cell * std::ldexp(1.0, k);
         remove_archive(out);
-        const RunResult r = run({o.cli, "compress", path, "-o", out, "--cell", "4", "--chunk-edge",
+        const auto r = run_child({o.cli, "compress", path, "-o", out, "--cell", "4", "--chunk-edge",
                                  std::to_string(edge), "--quiet"});
         if (r.code != 0) continue;
         std::uint64_t chunks = 0;
@@ -319,7 +292,7 @@ int main(int argc, char** argv) {
         remove_archive(out);
         char t[32];
         std::snprintf(t, sizeof t, "%.6g", target);
-        const RunResult r = run({o.cli, "compress", path, "-o", out, "--error-target", t, "--quiet"});
+        const auto r = run_child({o.cli, "compress", path, "-o", out, "--error-target", t, "--quiet"});
         if (r.code != 0) {
           std::printf("target,%s,%s,failed (exit %d),,,\n", fs::path(path).stem().c_str(), t, r.code);
           continue;

@@ -7,8 +7,6 @@
 // Boxes are 2D (all heights) covering 0.1 %, 1 %, 10 % and 100 % of the
 // scene's x-y bounding-box area, at 9 positions each (a 3 x 3 grid over the
 // area the box can slide in); latency is the median, bytes read the mean.
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -19,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "run_child.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
 #include "relief/query.h"
@@ -38,23 +37,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 void remove_archive(const std::string& p) {
   for (const char* s : {"", "-wal", "-shm"}) fs::remove(p + s);
-}
-
-// Wall time of a child process.
-double run_timed(const std::vector<std::string>& argv, int* code) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    std::vector<char*> args;
-    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  *code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return seconds_since(t0);
 }
 
 }  // namespace
@@ -188,10 +170,9 @@ int main(int argc, char** argv) {
   }
   {
     std::vector<double> times;
-    int code = 0;
     const std::string out = tmp + "/relief-bench-decompressed.ply";
     for (int k = 0; k < repeat; ++k) {
-      times.push_back(run_timed({cli, "decompress", big, "-o", out, "--threads", "2", "--quiet"}, &code));
+      times.push_back(relief::bench::run_child({cli, "decompress", big, "-o", out, "--threads", "2", "--quiet"}).seconds);
     }
     const auto points = (*big_reader)->info().decoded_points;
     std::printf("decompress_cli_to_ply,10M,2,%.3f,%llu,%.2f\n", median(times),
@@ -200,10 +181,9 @@ int main(int argc, char** argv) {
   }
   {
     std::vector<double> times;
-    int code = 0;
     const std::string png = tmp + "/relief-bench-preview.png";
     for (int k = 0; k < repeat; ++k) {
-      times.push_back(run_timed({cli, "preview", big, "--lod", "16", "-o", png, "--quiet"}, &code));
+      times.push_back(relief::bench::run_child({cli, "preview", big, "--lod", "16", "-o", png, "--quiet"}).seconds);
     }
     std::printf("preview_lod16_png,10M,2,%.3f,,\n", median(times));
     fs::remove(png);
