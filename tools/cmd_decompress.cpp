@@ -16,11 +16,7 @@ int run_decompress(int argc, char** argv) {
     std::cout << kUsage;
     return kExitOk;
   }
-  QueryOptions q;
-  q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
-  q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
-  q.skip_corrupt = args.has("--skip-corrupt");
-  q.on_warning = [](const std::string& w) { std::cerr << "relief decompress: warning: " << w << "\n"; };
+  const QueryOptions q = query_options_from(args, "decompress");
   if (!args.ok()) return usage_error("decompress", args.error(), kUsage);
   if (args.positional().size() != 1) return usage_error("decompress", "expected one ARCHIVE", kUsage);
   const auto out = args.get("-o");

@@ -28,11 +28,7 @@ int run_query(int argc, char** argv) {
     std::cout << kUsageText;
     return kExitOk;
   }
-  QueryOptions q;
-  q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
-  q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
-  q.skip_corrupt = args.has("--skip-corrupt");
-  q.on_warning = [](const std::string& w) { std::cerr << "relief query: warning: " << w << "\n"; };
+  const QueryOptions q = query_options_from(args, kCommand);
   if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
   if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE", kUsageText);
   const auto box_text = args.get("--box");

@@ -7,6 +7,15 @@
 
 namespace relief::cli {
 
+QueryOptions query_options_from(Args& args, const std::string& command) {
+  QueryOptions q;
+  q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
+  q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
+  q.skip_corrupt = args.has("--skip-corrupt");
+  q.on_warning = [command](const std::string& w) { std::cerr << "relief " << command << ": warning: " << w << "\n"; };
+  return q;
+}
+
 int run_query_to_file(const std::string& command, const std::string& archive_path, const Box3d* box,
                       const std::string& out_path, const QueryOptions& options, bool quiet) {
   auto reader = ArchiveReader::open(archive_path);

@@ -9,6 +9,10 @@
 
 namespace relief::cli {
 
+// Query options from --lod, --threads and --skip-corrupt (malformed values are
+// recorded in `args`); warnings go to stderr prefixed "relief COMMAND: ".
+QueryOptions query_options_from(Args& args, const std::string& command);
+
 // Runs `box` (or everything when `all`) against the archive at `archive_path`
 // into `out_path`. Returns the process exit code; prints errors and, unless
 // quiet, a summary.
