@@ -25,6 +25,7 @@
 #include "support/same_cloud.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
+#include "support/shared_data.h"
 
 namespace fs = std::filesystem;
 using Catch::Matchers::Contains;
@@ -738,18 +739,15 @@ TEST_CASE("read_point_file dispatches on the extension", "[io]") {
 }
 
 TEST_CASE("PLY reads the shared aerial sample", "[io]") {
-  const std::string path = std::string(RELIEF_SHARED_DATA_DIR) + "/medium/fr_aerial_rgb_698k.ply";
-  if (!fs::exists(path)) {
-    WARN("skipped: " << path << " not found");
-    return;
-  }
-  const Result<PointCloud> r = read_point_file(path);
+  const auto path = test::shared_file("medium/fr_aerial_rgb_698k.ply");
+  if (!path) return;
+  const Result<PointCloud> r = read_point_file(*path);
   INFO(r.status().to_string());
   REQUIRE(r.is_ok());
   CHECK(r->size() == 697721);
   CHECK(r->has_colors());
   CHECK(r->has_intensity());
-  CHECK(r->validate(path).is_ok());
+  CHECK(r->validate(*path).is_ok());
 }
 
 }  // namespace

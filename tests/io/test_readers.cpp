@@ -28,6 +28,7 @@
 #include "support/same_cloud.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
+#include "support/shared_data.h"
 
 namespace fs = std::filesystem;
 using Catch::Matchers::Contains;
@@ -557,14 +558,7 @@ TEST_CASE("LAZ files are refused by extension without being read", "[io]") {
 
 // ---------------------------------------------------------------- real data
 
-std::optional<std::string> shared_file(const std::string& rel) {
-  const std::string path = std::string(RELIEF_SHARED_DATA_DIR) + "/" + rel;
-  if (!fs::exists(path)) {
-    WARN("skipped: " << path << " is absent (optional real-data tests)");
-    return std::nullopt;
-  }
-  return path;
-}
+using relief::test::shared_file;
 
 TEST_CASE("LAS reads the shared aerial tile exactly as its PLY conversion", "[io]") {
   const auto las = shared_file("medium/orig/fr_aerial_rgb_698k.las");

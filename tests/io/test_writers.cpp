@@ -27,6 +27,7 @@
 #include "relief/io.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
+#include "support/shared_data.h"
 
 namespace fs = std::filesystem;
 using Catch::Matchers::Contains;
@@ -855,14 +856,7 @@ TEST_CASE("open_point_writer dispatch and misuse", "[io]") {
 
 // ---------------------------------------------------------------- real data
 
-std::optional<std::string> shared_file(const std::string& rel) {
-  const std::string path = std::string(RELIEF_SHARED_DATA_DIR) + "/" + rel;
-  if (!fs::exists(path)) {
-    WARN("skipped: " << path << " is absent (optional real-data tests)");
-    return std::nullopt;
-  }
-  return path;
-}
+using relief::test::shared_file;
 
 TEST_CASE("real LAS files survive a read and write round trip", "[io]") {
   TempDir dir;
