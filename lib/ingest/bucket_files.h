@@ -69,8 +69,6 @@ class BucketFiles {
 
   std::uint32_t bucket_count() const { return static_cast<std::uint32_t>(files_.size()); }
   std::uint32_t bucket_of(const ChunkKey& key) const;
-  // Bytes of one point record.
-  std::size_t record_bytes() const { return record_; }
 
   // Appends points[i] (chunk keys[i]) to their buckets, one block per bucket
   // touched. Each bucket stages its bytes in an aligned buffer and writes
@@ -86,7 +84,6 @@ class BucketFiles {
   // Advances `*offset`; the bucket is done when it reaches bucket_bytes().
   Status read_slice(std::uint32_t bucket, std::uint64_t* offset, std::uint64_t max_points, PointCloud& out,
                     Grouping& g, AlignedBuffer& buf) const;
-  bool direct_io() const { return direct_; }
   std::uint64_t bucket_bytes(std::uint32_t bucket) const { return bytes_[bucket]; }
   // Deletes one bucket's file early (frees disk as the ingest proceeds).
   void discard(std::uint32_t bucket);

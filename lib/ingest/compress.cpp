@@ -191,11 +191,6 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     for (std::size_t i = 0; i < in.sources.size(); ++i) in.sources[i].point_count = per_source[i];
     return Status::ok();
   };
-  const auto encode_tasks = [&](ChunkPipeline& pipeline, std::vector<ChunkTask>& tasks) -> Status {
-    return pipeline.run(std::move(tasks), [&] {
-      progress.update("encoding", points_read, pipeline.totals().chunks, pipeline.totals().blob_bytes);
-    });
-  };
 
   // Every chunk of the scan quantises intensity over the scan's range, so the
   // step does not depend on how the points fall into chunks.
@@ -208,6 +203,10 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   // Declared before the pipeline: its workers return slices here.
   SlicePool slices;
   std::unique_ptr<ChunkPipeline> pipeline;
+  // Progress while encoding (called between commits, once the pipeline exists).
+  const auto tick = [&] {
+    progress.update("encoding", points_read, pipeline->totals().chunks, pipeline->totals().blob_bytes);
+  };
   Grouping grouping;
   // Without bucket files their buffers' share is free: the whole input may
   // take half the budget, the encoders keep their third.
@@ -244,7 +243,9 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     const auto copy_in = [&](ReadBatch& b) -> Status {
       const PointCloud& batch = b.points;
       const std::size_t n = batch.size();
-      if (b.first + n > total) return format_error("inputs hold more points than their headers say");
+      if (b.first + n > total) {
+        return format_error(in.sources[b.reader].path + ": holds more points than its header says");
+      }
       if (b.first + n > covered.load(std::memory_order_acquire)) {
         return internal_error("in-memory ingest: the reader overtook the buffer");
       }
@@ -260,14 +261,15 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return Status::ok();
     }));
     if (points_read != total) {
-      return format_error("inputs hold fewer points than their headers say (" + std::to_string(points_read) +
-                          " of " + std::to_string(total) + ")");
+      std::string names;
+      for (const ArchiveSource& src : in.sources) names += (names.empty() ? "" : ", ") + src.path;
+      return format_error(names + ": " + std::to_string(points_read) + " points read where the headers declare " +
+                          std::to_string(total));
     }
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
-    std::vector<ChunkTask> tasks = make_tasks(all, part_points, grouping);
-    RELIEF_RETURN_IF_ERROR(encode_tasks(*pipeline, tasks));
+    RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, part_points, grouping), tick));
   } else {
     // ---- External distribution sort: every point into its chunk's bucket
     // file. The reading thread keys each batch; this one packs and writes.
@@ -287,9 +289,6 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
                                                options.verify_blobs);
     // The next slice loads while the workers encode the current one; each
     // slice goes back to the pool as soon as its last chunk is encoded.
-    const auto tick = [&] {
-      progress.update("encoding", points_read, pipeline->totals().chunks, pipeline->totals().blob_bytes);
-    };
     AlignedBuffer read_buffer;  // only this thread reads the bucket files
     for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
       std::uint64_t offset = 0;
