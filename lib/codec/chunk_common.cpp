@@ -37,6 +37,9 @@ const char* section_name(SectionId id) {
     case SectionId::kHeight: return "height";
     case SectionId::kColor: return "colour";
     case SectionId::kIntensity: return "intensity";
+    case SectionId::kGeometry: return "geometry";
+    case SectionId::kPointColor: return "point colour";
+    case SectionId::kPointIntensity: return "point intensity";
   }
   return "unknown";
 }
@@ -53,8 +56,42 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
     case SectionId::kIntensity:
       if (image_codec == ImageCodec::kJpeg) return c == SectionCodec::kJpeg || c == SectionCodec::kJpegAbbreviated;
       return c == SectionCodec::kJpeg2000;
+    case SectionId::kGeometry:
+    case SectionId::kPointColor:
+    case SectionId::kPointIntensity:
+      return c == SectionCodec::kArithmetic;
   }
   return false;
+}
+
+// The error-bounded layer's fields (version 2).
+Status check_bounded_header(const ChunkHeader& h) {
+  const auto bad = [](const std::string& m) { return corrupt_data("chunk header: " + m); };
+  const Vec3d& s = h.quant_step;
+  const Vec3d& o = h.quant_origin;
+  if (!(std::isfinite(s.x) && std::isfinite(s.y) && std::isfinite(s.z) && s.x > 0 && s.y > 0 && s.z > 0)) {
+    return bad("quantisation step must be finite and positive");
+  }
+  if (!(std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.z))) return bad("non-finite quantisation origin");
+  if (h.geometry_depth > kMaxTreeDepth) return bad("geometry depth " + std::to_string(h.geometry_depth) + " > 21");
+  const double far = std::ldexp(1.0, h.geometry_depth);
+  const double steps[3] = {s.x, s.y, s.z};
+  const double origins[3] = {o.x, o.y, o.z};
+  for (int a = 0; a < 3; ++a) {
+    if (h.quant_base[a] <= -kMaxQuantBase || h.quant_base[a] >= kMaxQuantBase) return bad("quantisation base out of range");
+    // The farthest coordinate the layer can produce must be finite.
+    const double lo = origins[a] + static_cast<double>(h.quant_base[a]) * steps[a];
+    const double hi = origins[a] + (static_cast<double>(h.quant_base[a]) + far) * steps[a];
+    if (!std::isfinite(lo) || !std::isfinite(hi)) return bad("coordinates of the error-bounded layer overflow");
+  }
+  if (h.color_tolerance > kMaxColorTolerance) return bad("colour tolerance above 127");
+  const bool has_i = (h.flags & kFlagIntensity) != 0;
+  const auto ic = static_cast<std::uint8_t>(h.intensity_coding);
+  if (has_i ? (ic != 1 && ic != 2) : ic != 0) return bad("intensity coding " + std::to_string(ic) + " invalid");
+  if ((h.flags & kFlagColors) == 0 && h.color_tolerance != 0) return bad("colour tolerance without colours");
+  if (h.input_points == 0 && (h.patch_count != 0 || h.geometry_depth != 0)) return bad("empty chunk with content");
+  if (h.input_points > 0 && h.patch_count == 0) return bad("points without a base layer");
+  return Status::ok();
 }
 
 Status check_header(const ChunkHeader& h) {
@@ -113,6 +150,9 @@ std::uint64_t expected_raw_size(SectionId id, const ChunkHeader& h) {
     case SectionId::kHeight: return pixels * (h.height_bits / 8u);
     case SectionId::kColor: return pixels * 3;
     case SectionId::kIntensity: return pixels;
+    case SectionId::kGeometry:
+    case SectionId::kPointColor:
+    case SectionId::kPointIntensity: return h.input_points;
   }
   return 0;
 }
@@ -125,6 +165,11 @@ std::vector<SectionId> required_sections(const ChunkHeader& header) {
   ids = {SectionId::kTree, SectionId::kPatches, SectionId::kOccupancy, SectionId::kHeight};
   if (header.flags & kFlagColors) ids.push_back(SectionId::kColor);
   if (header.flags & kFlagIntensity) ids.push_back(SectionId::kIntensity);
+  if (header.version >= 2) {
+    ids.push_back(SectionId::kGeometry);
+    if (header.flags & kFlagColors) ids.push_back(SectionId::kPointColor);
+    if (header.flags & kFlagIntensity) ids.push_back(SectionId::kPointIntensity);
+  }
   return ids;
 }
 
@@ -132,7 +177,7 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
   ByteWriter w;
   w.bytes(kMagic, 4);
   w.u16(h.version);
-  w.u16(kHeaderSizeV1);
+  w.u16(h.version >= 2 ? kHeaderSizeV2 : kHeaderSizeV1);
   w.u8(h.flags);
   w.u8(static_cast<std::uint8_t>(h.decomposition));
   w.u8(static_cast<std::uint8_t>(h.image_codec));
@@ -154,6 +199,20 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
   w.f64(h.height_max);
   w.f32(h.intensity_min);
   w.f32(h.intensity_max);
+  if (h.version >= 2) {
+    w.f64(h.quant_step.x);
+    w.f64(h.quant_step.y);
+    w.f64(h.quant_step.z);
+    w.f64(h.quant_origin.x);
+    w.f64(h.quant_origin.y);
+    w.f64(h.quant_origin.z);
+    for (const std::int64_t b : h.quant_base) w.u64(static_cast<std::uint64_t>(b));
+    w.u8(h.geometry_depth);
+    w.u8(h.color_tolerance);
+    w.u8(static_cast<std::uint8_t>(h.intensity_coding));
+    w.u8(0);   // reserved
+    w.u32(0);  // reserved
+  }
   for (const SectionEntry& s : sections) {
     w.u8(static_cast<std::uint8_t>(s.id));
     w.u8(static_cast<std::uint8_t>(s.codec));
@@ -183,9 +242,10 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
   std::uint16_t header_size = 0;
   std::uint8_t decomposition = 0, image_codec = 0, section_count = 0, reserved8 = 0;
   RELIEF_RETURN_IF_ERROR(r.u16(header_size, "header_size"));
-  if (header_size != kHeaderSizeV1) {
+  const std::uint16_t want_header = h.version >= 2 ? kHeaderSizeV2 : kHeaderSizeV1;
+  if (header_size != want_header) {
     return corrupt_data("chunk blob: header size " + std::to_string(header_size) + ", expected " +
-                        std::to_string(kHeaderSizeV1));
+                        std::to_string(want_header));
   }
   RELIEF_RETURN_IF_ERROR(r.u8(h.flags, "flags"));
   RELIEF_RETURN_IF_ERROR(r.u8(decomposition, "decomposition"));
@@ -211,6 +271,29 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
   h.decomposition = static_cast<Decomposition>(decomposition);
   h.image_codec = static_cast<ImageCodec>(image_codec);
   if (reserved8 != 0) return corrupt_data("chunk header: reserved byte is not 0");
+  if (h.version >= 2) {
+    RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.x, "quant_step_x"));
+    RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.y, "quant_step_y"));
+    RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.z, "quant_step_z"));
+    RELIEF_RETURN_IF_ERROR(r.f64(h.quant_origin.x, "quant_origin_x"));
+    RELIEF_RETURN_IF_ERROR(r.f64(h.quant_origin.y, "quant_origin_y"));
+    RELIEF_RETURN_IF_ERROR(r.f64(h.quant_origin.z, "quant_origin_z"));
+    for (std::int64_t& b : h.quant_base) {
+      std::uint64_t v = 0;
+      RELIEF_RETURN_IF_ERROR(r.u64(v, "quant_base"));
+      b = static_cast<std::int64_t>(v);
+    }
+    std::uint8_t coding = 0, reserved_b = 0;
+    std::uint32_t reserved_w = 0;
+    RELIEF_RETURN_IF_ERROR(r.u8(h.geometry_depth, "geometry_depth"));
+    RELIEF_RETURN_IF_ERROR(r.u8(h.color_tolerance, "color_tolerance"));
+    RELIEF_RETURN_IF_ERROR(r.u8(coding, "intensity_coding"));
+    RELIEF_RETURN_IF_ERROR(r.u8(reserved_b, "reserved"));
+    RELIEF_RETURN_IF_ERROR(r.u32(reserved_w, "reserved"));
+    h.intensity_coding = static_cast<IntensityCoding>(coding);
+    if (reserved_b != 0 || reserved_w != 0) return corrupt_data("chunk header: reserved bytes are not 0");
+    RELIEF_RETURN_IF_ERROR(check_bounded_header(h));
+  }
   RELIEF_RETURN_IF_ERROR(check_header(h));
 
   const std::vector<SectionId> want = required_sections(h);

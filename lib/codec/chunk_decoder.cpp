@@ -4,6 +4,7 @@
 #include <string>
 
 #include "codec/atlas.h"
+#include "codec/bounded.h"
 #include "codec/chunk_format.h"
 #include "codec/coders.h"
 #include "codec/jpeg_tables.h"
@@ -45,17 +46,19 @@ Result<codec::Image8> decode_image8(const SectionEntry& s, std::uint32_t w, std:
   return img;
 }
 
-// Number of points each patch contributes at level of detail `lod`: error
-// diffusion along the Morton-ordered patch list, so the total is ~1/lod of the
-// occupied pixels and small neighbouring patches take turns.
-std::vector<std::uint32_t> lod_quota(const std::vector<std::uint32_t>& occupied, std::uint32_t lod) {
+// Number of points each patch contributes when a fraction keep_num / keep_den
+// (<= 1) of the occupied pixels is kept: error diffusion along the
+// Morton-ordered patch list, so small neighbouring patches take turns. Level
+// of detail L of a format-1 blob keeps 1 / L.
+std::vector<std::uint32_t> lod_quota(const std::vector<std::uint32_t>& occupied, std::uint64_t keep_num,
+                                     std::uint64_t keep_den) {
   std::vector<std::uint32_t> quota(occupied.size());
-  if (lod <= 1) return occupied;
+  if (keep_num >= keep_den) return occupied;
   std::uint64_t seen = 0, emitted = 0;
   for (std::size_t i = 0; i < occupied.size(); ++i) {
     seen += occupied[i];
     // Round half up so one point in lod is kept even for the first patch.
-    const std::uint64_t target = (seen + lod / 2) / lod;
+    const std::uint64_t target = (seen * keep_num + keep_den / 2) / keep_den;
     const std::uint64_t take = std::min<std::uint64_t>(occupied[i], target - std::min(target, emitted));
     quota[i] = static_cast<std::uint32_t>(take);
     emitted += take;
@@ -85,6 +88,13 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
   info.grid_origin = h.grid_origin;
   info.grid_edge = h.grid_edge;
   info.blob_size = blob.size();
+  if (h.version >= 2) {
+    info.error_bounded = true;
+    info.base_points = h.decoded_points;
+    info.decoded_points = h.input_points;
+    info.quant_step = h.quant_step;
+    info.color_tolerance = h.color_tolerance;
+  }
   for (const SectionEntry& s : parsed.sections) {
     info.sections.push_back({static_cast<std::uint8_t>(s.id), static_cast<std::uint8_t>(s.codec),
                              s.raw_size, s.coded_size});
@@ -92,9 +102,12 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
   return info;
 }
 
-Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const DecodeOptions& options) {
-  if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
-  RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, options.verify_checksum));
+namespace {
+
+// The paper's maps (a format-1 blob, or a format-2 blob's base layer),
+// keeping keep_num / keep_den of the occupied pixels.
+Result<PointCloud> decode_maps(const codec::ParsedBlob& parsed, std::uint64_t keep_num, std::uint64_t keep_den,
+                               const DecodeOptions& options) {
   const codec::ChunkHeader& h = parsed.header;
   PointCloud out;
   if (h.patch_count == 0) return out;
@@ -174,7 +187,7 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
     RELIEF_ASSIGN_OR_RETURN(intensity, decode_image8(section(SectionId::kIntensity), aw, ah, 1, "intensity"));
   }
 
-  const std::vector<std::uint32_t> quota = lod_quota(occupied, options.lod);
+  const std::vector<std::uint32_t> quota = lod_quota(occupied, keep_num, keep_den);
   std::uint64_t out_count = 0;
   for (std::uint32_t q : quota) out_count += q;
   out.positions.resize(out_count);
@@ -202,6 +215,35 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
       if (has_i) out.intensities[k] = static_cast<float>(h.intensity_min + intensity.pixels[a] * i_step);
       ++k;
     });
+  }
+  return out;
+}
+
+}  // namespace
+
+Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const DecodeOptions& options) {
+  if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
+  RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, options.verify_checksum));
+  const codec::ChunkHeader& h = parsed.header;
+  if (h.version < 2) return decode_maps(parsed, 1, options.lod, options);
+  const std::uint64_t n = h.input_points;
+  if (n > options.max_points) {
+    return limit_exceeded("chunk blob: " + std::to_string(n) + " points exceed the decoder limit of " +
+                          std::to_string(options.max_points));
+  }
+  // A coarse level the base layer can supply is read from it alone.
+  const std::uint64_t want = (n + options.lod - 1) / options.lod;
+  if (options.lod > 1 && h.decoded_points >= want && want > 0) return decode_maps(parsed, want, h.decoded_points, options);
+  RELIEF_ASSIGN_OR_RETURN(PointCloud all, codec::decode_bounded_points(parsed));
+  if (options.lod == 1) return all;
+  // Every lod-th point in the layer's Morton order: spread over the chunk.
+  PointCloud out;
+  const std::size_t keep = (all.size() + options.lod - 1) / options.lod;
+  out.reserve(keep, all.has_colors(), all.has_intensity());
+  for (std::size_t i = 0; i < all.size(); i += options.lod) {
+    out.positions.push_back(all.positions[i]);
+    if (all.has_colors()) out.colors.push_back(all.colors[i]);
+    if (all.has_intensity()) out.intensities.push_back(all.intensities[i]);
   }
   return out;
 }

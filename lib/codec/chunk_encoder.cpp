@@ -6,6 +6,7 @@
 #include <string>
 
 #include "codec/atlas.h"
+#include "codec/bounded.h"
 #include "codec/chunk_format.h"
 #include "codec/coders.h"
 #include "codec/fill.h"
@@ -652,6 +653,7 @@ Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, const Enc
     return limit_exceeded("chunk: " + std::to_string(count) + " points exceed the limit of " +
                           std::to_string(kMaxChunkPoints) + " per chunk");
   }
+  if (params.bound) return codec::encode_bounded(cloud, params, stats);
   Encoder enc{cloud, params, normals};
   codec::ChunkHeader& h = enc.header;
   h.flags = static_cast<std::uint8_t>((cloud.has_colors() ? codec::kFlagColors : 0) |

@@ -13,6 +13,8 @@ namespace relief::codec {
 
 inline constexpr std::uint8_t kMagic[4] = {'R', 'L', 'F', 'C'};
 inline constexpr std::uint16_t kHeaderSizeV1 = 88;
+// Version 2 appends the error-bounded layer's fields (format-spec/chunk.md §2).
+inline constexpr std::uint16_t kHeaderSizeV2 = 168;
 inline constexpr std::size_t kSectionEntrySize = 12;
 inline constexpr std::size_t kChecksumSize = 4;
 
@@ -29,6 +31,10 @@ enum class SectionId : std::uint8_t {
   kHeight = 4,
   kColor = 5,
   kIntensity = 6,
+  // Version 2: the error-bounded layer.
+  kGeometry = 7,
+  kPointColor = 8,
+  kPointIntensity = 9,
 };
 
 // Section codec ids. Never reuse a value.
@@ -41,7 +47,15 @@ enum class SectionCodec : std::uint8_t {
   // JPEG without its tables: u8 quality, then the stream minus APP0/DQT/DHT
   // (jpeg_tables.h). The decoder re-inserts the standard tables.
   kJpegAbbreviated = 5,
+  // Relief's adaptive binary range coder (range_coder.h), version 2 sections.
+  kArithmetic = 6,
 };
+
+// How the error-bounded layer codes intensity (header byte 162).
+enum class IntensityCoding : std::uint8_t { kNone = 0, kUInt16 = 1, kFloatBits = 2 };
+inline constexpr int kMaxColorTolerance = 127;
+// |quantised coordinate| stays below 2^62 so base + local never overflows.
+inline constexpr std::int64_t kMaxQuantBase = std::int64_t{1} << 62;
 
 inline constexpr int kMinMapResolution = 8;
 inline constexpr int kMaxMapResolution = 64;
@@ -59,7 +73,7 @@ struct SectionEntry {
 };
 
 struct ChunkHeader {
-  std::uint16_t version = kChunkFormatVersion;
+  std::uint16_t version = 1;  // the maps-only format; the bounded encoder sets 2
   std::uint8_t flags = 0;
   Decomposition decomposition = Decomposition::kVoxelGrid;
   ImageCodec image_codec = ImageCodec::kJpeg;
@@ -77,6 +91,14 @@ struct ChunkHeader {
   double height_max = 0;
   float intensity_min = 0;
   float intensity_max = 0;
+  // Version 2 only: point i of the error-bounded layer is at
+  // quant_origin + (quant_base + local_i) * quant_step, per axis.
+  Vec3d quant_step;
+  Vec3d quant_origin;
+  std::int64_t quant_base[3] = {0, 0, 0};
+  std::uint8_t geometry_depth = 0;  // local coordinates < 2^geometry_depth
+  std::uint8_t color_tolerance = 0;
+  IntensityCoding intensity_coding = IntensityCoding::kNone;
 };
 
 struct ParsedBlob {

@@ -34,6 +34,17 @@ inline std::uint64_t morton_encode(std::uint32_t x, std::uint32_t y, std::uint32
   return spread_bits3(x) | (spread_bits3(y) << 1) | (spread_bits3(z) << 2);
 }
 
+// Inverse of spread_bits3: gathers bits 0, 3, 6, ... into the low 21 bits.
+inline std::uint32_t compact_bits3(std::uint64_t x) {
+  x &= 0x1249249249249249ULL;
+  x = (x | (x >> 2)) & 0x10c30c30c30c30c3ULL;
+  x = (x | (x >> 4)) & 0x100f00f00f00f00fULL;
+  x = (x | (x >> 8)) & 0x1f0000ff0000ffULL;
+  x = (x | (x >> 16)) & 0x1f00000000ffffULL;
+  x = (x | (x >> 32)) & 0x1fffffULL;
+  return static_cast<std::uint32_t>(x);
+}
+
 // Stable LSD radix sort on the low `key_bits` bits of the keys.
 void radix_sort(std::vector<KeyedIndex>& items, int key_bits);
 

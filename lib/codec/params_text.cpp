@@ -32,6 +32,16 @@ bool parse_number(std::string_view s, T& out) {
   return r.ec == std::errc() && r.ptr == s.data() + s.size();
 }
 
+// "x,y,z" -> Vec3d.
+bool parse_vec3(std::string_view s, Vec3d& out) {
+  const std::size_t a = s.find(',');
+  if (a == std::string_view::npos) return false;
+  const std::size_t b = s.find(',', a + 1);
+  if (b == std::string_view::npos) return false;
+  return parse_number(s.substr(0, a), out.x) && parse_number(s.substr(a + 1, b - a - 1), out.y) &&
+         parse_number(s.substr(b + 1), out.z);
+}
+
 }  // namespace
 
 std::string encode_params_to_string(const EncodeParams& p) {
@@ -50,6 +60,12 @@ std::string encode_params_to_string(const EncodeParams& p) {
   s += ";height_bits=" + std::to_string(p.height_bits);
   s += ";fill=";
   s += fill_name(p.fill);
+  if (p.bound) {
+    const ErrorBound& b = *p.bound;
+    s += ";step=" + exact(b.step.x) + "," + exact(b.step.y) + "," + exact(b.step.z);
+    s += ";origin=" + exact(b.origin.x) + "," + exact(b.origin.y) + "," + exact(b.origin.z);
+    s += ";color_tol=" + std::to_string(b.color_tolerance);
+  }
   return s;
 }
 
@@ -94,6 +110,15 @@ Result<EncodeParams> encode_params_from_string(const std::string& text) {
       p.fill = value == "box" ? FillMethod::kBoxFilter
                : value == "pushpull" ? FillMethod::kPushPull
                                      : FillMethod::kBlockProjection;
+    } else if (key == "step") {
+      if (!p.bound) p.bound = ErrorBound{};
+      ok = parse_vec3(value, p.bound->step);
+    } else if (key == "origin") {
+      if (!p.bound) p.bound = ErrorBound{};
+      ok = parse_vec3(value, p.bound->origin);
+    } else if (key == "color_tol") {
+      if (!p.bound) p.bound = ErrorBound{};
+      ok = parse_number(value, p.bound->color_tolerance);
     } else {
       return format_error("codec parameters: unknown key '" + key + "'");
     }

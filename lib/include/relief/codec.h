@@ -26,8 +26,21 @@ enum class ImageCodec : std::uint8_t { kJpeg = 1, kJpeg2000 = 2 };
 // box filter on every map.
 enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBoxFilter = 2 };
 
-// Highest chunk format version this build writes and reads.
-inline constexpr std::uint16_t kChunkFormatVersion = 1;
+// Highest chunk format version this build writes and reads. Version 1: the
+// paper's maps alone (resampling). Version 2: the maps as a base layer plus an
+// error-bounded layer that gives back every point (format-spec/chunk.md).
+inline constexpr std::uint16_t kChunkFormatVersion = 2;
+
+// The error-bounded mode: every input point comes back as exactly one point,
+// each coordinate within step / 2 of the input. Coordinates are snapped to the
+// grid origin + k * step (k integer, per axis), so with origin = a LAS file's
+// offset and step = its scale the LAS integers come back exactly.
+struct ErrorBound {
+  Vec3d step{0.001, 0.001, 0.001};  // per axis, finite and > 0 (= 2 x tolerance)
+  Vec3d origin{0, 0, 0};            // finite
+  // Every colour channel within this many levels (0 = exact), 0..127.
+  int color_tolerance = 0;
+};
 
 struct EncodeParams {
   Decomposition decomposition = Decomposition::kVoxelGrid;
@@ -55,11 +68,17 @@ struct EncodeParams {
   // Unset: the bounding box of the points, grown to a cube.
   std::optional<Vec3d> grid_origin;
   double grid_edge = 0;  // with grid_origin: edge of the cube; must contain every point
+  // Set: error-bounded mode (chunk format 2): every point back within the
+  // bound, the maps above (with cell_size) become the coarse base layer that
+  // levels of detail decode. Unset: the paper's resampling codec (format 1).
+  std::optional<ErrorBound> bound;
 };
 
 struct DecodeOptions {
   // Level of detail: 1 = every point; L = a spatially uniform ~1/L subset,
-  // at least one point from every patch.
+  // at least one point from every patch. For an error-bounded blob, a level
+  // whose ~1/L fits in the base layer decodes the base layer alone (fast);
+  // a finer one decodes every point and keeps every L-th in Morton order.
   std::uint32_t lod = 1;
   // Verify the blob's CRC-32 first (turn off only to exercise the inner decoders).
   bool verify_checksum = true;
@@ -84,7 +103,12 @@ struct ChunkInfo {
   int height_bits = 0;
   int tree_depth = 0;
   std::uint32_t input_points = 0;    // points given to the encoder
-  std::uint32_t decoded_points = 0;  // points a full decode returns (occupied pixels)
+  std::uint32_t decoded_points = 0;  // points a full decode returns (occupied pixels; every point when bounded)
+  // Error-bounded blobs (format 2).
+  bool error_bounded = false;
+  std::uint32_t base_points = 0;     // points of the base layer (occupied pixels)
+  Vec3d quant_step;                  // coordinate step; the error bound is half of it
+  int color_tolerance = 0;
   std::uint32_t patch_count = 0;
   std::uint32_t atlas_width = 0;   // pixels
   std::uint32_t atlas_height = 0;  // pixels

@@ -1,0 +1,28 @@
+// Per-point attributes of the error-bounded layer, in the order the geometry
+// section gives the points (format-spec/chunk.md, "Attribute sections"):
+// DPCM from the previous point with context-adaptive binary arithmetic coding
+// of the residuals. Internal to the codec.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "relief/status.h"
+#include "relief/types.h"
+
+namespace relief::codec {
+
+// Colours with every channel within `tolerance` levels (0 = exact): the
+// residual of each channel is quantised with step 2 × tolerance + 1 (JPEG-LS
+// style near-lossless coding). Red and blue are predicted with green's change.
+// `reconstructed`, when given, receives what the decoder will return.
+std::vector<std::uint8_t> encode_colors(std::span<const Rgb8> colors, int tolerance,
+                                        std::vector<Rgb8>* reconstructed = nullptr);
+Result<std::vector<Rgb8>> decode_colors(std::span<const std::uint8_t> data, std::size_t count, int tolerance);
+
+// Exact integer values (e.g. 16-bit intensities, or 32-bit float patterns).
+std::vector<std::uint8_t> encode_values(std::span<const std::int64_t> values);
+Result<std::vector<std::int64_t>> decode_values(std::span<const std::uint8_t> data, std::size_t count);
+
+}  // namespace relief::codec

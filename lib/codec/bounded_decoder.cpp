@@ -1,0 +1,69 @@
+// Error-bounded chunk decoder (format 2). Mirror: bounded_encoder.cpp.
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "codec/attribute_coder.h"
+#include "codec/bounded.h"
+#include "codec/geometry_coder.h"
+#include "codec/octree.h"
+
+namespace relief::codec {
+
+namespace {
+
+const SectionEntry* find_section(const ParsedBlob& blob, SectionId id) {
+  for (const SectionEntry& s : blob.sections) {
+    if (s.id == id) return &s;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
+  const ChunkHeader& h = blob.header;
+  PointCloud out;
+  const std::size_t n = h.input_points;
+  if (n == 0) return out;
+  const SectionEntry* geometry = find_section(blob, SectionId::kGeometry);
+  if (geometry == nullptr) return corrupt_data("chunk blob: no geometry section");  // parse_blob guarantees it
+  auto cells = decode_geometry(geometry->payload, h.geometry_depth, n);
+  if (!cells) return cells.status().with_context("chunk blob: geometry section");
+  out.positions.resize(n);
+  std::size_t k = 0;
+  for (std::size_t c = 0; c < cells->keys.size(); ++c) {
+    const std::uint64_t key = cells->keys[c];
+    const Vec3d p{dequantise(h.quant_origin.x, h.quant_base[0], compact_bits3(key), h.quant_step.x),
+                  dequantise(h.quant_origin.y, h.quant_base[1], compact_bits3(key >> 1), h.quant_step.y),
+                  dequantise(h.quant_origin.z, h.quant_base[2], compact_bits3(key >> 2), h.quant_step.z)};
+    for (std::uint32_t j = 0; j < cells->counts[c]; ++j) out.positions[k++] = p;
+  }
+  if (const SectionEntry* s = find_section(blob, SectionId::kPointColor)) {
+    auto colors = decode_colors(s->payload, n, h.color_tolerance);
+    if (!colors) return colors.status().with_context("chunk blob: point colour section");
+    out.colors = std::move(colors).value();
+  }
+  if (const SectionEntry* s = find_section(blob, SectionId::kPointIntensity)) {
+    auto values = decode_values(s->payload, n);
+    if (!values) return values.status().with_context("chunk blob: point intensity section");
+    out.intensities.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::int64_t v = (*values)[i];
+      if (h.intensity_coding == IntensityCoding::kUInt16) {
+        if (v < 0 || v > 65535) return corrupt_data("chunk blob: intensity " + std::to_string(v) + " out of 0..65535");
+        out.intensities[i] = static_cast<float>(v);
+      } else {
+        if (v < 0 || v > 0xFFFFFFFFll) return corrupt_data("chunk blob: intensity bit pattern out of range");
+        const auto bits = static_cast<std::uint32_t>(v);
+        float f = 0;
+        std::memcpy(&f, &bits, sizeof f);
+        if (!std::isfinite(f)) return corrupt_data("chunk blob: non-finite intensity");
+        out.intensities[i] = f;
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace relief::codec

@@ -1,0 +1,223 @@
+// Error-bounded chunk encoder (format 2). Mirror: bounded_decoder.cpp.
+//
+// The blob depends only on the multiset of input points and the parameters:
+// points are put in a canonical order (Morton order of their grid cell, then
+// by attributes within a cell) before anything is coded, and the base layer
+// is encoded from the decoded (snapped) points in that order.
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "codec/attribute_coder.h"
+#include "codec/bounded.h"
+#include "codec/geometry_coder.h"
+#include "codec/octree.h"
+
+namespace relief::codec {
+
+namespace {
+
+// |(x - origin) / step| must stay below this so the cell index is exact and
+// base + local cannot overflow.
+constexpr double kMaxQuantIndex = 4.0e18;
+
+Status check_bound(const ErrorBound& b) {
+  const Vec3d& s = b.step;
+  const Vec3d& o = b.origin;
+  if (!(std::isfinite(s.x) && std::isfinite(s.y) && std::isfinite(s.z) && s.x > 0 && s.y > 0 && s.z > 0)) {
+    return invalid_argument("tolerance must be a finite positive number (the quantisation step is twice it)");
+  }
+  if (!(std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.z))) {
+    return invalid_argument("quantisation origin must be finite");
+  }
+  if (b.color_tolerance < 0 || b.color_tolerance > kMaxColorTolerance) {
+    return invalid_argument("colour tolerance must be between 0 and " + std::to_string(kMaxColorTolerance));
+  }
+  return Status::ok();
+}
+
+std::uint32_t float_bits(float v) {
+  std::uint32_t u = 0;
+  std::memcpy(&u, &v, sizeof u);
+  return u;
+}
+
+}  // namespace
+
+Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
+                                                 EncodeStats* stats) {
+  const ErrorBound& bound = *params.bound;
+  RELIEF_RETURN_IF_ERROR(check_bound(bound));
+  const std::size_t n = cloud.size();
+  const bool has_rgb = cloud.has_colors();
+  const bool has_i = cloud.has_intensity();
+
+  ChunkHeader h;
+  h.version = 2;
+  h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
+  h.decomposition = params.decomposition;
+  h.image_codec = params.image_codec;
+  h.map_resolution = static_cast<std::uint8_t>(params.map_resolution);
+  h.height_bits = static_cast<std::uint8_t>(params.height_bits);
+  h.quant_step = bound.step;
+  h.quant_origin = bound.origin;
+  h.color_tolerance = static_cast<std::uint8_t>(has_rgb ? bound.color_tolerance : 0);
+  if (n == 0) {
+    h.grid_edge = 1;
+    h.intensity_coding = has_i ? IntensityCoding::kUInt16 : IntensityCoding::kNone;
+    if (stats) *stats = EncodeStats{};
+    return write_blob(h, {});
+  }
+
+  // ---- Snap every point to the grid.
+  const double steps[3] = {bound.step.x, bound.step.y, bound.step.z};
+  const double origins[3] = {bound.origin.x, bound.origin.y, bound.origin.z};
+  std::vector<std::int64_t> q(3 * n);
+  std::int64_t lo[3] = {INT64_MAX, INT64_MAX, INT64_MAX};
+  std::int64_t hi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3d& p = cloud.positions[i];
+    const double c[3] = {p.x, p.y, p.z};
+    for (int a = 0; a < 3; ++a) {
+      const double t = (c[a] - origins[a]) / steps[a];
+      if (!(std::fabs(t) < kMaxQuantIndex)) {
+        return invalid_argument("chunk: point " + std::to_string(i) + " lies " + std::to_string(c[a]) +
+                                " from the quantisation origin, more than 4e18 steps of " + std::to_string(steps[a]));
+      }
+      const std::int64_t v = std::llround(t);
+      q[3 * i + a] = v;
+      lo[a] = std::min(lo[a], v);
+      hi[a] = std::max(hi[a], v);
+    }
+  }
+  std::uint64_t span = 0;
+  for (int a = 0; a < 3; ++a) span = std::max(span, static_cast<std::uint64_t>(hi[a] - lo[a]));
+  const int depth = static_cast<int>(std::bit_width(span));
+  if (depth > kMaxGeometryDepth) {
+    return limit_exceeded("chunk: the points span " + std::to_string(span + 1) +
+                          " quantisation steps on one axis, more than 2^21; use smaller chunks or a larger tolerance");
+  }
+  for (int a = 0; a < 3; ++a) h.quant_base[a] = lo[a];
+  h.geometry_depth = static_cast<std::uint8_t>(depth);
+
+  // ---- Canonical order: Morton order of the cells, then attributes.
+  std::vector<KeyedIndex> order(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto lx = static_cast<std::uint32_t>(q[3 * i] - lo[0]);
+    const auto ly = static_cast<std::uint32_t>(q[3 * i + 1] - lo[1]);
+    const auto lz = static_cast<std::uint32_t>(q[3 * i + 2] - lo[2]);
+    order[i] = {morton_encode(lx, ly, lz), static_cast<std::uint32_t>(i)};
+  }
+  radix_sort(order, 3 * depth);
+  const auto attr_less = [&](const KeyedIndex& a, const KeyedIndex& b) {
+    if (has_rgb) {
+      const Rgb8 ca = cloud.colors[a.index], cb = cloud.colors[b.index];
+      if (ca.r != cb.r) return ca.r < cb.r;
+      if (ca.g != cb.g) return ca.g < cb.g;
+      if (ca.b != cb.b) return ca.b < cb.b;
+    }
+    if (has_i) return float_bits(cloud.intensities[a.index]) < float_bits(cloud.intensities[b.index]);
+    return false;
+  };
+  OccupiedCells cells;
+  for (std::size_t i = 0; i < n;) {
+    std::size_t j = i + 1;
+    while (j < n && order[j].key == order[i].key) ++j;
+    if (j - i > 1) std::sort(order.begin() + static_cast<std::ptrdiff_t>(i), order.begin() + static_cast<std::ptrdiff_t>(j), attr_less);
+    cells.keys.push_back(order[i].key);
+    cells.counts.push_back(static_cast<std::uint32_t>(j - i));
+    i = j;
+  }
+
+  std::vector<SectionEntry> refined;
+  std::vector<std::vector<std::uint8_t>> payloads;
+  payloads.push_back(encode_geometry(cells, depth));
+  refined.push_back({SectionId::kGeometry, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
+
+  // ---- The base layer is built from what the decoder will return.
+  PointCloud base;
+  base.reserve(n, has_rgb, has_i);
+  base.positions.resize(n);
+  Box3d refined_bounds;
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = order[k].index;
+    Vec3d p{dequantise(origins[0], lo[0], static_cast<std::uint32_t>(q[3 * i] - lo[0]), steps[0]),
+            dequantise(origins[1], lo[1], static_cast<std::uint32_t>(q[3 * i + 1] - lo[1]), steps[1]),
+            dequantise(origins[2], lo[2], static_cast<std::uint32_t>(q[3 * i + 2] - lo[2]), steps[2])};
+    refined_bounds.add(p);
+    base.positions[k] = p;
+  }
+  if (has_rgb) {
+    std::vector<Rgb8> ordered(n);
+    for (std::size_t k = 0; k < n; ++k) ordered[k] = cloud.colors[order[k].index];
+    payloads.push_back(encode_colors(ordered, h.color_tolerance, &base.colors));
+    refined.push_back({SectionId::kPointColor, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
+  }
+  if (has_i) {
+    bool integral = true;
+    for (const float v : cloud.intensities) {
+      integral = integral && v >= 0 && v <= 65535 && v == std::floor(v) && !(v == 0 && std::signbit(v));
+    }
+    h.intensity_coding = integral ? IntensityCoding::kUInt16 : IntensityCoding::kFloatBits;
+    std::vector<std::int64_t> values(n);
+    base.intensities.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const float v = cloud.intensities[order[k].index];
+      values[k] = integral ? static_cast<std::int64_t>(v) : static_cast<std::int64_t>(float_bits(v));
+      base.intensities[k] = v;
+    }
+    payloads.push_back(encode_values(values));
+    refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
+  }
+  EncodeParams base_params = params;
+  base_params.bound.reset();
+  if (base_params.grid_origin) {
+    // Snapping may move a point up to half a step out of the chunk cube; the
+    // base layer only approximates, so pull such points onto the cube.
+    const Vec3d o = *base_params.grid_origin;
+    const double e = base_params.grid_edge;
+    for (Vec3d& p : base.positions) {
+      p.x = std::clamp(p.x, o.x, o.x + e);
+      p.y = std::clamp(p.y, o.y, o.y + e);
+      p.z = std::clamp(p.z, o.z, o.z + e);
+    }
+  }
+  EncodeStats base_stats;
+  auto base_blob = encode_chunk(base, base_params, {}, &base_stats);
+  if (!base_blob) return base_blob.status().with_context("chunk: base layer");
+  RELIEF_ASSIGN_OR_RETURN(ParsedBlob parsed, parse_blob(*base_blob, false));
+  const ChunkHeader& bh = parsed.header;
+  h.decomposition = bh.decomposition;
+  h.tree_depth = bh.tree_depth;
+  h.input_points = static_cast<std::uint32_t>(n);
+  h.decoded_points = bh.decoded_points;
+  h.patch_count = bh.patch_count;
+  h.tiles_x = bh.tiles_x;
+  h.tiles_y = bh.tiles_y;
+  h.grid_origin = bh.grid_origin;
+  h.grid_edge = bh.grid_edge;
+  h.height_min = bh.height_min;
+  h.height_max = bh.height_max;
+  h.intensity_min = bh.intensity_min;
+  h.intensity_max = bh.intensity_max;
+  std::vector<SectionEntry> sections = parsed.sections;
+  for (std::size_t s = 0; s < refined.size(); ++s) {
+    refined[s].payload = payloads[s];
+    refined[s].coded_size = static_cast<std::uint32_t>(payloads[s].size());
+    sections.push_back(refined[s]);
+  }
+  if (stats) {
+    stats->decoded_points = static_cast<std::uint32_t>(n);
+    Box3d b = refined_bounds;
+    if (!base_stats.decoded_bounds.empty()) {
+      b.add(base_stats.decoded_bounds.min);
+      b.add(base_stats.decoded_bounds.max);
+    }
+    stats->decoded_bounds = b;
+  }
+  return write_blob(h, sections);
+}
+
+}  // namespace relief::codec

@@ -1,0 +1,221 @@
+// Octree occupancy coding for the error-bounded layer. Mirror pair in one file:
+// encoder and decoder share the traversal (code_octree) and differ only in the
+// bit coder they pass, so they cannot drift apart.
+//
+// Nodes of one level are visited in Morton order. Decreasing one coordinate
+// decreases the Morton key, so when a node is visited its -x, -y and -z
+// neighbours (and all their children) are already known to the decoder; its
+// +x, +y, +z neighbours are known to exist or not (the whole level is known
+// before its children are coded) but not their children.
+#include "codec/geometry_coder.h"
+
+#include <algorithm>
+#include <array>
+#include <memory>
+#include <string>
+
+#include "codec/octree.h"
+#include "codec/range_coder.h"
+
+namespace relief::codec {
+
+namespace {
+
+// Context of one child bit: 13 bits (see format-spec/chunk.md).
+constexpr int kOccupancyContexts = 1 << 13;
+constexpr int kCountContexts = 2;
+
+struct GeometryModels {
+  BitModel occupancy[kOccupancyContexts];
+  BitModel duplicate[kCountContexts];
+  UIntModel extra;
+};
+
+// Visits every node of levels 0..depth-1 and codes its 8 child bits through
+// `code(model, bit)` (the encoder passes the true bit and ignores the result;
+// the decoder ignores the bit and returns what it decoded). `true_byte`
+// returns the known child occupancy byte of node i of level d on the encoder
+// side. `grow(n)` is told the size of the next level after every node and
+// returns false to stop (decoder bounds); so does a node without children.
+// On return `nodes` holds the keys of the occupied cells at `depth`.
+constexpr std::uint32_t kMissing = 0xFFFFFFFFu;
+
+// Index of child k of a node whose child byte is `byte` and whose first
+// child has index `first`, or kMissing.
+// (A table, not std::popcount: baseline x86-64 has no popcnt instruction.)
+constexpr auto kBitCount = [] {
+  std::array<std::uint8_t, 256> t{};
+  for (int v = 0; v < 256; ++v) t[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>((v & 1) + t[static_cast<std::size_t>(v >> 1)]);
+  return t;
+}();
+inline std::uint32_t child_index(std::uint8_t byte, std::uint32_t first, int k) {
+  if (((byte >> k) & 1) == 0) return kMissing;
+  return first + kBitCount[byte & ((1u << k) - 1)];
+}
+
+template <typename Code, typename TrueByte, typename Grow>
+bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& nodes, Code&& code,
+                 TrueByte&& true_byte, Grow&& grow) {
+  nodes.assign(1, 0);  // the root
+  // Per node of the current level: its six face neighbours' indices in the
+  // level (-x, +x, -y, +y, -z, +z; kMissing when empty), its child byte and
+  // the index of its first child in the next level. A level's neighbour
+  // indices come from the level above (a child's neighbour is a sibling or a
+  // child of its parent's neighbour), so no lookup structure is needed.
+  std::vector<std::uint32_t> nb(6, kMissing), next_nb;
+  std::vector<std::uint8_t> occ;
+  std::vector<std::uint32_t> first;
+  std::vector<std::uint64_t> next;
+  for (int d = 0; d < depth; ++d) {
+    const std::size_t count = nodes.size();
+    occ.assign(count, 0);
+    first.assign(count, 0);
+    next.clear();
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::uint32_t* n6 = &nb[6 * i];
+      // Child bytes of the minus-side neighbours (visited already: lowering
+      // one coordinate lowers the Morton key).
+      std::uint8_t minus_occ[3];
+      for (int a = 0; a < 3; ++a) minus_occ[a] = n6[2 * a] != kMissing ? occ[n6[2 * a]] : 0;
+      const std::uint8_t truth = true_byte(d, i);
+      std::uint8_t byte = 0;
+      int siblings = 0;
+      first[i] = static_cast<std::uint32_t>(next.size());
+      for (int k = 0; k < 8; ++k) {
+        int near = 0, far = 0, child_nb = 0;
+        for (int a = 0; a < 3; ++a) {
+          const int c = (k >> a) & 1;
+          near |= (n6[2 * a + c] != kMissing ? 1 : 0) << a;
+          far += n6[2 * a + 1 - c] != kMissing ? 1 : 0;
+          int below;  // the child's minus-side neighbour at the child level
+          if (c == 1) {
+            below = (byte >> (k ^ (1 << a))) & 1;
+          } else {
+            below = (minus_occ[a] >> (k | (1 << a))) & 1;
+          }
+          child_nb |= below << a;
+        }
+        const int ctx = near | (child_nb << 3) | (k << 6) | (std::min(siblings, 3) << 9) | (far << 11);
+        const int bit = code(models.occupancy[ctx], (truth >> k) & 1);
+        if (bit) {
+          byte = static_cast<std::uint8_t>(byte | (1u << k));
+          ++siblings;
+          next.push_back((nodes[i] << 3) | static_cast<std::uint64_t>(k));
+        }
+      }
+      // An occupied node has at least one occupied child.
+      if (byte == 0) return false;
+      occ[i] = byte;
+      if (!grow(next.size())) return false;
+    }
+    // Neighbours of the next level.
+    next_nb.assign(6 * next.size(), kMissing);
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::uint8_t byte = occ[i];
+      const std::uint32_t* n6 = &nb[6 * i];
+      for (int k = 0; k < 8; ++k) {
+        const std::uint32_t ci = child_index(byte, first[i], k);
+        if (ci == kMissing) continue;
+        std::uint32_t* out = &next_nb[6 * static_cast<std::size_t>(ci)];
+        for (int a = 0; a < 3; ++a) {
+          const int c = (k >> a) & 1;
+          const int sibling = k ^ (1 << a);
+          // Towards the sibling's side: inside this node.
+          out[2 * a + (1 - c)] = child_index(byte, first[i], sibling);
+          // Away from it: a child of the neighbour on that side.
+          const std::uint32_t m = n6[2 * a + c];
+          out[2 * a + c] = m != kMissing ? child_index(occ[m], first[m], sibling) : kMissing;
+        }
+      }
+    }
+    nb.swap(next_nb);
+    nodes.swap(next);
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth) {
+  RangeEncoder enc;
+  auto models = std::make_unique<GeometryModels>();
+  // Child occupancy bytes of every level, from the leaves up.
+  std::vector<std::vector<std::uint8_t>> bytes(static_cast<std::size_t>(depth));
+  {
+    std::vector<std::uint64_t> level = cells.keys;
+    for (int d = depth - 1; d >= 0; --d) {
+      std::vector<std::uint64_t> parents;
+      std::vector<std::uint8_t>& b = bytes[static_cast<std::size_t>(d)];
+      for (const std::uint64_t key : level) {
+        const std::uint64_t parent = key >> 3;
+        if (parents.empty() || parents.back() != parent) {
+          parents.push_back(parent);
+          b.push_back(0);
+        }
+        b.back() = static_cast<std::uint8_t>(b.back() | (1u << (key & 7)));
+      }
+      level.swap(parents);
+    }
+  }
+  std::vector<std::uint64_t> nodes;
+  code_octree(
+      depth, *models, nodes,
+      [&](BitModel& m, int bit) {
+        enc.encode(m, bit);
+        return bit;
+      },
+      [&](int d, std::size_t i) { return bytes[static_cast<std::size_t>(d)][i]; },
+      [](std::size_t) { return true; });
+  int prev_dup = 0;
+  for (const std::uint32_t c : cells.counts) {
+    const int dup = c > 1 ? 1 : 0;
+    enc.encode(models->duplicate[prev_dup], dup);
+    if (dup) encode_uint(enc, models->extra, c - 2);
+    prev_dup = dup;
+  }
+  return enc.finish();
+}
+
+Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count) {
+  if (depth < 0 || depth > kMaxGeometryDepth) return corrupt_data("geometry: depth out of range");
+  if (point_count == 0) return corrupt_data("geometry: no points");
+  RangeDecoder dec(data);
+  auto models = std::make_unique<GeometryModels>();
+  OccupiedCells cells;
+  bool over = false;
+  const bool ok = code_octree(
+      depth, *models, cells.keys, [&](BitModel& m, int) { return dec.decode(m); },
+      [](int, std::size_t) { return std::uint8_t{0}; },
+      [&](std::size_t n) {
+        // Every node holds a point; a stream read past its end stops here.
+        over = n > point_count || dec.exhausted();
+        return !over;
+      });
+  if (!ok) {
+    return corrupt_data(over ? "geometry: the octree holds more cells than the chunk has points, or is truncated"
+                             : "geometry: an occupied octree node without children");
+  }
+  cells.counts.resize(cells.keys.size());
+  std::uint64_t total = 0;
+  int prev_dup = 0;
+  for (std::uint32_t& c : cells.counts) {
+    const int dup = dec.decode(models->duplicate[prev_dup]);
+    std::uint64_t extra = 0;
+    if (dup && !decode_uint(dec, models->extra, extra)) return corrupt_data("geometry: bad duplicate count");
+    if (dec.exhausted()) return corrupt_data("geometry: stream truncated in the point counts");
+    const std::uint64_t n = dup ? extra + 2 : 1;
+    total += n;
+    if (n > point_count || total > point_count) {
+      return corrupt_data("geometry: cells hold more points than the chunk declares");
+    }
+    c = static_cast<std::uint32_t>(n);
+    prev_dup = dup;
+  }
+  if (total != point_count) {
+    return corrupt_data("geometry: cells hold " + std::to_string(total) + " points, the chunk declares " +
+                        std::to_string(point_count));
+  }
+  return cells;
+}
+
+}  // namespace relief::codec

@@ -1,0 +1,32 @@
+// The error-bounded layer's geometry: the set of occupied cells of a chunk's
+// quantisation grid (side 2^depth per axis) and the number of points in each,
+// coded as an octree, level by level, with context-adaptive binary arithmetic
+// coding (format-spec/chunk.md, section "Geometry section"). Internal to the codec.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "relief/status.h"
+
+namespace relief::codec {
+
+// Distinct occupied cells in increasing Morton order (morton_encode of the
+// cell's integer coordinates) and the number of points in each (>= 1).
+inline constexpr int kMaxGeometryDepth = 21;  // Morton keys stay below 2^63
+
+struct OccupiedCells {
+  std::vector<std::uint64_t> keys;
+  std::vector<std::uint32_t> counts;
+};
+
+// `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.
+std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth);
+
+// Decodes a stream made by encode_geometry. The stream must describe exactly
+// `point_count` points; the work done is bounded by the stream's size and by
+// `point_count` (every octree node holds at least one point).
+Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count);
+
+}  // namespace relief::codec

@@ -1,0 +1,178 @@
+// Adaptive binary range coder for the error-bounded layer of chunk format v2
+// (format-spec/chunk.md, "Binary arithmetic coding"). Carry-less in the style
+// of LZMA's range coder: 32-bit range, 16-bit probabilities, a byte cache for
+// carry propagation. Every model is a pair of probabilities adapting at two
+// speeds; the coder uses their mean.
+//
+// The decoder never reads outside its input: past the end it reads zero bytes
+// and counts them, so a caller can reject a stream that was over-read
+// (`overrun()`), and it counts decisions so callers can bound the work a
+// hostile stream can cause by the bytes actually present.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace relief::codec {
+
+// Probabilities are of the bit being 0, in units of 2^-16.
+inline constexpr int kProbBits = 16;
+inline constexpr std::uint32_t kProbOne = 1u << kProbBits;
+// Clamp so no decision costs less than ~0.0007 bits: a decoder's work is then
+// bounded by ~11,000 decisions per byte of input (see max_decisions()).
+inline constexpr std::uint32_t kProbMin = 32;
+inline constexpr std::uint32_t kProbMax = kProbOne - kProbMin;
+inline constexpr int kFastShift = 4;
+inline constexpr int kSlowShift = 7;
+
+struct BitModel {
+  std::uint16_t fast = kProbOne / 2;
+  std::uint16_t slow = kProbOne / 2;
+
+  std::uint32_t p0() const {
+    const std::uint32_t p = (static_cast<std::uint32_t>(fast) + slow) >> 1;
+    return p < kProbMin ? kProbMin : (p > kProbMax ? kProbMax : p);
+  }
+  void update(int bit) {
+    if (bit) {
+      fast = static_cast<std::uint16_t>(fast - (fast >> kFastShift));
+      slow = static_cast<std::uint16_t>(slow - (slow >> kSlowShift));
+    } else {
+      fast = static_cast<std::uint16_t>(fast + ((kProbOne - 1 - fast) >> kFastShift));
+      slow = static_cast<std::uint16_t>(slow + ((kProbOne - 1 - slow) >> kSlowShift));
+    }
+  }
+};
+
+class RangeEncoder {
+ public:
+  void encode(BitModel& m, int bit) {
+    const std::uint32_t bound = (range_ >> kProbBits) * m.p0();
+    if (bit == 0) {
+      range_ = bound;
+    } else {
+      low_ += bound;
+      range_ -= bound;
+    }
+    m.update(bit);
+    while (range_ < kTop) {
+      range_ <<= 8;
+      shift_low();
+    }
+  }
+  // A bit with probability 1/2, no model.
+  void encode_raw(int bit) {
+    range_ >>= 1;
+    if (bit) low_ += range_;
+    while (range_ < kTop) {
+      range_ <<= 8;
+      shift_low();
+    }
+  }
+  // Flushes and returns the stream.
+  std::vector<std::uint8_t> finish();
+
+ private:
+  static constexpr std::uint32_t kTop = 1u << 24;
+  void shift_low();
+
+  std::uint64_t low_ = 0;
+  std::uint32_t range_ = 0xFFFFFFFFu;
+  std::uint8_t cache_ = 0;
+  std::uint64_t cache_size_ = 1;
+  std::vector<std::uint8_t> out_;
+};
+
+class RangeDecoder {
+ public:
+  explicit RangeDecoder(std::span<const std::uint8_t> data);
+
+  int decode(BitModel& m) {
+    ++decisions_;
+    const std::uint32_t bound = (range_ >> kProbBits) * m.p0();
+    int bit;
+    if (code_ < bound) {
+      range_ = bound;
+      bit = 0;
+    } else {
+      code_ -= bound;
+      range_ -= bound;
+      bit = 1;
+    }
+    m.update(bit);
+    while (range_ < kTop) {
+      range_ <<= 8;
+      code_ = (code_ << 8) | next_byte();
+    }
+    return bit;
+  }
+  int decode_raw() {
+    ++decisions_;
+    range_ >>= 1;
+    int bit = 0;
+    if (code_ >= range_) {
+      code_ -= range_;
+      bit = 1;
+    }
+    while (range_ < kTop) {
+      range_ <<= 8;
+      code_ = (code_ << 8) | next_byte();
+    }
+    return bit;
+  }
+  // Bytes read past the end of the input (a valid stream reads none: the
+  // encoder's flush supplies every byte the decoder's window needs).
+  std::size_t overrun() const { return overrun_; }
+  // True when the stream has been read past its end or has made more
+  // decisions than its size can honestly encode: the caller must stop.
+  bool exhausted() const { return overrun_ > 0 || decisions_ > max_decisions_; }
+  std::uint64_t decisions() const { return decisions_; }
+
+ private:
+  static constexpr std::uint32_t kTop = 1u << 24;
+  std::uint8_t next_byte() {
+    if (pos_ < data_.size()) return data_[pos_++];
+    ++overrun_;
+    return 0;
+  }
+
+  std::span<const std::uint8_t> data_;
+  std::size_t pos_ = 0;
+  std::size_t overrun_ = 0;
+  std::uint32_t range_ = 0xFFFFFFFFu;
+  std::uint32_t code_ = 0;
+  std::uint64_t decisions_ = 0;
+  std::uint64_t max_decisions_ = 0;
+};
+
+// ---- Integers on top of the binary coder.
+//
+// An adaptive Exp-Golomb code for unsigned values: the number of bits of
+// (v + 1) as a unary prefix with one model per position, then the bits below
+// the leading one, the top `kModelledSuffixBits` of them with a model per
+// (prefix length, bit position), the rest raw.
+inline constexpr int kMaxPrefix = 64;
+inline constexpr int kModelledSuffixBits = 3;
+
+struct UIntModel {
+  BitModel prefix[kMaxPrefix + 1];
+  BitModel suffix[kMaxPrefix + 1][kModelledSuffixBits];
+};
+
+void encode_uint(RangeEncoder& enc, UIntModel& m, std::uint64_t v);
+// Returns false on a stream that is exhausted or encodes a value wider than 64 bits.
+bool decode_uint(RangeDecoder& dec, UIntModel& m, std::uint64_t& v);
+
+// Signed values: a zero flag, a sign and the magnitude − 1.
+struct SIntModel {
+  BitModel zero;
+  BitModel sign;
+  UIntModel magnitude;
+};
+
+void encode_sint(RangeEncoder& enc, SIntModel& m, std::int64_t v);
+bool decode_sint(RangeDecoder& dec, SIntModel& m, std::int64_t& v);
+
+}  // namespace relief::codec

@@ -1,0 +1,301 @@
+// The error-bounded codec (chunk format 2): every point back, each coordinate
+// within the tolerance, attributes exact (or within the colour tolerance),
+// bytes that depend only on the multiset of points, and hostile blobs rejected.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <tuple>
+
+#include "relief/codec.h"
+#include "support/synthetic.h"
+
+using namespace relief;
+
+namespace {
+
+struct Rec {
+  double x, y, z;
+  std::uint8_t r, g, b;
+  std::uint32_t ibits;
+  auto tie() const { return std::tie(x, y, z, r, g, b, ibits); }
+  bool operator<(const Rec& o) const { return tie() < o.tie(); }
+  bool operator==(const Rec& o) const { return tie() == o.tie(); }
+};
+
+std::uint32_t bits_of(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return u;
+}
+
+double snap(double v, double origin, double step) {
+  return origin + static_cast<double>(std::llround((v - origin) / step)) * step;
+}
+
+// The multiset the decoder must return: every input point snapped to the grid.
+std::vector<Rec> snapped(const PointCloud& c, const ErrorBound& b) {
+  std::vector<Rec> out;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const Vec3d& p = c.positions[i];
+    Rec r{snap(p.x, b.origin.x, b.step.x), snap(p.y, b.origin.y, b.step.y), snap(p.z, b.origin.z, b.step.z), 0, 0, 0, 0};
+    if (c.has_colors()) r.r = c.colors[i].r, r.g = c.colors[i].g, r.b = c.colors[i].b;
+    if (c.has_intensity()) r.ibits = bits_of(c.intensities[i]);
+    out.push_back(r);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<Rec> records(const PointCloud& c) {
+  std::vector<Rec> out;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const Vec3d& p = c.positions[i];
+    Rec r{p.x, p.y, p.z, 0, 0, 0, 0};
+    if (c.has_colors()) r.r = c.colors[i].r, r.g = c.colors[i].g, r.b = c.colors[i].b;
+    if (c.has_intensity()) r.ibits = bits_of(c.intensities[i]);
+    out.push_back(r);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+EncodeParams bounded_params(double tolerance, double cell) {
+  EncodeParams p;
+  p.cell_size = cell;
+  p.bound = ErrorBound{};
+  p.bound->step = {2 * tolerance, 2 * tolerance, 2 * tolerance};
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("bounded: every point comes back within the tolerance, attributes exact", "[codec][bounded]") {
+  for (double tol : {0.0005, 0.004, 0.05}) {
+    test::SceneOptions o;
+    o.seed = 7;
+    o.points = 20000;
+    o.colors = true;
+    o.intensity = true;
+    o.noise = 0.002;
+    const PointCloud in = test::make_room(o, 4.0);
+    const EncodeParams p = bounded_params(tol, 0.5);
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    REQUIRE(out->size() == in.size());
+    CHECK(records(*out) == snapped(in, *p.bound));
+    // Each snapped coordinate is within the tolerance of its input.
+    for (const Vec3d& q : in.positions) {
+      CHECK(std::fabs(snap(q.x, 0, 2 * tol) - q.x) <= tol * (1 + 1e-9));
+      CHECK(std::fabs(snap(q.z, 0, 2 * tol) - q.z) <= tol * (1 + 1e-9));
+    }
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == 2);
+    CHECK(info->error_bounded);
+    CHECK(info->decoded_points == in.size());
+  }
+}
+
+TEST_CASE("bounded: LAS integers come back exactly", "[codec][bounded]") {
+  test::Rng rng(11);
+  PointCloud in;
+  const Vec3d offset{512000.0, 5400000.0, 0.0};
+  const double scale = 0.01;
+  std::vector<std::array<std::int64_t, 3>> ints;
+  for (int i = 0; i < 5000; ++i) {
+    const std::int64_t X = static_cast<std::int64_t>(rng.uniform(0, 20000));
+    const std::int64_t Y = static_cast<std::int64_t>(rng.uniform(0, 20000));
+    const std::int64_t Z = static_cast<std::int64_t>(rng.uniform(0, 3000));
+    ints.push_back({X, Y, Z});
+    in.positions.push_back({offset.x + static_cast<double>(X) * scale, offset.y + static_cast<double>(Y) * scale,
+                            offset.z + static_cast<double>(Z) * scale});
+    in.intensities.push_back(static_cast<float>(rng.next() % 65536));
+  }
+  EncodeParams p = bounded_params(scale / 2, 20.0);
+  p.bound->origin = offset;
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  REQUIRE(out->size() == in.size());
+  std::vector<std::array<std::int64_t, 3>> back;
+  for (const Vec3d& q : out->positions) {
+    back.push_back({std::llround((q.x - offset.x) / scale), std::llround((q.y - offset.y) / scale),
+                    std::llround((q.z - offset.z) / scale)});
+  }
+  std::sort(ints.begin(), ints.end());
+  std::sort(back.begin(), back.end());
+  CHECK(ints == back);
+  CHECK(records(*out) == records(in));  // the LAS reader's doubles, bit for bit
+}
+
+TEST_CASE("bounded: duplicates, float intensities and degenerate clouds", "[codec][bounded]") {
+  PointCloud in;
+  for (int i = 0; i < 3000; ++i) {
+    in.positions.push_back({1.0, 2.0, 3.0});  // one cell, many points
+    in.intensities.push_back(0.001f * static_cast<float>(i % 7));
+  }
+  in.positions.push_back({1.5, 2.0, 3.0});
+  in.intensities.push_back(-0.0f);
+  auto blob = encode_chunk(in, bounded_params(0.001, 0.5));
+  REQUIRE(blob.is_ok());
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == snapped(in, *bounded_params(0.001, 0.5).bound));
+
+  PointCloud one;
+  one.positions.push_back({-7.25, 1e6, 0.5});
+  auto b1 = encode_chunk(one, bounded_params(0.01, 1));
+  REQUIRE(b1.is_ok());
+  auto o1 = decode_chunk(*b1);
+  REQUIRE(o1.is_ok());
+  CHECK(o1->size() == 1);
+
+  auto b0 = encode_chunk(PointCloud(), bounded_params(0.01, 1));
+  REQUIRE(b0.is_ok());
+  auto o0 = decode_chunk(*b0);
+  REQUIRE(o0.is_ok());
+  CHECK(o0->empty());
+}
+
+TEST_CASE("bounded: colour tolerance bounds every channel", "[codec][bounded]") {
+  test::SceneOptions o;
+  o.seed = 3;
+  o.points = 15000;
+  o.colors = true;
+  const PointCloud in = test::make_terrain(o, 10.0, 1.0);
+  std::size_t exact_bytes = 0;
+  for (int c : {0, 2, 8, 30}) {
+    EncodeParams p = bounded_params(0.005, 1.0);
+    p.bound->color_tolerance = c;
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    REQUIRE(out->size() == in.size());
+    // Pair points: input sorted by (snapped position, colour); output sorted
+    // stably by position keeps the encoder's within-cell order (by colour).
+    std::vector<std::size_t> ia(in.size()), ib(in.size());
+    for (std::size_t i = 0; i < ia.size(); ++i) ia[i] = ib[i] = i;
+    const auto snapped_pos = [&](std::size_t i) {
+      const Vec3d& q = in.positions[i];
+      return std::make_tuple(snap(q.x, 0, 0.01), snap(q.y, 0, 0.01), snap(q.z, 0, 0.01));
+    };
+    std::sort(ia.begin(), ia.end(), [&](std::size_t a, std::size_t b) {
+      const Rgb8 ca = in.colors[a], cb = in.colors[b];
+      return std::tuple_cat(snapped_pos(a), std::make_tuple(ca.r, ca.g, ca.b)) <
+             std::tuple_cat(snapped_pos(b), std::make_tuple(cb.r, cb.g, cb.b));
+    });
+    std::stable_sort(ib.begin(), ib.end(), [&](std::size_t a, std::size_t b) {
+      const Vec3d &p = out->positions[a], &q = out->positions[b];
+      return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+    });
+    int worst = 0;
+    for (std::size_t k = 0; k < ia.size(); ++k) {
+      const Rgb8 a = in.colors[ia[k]], b = out->colors[ib[k]];
+      worst = std::max({worst, std::abs(a.r - b.r), std::abs(a.g - b.g), std::abs(a.b - b.b)});
+    }
+    CHECK(worst <= c);
+    if (c == 0) exact_bytes = blob->size();
+    if (c == 30) CHECK(blob->size() < exact_bytes);
+  }
+}
+
+TEST_CASE("bounded: the blob depends only on the multiset of points", "[codec][bounded]") {
+  test::SceneOptions o;
+  o.seed = 5;
+  o.points = 8000;
+  o.colors = true;
+  o.intensity = true;
+  PointCloud in = test::make_sphere(o, 2.0);
+  // Duplicates with different attributes, so their order matters.
+  for (int i = 0; i < 200; ++i) {
+    in.positions.push_back(in.positions[static_cast<std::size_t>(i)]);
+    in.colors.push_back({static_cast<std::uint8_t>(i), 1, 2});
+    in.intensities.push_back(static_cast<float>(i));
+  }
+  EncodeParams p = bounded_params(0.003, 0.5);
+  p.grid_origin = Vec3d{-2.5, -2.5, -2.5};
+  p.grid_edge = 5.0;
+  auto a = encode_chunk(in, p);
+  REQUIRE(a.is_ok());
+  PointCloud shuffled;
+  test::Rng rng(9);
+  std::vector<std::size_t> perm(in.size());
+  for (std::size_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+  for (std::size_t i : perm) {
+    shuffled.positions.push_back(in.positions[i]);
+    shuffled.colors.push_back(in.colors[i]);
+    shuffled.intensities.push_back(in.intensities[i]);
+  }
+  auto b = encode_chunk(shuffled, p);
+  REQUIRE(b.is_ok());
+  CHECK(*a == *b);
+}
+
+TEST_CASE("bounded: coarse levels of detail come from the base layer", "[codec][bounded]") {
+  test::SceneOptions o;
+  o.seed = 21;
+  o.points = 40000;
+  o.colors = true;
+  const PointCloud in = test::make_terrain(o, 20.0, 1.0);
+  EncodeParams p = bounded_params(0.002, 4.0);  // 4 m cells: ~1 base pixel per ~10 points
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  auto info = inspect_chunk(*blob);
+  REQUIRE(info.is_ok());
+  REQUIRE(info->base_points > 0);
+  REQUIRE(info->base_points < in.size());
+  for (std::uint32_t lod : {2u, 16u, 64u}) {
+    DecodeOptions d;
+    d.lod = lod;
+    auto out = decode_chunk(*blob, d);
+    REQUIRE(out.is_ok());
+    const double want = static_cast<double>(in.size()) / lod;
+    if (info->base_points >= static_cast<std::uint64_t>(std::ceil(want))) {
+      CHECK(std::fabs(static_cast<double>(out->size()) - want) <= want * 0.02 + 2);
+    } else {
+      CHECK(out->size() == (in.size() + lod - 1) / lod);
+    }
+    CHECK(out->has_colors());
+  }
+}
+
+TEST_CASE("bounded: truncated and corrupted blobs are rejected without crashing", "[codec][bounded][reject]") {
+  test::SceneOptions o;
+  o.seed = 4;
+  o.points = 2000;
+  o.colors = true;
+  o.intensity = true;
+  const PointCloud in = test::make_sphere(o, 1.0);
+  auto blob = encode_chunk(in, bounded_params(0.001, 0.5));
+  REQUIRE(blob.is_ok());
+  for (std::size_t len = 0; len < blob->size(); len += 7) {
+    std::vector<std::uint8_t> cut(blob->begin(), blob->begin() + static_cast<std::ptrdiff_t>(len));
+    CHECK_FALSE(decode_chunk(cut).is_ok());
+  }
+  DecodeOptions nocrc;
+  nocrc.verify_checksum = false;
+  test::Rng rng(17);
+  int rejected = 0;
+  for (int t = 0; t < 400; ++t) {
+    std::vector<std::uint8_t> bad = *blob;
+    // Flip bytes in the error-bounded layer and its header fields.
+    const std::size_t at = 88 + rng.next() % (bad.size() - 92);
+    bad[at] = static_cast<std::uint8_t>(bad[at] ^ (1u + rng.next() % 255));
+    auto r = decode_chunk(bad, nocrc);
+    if (!r.is_ok()) {
+      ++rejected;
+    } else {
+      CHECK(r->size() <= in.size());
+    }
+    CHECK_FALSE(decode_chunk(bad).is_ok());  // the checksum catches every flip
+  }
+  CHECK(rejected > 0);
+}
