@@ -21,8 +21,8 @@ namespace relief::codec {
 
 namespace {
 
-// Context of one child bit: 13 bits (see format-spec/chunk.md).
-constexpr int kOccupancyContexts = 1 << 13;
+// Context of one child bit: 14 bits (see format-spec/chunk.md).
+constexpr int kOccupancyContexts = 1 << 14;
 constexpr int kCountContexts = 2;
 
 struct GeometryModels {
@@ -53,6 +53,47 @@ inline std::uint32_t child_index(std::uint8_t byte, std::uint32_t first, int k) 
   return first + kBitCount[byte & ((1u << k) - 1)];
 }
 
+// Plane memory (after G-PCC's planar mode): for each axis, per plane
+// coordinate along it (hashed into a small table), the last node visited in
+// that plane, where it lay in the other two axes, and which halves of it along
+// the axis held children. Surfaces at constant x, y or z (facades, ground,
+// the depth levels of an RGB-D camera) repeat their half across gaps that
+// face neighbours cannot see.
+class PlaneMemory {
+ public:
+  static constexpr int kBits = 12;
+  static constexpr std::uint32_t kSize = 1u << kBits;
+  // Closer than this (Manhattan, in node units) a remembered node predicts.
+  static constexpr std::uint32_t kReach = 32;
+
+  void reset() {
+    for (auto& t : table_) t.fill(Entry{});
+  }
+  // -1: the remembered node had children only in the lower half along `axis`,
+  // +1 only in the upper half, 0 no (near) memory or both halves.
+  int predict(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v) const {
+    const Entry& e = table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)];
+    if (e.halves == 0 || e.plane != plane) return 0;
+    const std::uint32_t du = e.u > u ? e.u - u : u - e.u;
+    const std::uint32_t dv = e.v > v ? e.v - v : v - e.v;
+    if (du + dv > kReach) return 0;
+    return e.halves == 1 ? -1 : (e.halves == 2 ? 1 : 0);
+  }
+  void remember(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v, std::uint8_t halves) {
+    table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)] = {plane, u, v, halves};
+  }
+
+ private:
+  struct Entry {
+    std::uint32_t plane = 0, u = 0, v = 0;
+    std::uint8_t halves = 0;  // bit 0: lower half occupied, bit 1: upper
+  };
+  std::array<std::array<Entry, kSize>, 3> table_;
+};
+
+// Child bits with c along `axis` set, for the halves test.
+constexpr std::uint8_t kUpperHalf[3] = {0xAA, 0xCC, 0xF0};
+
 template <typename Code, typename TrueByte, typename Grow>
 bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& nodes, Code&& code,
                  TrueByte&& true_byte, Grow&& grow) {
@@ -66,7 +107,9 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
   std::vector<std::uint8_t> occ;
   std::vector<std::uint32_t> first;
   std::vector<std::uint64_t> next;
+  auto planes = std::make_unique<PlaneMemory>();
   for (int d = 0; d < depth; ++d) {
+    planes->reset();
     const std::size_t count = nodes.size();
     occ.assign(count, 0);
     first.assign(count, 0);
@@ -77,16 +120,19 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
       // one coordinate lowers the Morton key).
       std::uint8_t minus_occ[3];
       for (int a = 0; a < 3; ++a) minus_occ[a] = n6[2 * a] != kMissing ? occ[n6[2 * a]] : 0;
+      const std::uint64_t key = nodes[i];
+      const std::uint32_t xyz[3] = {compact_bits3(key), compact_bits3(key >> 1), compact_bits3(key >> 2)};
+      int plane_pred[3];
+      for (int a = 0; a < 3; ++a) plane_pred[a] = planes->predict(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3]);
       const std::uint8_t truth = true_byte(d, i);
       std::uint8_t byte = 0;
       int siblings = 0;
       first[i] = static_cast<std::uint32_t>(next.size());
       for (int k = 0; k < 8; ++k) {
-        int near = 0, far = 0, child_nb = 0;
+        int near = 0, child_nb = 0;
         for (int a = 0; a < 3; ++a) {
           const int c = (k >> a) & 1;
           near |= (n6[2 * a + c] != kMissing ? 1 : 0) << a;
-          far += n6[2 * a + 1 - c] != kMissing ? 1 : 0;
           int below;  // the child's minus-side neighbour at the child level
           if (c == 1) {
             below = (byte >> (k ^ (1 << a))) & 1;
@@ -95,7 +141,13 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
           }
           child_nb |= below << a;
         }
-        const int ctx = near | (child_nb << 3) | (k << 6) | (std::min(siblings, 3) << 9) | (far << 11);
+        // +1 per axis whose plane memory puts this child's half occupied,
+        // -1 per axis that puts it empty.
+        int score = 0;
+        for (int a = 0; a < 3; ++a) {
+          if (plane_pred[a] != 0) score += (plane_pred[a] > 0) == (((k >> a) & 1) != 0) ? 1 : -1;
+        }
+        const int ctx = near | (child_nb << 3) | (k << 6) | (std::min(siblings, 3) << 9) | ((score + 3) << 11);
         const int bit = code(models.occupancy[ctx], (truth >> k) & 1);
         if (bit) {
           byte = static_cast<std::uint8_t>(byte | (1u << k));
@@ -106,6 +158,11 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
       // An occupied node has at least one occupied child.
       if (byte == 0) return false;
       occ[i] = byte;
+      for (int a = 0; a < 3; ++a) {
+        const std::uint8_t halves = static_cast<std::uint8_t>(((byte & ~kUpperHalf[a] & 0xFF) ? 1 : 0) |
+                                                              ((byte & kUpperHalf[a]) ? 2 : 0));
+        planes->remember(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3], halves);
+      }
       if (!grow(next.size())) return false;
     }
     // Neighbours of the next level.

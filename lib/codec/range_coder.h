@@ -28,20 +28,27 @@ inline constexpr int kFastShift = 4;
 inline constexpr int kSlowShift = 7;
 
 struct BitModel {
+  // Two estimates of P(0): `fast` adapts with a rate that starts at 1/2 and
+  // falls to 2^-kFastShift as the context is seen (a young context learns
+  // from its first few bits), `slow` at 2^-kSlowShift once mature.
   std::uint16_t fast = kProbOne / 2;
   std::uint16_t slow = kProbOne / 2;
+  std::uint8_t seen = 0;
 
   std::uint32_t p0() const {
     const std::uint32_t p = (static_cast<std::uint32_t>(fast) + slow) >> 1;
     return p < kProbMin ? kProbMin : (p > kProbMax ? kProbMax : p);
   }
   void update(int bit) {
+    const int fs = seen < kFastShift ? seen + 1 : kFastShift;
+    const int ss = seen < kSlowShift ? seen + 1 : kSlowShift;
+    if (seen < kSlowShift) ++seen;
     if (bit) {
-      fast = static_cast<std::uint16_t>(fast - (fast >> kFastShift));
-      slow = static_cast<std::uint16_t>(slow - (slow >> kSlowShift));
+      fast = static_cast<std::uint16_t>(fast - (fast >> fs));
+      slow = static_cast<std::uint16_t>(slow - (slow >> ss));
     } else {
-      fast = static_cast<std::uint16_t>(fast + ((kProbOne - 1 - fast) >> kFastShift));
-      slow = static_cast<std::uint16_t>(slow + ((kProbOne - 1 - slow) >> kSlowShift));
+      fast = static_cast<std::uint16_t>(fast + ((kProbOne - 1 - fast) >> fs));
+      slow = static_cast<std::uint16_t>(slow + ((kProbOne - 1 - slow) >> ss));
     }
   }
 };
