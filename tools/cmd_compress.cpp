@@ -20,11 +20,12 @@ int run_compress(int argc, char** argv) {
       "usage: relief compress IN... -o OUT.relief [--chunk-edge METRES] [options]\n"
       "Compresses point files (PLY, LAS 1.0-1.4, XYZ/CSV, PCD) of any size into a new archive.\n"
       "  --chunk-edge M         edge of the archive's chunks (default 32 cells)\n"
-      "  --error-target M       choose the cell size for this RMSE_SNN (by trial encodes of the\n"
-      "                         first points; overrides --cell)\n\n") +
-      kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
+      "  --error-target M       resample mode: choose the cell size for this RMSE_SNN (by trial\n"
+      "                         encodes of the first points; overrides --cell; implies --mode resample)\n\n") +
+      kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = encode_option_names();
   for (const std::string& o : ingest_option_names()) options.push_back(o);
+  for (const std::string& o : mode_option_names()) options.push_back(o);
   options.insert(options.end(), {"-o", "--chunk-edge", "--error-target"});
   Args args(argc, argv, {"--help", "--quiet", "--verify"}, options);
   if (args.has("--help")) {
@@ -43,6 +44,15 @@ int run_compress(int argc, char** argv) {
   o.error_target = args.get_double("--error-target", 0);
   if (args.has("--error-target") && !(o.error_target > 0)) {
     return usage_error(kCommand, "--error-target must be positive", usage.c_str());
+  }
+  if (args.has("--error-target")) {
+    if (args.has("--mode") && *args.get("--mode") != "resample") {
+      return usage_error(kCommand, "--error-target needs --mode resample", usage.c_str());
+    }
+    o.mode = IngestMode::kResample;
+  }
+  if (const std::string err = parse_mode_options(args, o); !err.empty()) {
+    return usage_error(kCommand, err, usage.c_str());
   }
   if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
     return usage_error(kCommand, err, usage.c_str());

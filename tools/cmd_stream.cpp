@@ -123,10 +123,11 @@ int run_stream(int argc, char** argv) {
       "  --idle N               batches without new points before a chunk is encoded (default 2)\n"
       "  --max-buffered N       bound on buffered points (default 4000000)\n"
       "  --immediate            encode every batch at once (no buffering)\n"
-      "  --chunk-edge M         chunk edge of a new archive (default 32 cells)\n\n") +
-      kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
+      "  --chunk-edge M         chunk edge of a new archive (default 32 cells; 8 in bounded mode)\n\n") +
+      kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = encode_option_names();
   for (const std::string& o : ingest_option_names()) options.push_back(o);
+  for (const std::string& o : mode_option_names()) options.push_back(o);
   options.insert(options.end(), {"--format", "--attributes", "--batch", "--idle", "--max-buffered", "--chunk-edge"});
   Args args(argc, argv, {"--help", "--quiet", "--immediate", "--verify"}, options);
   if (args.has("--help")) {
@@ -140,6 +141,9 @@ int run_stream(int argc, char** argv) {
     return usage_error(kCommand, err, usage.c_str());
   }
   if (const std::string err = parse_ingest_options(args, so.ingest); !err.empty()) {
+    return usage_error(kCommand, err, usage.c_str());
+  }
+  if (const std::string err = parse_mode_options(args, so.ingest); !err.empty()) {
     return usage_error(kCommand, err, usage.c_str());
   }
   so.ingest.chunk_edge = args.get_double("--chunk-edge", 0);

@@ -1,5 +1,6 @@
 #include "ingest_options.h"
 
+#include <cmath>
 #include <cstdio>
 
 namespace relief::cli {
@@ -12,6 +13,41 @@ const char* const kIngestOptionsHelp =
     "  --columns SPEC         ASCII XYZ/CSV columns, e.g. x,y,z,i or x,y,z,r,g,b (default x,y,z)\n"
     "  --verify               decode every blob back before committing it (about 10 % slower)\n"
     "  --quiet                no progress or summary\n";
+
+const char* const kModeOptionsHelp =
+    "Mode options (new archives):\n"
+    "  --mode bounded|resample   bounded (default): every point back, each coordinate within the\n"
+    "                         tolerance, colour and intensity exact; resample: the paper's maps\n"
+    "                         alone, one point per occupied map pixel (smallest previews)\n"
+    "  --tolerance T          bounded: largest error per coordinate, in coordinate units (default:\n"
+    "                         half the LAS scale for LAS input, so its integers come back exactly;\n"
+    "                         else 0.0005)\n"
+    "  --color-tolerance C    bounded: largest error per colour channel, 0..127 (default 0 = exact)\n";
+
+std::vector<std::string> mode_option_names() { return {"--mode", "--tolerance", "--color-tolerance"}; }
+
+std::string parse_mode_options(Args& args, IngestOptions& o) {
+  if (auto m = args.get("--mode")) {
+    if (*m == "bounded") {
+      o.mode = IngestMode::kBounded;
+    } else if (*m == "resample") {
+      o.mode = IngestMode::kResample;
+    } else {
+      return "--mode must be bounded or resample, got '" + *m + "'";
+    }
+  }
+  if (args.has("--tolerance")) {
+    o.tolerance = args.get_double("--tolerance", 0);
+    if (!(o.tolerance > 0) || !std::isfinite(o.tolerance)) return "--tolerance must be a positive number";
+  }
+  o.color_tolerance = static_cast<int>(args.get_int("--color-tolerance", 0, 0, 127));
+  const bool bounded_only = args.has("--tolerance") || args.has("--color-tolerance");
+  if (o.mode == IngestMode::kResample && bounded_only) {
+    return "--tolerance and --color-tolerance apply to --mode bounded";
+  }
+  if (!args.ok()) return args.error();
+  return "";
+}
 
 std::vector<std::string> ingest_option_names() { return {"--memory", "--threads", "--tmp", "--columns"}; }
 

@@ -712,6 +712,10 @@ Result<std::vector<std::uint8_t>> encode_chunk_subset(const PointCloud& cloud, s
 }
 
 double suggest_cell_size(const PointCloud& cloud, int map_resolution) {
+  return cell_size_for_density(cloud, static_cast<double>(map_resolution) * map_resolution);
+}
+
+double cell_size_for_density(const PointCloud& cloud, double points_per_cell) {
   const Box3d b = cloud.bounds();
   if (b.empty()) return 1.0;
   const Vec3d e = b.extent();
@@ -739,7 +743,7 @@ double suggest_cell_size(const PointCloud& cloud, int map_resolution) {
     }
   };
   const double n = static_cast<double>(cloud.size());
-  const double target = static_cast<double>(map_resolution) * map_resolution;
+  const double target = std::max(points_per_cell, 1e-9);
   // Sorts keys by their top `levels` levels and walks those levels; returns 0
   // when none of them reaches the target.
   const auto pick = [&](std::vector<codec::KeyedIndex>& sorted, int levels) -> double {

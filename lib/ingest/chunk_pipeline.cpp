@@ -1,5 +1,6 @@
 #include "ingest/chunk_pipeline.h"
 
+#include <cmath>
 #include <utility>
 
 namespace relief::ingest {
@@ -27,8 +28,9 @@ ChunkPipeline::ChunkPipeline(Archive& archive, const EncodeParams& params, const
 Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
   EncodeParams p = params_;
   const Box3d cube = grid_.chunk_box(task.key);
-  p.grid_origin = cube.min;
-  p.grid_edge = grid_.chunk_edge;
+  const double edge = std::ldexp(grid_.chunk_edge, -task.split_depth);
+  p.grid_origin = Vec3d{cube.min.x + task.sub[0] * edge, cube.min.y + task.sub[1] * edge, cube.min.z + task.sub[2] * edge};
+  p.grid_edge = edge;
   // The encoder reports the exact bounds of what a reader will decode: the
   // spatial index must contain every decoded point.
   EncodeStats stats;
@@ -41,8 +43,12 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
     auto decoded = decode_chunk(*blob);
     if (!decoded) return internal_error("a freshly encoded chunk does not decode: " + decoded.status().message());
     const Box3d b = decoded->bounds();
-    if (decoded->size() != stats.decoded_points || !(b.min == stats.decoded_bounds.min) ||
-        !(b.max == stats.decoded_bounds.max)) {
+    const Box3d& s = stats.decoded_bounds;
+    // Error-bounded blobs index the union of every point and the base layer.
+    const bool bounds_ok = p.bound ? (decoded->empty() || (b.min.x >= s.min.x && b.min.y >= s.min.y && b.min.z >= s.min.z &&
+                                                           b.max.x <= s.max.x && b.max.y <= s.max.y && b.max.z <= s.max.z))
+                                   : (b.min == s.min && b.max == s.max);
+    if (decoded->size() != stats.decoded_points || !bounds_ok) {
       return internal_error("a freshly encoded chunk decodes to other points than the encoder expects");
     }
   }

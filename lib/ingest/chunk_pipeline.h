@@ -26,6 +26,10 @@ namespace relief::ingest {
 // it (so a large grouped slice is never copied chunk by chunk up front).
 struct ChunkTask {
   ChunkKey key;
+  // A part of a chunk split into octants: the sub-cube at depth split_depth
+  // with integer position sub[] inside the chunk cube (0 = the whole chunk).
+  std::uint8_t split_depth = 0;
+  std::uint32_t sub[3] = {0, 0, 0};
   PointCloud points;
   const PointCloud* source = nullptr;
   const std::uint32_t* index = nullptr;

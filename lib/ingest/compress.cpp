@@ -12,6 +12,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <cstring>
 #include <unordered_map>
 
 #include "core/memory.h"
@@ -137,10 +138,16 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   // cache, allocator slack).
   const std::uint64_t slice_points = std::max<std::uint64_t>(1, (budget / 6) / kGroupBytesPerPoint);
   const std::uint64_t part_points = std::max<std::uint64_t>(1024, (budget / 3) / (threads * kEncodeBytesPerPoint));
+  // Error-bounded archives must not depend on the budget: chunks are encoded
+  // whole (bucket slices hold whole buckets) and split by a fixed rule.
+  const bool bounded = params.bound.has_value();
+  const ArchiveGrid* split_grid = bounded ? &grid : nullptr;
+  const std::uint64_t task_points = bounded ? std::max<std::uint64_t>(1, options.split_points) : part_points;
   const std::uint64_t read_batch =
       std::max<std::uint64_t>(1024, std::min<std::uint64_t>(kReadBatch, (budget / 16) / kBatchBytesPerPoint));
-  // Enough buckets that a bucket usually fits one slice (x2 for skew).
-  const std::uint64_t want = (2 * std::max<std::uint64_t>(1, in.estimated_points)) / slice_points + 1;
+  // Enough buckets that a bucket usually fits one slice (x2 for skew; x4 when
+  // buckets are read whole).
+  const std::uint64_t want = ((bounded ? 4 : 2) * std::max<std::uint64_t>(1, in.estimated_points)) / slice_points + 1;
   const auto buckets = static_cast<std::uint32_t>(std::clamp<std::uint64_t>(want, kMinBuckets, kMaxBuckets));
   const auto staging_bytes = static_cast<std::size_t>(std::min<std::uint64_t>(budget / 8, 256u << 20));
 
@@ -157,6 +164,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
                             const std::function<Status(ReadBatch&)>& sink) -> Status {
     const auto full_stage = [&](ReadBatch& b) -> Status {
       conform_attributes(b.points, in.colors, in.intensity);
+      if (params.bound) snap_to_grid(b.points, *params.bound);
       for (const float v : b.points.intensities) {
         intensity_lo = std::min(intensity_lo, v);
         intensity_hi = std::max(intensity_hi, v);
@@ -269,7 +277,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
-    RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, part_points, grouping), tick));
+    RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, task_points, grouping, split_grid), tick));
   } else {
     // ---- External distribution sort: every point into its chunk's bucket
     // file. The reading thread keys each batch; this one packs and writes.
@@ -294,9 +302,9 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       std::uint64_t offset = 0;
       while (offset < files.bucket_bytes(b)) {
         std::shared_ptr<Slice> slice = slices.acquire();
-        RELIEF_RETURN_IF_ERROR(
-            files.read_slice(b, &offset, slice_points, slice->points, slice->grouping, read_buffer));
-        std::vector<ChunkTask> tasks = make_tasks(slice->points, part_points, slice->grouping);
+        RELIEF_RETURN_IF_ERROR(files.read_slice(b, &offset, bounded ? ~std::uint64_t{0} : slice_points, slice->points,
+                                                slice->grouping, read_buffer));
+        std::vector<ChunkTask> tasks = make_tasks(slice->points, task_points, slice->grouping, split_grid);
         pipeline->submit(std::move(tasks), slice);
         slice.reset();
         // At most this slice still encoding while the next one loads.
@@ -366,7 +374,55 @@ void Grouping::add_run(const ChunkKey& key, std::size_t count) {
   ids.insert(ids.end(), count, it->second);
 }
 
-std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g) {
+namespace {
+
+// Splits the points idx[0..n) of a chunk into the octants of the sub-cube
+// (origin, edge) until each part holds at most `limit` points (or the cube is
+// 2^kMaxSplitDepth times smaller than the chunk: identical points). Appends a
+// task per non-empty part.
+constexpr int kMaxSplitDepth = 10;
+
+void split_octants(const PointCloud& cloud, std::uint32_t* idx, std::size_t n, const ChunkKey& key, const Vec3d& origin,
+                   double edge, int depth, const std::uint32_t sub[3], std::uint64_t limit, std::vector<std::uint32_t>& scratch,
+                   std::vector<ChunkTask>& tasks) {
+  if (n <= limit || depth >= kMaxSplitDepth) {
+    ChunkTask t;
+    t.key = key;
+    t.split_depth = static_cast<std::uint8_t>(depth);
+    for (int a = 0; a < 3; ++a) t.sub[a] = sub[a];
+    t.source = &cloud;
+    t.index = idx;
+    t.count = n;
+    tasks.push_back(std::move(t));
+    return;
+  }
+  const double half = edge / 2;
+  const Vec3d mid{origin.x + half, origin.y + half, origin.z + half};
+  const auto octant = [&](std::uint32_t i) {
+    const Vec3d& p = cloud.positions[i];
+    return (p.x >= mid.x ? 1 : 0) | (p.y >= mid.y ? 2 : 0) | (p.z >= mid.z ? 4 : 0);
+  };
+  std::size_t start[9] = {};
+  for (std::size_t k = 0; k < n; ++k) ++start[octant(idx[k]) + 1];
+  for (int o = 0; o < 8; ++o) start[o + 1] += start[o];
+  scratch.resize(n);
+  std::size_t fill[8];
+  for (int o = 0; o < 8; ++o) fill[o] = start[o];
+  for (std::size_t k = 0; k < n; ++k) scratch[fill[octant(idx[k])]++] = idx[k];
+  std::copy(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(n), idx);
+  for (int o = 0; o < 8; ++o) {
+    if (start[o + 1] == start[o]) continue;
+    const std::uint32_t child[3] = {2 * sub[0] + (o & 1), 2 * sub[1] + ((o >> 1) & 1), 2 * sub[2] + ((o >> 2) & 1)};
+    const Vec3d child_origin{(o & 1) ? mid.x : origin.x, (o & 2) ? mid.y : origin.y, (o & 4) ? mid.z : origin.z};
+    split_octants(cloud, idx + start[o], start[o + 1] - start[o], key, child_origin, half, depth + 1, child, limit,
+                  scratch, tasks);
+  }
+}
+
+}  // namespace
+
+std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g,
+                                  const ArchiveGrid* split_grid) {
   const std::size_t n = cloud.size();
   // Counting sort of point indices by chunk id.
   std::vector<std::uint64_t> start(g.keys.size() + 1, 0);
@@ -380,7 +436,14 @@ std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_po
   for (std::uint32_t k = 0; k < by_key.size(); ++k) by_key[k] = k;
   std::sort(by_key.begin(), by_key.end(), [&](std::uint32_t a, std::uint32_t b) { return g.keys[a] < g.keys[b]; });
   std::vector<ChunkTask> tasks;
+  std::vector<std::uint32_t> scratch;
   for (std::uint32_t k : by_key) {
+    if (split_grid != nullptr) {
+      const std::uint32_t whole[3] = {0, 0, 0};
+      split_octants(cloud, g.order.data() + start[k], static_cast<std::size_t>(start[k + 1] - start[k]), g.keys[k],
+                    split_grid->chunk_box(g.keys[k]).min, split_grid->chunk_edge, 0, whole, part_points, scratch, tasks);
+      continue;
+    }
     for (std::uint64_t first = start[k]; first < start[k + 1]; first += part_points) {
       ChunkTask t;
       t.key = g.keys[k];
@@ -398,10 +461,101 @@ std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_po
 }
 
 std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGrid& grid, std::uint64_t part_points,
-                                        Grouping& g) {
+                                        Grouping& g, bool split_spatially) {
   g.clear();
   g.add(cloud.positions.data(), cloud.size(), grid);
-  return make_tasks(cloud, part_points, g);
+  return make_tasks(cloud, part_points, g, split_spatially ? &grid : nullptr);
+}
+
+ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in) {
+  ErrorBound b;
+  b.color_tolerance = options.color_tolerance;
+  // The first LAS input's grid, at the finest scale among the LAS inputs.
+  bool las = false;
+  Vec3d finest{0, 0, 0};
+  for (const auto& r : in.readers) {
+    const PointStreamInfo& info = r->info();
+    const Vec3d s{std::fabs(info.scale.x), std::fabs(info.scale.y), std::fabs(info.scale.z)};
+    if (!(s.x > 0 && s.y > 0 && s.z > 0)) continue;
+    if (!las) {
+      b.origin = info.offset;
+      finest = s;
+      las = true;
+    } else {
+      finest = Vec3d{std::min(finest.x, s.x), std::min(finest.y, s.y), std::min(finest.z, s.z)};
+    }
+  }
+  if (options.tolerance > 0) {
+    b.step = Vec3d{2 * options.tolerance, 2 * options.tolerance, 2 * options.tolerance};
+    if (!las) b.origin = Vec3d{0, 0, 0};
+  } else if (las) {
+    b.step = finest;
+  } else {
+    b.step = Vec3d{2 * kDefaultTolerance, 2 * kDefaultTolerance, 2 * kDefaultTolerance};
+  }
+  return b;
+}
+
+void snap_to_grid(PointCloud& batch, const ErrorBound& b) {
+  // The codec's own formula (origin + k * step), so its re-snapping is exact.
+  // A coordinate too far from the origin for an exact k is left as it is for
+  // the encoder to reject with a clear error.
+  const auto snap = [](double v, double origin, double step) {
+    const double t = (v - origin) / step;
+    return std::fabs(t) < 4.0e18 ? origin + static_cast<double>(std::llround(t)) * step : v;
+  };
+  for (Vec3d& p : batch.positions) {
+    p.x = snap(p.x, b.origin.x, b.step.x);
+    p.y = snap(p.y, b.origin.y, b.step.y);
+    p.z = snap(p.z, b.origin.z, b.step.z);
+  }
+}
+
+Result<double> order_free_cell_size(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
+                                     int map_resolution) {
+  // The points whose position hash falls below a threshold, halved whenever
+  // more than 2k are kept: the final set is {p : h(p) < t} for the largest
+  // power-of-two t that keeps at most 2k, whatever the order of the points.
+  constexpr std::size_t kKeep = 2 * kDensitySamplePoints;
+  const auto hash = [](const Vec3d& p) {
+    std::uint64_t h = 0x9E3779B97F4A7C15ULL;
+    for (const double c : {p.x, p.y, p.z}) {
+      std::uint64_t u = 0;
+      std::memcpy(&u, &c, sizeof u);
+      h ^= u + 0x9E3779B97F4A7C15ULL + (h << 6) + (h >> 2);
+      h *= 0xBF58476D1CE4E5B9ULL;
+      h ^= h >> 31;
+    }
+    return h;
+  };
+  std::uint64_t threshold = ~std::uint64_t{0};
+  std::vector<std::pair<std::uint64_t, Vec3d>> kept;
+  std::uint64_t total = 0;
+  PointCloud batch;
+  for (const std::string& path : inputs) {
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, reader_options));
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const std::size_t got, reader->read(batch, kReadBatch));
+      if (got == 0) break;
+      total += got;
+      for (const Vec3d& p : batch.positions) {
+        const std::uint64_t h = hash(p);
+        if (h < threshold) kept.emplace_back(h, p);
+      }
+      while (kept.size() > kKeep) {
+        threshold >>= 1;
+        std::erase_if(kept, [&](const auto& e) { return e.first >= threshold; });
+      }
+    }
+  }
+  if (kept.empty()) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
+  PointCloud sample;
+  sample.positions.reserve(kept.size());
+  // Sorted, so the estimate does not even see the order the points came in.
+  std::sort(kept.begin(), kept.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& e : kept) sample.positions.push_back(e.second);
+  const double fraction = static_cast<double>(sample.size()) / static_cast<double>(total);
+  return cell_size_for_density(sample, static_cast<double>(map_resolution) * map_resolution * fraction);
 }
 
 void remove_archive_files(const std::string& path) {
@@ -428,7 +582,19 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
 
   EncodeParams params = options.codec;
   PointCloud first;
-  if (params.cell_size == 0 || options.error_target > 0) {
+  const bool bounded = options.mode == IngestMode::kBounded;
+  if (bounded) {
+    params.bound = resolve_error_bound(options, in);
+    if (options.error_target > 0) return invalid_argument("--error-target applies to the resampling mode (--mode resample)");
+  } else {
+    params.bound.reset();
+  }
+  if (bounded && params.cell_size == 0) {
+    // The base layer's cells: from a sample that depends only on the set of
+    // input points (not their order, not the memory budget).
+    RELIEF_ASSIGN_OR_RETURN(const double cell, order_free_cell_size(inputs, options.reader, params.map_resolution));
+    params.cell_size = kBaseCellFactor * cell;
+  } else if (params.cell_size == 0 || options.error_target > 0) {
     // The first points set the cell size (from their density, or by trial
     // encodes for an error target); they are then ingested like every batch.
     // At most a quarter of the budget for it (with the cell-size scratch).
@@ -445,7 +611,14 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     }
   }
   ArchiveGrid grid;
-  grid.chunk_edge = options.chunk_edge > 0 ? options.chunk_edge : params.cell_size * kDefaultCellsPerChunk;
+  const double cells_per_chunk = bounded ? kDefaultCellsPerChunk / kBaseCellFactor : kDefaultCellsPerChunk;
+  grid.chunk_edge = options.chunk_edge > 0 ? options.chunk_edge : params.cell_size * cells_per_chunk;
+  if (bounded && options.chunk_edge == 0) {
+    // A chunk spans at most 2^21 grid steps (the octree's depth limit), with
+    // room for points snapped half a step beyond its faces.
+    const double finest = std::min({params.bound->step.x, params.bound->step.y, params.bound->step.z});
+    while (grid.chunk_edge / finest > std::ldexp(1.0, 21) - 4) grid.chunk_edge /= 2;
+  }
   if (!(grid.chunk_edge > 0) || !std::isfinite(grid.chunk_edge)) {
     return invalid_argument("chunk edge must be a positive number");
   }

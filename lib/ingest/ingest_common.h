@@ -63,14 +63,29 @@ struct Grouping {
 };
 
 // Groups the points of `cloud` (whose ids `g` holds, one per point) by chunk
-// key into encode tasks of at most `part_points` points that index into
-// `cloud` (a larger chunk becomes several blobs of one voxel), in key order.
+// key into encode tasks that index into `cloud`, in key order. A chunk of
+// more than `part_points` points becomes several blobs of one voxel: cut by
+// point count, or with `split_grid` (the error-bounded mode) split into
+// octants of its cube, recursively, so the blobs depend only on the points.
 // `cloud` and `g` must outlive the tasks.
-std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g);
+std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g,
+                                  const ArchiveGrid* split_grid = nullptr);
 
 // clear + add + make_tasks for a whole cloud.
 std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGrid& grid, std::uint64_t part_points,
-                                        Grouping& g);
+                                        Grouping& g, bool split_spatially = false);
+
+// The error-bounded grid for this ingest: the options' tolerance, or the
+// automatic one (ingest.h, IngestOptions::tolerance) from the inputs.
+ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in);
+// Moves every point onto the grid (origin + k * step). Done as points are
+// read, so chunk keys, bucket files and encoders all see the final positions.
+void snap_to_grid(PointCloud& batch, const ErrorBound& bound);
+// The density-derived cell size (suggest_cell_size) of all the inputs' points,
+// estimated from a sample chosen by a hash of each position: one extra read
+// of the inputs, and a result that does not depend on the points' order.
+Result<double> order_free_cell_size(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
+                                    int map_resolution);
 
 // Reads every input into the archive as one scan (see compress.cpp).
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params, InputSet& in,

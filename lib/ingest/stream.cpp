@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <map>
 
 #include "core/parallel.h"
@@ -38,9 +39,15 @@ class StreamIngestImpl final : public StreamIngest {
         progress_(options.ingest.progress, 0),
         start_(std::chrono::steady_clock::now()) {}
 
-  Status push(const PointCloud& batch) override {
+  Status push(const PointCloud& incoming) override {
     if (finished_) return invalid_argument("stream already finished");
-    RELIEF_RETURN_IF_ERROR(batch.validate("stream batch"));
+    RELIEF_RETURN_IF_ERROR(incoming.validate("stream batch"));
+    PointCloud snapped;
+    if (params_.bound) {
+      snapped = incoming;
+      ingest::snap_to_grid(snapped, *params_.bound);
+    }
+    const PointCloud& batch = params_.bound ? snapped : incoming;
     if (batch.has_colors() != colors_ || batch.has_intensity() != intensity_) {
       return invalid_argument("stream batch attributes differ from the archive's");
     }
@@ -174,8 +181,18 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
     if (!(params.cell_size > 0)) {
       return invalid_argument("a new archive needs a cell size for streaming (--cell)");
     }
-    grid.chunk_edge =
-        options.ingest.chunk_edge > 0 ? options.ingest.chunk_edge : params.cell_size * kDefaultCellsPerChunk;
+    const bool bounded = options.ingest.mode == IngestMode::kBounded;
+    if (bounded) {
+      params.bound = ingest::resolve_error_bound(options.ingest, ingest::InputSet{});
+    } else {
+      params.bound.reset();
+    }
+    const double cells_per_chunk = bounded ? kDefaultCellsPerChunk / kBaseCellFactor : kDefaultCellsPerChunk;
+    grid.chunk_edge = options.ingest.chunk_edge > 0 ? options.ingest.chunk_edge : params.cell_size * cells_per_chunk;
+    if (bounded && options.ingest.chunk_edge == 0) {
+      const double finest = std::min({params.bound->step.x, params.bound->step.y, params.bound->step.z});
+      while (grid.chunk_edge / finest > std::ldexp(1.0, 21) - 4) grid.chunk_edge /= 2;
+    }
     RELIEF_ASSIGN_OR_RETURN(archive, Archive::create(archive_path, grid, encode_params_to_string(params),
                                                      options.ingest.creator));
   }

@@ -360,6 +360,7 @@ Status LasPointReader::start() {
   }
   info_.header_bounds = header_.bounds;
   info_.scale = header_.scale;
+  info_.offset = header_.offset;
   wide_colors_ = has_rgb_;  // LAS colours are 16-bit
   return Status::ok();
 }

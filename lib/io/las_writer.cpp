@@ -486,7 +486,16 @@ class LasStreamWriter final : public StreamPointWriter {
         const double inv = 1 / scale;
         return in_int32_range((top - offset) * inv) && in_int32_range((lo - offset) * inv);
       };
-      if (options_.scale > 0) {
+      if (options_.grid_scale && options_.grid_offset) {
+        // The archive's own grid: its integers are the source's.
+        scale = std::fabs(axis(*options_.grid_scale, a));
+        offset = axis(*options_.grid_offset, a);
+        if (!(scale > 0) || !std::isfinite(scale) || !std::isfinite(offset) || (strict && !fits(hi))) {
+          return invalid_argument(out_->path() + ": the archive's grid (scale " + format_double(scale) + ", offset " +
+                                  format_double(offset) + ") cannot hold the " + kAxisNames[static_cast<std::size_t>(a)] +
+                                  " extent " + format_double(lo) + " .. " + format_double(hi) + " in LAS 32-bit coordinates");
+        }
+      } else if (options_.scale > 0) {
         scale = options_.scale;
         const double unit = scale * power_of_ten(kOffsetUnitExponent);
         offset = std::floor(lo / unit) * unit;
@@ -538,10 +547,12 @@ class LasStreamWriter final : public StreamPointWriter {
 
   // No points and no expected bounds: the scale the options ask for, offset 0.
   void place_default() {
+    const bool grid = options_.grid_scale && options_.grid_offset;
     for (int a = 0; a < 3; ++a) {
-      const double scale = options_.scale > 0 ? options_.scale : power_of_ten(base_exponent(a));
+      const double scale = grid ? std::fabs(axis(*options_.grid_scale, a))
+                                : options_.scale > 0 ? options_.scale : power_of_ten(base_exponent(a));
       axis(q_.scale, a) = scale;
-      axis(q_.offset, a) = 0;
+      axis(q_.offset, a) = grid ? axis(*options_.grid_offset, a) : 0;
       axis(q_.inverse, a) = 1 / scale;
     }
     placed_ = true;

@@ -146,6 +146,11 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob);
 // A cell edge from the point density: the median nearest-neighbour spacing of a
 // sample of the points times map_resolution, so one map pixel ~ one point.
 double suggest_cell_size(const PointCloud& cloud, int map_resolution);
+// The cell edge at which occupied cells hold about `points_per_cell` points of
+// `cloud` (suggest_cell_size is this with r^2). A sample holding a fraction f
+// of a cloud's points estimates the cloud's cell for n points per cell with
+// n * f here.
+double cell_size_for_density(const PointCloud& cloud, double points_per_cell);
 
 const char* decomposition_name(Decomposition d);
 const char* image_codec_name(ImageCodec c);

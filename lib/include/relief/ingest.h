@@ -24,8 +24,41 @@ struct IngestProgress {
   const char* phase = "";  // "reading", "encoding", "streaming"
 };
 
+// How compress stores points: every point back within a tolerance (chunk
+// format 2, the default), or the paper's resampling maps alone (format 1:
+// one point per occupied map pixel, the smallest previews).
+enum class IngestMode { kBounded, kResample };
+
+// Tolerance when none is given and no input is LAS: half a millimetre in
+// metre units (the 1 mm grid of a typical LAS scale of 0.001).
+inline constexpr double kDefaultTolerance = 0.0005;
+// In the bounded mode the maps are a coarse base layer for previews and
+// levels of detail: cells this many times the density-derived cell (so ~1 map
+// pixel per 16 points on a surface), and chunks of kDefaultCellsPerChunk /
+// kBaseCellFactor of them (the same chunk edge as the resampling mode).
+inline constexpr double kBaseCellFactor = 4;
+// Points of the order-independent density sample (bottom of a hash order).
+inline constexpr std::size_t kDensitySamplePoints = 1u << 18;
+// A chunk holding more points than this is split into octants (recursively)
+// before encoding, each its own blob of the same voxel: a rule on the points
+// alone, so archives do not depend on --memory.
+inline constexpr std::uint64_t kMaxBoundedChunkPoints = std::uint64_t{1} << 22;
+
 struct IngestOptions {
-  // Codec parameters. cell_size 0 = derived from the density of the first
+  IngestMode mode = IngestMode::kBounded;
+  // Bounded mode: every coordinate within this of its input (coordinate
+  // units). 0 = automatic: for LAS inputs half the finest scale among them
+  // (the grid is the first LAS input's offset + k * scale, so the LAS integers
+  // come back exactly), else kDefaultTolerance on a grid through 0.
+  double tolerance = 0;
+  // Bounded mode: every colour channel within this many levels (0 = exact).
+  int color_tolerance = 0;
+  // Bounded mode: chunks of more points are split into octants (the archive
+  // depends on it as on the tolerance; changed only by tests and tuning).
+  std::uint64_t split_points = kMaxBoundedChunkPoints;
+  // Codec parameters. cell_size 0 = derived from the point density: in the
+  // bounded mode from a sample that depends only on the set of input points
+  // (one extra read of the inputs), in the resampling mode from the first
   // input's first points (suggest_cell_size).
   EncodeParams codec;
   // Edge of the world-grid chunks. 0 = kDefaultCellsPerChunk cells.

@@ -50,8 +50,10 @@ struct PointStreamInfo {
   // Empty when the file has none.
   std::string crs;
   std::optional<Box3d> header_bounds;        // LAS header min/max
-  // Coordinate precision the file stores (LAS scale factors), 0 when not known.
+  // Coordinate precision the file stores (LAS scale factors), 0 when not known,
+  // and the offset of that grid (LAS: x = X * scale + offset).
   Vec3d scale{0, 0, 0};
+  Vec3d offset{0, 0, 0};
   // Records dropped so far by design rather than error: PCD points with a NaN
   // coordinate (organised clouds mark pixels without depth that way). They are
   // included in point_count, which is what the header declares.
@@ -97,6 +99,10 @@ struct WriterOptions {
   // than any map pixel Relief produces, so decoded coordinates survive), or the
   // smallest power of ten that keeps the extent within 32-bit integers.
   double scale = 0;
+  // LAS: when set, these per-axis scales and offsets exactly (an error-bounded
+  // archive's grid, so LAS integers written back are the source's).
+  std::optional<Vec3d> grid_scale;
+  std::optional<Vec3d> grid_offset;
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
 };
 

@@ -1,0 +1,232 @@
+// The error-bounded mode end to end: every input point back within the
+// tolerance, LAS integers exact, and archives that depend only on the set of
+// input points and the parameters (not on --memory, --threads or point order).
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <tuple>
+
+#include "relief/archive.h"
+#include "relief/codec.h"
+#include "relief/ingest.h"
+#include "relief/io.h"
+#include "support/synthetic.h"
+#include "support/temp_dir.h"
+
+using namespace relief;
+using relief::test::TempDir;
+
+namespace {
+
+PointCloud scene(std::uint64_t seed, std::size_t points) {
+  test::SceneOptions o;
+  o.seed = seed;
+  o.points = points / 2;
+  o.colors = true;
+  o.intensity = true;
+  o.noise = 0.003;
+  PointCloud a = test::make_room(o, 8.0);
+  o.seed = seed + 1;
+  PointCloud b = test::make_terrain(o, 8.0, 0.4);
+  a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
+  a.colors.insert(a.colors.end(), b.colors.begin(), b.colors.end());
+  a.intensities.insert(a.intensities.end(), b.intensities.begin(), b.intensities.end());
+  return a;
+}
+
+PointCloud shuffled(const PointCloud& in, std::uint64_t seed) {
+  std::vector<std::size_t> perm(in.size());
+  for (std::size_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  test::Rng rng(seed);
+  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+  PointCloud out;
+  for (std::size_t i : perm) {
+    out.positions.push_back(in.positions[i]);
+    out.colors.push_back(in.colors[i]);
+    out.intensities.push_back(in.intensities[i]);
+  }
+  return out;
+}
+
+PointCloud decode_all(const std::string& path) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  PointCloud all;
+  for (const ChunkRef& ref : *refs) {
+    auto row = (*archive)->read_chunk(ref.id);
+    REQUIRE(row.is_ok());
+    auto pc = decode_chunk(row->blob);
+    REQUIRE(pc.is_ok());
+    all.positions.insert(all.positions.end(), pc->positions.begin(), pc->positions.end());
+    all.colors.insert(all.colors.end(), pc->colors.begin(), pc->colors.end());
+    all.intensities.insert(all.intensities.end(), pc->intensities.begin(), pc->intensities.end());
+  }
+  return all;
+}
+
+// Every blob of an archive, keyed by voxel and content (seq may differ).
+std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> blobs(
+    const std::string& path) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> out;
+  for (const ChunkRef& ref : *refs) {
+    auto row = (*archive)->read_chunk(ref.id);
+    REQUIRE(row.is_ok());
+    out.emplace(std::make_tuple(ref.key.ix, ref.key.iy, ref.key.iz), row->blob);
+  }
+  // Sort the blobs of one voxel by content, so split parts compare as sets.
+  std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> sorted;
+  for (auto it = out.begin(); it != out.end();) {
+    auto range = out.equal_range(it->first);
+    std::vector<std::vector<std::uint8_t>> v;
+    for (auto j = range.first; j != range.second; ++j) v.push_back(j->second);
+    std::sort(v.begin(), v.end());
+    for (auto& b : v) sorted.emplace(it->first, std::move(b));
+    it = range.second;
+  }
+  return sorted;
+}
+
+}  // namespace
+
+TEST_CASE("bounded compress: every point back within the tolerance, attributes exact", "[ingest][bounded]") {
+  TempDir dir;
+  const PointCloud in = scene(3, 60000);
+  REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
+  IngestOptions o;
+  o.tolerance = 0.002;
+  o.threads = 2;
+  auto r = compress_files({dir.file("in.ply")}, dir.file("a.relief"), o);
+  REQUIRE(r.is_ok());
+  CHECK(r->points_read == in.size());
+  CHECK(r->points_decoded == in.size());
+  const PointCloud out = decode_all(dir.file("a.relief"));
+  REQUIRE(out.size() == in.size());
+  // Snap the input the way the codec does and compare the multisets exactly.
+  using Rec = std::tuple<double, double, double, int, int, int, float>;
+  std::vector<Rec> want, got;
+  double worst = 0;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Vec3d& p = in.positions[i];
+    const auto snap = [](double v) { return static_cast<double>(std::llround(v / 0.004)) * 0.004; };
+    const Vec3d q{snap(p.x), snap(p.y), snap(p.z)};
+    worst = std::max({worst, std::fabs(q.x - p.x), std::fabs(q.y - p.y), std::fabs(q.z - p.z)});
+    want.emplace_back(q.x, q.y, q.z, in.colors[i].r, in.colors[i].g, in.colors[i].b, in.intensities[i]);
+  }
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const Vec3d& p = out.positions[i];
+    got.emplace_back(p.x, p.y, p.z, out.colors[i].r, out.colors[i].g, out.colors[i].b, out.intensities[i]);
+  }
+  std::sort(want.begin(), want.end());
+  std::sort(got.begin(), got.end());
+  CHECK(worst <= 0.002 * (1 + 1e-9));
+  CHECK(want == got);
+}
+
+TEST_CASE("bounded compress: the same blobs whatever --memory, --threads and point order", "[ingest][bounded]") {
+  TempDir dir;
+  const PointCloud in = scene(8, 120000);
+  REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
+  // The shuffled copy as XYZ text: no point count in a header, so the ingest
+  // takes the external sort (bucket files) whatever the budget.
+  {
+    WriterOptions w;
+    w.colors = true;
+    w.intensity = true;
+    auto writer = open_point_writer(dir.file("shuffled.xyz"), w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(shuffled(in, 77)).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  }
+  IngestOptions o;
+  o.threads = 1;
+  o.split_points = 20000;  // some chunks split into octants
+  auto a = compress_files({dir.file("in.ply")}, dir.file("a.relief"), o);
+  REQUIRE(a.is_ok());
+  IngestOptions small = o;
+  small.threads = 2;
+  small.memory_budget = 64u << 20;
+  small.reader.xyz_columns = "x,y,z,r,g,b,i";
+  auto b = compress_files({dir.file("shuffled.xyz")}, dir.file("b.relief"), small);
+  REQUIRE(b.is_ok());
+  CHECK(a->cell_size == b->cell_size);
+  CHECK(a->chunk_edge == b->chunk_edge);
+  const auto ba = blobs(dir.file("a.relief"));
+  const auto bb = blobs(dir.file("b.relief"));
+  CHECK(ba.size() > 8);
+  CHECK(ba == bb);
+  // Parts of split chunks are each below the split size.
+  auto archive = Archive::open(dir.file("a.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  for (const ChunkRef& ref : *refs) CHECK(ref.input_points <= 20000);
+}
+
+TEST_CASE("bounded compress: LAS input comes back as the same LAS integers", "[ingest][bounded]") {
+  TempDir dir;
+  test::Rng rng(5);
+  PointCloud in;
+  const Vec3d offset{431000.0, 5200000.0, 10.0};
+  for (int i = 0; i < 40000; ++i) {
+    const double X = std::floor(rng.uniform(0, 30000)), Y = std::floor(rng.uniform(0, 30000)),
+                 Z = std::floor(rng.uniform(0, 500));
+    in.positions.push_back({X * 0.01 + offset.x, Y * 0.01 + offset.y, Z * 0.01 + offset.z});
+    in.intensities.push_back(static_cast<float>(rng.next() % 65536));
+  }
+  WriterOptions w;
+  w.intensity = true;
+  w.grid_scale = Vec3d{0.01, 0.01, 0.01};
+  w.grid_offset = offset;
+  {
+    auto writer = open_point_writer(dir.file("in.las"), w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(in).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  }
+  IngestOptions o;  // automatic tolerance: half the LAS scale
+  auto r = compress_files({dir.file("in.las")}, dir.file("a.relief"), o);
+  REQUIRE(r.is_ok());
+  auto archive = Archive::open(dir.file("a.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  REQUIRE(info.is_ok());
+  auto params = encode_params_from_string(info->codec_params);
+  REQUIRE(params.is_ok());
+  REQUIRE(params->bound.has_value());
+  CHECK(params->bound->step.x == 0.01);
+  CHECK(params->bound->origin.x == offset.x);
+  const PointCloud out = decode_all(dir.file("a.relief"));
+  REQUIRE(out.size() == in.size());
+  const auto ints = [&](const PointCloud& c) {
+    std::vector<std::array<long long, 4>> v;
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      const Vec3d& p = c.positions[i];
+      v.push_back({std::llround((p.x - offset.x) / 0.01), std::llround((p.y - offset.y) / 0.01),
+                   std::llround((p.z - offset.z) / 0.01), static_cast<long long>(c.intensities[i])});
+    }
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  CHECK(ints(out) == ints(in));
+  // And through a LAS writer with the archive's grid, the file's integers.
+  WriterOptions back = w;
+  back.grid_scale = params->bound->step;
+  back.grid_offset = params->bound->origin;
+  auto writer = open_point_writer(dir.file("out.las"), back);
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(out).is_ok());
+  REQUIRE((*writer)->finish().is_ok());
+  auto reread = read_point_file(dir.file("out.las"));
+  REQUIRE(reread.is_ok());
+  CHECK(ints(*reread) == ints(in));
+}
