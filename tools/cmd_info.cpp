@@ -126,6 +126,15 @@ int run_info(int argc, char** argv) {
   }
   std::printf("grid            origin (%.6g, %.6g, %.6g), chunk edge %.6g\n", i.grid.origin.x, i.grid.origin.y,
               i.grid.origin.z, i.grid.chunk_edge);
+  if (auto params = encode_params_from_string(i.codec_params); params && params->bound) {
+    const ErrorBound& b = *params->bound;
+    std::printf("mode            bounded: every point within %.6g, %.6g, %.6g (x, y, z; grid step %.6g, %.6g, %.6g), "
+                "colour %s\n",
+                b.step.x / 2, b.step.y / 2, b.step.z / 2, b.step.x, b.step.y, b.step.z,
+                b.color_tolerance == 0 ? "exact" : ("within " + std::to_string(b.color_tolerance)).c_str());
+  } else {
+    std::printf("mode            resample: one point per occupied map pixel\n");
+  }
   std::printf("codec           %s\n", i.codec_params.c_str());
   std::printf("size on disk    %s (%.3f bits/point; blobs %s = %.3f bits/point)\n", format_bytes(i.file_bytes).c_str(),
               bpp, format_bytes(i.blob_bytes).c_str(), blob_bpp);

@@ -1,5 +1,7 @@
 #include "query_output.h"
 
+#include "relief/codec.h"
+
 #include <cstdio>
 #include <iostream>
 
@@ -26,6 +28,12 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   w.intensity = info.has_intensity;
   w.crs = info.crs;
   w.expected_bounds = info.bounds;
+  // An error-bounded archive's points lie on its grid: LAS output uses that
+  // grid as scale and offset, so a LAS source's integers come back as they were.
+  if (auto params = encode_params_from_string(info.codec_params); params && params->bound) {
+    w.grid_scale = params->bound->step;
+    w.grid_offset = params->bound->origin;
+  }
   if (box != nullptr && !info.bounds.empty()) {
     // The written data lies in the box and in the archive.
     Box3d b = info.bounds;

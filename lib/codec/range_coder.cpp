@@ -47,7 +47,7 @@ std::vector<std::uint8_t> RangeEncoder::finish() {
 
 RangeDecoder::RangeDecoder(std::span<const std::uint8_t> data)
     : data_(data), max_decisions_(kMaxDecisionsPerByte * (data.size() + kSlackBytes)) {
-  for (int i = 0; i < 4; ++i) code_ = (code_ << 8) | (pos_ < data_.size() ? data_[pos_++] : 0);
+  for (int i = 0; i < 4; ++i) code_ = (code_ << 8) | next_byte();
 }
 
 void encode_uint(RangeEncoder& enc, UIntModel& m, std::uint64_t v) {

@@ -1,4 +1,4 @@
-// Golden vectors for chunk format version 1 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 and 2 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -21,6 +21,7 @@ struct Vector {
   const char* name;
   EncodeParams params;
   PointCloud (*make)();
+  int version;
 };
 
 PointCloud voxel_scene() {
@@ -49,8 +50,23 @@ std::vector<Vector> vectors() {
   octree.image_codec = ImageCodec::kJpeg2000;
   octree.height_bits = 16;
   octree.height_quality = 80;
-  return {{"voxel_jpeg_rgb_intensity_v1", voxel, voxel_scene},
-          {"octree_j2k16_v1", octree, octree_scene}};
+  // Format 2: the error-bounded layer over a base layer.
+  EncodeParams bounded = voxel;
+  bounded.cell_size = 2.0;
+  bounded.bound = ErrorBound{};
+  bounded.bound->step = {0.01, 0.01, 0.005};
+  bounded.bound->origin = {0.003, -0.002, 0.0};
+  EncodeParams bounded_lossy = bounded;
+  bounded_lossy.bound->color_tolerance = 6;
+  EncodeParams bounded_geometry = octree;
+  bounded_geometry.cell_size = 0.75;
+  bounded_geometry.bound = ErrorBound{};
+  bounded_geometry.bound->step = {0.002, 0.002, 0.002};
+  return {{"voxel_jpeg_rgb_intensity_v1", voxel, voxel_scene, 1},
+          {"octree_j2k16_v1", octree, octree_scene, 1},
+          {"bounded_rgb_intensity_v2", bounded, voxel_scene, 2},
+          {"bounded_rgb_tolerance6_v2", bounded_lossy, voxel_scene, 2},
+          {"bounded_geometry_octree_v2", bounded_geometry, octree_scene, 2}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -64,7 +80,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format version 1 decode and re-encode identically", "[golden]") {
+TEST_CASE("golden chunk blobs of format versions 1 and 2 decode and re-encode identically", "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
     INFO(v.name);
@@ -84,7 +100,7 @@ TEST_CASE("golden chunk blobs of format version 1 decode and re-encode identical
     REQUIRE(!golden.empty());
     auto info = inspect_chunk(golden);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == 1);
+    CHECK(info->format_version == v.version);
     // Encoder stability: the same input and parameters give the same bytes.
     CHECK(*blob == golden);
     // Decoder stability: the golden blob means the same points as when it was made.
@@ -102,5 +118,6 @@ TEST_CASE("golden chunk blobs of format version 1 decode and re-encode identical
     }
     CHECK(worst < 1e-9);
     if (decoded->has_colors()) CHECK(decoded->colors == expected->colors);
+    if (decoded->has_intensity()) CHECK(decoded->intensities == expected->intensities);
   }
 }
