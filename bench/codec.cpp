@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "bench_common.h"
+#include "bounded.h"
 #include "external_codec.h"
 #include "relief/codec.h"
 #include "relief/io.h"
@@ -57,6 +58,7 @@ struct Options {
   bool draco = true;
   bool keep_intensity = false;
   std::string csv_path;
+  std::string mode = "bounded";
 };
 
 struct ReliefConfig {
@@ -82,6 +84,10 @@ const char* const kUsage =
     "  --no-draco        do not run Draco (the summary then uses the anchors' Draco rows)\n"
     "  --keep-intensity  also code the intensity attribute (default: dropped, as for the peers)\n"
     "  --csv PATH        also write everything printed on stdout to PATH\n"
+    "  --mode M          bounded (default): the error-bounded mode's tolerance sweep through real\n"
+    "                    archives, with Bjontegaard rate differences against G-PCC, LAZ and Draco;\n"
+    "                    resample: the resampling codec's configuration grid (one chunk per file);\n"
+    "                    both\n"
     "  --help            this text\n";
 
 // Returns nullopt after printing an error for a bad command line.
@@ -111,9 +117,16 @@ std::optional<Options> parse_options(int argc, char** argv, bool& help) {
     } else if (arg == "--keep-intensity") {
       o.keep_intensity = true;
     } else if (arg == "--data" || arg == "--anchors" || arg == "--files" || arg == "--csv" ||
-               arg == "--repeat") {
+               arg == "--repeat" || arg == "--mode") {
       const auto v = value();
       if (!v) return std::nullopt;
+      if (arg == "--mode") {
+        if (*v != "bounded" && *v != "resample" && *v != "both") {
+          std::fprintf(stderr, "codec: --mode wants bounded, resample or both, got '%s'\n", v->c_str());
+          return std::nullopt;
+        }
+        o.mode = *v;
+      }
       if (arg == "--data") o.data_dir = *v;
       if (arg == "--anchors") o.anchors_dir = *v;
       if (arg == "--csv") o.csv_path = *v;
@@ -477,6 +490,15 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (opt.mode != "resample") {
+    BoundedBenchOptions b;
+    b.repeat = opt.repeat;
+    run_bounded_bench(out, files, anchors_dir, b);
+    if (opt.mode == "bounded") {
+      out.linef("# total runtime %.1f s", seconds_between(start, BenchClock::now()));
+      return 0;
+    }
+  }
   const std::vector<ReliefConfig> grid = relief_grid(opt.quick);
   note("bench/codec: %zu file(s), %zu relief configurations each, %s, repeat %d", files.size(), grid.size(),
        draco ? "draco on" : "draco off", opt.repeat);
