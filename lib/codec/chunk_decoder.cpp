@@ -231,9 +231,12 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
     return limit_exceeded("chunk blob: " + std::to_string(n) + " points exceed the decoder limit of " +
                           std::to_string(options.max_points));
   }
-  // A coarse level the base layer can supply is read from it alone.
+  // A coarse level the base layer can supply (at least half the points it
+  // wants) is read from the base layer alone.
   const std::uint64_t want = (n + options.lod - 1) / options.lod;
-  if (options.lod > 1 && h.decoded_points >= want && want > 0) return decode_maps(parsed, want, h.decoded_points, options);
+  if (options.lod > 1 && want > 0 && 2 * static_cast<std::uint64_t>(h.decoded_points) >= want) {
+    return decode_maps(parsed, std::min<std::uint64_t>(want, h.decoded_points), h.decoded_points, options);
+  }
   RELIEF_ASSIGN_OR_RETURN(PointCloud all, codec::decode_bounded_points(parsed));
   if (options.lod == 1) return all;
   // Every lod-th point in the layer's Morton order: spread over the chunk.
