@@ -266,7 +266,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return format_error(names + ": " + std::to_string(points_read) + " points read where the headers declare " +
                           std::to_string(total));
     }
-    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, {in.colors, in.intensity, in.crs}));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, part_points, grouping), tick));
@@ -284,7 +284,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
         read_all(key_batch, [&](ReadBatch& b) -> Status { return files.append(b.points, b.keys.data()); }));
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
-    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, {in.colors, in.intensity, in.crs}));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     // The next slice loads while the workers encode the current one; each

@@ -182,7 +182,7 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   ArchiveSource src;
   src.path = "-";
   src.format = "stream";
-  RELIEF_ASSIGN_OR_RETURN(std::int64_t scan_id, archive->begin_scan({src}));
+  RELIEF_ASSIGN_OR_RETURN(std::int64_t scan_id, archive->begin_scan({src}, {has_colors, has_intensity, ""}));
   return std::unique_ptr<StreamIngest>(
       new StreamIngestImpl(std::move(archive), grid, params, options, scan_id, has_colors, has_intensity));
 }

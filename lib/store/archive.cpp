@@ -202,7 +202,7 @@ SqlText sql_text(Sql id) {
     case Sql::kScanInsert:
       return {"insert scan",
               "INSERT INTO relief_scan(created_at, complete, has_rgb, has_intensity, crs) "
-              "VALUES(?1, 0, 0, 0, '')"};
+              "VALUES(?1, 0, ?2, ?3, ?4)"};
     case Sql::kScanExists:
       return {"find scan", "SELECT 1 FROM relief_scan WHERE id = ?1"};
     case Sql::kScanFinish:
@@ -212,10 +212,10 @@ SqlText sql_text(Sql id) {
     case Sql::kScanSummary:
       return {"summarise scans",
               "SELECT COALESCE(MAX(has_rgb), 0), COALESCE(MAX(has_intensity), 0) "
-              "FROM relief_scan WHERE complete = 1"};
+              "FROM relief_scan"};
     case Sql::kScanFirstCrs:
       return {"summarise scans",
-              "SELECT crs FROM relief_scan WHERE complete = 1 AND crs <> '' ORDER BY id LIMIT 1"};
+              "SELECT crs FROM relief_scan WHERE crs <> '' ORDER BY id LIMIT 1"};
     case Sql::kScanDelete:
       return {"delete scan", "DELETE FROM relief_scan WHERE id = ?1"};
     case Sql::kSourceInsert:
@@ -535,7 +535,8 @@ class SqliteArchive final : public Archive {
 
   const std::string& path() const override { return path_; }
   Result<ArchiveInfo> info() const override;
-  Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources) override;
+  Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources,
+                                  const ScanAttributes& attributes) override;
   Status put_chunks(std::vector<ChunkRow>& rows) override;
   Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
                      const std::string& crs) override;
@@ -663,9 +664,10 @@ Result<bool> SqliteArchive::scan_exists(std::int64_t scan_id) {
   return statement->step();
 }
 
-// relief_meta's crs and attributes summarise the complete scans; they are
-// rewritten in the same transaction as every change of relief_scan, so a
-// killed process cannot leave them stale.
+// relief_meta's crs and attributes summarise every scan, complete or not (a
+// scan records its attributes when it begins, so the chunks of a killed run
+// decode like the others); they are rewritten in the same transaction as
+// every change of relief_scan, so a killed process cannot leave them stale.
 Status SqliteArchive::refresh_scan_summary() {
   std::string attributes;
   {
@@ -689,7 +691,8 @@ Status SqliteArchive::refresh_scan_summary() {
   return put_meta(store::kMetaCrs, crs);
 }
 
-Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>& sources) {
+Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>& sources,
+                                               const ScanAttributes& attributes) {
   RELIEF_RETURN_IF_ERROR(require_writable("begin_scan"));
   for (const ArchiveSource& source : sources) {
     if (source.point_count > kMaxStoredCount) {
@@ -704,6 +707,9 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanInsert));
     StatementScope scope(*statement);
     statement->bind_text(1, created_at);
+    statement->bind_int64(2, attributes.has_colors ? 1 : 0);
+    statement->bind_int64(3, attributes.has_intensity ? 1 : 0);
+    statement->bind_text(4, attributes.crs);
     RELIEF_RETURN_IF_ERROR(statement->run());
   }
   const std::int64_t scan_id = sqlite3_last_insert_rowid(db());
@@ -717,6 +723,7 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
     insert->bind_text(5, source.crs);
     RELIEF_RETURN_IF_ERROR(insert->run());
   }
+  RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
   RELIEF_RETURN_IF_ERROR(transaction.commit());
   return scan_id;
 }

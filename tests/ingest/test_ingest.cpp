@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -356,44 +357,84 @@ TEST_CASE("a memory budget far below the input size bounds peak RSS", "[ingest][
   CHECK((*archive)->info()->input_points == 3000000);
 }
 
-TEST_CASE("an ingest killed with SIGKILL leaves an archive that opens and reads", "[ingest][crash]") {
-  TempDir tmp;
-  {
-    PointCloud big = scene(11, 2000000);
-    REQUIRE(write_ply(tmp.file("big.ply"), big).is_ok());
-  }
-  const std::string out = tmp.file("k.relief");
+// Runs `relief compress` in a child that kills itself (SIGKILL) right after
+// its `commits`-th committed batch (the RELIEF_TEST_KILL_AFTER_COMMITS hook):
+// the kill lands at a known point, whatever the machine's speed.
+static void compress_killed_after(const std::string& in, const std::string& out, int commits) {
   const pid_t pid = ::fork();
   REQUIRE(pid >= 0);
   if (pid == 0) {
     const std::string c = cli();
-    const std::string in = tmp.file("big.ply");
+    ::setenv("RELIEF_TEST_KILL_AFTER_COMMITS", std::to_string(commits).c_str(), 1);
     ::execl(c.c_str(), c.c_str(), "compress", in.c_str(), "-o", out.c_str(), "--cell", "0.05", "--chunk-edge",
             "0.8", "--threads", "1", "--quiet", static_cast<char*>(nullptr));
     ::_exit(127);
   }
-  // Wait until some chunks are committed, then kill without warning.
-  bool some = false;
-  for (int i = 0; i < 600 && !some; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    if (!fs::exists(out)) continue;
-    auto a = Archive::open(out, Archive::Mode::kReadOnly);
-    if (a.is_ok()) {
-      auto info = (*a)->info();
-      some = info.is_ok() && info->chunk_count > 0;
-    }
-  }
-  ::kill(pid, SIGKILL);
   int status = 0;
   ::waitpid(pid, &status, 0);
-  REQUIRE(some);
+  INFO("exit status " << status);
+  REQUIRE(WIFSIGNALED(status));
+  REQUIRE(WTERMSIG(status) == SIGKILL);
+}
+
+// Points of a PLY file the CLI wrote.
+static std::size_t ply_points(const std::string& path) {
+  auto cloud = read_ply(path);
+  INFO(cloud.status().to_string());
+  REQUIRE(cloud.is_ok());
+  return cloud->size();
+}
+
+TEST_CASE("an ingest killed with SIGKILL leaves an archive that opens and reads", "[ingest][crash]") {
+  TempDir tmp;
+  // ~200 chunks of 0.8 m: the first batch commits after 64 of them, long
+  // before the end.
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(11, 300000)).is_ok());
+  const std::string out = tmp.file("k.relief");
+  compress_killed_after(tmp.file("in.ply"), out, 1);
+
   auto archive = Archive::open(out, Archive::Mode::kReadOnly);
   REQUIRE(archive.is_ok());
   auto info = (*archive)->info();
   REQUIRE(info.is_ok());
-  CHECK(info->chunk_count > 0);
+  CHECK(info->chunk_count == 64);  // exactly the first batch
+  REQUIRE(info->scans.size() == 1);
+  CHECK_FALSE(info->scans[0].complete);
+  // The scan recorded its attributes when it began.
+  CHECK(info->has_colors);
+  CHECK(info->has_intensity);
   const PointCloud got = decode_all(out);
-  CHECK(got.size() > 0);
+  CHECK(got.size() == info->decoded_points);
+}
+
+TEST_CASE("decompress and query of a killed ingest's archive return every committed point", "[ingest][crash][cli]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(13, 300000)).is_ok());
+  const std::string out = tmp.file("k.relief");
+  compress_killed_after(tmp.file("in.ply"), out, 2);
+  std::uint64_t committed = 0;
+  {
+    auto archive = Archive::open(out, Archive::Mode::kReadOnly);
+    REQUIRE(archive.is_ok());
+    auto info = (*archive)->info();
+    REQUIRE(info.is_ok());
+    CHECK(info->chunk_count == 128);
+    committed = info->decoded_points;
+  }
+  REQUIRE(committed > 0);
+  const auto run = [&](const std::string& args) {
+    const std::string cmd = cli() + " " + args + " --quiet";
+    const int status = std::system(cmd.c_str());
+    INFO(cmd);
+    REQUIRE(WIFEXITED(status));
+    return WEXITSTATUS(status);
+  };
+  CHECK(run("decompress " + out + " -o " + tmp.file("all.ply")) == 0);
+  CHECK(ply_points(tmp.file("all.ply")) == committed);
+  CHECK(run("query " + out + " --box -1000,-1000,1000,1000 -o " + tmp.file("box.ply")) == 0);
+  CHECK(ply_points(tmp.file("box.ply")) == committed);
+  CHECK(run("query " + out + " --box -1000,-1000,1000,1000 --skip-corrupt -o " + tmp.file("skip.ply")) == 0);
+  CHECK(ply_points(tmp.file("skip.ply")) == committed);
 }
 
 TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "[ingest][crash]") {

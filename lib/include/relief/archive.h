@@ -44,6 +44,13 @@ struct ArchiveSource {
   std::int64_t scan_id = 0;
 };
 
+// What every point of a scan carries, known when the scan begins.
+struct ScanAttributes {
+  bool has_colors = false;
+  bool has_intensity = false;
+  std::string crs;  // of the scan's sources; empty when none
+};
+
 // A scan is what one compress, append or stream run adds.
 struct ArchiveScan {
   std::int64_t id = 0;
@@ -110,12 +117,15 @@ class Archive {
   virtual Result<ArchiveInfo> info() const = 0;
 
   // ---- Writing (read-write handles only; kInvalidArgument otherwise).
-  // Starts a scan with its sources, committed at once with complete = false.
-  virtual Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources) = 0;
+  // Starts a scan with its sources and attributes, committed at once with
+  // complete = false. The archive's attributes and CRS include the scan's from
+  // here on, so the chunks of a run killed before finish_scan read like any.
+  virtual Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources,
+                                          const ScanAttributes& attributes = {}) = 0;
   // Stores the rows in one transaction: assigns each the next free seq of its
   // voxel key and its id; updates the totals. Either all rows land or none.
   virtual Status put_chunks(std::vector<ChunkRow>& rows) = 0;
-  // Marks the scan complete and records its sources' CRS and attributes.
+  // Marks the scan complete (and records its attributes again, as given).
   virtual Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
                              const std::string& crs) = 0;
   // Removes every chunk and source of the scan in one transaction (a failed append).
