@@ -474,3 +474,45 @@ TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "
   REQUIRE(archive.is_ok());
   CHECK((*archive)->info().is_ok());
 }
+
+TEST_CASE("a failed relief stream leaves no archive, or the archive as before", "[ingest][stream][cli]") {
+  TempDir tmp;
+  // Two good scans of points, then a line that is not a number.
+  {
+    std::ofstream bad(tmp.file("bad.xyz"));
+    const PointCloud a = scene(14, 20000);
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      bad << a.positions[i].x << ' ' << a.positions[i].y << ' ' << a.positions[i].z << '\n';
+      if (i == 9999) bad << '\n';
+    }
+    bad << "1.0 2.0 oops\n";
+  }
+  const auto stream = [&](const std::string& archive) {
+    const std::string cmd = cli() + " stream " + archive + " --cell 0.25 --chunk-edge 2 --immediate --quiet < " +
+                            tmp.file("bad.xyz") + " 2>/dev/null";
+    const int status = std::system(cmd.c_str());
+    REQUIRE(WIFEXITED(status));
+    return WEXITSTATUS(status);
+  };
+  SECTION("a new archive is removed") {
+    CHECK(stream(tmp.file("new.relief")) == 13);
+    CHECK(tmp.entries() == std::vector<std::string>{"bad.xyz"});
+  }
+  SECTION("an existing archive is as before") {
+    PointCloud a = scene(15, 20000);
+    a.colors.clear();  // the stream's x y z lines carry no attributes
+    a.intensities.clear();
+    REQUIRE(write_ply(tmp.file("a.ply"), a).is_ok());
+    IngestOptions o = small_chunks();
+    o.codec.cell_size = 0.25;
+    REQUIRE(compress_files({tmp.file("a.ply")}, tmp.file("x.relief"), o).is_ok());
+    const ArchiveInfo before = (*Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly))->info().value();
+    CHECK(stream(tmp.file("x.relief")) == 13);
+    const ArchiveInfo after = (*Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly))->info().value();
+    CHECK(after.chunk_count == before.chunk_count);
+    CHECK(after.input_points == before.input_points);
+    CHECK(after.blob_bytes == before.blob_bytes);
+    CHECK(after.scans.size() == before.scans.size());
+    CHECK(after.sources.size() == before.sources.size());
+  }
+}
