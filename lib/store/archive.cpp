@@ -459,25 +459,14 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
     statement.reset();
     RELIEF_RETURN_IF_ERROR(transaction.commit());
   }
-  {
-    // WAL is a property of the file: set once here, every later connection
-    // uses it. Readers then never block the appending writer, nor it them.
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> statement,
-                            Statement::prepare(db, "PRAGMA journal_mode = WAL", path, "switch to WAL"));
-    StatementScope scope(*statement);
-    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
-    const std::string mode = row ? statement->column_text(0) : std::string();
-    if (mode != "wal") {
-      return io_error(path + ": cannot switch the archive to WAL journal mode (got '" + mode +
-                      "'); the archive needs a local file system with shared memory");
-    }
-  }
-  // The last connection's close checkpoints the WAL into the file and removes
-  // it; a failed close means the file may be incomplete.
+  // The file stays in rollback-journal mode: an archive at rest is one file
+  // that readers open without creating anything beside it (section 8). A
+  // writer switches to WAL while it writes. A failed close means the file may
+  // be incomplete.
   RELIEF_RETURN_IF_ERROR(store::close_connection(std::move(connection), path));
   std::error_code ec;
-  if (fs::exists(temp + "-wal", ec)) {
-    return internal_error(path + ": creating: SQLite left a write-ahead log beside " + temp);
+  if (fs::exists(temp + "-journal", ec)) {
+    return internal_error(path + ": creating: SQLite left a rollback journal beside " + temp);
   }
   return Status::ok();
 }
@@ -530,6 +519,9 @@ class SqliteArchive final : public Archive {
         mode_(mode),
         format_version_(format_version) {}
 
+  // A writer hands the file back in rollback-journal mode: one file again.
+  ~SqliteArchive() override;
+
   // Checks the schema and grid, then sets up a writer's connection.
   Status initialise();
 
@@ -562,11 +554,23 @@ class SqliteArchive final : public Archive {
   store::Connection connection_;
   Mode mode_;
   int format_version_;
+  bool wal_ = false;  // a writer switched the file to WAL (switched back on close)
   ArchiveGrid grid_;  // fixed at creation, read once on open
   mutable std::array<std::unique_ptr<Statement>, static_cast<std::size_t>(Sql::kCount)> statements_;
   // Atomic so another thread may read it while the owner reads chunks.
   mutable std::atomic<std::uint64_t> blob_bytes_read_{0};
 };
+
+SqliteArchive::~SqliteArchive() {
+  if (mode_ != Mode::kReadWrite || !wal_) return;
+  // Statements first: the journal mode changes only on a connection without
+  // pending statements. The switch checkpoints the WAL into the file and
+  // deletes it (and the -shm). It fails harmlessly while a reader is
+  // connected; the file then stays in WAL mode, valid, until the next writer
+  // closes, and the last connection's close still folds the WAL in.
+  for (std::unique_ptr<Statement>& statement : statements_) statement.reset();
+  sqlite3_exec(db(), "PRAGMA journal_mode = DELETE", nullptr, nullptr, nullptr);
+}
 
 Result<Statement*> SqliteArchive::statement(Sql id) const {
   std::unique_ptr<Statement>& slot = statements_[static_cast<std::size_t>(id)];
@@ -638,8 +642,8 @@ Status SqliteArchive::initialise() {
     return format_error(path_ + ": metadata chunk_edge must be > 0, got " + format_double(grid_.chunk_edge));
   }
   if (mode_ == Mode::kReadWrite) {
-    // A no-op on archives this library made (WAL is persistent); it repairs a
-    // file someone switched back with the sqlite3 shell.
+    // WAL while writing: readers never block the appending writer, nor it
+    // them. The destructor switches the file back to rollback mode.
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> journal,
                             Statement::prepare(db(), "PRAGMA journal_mode = WAL", path_, "switch to WAL"));
     StatementScope scope(*journal);
@@ -649,6 +653,7 @@ Status SqliteArchive::initialise() {
       return io_error(path_ + ": cannot use WAL journal mode (got '" + journal_mode +
                       "'); the archive needs a local file system with shared memory");
     }
+    wal_ = true;
     // NORMAL in WAL mode: a commit survives a crash of the process at once
     // and a power loss from the next checkpoint on; never corrupts the file.
     RELIEF_RETURN_IF_ERROR(store::exec(db(), "PRAGMA synchronous = NORMAL; PRAGMA foreign_keys = ON", path_,
@@ -1093,8 +1098,24 @@ Result<std::unique_ptr<Archive>> Archive::open(const std::string& path, Mode mod
   const int flags = mode == Mode::kReadOnly ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
   RELIEF_ASSIGN_OR_RETURN(store::Connection connection,
                           store::open_connection(path, flags, path, "cannot open"));
-  RELIEF_ASSIGN_OR_RETURN(const int version, identify(connection.get(), path));
-  auto archive = std::make_unique<SqliteArchive>(path, std::move(connection), mode, version);
+  Result<int> version = identify(connection.get(), path);
+  if (!version && version.status().code() == StatusCode::kIoError && mode == Mode::kReadOnly) {
+    // A file left in WAL mode (a writer is running, or was killed) needs a
+    // -shm file beside it; on read-only media SQLite cannot create one.
+    // Immutable mode reads the file alone, which is all there is to read
+    // there: nothing can be writing to read-only media.
+    Result<store::Connection> immutable = store::open_connection(
+        store::immutable_uri(path), SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, path, "cannot open");
+    if (immutable) {
+      Result<int> retry = identify(immutable->get(), path);
+      if (retry) {
+        connection = std::move(immutable).value();
+        version = retry;
+      }
+    }
+  }
+  if (!version) return version.status();
+  auto archive = std::make_unique<SqliteArchive>(path, std::move(connection), mode, *version);
   RELIEF_RETURN_IF_ERROR(archive->initialise());
   return std::unique_ptr<Archive>(std::move(archive));
 }

@@ -516,3 +516,24 @@ TEST_CASE("a failed relief stream leaves no archive, or the archive as before", 
     CHECK(after.sources.size() == before.sources.size());
   }
 }
+
+TEST_CASE("a finished archive is one file, and read-only commands add none", "[ingest][cli][readonly]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(16, 20000)).is_ok());
+  const std::string out = tmp.file("x.relief");
+  const auto run = [&](const std::string& args) {
+    const std::string cmd = cli() + " " + args + " > /dev/null 2>&1";
+    const int status = std::system(cmd.c_str());
+    REQUIRE(WIFEXITED(status));
+    return WEXITSTATUS(status);
+  };
+  REQUIRE(run("compress " + tmp.file("in.ply") + " -o " + out + " --cell 0.25 --chunk-edge 2 --quiet") == 0);
+  const std::vector<std::string> expected = {"in.ply", "x.relief"};
+  CHECK(tmp.entries() == expected);
+  CHECK(run("info " + out) == 0);
+  CHECK(tmp.entries() == expected);
+  CHECK(run("query " + out + " --box -100,-100,100,100 -o -") == 0);
+  CHECK(tmp.entries() == expected);
+  CHECK(run("decompress " + out + " -o -") == 0);
+  CHECK(tmp.entries() == expected);
+}

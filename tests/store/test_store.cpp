@@ -1,6 +1,7 @@
 // Tests of the SQLite archive (lib/store, format-spec/archive.md). Raw SQLite
 // is used on purpose to fake, damage and inspect archives behind the store's back.
 #include <sqlite3.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <memory>
@@ -289,7 +291,7 @@ TEST_CASE("create then open round-trips the metadata", "[store]") {
     RawDb raw(path);
     CHECK(raw.integer("PRAGMA application_id") == 0x524C4946);
     CHECK(raw.integer("PRAGMA user_version") == 1);
-    CHECK(raw.text("PRAGMA journal_mode") == "wal");
+    CHECK(raw.text("PRAGMA journal_mode") == "delete");
     CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'grid_origin_y'") == "10000000.3");
     CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'chunk_edge'") == "0.7");
     CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "1");
@@ -920,6 +922,95 @@ TEST_CASE("a read-only handle sees whole transactions while a writer appends", "
   CHECK(reader_error.empty());
   CHECK(consistent);
   CHECK(info_ok(*reader).chunk_count == kBatches * kRowsPerBatch);
+}
+
+}  // namespace
+}  // namespace relief
+
+// ---- One file at rest; readers create nothing
+
+namespace relief {
+namespace {
+
+// Runs `body` in a child process that, when this test runs as root (as CI
+// does), first drops to the unprivileged user 65534, so file permission bits
+// apply to it. Returns the child's exit code (0 = body returned true).
+int run_unprivileged(const std::function<bool()>& body) {
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    if (::geteuid() == 0 && (::setgid(65534) != 0 || ::setuid(65534) != 0)) ::_exit(3);
+    ::_exit(body() ? 0 : 1);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Opens read-only and reads everything there is; true when all of it worked.
+bool reads_fully(const std::string& path, std::size_t chunks) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  if (!archive) return false;
+  auto info = (*archive)->info();
+  auto refs = (*archive)->find_chunks(cube(-1e9, 1e9));
+  if (!info || !refs || info->chunk_count != chunks || refs->size() != chunks) return false;
+  for (const ChunkRef& ref : *refs) {
+    if (!(*archive)->read_chunk(ref.id)) return false;
+  }
+  return true;
+}
+
+TEST_CASE("a closed archive is one file in rollback mode; readers create no file beside it", "[store][readonly]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  {
+    auto writer = create_ok(path);
+    const std::int64_t scan = begin_ok(*writer);
+    std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 3000, 1),
+                                  make_row({1, 0, 0}, scan, cube(26, 27), 5, 3000, 2)};
+    put_ok(*writer, rows);
+    // While it writes, the archive is in WAL mode: readers do not block it.
+    CHECK(fs::exists(path + "-wal"));
+    CHECK(reads_fully(path, 2));
+    REQUIRE(writer->finish_scan(scan, false, false, "").is_ok());
+  }
+  CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+  CHECK(RawDb(path).text("PRAGMA journal_mode") == "delete");
+  CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+  CHECK(reads_fully(path, 2));
+  CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+}
+
+TEST_CASE("an archive on read-only media answers queries", "[store][readonly]") {
+  TempDir dir;
+  fs::create_directories(dir.file("media"));
+  const std::string path = dir.file("media/a.relief");
+  {
+    auto writer = create_ok(path);
+    const std::int64_t scan = begin_ok(*writer);
+    std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 3000, 1)};
+    put_ok(*writer, rows);
+  }
+  SECTION("a closed archive") {}
+  SECTION("an archive left in WAL mode (its writer was killed after a checkpoint)") {
+    RawDb(path).exec("PRAGMA journal_mode = WAL");
+    REQUIRE(fs::exists(path));
+    REQUIRE_FALSE(fs::exists(path + "-wal"));
+  }
+  fs::permissions(path, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  fs::permissions(dir.file("media"), fs::perms::owner_read | fs::perms::owner_exec | fs::perms::group_read |
+                                         fs::perms::group_exec | fs::perms::others_read | fs::perms::others_exec);
+  // The parent must let the unprivileged user reach the directory.
+  fs::permissions(dir.path(), fs::perms::others_exec | fs::perms::others_read, fs::perm_options::add);
+  const int code = run_unprivileged([&] {
+    // Proof that the media is read-only for this process, then the reads.
+    const bool writable = ::access(dir.file("media").c_str(), W_OK) == 0;
+    return !writable && reads_fully(path, 1);
+  });
+  CHECK(code == 0);
+  CHECK(dir.entries() == std::vector<std::string>{"media"});
+  CHECK(TempDir::list(dir.file("media")) == std::vector<std::string>{"a.relief"});
+  fs::permissions(dir.file("media"), fs::perms::owner_all);
 }
 
 }  // namespace
