@@ -5,11 +5,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 #include <thread>
 
@@ -536,4 +538,74 @@ TEST_CASE("a finished archive is one file, and read-only commands add none", "[i
   CHECK(tmp.entries() == expected);
   CHECK(run("decompress " + out + " -o -") == 0);
   CHECK(tmp.entries() == expected);
+}
+
+// Flips one byte in every place of the file where `needle` occurs (a freed
+// page can still hold an old copy).
+static void flip_in_file(const std::string& path, const std::vector<std::uint8_t>& needle, std::size_t at) {
+  std::vector<std::uint8_t> bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  int hits = 0;
+  for (auto hit = std::search(bytes.begin(), bytes.end(), needle.begin(), needle.end()); hit != bytes.end();
+       hit = std::search(hit + 1, bytes.end(), needle.begin(), needle.end())) {
+    hit[static_cast<std::ptrdiff_t>(at)] ^= 0x20;
+    ++hits;
+  }
+  REQUIRE(hits > 0);
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+TEST_CASE("relief check passes an intact archive and lists damage with exit 14", "[ingest][cli][check]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(17, 20000)).is_ok());
+  const std::string out = tmp.file("x.relief");
+  REQUIRE(compress_files({tmp.file("in.ply")}, out, small_chunks()).is_ok());
+  const auto run = [&](const std::string& args, std::string* output = nullptr) {
+    const std::string cmd = cli() + " " + args + " > " + tmp.file("out.txt") + " 2>&1";
+    const int status = std::system(cmd.c_str());
+    REQUIRE(WIFEXITED(status));
+    std::ifstream in(tmp.file("out.txt"));
+    const std::string text((std::istreambuf_iterator<char>(in)), {});
+    if (output != nullptr) *output = text;
+    INFO(text);
+    return WEXITSTATUS(status);
+  };
+  std::string text;
+  CHECK(run("check " + out, &text) == 0);
+  CHECK_THAT(text, Catch::Contains("result    intact"));
+  CHECK_THAT(text, Catch::Contains("chunk blobs against their CRC-32"));
+
+  SECTION("a flipped byte in a blob") {
+    std::int64_t id = 0;
+    std::vector<std::uint8_t> needle;
+    {
+      auto archive = Archive::open(out, Archive::Mode::kReadOnly);
+      REQUIRE(archive.is_ok());
+      auto refs = (*archive)->all_chunks();
+      REQUIRE(refs.is_ok());
+      id = refs->front().id;
+      auto row = (*archive)->read_chunk(id);
+      REQUIRE(row.is_ok());
+      needle.assign(row->blob.begin() + 40, row->blob.begin() + 72);
+    }
+    flip_in_file(out, needle, 10);
+    CHECK(run("check " + out, &text) == 14);
+    CHECK_THAT(text, Catch::Contains("DAMAGED"));
+    CHECK_THAT(text, Catch::Contains("(id " + std::to_string(id) + "): checksum mismatch"));
+    CHECK(run("decompress " + out + " -o " + tmp.file("all.ply"), &text) == 14);
+    CHECK_THAT(text, Catch::Contains("(id " + std::to_string(id) + ")"));
+  }
+  SECTION("a flipped byte in the metadata") {
+    const std::string codec = (*Archive::open(out, Archive::Mode::kReadOnly))->info()->codec_params;
+    REQUIRE(codec.size() > 8);
+    flip_in_file(out, std::vector<std::uint8_t>(codec.begin(), codec.end()), 3);
+    CHECK(run("info " + out, &text) == 14);
+    CHECK_THAT(text, Catch::Contains(out + ": metadata checksum mismatch"));
+    CHECK(run("check " + out, &text) == 14);
+    CHECK_THAT(text, Catch::Contains("DAMAGED   " + out + ": metadata checksum mismatch"));
+  }
 }

@@ -15,8 +15,10 @@ namespace relief {
 
 // PRAGMA application_id: "RLIF" big-endian.
 inline constexpr std::int32_t kArchiveApplicationId = 0x524C4946;
-// PRAGMA user_version: the archive format version this build writes and reads.
-inline constexpr int kArchiveFormatVersion = 1;
+// PRAGMA user_version: the archive format version this build writes. It reads
+// every version from 1 on; version 1 lacks the metadata checksum and the
+// bounds index (format-spec/archive.md, version log).
+inline constexpr int kArchiveFormatVersion = 2;
 
 struct ChunkKey {
   std::int64_t ix = 0, iy = 0, iz = 0;
@@ -142,5 +144,21 @@ class Archive {
   // Blob bytes read by read_chunk so far (for tests and benchmarks).
   virtual std::uint64_t blob_bytes_read() const = 0;
 };
+
+// What `check_archive` looked at and what it found damaged.
+struct ArchiveCheck {
+  int format_version = 0;
+  std::vector<std::string> checked;   // one line per check made
+  std::vector<std::string> problems;  // one line per damage found; empty = intact
+};
+
+// Checks a whole archive without trusting any part of it: SQLite's own
+// integrity check, the metadata checksum (absent in version 1), every blob's
+// CRC-32, and the spatial index against the chunk table (every chunk with
+// bounds has exactly one index entry with those bounds, found by a box query;
+// every entry names a chunk). Damage goes to `problems`; an error is returned
+// only when the file cannot be checked at all (missing, not an archive, newer
+// version). Reads only.
+Result<ArchiveCheck> check_archive(const std::string& path);
 
 }  // namespace relief
