@@ -490,14 +490,25 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
   if (!result) {
     const bool interrupted = options.cancel != nullptr && options.cancel->load();
     if (!interrupted) {
-      // Remove whatever this append committed: the archive is as before.
+      // Remove whatever this append committed: the archive is as before. The
+      // store kept room for this on a full disk (Archive::put_chunks); should
+      // it fail anyway, say so rather than leave a half append unmentioned.
+      Status undone;
       auto scans = archive->info();
+      if (!scans) undone = scans.status();
       if (scans) {
         for (const ArchiveScan& s : scans->scans) {
           bool existed = false;
           for (const ArchiveScan& old : info.scans) existed = existed || old.id == s.id;
-          if (!existed) (void)archive->abort_scan(s.id);
+          if (existed) continue;
+          const Status aborted = archive->abort_scan(s.id);
+          if (undone && !aborted) undone = aborted;
         }
+      }
+      if (!undone) {
+        return Status(result.status().code(), result.status().message() +
+                                                  "; removing what this append added failed too, its chunks stay "
+                                                  "as an incomplete scan: " + undone.message());
       }
     }
     return result.status();

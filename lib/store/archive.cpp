@@ -4,6 +4,8 @@
 
 #include <fcntl.h>
 #include <lzma.h>
+#include <sys/resource.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -137,6 +139,52 @@ bool index_entry_fits(const std::array<double, 6>& entry, const Box3d& exact) {
 
 std::string chunk_label(const ChunkRef& ref) {
   return "chunk " + key_text(ref.key) + " seq " + std::to_string(ref.seq) + " (id " + std::to_string(ref.id) + ")";
+}
+
+// ---- Room to undo (format-spec/archive.md, section 8)
+//
+// Removing a scan rewrites pages: the WAL must grow for it, so on a full disk
+// a failed append could not undo itself. A writer therefore commits a batch
+// only while the WAL can still take the batch plus the removal of every row
+// this handle has written. Upper bounds, in WAL frames (a page + 24 bytes):
+// a row needs its blob's overflow pages plus one page for its record and one
+// each for the entries it makes in the three b-tree indexes and the R*Tree,
+// scattered among older entries (kFramesPerRow); removing it rewrites at most
+// those same five pages; interior pages, the freelist trunks, scan, source
+// and metadata rows take a fixed allowance (kFixedFrames).
+constexpr std::uint64_t kFramesPerRow = 5;
+constexpr std::uint64_t kFixedFrames = 64;
+constexpr std::uint64_t kWalFrameHeader = 24;
+
+std::uint64_t file_size_or_zero(const std::string& file) {
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(file, ec);
+  return ec ? 0 : static_cast<std::uint64_t>(size);
+}
+
+// Bytes the WAL file may still grow by: the free space of its file system
+// and the process's file size limit (RLIMIT_FSIZE), whichever is smaller.
+std::uint64_t wal_room(const std::string& path) {
+  std::uint64_t room = std::numeric_limits<std::uint64_t>::max();
+  fs::path directory = fs::path(path).parent_path();
+  if (directory.empty()) directory = ".";
+  struct statvfs disk {};
+  if (::statvfs(directory.c_str(), &disk) == 0) {
+    room = static_cast<std::uint64_t>(disk.f_bavail) * static_cast<std::uint64_t>(disk.f_frsize);
+  }
+  struct rlimit limit {};
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
+    const std::uint64_t wal = file_size_or_zero(path + "-wal");
+    const auto cap = static_cast<std::uint64_t>(limit.rlim_cur);
+    room = std::min(room, cap > wal ? cap - wal : 0);
+  }
+  return room;
+}
+
+std::string megabytes(std::uint64_t bytes) {
+  std::array<char, 32> buffer{};
+  std::snprintf(buffer.data(), buffer.size(), "%.1f MB", static_cast<double>(bytes) / 1e6);
+  return buffer.data();
 }
 
 constexpr const char* kIndexDamaged = " (the spatial index is damaged; 'relief check' lists the damage)";
@@ -656,6 +704,7 @@ class SqliteArchive final : public Archive {
   Status put_meta(const char* key, const std::string& value);
   Status write_meta_checksum();
   Status upgrade_to_current_version();
+  Status check_room(const std::vector<ChunkRow>& rows) const;
   Result<bool> scan_exists(std::int64_t scan_id);
   Status refresh_scan_summary();
   Result<std::vector<ChunkRef>> collect_refs(Statement& statement) const;
@@ -668,6 +717,8 @@ class SqliteArchive final : public Archive {
   int format_version_;
   bool wal_ = false;  // a writer switched the file to WAL (switched back on close)
   bool bounds_index_ = false;  // version 2: relief_chunk_bounds exists
+  std::uint64_t page_size_ = 4096;     // read when opened for writing
+  std::uint64_t rows_written_ = 0;     // by this handle: what an abort may have to remove
   ArchiveGrid grid_;  // fixed at creation, read once on open
   mutable std::array<std::unique_ptr<Statement>, static_cast<std::size_t>(Sql::kCount)> statements_;
   // Atomic so another thread may read it while the owner reads chunks.
@@ -830,6 +881,8 @@ Status SqliteArchive::initialise(bool verify_meta) {
       RELIEF_RETURN_IF_ERROR(upgrade_to_current_version());
       bounds_index_ = true;
     }
+    RELIEF_ASSIGN_OR_RETURN(const std::int64_t page_size, pragma_integer(db(), "PRAGMA page_size", path_));
+    if (page_size >= 512) page_size_ = static_cast<std::uint64_t>(page_size);
   }
   return Status::ok();
 }
@@ -906,6 +959,20 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
   return scan_id;
 }
 
+Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
+  const std::uint64_t frame = page_size_ + kWalFrameHeader;
+  const std::uint64_t overflow_page = page_size_ - 4;  // 4 bytes link the overflow chain
+  std::uint64_t need = kFixedFrames;
+  for (const ChunkRow& row : rows) need += row.blob.size() / overflow_page + 1 + kFramesPerRow;
+  const std::uint64_t reserve = kFixedFrames + kFramesPerRow * (rows_written_ + rows.size());
+  const std::uint64_t wanted = (need + reserve) * frame;
+  const std::uint64_t room = wal_room(path_);
+  if (wanted <= room) return Status::ok();
+  return io_error(path_ + ": the disk is full: adding " + std::to_string(rows.size()) + " chunks needs " +
+                  megabytes(need * frame) + " and undoing this run " + megabytes(reserve * frame) + ", but only " +
+                  megabytes(room) + " can still be written");
+}
+
 Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
   RELIEF_RETURN_IF_ERROR(require_writable("put_chunks"));
   if (rows.empty()) return Status::ok();
@@ -940,6 +1007,7 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
 
   Transaction transaction(db(), path_);
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  RELIEF_RETURN_IF_ERROR(check_room(rows));
   for (const std::int64_t scan_id : scan_ids) {
     RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
     if (!exists) {
@@ -1018,6 +1086,7 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
     assigned[i] = {id, static_cast<std::uint32_t>(seq)};
   }
   RELIEF_RETURN_IF_ERROR(transaction.commit());
+  rows_written_ += rows.size();
 
   for (std::size_t i = 0; i < rows.size(); ++i) {
     rows[i].ref.id = assigned[i].first;

@@ -609,3 +609,59 @@ TEST_CASE("relief check passes an intact archive and lists damage with exit 14",
     CHECK_THAT(text, Catch::Contains("DAMAGED   " + out + ": metadata checksum mismatch"));
   }
 }
+
+TEST_CASE("an append that fills the disk leaves the archive as it was", "[ingest][diskfull]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("a.ply"), scene(18, 20000)).is_ok());
+  REQUIRE(write_ply(tmp.file("b.ply"), scene(19, 300000, {0.01, 0.01, 0})).is_ok());
+  const std::string path = tmp.file("x.relief");
+  IngestOptions o = small_chunks();
+  o.chunk_edge = 0.8;
+  REQUIRE(compress_files({tmp.file("a.ply")}, path, o).is_ok());
+  const ArchiveInfo before = (*Archive::open(path, Archive::Mode::kReadOnly))->info().value();
+  const std::uintmax_t size_before = fs::file_size(path);
+
+  // A nearly full disk, simulated in a child process: no file may grow more
+  // than `room` beyond the archive's size (write() then fails with EFBIG
+  // instead of raising SIGXFSZ). The append needs more than that with the
+  // room kept for undoing it.
+  std::uintmax_t room = 0;
+  // Less than the append's data: without a room check the WAL fills up
+  // mid-append and the removal of the committed batches fails (the bug).
+  SECTION("room for less than the data") { room = 512 * 1024; }
+  // Several batches of 64 chunks commit before the room check stops the
+  // append; their removal then runs in the room kept for it.
+  SECTION("room for a few batches") { room = 6u << 20; }
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(size_before + room);
+    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(3);
+    IngestOptions append;
+    append.threads = 2;
+    auto r = append_files(path, {tmp.file("b.ply")}, append);
+    if (r.is_ok()) ::_exit(0);
+    std::fprintf(stderr, "append failed as expected: %s\n", r.status().to_string().c_str());
+    ::_exit(r.status().code() == StatusCode::kIoError ? 1 : 2);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(WIFEXITED(status));
+  REQUIRE(WEXITSTATUS(status) == 1);  // failed with an I/O error, as a full disk does
+
+  const auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  const ArchiveInfo after = (*archive)->info().value();
+  CHECK(after.chunk_count == before.chunk_count);
+  CHECK(after.input_points == before.input_points);
+  CHECK(after.decoded_points == before.decoded_points);
+  CHECK(after.blob_bytes == before.blob_bytes);
+  CHECK(after.scans.size() == before.scans.size());
+  CHECK(after.sources.size() == before.sources.size());
+  auto check = check_archive(path);
+  REQUIRE(check.is_ok());
+  CHECK(check->problems.empty());
+  CHECK(decode_all(path).size() == before.decoded_points);
+}
