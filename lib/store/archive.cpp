@@ -728,11 +728,14 @@ class SqliteArchive final : public Archive {
 SqliteArchive::~SqliteArchive() {
   if (mode_ != Mode::kReadWrite || !wal_) return;
   // Statements first: the journal mode changes only on a connection without
-  // pending statements. The switch checkpoints the WAL into the file and
-  // deletes it (and the -shm). It fails harmlessly while a reader is
-  // connected; the file then stays in WAL mode, valid, until the next writer
-  // closes, and the last connection's close still folds the WAL in.
+  // pending statements. A passive checkpoint copies the WAL into the file as
+  // far as readers allow, without waiting for them; the switch to rollback
+  // mode then finishes that and deletes the -wal and -shm files. The switch
+  // needs exclusive access and fails harmlessly while a reader is connected:
+  // the file stays in WAL mode, valid, its content in the file as far as the
+  // checkpoint got, until a writer closes alone.
   for (std::unique_ptr<Statement>& statement : statements_) statement.reset();
+  sqlite3_wal_checkpoint_v2(db(), nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
   sqlite3_exec(db(), "PRAGMA journal_mode = DELETE", nullptr, nullptr, nullptr);
 }
 

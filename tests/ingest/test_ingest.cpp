@@ -407,6 +407,9 @@ TEST_CASE("an ingest killed with SIGKILL leaves an archive that opens and reads"
   CHECK(info->has_intensity);
   const PointCloud got = decode_all(out);
   CHECK(got.size() == info->decoded_points);
+  auto check = check_archive(out);
+  REQUIRE(check.is_ok());
+  CHECK(check->problems.empty());
 }
 
 TEST_CASE("decompress and query of a killed ingest's archive return every committed point", "[ingest][crash][cli]") {

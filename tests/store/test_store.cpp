@@ -1304,3 +1304,33 @@ TEST_CASE("meta_crc32 is the CRC-32 of the other rows as format-spec/archive.md 
 
 }  // namespace
 }  // namespace relief
+
+namespace relief {
+namespace {
+
+TEST_CASE("a writer closing while a reader is connected leaves its data in the file itself", "[store][readonly]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto writer = create_ok(path);
+  const std::int64_t scan = begin_ok(*writer);
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 3000, 1),
+                                make_row({1, 0, 0}, scan, cube(26, 27), 5, 3000, 2)};
+  put_ok(*writer, rows);
+  auto reader = open_ok(path, Archive::Mode::kReadOnly);
+  CHECK(all_ok(*reader).size() == 2);
+  writer.reset();  // cannot switch back to rollback mode: the reader is connected
+  CHECK(all_ok(*reader).size() == 2);
+  // The database file alone (what a copy without the -wal would hold).
+  sqlite3* raw = nullptr;
+  REQUIRE(sqlite3_open_v2(("file:" + path + "?immutable=1").c_str(), &raw, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI,
+                          nullptr) == SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  REQUIRE(sqlite3_prepare_v2(raw, "SELECT COUNT(*) FROM relief_chunk", -1, &stmt, nullptr) == SQLITE_OK);
+  REQUIRE(sqlite3_step(stmt) == SQLITE_ROW);
+  CHECK(sqlite3_column_int64(stmt, 0) == 2);
+  sqlite3_finalize(stmt);
+  sqlite3_close(raw);
+}
+
+}  // namespace
+}  // namespace relief
