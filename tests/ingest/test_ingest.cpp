@@ -541,6 +541,11 @@ TEST_CASE("a finished archive is one file, and read-only commands add none", "[i
   CHECK(tmp.entries() == expected);
   CHECK(run("decompress " + out + " -o -") == 0);
   CHECK(tmp.entries() == expected);
+  CHECK(run("check " + out) == 0);
+  CHECK(tmp.entries() == expected);
+  TempDir elsewhere;  // the picture goes elsewhere: only the archive's directory is watched
+  CHECK(run("preview " + out + " -o " + elsewhere.file("view.png")) == 0);
+  CHECK(tmp.entries() == expected);
 }
 
 // Flips one byte in every place of the file where `needle` occurs (a freed
