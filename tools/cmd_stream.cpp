@@ -260,15 +260,23 @@ int run_stream(int argc, char** argv) {
   }
   if (status) status = push();
   if (!input.error().empty()) std::cerr << "relief stream: reading stdin: " << input.error() << "\n";
-  // Whatever went wrong with the input, what arrived before is written.
+  // A failure (bad input, a chunk that cannot be written) leaves nothing
+  // behind: no new archive, or the archive as it was before this stream.
+  const auto give_up = [&](const Status& why) {
+    end_progress_line();
+    const Status undone = (*stream)->abort();
+    if (!undone) std::cerr << "relief stream: could not remove what this stream added: " << undone.message() << "\n";
+    return fail(kCommand, why);
+  };
+  if (!status) return give_up(status);
+  // End of input, a read error or Ctrl-C: what arrived is written.
   auto done = (*stream)->finish();
   end_progress_line();
-  if (!done) return fail(kCommand, done.status());
+  if (!done) return give_up(done.status());
   if (!quiet) {
     if (interrupted->load()) std::cerr << "relief stream: interrupted; everything received is in " << archive << "\n";
     print_ingest_summary(archive, *done);
   }
-  if (!status) return fail(kCommand, status);
   return kExitOk;
 }
 

@@ -14,5 +14,6 @@ int run_preview(int argc, char** argv);
 int run_query(int argc, char** argv);
 int run_decompress(int argc, char** argv);
 int run_info(int argc, char** argv);
+int run_check(int argc, char** argv);
 
 }  // namespace relief::cli

@@ -19,6 +19,7 @@ constexpr const char* kUsage =
     "  query ARCHIVE --box B -o OUT      the points inside a box, at any level of detail\n"
     "  decompress ARCHIVE -o OUT         every point of an archive\n"
     "  info ARCHIVE [--json]             what an archive holds\n"
+    "  check ARCHIVE                     verify a whole archive and list what is damaged\n"
     "  roundtrip IN.ply          compress one file as a chunk, decompress it, print size and error\n"
     "  encode-chunk IN.ply -o OUT.rlfc   compress a point file into one chunk blob\n"
     "  decode-chunk IN.rlfc -o OUT.ply   decompress a chunk blob\n"
@@ -48,6 +49,7 @@ int main(int argc, char** argv) {
   if (command == "query") return relief::cli::run_query(sub_argc, sub_argv);
   if (command == "decompress") return relief::cli::run_decompress(sub_argc, sub_argv);
   if (command == "info") return relief::cli::run_info(sub_argc, sub_argv);
+  if (command == "check") return relief::cli::run_check(sub_argc, sub_argv);
   if (command == "roundtrip") return relief::cli::run_roundtrip(sub_argc, sub_argv);
   if (command == "encode-chunk") return relief::cli::run_encode_chunk(sub_argc, sub_argv);
   if (command == "decode-chunk") return relief::cli::run_decode_chunk(sub_argc, sub_argv);

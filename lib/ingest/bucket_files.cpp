@@ -1,6 +1,7 @@
 #include "ingest/bucket_files.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -9,11 +10,18 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <new>
+#include <string_view>
 
 namespace relief::ingest {
 
 namespace {
+
+// Temporary directories are named kTempPrefix + owner pid + "-" + mkdtemp's
+// six characters, so a later run can tell a stale one (its owner is gone).
+constexpr std::string_view kTempPrefix = "relief-ingest-";
+constexpr std::size_t kTempSuffixLength = 6;
 
 constexpr std::size_t kBlockHeader = 8;
 constexpr std::size_t kChunkEntry = 28;
@@ -102,10 +110,55 @@ void AlignedBuffer::reserve(std::size_t bytes, std::size_t keep) {
   capacity_ = cap;
 }
 
+namespace {
+
+// The owner pid of a directory name made by BucketFiles::create, or 0 when
+// the name is not one of ours.
+pid_t temp_dir_owner(std::string_view name) {
+  if (name.substr(0, kTempPrefix.size()) != kTempPrefix) return 0;
+  name.remove_prefix(kTempPrefix.size());
+  const std::size_t dash = name.find('-');
+  if (dash == 0 || dash == std::string_view::npos || name.size() - dash - 1 != kTempSuffixLength) return 0;
+  std::uint64_t pid = 0;
+  for (const char c : name.substr(0, dash)) {
+    if (c < '0' || c > '9' || pid > 1u << 30) return 0;
+    pid = pid * 10 + static_cast<std::uint64_t>(c - '0');
+  }
+  for (const char c : name.substr(dash + 1)) {
+    const bool alnum = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z');
+    if (!alnum) return 0;
+  }
+  return static_cast<pid_t>(pid);
+}
+
+void remove_stale_temp_dirs(const std::string& parent) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::directory_iterator it(parent, ec);
+  if (ec) return;  // best effort: mkdtemp reports a bad parent
+  for (; it != fs::directory_iterator(); it.increment(ec)) {
+    if (ec) return;
+    const pid_t owner = temp_dir_owner(it->path().filename().string());
+    if (owner <= 0 || owner == ::getpid()) continue;
+    // A real directory only (never follow a symlink out of `parent`), whose
+    // owner no longer exists. EPERM means a process we may not signal: alive.
+    if (!fs::is_directory(it->symlink_status(ec)) || ec) continue;
+    if (::kill(owner, 0) == 0 || errno != ESRCH) continue;
+    std::error_code ignored;
+    fs::remove_all(it->path(), ignored);
+  }
+}
+
+}  // namespace
+
 Result<BucketFiles> BucketFiles::create(const std::string& parent, std::uint32_t buckets, const ArchiveGrid& grid,
                                         bool colors, bool intensity, std::size_t staging_bytes) {
   BucketFiles b;
-  std::string pattern = (parent.empty() ? std::string(".") : parent) + "/relief-ingest-XXXXXX";
+  const std::string dir = parent.empty() ? std::string(".") : parent;
+  // A run killed with SIGKILL cannot remove its directory; the next one does.
+  remove_stale_temp_dirs(dir);
+  std::string pattern =
+      dir + "/" + std::string(kTempPrefix) + std::to_string(::getpid()) + "-" + std::string(kTempSuffixLength, 'X');
   std::vector<char> templ(pattern.begin(), pattern.end());
   templ.push_back('\0');
   if (::mkdtemp(templ.data()) == nullptr) {

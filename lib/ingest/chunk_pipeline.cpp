@@ -1,6 +1,8 @@
 #include "ingest/chunk_pipeline.h"
 
 #include <cmath>
+#include <csignal>
+#include <cstdlib>
 #include <utility>
 
 namespace relief::ingest {
@@ -11,6 +13,17 @@ namespace {
 // large enough to amortise the commit, small enough that a kill loses little.
 constexpr std::size_t kBatchRows = 64;
 constexpr std::size_t kBatchBytes = 32u << 20;
+
+// See ChunkPipeline::kill_after_commits_.
+constexpr const char* kKillAfterCommitsEnv = "RELIEF_TEST_KILL_AFTER_COMMITS";
+
+std::uint64_t kill_after_commits_from_env() {
+  const char* text = std::getenv(kKillAfterCommitsEnv);
+  if (text == nullptr || *text == '\0') return 0;
+  char* end = nullptr;
+  const unsigned long long n = std::strtoull(text, &end, 10);
+  return *end == '\0' ? static_cast<std::uint64_t>(n) : 0;
+}
 
 }  // namespace
 
@@ -23,7 +36,8 @@ ChunkPipeline::ChunkPipeline(Archive& archive, const EncodeParams& params, const
       scan_id_(scan_id),
       threads_(threads == 0 ? 1 : threads),
       cancel_(cancel),
-      verify_(verify) {}
+      verify_(verify),
+      kill_after_commits_(kill_after_commits_from_env()) {}
 
 Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
   EncodeParams p = params_;
@@ -140,6 +154,7 @@ Status ChunkPipeline::commit() {
   }
   batch_.clear();
   batch_bytes_ = 0;
+  if (kill_after_commits_ != 0 && ++commits_ == kill_after_commits_) std::raise(SIGKILL);
   return Status::ok();
 }
 

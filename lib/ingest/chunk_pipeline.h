@@ -103,6 +103,11 @@ class ChunkPipeline {
   // Rows received but not yet committed (touched by the committing thread only).
   std::vector<ChunkRow> batch_;
   std::size_t batch_bytes_ = 0;
+  // Test hook: RELIEF_TEST_KILL_AFTER_COMMITS=N makes the process SIGKILL
+  // itself right after its N-th committed batch (0 = off), so crash tests
+  // kill at a known point instead of racing a sleep.
+  std::uint64_t kill_after_commits_ = 0;
+  std::uint64_t commits_ = 0;
 };
 
 }  // namespace relief::ingest

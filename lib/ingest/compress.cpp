@@ -274,7 +274,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return format_error(names + ": " + std::to_string(points_read) + " points read where the headers declare " +
                           std::to_string(total));
     }
-    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, {in.colors, in.intensity, in.crs}));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, task_points, grouping, split_grid), tick));
@@ -292,7 +292,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
         read_all(key_batch, [&](ReadBatch& b) -> Status { return files.append(b.points, b.keys.data()); }));
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
-    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, {in.colors, in.intensity, in.crs}));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     // The next slice loads while the workers encode the current one; each
@@ -663,14 +663,25 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
   if (!result) {
     const bool interrupted = options.cancel != nullptr && options.cancel->load();
     if (!interrupted) {
-      // Remove whatever this append committed: the archive is as before.
+      // Remove whatever this append committed: the archive is as before. The
+      // store kept room for this on a full disk (Archive::put_chunks); should
+      // it fail anyway, say so rather than leave a half append unmentioned.
+      Status undone;
       auto scans = archive->info();
+      if (!scans) undone = scans.status();
       if (scans) {
         for (const ArchiveScan& s : scans->scans) {
           bool existed = false;
           for (const ArchiveScan& old : info.scans) existed = existed || old.id == s.id;
-          if (!existed) (void)archive->abort_scan(s.id);
+          if (existed) continue;
+          const Status aborted = archive->abort_scan(s.id);
+          if (undone && !aborted) undone = aborted;
         }
+      }
+      if (!undone) {
+        return Status(result.status().code(), result.status().message() +
+                                                  "; removing what this append added failed too, its chunks stay "
+                                                  "as an incomplete scan: " + undone.message());
       }
     }
     return result.status();

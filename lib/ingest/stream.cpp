@@ -26,8 +26,11 @@ constexpr std::uint64_t kStreamPartPoints = 2'000'000;
 class StreamIngestImpl final : public StreamIngest {
  public:
   StreamIngestImpl(std::unique_ptr<Archive> archive, const ArchiveGrid& grid, const EncodeParams& params,
-                   const StreamOptions& options, std::int64_t scan_id, bool colors, bool intensity)
+                   const StreamOptions& options, std::int64_t scan_id, bool colors, bool intensity,
+                   bool created)
       : archive_(std::move(archive)),
+        path_(archive_->path()),
+        created_(created),
         grid_(grid),
         params_(params),
         options_(options),
@@ -90,6 +93,18 @@ class StreamIngestImpl final : public StreamIngest {
     return flush(ready);
   }
 
+  Status abort() override {
+    if (finished_) return invalid_argument("stream already finished");
+    finished_ = true;
+    buffered_.clear();
+    if (!created_) return archive_->abort_scan(scan_id_);
+    // The archive is this stream's own: nothing of it may stay. The workers
+    // only encode, so the archive can close before the pipeline stops.
+    archive_.reset();
+    ingest::remove_archive_files(path_);
+    return Status::ok();
+  }
+
   Result<IngestResult> finish() override {
     if (finished_) return invalid_argument("stream already finished");
     std::vector<ChunkKey> all;
@@ -144,6 +159,8 @@ class StreamIngestImpl final : public StreamIngest {
   }
 
   std::unique_ptr<Archive> archive_;
+  std::string path_;
+  bool created_;  // this stream created the archive (abort removes it)
   ArchiveGrid grid_;
   EncodeParams params_;
   StreamOptions options_;
@@ -169,7 +186,8 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   std::unique_ptr<Archive> archive;
   ArchiveGrid grid;
   EncodeParams params = options.ingest.codec;
-  if (::stat(archive_path.c_str(), &st) == 0) {
+  const bool created = ::stat(archive_path.c_str(), &st) != 0;
+  if (!created) {
     RELIEF_ASSIGN_OR_RETURN(archive, Archive::open(archive_path, Archive::Mode::kReadWrite));
     RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
     RELIEF_ASSIGN_OR_RETURN(params, encode_params_from_string(info.codec_params));
@@ -199,9 +217,16 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   ArchiveSource src;
   src.path = "-";
   src.format = "stream";
-  RELIEF_ASSIGN_OR_RETURN(std::int64_t scan_id, archive->begin_scan({src}));
+  Result<std::int64_t> scan_id = archive->begin_scan({src}, {has_colors, has_intensity, ""});
+  if (!scan_id) {
+    if (created) {
+      archive.reset();
+      ingest::remove_archive_files(archive_path);
+    }
+    return scan_id.status();
+  }
   return std::unique_ptr<StreamIngest>(
-      new StreamIngestImpl(std::move(archive), grid, params, options, scan_id, has_colors, has_intensity));
+      new StreamIngestImpl(std::move(archive), grid, params, options, *scan_id, has_colors, has_intensity, created));
 }
 
 }  // namespace relief

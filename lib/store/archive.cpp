@@ -4,8 +4,11 @@
 
 #include <fcntl.h>
 #include <lzma.h>
+#include <sys/resource.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -104,6 +107,123 @@ bool box_has_nan(const Box3d& box) {
          std::isnan(box.max.y) || std::isnan(box.max.z);
 }
 
+bool boxes_overlap(const Box3d& a, const Box3d& b) {
+  return a.max.x >= b.min.x && a.min.x <= b.max.x && a.max.y >= b.min.y && a.min.y <= b.max.y &&
+         a.max.z >= b.min.z && a.min.z <= b.max.z;
+}
+
+// SQLite's R*Tree keeps each coordinate as a binary32 rounded outward, so an
+// entry's minimum lies at most a few binary32 steps below the exact one and
+// its maximum as far above. More than 8 steps (2^-20 relative) away, or on the
+// wrong side, the entry does not describe its chunk: the index is damaged.
+constexpr double kIndexSlack = 0x1p-20;
+
+bool index_bound_fits(double indexed, double exact, bool is_min) {
+  if (std::isnan(indexed)) return false;
+  if (std::abs(exact) > std::numeric_limits<float>::max()) {
+    // Beyond binary32: the entry can only hold the largest float or infinity.
+    return is_min ? indexed <= exact || indexed <= -static_cast<double>(std::numeric_limits<float>::max())
+                  : indexed >= exact || indexed >= static_cast<double>(std::numeric_limits<float>::max());
+  }
+  const double slack =
+      std::max(std::abs(exact), static_cast<double>(std::numeric_limits<float>::min())) * kIndexSlack;
+  return is_min ? indexed <= exact && exact - indexed <= slack : indexed >= exact && indexed - exact <= slack;
+}
+
+// `entry` in R*Tree column order: min_x, max_x, min_y, max_y, min_z, max_z.
+bool index_entry_fits(const std::array<double, 6>& entry, const Box3d& exact) {
+  return index_bound_fits(entry[0], exact.min.x, true) && index_bound_fits(entry[1], exact.max.x, false) &&
+         index_bound_fits(entry[2], exact.min.y, true) && index_bound_fits(entry[3], exact.max.y, false) &&
+         index_bound_fits(entry[4], exact.min.z, true) && index_bound_fits(entry[5], exact.max.z, false);
+}
+
+std::string chunk_label(const ChunkRef& ref) {
+  return "chunk " + key_text(ref.key) + " seq " + std::to_string(ref.seq) + " (id " + std::to_string(ref.id) + ")";
+}
+
+// ---- Room to undo (format-spec/archive.md, section 8)
+//
+// Removing a scan rewrites pages: the WAL must grow for it, so on a full disk
+// a failed append could not undo itself. A writer therefore commits a batch
+// only while the WAL can still take the batch plus the removal of every row
+// this handle has written. Upper bounds, in WAL frames (a page + 24 bytes):
+// a row needs its blob's overflow pages plus one page for its record and one
+// each for the entries it makes in the three b-tree indexes and the R*Tree,
+// scattered among older entries (kFramesPerRow); removing it rewrites at most
+// those same five pages; interior pages, the freelist trunks, scan, source
+// and metadata rows take a fixed allowance (kFixedFrames).
+constexpr std::uint64_t kFramesPerRow = 5;
+constexpr std::uint64_t kFixedFrames = 64;
+constexpr std::uint64_t kWalFrameHeader = 24;
+
+std::uint64_t file_size_or_zero(const std::string& file) {
+  std::error_code ec;
+  const std::uintmax_t size = fs::file_size(file, ec);
+  return ec ? 0 : static_cast<std::uint64_t>(size);
+}
+
+// Bytes the WAL file may still grow by: the free space of its file system
+// and the process's file size limit (RLIMIT_FSIZE), whichever is smaller.
+std::uint64_t wal_room(const std::string& path) {
+  std::uint64_t room = std::numeric_limits<std::uint64_t>::max();
+  fs::path directory = fs::path(path).parent_path();
+  if (directory.empty()) directory = ".";
+  struct statvfs disk {};
+  if (::statvfs(directory.c_str(), &disk) == 0) {
+    room = static_cast<std::uint64_t>(disk.f_bavail) * static_cast<std::uint64_t>(disk.f_frsize);
+  }
+  struct rlimit limit {};
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
+    const std::uint64_t wal = file_size_or_zero(path + "-wal");
+    const auto cap = static_cast<std::uint64_t>(limit.rlim_cur);
+    room = std::min(room, cap > wal ? cap - wal : 0);
+  }
+  return room;
+}
+
+std::string megabytes(std::uint64_t bytes) {
+  std::array<char, 32> buffer{};
+  std::snprintf(buffer.data(), buffer.size(), "%.1f MB", static_cast<double>(bytes) / 1e6);
+  return buffer.data();
+}
+
+constexpr const char* kIndexDamaged = " (the spatial index is damaged; 'relief check' lists the damage)";
+
+// ---- The metadata checksum (format version 2, format-spec/archive.md 2.1)
+
+void put_u32_le(std::vector<std::uint8_t>& out, std::uint32_t value) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<std::uint8_t>(value >> (8 * i)));
+}
+
+// CRC-32 over every relief_meta row but the checksum's own, in key order
+// (SQLite's BINARY collation: bytewise): u32 key length, key, u32 value
+// length, value. Lengths make the boundaries part of what is checked.
+Result<std::uint32_t> compute_meta_checksum(sqlite3* db, const std::string& path) {
+  RELIEF_ASSIGN_OR_RETURN(
+      std::unique_ptr<Statement> statement,
+      Statement::prepare(db, "SELECT key, value FROM relief_meta WHERE key <> ?1 ORDER BY key", path,
+                         "read metadata"));
+  StatementScope scope(*statement);
+  statement->bind_text(1, store::kMetaChecksum);
+  std::vector<std::uint8_t> bytes;
+  std::vector<std::uint8_t> field;
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (!row) break;
+    for (int column = 0; column < 2; ++column) {
+      RELIEF_RETURN_IF_ERROR(statement->column_bytes(column, field));
+      if (field.size() > std::numeric_limits<std::uint32_t>::max()) {
+        return limit_exceeded(path + ": a metadata value is too long");
+      }
+      put_u32_le(bytes, static_cast<std::uint32_t>(field.size()));
+      bytes.insert(bytes.end(), field.begin(), field.end());
+    }
+  }
+  return lzma_crc32(bytes.data(), bytes.size(), 0);
+}
+
+std::string checksum_text(std::uint32_t crc) { return hex32(crc).substr(2); }
+
 Status append_detail(const Status& status, const std::string& detail) {
   return Status(status.code(), status.message() + " " + detail);
 }
@@ -139,6 +259,10 @@ enum class Sql : std::size_t {
   kIndexDeleteOfScan,
   kChunkDeleteOfScan,
   kFindChunks,
+  kFindIdsByBounds,
+  kFindIdsByBoundsV1,
+  kChunkRef,
+  kIndexBoxIds,
   kAllChunks,
   kReadChunk,
   kTotals,
@@ -202,7 +326,7 @@ SqlText sql_text(Sql id) {
     case Sql::kScanInsert:
       return {"insert scan",
               "INSERT INTO relief_scan(created_at, complete, has_rgb, has_intensity, crs) "
-              "VALUES(?1, 0, 0, 0, '')"};
+              "VALUES(?1, 0, ?2, ?3, ?4)"};
     case Sql::kScanExists:
       return {"find scan", "SELECT 1 FROM relief_scan WHERE id = ?1"};
     case Sql::kScanFinish:
@@ -212,10 +336,10 @@ SqlText sql_text(Sql id) {
     case Sql::kScanSummary:
       return {"summarise scans",
               "SELECT COALESCE(MAX(has_rgb), 0), COALESCE(MAX(has_intensity), 0) "
-              "FROM relief_scan WHERE complete = 1"};
+              "FROM relief_scan"};
     case Sql::kScanFirstCrs:
       return {"summarise scans",
-              "SELECT crs FROM relief_scan WHERE complete = 1 AND crs <> '' ORDER BY id LIMIT 1"};
+              "SELECT crs FROM relief_scan WHERE crs <> '' ORDER BY id LIMIT 1"};
     case Sql::kScanDelete:
       return {"delete scan", "DELETE FROM relief_scan WHERE id = ?1"};
     case Sql::kSourceInsert:
@@ -246,10 +370,27 @@ SqlText sql_text(Sql id) {
     case Sql::kChunkDeleteOfScan:
       return {"delete chunks", "DELETE FROM relief_chunk WHERE scan_id = ?1"};
     case Sql::kFindChunks:
-      return {"find chunks", "SELECT " + ref_columns +
-                                 " FROM relief_chunk WHERE id IN (SELECT id FROM "
-                                 "relief_chunk_index WHERE " +
-                                 kOverlap + ") AND " + kOverlap + " ORDER BY id"};
+      // Every index entry the box hits, beside the chunk row it names (NULLs
+      // when there is none): find_chunks checks one against the other.
+      return {"find chunks",
+              "SELECT c.id, c.ix, c.iy, c.iz, c.seq, c.scan_id, c.min_x, c.min_y, c.min_z, c.max_x, c.max_y, "
+              "c.max_z, c.input_points, c.decoded_points, length(c.blob), r.id, r.min_x, r.max_x, r.min_y, "
+              "r.max_y, r.min_z, r.max_z FROM relief_chunk_index AS r LEFT JOIN relief_chunk AS c ON c.id = r.id "
+              "WHERE r.max_x >= ?1 AND r.min_x <= ?4 AND r.max_y >= ?2 AND r.min_y <= ?5 AND "
+              "r.max_z >= ?3 AND r.min_z <= ?6"};
+    case Sql::kFindIdsByBounds:
+      // The same box through the exact bounds (version 2's covering index):
+      // what the R*Tree must have found.
+      return {"find chunks by their bounds", "SELECT id FROM relief_chunk INDEXED BY relief_chunk_bounds WHERE " +
+                                                 std::string(kOverlap) + " ORDER BY id"};
+    case Sql::kFindIdsByBoundsV1:
+      // Version 1 has no bounds index: a scan of the chunk table.
+      return {"find chunks by their bounds",
+              "SELECT id FROM relief_chunk WHERE " + std::string(kOverlap) + " ORDER BY id"};
+    case Sql::kChunkRef:
+      return {"read chunk", "SELECT " + ref_columns + " FROM relief_chunk WHERE id = ?1"};
+    case Sql::kIndexBoxIds:
+      return {"query the spatial index", "SELECT id FROM relief_chunk_index WHERE " + std::string(kOverlap)};
     case Sql::kAllChunks:
       return {"list chunks", "SELECT " + ref_columns + " FROM relief_chunk ORDER BY id"};
     case Sql::kReadChunk:
@@ -434,6 +575,7 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
                                "; PRAGMA user_version = " + std::to_string(kArchiveFormatVersion) + ";";
     RELIEF_RETURN_IF_ERROR(store::exec(db, header.c_str(), path, "write the file header"));
     RELIEF_RETURN_IF_ERROR(store::exec(db, store::kCreateSchemaSql, path, "create the schema"));
+    RELIEF_RETURN_IF_ERROR(store::exec(db, store::kCreateBoundsIndexSql, path, "create the schema"));
 
     const std::array<std::pair<const char*, std::string>, 10> meta = {{
         {store::kMetaFormatVersion, std::to_string(kArchiveFormatVersion)},
@@ -456,28 +598,25 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
       statement->bind_text(2, value);
       RELIEF_RETURN_IF_ERROR(statement->run());
     }
+    RELIEF_ASSIGN_OR_RETURN(const std::uint32_t checksum, compute_meta_checksum(db, path));
+    {
+      StatementScope scope(*statement);
+      const std::string text = checksum_text(checksum);
+      statement->bind_text(1, store::kMetaChecksum);
+      statement->bind_text(2, text);
+      RELIEF_RETURN_IF_ERROR(statement->run());
+    }
     statement.reset();
     RELIEF_RETURN_IF_ERROR(transaction.commit());
   }
-  {
-    // WAL is a property of the file: set once here, every later connection
-    // uses it. Readers then never block the appending writer, nor it them.
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> statement,
-                            Statement::prepare(db, "PRAGMA journal_mode = WAL", path, "switch to WAL"));
-    StatementScope scope(*statement);
-    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
-    const std::string mode = row ? statement->column_text(0) : std::string();
-    if (mode != "wal") {
-      return io_error(path + ": cannot switch the archive to WAL journal mode (got '" + mode +
-                      "'); the archive needs a local file system with shared memory");
-    }
-  }
-  // The last connection's close checkpoints the WAL into the file and removes
-  // it; a failed close means the file may be incomplete.
+  // The file stays in rollback-journal mode: an archive at rest is one file
+  // that readers open without creating anything beside it (section 8). A
+  // writer switches to WAL while it writes. A failed close means the file may
+  // be incomplete.
   RELIEF_RETURN_IF_ERROR(store::close_connection(std::move(connection), path));
   std::error_code ec;
-  if (fs::exists(temp + "-wal", ec)) {
-    return internal_error(path + ": creating: SQLite left a write-ahead log beside " + temp);
+  if (fs::exists(temp + "-journal", ec)) {
+    return internal_error(path + ": creating: SQLite left a rollback journal beside " + temp);
   }
   return Status::ok();
 }
@@ -522,6 +661,8 @@ Result<int> identify(sqlite3* db, const std::string& path) {
 
 // ---- The archive
 
+class CheckReport;
+
 class SqliteArchive final : public Archive {
  public:
   SqliteArchive(std::string path, store::Connection connection, Mode mode, int format_version)
@@ -530,12 +671,22 @@ class SqliteArchive final : public Archive {
         mode_(mode),
         format_version_(format_version) {}
 
-  // Checks the schema and grid, then sets up a writer's connection.
-  Status initialise();
+  // A writer hands the file back in rollback-journal mode: one file again.
+  ~SqliteArchive() override;
+
+  // Checks the schema, metadata checksum and grid, then sets up a writer's
+  // connection. With `verify_meta` false a bad checksum is left for the caller.
+  Status initialise(bool verify_meta = true);
+  int format_version() const { return format_version_; }
+  sqlite3* connection() const { return connection_.get(); }
+  Status verify_meta_checksum() const;
+  // check_archive's chunk and index checks; damage goes to `report`.
+  Status check_chunks(CheckReport& report) const;
 
   const std::string& path() const override { return path_; }
   Result<ArchiveInfo> info() const override;
-  Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources) override;
+  Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources,
+                                  const ScanAttributes& attributes) override;
   Status put_chunks(std::vector<ChunkRow>& rows) override;
   Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
                      const std::string& crs) override;
@@ -551,6 +702,9 @@ class SqliteArchive final : public Archive {
   Status require_writable(const char* operation) const;
   Result<std::optional<std::string>> meta_value(const char* key) const;
   Status put_meta(const char* key, const std::string& value);
+  Status write_meta_checksum();
+  Status upgrade_to_current_version();
+  Status check_room(const std::vector<ChunkRow>& rows) const;
   Result<bool> scan_exists(std::int64_t scan_id);
   Status refresh_scan_summary();
   Result<std::vector<ChunkRef>> collect_refs(Statement& statement) const;
@@ -561,11 +715,29 @@ class SqliteArchive final : public Archive {
   store::Connection connection_;
   Mode mode_;
   int format_version_;
+  bool wal_ = false;  // a writer switched the file to WAL (switched back on close)
+  bool bounds_index_ = false;  // version 2: relief_chunk_bounds exists
+  std::uint64_t page_size_ = 4096;     // read when opened for writing
+  std::uint64_t rows_written_ = 0;     // by this handle: what an abort may have to remove
   ArchiveGrid grid_;  // fixed at creation, read once on open
   mutable std::array<std::unique_ptr<Statement>, static_cast<std::size_t>(Sql::kCount)> statements_;
   // Atomic so another thread may read it while the owner reads chunks.
   mutable std::atomic<std::uint64_t> blob_bytes_read_{0};
 };
+
+SqliteArchive::~SqliteArchive() {
+  if (mode_ != Mode::kReadWrite || !wal_) return;
+  // Statements first: the journal mode changes only on a connection without
+  // pending statements. A passive checkpoint copies the WAL into the file as
+  // far as readers allow, without waiting for them; the switch to rollback
+  // mode then finishes that and deletes the -wal and -shm files. The switch
+  // needs exclusive access and fails harmlessly while a reader is connected:
+  // the file stays in WAL mode, valid, its content in the file as far as the
+  // checkpoint got, until a writer closes alone.
+  for (std::unique_ptr<Statement>& statement : statements_) statement.reset();
+  sqlite3_wal_checkpoint_v2(db(), nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
+  sqlite3_exec(db(), "PRAGMA journal_mode = DELETE", nullptr, nullptr, nullptr);
+}
 
 Result<Statement*> SqliteArchive::statement(Sql id) const {
   std::unique_ptr<Statement>& slot = statements_[static_cast<std::size_t>(id)];
@@ -601,7 +773,45 @@ Status SqliteArchive::put_meta(const char* key, const std::string& value) {
   return statement->run();
 }
 
-Status SqliteArchive::initialise() {
+Status SqliteArchive::write_meta_checksum() {
+  RELIEF_ASSIGN_OR_RETURN(const std::uint32_t checksum, compute_meta_checksum(db(), path_));
+  return put_meta(store::kMetaChecksum, checksum_text(checksum));
+}
+
+Status SqliteArchive::verify_meta_checksum() const {
+  // One snapshot: a writer rewrites rows and checksum in one transaction.
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kRead));
+  RELIEF_ASSIGN_OR_RETURN(const std::optional<std::string> stored, meta_value(store::kMetaChecksum));
+  if (!stored) {
+    return corrupt_data(path_ + ": the metadata checksum (relief_meta " + store::kMetaChecksum +
+                        ") is missing: the metadata is damaged");
+  }
+  RELIEF_ASSIGN_OR_RETURN(const std::uint32_t computed, compute_meta_checksum(db(), path_));
+  if (*stored != checksum_text(computed)) {
+    return corrupt_data(path_ + ": metadata checksum mismatch (stored " + *stored + ", computed " +
+                        checksum_text(computed) + "): the metadata (relief_meta) is damaged");
+  }
+  return transaction.commit();
+}
+
+// Version 1 lacks the bounds index and the metadata checksum; everything else
+// is the same, so a writer adds both and moves the version, in one
+// transaction (format-spec/archive.md, section 1).
+Status SqliteArchive::upgrade_to_current_version() {
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  RELIEF_RETURN_IF_ERROR(store::exec(db(), store::kCreateBoundsIndexSql, path_, "upgrade to format version 2"));
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaFormatVersion, std::to_string(kArchiveFormatVersion)));
+  RELIEF_RETURN_IF_ERROR(write_meta_checksum());
+  const std::string version = "PRAGMA user_version = " + std::to_string(kArchiveFormatVersion);
+  RELIEF_RETURN_IF_ERROR(store::exec(db(), version.c_str(), path_, "upgrade to format version 2"));
+  RELIEF_RETURN_IF_ERROR(transaction.commit());
+  format_version_ = kArchiveFormatVersion;
+  return Status::ok();
+}
+
+Status SqliteArchive::initialise(bool verify_meta) {
   {
     RELIEF_ASSIGN_OR_RETURN(
         std::unique_ptr<Statement> table,
@@ -616,6 +826,20 @@ Status SqliteArchive::initialise() {
                             " is missing");
       }
     }
+  }
+  if (format_version_ >= 2) {
+    RELIEF_ASSIGN_OR_RETURN(
+        std::unique_ptr<Statement> index,
+        Statement::prepare(db(), "SELECT 1 FROM sqlite_master WHERE type = 'index' AND name = ?1", path_,
+                           "read the schema"));
+    StatementScope scope(*index);
+    index->bind_text(1, store::kBoundsIndex);
+    RELIEF_ASSIGN_OR_RETURN(const bool found, index->step());
+    if (!found) {
+      return format_error(path_ + ": not a valid Relief archive: index " + store::kBoundsIndex + " is missing");
+    }
+    bounds_index_ = true;
+    if (verify_meta) RELIEF_RETURN_IF_ERROR(verify_meta_checksum());
   }
 
   const std::array<std::pair<const char*, double*>, 4> grid_keys = {{
@@ -637,21 +861,31 @@ Status SqliteArchive::initialise() {
     return format_error(path_ + ": metadata chunk_edge must be > 0, got " + format_double(grid_.chunk_edge));
   }
   if (mode_ == Mode::kReadWrite) {
-    // A no-op on archives this library made (WAL is persistent); it repairs a
-    // file someone switched back with the sqlite3 shell.
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> journal,
-                            Statement::prepare(db(), "PRAGMA journal_mode = WAL", path_, "switch to WAL"));
-    StatementScope scope(*journal);
-    RELIEF_ASSIGN_OR_RETURN(const bool row, journal->step());
-    const std::string journal_mode = row ? journal->column_text(0) : std::string();
+    // WAL while writing: readers never block the appending writer, nor it
+    // them. The destructor switches the file back to rollback mode.
+    std::string journal_mode;
+    {
+      RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> journal,
+                              Statement::prepare(db(), "PRAGMA journal_mode = WAL", path_, "switch to WAL"));
+      StatementScope scope(*journal);
+      RELIEF_ASSIGN_OR_RETURN(const bool row, journal->step());
+      if (row) journal_mode = journal->column_text(0);
+    }
     if (journal_mode != "wal") {
       return io_error(path_ + ": cannot use WAL journal mode (got '" + journal_mode +
                       "'); the archive needs a local file system with shared memory");
     }
+    wal_ = true;
     // NORMAL in WAL mode: a commit survives a crash of the process at once
     // and a power loss from the next checkpoint on; never corrupts the file.
     RELIEF_RETURN_IF_ERROR(store::exec(db(), "PRAGMA synchronous = NORMAL; PRAGMA foreign_keys = ON", path_,
                                        "configure the connection"));
+    if (format_version_ < kArchiveFormatVersion) {
+      RELIEF_RETURN_IF_ERROR(upgrade_to_current_version());
+      bounds_index_ = true;
+    }
+    RELIEF_ASSIGN_OR_RETURN(const std::int64_t page_size, pragma_integer(db(), "PRAGMA page_size", path_));
+    if (page_size >= 512) page_size_ = static_cast<std::uint64_t>(page_size);
   }
   return Status::ok();
 }
@@ -663,9 +897,10 @@ Result<bool> SqliteArchive::scan_exists(std::int64_t scan_id) {
   return statement->step();
 }
 
-// relief_meta's crs and attributes summarise the complete scans; they are
-// rewritten in the same transaction as every change of relief_scan, so a
-// killed process cannot leave them stale.
+// relief_meta's crs and attributes summarise every scan, complete or not (a
+// scan records its attributes when it begins, so the chunks of a killed run
+// decode like the others); they are rewritten in the same transaction as
+// every change of relief_scan, so a killed process cannot leave them stale.
 Status SqliteArchive::refresh_scan_summary() {
   std::string attributes;
   {
@@ -686,10 +921,12 @@ Status SqliteArchive::refresh_scan_summary() {
     if (row) crs = statement->column_text(0);
   }
   RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaAttributes, attributes));
-  return put_meta(store::kMetaCrs, crs);
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaCrs, crs));
+  return write_meta_checksum();
 }
 
-Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>& sources) {
+Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>& sources,
+                                               const ScanAttributes& attributes) {
   RELIEF_RETURN_IF_ERROR(require_writable("begin_scan"));
   for (const ArchiveSource& source : sources) {
     if (source.point_count > kMaxStoredCount) {
@@ -704,6 +941,9 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanInsert));
     StatementScope scope(*statement);
     statement->bind_text(1, created_at);
+    statement->bind_int64(2, attributes.has_colors ? 1 : 0);
+    statement->bind_int64(3, attributes.has_intensity ? 1 : 0);
+    statement->bind_text(4, attributes.crs);
     RELIEF_RETURN_IF_ERROR(statement->run());
   }
   const std::int64_t scan_id = sqlite3_last_insert_rowid(db());
@@ -717,8 +957,23 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
     insert->bind_text(5, source.crs);
     RELIEF_RETURN_IF_ERROR(insert->run());
   }
+  RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
   RELIEF_RETURN_IF_ERROR(transaction.commit());
   return scan_id;
+}
+
+Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
+  const std::uint64_t frame = page_size_ + kWalFrameHeader;
+  const std::uint64_t overflow_page = page_size_ - 4;  // 4 bytes link the overflow chain
+  std::uint64_t need = kFixedFrames;
+  for (const ChunkRow& row : rows) need += row.blob.size() / overflow_page + 1 + kFramesPerRow;
+  const std::uint64_t reserve = kFixedFrames + kFramesPerRow * (rows_written_ + rows.size());
+  const std::uint64_t wanted = (need + reserve) * frame;
+  const std::uint64_t room = wal_room(path_);
+  if (wanted <= room) return Status::ok();
+  return io_error(path_ + ": the disk is full: adding " + std::to_string(rows.size()) + " chunks needs " +
+                  megabytes(need * frame) + " and undoing this run " + megabytes(reserve * frame) + ", but only " +
+                  megabytes(room) + " can still be written");
 }
 
 Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
@@ -755,6 +1010,7 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
 
   Transaction transaction(db(), path_);
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  RELIEF_RETURN_IF_ERROR(check_room(rows));
   for (const std::int64_t scan_id : scan_ids) {
     RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
     if (!exists) {
@@ -833,6 +1089,7 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
     assigned[i] = {id, static_cast<std::uint32_t>(seq)};
   }
   RELIEF_RETURN_IF_ERROR(transaction.commit());
+  rows_written_ += rows.size();
 
   for (std::size_t i = 0; i < rows.size(); ++i) {
     rows[i].ref.id = assigned[i].first;
@@ -899,15 +1156,94 @@ Result<std::vector<ChunkRef>> SqliteArchive::collect_refs(Statement& statement) 
 Result<std::vector<ChunkRef>> SqliteArchive::find_chunks(const Box3d& box) const {
   if (box_has_nan(box)) return invalid_argument(path_ + ": find_chunks: the box contains NaN");
   if (box.empty()) return std::vector<ChunkRef>();
-  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kFindChunks));
-  StatementScope scope(*statement);
-  statement->bind_double(1, box.min.x);
-  statement->bind_double(2, box.min.y);
-  statement->bind_double(3, box.min.z);
-  statement->bind_double(4, box.max.x);
-  statement->bind_double(5, box.max.y);
-  statement->bind_double(6, box.max.z);
-  return collect_refs(*statement);
+  const auto bind_box = [&](Statement& statement) {
+    statement.bind_double(1, box.min.x);
+    statement.bind_double(2, box.min.y);
+    statement.bind_double(3, box.min.z);
+    statement.bind_double(4, box.max.x);
+    statement.bind_double(5, box.max.y);
+    statement.bind_double(6, box.max.z);
+  };
+  // One snapshot for both lookups: a writer committing between them would
+  // otherwise look like damage.
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kRead));
+
+  // The R*Tree's candidates, each checked against the chunk row it names.
+  std::vector<ChunkRef> refs;
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kFindChunks));
+    StatementScope scope(*statement);
+    bind_box(*statement);
+    constexpr int kEntryId = kRefColumnCount;
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+      if (!row) break;
+      RowReader entry_reader(*statement, path_, "spatial index entry");
+      const std::int64_t entry = entry_reader.integer(kEntryId, "id", kMinInt64, kMaxInt64);
+      std::array<double, 6> entry_box{};
+      for (int i = 0; i < 6; ++i) {
+        const std::optional<double> value = entry_reader.real_or_null(kEntryId + 1 + i, "bounds");
+        entry_box[static_cast<std::size_t>(i)] = value.value_or(std::nan(""));
+      }
+      RELIEF_RETURN_IF_ERROR(entry_reader.status());
+      if (statement->column_type(kColId) == SQLITE_NULL) {
+        return corrupt_data(path_ + ": spatial index entry " + std::to_string(entry) + " names no chunk" +
+                            kIndexDamaged);
+      }
+      ChunkRef ref;
+      RELIEF_RETURN_IF_ERROR(read_ref(*statement, path_, ref));
+      if (ref.bounds.empty() || !index_entry_fits(entry_box, ref.bounds)) {
+        return corrupt_data(path_ + ": " + chunk_label(ref) + ": its spatial index entry does not match its bounds" +
+                            kIndexDamaged);
+      }
+      if (boxes_overlap(ref.bounds, box)) refs.push_back(ref);
+    }
+  }
+  std::sort(refs.begin(), refs.end(), [](const ChunkRef& a, const ChunkRef& b) { return a.id < b.id; });
+
+  // What the exact bounds say the box holds: a damaged node can hide a whole
+  // subtree from the R*Tree, and that must not pass as "no chunk there".
+  std::vector<std::int64_t> expected;
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement,
+                            statement(bounds_index_ ? Sql::kFindIdsByBounds : Sql::kFindIdsByBoundsV1));
+    StatementScope scope(*statement);
+    bind_box(*statement);
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+      if (!row) break;
+      expected.push_back(statement->column_int64(0));
+    }
+  }
+  std::size_t k = 0;
+  for (const std::int64_t id : expected) {
+    if (k < refs.size() && refs[k].id == id) {
+      ++k;
+      continue;
+    }
+    // In the chunk table but not among the R*Tree's answers.
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kChunkRef));
+    StatementScope scope(*statement);
+    statement->bind_int64(1, id);
+    RELIEF_ASSIGN_OR_RETURN(const bool found, statement->step());
+    ChunkRef missing;
+    missing.id = id;
+    if (found) RELIEF_RETURN_IF_ERROR(read_ref(*statement, path_, missing));
+    return corrupt_data(path_ + ": " + chunk_label(missing) + ": in the box but missing from the spatial index" +
+                        kIndexDamaged);
+  }
+  if (k != refs.size() || expected.size() != refs.size()) {
+    // Found by the R*Tree (with matching bounds) but not by the bounds index.
+    for (const ChunkRef& ref : refs) {
+      if (!std::binary_search(expected.begin(), expected.end(), ref.id)) {
+        return corrupt_data(path_ + ": " + chunk_label(ref) + ": missing from the bounds index " +
+                            store::kBoundsIndex + " (the archive is damaged; 'relief check' lists the damage)");
+      }
+    }
+  }
+  RELIEF_RETURN_IF_ERROR(transaction.commit());
+  return refs;
 }
 
 Result<std::vector<ChunkRef>> SqliteArchive::all_chunks() const {
@@ -1068,7 +1404,14 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
   return open(path, Mode::kReadWrite);
 }
 
-Result<std::unique_ptr<Archive>> Archive::open(const std::string& path, Mode mode) {
+namespace {
+
+// Opens the file and identifies it; `init_status`, when given, receives a
+// failure of initialise() (which otherwise fails the open) and the archive is
+// returned anyway, for check_archive to report it with the rest.
+Result<std::unique_ptr<SqliteArchive>> open_sqlite(const std::string& path, Archive::Mode mode, bool verify_meta,
+                                                   Status* init_status) {
+  using Mode = Archive::Mode;
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (!fs::exists(status)) {
@@ -1086,9 +1429,198 @@ Result<std::unique_ptr<Archive>> Archive::open(const std::string& path, Mode mod
   const int flags = mode == Mode::kReadOnly ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
   RELIEF_ASSIGN_OR_RETURN(store::Connection connection,
                           store::open_connection(path, flags, path, "cannot open"));
-  RELIEF_ASSIGN_OR_RETURN(const int version, identify(connection.get(), path));
-  auto archive = std::make_unique<SqliteArchive>(path, std::move(connection), mode, version);
-  RELIEF_RETURN_IF_ERROR(archive->initialise());
+  Result<int> version = identify(connection.get(), path);
+  if (!version && version.status().code() == StatusCode::kIoError && mode == Mode::kReadOnly) {
+    // A file left in WAL mode (a writer is running, or was killed) needs a
+    // -shm file beside it; on read-only media SQLite cannot create one.
+    // Immutable mode reads the file alone, which is all there is to read
+    // there: nothing can be writing to read-only media.
+    Result<store::Connection> immutable = store::open_connection(
+        store::immutable_uri(path), SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, path, "cannot open");
+    if (immutable) {
+      Result<int> retry = identify(immutable->get(), path);
+      if (retry) {
+        connection = std::move(immutable).value();
+        version = retry;
+      }
+    }
+  }
+  if (!version) return version.status();
+  auto archive = std::make_unique<SqliteArchive>(path, std::move(connection), mode, *version);
+  const Status initialised = archive->initialise(verify_meta);
+  if (init_status != nullptr) {
+    *init_status = initialised;
+  } else {
+    RELIEF_RETURN_IF_ERROR(initialised);
+  }
+  return archive;
+}
+
+
+// Damage beyond this many findings is counted, not listed.
+constexpr std::size_t kMaxProblems = 1000;
+
+class CheckReport {
+ public:
+  explicit CheckReport(ArchiveCheck& out) : out_(out) {}
+  ~CheckReport() {
+    if (dropped_ > 0) out_.problems.push_back("... and " + std::to_string(dropped_) + " more");
+  }
+  void checked(std::string what) { out_.checked.push_back(std::move(what)); }
+  void problem(std::string what) {
+    if (out_.problems.size() < kMaxProblems) {
+      out_.problems.push_back(std::move(what));
+    } else {
+      ++dropped_;
+    }
+  }
+
+ private:
+  ArchiveCheck& out_;
+  std::uint64_t dropped_ = 0;
+};
+
+// Rows of a single-column text query ("PRAGMA integrity_check",
+// "rtreecheck"): every row but a lone "ok" is a problem.
+Status text_rows_problems(sqlite3* db, const char* sql, const std::string& path, const std::string& label,
+                          CheckReport& report) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> statement, Statement::prepare(db, sql, path, label));
+  StatementScope scope(*statement);
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (!row) break;
+    std::string text = statement->column_text(0);
+    if (text == "ok") continue;
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    std::size_t start = 0;
+    while (start <= text.size()) {  // rtreecheck reports several lines in one
+      std::size_t end = text.find('\n', start);
+      if (end == std::string::npos) end = text.size();
+      if (end > start) report.problem(label + ": " + text.substr(start, end - start));
+      start = end + 1;
+    }
+  }
+  return Status::ok();
+}
+
+}  // namespace
+
+Status SqliteArchive::check_chunks(CheckReport& report) const {
+  RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> refs, all_chunks());
+  // Blobs: read_chunk verifies each CRC-32.
+  for (const ChunkRef& ref : refs) {
+    const Result<ChunkRow> row = read_chunk(ref.id);
+    if (!row) report.problem(row.status().message());
+  }
+  report.checked(std::to_string(refs.size()) + " chunk blobs against their CRC-32");
+
+  // Chunk rows -> index: one entry per chunk with bounds, matching them, and
+  // reachable by a box query (a damaged node hides entries only from those).
+  RELIEF_ASSIGN_OR_RETURN(
+      std::unique_ptr<Statement> entry,
+      Statement::prepare(db(), "SELECT min_x, max_x, min_y, max_y, min_z, max_z FROM relief_chunk_index WHERE id = ?1",
+                         path_, "read the spatial index"));
+  RELIEF_ASSIGN_OR_RETURN(Statement * box_ids, statement(Sql::kIndexBoxIds));
+  std::uint64_t indexed = 0;
+  for (const ChunkRef& ref : refs) {
+    std::optional<std::array<double, 6>> found;
+    {
+      StatementScope scope(*entry);
+      entry->bind_int64(1, ref.id);
+      RELIEF_ASSIGN_OR_RETURN(const bool row, entry->step());
+      if (row) {
+        std::array<double, 6> values{};
+        for (int i = 0; i < 6; ++i) values[static_cast<std::size_t>(i)] = entry->column_double(i);
+        found = values;
+      }
+    }
+    const std::string label = path_ + ": " + chunk_label(ref);
+    if (ref.bounds.empty()) {
+      if (found) report.problem(label + ": has no bounds but a spatial index entry");
+      continue;
+    }
+    ++indexed;
+    if (!found) {
+      report.problem(label + ": has no spatial index entry");
+      continue;
+    }
+    if (!index_entry_fits(*found, ref.bounds)) {
+      report.problem(label + ": its spatial index entry does not match its bounds");
+      continue;
+    }
+    StatementScope scope(*box_ids);
+    box_ids->bind_double(1, ref.bounds.min.x);
+    box_ids->bind_double(2, ref.bounds.min.y);
+    box_ids->bind_double(3, ref.bounds.min.z);
+    box_ids->bind_double(4, ref.bounds.max.x);
+    box_ids->bind_double(5, ref.bounds.max.y);
+    box_ids->bind_double(6, ref.bounds.max.z);
+    bool reached = false;
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, box_ids->step());
+      if (!row) break;
+      reached = reached || box_ids->column_int64(0) == ref.id;
+    }
+    if (!reached) report.problem(label + ": a box query over its own bounds does not find it in the spatial index");
+  }
+  // Index -> chunk rows: no entry without its chunk.
+  {
+    RELIEF_ASSIGN_OR_RETURN(
+        std::unique_ptr<Statement> orphans,
+        Statement::prepare(db(),
+                           "SELECT id FROM relief_chunk_index WHERE id NOT IN (SELECT id FROM relief_chunk) ORDER BY id",
+                           path_, "read the spatial index"));
+    StatementScope scope(*orphans);
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, orphans->step());
+      if (!row) break;
+      report.problem(path_ + ": spatial index entry " + std::to_string(orphans->column_int64(0)) +
+                     " names no chunk");
+    }
+  }
+  report.checked("the spatial index against " + std::to_string(refs.size()) + " chunk rows (" +
+                 std::to_string(indexed) + " with bounds): one matching entry each, found by a box query, "
+                 "and no entry without its chunk");
+  RELIEF_RETURN_IF_ERROR(text_rows_problems(db(), "SELECT rtreecheck('relief_chunk_index')", path_,
+                                            path_ + ": spatial index structure (rtreecheck)", report));
+  report.checked("the spatial index's tree structure (rtreecheck)");
+  return Status::ok();
+}
+
+Result<ArchiveCheck> check_archive(const std::string& path) {
+  Status init_status;
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<SqliteArchive> archive,
+                          open_sqlite(path, Archive::Mode::kReadOnly, false, &init_status));
+  ArchiveCheck result;
+  result.format_version = archive->format_version();
+  {
+    CheckReport report(result);
+    const auto attempt = [&](const Status& status, const std::string& what) {
+      if (!status) report.problem(status.message() + " (while checking " + what + ")");
+    };
+    attempt(text_rows_problems(archive->connection(), "PRAGMA integrity_check", path,
+                               path + ": SQLite integrity check", report),
+            "the SQLite structure");
+    report.checked("the SQLite file structure (PRAGMA integrity_check)");
+    if (!init_status) report.problem(init_status.message());
+    report.checked("tables, indexes and grid metadata");
+    if (archive->format_version() >= 2) {
+      attempt(archive->verify_meta_checksum(), "the metadata checksum");
+      report.checked("the metadata checksum (relief_meta meta_crc32)");
+    } else {
+      report.checked("the metadata checksum: absent in format version 1, nothing to check");
+    }
+    if (init_status) {
+      attempt(archive->check_chunks(report), "the chunks");
+    } else {
+      report.checked("chunks and spatial index: not checked (the archive's schema or grid is unusable)");
+    }
+  }
+  return result;
+}
+
+Result<std::unique_ptr<Archive>> Archive::open(const std::string& path, Mode mode) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<SqliteArchive> archive, open_sqlite(path, mode, true, nullptr));
   return std::unique_ptr<Archive>(std::move(archive));
 }
 

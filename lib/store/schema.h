@@ -1,4 +1,4 @@
-// The archive schema, format version 1 (format-spec/archive.md, section 3).
+// The archive schema, format version 2 (format-spec/archive.md, section 2).
 // Kept in one place so the spec's CREATE statements and the writer agree.
 #pragma once
 
@@ -65,6 +65,14 @@ CREATE INDEX relief_chunk_scan ON relief_chunk(scan_id);
 CREATE VIRTUAL TABLE relief_chunk_index USING rtree(id, min_x, max_x, min_y, max_y, min_z, max_z);
 )sql";
 
+// Version 2: a plain b-tree over the exact bounds. Box queries take their
+// candidates from the R*Tree and check them against this index, so a damaged
+// R*Tree cannot make a query miss a chunk silently. Covering (the id is the
+// rowid), so the check never reads chunk rows.
+inline constexpr char kBoundsIndex[] = "relief_chunk_bounds";
+inline constexpr char kCreateBoundsIndexSql[] =
+    "CREATE INDEX IF NOT EXISTS relief_chunk_bounds ON relief_chunk(min_x, max_x, min_y, max_y, min_z, max_z)";
+
 // relief_meta keys.
 inline constexpr char kMetaFormatVersion[] = "format_version";
 inline constexpr char kMetaOriginX[] = "grid_origin_x";
@@ -76,6 +84,9 @@ inline constexpr char kMetaCreator[] = "creator";
 inline constexpr char kMetaCreatedAt[] = "created_at";
 inline constexpr char kMetaCrs[] = "crs";
 inline constexpr char kMetaAttributes[] = "attributes";
+// Version 2: CRC-32 of every other relief_meta row (format-spec/archive.md,
+// section 2.1), as 8 upper-case hexadecimal digits.
+inline constexpr char kMetaChecksum[] = "meta_crc32";
 
 // Names in the comma-separated `attributes` value.
 inline constexpr char kAttributeRgb[] = "rgb";

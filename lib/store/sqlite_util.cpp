@@ -1,6 +1,7 @@
 #include "store/sqlite_util.h"
 
 #include <cstring>
+#include <filesystem>
 #include <utility>
 
 namespace relief::store {
@@ -56,12 +57,36 @@ std::string sqlite_file_name(const std::string& path) {
   return path;
 }
 
+std::string immutable_uri(const std::string& path) {
+  std::error_code ec;
+  std::string absolute = std::filesystem::absolute(path, ec).string();
+  if (ec) absolute = path;
+  // RFC 3986 percent-encoding of everything but unreserved characters and
+  // '/', so '?', '#', '%' or spaces in a name cannot change the URI's meaning.
+  std::string uri = "file:";
+  constexpr char kHex[] = "0123456789ABCDEF";
+  for (const char c : absolute) {
+    const auto byte = static_cast<unsigned char>(c);
+    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '/' ||
+                       c == '-' || c == '.' || c == '_' || c == '~';
+    if (plain) {
+      uri += c;
+    } else {
+      uri += '%';
+      uri += kHex[byte >> 4];
+      uri += kHex[byte & 0xf];
+    }
+  }
+  return uri + "?mode=ro&immutable=1";
+}
+
 Result<Connection> open_connection(const std::string& file, int flags, const std::string& path,
                                    std::string_view what) {
   sqlite3* raw = nullptr;
   // NOMUTEX: a handle is used by one thread at a time (archive.h), so
   // SQLite's per-connection mutex would only cost time.
-  const int rc = sqlite3_open_v2(sqlite_file_name(file).c_str(), &raw, flags | SQLITE_OPEN_NOMUTEX, nullptr);
+  const std::string name = (flags & SQLITE_OPEN_URI) != 0 ? file : sqlite_file_name(file);
+  const int rc = sqlite3_open_v2(name.c_str(), &raw, flags | SQLITE_OPEN_NOMUTEX, nullptr);
   Connection connection(raw);  // sqlite3_open_v2 may return a handle even when it fails
   if (rc != SQLITE_OK) {
     if (raw == nullptr) return internal_error(path + ": " + std::string(what) + ": out of memory");

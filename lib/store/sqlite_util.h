@@ -39,6 +39,11 @@ using Connection = std::unique_ptr<sqlite3, ConnectionCloser>;
 Result<Connection> open_connection(const std::string& file, int flags, const std::string& path,
                                    std::string_view what);
 
+// The URI that opens `path` read-only as immutable: SQLite then takes no
+// locks and creates no -shm or -wal file, which is right only when nothing
+// writes the file meanwhile (read-only media). Open it with SQLITE_OPEN_URI.
+std::string immutable_uri(const std::string& path);
+
 // Closes the connection and reports a failure (sqlite3_close, not _v2: a
 // close that cannot finish is an error we want to see, e.g. when creating).
 Status close_connection(Connection connection, const std::string& path);

@@ -261,9 +261,9 @@ TEST_CASE("query and info: clear errors for bad archives and boxes", "[cli][quer
   CHECK_FALSE(fs::exists(tmp.file("o.ply")));
   const Run info = run("info " + a + " --json");
   CHECK(info.code == 0);
-  CHECK(info.output.find("\"format_version\": 1") != std::string::npos);
+  CHECK(info.output.find("\"format_version\": 2") != std::string::npos);
   CHECK(info.output.find("\"points_in\": 241407") != std::string::npos);
-  for (const char* cmd : {"compress", "append", "stream", "query", "decompress", "info", "preview"}) {
+  for (const char* cmd : {"compress", "append", "stream", "query", "decompress", "info", "preview", "check"}) {
     const Run h = run(std::string(cmd) + " --help");
     CHECK(h.code == 0);
     CHECK(h.output.find("usage: relief") != std::string::npos);

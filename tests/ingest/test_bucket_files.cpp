@@ -3,10 +3,13 @@
 // bound, and a damaged file is an error, not a crash.
 #include <catch2/catch.hpp>
 #include <fcntl.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <vector>
 
@@ -153,4 +156,40 @@ TEST_CASE("a damaged bucket file is reported, not decoded", "[ingest][buckets]")
   REQUIRE_FALSE(s.is_ok());
   CHECK(s.message().find("bucket-0") != std::string::npos);
   CHECK(s.message().find("damaged") != std::string::npos);
+}
+
+TEST_CASE("a temporary directory left by a killed ingest is removed by the next one", "[ingest][buckets]") {
+  TempDir tmp;
+  // A pid that no longer exists: a child that has exited and been reaped.
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) ::_exit(0);
+  REQUIRE(::waitpid(child, nullptr, 0) == child);
+  const std::string dead = std::to_string(child);
+  const std::string alive = std::to_string(::getppid());  // the process that runs this test
+  const auto make_dir = [&](const std::string& name) {
+    fs::create_directories(tmp.path() / name);
+    std::ofstream(tmp.path() / name / "bucket-0") << "left over";
+  };
+  make_dir("relief-ingest-" + dead + "-Ab12Cd");    // stale: removed
+  make_dir("relief-ingest-" + alive + "-Ab12Cd");   // its owner runs: kept
+  make_dir("relief-ingest-" + dead + "-Ab12");      // not our pattern: kept
+  make_dir("relief-ingest-Ab12Cd");                 // no owner recorded: kept
+  make_dir("other-" + dead + "-Ab12Cd");            // not ours: kept
+  std::ofstream(tmp.path() / ("relief-ingest-" + dead + "-Zz99Yy")) << "a file, not a directory";  // kept
+
+  ArchiveGrid grid;
+  grid.chunk_edge = 2.0;
+  auto files = BucketFiles::create(tmp.path(), 2, grid, false, false, 1 << 16);
+  REQUIRE(files.is_ok());
+  const std::string own = fs::path(files->directory()).filename().string();
+  CHECK(own.rfind("relief-ingest-" + std::to_string(::getpid()) + "-", 0) == 0);
+  std::vector<std::string> expected = {"other-" + dead + "-Ab12Cd",
+                                       "relief-ingest-" + alive + "-Ab12Cd",
+                                       "relief-ingest-" + dead + "-Ab12",
+                                       "relief-ingest-" + dead + "-Zz99Yy",
+                                       "relief-ingest-Ab12Cd",
+                                       own};
+  std::sort(expected.begin(), expected.end());
+  CHECK(tmp.entries() == expected);
 }

@@ -5,10 +5,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <set>
 #include <thread>
 
@@ -356,44 +359,87 @@ TEST_CASE("a memory budget far below the input size bounds peak RSS", "[ingest][
   CHECK((*archive)->info()->input_points == 3000000);
 }
 
-TEST_CASE("an ingest killed with SIGKILL leaves an archive that opens and reads", "[ingest][crash]") {
-  TempDir tmp;
-  {
-    PointCloud big = scene(11, 2000000);
-    REQUIRE(write_ply(tmp.file("big.ply"), big).is_ok());
-  }
-  const std::string out = tmp.file("k.relief");
+// Runs `relief compress` in a child that kills itself (SIGKILL) right after
+// its `commits`-th committed batch (the RELIEF_TEST_KILL_AFTER_COMMITS hook):
+// the kill lands at a known point, whatever the machine's speed.
+static void compress_killed_after(const std::string& in, const std::string& out, int commits) {
   const pid_t pid = ::fork();
   REQUIRE(pid >= 0);
   if (pid == 0) {
     const std::string c = cli();
-    const std::string in = tmp.file("big.ply");
+    ::setenv("RELIEF_TEST_KILL_AFTER_COMMITS", std::to_string(commits).c_str(), 1);
     ::execl(c.c_str(), c.c_str(), "compress", in.c_str(), "-o", out.c_str(), "--cell", "0.05", "--chunk-edge",
             "0.8", "--threads", "1", "--quiet", static_cast<char*>(nullptr));
     ::_exit(127);
   }
-  // Wait until some chunks are committed, then kill without warning.
-  bool some = false;
-  for (int i = 0; i < 600 && !some; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    if (!fs::exists(out)) continue;
-    auto a = Archive::open(out, Archive::Mode::kReadOnly);
-    if (a.is_ok()) {
-      auto info = (*a)->info();
-      some = info.is_ok() && info->chunk_count > 0;
-    }
-  }
-  ::kill(pid, SIGKILL);
   int status = 0;
   ::waitpid(pid, &status, 0);
-  REQUIRE(some);
+  INFO("exit status " << status);
+  REQUIRE(WIFSIGNALED(status));
+  REQUIRE(WTERMSIG(status) == SIGKILL);
+}
+
+// Points of a PLY file the CLI wrote.
+static std::size_t ply_points(const std::string& path) {
+  auto cloud = read_ply(path);
+  INFO(cloud.status().to_string());
+  REQUIRE(cloud.is_ok());
+  return cloud->size();
+}
+
+TEST_CASE("an ingest killed with SIGKILL leaves an archive that opens and reads", "[ingest][crash]") {
+  TempDir tmp;
+  // ~200 chunks of 0.8 m: the first batch commits after 64 of them, long
+  // before the end.
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(11, 300000)).is_ok());
+  const std::string out = tmp.file("k.relief");
+  compress_killed_after(tmp.file("in.ply"), out, 1);
+
   auto archive = Archive::open(out, Archive::Mode::kReadOnly);
   REQUIRE(archive.is_ok());
   auto info = (*archive)->info();
   REQUIRE(info.is_ok());
-  CHECK(info->chunk_count > 0);
+  CHECK(info->chunk_count == 64);  // exactly the first batch
+  REQUIRE(info->scans.size() == 1);
+  CHECK_FALSE(info->scans[0].complete);
+  // The scan recorded its attributes when it began.
+  CHECK(info->has_colors);
+  CHECK(info->has_intensity);
   const PointCloud got = decode_all(out);
-  CHECK(got.size() > 0);
+  CHECK(got.size() == info->decoded_points);
+  auto check = check_archive(out);
+  REQUIRE(check.is_ok());
+  CHECK(check->problems.empty());
+}
+
+TEST_CASE("decompress and query of a killed ingest's archive return every committed point", "[ingest][crash][cli]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(13, 300000)).is_ok());
+  const std::string out = tmp.file("k.relief");
+  compress_killed_after(tmp.file("in.ply"), out, 2);
+  std::uint64_t committed = 0;
+  {
+    auto archive = Archive::open(out, Archive::Mode::kReadOnly);
+    REQUIRE(archive.is_ok());
+    auto info = (*archive)->info();
+    REQUIRE(info.is_ok());
+    CHECK(info->chunk_count == 128);
+    committed = info->decoded_points;
+  }
+  REQUIRE(committed > 0);
+  const auto run = [&](const std::string& args) {
+    const std::string cmd = cli() + " " + args + " --quiet";
+    const int status = std::system(cmd.c_str());
+    INFO(cmd);
+    REQUIRE(WIFEXITED(status));
+    return WEXITSTATUS(status);
+  };
+  CHECK(run("decompress " + out + " -o " + tmp.file("all.ply")) == 0);
+  CHECK(ply_points(tmp.file("all.ply")) == committed);
+  CHECK(run("query " + out + " --box -1000,-1000,1000,1000 -o " + tmp.file("box.ply")) == 0);
+  CHECK(ply_points(tmp.file("box.ply")) == committed);
+  CHECK(run("query " + out + " --box -1000,-1000,1000,1000 --skip-corrupt -o " + tmp.file("skip.ply")) == 0);
+  CHECK(ply_points(tmp.file("skip.ply")) == committed);
 }
 
 TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "[ingest][crash]") {
@@ -432,4 +478,198 @@ TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "
   auto archive = Archive::open(out, Archive::Mode::kReadOnly);
   REQUIRE(archive.is_ok());
   CHECK((*archive)->info().is_ok());
+}
+
+TEST_CASE("a failed relief stream leaves no archive, or the archive as before", "[ingest][stream][cli]") {
+  TempDir tmp;
+  // Two good scans of points, then a line that is not a number.
+  {
+    std::ofstream bad(tmp.file("bad.xyz"));
+    const PointCloud a = scene(14, 20000);
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      bad << a.positions[i].x << ' ' << a.positions[i].y << ' ' << a.positions[i].z << '\n';
+      if (i == 9999) bad << '\n';
+    }
+    bad << "1.0 2.0 oops\n";
+  }
+  const auto stream = [&](const std::string& archive) {
+    const std::string cmd = cli() + " stream " + archive + " --cell 0.25 --chunk-edge 2 --immediate --quiet < " +
+                            tmp.file("bad.xyz") + " 2>/dev/null";
+    const int status = std::system(cmd.c_str());
+    REQUIRE(WIFEXITED(status));
+    return WEXITSTATUS(status);
+  };
+  SECTION("a new archive is removed") {
+    CHECK(stream(tmp.file("new.relief")) == 13);
+    CHECK(tmp.entries() == std::vector<std::string>{"bad.xyz"});
+  }
+  SECTION("an existing archive is as before") {
+    PointCloud a = scene(15, 20000);
+    a.colors.clear();  // the stream's x y z lines carry no attributes
+    a.intensities.clear();
+    REQUIRE(write_ply(tmp.file("a.ply"), a).is_ok());
+    IngestOptions o = small_chunks();
+    o.codec.cell_size = 0.25;
+    REQUIRE(compress_files({tmp.file("a.ply")}, tmp.file("x.relief"), o).is_ok());
+    const ArchiveInfo before = (*Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly))->info().value();
+    CHECK(stream(tmp.file("x.relief")) == 13);
+    const ArchiveInfo after = (*Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly))->info().value();
+    CHECK(after.chunk_count == before.chunk_count);
+    CHECK(after.input_points == before.input_points);
+    CHECK(after.blob_bytes == before.blob_bytes);
+    CHECK(after.scans.size() == before.scans.size());
+    CHECK(after.sources.size() == before.sources.size());
+  }
+}
+
+TEST_CASE("a finished archive is one file, and read-only commands add none", "[ingest][cli][readonly]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(16, 20000)).is_ok());
+  const std::string out = tmp.file("x.relief");
+  const auto run = [&](const std::string& args) {
+    const std::string cmd = cli() + " " + args + " > /dev/null 2>&1";
+    const int status = std::system(cmd.c_str());
+    REQUIRE(WIFEXITED(status));
+    return WEXITSTATUS(status);
+  };
+  REQUIRE(run("compress " + tmp.file("in.ply") + " -o " + out + " --cell 0.25 --chunk-edge 2 --quiet") == 0);
+  const std::vector<std::string> expected = {"in.ply", "x.relief"};
+  CHECK(tmp.entries() == expected);
+  CHECK(run("info " + out) == 0);
+  CHECK(tmp.entries() == expected);
+  CHECK(run("query " + out + " --box -100,-100,100,100 -o -") == 0);
+  CHECK(tmp.entries() == expected);
+  CHECK(run("decompress " + out + " -o -") == 0);
+  CHECK(tmp.entries() == expected);
+  CHECK(run("check " + out) == 0);
+  CHECK(tmp.entries() == expected);
+  TempDir elsewhere;  // the picture goes elsewhere: only the archive's directory is watched
+  CHECK(run("preview " + out + " -o " + elsewhere.file("view.png")) == 0);
+  CHECK(tmp.entries() == expected);
+}
+
+// Flips one byte in every place of the file where `needle` occurs (a freed
+// page can still hold an old copy).
+static void flip_in_file(const std::string& path, const std::vector<std::uint8_t>& needle, std::size_t at) {
+  std::vector<std::uint8_t> bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  int hits = 0;
+  for (auto hit = std::search(bytes.begin(), bytes.end(), needle.begin(), needle.end()); hit != bytes.end();
+       hit = std::search(hit + 1, bytes.end(), needle.begin(), needle.end())) {
+    hit[static_cast<std::ptrdiff_t>(at)] ^= 0x20;
+    ++hits;
+  }
+  REQUIRE(hits > 0);
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+TEST_CASE("relief check passes an intact archive and lists damage with exit 14", "[ingest][cli][check]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("in.ply"), scene(17, 20000)).is_ok());
+  const std::string out = tmp.file("x.relief");
+  REQUIRE(compress_files({tmp.file("in.ply")}, out, small_chunks()).is_ok());
+  const auto run = [&](const std::string& args, std::string* output = nullptr) {
+    const std::string cmd = cli() + " " + args + " > " + tmp.file("out.txt") + " 2>&1";
+    const int status = std::system(cmd.c_str());
+    REQUIRE(WIFEXITED(status));
+    std::ifstream in(tmp.file("out.txt"));
+    const std::string text((std::istreambuf_iterator<char>(in)), {});
+    if (output != nullptr) *output = text;
+    INFO(text);
+    return WEXITSTATUS(status);
+  };
+  std::string text;
+  CHECK(run("check " + out, &text) == 0);
+  CHECK_THAT(text, Catch::Contains("result    intact"));
+  CHECK_THAT(text, Catch::Contains("chunk blobs against their CRC-32"));
+
+  SECTION("a flipped byte in a blob") {
+    std::int64_t id = 0;
+    std::vector<std::uint8_t> needle;
+    {
+      auto archive = Archive::open(out, Archive::Mode::kReadOnly);
+      REQUIRE(archive.is_ok());
+      auto refs = (*archive)->all_chunks();
+      REQUIRE(refs.is_ok());
+      id = refs->front().id;
+      auto row = (*archive)->read_chunk(id);
+      REQUIRE(row.is_ok());
+      needle.assign(row->blob.begin() + 40, row->blob.begin() + 72);
+    }
+    flip_in_file(out, needle, 10);
+    CHECK(run("check " + out, &text) == 14);
+    CHECK_THAT(text, Catch::Contains("DAMAGED"));
+    CHECK_THAT(text, Catch::Contains("(id " + std::to_string(id) + "): checksum mismatch"));
+    CHECK(run("decompress " + out + " -o " + tmp.file("all.ply"), &text) == 14);
+    CHECK_THAT(text, Catch::Contains("(id " + std::to_string(id) + ")"));
+  }
+  SECTION("a flipped byte in the metadata") {
+    const std::string codec = (*Archive::open(out, Archive::Mode::kReadOnly))->info()->codec_params;
+    REQUIRE(codec.size() > 8);
+    flip_in_file(out, std::vector<std::uint8_t>(codec.begin(), codec.end()), 3);
+    CHECK(run("info " + out, &text) == 14);
+    CHECK_THAT(text, Catch::Contains(out + ": metadata checksum mismatch"));
+    CHECK(run("check " + out, &text) == 14);
+    CHECK_THAT(text, Catch::Contains("DAMAGED   " + out + ": metadata checksum mismatch"));
+  }
+}
+
+TEST_CASE("an append that fills the disk leaves the archive as it was", "[ingest][diskfull]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("a.ply"), scene(18, 20000)).is_ok());
+  REQUIRE(write_ply(tmp.file("b.ply"), scene(19, 300000, {0.01, 0.01, 0})).is_ok());
+  const std::string path = tmp.file("x.relief");
+  IngestOptions o = small_chunks();
+  o.chunk_edge = 0.8;
+  REQUIRE(compress_files({tmp.file("a.ply")}, path, o).is_ok());
+  const ArchiveInfo before = (*Archive::open(path, Archive::Mode::kReadOnly))->info().value();
+  const std::uintmax_t size_before = fs::file_size(path);
+
+  // A nearly full disk, simulated in a child process: no file may grow more
+  // than `room` beyond the archive's size (write() then fails with EFBIG
+  // instead of raising SIGXFSZ). The append needs more than that with the
+  // room kept for undoing it.
+  std::uintmax_t room = 0;
+  // Less than the append's data: without a room check the WAL fills up
+  // mid-append and the removal of the committed batches fails (the bug).
+  SECTION("room for less than the data") { room = 512 * 1024; }
+  // Several batches of 64 chunks commit before the room check stops the
+  // append; their removal then runs in the room kept for it.
+  SECTION("room for a few batches") { room = 6u << 20; }
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(size_before + room);
+    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(3);
+    IngestOptions append;
+    append.threads = 2;
+    auto r = append_files(path, {tmp.file("b.ply")}, append);
+    if (r.is_ok()) ::_exit(0);
+    std::fprintf(stderr, "append failed as expected: %s\n", r.status().to_string().c_str());
+    ::_exit(r.status().code() == StatusCode::kIoError ? 1 : 2);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(WIFEXITED(status));
+  REQUIRE(WEXITSTATUS(status) == 1);  // failed with an I/O error, as a full disk does
+
+  const auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  const ArchiveInfo after = (*archive)->info().value();
+  CHECK(after.chunk_count == before.chunk_count);
+  CHECK(after.input_points == before.input_points);
+  CHECK(after.decoded_points == before.decoded_points);
+  CHECK(after.blob_bytes == before.blob_bytes);
+  CHECK(after.scans.size() == before.scans.size());
+  CHECK(after.sources.size() == before.sources.size());
+  auto check = check_archive(path);
+  REQUIRE(check.is_ok());
+  CHECK(check->problems.empty());
+  CHECK(decode_all(path).size() == before.decoded_points);
 }

@@ -1,14 +1,17 @@
 // Tests of the SQLite archive (lib/store, format-spec/archive.md). Raw SQLite
 // is used on purpose to fake, damage and inspect archives behind the store's back.
 #include <sqlite3.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <limits>
 #include <memory>
@@ -223,6 +226,15 @@ std::vector<std::int64_t> ids_of(const std::vector<ChunkRef>& refs) {
 
 bool starts_with(const std::string& text, const std::string& prefix) { return text.rfind(prefix, 0) == 0; }
 
+// Turns an archive into what format version 1 wrote: version 2 only added the
+// bounds index and the metadata checksum (format-spec/archive.md, version log).
+void downgrade_to_v1(const std::string& path) {
+  RawDb raw(path);
+  raw.exec(
+      "DROP INDEX relief_chunk_bounds; DELETE FROM relief_meta WHERE key = 'meta_crc32'; "
+      "UPDATE relief_meta SET value = '1' WHERE key = 'format_version'; PRAGMA user_version = 1");
+}
+
 // ---- Grid
 
 TEST_CASE("ArchiveGrid keys follow floor((p - origin) / edge)", "[store]") {
@@ -266,7 +278,7 @@ TEST_CASE("create then open round-trips the metadata", "[store]") {
     auto archive = create_ok(path, grid);
     CHECK(archive->path() == path);
     const ArchiveInfo info = info_ok(*archive);
-    CHECK(info.format_version == 1);
+    CHECK(info.format_version == 2);
     CHECK(info.grid.origin == grid.origin);
     CHECK(info.grid.chunk_edge == grid.chunk_edge);
     CHECK(info.codec_params == "grid=voxel;cell=0.5");
@@ -288,11 +300,11 @@ TEST_CASE("create then open round-trips the metadata", "[store]") {
   {
     RawDb raw(path);
     CHECK(raw.integer("PRAGMA application_id") == 0x524C4946);
-    CHECK(raw.integer("PRAGMA user_version") == 1);
-    CHECK(raw.text("PRAGMA journal_mode") == "wal");
+    CHECK(raw.integer("PRAGMA user_version") == 2);
+    CHECK(raw.text("PRAGMA journal_mode") == "delete");
     CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'grid_origin_y'") == "10000000.3");
     CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'chunk_edge'") == "0.7");
-    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "1");
+    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "2");
     const std::string created = raw.text("SELECT value FROM relief_meta WHERE key = 'created_at'");
     CHECK(created.size() == 20);
     CHECK(created.back() == 'Z');
@@ -433,11 +445,11 @@ TEST_CASE("open rejects what is not an archive of a known version", "[store]") {
 
   SECTION("a newer format version") {
     create_ok(path);
-    RawDb(path).exec("PRAGMA user_version = 2");
+    RawDb(path).exec("PRAGMA user_version = 3");
     for (const Archive::Mode mode : {Archive::Mode::kReadOnly, Archive::Mode::kReadWrite}) {
       const Status status = open_status(mode);
       CHECK(status.code() == StatusCode::kUnsupported);
-      CHECK(status.message() == path + ": archive format version 2 is newer than this build supports (1)");
+      CHECK(status.message() == path + ": archive format version 3 is newer than this build supports (2)");
     }
   }
 
@@ -457,8 +469,17 @@ TEST_CASE("open rejects what is not an archive of a known version", "[store]") {
     CHECK_THAT(status.message(), Catch::Contains("relief_source"));
   }
 
-  SECTION("damaged grid metadata") {
+  SECTION("damaged grid metadata fails the metadata checksum") {
     create_ok(path);
+    RawDb(path).exec("UPDATE relief_meta SET value = 'wide' WHERE key = 'chunk_edge'");
+    const Status status = open_status(Archive::Mode::kReadOnly);
+    CHECK(status.code() == StatusCode::kCorruptData);
+    CHECK(starts_with(status.message(), path + ": metadata checksum mismatch"));
+  }
+
+  SECTION("damaged grid metadata of a version-1 archive (no checksum)") {
+    create_ok(path);
+    downgrade_to_v1(path);
     RawDb(path).exec("UPDATE relief_meta SET value = 'wide' WHERE key = 'chunk_edge'");
     const Status status = open_status(Archive::Mode::kReadOnly);
     CHECK(status.code() == StatusCode::kFormatError);
@@ -920,6 +941,395 @@ TEST_CASE("a read-only handle sees whole transactions while a writer appends", "
   CHECK(reader_error.empty());
   CHECK(consistent);
   CHECK(info_ok(*reader).chunk_count == kBatches * kRowsPerBatch);
+}
+
+}  // namespace
+}  // namespace relief
+
+// ---- One file at rest; readers create nothing
+
+namespace relief {
+namespace {
+
+// Runs `body` in a child process that, when this test runs as root (as CI
+// does), first drops to the unprivileged user 65534, so file permission bits
+// apply to it. Returns the child's exit code (0 = body returned true).
+int run_unprivileged(const std::function<bool()>& body) {
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    if (::geteuid() == 0 && (::setgid(65534) != 0 || ::setuid(65534) != 0)) ::_exit(3);
+    ::_exit(body() ? 0 : 1);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Opens read-only and reads everything there is; true when all of it worked.
+bool reads_fully(const std::string& path, std::size_t chunks) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  if (!archive) return false;
+  auto info = (*archive)->info();
+  auto refs = (*archive)->find_chunks(cube(-1e9, 1e9));
+  if (!info || !refs || info->chunk_count != chunks || refs->size() != chunks) return false;
+  for (const ChunkRef& ref : *refs) {
+    if (!(*archive)->read_chunk(ref.id)) return false;
+  }
+  return true;
+}
+
+TEST_CASE("a closed archive is one file in rollback mode; readers create no file beside it", "[store][readonly]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  {
+    auto writer = create_ok(path);
+    const std::int64_t scan = begin_ok(*writer);
+    std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 3000, 1),
+                                  make_row({1, 0, 0}, scan, cube(26, 27), 5, 3000, 2)};
+    put_ok(*writer, rows);
+    // While it writes, the archive is in WAL mode: readers do not block it.
+    CHECK(fs::exists(path + "-wal"));
+    CHECK(reads_fully(path, 2));
+    REQUIRE(writer->finish_scan(scan, false, false, "").is_ok());
+  }
+  CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+  CHECK(RawDb(path).text("PRAGMA journal_mode") == "delete");
+  CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+  CHECK(reads_fully(path, 2));
+  CHECK(dir.entries() == std::vector<std::string>{"a.relief"});
+}
+
+TEST_CASE("an archive on read-only media answers queries", "[store][readonly]") {
+  TempDir dir;
+  fs::create_directories(dir.file("media"));
+  const std::string path = dir.file("media/a.relief");
+  {
+    auto writer = create_ok(path);
+    const std::int64_t scan = begin_ok(*writer);
+    std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 3000, 1)};
+    put_ok(*writer, rows);
+  }
+  SECTION("a closed archive") {}
+  SECTION("an archive left in WAL mode (its writer was killed after a checkpoint)") {
+    RawDb(path).exec("PRAGMA journal_mode = WAL");
+    REQUIRE(fs::exists(path));
+    REQUIRE_FALSE(fs::exists(path + "-wal"));
+  }
+  fs::permissions(path, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  fs::permissions(dir.file("media"), fs::perms::owner_read | fs::perms::owner_exec | fs::perms::group_read |
+                                         fs::perms::group_exec | fs::perms::others_read | fs::perms::others_exec);
+  // The parent must let the unprivileged user reach the directory.
+  fs::permissions(dir.path(), fs::perms::others_exec | fs::perms::others_read, fs::perm_options::add);
+  const int code = run_unprivileged([&] {
+    // Proof that the media is read-only for this process, then the reads.
+    const bool writable = ::access(dir.file("media").c_str(), W_OK) == 0;
+    return !writable && reads_fully(path, 1);
+  });
+  CHECK(code == 0);
+  CHECK(dir.entries() == std::vector<std::string>{"media"});
+  CHECK(TempDir::list(dir.file("media")) == std::vector<std::string>{"a.relief"});
+  fs::permissions(dir.file("media"), fs::perms::owner_all);
+}
+
+}  // namespace
+}  // namespace relief
+
+// ---- Damage: metadata checksum, spatial index, check_archive
+
+namespace relief {
+namespace {
+
+// An archive of `n` chunks in a row along x, all coordinates >= 1 (so that
+// flipping a float's exponent bit sends it far away), finished.
+std::vector<ChunkRow> fill_row_of_chunks(const std::string& path, int n) {
+  auto archive = create_ok(path);
+  const std::int64_t scan = begin_ok(*archive);
+  std::vector<ChunkRow> rows;
+  for (int i = 0; i < n; ++i) {
+    const double x = 25.0 * (i + 1);
+    rows.push_back(make_row({i + 1, 0, 0}, scan, box_of({x + 1, 1, 1}, {x + 2, 2, 2}), 5, 64,
+                            static_cast<std::uint64_t>(i)));
+  }
+  put_ok(*archive, rows);
+  REQUIRE(archive->finish_scan(scan, false, false, "").is_ok());
+  return rows;
+}
+
+// R*Tree node blobs (SQLite's rtree format: big-endian; the root starts with
+// its u16 depth, every node with its u16 cell count; a cell is an i64 id or
+// child node number, then six f32 bounds).
+constexpr std::size_t kNodeHeader = 4;
+constexpr std::size_t kCellBytes = 8 + 6 * 4;
+
+std::int64_t cell_id(const std::vector<std::uint8_t>& node, std::size_t cell) {
+  std::int64_t id = 0;
+  for (std::size_t i = 0; i < 8; ++i) id = (id << 8) | node[kNodeHeader + cell * kCellBytes + i];
+  return id;
+}
+
+std::vector<std::uint8_t> node_blob(RawDb& raw, std::int64_t node) {
+  const std::int64_t size = raw.integer("SELECT length(data) FROM relief_chunk_index_node WHERE nodeno = " +
+                                        std::to_string(node));
+  const std::string hex = raw.text("SELECT hex(data) FROM relief_chunk_index_node WHERE nodeno = " +
+                                   std::to_string(node));
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
+  for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<std::uint8_t>(std::stoi(hex.substr(2 * i, 2), nullptr, 16));
+  return bytes;
+}
+
+void set_node_blob(RawDb& raw, std::int64_t node, const std::vector<std::uint8_t>& bytes) {
+  std::string hex;
+  constexpr char kHex[] = "0123456789ABCDEF";
+  for (const std::uint8_t b : bytes) {
+    hex += kHex[b >> 4];
+    hex += kHex[b & 15];
+  }
+  raw.exec("UPDATE relief_chunk_index_node SET data = X'" + hex + "' WHERE nodeno = " + std::to_string(node));
+}
+
+// Flips the exponent's high bit of the first cell's min_x or max_x: a value
+// between 2 and 2^64 becomes a tiny positive number.
+void flip_first_min_x(std::vector<std::uint8_t>& node) { node[kNodeHeader + 8] ^= 0x40; }
+void flip_first_max_x(std::vector<std::uint8_t>& node) { node[kNodeHeader + 8 + 4] ^= 0x40; }
+
+ArchiveCheck check_ok(const std::string& path) {
+  Result<ArchiveCheck> check = check_archive(path);
+  INFO(check.status().to_string());
+  REQUIRE(check.is_ok());
+  return std::move(check).value();
+}
+
+std::string joined(const std::vector<std::string>& lines) {
+  std::string all;
+  for (const std::string& line : lines) all += line + "\n";
+  return all;
+}
+
+TEST_CASE("an intact archive passes check_archive", "[store][check]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  fill_row_of_chunks(path, 150);  // more than one R*Tree node
+  const ArchiveCheck check = check_ok(path);
+  INFO(joined(check.problems));
+  CHECK(check.problems.empty());
+  CHECK(check.format_version == 2);
+  CHECK_THAT(joined(check.checked), Catch::Contains("150 chunk blobs"));
+  CHECK_THAT(joined(check.checked), Catch::Contains("integrity_check"));
+  CHECK_THAT(joined(check.checked), Catch::Contains("metadata checksum"));
+}
+
+TEST_CASE("a damaged R*Tree leaf entry makes a query fail naming the chunk, and check report it", "[store][check]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  fill_row_of_chunks(path, 20);  // one node: the root is a leaf
+  std::int64_t damaged = 0;
+  {
+    RawDb raw(path);
+    std::vector<std::uint8_t> root = node_blob(raw, 1);
+    REQUIRE(raw.integer("SELECT COUNT(*) FROM relief_chunk_index_node") == 1);
+    damaged = cell_id(root, 0);
+    flip_first_min_x(root);
+    set_node_blob(raw, 1, root);
+  }
+  auto archive = open_ok(path, Archive::Mode::kReadOnly);
+  const Result<std::vector<ChunkRef>> refs = archive->find_chunks(cube(-1e9, 1e9));
+  REQUIRE_FALSE(refs.is_ok());
+  CHECK(refs.status().code() == StatusCode::kCorruptData);
+  CHECK(starts_with(refs.status().message(), path + ": chunk ("));
+  CHECK_THAT(refs.status().message(), Catch::Contains("(id " + std::to_string(damaged) + ")"));
+  CHECK_THAT(refs.status().message(), Catch::Contains("spatial index"));
+  // Boxes away from the damaged chunk still work.
+  CHECK(find_ok(*archive, box_of({25.0 * 10 + 1, 1, 1}, {25.0 * 10 + 2, 2, 2})).size() == 1);
+
+  const ArchiveCheck check = check_ok(path);
+  CHECK_THAT(joined(check.problems), Catch::Contains("(id " + std::to_string(damaged) + ")"));
+}
+
+TEST_CASE("a damaged R*Tree inner node cannot hide chunks from a query", "[store][check]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  fill_row_of_chunks(path, 300);
+  {
+    RawDb raw(path);
+    REQUIRE(raw.integer("SELECT COUNT(*) FROM relief_chunk_index_node") > 1);
+    std::vector<std::uint8_t> root = node_blob(raw, 1);
+    REQUIRE(((root[0] << 8) | root[1]) >= 1);  // depth: the root is an inner node
+    flip_first_max_x(root);  // the first subtree's box now ends left of every chunk
+    set_node_blob(raw, 1, root);
+  }
+  auto archive = open_ok(path, Archive::Mode::kReadOnly);
+  CHECK(all_ok(*archive).size() == 300);  // the chunk table is intact
+  // A box over every chunk, starting above the damaged subtree's new end.
+  const Result<std::vector<ChunkRef>> refs = archive->find_chunks(cube(1, 1e9));
+  REQUIRE_FALSE(refs.is_ok());
+  CHECK(refs.status().code() == StatusCode::kCorruptData);
+  CHECK(starts_with(refs.status().message(), path + ": chunk ("));
+  CHECK_THAT(refs.status().message(), Catch::Contains("missing from the spatial index"));
+
+  const ArchiveCheck check = check_ok(path);
+  CHECK_FALSE(check.problems.empty());
+  CHECK_THAT(joined(check.problems), Catch::Contains("does not find it in the spatial index"));
+  CHECK_THAT(joined(check.problems), Catch::Contains("rtreecheck"));
+}
+
+TEST_CASE("an index entry naming no chunk is reported", "[store][check]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  fill_row_of_chunks(path, 5);
+  RawDb(path).exec("INSERT INTO relief_chunk_index VALUES(999, 26, 27, 1, 2, 1, 2)");
+  auto archive = open_ok(path, Archive::Mode::kReadOnly);
+  const Result<std::vector<ChunkRef>> refs = archive->find_chunks(cube(-1e9, 1e9));
+  REQUIRE_FALSE(refs.is_ok());
+  CHECK(refs.status().code() == StatusCode::kCorruptData);
+  CHECK(starts_with(refs.status().message(), path + ": spatial index entry 999 names no chunk"));
+  CHECK_THAT(joined(check_ok(path).problems), Catch::Contains("spatial index entry 999 names no chunk"));
+}
+
+TEST_CASE("damaged metadata fails its checksum on open and in check", "[store][check]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  fill_row_of_chunks(path, 3);
+  // One byte of a value changed, as a flipped bit in the page would.
+  RawDb(path).exec("UPDATE relief_meta SET value = 'relief-tesu 0.1' WHERE key = 'creator'");
+  for (const Archive::Mode mode : {Archive::Mode::kReadOnly, Archive::Mode::kReadWrite}) {
+    const Status status = Archive::open(path, mode).status();
+    CHECK(status.code() == StatusCode::kCorruptData);
+    CHECK(starts_with(status.message(), path + ": metadata checksum mismatch"));
+  }
+  const ArchiveCheck check = check_ok(path);
+  REQUIRE(check.problems.size() == 1);
+  CHECK(starts_with(check.problems[0], path + ": metadata checksum mismatch"));
+}
+
+TEST_CASE("check_archive reports every damaged blob", "[store][check]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  const std::vector<ChunkRow> rows = fill_row_of_chunks(path, 4);
+  {
+    RawDb raw(path);
+    for (const std::size_t i : {std::size_t{1}, std::size_t{3}}) {
+      std::vector<std::uint8_t> blob = raw.blob(rows[i].ref.id);
+      blob[10] ^= 0x01;
+      raw.set_blob(rows[i].ref.id, blob);
+    }
+  }
+  const ArchiveCheck check = check_ok(path);
+  REQUIRE(check.problems.size() == 2);
+  CHECK_THAT(check.problems[0], Catch::Contains("(id " + std::to_string(rows[1].ref.id) + "): checksum mismatch"));
+  CHECK_THAT(check.problems[1], Catch::Contains("(id " + std::to_string(rows[3].ref.id) + "): checksum mismatch"));
+}
+
+TEST_CASE("version-1 archives still read, check without a checksum, and are upgraded by a writer", "[store][check]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  const std::vector<ChunkRow> rows = fill_row_of_chunks(path, 10);
+  downgrade_to_v1(path);
+  {
+    auto archive = open_ok(path, Archive::Mode::kReadOnly);
+    CHECK(info_ok(*archive).format_version == 1);
+    CHECK(find_ok(*archive, cube(-1e9, 1e9)).size() == 10);
+    CHECK(find_ok(*archive, box_of({51, 1, 1}, {52, 2, 2})).size() == 1);
+    CHECK(read_ok(*archive, rows[4].ref.id).blob == rows[4].blob);
+  }
+  {
+    const ArchiveCheck check = check_ok(path);
+    INFO(joined(check.problems));
+    CHECK(check.problems.empty());
+    CHECK(check.format_version == 1);
+    CHECK_THAT(joined(check.checked), Catch::Contains("absent in format version 1"));
+  }
+  {
+    auto writer = open_ok(path, Archive::Mode::kReadWrite);
+    CHECK(info_ok(*writer).format_version == 2);
+  }
+  RawDb raw(path);
+  CHECK(raw.integer("PRAGMA user_version") == 2);
+  CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "2");
+  CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name = 'relief_chunk_bounds'") == 1);
+  CHECK(check_ok(path).problems.empty());
+}
+
+}  // namespace
+}  // namespace relief
+
+namespace relief {
+namespace {
+
+// Bitwise CRC-32 (IEEE 802.3), independent of the library's.
+std::uint32_t reference_crc32(const std::vector<std::uint8_t>& bytes) {
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (const std::uint8_t byte : bytes) {
+    crc ^= byte;
+    for (int bit = 0; bit < 8; ++bit) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  return ~crc;
+}
+
+void put_field(std::vector<std::uint8_t>& out, const std::string& text) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<std::uint8_t>(text.size() >> (8 * i)));
+  out.insert(out.end(), text.begin(), text.end());
+}
+
+std::string hex8(std::uint32_t value) {
+  char buffer[16];
+  std::snprintf(buffer, sizeof buffer, "%08X", value);
+  return buffer;
+}
+
+TEST_CASE("meta_crc32 is the CRC-32 of the other rows as format-spec/archive.md 2.1 lays them out", "[store][check]") {
+  // The worked example of the spec.
+  std::vector<std::uint8_t> example;
+  put_field(example, "a");
+  put_field(example, "1");
+  put_field(example, "bc");
+  put_field(example, "");
+  CHECK(example.size() == 20);
+  CHECK(hex8(reference_crc32(example)) == "32DF8018");
+
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  fill_row_of_chunks(path, 2);
+  RawDb raw(path);
+  const std::int64_t rows = raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key <> 'meta_crc32'");
+  std::vector<std::uint8_t> bytes;
+  for (std::int64_t i = 0; i < rows; ++i) {
+    const std::string where = " FROM relief_meta WHERE key <> 'meta_crc32' ORDER BY key LIMIT 1 OFFSET " +
+                              std::to_string(i);
+    put_field(bytes, raw.text("SELECT key" + where));
+    put_field(bytes, raw.text("SELECT value" + where));
+  }
+  CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'meta_crc32'") == hex8(reference_crc32(bytes)));
+}
+
+}  // namespace
+}  // namespace relief
+
+namespace relief {
+namespace {
+
+TEST_CASE("a writer closing while a reader is connected leaves its data in the file itself", "[store][readonly]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto writer = create_ok(path);
+  const std::int64_t scan = begin_ok(*writer);
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 5, 3000, 1),
+                                make_row({1, 0, 0}, scan, cube(26, 27), 5, 3000, 2)};
+  put_ok(*writer, rows);
+  auto reader = open_ok(path, Archive::Mode::kReadOnly);
+  CHECK(all_ok(*reader).size() == 2);
+  writer.reset();  // cannot switch back to rollback mode: the reader is connected
+  CHECK(all_ok(*reader).size() == 2);
+  // The database file alone (what a copy without the -wal would hold).
+  sqlite3* raw = nullptr;
+  REQUIRE(sqlite3_open_v2(("file:" + path + "?immutable=1").c_str(), &raw, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI,
+                          nullptr) == SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  REQUIRE(sqlite3_prepare_v2(raw, "SELECT COUNT(*) FROM relief_chunk", -1, &stmt, nullptr) == SQLITE_OK);
+  REQUIRE(sqlite3_step(stmt) == SQLITE_ROW);
+  CHECK(sqlite3_column_int64(stmt, 0) == 2);
+  sqlite3_finalize(stmt);
+  sqlite3_close(raw);
 }
 
 }  // namespace

@@ -29,9 +29,11 @@ class TempDir {
   const std::filesystem::path& path() const { return path_; }
   std::string file(const std::string& name) const { return (path_ / name).string(); }
   // Names of the files directly inside, sorted (to check nothing is left behind).
-  std::vector<std::string> entries() const {
+  std::vector<std::string> entries() const { return list(path_); }
+  // The same for any directory.
+  static std::vector<std::string> list(const std::filesystem::path& directory) {
     std::vector<std::string> names;
-    for (const auto& entry : std::filesystem::directory_iterator(path_)) {
+    for (const auto& entry : std::filesystem::directory_iterator(directory)) {
       names.push_back(entry.path().filename().string());
     }
     std::sort(names.begin(), names.end());

@@ -15,8 +15,10 @@ namespace relief {
 
 // PRAGMA application_id: "RLIF" big-endian.
 inline constexpr std::int32_t kArchiveApplicationId = 0x524C4946;
-// PRAGMA user_version: the archive format version this build writes and reads.
-inline constexpr int kArchiveFormatVersion = 1;
+// PRAGMA user_version: the archive format version this build writes. It reads
+// every version from 1 on; version 1 lacks the metadata checksum and the
+// bounds index (format-spec/archive.md, version log).
+inline constexpr int kArchiveFormatVersion = 2;
 
 struct ChunkKey {
   std::int64_t ix = 0, iy = 0, iz = 0;
@@ -42,6 +44,13 @@ struct ArchiveSource {
   std::uint64_t point_count = 0;
   std::string crs;     // as the file gave it, empty when none
   std::int64_t scan_id = 0;
+};
+
+// What every point of a scan carries, known when the scan begins.
+struct ScanAttributes {
+  bool has_colors = false;
+  bool has_intensity = false;
+  std::string crs;  // of the scan's sources; empty when none
 };
 
 // A scan is what one compress, append or stream run adds.
@@ -110,12 +119,15 @@ class Archive {
   virtual Result<ArchiveInfo> info() const = 0;
 
   // ---- Writing (read-write handles only; kInvalidArgument otherwise).
-  // Starts a scan with its sources, committed at once with complete = false.
-  virtual Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources) = 0;
+  // Starts a scan with its sources and attributes, committed at once with
+  // complete = false. The archive's attributes and CRS include the scan's from
+  // here on, so the chunks of a run killed before finish_scan read like any.
+  virtual Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources,
+                                          const ScanAttributes& attributes = {}) = 0;
   // Stores the rows in one transaction: assigns each the next free seq of its
   // voxel key and its id; updates the totals. Either all rows land or none.
   virtual Status put_chunks(std::vector<ChunkRow>& rows) = 0;
-  // Marks the scan complete and records its sources' CRS and attributes.
+  // Marks the scan complete (and records its attributes again, as given).
   virtual Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
                              const std::string& crs) = 0;
   // Removes every chunk and source of the scan in one transaction (a failed append).
@@ -132,5 +144,21 @@ class Archive {
   // Blob bytes read by read_chunk so far (for tests and benchmarks).
   virtual std::uint64_t blob_bytes_read() const = 0;
 };
+
+// What `check_archive` looked at and what it found damaged.
+struct ArchiveCheck {
+  int format_version = 0;
+  std::vector<std::string> checked;   // one line per check made
+  std::vector<std::string> problems;  // one line per damage found; empty = intact
+};
+
+// Checks a whole archive without trusting any part of it: SQLite's own
+// integrity check, the metadata checksum (absent in version 1), every blob's
+// CRC-32, and the spatial index against the chunk table (every chunk with
+// bounds has exactly one index entry with those bounds, found by a box query;
+// every entry names a chunk). Damage goes to `problems`; an error is returned
+// only when the file cannot be checked at all (missing, not an archive, newer
+// version). Reads only.
+Result<ArchiveCheck> check_archive(const std::string& path);
 
 }  // namespace relief

@@ -147,6 +147,10 @@ class StreamIngest {
   virtual Status push(const PointCloud& batch) = 0;
   // Encodes everything still buffered and marks the scan complete.
   virtual Result<IngestResult> finish() = 0;
+  // Gives up after a failure: removes everything this stream added, so the
+  // archive it created does not exist any more, or the archive it appended to
+  // is as before. The stream takes no more calls afterwards.
+  virtual Status abort() = 0;
 };
 
 }  // namespace relief
