@@ -25,8 +25,11 @@ int fail(const std::string& command, const Status& status) {
   return exit_code_for(status);
 }
 
-int usage_error(const std::string& command, const std::string& message, const char* usage) {
-  std::cerr << "relief " << command << ": " << message << "\n\n" << usage;
+int usage_error(const std::string& command, const std::string& message) {
+  // The error and where to look, not the whole help: the one line that
+  // matters would otherwise scroll away under it.
+  std::cerr << "relief " << command << ": " << message << "\n"
+            << "see 'relief " << command << " --help'\n";
   return kExitUsage;
 }
 
@@ -168,6 +171,17 @@ std::string parse_encode_params(Args& args, EncodeParams& p) {
     }
   }
   if (!args.ok()) return args.error();
+  // Caught here, before any work, rather than as a failure of the first chunk.
+  if (p.map_resolution % 8 != 0) {
+    return "--resolution must be a multiple of 8 from 8 to 64, got " + std::to_string(p.map_resolution);
+  }
+  if (p.height_bits != 8 && p.height_bits != 16) {
+    return "--height-bits must be 8 or 16, got " + std::to_string(p.height_bits);
+  }
+  if (p.height_bits == 16 && p.image_codec != ImageCodec::kJpeg2000) {
+    return "--height-bits 16 needs --codec jpeg2000 (JPEG is 8-bit)";
+  }
+  if (Status s = validate_encode_params(p); !s) return s.message();
   return "";
 }
 

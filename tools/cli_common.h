@@ -23,7 +23,8 @@ int exit_code_for(const Status& status);
 
 // Prints "relief <command>: <message>" to stderr and returns the exit code.
 int fail(const std::string& command, const Status& status);
-int usage_error(const std::string& command, const std::string& message, const char* usage);
+// Prints the error and a hint to see `relief <command> --help`; returns kExitUsage.
+int usage_error(const std::string& command, const std::string& message);
 
 // A tiny option parser: `--name value`, `--name=value`, `-o value`, flags and
 // positionals. Unknown options are an error.
@@ -47,6 +48,11 @@ class Args {
   std::vector<std::string> positional_;
   std::string error_;
 };
+
+// --lod L is 1..kMaxLod. A level of detail keeps ~1/L of each chunk's points
+// (error diffusion over its patches), so a chunk with fewer than L/2 points
+// gives none; far larger values would return nothing from most archives.
+inline constexpr long long kMaxLod = 1024;
 
 // Encoder options shared by encode-chunk and roundtrip.
 extern const char* const kEncodeOptionsHelp;

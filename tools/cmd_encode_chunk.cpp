@@ -23,13 +23,13 @@ int run_encode_chunk(int argc, char** argv) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file", usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file");
   const auto out_path = args.get("-o");
-  if (!out_path) return usage_error(kCommand, "missing -o OUT", usage.c_str());
+  if (!out_path) return usage_error(kCommand, "missing -o OUT");
   EncodeParams params;
   if (const std::string err = parse_encode_params(args, params); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   const std::string& in_path = args.positional()[0];
   auto cloud = read_point_file(in_path);

@@ -3,10 +3,12 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <mutex>
 
@@ -62,7 +64,7 @@ int run_preview(int argc, char** argv) {
       "  --box B            region to show: 4 numbers = all heights, 6 = a 3D box (default: the\n"
       "                     archive's bounds). A box without points gives an all-background image\n"
       "                     (exit 0) and a warning; an archive without points is an error (11).\n"
-      "  --lod L            level of detail: about 1/L of the points (default 16; 1 = all)\n"
+      "  --lod L            level of detail: about 1/L of the points (1..1024, default 16; 1 = all)\n"
       "  --width W          image width in pixels, 16..8192 (default 1024); the height follows the\n"
       "                     aspect ratio, at most 8192\n"
       "  --view top|oblique top: straight down, north up, with a scale bar (default);\n"
@@ -79,13 +81,21 @@ int run_preview(int argc, char** argv) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one archive", usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one archive");
   const auto out_path = args.get("-o");
-  if (!out_path || out_path->empty()) return usage_error(kCommand, "missing -o VIEW.png", usage.c_str());
+  if (!out_path || out_path->empty()) return usage_error(kCommand, "missing -o VIEW.png");
+  {
+    // Only PNG is written; a .jpg name would get PNG bytes under it.
+    std::string ext = std::filesystem::path(*out_path).extension().string();
+    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext != ".png") {
+      return usage_error(kCommand, "-o " + *out_path + ": preview writes PNG only; name the output *.png");
+    }
+  }
 
   PreviewOptions popt;
-  const auto lod = static_cast<std::uint32_t>(args.get_int("--lod", 16, 1, 1 << 20));
+  const auto lod = static_cast<std::uint32_t>(args.get_int("--lod", 16, 1, kMaxLod));
   popt.width = static_cast<int>(args.get_int("--width", 1024, 16, kMaxPreviewSide));
   const auto threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   if (const auto v = args.get("--view")) {
@@ -94,28 +104,28 @@ int run_preview(int argc, char** argv) {
     } else if (*v == "oblique") {
       popt.view = PreviewView::kOblique;
     } else {
-      return usage_error(kCommand, "--view must be top or oblique, got '" + *v + "'", usage.c_str());
+      return usage_error(kCommand, "--view must be top or oblique, got '" + *v + "'");
     }
   }
   popt.azimuth_deg = args.get_double("--azimuth", 30);
   popt.elevation_deg = args.get_double("--elevation", 35);
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
   if (popt.view == PreviewView::kTop && (args.has("--azimuth") || args.has("--elevation"))) {
-    return usage_error(kCommand, "--azimuth and --elevation need --view oblique", usage.c_str());
+    return usage_error(kCommand, "--azimuth and --elevation need --view oblique");
   }
   if (!(popt.elevation_deg >= 0 && popt.elevation_deg <= 90)) {
-    return usage_error(kCommand, "--elevation must be from 0 to 90 degrees", usage.c_str());
+    return usage_error(kCommand, "--elevation must be from 0 to 90 degrees");
   }
   if (!(std::fabs(popt.azimuth_deg) <= 360)) {
-    return usage_error(kCommand, "--azimuth must be from -360 to 360 degrees", usage.c_str());
+    return usage_error(kCommand, "--azimuth must be from -360 to 360 degrees");
   }
   Box3d box;
   const bool has_box = args.has("--box");
   if (has_box) {
     std::string err;
-    if (!parse_box(*args.get("--box"), box, err)) return usage_error(kCommand, "--box: " + err, usage.c_str());
+    if (!parse_box(*args.get("--box"), box, err)) return usage_error(kCommand, "--box: " + err);
     if (!(box.max.x > box.min.x) || !(box.max.y > box.min.y)) {
-      return usage_error(kCommand, "--box must have xmax > xmin and ymax > ymin to make an image", usage.c_str());
+      return usage_error(kCommand, "--box must have xmax > xmin and ymax > ymin to make an image");
     }
   }
   const bool quiet = args.has("--quiet");

@@ -14,5 +14,7 @@ std::vector<std::string> ingest_option_names();
 // Fills memory, threads, tmp dir, columns and creator; returns an error or "".
 std::string parse_ingest_options(Args& args, IngestOptions& o);
 void print_ingest_summary(const std::string& path, const IngestResult& r);
+// The readers' warnings (IngestResult::warnings) on stderr, even with --quiet.
+void print_ingest_warnings(const std::string& command, const IngestResult& r);
 
 }  // namespace relief::cli

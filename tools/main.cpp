@@ -15,7 +15,7 @@ constexpr const char* kUsage =
     "  compress IN... -o OUT.relief      compress point files of any size into an archive\n"
     "  append ARCHIVE IN...              add point files to an archive\n"
     "  stream ARCHIVE                    compress points arriving on standard input\n"
-    "  preview ARCHIVE -o VIEW.png       a quick-look image, top-down or oblique, of all or a box\n"
+    "  preview ARCHIVE -o VIEW.png       a quick-look PNG, top-down or oblique, of all or a box\n"
     "  query ARCHIVE --box B -o OUT      the points inside a box, at any level of detail\n"
     "  decompress ARCHIVE -o OUT         every point of an archive\n"
     "  info ARCHIVE [--json]             what an archive holds\n"
@@ -52,6 +52,6 @@ int main(int argc, char** argv) {
   if (command == "encode-chunk") return relief::cli::run_encode_chunk(sub_argc, sub_argv);
   if (command == "decode-chunk") return relief::cli::run_decode_chunk(sub_argc, sub_argv);
   if (command == "eval") return relief::cli::run_eval(sub_argc, sub_argv);
-  std::cerr << "relief: unknown command '" << command << "'\n\n" << kUsage;
+  std::cerr << "relief: unknown command '" << command << "'\nsee 'relief --help'\n";
   return relief::cli::kExitUsage;
 }
