@@ -1083,12 +1083,22 @@ Result<std::unique_ptr<Archive>> Archive::open(const std::string& path, Mode mod
     return format_error(path + ": not a Relief archive (empty file)");
   }
 
+  // A cut-short file is reported by SQLite as "not a database" or
+  // "malformed"; when opening fails as malformed, say it is truncated if its
+  // header shows so. (Checked only then: while a writer checkpoints, page 1
+  // may briefly announce pages not yet written.)
+  const auto explain = [&path](Status status) {
+    if (status.code() != StatusCode::kFormatError) return status;
+    Status truncated = store::check_not_truncated(path);
+    return truncated ? status : truncated;
+  };
   const int flags = mode == Mode::kReadOnly ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
-  RELIEF_ASSIGN_OR_RETURN(store::Connection connection,
-                          store::open_connection(path, flags, path, "cannot open"));
-  RELIEF_ASSIGN_OR_RETURN(const int version, identify(connection.get(), path));
-  auto archive = std::make_unique<SqliteArchive>(path, std::move(connection), mode, version);
-  RELIEF_RETURN_IF_ERROR(archive->initialise());
+  Result<store::Connection> connection = store::open_connection(path, flags, path, "cannot open");
+  if (!connection) return explain(connection.status());
+  Result<int> version = identify(connection->get(), path);
+  if (!version) return explain(version.status());
+  auto archive = std::make_unique<SqliteArchive>(path, std::move(*connection), mode, *version);
+  if (Status s = archive->initialise(); !s) return explain(s);
   return std::unique_ptr<Archive>(std::move(archive));
 }
 

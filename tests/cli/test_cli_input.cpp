@@ -209,3 +209,26 @@ TEST_CASE("compress warns on stderr when a PLY holds more vertices than its head
   CHECK(r.code == 0);
   CHECK(has(r, "warning: " + tmp.file("more.ply") + ": the header declares 40 vertices but 50 follow"));
 }
+
+TEST_CASE("an archive cut short behind an intact header is called truncated", "[cli][query]") {
+  TempDir tmp;
+  const std::string a = tmp.file("k.relief");
+  REQUIRE(run("compress " + sample() + " -o " + a + " --quiet").code == 0);
+  REQUIRE((!fs::exists(a + "-wal") || fs::file_size(a + "-wal") == 0));  // everything is in the main file
+  const auto size = fs::file_size(a);
+  for (const std::uintmax_t keep : {std::uintmax_t{4096}, size / 2, size - 4096}) {
+    INFO(keep);
+    fs::copy_file(a, tmp.file("cut.relief"), fs::copy_options::overwrite_existing);
+    fs::resize_file(tmp.file("cut.relief"), keep);
+    for (const std::string cmd : {"info " + tmp.file("cut.relief"),
+                                  "query " + tmp.file("cut.relief") + " --box -1,-1,1,1 -o " + tmp.file("q.ply")}) {
+      const Run r = run(cmd);
+      CHECK(r.code == 13);
+      CHECK(has(r, "cut.relief: truncated"));
+      CHECK_FALSE(has(r, "not a SQLite database"));
+    }
+  }
+  // A file that is not SQLite at all keeps its own message.
+  write_text(tmp.file("text.relief"), std::string(200, 'x'));
+  CHECK(has(run("info " + tmp.file("text.relief")), "not a Relief archive"));
+}
