@@ -185,6 +185,21 @@ std::string parse_encode_params(Args& args, EncodeParams& p) {
   return "";
 }
 
+Status check_chunk_coordinates(const PointCloud& cloud, const std::string& path) {
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3d& p = cloud.positions[i];
+    for (const double v : {p.x, p.y, p.z}) {
+      if (!(std::abs(v) <= kMaxCoordinateMagnitude)) {
+        char value[32];
+        std::snprintf(value, sizeof value, "%.9g", v);
+        return invalid_argument(path + ": point " + std::to_string(i) + " has a coordinate " + value +
+                                " beyond the limit of +-2^50 (README, \"Limits\")");
+      }
+    }
+  }
+  return Status::ok();
+}
+
 Result<std::vector<std::uint8_t>> read_file(const std::string& path) {
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) return io_error(path + ": cannot open: " + std::strerror(errno));

@@ -60,6 +60,11 @@ std::vector<std::string> encode_option_names();
 // Fills params from args; returns an error message or "".
 std::string parse_encode_params(Args& args, EncodeParams& params);
 
+// kInvalidArgument naming `path`, the point and the value when a coordinate of
+// `cloud` exceeds kMaxCoordinateMagnitude (2^50): a single chunk (encode-chunk,
+// roundtrip) has no archive grid, so only the absolute limit applies.
+Status check_chunk_coordinates(const PointCloud& cloud, const std::string& path);
+
 Result<std::vector<std::uint8_t>> read_file(const std::string& path);
 // Writes beside the target and renames, so a failure never leaves a partial file.
 Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data);

@@ -34,6 +34,7 @@ int run_encode_chunk(int argc, char** argv) {
   const std::string& in_path = args.positional()[0];
   auto cloud = read_point_file(in_path);
   if (!cloud) return fail(kCommand, cloud.status());
+  if (Status s = check_chunk_coordinates(*cloud, in_path); !s) return fail(kCommand, s);
   if (params.cell_size == 0) params.cell_size = suggest_cell_size(*cloud, params.map_resolution);
   const auto t0 = now_ns();
   auto blob = encode_chunk(*cloud, params);

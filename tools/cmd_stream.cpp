@@ -170,9 +170,20 @@ int run_stream(int argc, char** argv) {
     layout.colors = has('r') == 1 && has('g') == 1 && has('b') == 1;
     layout.intensity = has('i') == 1;
   } else {
+    // Each name once, nothing else: a misspelt attribute would otherwise
+    // shift every record silently.
     const std::string attrs = args.get("--attributes").value_or("");
-    layout.colors = attrs.find("rgb") != std::string::npos;
-    layout.intensity = attrs.find("intensity") != std::string::npos;
+    std::size_t start = 0;
+    while (!attrs.empty() && start <= attrs.size()) {
+      const std::size_t comma = std::min(attrs.find(',', start), attrs.size());
+      const std::string name = attrs.substr(start, comma - start);
+      bool& flag = name == "rgb" ? layout.colors : layout.intensity;
+      if ((name != "rgb" && name != "intensity") || flag) {
+        return usage_error(kCommand, "--attributes takes rgb, intensity or rgb,intensity, got '" + attrs + "'");
+      }
+      flag = true;
+      start = comma + 1;
+    }
   }
   const bool quiet = args.has("--quiet");
   so.ingest.progress = progress_printer(quiet);

@@ -232,3 +232,28 @@ TEST_CASE("an archive cut short behind an intact header is called truncated", "[
   write_text(tmp.file("text.relief"), std::string(200, 'x'));
   CHECK(has(run("info " + tmp.file("text.relief")), "not a Relief archive"));
 }
+
+TEST_CASE("encode-chunk and roundtrip refuse coordinates beyond 2^50", "[cli]") {
+  TempDir tmp;
+  write_text(tmp.file("far.xyz"), grid_xyz("1e300 0 0"));
+  for (const std::string cmd : {"roundtrip " + tmp.file("far.xyz"),
+                                "encode-chunk " + tmp.file("far.xyz") + " -o " + tmp.file("c.rlfc")}) {
+    INFO(cmd);
+    const Run r = run(cmd);
+    CHECK(r.code == 11);
+    CHECK(has(r, "far.xyz: point 100 has a coordinate 1e+300"));
+  }
+  CHECK_FALSE(fs::exists(tmp.file("c.rlfc")));
+}
+
+TEST_CASE("stream: unknown binary attributes are a usage error", "[cli][ingest]") {
+  TempDir tmp;
+  for (const char* attrs : {"color", "rgb,rgb", "rgb,", "rgb,intensity,x"}) {
+    INFO(attrs);
+    const Run r = run("stream " + tmp.file("s.relief") + " --format binary --cell 1 --attributes " + attrs +
+                      " < /dev/null");
+    CHECK(r.code == 2);
+    CHECK(has(r, "--attributes"));
+  }
+  CHECK_FALSE(fs::exists(tmp.file("s.relief")));
+}
