@@ -16,6 +16,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "preview_render.h"
+#include "relief/image.h"
 #include "relief/query.h"
 
 namespace relief::cli {
@@ -23,6 +24,8 @@ namespace relief::cli {
 namespace {
 
 constexpr const char* kCommand = "preview";
+// -o *.jpg: high enough that the scale bar's text and thin lines stay clean.
+constexpr int kPreviewJpegQuality = 90;
 
 bool finite_box(const Box3d& b) {
   return std::isfinite(b.min.x) && std::isfinite(b.min.y) && std::isfinite(b.min.z) && std::isfinite(b.max.x) &&
@@ -58,9 +61,10 @@ int run_preview(int argc, char** argv) {
       "usage: relief preview ARCHIVE -o VIEW.png [--box xmin,ymin,xmax,ymax | --box xmin,ymin,zmin,xmax,ymax,zmax]\n"
       "                      [--lod L] [--width W] [--view top|oblique] [--azimuth DEG] [--elevation DEG]\n"
       "                      [--threads N] [--quiet]\n"
-      "Draws a quick-look PNG of an archive, or of the points inside a box, decoding only the chunks\n"
+      "Draws a quick-look image of an archive, or of the points inside a box, decoding only the chunks\n"
       "the box touches at a coarse level of detail.\n"
-      "  -o VIEW.png        output image (written atomically: no partial file on failure)\n"
+      "  -o VIEW.png        output image, PNG (.png) or JPEG (.jpg, .jpeg) by extension (written\n"
+      "                     atomically: no partial file on failure)\n"
       "  --box B            region to show: 4 numbers = all heights, 6 = a 3D box (default: the\n"
       "                     archive's bounds). A box without points gives an all-background image\n"
       "                     (exit 0) and a warning; an archive without points is an error (11).\n"
@@ -85,13 +89,12 @@ int run_preview(int argc, char** argv) {
   if (args.positional().size() != 1) return usage_error(kCommand, "expected one archive");
   const auto out_path = args.get("-o");
   if (!out_path || out_path->empty()) return usage_error(kCommand, "missing -o VIEW.png");
-  {
-    // Only PNG is written; a .jpg name would get PNG bytes under it.
-    std::string ext = std::filesystem::path(*out_path).extension().string();
-    for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-    if (ext != ".png") {
-      return usage_error(kCommand, "-o " + *out_path + ": preview writes PNG only; name the output *.png");
-    }
+  // The file type follows the name, so a .jpg never gets PNG bytes.
+  std::string ext = std::filesystem::path(*out_path).extension().string();
+  for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  const bool jpeg = ext == ".jpg" || ext == ".jpeg";
+  if (ext != ".png" && !jpeg) {
+    return usage_error(kCommand, "-o " + *out_path + ": preview writes PNG (.png) or JPEG (.jpg, .jpeg)");
   }
 
   PreviewOptions popt;
@@ -169,8 +172,9 @@ int run_preview(int argc, char** argv) {
   const double shade_s = seconds_since(t1);
   t1 = now_ns();
   // Very large images: the fastest zlib level (a few seconds saved, ~20 % bigger).
-  auto png = encode_png(image, image.rgb.size() > (std::size_t{48} << 20) ? 1 : 3);
-  if (!png) return fail(kCommand, png.status());
+  auto png = jpeg ? encode_jpeg_rgb(image.rgb, image.width, image.height, kPreviewJpegQuality)
+                  : encode_png(image, image.rgb.size() > (std::size_t{48} << 20) ? 1 : 3);
+  if (!png) return fail(kCommand, png.status().with_context(*out_path));
   if (Status s = write_file_atomic(*out_path, *png); !s) return fail(kCommand, s);
   const double png_s = seconds_since(t1);
 
@@ -194,8 +198,9 @@ int run_preview(int argc, char** argv) {
     std::printf("chunks decoded  %llu (of %llu in the archive)\n",
                 static_cast<unsigned long long>(stats->chunks_decoded),
                 static_cast<unsigned long long>(info.chunk_count));
-    std::printf("time            %.3f s (open, query and drawing %.3f s, shading %.3f s, PNG %.3f s, %s)\n",
-                seconds_since(t0), query_s, shade_s, png_s, format_bytes(png->size()).c_str());
+    std::printf("time            %.3f s (open, query and drawing %.3f s, shading %.3f s, %s %.3f s, %s)\n",
+                seconds_since(t0), query_s, shade_s, jpeg ? "JPEG" : "PNG", png_s,
+                format_bytes(png->size()).c_str());
   }
   return kExitOk;
 }

@@ -15,7 +15,7 @@ constexpr const char* kUsage =
     "  compress IN... -o OUT.relief      compress point files of any size into an archive\n"
     "  append ARCHIVE IN...              add point files to an archive\n"
     "  stream ARCHIVE                    compress points arriving on standard input\n"
-    "  preview ARCHIVE -o VIEW.png       a quick-look PNG, top-down or oblique, of all or a box\n"
+    "  preview ARCHIVE -o VIEW.png       a quick-look image, top-down or oblique, of all or a box\n"
     "  query ARCHIVE --box B -o OUT      the points inside a box, at any level of detail\n"
     "  decompress ARCHIVE -o OUT         every point of an archive\n"
     "  info ARCHIVE [--json]             what an archive holds\n"

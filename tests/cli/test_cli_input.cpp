@@ -6,7 +6,9 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
+#include "relief/image.h"
 #include "support/run_cli.h"
 #include "support/temp_dir.h"
 
@@ -130,22 +132,39 @@ TEST_CASE("query, decompress and preview: --lod beyond 1024 is a usage error", "
   CHECK(run("query " + a + " --box -1,-1,-3,1,1,1 --lod 1024 -o " + tmp.file("q.ply") + " --quiet").code == 0);
 }
 
-TEST_CASE("preview refuses output names other than .png", "[cli][preview]") {
+TEST_CASE("preview writes PNG or JPEG by the output's extension and refuses others", "[cli][preview]") {
   TempDir tmp;
   const std::string a = tmp.file("k.relief");
   REQUIRE(run("compress " + sample() + " -o " + a + " --quiet").code == 0);
-  for (const char* name : {"view.jpg", "view.jpeg", "view"}) {
+  const auto head = [&](const std::string& name) {
+    std::ifstream in(tmp.file(name), std::ios::binary);
+    std::string bytes(8, '\0');
+    in.read(bytes.data(), 8);
+    return bytes;
+  };
+  for (const char* name : {"view.gif", "view", "view.jpg.txt"}) {
     INFO(name);
     const Run r = run("preview " + a + " -o " + tmp.file(name));
     CHECK(r.code == 2);
-    CHECK(has(r, "PNG"));
+    CHECK(has(r, "PNG (.png) or JPEG (.jpg, .jpeg)"));
     CHECK_FALSE(fs::exists(tmp.file(name)));
   }
+  for (const char* name : {"view.jpg", "view.JPEG"}) {
+    INFO(name);
+    REQUIRE(run("preview " + a + " -o " + tmp.file(name) + " --quiet").code == 0);
+    CHECK(head(name).substr(0, 3) == "\xFF\xD8\xFF");  // JPEG SOI and the next marker
+    CHECK(fs::file_size(tmp.file(name)) > 1000);
+  }
   REQUIRE(run("preview " + a + " -o " + tmp.file("view.PNG") + " --quiet").code == 0);
-  std::ifstream in(tmp.file("view.PNG"), std::ios::binary);
-  char magic[8] = {};
-  in.read(magic, 8);
-  CHECK(std::string(magic + 1, 3) == "PNG");
+  CHECK(head("view.PNG") == "\x89PNG\r\n\x1a\n");
+}
+
+TEST_CASE("encode_jpeg_rgb checks its arguments", "[cli][preview]") {
+  const std::vector<std::uint8_t> rgb(4 * 3 * 3, 128);
+  CHECK(relief::encode_jpeg_rgb(rgb, 4, 3, 90).is_ok());
+  CHECK(relief::encode_jpeg_rgb(rgb, 4, 4, 90).status().code() == relief::StatusCode::kInvalidArgument);
+  CHECK(relief::encode_jpeg_rgb(rgb, 4, 3, 0).status().code() == relief::StatusCode::kInvalidArgument);
+  CHECK(relief::encode_jpeg_rgb({}, 0, 0, 90).status().code() == relief::StatusCode::kInvalidArgument);
 }
 
 TEST_CASE("compress names a missing output directory and an existing non-archive", "[cli][ingest]") {
