@@ -188,6 +188,10 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
         params.cell_size > kMaxCoordinateMagnitude) {
       return invalid_argument("cell size and chunk edge must be positive numbers up to 2^50");
     }
+    if (grid.chunk_edge / params.cell_size > std::ldexp(1.0, 21)) {
+      return invalid_argument("chunk edge " + std::to_string(grid.chunk_edge) + " is more than 2^21 cells of " +
+                              std::to_string(params.cell_size));
+    }
     RELIEF_RETURN_IF_ERROR(ingest::check_output_directory(archive_path));
     RELIEF_ASSIGN_OR_RETURN(archive, Archive::create(archive_path, grid, encode_params_to_string(params),
                                                      options.ingest.creator));

@@ -276,3 +276,13 @@ TEST_CASE("stream: unknown binary attributes are a usage error", "[cli][ingest]"
   }
   CHECK_FALSE(fs::exists(tmp.file("s.relief")));
 }
+
+TEST_CASE("stream refuses a chunk edge of more than 2^21 cells before creating the archive", "[cli][ingest]") {
+  TempDir tmp;
+  write_text(tmp.file("in.txt"), grid_xyz("5 5 5"));
+  const Run r = run("stream " + tmp.file("s.relief") + " --cell 1 --chunk-edge 1e9 < " + tmp.file("in.txt"));
+  CHECK(r.code == 11);
+  CHECK(has(r, "more than 2^21 cells"));
+  CHECK_FALSE(has(r, "chunk ("));
+  CHECK_FALSE(fs::exists(tmp.file("s.relief")));
+}
