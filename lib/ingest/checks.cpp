@@ -59,7 +59,7 @@ Status check_coordinates(const PointCloud& batch, double limit, const std::strin
     const double v = axis == 'x' ? p.x : axis == 'y' ? p.y : p.z;
     return invalid_argument(source + ": point " + std::to_string(first_index + i) + " has " + axis + " = " +
                             format_number(v) + ", beyond the limit of +-" + format_number(limit) +
-                            " for this cell size and chunk edge (README, \"Limits\")");
+                            " (2^36 cells, at most 2^50; README, \"Limits\")");
   }
   return Status::ok();
 }
@@ -97,7 +97,7 @@ Status check_sample_density(const PointCloud& sample, const ArchiveGrid& grid, d
   const std::string what = source + ": the first " + std::to_string(n) + " points fall into ";
   const std::string hint =
       "; the archive would be many times larger than the input. Use a larger --cell (or leave it to the point "
-      "density), a larger --chunk-edge, or --allow-sparse to go ahead";
+      "density), a larger --chunk-edge, or --allow-sparse (IngestOptions::allow_sparse) to go ahead";
   if (cell_count * kMinPointsPerCell > n) {
     return limit_exceeded(what + std::to_string(cell_count) + " cells of " + format_number(cell_size) + " (" +
                           per(cell_count) + " points per cell; at least " + std::to_string(kMinPointsPerCell) +

@@ -463,6 +463,9 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
       static_cast<std::size_t>(std::min<std::uint64_t>(kReadBatch, (budget / 4) / kFirstBatchBytesPerPoint));
   RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, first_points));
   conform_attributes(first, in.colors, in.intensity);
+  // The absolute bound first, so no absurd coordinate reaches the cell-size
+  // estimate; the bound for the chosen cell follows below.
+  RELIEF_RETURN_IF_ERROR(check_coordinates(first, kMaxCoordinateMagnitude, inputs[0], 0));
   if (params.cell_size == 0 || options.error_target > 0) {
     if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
     if (options.error_target > 0) {

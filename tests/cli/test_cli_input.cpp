@@ -49,6 +49,12 @@ TEST_CASE("compress refuses coordinates beyond the limit on both sides, naming f
     CHECK(has(r, "beyond the limit"));
     CHECK_FALSE(fs::exists(tmp.file("far.relief")));
   }
+  // Also when the cell comes from an error target (trial encodes of the first points).
+  write_text(tmp.file("far.xyz"), grid_xyz("1e300 0 0"));
+  const Run target =
+      run("compress " + tmp.file("far.xyz") + " -o " + tmp.file("far.relief") + " --error-target 0.1 --quiet");
+  CHECK(target.code == 11);
+  CHECK(has(target, "far.xyz: point 100 has x = 1e+300"));
   // The limit is 2^36 cells: 6.87e9 with 0.1 cells; just inside is accepted.
   write_text(tmp.file("near.xyz"), grid_xyz("-6e9 0 0"));
   const Run ok = run("compress " + tmp.file("near.xyz") + " -o " + tmp.file("near.relief") + " --cell 0.1 --quiet");
