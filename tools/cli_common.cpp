@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <signal.h>
@@ -216,7 +217,14 @@ Result<std::vector<std::uint8_t>> read_file(const std::string& path) {
 Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data) {
   const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) return io_error(path + ": cannot create: " + std::strerror(errno));
+  if (!f) {
+    const int err = errno;
+    const std::string dir = std::filesystem::path(path).parent_path().string();
+    if (err == ENOENT && !dir.empty() && !std::filesystem::exists(dir)) {
+      return io_error(path + ": cannot create: the directory " + dir + " does not exist");
+    }
+    return io_error(path + ": cannot create: " + std::strerror(err));
+  }
   const bool wrote = std::fwrite(data.data(), 1, data.size(), f) == data.size();
   const bool closed = std::fclose(f) == 0;
   if (!wrote || !closed) {

@@ -197,6 +197,17 @@ TEST_CASE("compress names a missing output directory and an existing non-archive
   const Run stream = run("stream " + tmp.file("nodir/s.relief") + " --cell 1 < /dev/null");
   CHECK(stream.code == 12);
   CHECK(has(stream, "does not exist"));
+
+  // Outputs of the other commands say the same, not "cannot create temporary file".
+  for (const std::string cmd :
+       {"query " + tmp.file("k.relief") + " --box -1,-1,1,1 -o " + tmp.file("nodir/q.ply"),
+        "preview " + tmp.file("k.relief") + " -o " + tmp.file("nodir/v.png"),
+        "encode-chunk " + sample() + " -o " + tmp.file("nodir/c.rlfc")}) {
+    INFO(cmd);
+    const Run r = run(cmd);
+    CHECK(r.code == 12);
+    CHECK(has(r, "the directory " + tmp.file("nodir") + " does not exist"));
+  }
 }
 
 TEST_CASE("stream names the attribute that differs from the archive's", "[cli][ingest]") {

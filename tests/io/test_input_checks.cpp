@@ -116,3 +116,15 @@ TEST_CASE("LAS: a point format byte is LAZ only when a real format lies under th
   const relief::Status laz = with_format(0x80 | 2);
   CHECK(laz.message().find("LAZ") != std::string::npos);
 }
+
+TEST_CASE("writers name a missing output directory", "[io]") {
+  TempDir tmp;
+  const std::string dir = tmp.file("nodir");
+  for (const char* name : {"/out.ply", "/out.las", "/out.xyz"}) {
+    INFO(name);
+    auto writer = relief::open_point_writer(dir + name, {});
+    REQUIRE_FALSE(writer.is_ok());
+    CHECK(writer.status().code() == relief::StatusCode::kIoError);
+    CHECK(writer.status().message() == dir + name + ": cannot create: the directory " + dir + " does not exist");
+  }
+}
