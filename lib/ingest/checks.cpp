@@ -82,15 +82,15 @@ Status check_output_directory(const std::string& archive_path) {
 Status check_sample_density(const PointCloud& sample, const ArchiveGrid& grid, double cell_size,
                             const std::string& source) {
   if (sample.size() < kDensityCheckMinPoints) return Status::ok();
+  const std::size_t n = std::min(sample.size(), kDensitySamplePoints);
   const auto distinct = [&](const ArchiveGrid& g) {
-    std::vector<ChunkKey> keys(sample.size());
-    g.keys_of(sample.positions.data(), sample.size(), keys.data());
+    std::vector<ChunkKey> keys(n);
+    g.keys_of(sample.positions.data(), n, keys.data());
     std::sort(keys.begin(), keys.end());
     return static_cast<std::uint64_t>(std::unique(keys.begin(), keys.end()) - keys.begin());
   };
   ArchiveGrid cells = grid;
   cells.chunk_edge = cell_size;
-  const std::uint64_t n = sample.size();
   const std::uint64_t cell_count = distinct(cells);
   const std::uint64_t chunk_count = distinct(grid);
   const auto per = [n](std::uint64_t k) { return format_number(static_cast<double>(n) / static_cast<double>(k)); };

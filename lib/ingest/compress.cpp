@@ -459,14 +459,17 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   // the cell-size scratch).
   PointCloud first;
   const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget);
-  const auto first_points =
-      static_cast<std::size_t>(std::min<std::uint64_t>(kReadBatch, (budget / 4) / kFirstBatchBytesPerPoint));
+  const bool derive_cell = params.cell_size == 0 || options.error_target > 0;
+  // With the cell given, only the density check needs them: read no more, so
+  // the reading thread takes over sooner.
+  const auto first_points = static_cast<std::size_t>(std::min<std::uint64_t>(
+      derive_cell ? kReadBatch : kDensitySamplePoints, (budget / 4) / kFirstBatchBytesPerPoint));
   RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, first_points));
   conform_attributes(first, in.colors, in.intensity);
   // The absolute bound first, so no absurd coordinate reaches the cell-size
   // estimate; the bound for the chosen cell follows below.
   RELIEF_RETURN_IF_ERROR(check_coordinates(first, kMaxCoordinateMagnitude, inputs[0], 0));
-  if (params.cell_size == 0 || options.error_target > 0) {
+  if (derive_cell) {
     if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
     if (options.error_target > 0) {
       RELIEF_ASSIGN_OR_RETURN(params.cell_size, choose_cell_for_error(first, params, options.error_target));
