@@ -27,6 +27,15 @@ fi
 
 sudo_cmd=()
 if [[ $(id -u) -ne 0 ]]; then
+  if ! command -v sudo >/dev/null 2>&1; then
+    # No sudo (a minimal container or a fresh Debian without it): say exactly
+    # what to run as root instead of failing with "sudo: command not found".
+    echo "install-deps: missing packages: ${missing[*]}" >&2
+    echo "install-deps: not root and sudo is not installed; as root, run:" >&2
+    echo "  apt-get update && apt-get install -y --no-install-recommends ${missing[*]}" >&2
+    echo "install-deps: then run this script again" >&2
+    exit 1
+  fi
   sudo_cmd=(sudo)
 fi
 echo "install-deps: installing ${missing[*]}"

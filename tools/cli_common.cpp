@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <signal.h>
@@ -25,8 +26,11 @@ int fail(const std::string& command, const Status& status) {
   return exit_code_for(status);
 }
 
-int usage_error(const std::string& command, const std::string& message, const char* usage) {
-  std::cerr << "relief " << command << ": " << message << "\n\n" << usage;
+int usage_error(const std::string& command, const std::string& message) {
+  // The error and where to look, not the whole help: the one line that
+  // matters would otherwise scroll away under it.
+  std::cerr << "relief " << command << ": " << message << "\n"
+            << "see 'relief " << command << " --help'\n";
   return kExitUsage;
 }
 
@@ -168,7 +172,33 @@ std::string parse_encode_params(Args& args, EncodeParams& p) {
     }
   }
   if (!args.ok()) return args.error();
+  // Caught here, before any work, rather than as a failure of the first chunk.
+  if (p.map_resolution % 8 != 0) {
+    return "--resolution must be a multiple of 8 from 8 to 64, got " + std::to_string(p.map_resolution);
+  }
+  if (p.height_bits != 8 && p.height_bits != 16) {
+    return "--height-bits must be 8 or 16, got " + std::to_string(p.height_bits);
+  }
+  if (p.height_bits == 16 && p.image_codec != ImageCodec::kJpeg2000) {
+    return "--height-bits 16 needs --codec jpeg2000 (JPEG is 8-bit)";
+  }
+  if (Status s = validate_encode_params(p); !s) return s.message();
   return "";
+}
+
+Status check_chunk_coordinates(const PointCloud& cloud, const std::string& path) {
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3d& p = cloud.positions[i];
+    for (const double v : {p.x, p.y, p.z}) {
+      if (!(std::abs(v) <= kMaxCoordinateMagnitude)) {
+        char value[32];
+        std::snprintf(value, sizeof value, "%.9g", v);
+        return invalid_argument(path + ": point " + std::to_string(i) + " has a coordinate " + value +
+                                " beyond the limit of +-2^50 (README, \"Limits\")");
+      }
+    }
+  }
+  return Status::ok();
 }
 
 Result<std::vector<std::uint8_t>> read_file(const std::string& path) {
@@ -187,7 +217,14 @@ Result<std::vector<std::uint8_t>> read_file(const std::string& path) {
 Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data) {
   const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) return io_error(path + ": cannot create: " + std::strerror(errno));
+  if (!f) {
+    const int err = errno;
+    const std::string dir = std::filesystem::path(path).parent_path().string();
+    if (err == ENOENT && !dir.empty() && !std::filesystem::exists(dir)) {
+      return io_error(path + ": cannot create: the directory " + dir + " does not exist");
+    }
+    return io_error(path + ": cannot create: " + std::strerror(err));
+  }
   const bool wrote = std::fwrite(data.data(), 1, data.size(), f) == data.size();
   const bool closed = std::fclose(f) == 0;
   if (!wrote || !closed) {

@@ -23,7 +23,8 @@ int exit_code_for(const Status& status);
 
 // Prints "relief <command>: <message>" to stderr and returns the exit code.
 int fail(const std::string& command, const Status& status);
-int usage_error(const std::string& command, const std::string& message, const char* usage);
+// Prints the error and a hint to see `relief <command> --help`; returns kExitUsage.
+int usage_error(const std::string& command, const std::string& message);
 
 // A tiny option parser: `--name value`, `--name=value`, `-o value`, flags and
 // positionals. Unknown options are an error.
@@ -48,11 +49,21 @@ class Args {
   std::string error_;
 };
 
+// --lod L is 1..kMaxLod. A level of detail keeps ~1/L of each chunk's points
+// (error diffusion over its patches), so a chunk with fewer than L/2 points
+// gives none; far larger values would return nothing from most archives.
+inline constexpr long long kMaxLod = 1024;
+
 // Encoder options shared by encode-chunk and roundtrip.
 extern const char* const kEncodeOptionsHelp;
 std::vector<std::string> encode_option_names();
 // Fills params from args; returns an error message or "".
 std::string parse_encode_params(Args& args, EncodeParams& params);
+
+// kInvalidArgument naming `path`, the point and the value when a coordinate of
+// `cloud` exceeds kMaxCoordinateMagnitude (2^50): a single chunk (encode-chunk,
+// roundtrip) has no archive grid, so only the absolute limit applies.
+Status check_chunk_coordinates(const PointCloud& cloud, const std::string& path);
 
 Result<std::vector<std::uint8_t>> read_file(const std::string& path);
 // Writes beside the target and renames, so a failure never leaves a partial file.

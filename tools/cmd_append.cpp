@@ -18,11 +18,11 @@ int run_append(int argc, char** argv) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error("append", args.error(), usage.c_str());
-  if (args.positional().size() < 2) return usage_error("append", "expected ARCHIVE and at least one input", usage.c_str());
+  if (!args.ok()) return usage_error("append", args.error());
+  if (args.positional().size() < 2) return usage_error("append", "expected ARCHIVE and at least one input");
   IngestOptions o;
   if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
-    return usage_error("append", err, usage.c_str());
+    return usage_error("append", err);
   }
   const bool quiet = args.has("--quiet");
   o.progress = progress_printer(quiet);
@@ -38,6 +38,7 @@ int run_append(int argc, char** argv) {
     }
     return fail("append", r.status());
   }
+  print_ingest_warnings("append", *r);
   if (!quiet) print_ingest_summary(archive, *r);
   return kExitOk;
 }

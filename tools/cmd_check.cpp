@@ -25,8 +25,8 @@ int run_check(int argc, char** argv) {
     std::cout << kUsageText;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE", kUsageText);
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE");
   const std::string& path = args.positional()[0];
   const Result<ArchiveCheck> result = check_archive(path);
   if (!result) return fail(kCommand, result.status());

@@ -21,43 +21,46 @@ int run_compress(int argc, char** argv) {
       "Compresses point files (PLY, LAS 1.0-1.4, XYZ/CSV, PCD) of any size into a new archive.\n"
       "  --chunk-edge M         edge of the archive's chunks (default 32 cells)\n"
       "  --error-target M       resample mode: choose the cell size for this RMSE_SNN (by trial\n"
-      "                         encodes of the first points; overrides --cell; implies --mode resample)\n\n") +
+      "                         encodes of the first points; overrides --cell; implies --mode resample)\n"
+      "  --allow-sparse         go ahead although the cell or chunk edge puts on average fewer than\n"
+      "                         2 points in a cell or 16 in a chunk (refused by default: exit 16)\n\n") +
       kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = encode_option_names();
   for (const std::string& o : ingest_option_names()) options.push_back(o);
   for (const std::string& o : mode_option_names()) options.push_back(o);
   options.insert(options.end(), {"-o", "--chunk-edge", "--error-target"});
-  Args args(argc, argv, {"--help", "--quiet", "--verify"}, options);
+  Args args(argc, argv, {"--help", "--quiet", "--verify", "--allow-sparse"}, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
-  if (args.positional().empty()) return usage_error(kCommand, "expected at least one input file", usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().empty()) return usage_error(kCommand, "expected at least one input file");
   const auto out = args.get("-o");
-  if (!out) return usage_error(kCommand, "missing -o OUT.relief", usage.c_str());
+  if (!out) return usage_error(kCommand, "missing -o OUT.relief");
   IngestOptions o;
   if (const std::string err = parse_encode_params(args, o.codec); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   o.chunk_edge = args.get_double("--chunk-edge", 0);
   o.error_target = args.get_double("--error-target", 0);
   if (args.has("--error-target") && !(o.error_target > 0)) {
-    return usage_error(kCommand, "--error-target must be positive", usage.c_str());
+    return usage_error(kCommand, "--error-target must be positive");
   }
   if (args.has("--error-target")) {
     if (args.has("--mode") && *args.get("--mode") != "resample") {
-      return usage_error(kCommand, "--error-target needs --mode resample", usage.c_str());
+      return usage_error(kCommand, "--error-target needs --mode resample");
     }
     o.mode = IngestMode::kResample;
   }
   if (const std::string err = parse_mode_options(args, o); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
-  if (args.has("--chunk-edge") && !(o.chunk_edge > 0)) return usage_error(kCommand, "--chunk-edge must be positive", usage.c_str());
+  if (args.has("--chunk-edge") && !(o.chunk_edge > 0)) return usage_error(kCommand, "--chunk-edge must be positive");
+  o.allow_sparse = args.has("--allow-sparse");
   const bool quiet = args.has("--quiet");
   o.progress = progress_printer(quiet);
   o.cancel = install_interrupt_flag();
@@ -71,6 +74,7 @@ int run_compress(int argc, char** argv) {
     }
     return fail(kCommand, r.status());
   }
+  print_ingest_warnings(kCommand, *r);
   if (!quiet) print_ingest_summary(*out, *r);
   return kExitOk;
 }

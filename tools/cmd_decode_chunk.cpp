@@ -13,7 +13,7 @@ constexpr const char* kCommand = "decode-chunk";
 constexpr const char* kUsageText =
     "usage: relief decode-chunk IN.rlfc -o OUT.ply [--lod L] [--ascii] [--quiet]\n"
     "Decompresses a chunk blob to PLY (binary little endian, double x y z; --ascii for text).\n"
-    "  --lod L   level of detail: keep a spatially uniform ~1/L of the points (default 1)\n";
+    "  --lod L   level of detail: keep a spatially uniform ~1/L of the points (1..1024, default 1)\n";
 }  // namespace
 
 int run_decode_chunk(int argc, char** argv) {
@@ -23,11 +23,11 @@ int run_decode_chunk(int argc, char** argv) {
     return kExitOk;
   }
   DecodeOptions options;
-  options.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
-  if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file", kUsageText);
+  options.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, kMaxLod));
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file");
   const auto out_path = args.get("-o");
-  if (!out_path) return usage_error(kCommand, "missing -o OUT", kUsageText);
+  if (!out_path) return usage_error(kCommand, "missing -o OUT");
   const std::string& in_path = args.positional()[0];
   auto blob = read_file(in_path);
   if (!blob) return fail(kCommand, blob.status());

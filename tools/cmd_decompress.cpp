@@ -17,10 +17,10 @@ int run_decompress(int argc, char** argv) {
     return kExitOk;
   }
   const QueryOptions q = query_options_from(args, "decompress");
-  if (!args.ok()) return usage_error("decompress", args.error(), kUsage);
-  if (args.positional().size() != 1) return usage_error("decompress", "expected one ARCHIVE", kUsage);
+  if (!args.ok()) return usage_error("decompress", args.error());
+  if (args.positional().size() != 1) return usage_error("decompress", "expected one ARCHIVE");
   const auto out = args.get("-o");
-  if (!out) return usage_error("decompress", "missing -o OUT", kUsage);
+  if (!out) return usage_error("decompress", "missing -o OUT");
   return run_query_to_file("decompress", args.positional()[0], nullptr, *out, q, args.has("--quiet"));
 }
 

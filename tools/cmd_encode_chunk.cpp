@@ -23,17 +23,18 @@ int run_encode_chunk(int argc, char** argv) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file", usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file");
   const auto out_path = args.get("-o");
-  if (!out_path) return usage_error(kCommand, "missing -o OUT", usage.c_str());
+  if (!out_path) return usage_error(kCommand, "missing -o OUT");
   EncodeParams params;
   if (const std::string err = parse_encode_params(args, params); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   const std::string& in_path = args.positional()[0];
   auto cloud = read_point_file(in_path);
   if (!cloud) return fail(kCommand, cloud.status());
+  if (Status s = check_chunk_coordinates(*cloud, in_path); !s) return fail(kCommand, s);
   if (params.cell_size == 0) params.cell_size = suggest_cell_size(*cloud, params.map_resolution);
   const auto t0 = now_ns();
   auto blob = encode_chunk(*cloud, params);

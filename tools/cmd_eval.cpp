@@ -26,9 +26,9 @@ int run_eval(int argc, char** argv) {
   }
   MetricsOptions options;
   options.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
-  if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
+  if (!args.ok()) return usage_error(kCommand, args.error());
   if (args.positional().size() != 2) {
-    return usage_error(kCommand, "expected ORIGINAL and RECONSTRUCTED", kUsageText);
+    return usage_error(kCommand, "expected ORIGINAL and RECONSTRUCTED");
   }
   auto original = read_point_file(args.positional()[0]);
   if (!original) return fail(kCommand, original.status());

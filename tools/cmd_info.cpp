@@ -62,8 +62,8 @@ int run_info(int argc, char** argv) {
     std::cout << kUsageText;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE", kUsageText);
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE");
   auto reader = ArchiveReader::open(args.positional()[0]);
   if (!reader) return fail(kCommand, reader.status());
   const ArchiveInfo& i = (*reader)->info();

@@ -3,10 +3,12 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <mutex>
 
@@ -14,6 +16,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "preview_render.h"
+#include "relief/image.h"
 #include "relief/query.h"
 
 namespace relief::cli {
@@ -21,6 +24,8 @@ namespace relief::cli {
 namespace {
 
 constexpr const char* kCommand = "preview";
+// -o *.jpg: high enough that the scale bar's text and thin lines stay clean.
+constexpr int kPreviewJpegQuality = 90;
 
 bool finite_box(const Box3d& b) {
   return std::isfinite(b.min.x) && std::isfinite(b.min.y) && std::isfinite(b.min.z) && std::isfinite(b.max.x) &&
@@ -56,13 +61,14 @@ int run_preview(int argc, char** argv) {
       "usage: relief preview ARCHIVE -o VIEW.png [--box xmin,ymin,xmax,ymax | --box xmin,ymin,zmin,xmax,ymax,zmax]\n"
       "                      [--lod L] [--width W] [--view top|oblique] [--azimuth DEG] [--elevation DEG]\n"
       "                      [--threads N] [--quiet]\n"
-      "Draws a quick-look PNG of an archive, or of the points inside a box, decoding only the chunks\n"
+      "Draws a quick-look image of an archive, or of the points inside a box, decoding only the chunks\n"
       "the box touches at a coarse level of detail.\n"
-      "  -o VIEW.png        output image (written atomically: no partial file on failure)\n"
+      "  -o VIEW.png        output image, PNG (.png) or JPEG (.jpg, .jpeg) by extension (written\n"
+      "                     atomically: no partial file on failure)\n"
       "  --box B            region to show: 4 numbers = all heights, 6 = a 3D box (default: the\n"
       "                     archive's bounds). A box without points gives an all-background image\n"
       "                     (exit 0) and a warning; an archive without points is an error (11).\n"
-      "  --lod L            level of detail: about 1/L of the points (default 16; 1 = all)\n"
+      "  --lod L            level of detail: about 1/L of the points (1..1024, default 16; 1 = all)\n"
       "  --width W          image width in pixels, 16..8192 (default 1024); the height follows the\n"
       "                     aspect ratio, at most 8192\n"
       "  --view top|oblique top: straight down, north up, with a scale bar (default);\n"
@@ -79,13 +85,20 @@ int run_preview(int argc, char** argv) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one archive", usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one archive");
   const auto out_path = args.get("-o");
-  if (!out_path || out_path->empty()) return usage_error(kCommand, "missing -o VIEW.png", usage.c_str());
+  if (!out_path || out_path->empty()) return usage_error(kCommand, "missing -o VIEW.png");
+  // The file type follows the name, so a .jpg never gets PNG bytes.
+  std::string ext = std::filesystem::path(*out_path).extension().string();
+  for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  const bool jpeg = ext == ".jpg" || ext == ".jpeg";
+  if (ext != ".png" && !jpeg) {
+    return usage_error(kCommand, "-o " + *out_path + ": preview writes PNG (.png) or JPEG (.jpg, .jpeg)");
+  }
 
   PreviewOptions popt;
-  const auto lod = static_cast<std::uint32_t>(args.get_int("--lod", 16, 1, 1 << 20));
+  const auto lod = static_cast<std::uint32_t>(args.get_int("--lod", 16, 1, kMaxLod));
   popt.width = static_cast<int>(args.get_int("--width", 1024, 16, kMaxPreviewSide));
   const auto threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   if (const auto v = args.get("--view")) {
@@ -94,28 +107,28 @@ int run_preview(int argc, char** argv) {
     } else if (*v == "oblique") {
       popt.view = PreviewView::kOblique;
     } else {
-      return usage_error(kCommand, "--view must be top or oblique, got '" + *v + "'", usage.c_str());
+      return usage_error(kCommand, "--view must be top or oblique, got '" + *v + "'");
     }
   }
   popt.azimuth_deg = args.get_double("--azimuth", 30);
   popt.elevation_deg = args.get_double("--elevation", 35);
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
   if (popt.view == PreviewView::kTop && (args.has("--azimuth") || args.has("--elevation"))) {
-    return usage_error(kCommand, "--azimuth and --elevation need --view oblique", usage.c_str());
+    return usage_error(kCommand, "--azimuth and --elevation need --view oblique");
   }
   if (!(popt.elevation_deg >= 0 && popt.elevation_deg <= 90)) {
-    return usage_error(kCommand, "--elevation must be from 0 to 90 degrees", usage.c_str());
+    return usage_error(kCommand, "--elevation must be from 0 to 90 degrees");
   }
   if (!(std::fabs(popt.azimuth_deg) <= 360)) {
-    return usage_error(kCommand, "--azimuth must be from -360 to 360 degrees", usage.c_str());
+    return usage_error(kCommand, "--azimuth must be from -360 to 360 degrees");
   }
   Box3d box;
   const bool has_box = args.has("--box");
   if (has_box) {
     std::string err;
-    if (!parse_box(*args.get("--box"), box, err)) return usage_error(kCommand, "--box: " + err, usage.c_str());
+    if (!parse_box(*args.get("--box"), box, err)) return usage_error(kCommand, "--box: " + err);
     if (!(box.max.x > box.min.x) || !(box.max.y > box.min.y)) {
-      return usage_error(kCommand, "--box must have xmax > xmin and ymax > ymin to make an image", usage.c_str());
+      return usage_error(kCommand, "--box must have xmax > xmin and ymax > ymin to make an image");
     }
   }
   const bool quiet = args.has("--quiet");
@@ -159,8 +172,9 @@ int run_preview(int argc, char** argv) {
   const double shade_s = seconds_since(t1);
   t1 = now_ns();
   // Very large images: the fastest zlib level (a few seconds saved, ~20 % bigger).
-  auto png = encode_png(image, image.rgb.size() > (std::size_t{48} << 20) ? 1 : 3);
-  if (!png) return fail(kCommand, png.status());
+  auto png = jpeg ? encode_jpeg_rgb(image.rgb, image.width, image.height, kPreviewJpegQuality)
+                  : encode_png(image, image.rgb.size() > (std::size_t{48} << 20) ? 1 : 3);
+  if (!png) return fail(kCommand, png.status().with_context(*out_path));
   if (Status s = write_file_atomic(*out_path, *png); !s) return fail(kCommand, s);
   const double png_s = seconds_since(t1);
 
@@ -184,8 +198,9 @@ int run_preview(int argc, char** argv) {
     std::printf("chunks decoded  %llu (of %llu in the archive)\n",
                 static_cast<unsigned long long>(stats->chunks_decoded),
                 static_cast<unsigned long long>(info.chunk_count));
-    std::printf("time            %.3f s (open, query and drawing %.3f s, shading %.3f s, PNG %.3f s, %s)\n",
-                seconds_since(t0), query_s, shade_s, png_s, format_bytes(png->size()).c_str());
+    std::printf("time            %.3f s (open, query and drawing %.3f s, shading %.3f s, %s %.3f s, %s)\n",
+                seconds_since(t0), query_s, shade_s, jpeg ? "JPEG" : "PNG", png_s,
+                format_bytes(png->size()).c_str());
   }
   return kExitOk;
 }

@@ -15,7 +15,7 @@ constexpr const char* kUsageText =
     "Writes the archive's points inside the box (bounds included). Only the chunks the box\n"
     "touches are read and decoded.\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"
-    "  --lod L          level of detail: a spatially uniform ~1/L of the points (default 1)\n"
+    "  --lod L          level of detail: a spatially uniform ~1/L of the points (1..1024, default 1)\n"
     "  -o OUT           .ply, .las or .xyz/.txt/.csv; '-' writes XYZ text to stdout\n"
     "  --skip-corrupt   report damaged chunks and go on instead of failing\n"
     "  --threads N      decoder threads (default: all cores)\n"
@@ -29,15 +29,15 @@ int run_query(int argc, char** argv) {
     return kExitOk;
   }
   const QueryOptions q = query_options_from(args, kCommand);
-  if (!args.ok()) return usage_error(kCommand, args.error(), kUsageText);
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE", kUsageText);
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE");
   const auto box_text = args.get("--box");
-  if (!box_text) return usage_error(kCommand, "missing --box", kUsageText);
+  if (!box_text) return usage_error(kCommand, "missing --box");
   Box3d box;
   std::string error;
-  if (!parse_box(*box_text, box, error)) return usage_error(kCommand, error, kUsageText);
+  if (!parse_box(*box_text, box, error)) return usage_error(kCommand, "--box: " + error);
   const auto out = args.get("-o");
-  if (!out) return usage_error(kCommand, "missing -o OUT", kUsageText);
+  if (!out) return usage_error(kCommand, "missing -o OUT");
   return run_query_to_file(kCommand, args.positional()[0], &box, *out, q, args.has("--quiet"));
 }
 

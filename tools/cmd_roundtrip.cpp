@@ -42,21 +42,22 @@ int run_roundtrip(int argc, char** argv) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file", usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one input file");
   EncodeParams params;
   if (const std::string err = parse_encode_params(args, params); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   DecodeOptions dec;
-  dec.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
+  dec.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, kMaxLod));
   MetricsOptions mopt;
   mopt.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
 
   const std::string& in_path = args.positional()[0];
   auto cloud = read_point_file(in_path);
   if (!cloud) return fail(kCommand, cloud.status());
+  if (Status s = check_chunk_coordinates(*cloud, in_path); !s) return fail(kCommand, s);
   if (params.cell_size == 0) params.cell_size = suggest_cell_size(*cloud, params.map_resolution);
 
   auto t0 = now_ns();

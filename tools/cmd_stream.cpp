@@ -134,27 +134,27 @@ int run_stream(int argc, char** argv) {
     std::cout << usage;
     return kExitOk;
   }
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
-  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE", usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE");
   StreamOptions so;
   if (const std::string err = parse_encode_params(args, so.ingest.codec); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   if (const std::string err = parse_ingest_options(args, so.ingest); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   if (const std::string err = parse_mode_options(args, so.ingest); !err.empty()) {
-    return usage_error(kCommand, err, usage.c_str());
+    return usage_error(kCommand, err);
   }
   so.ingest.chunk_edge = args.get_double("--chunk-edge", 0);
   so.immediate = args.has("--immediate");
   so.idle_batches = static_cast<std::uint32_t>(args.get_int("--idle", 2, 1, 1 << 30));
   so.max_buffered_points = static_cast<std::uint64_t>(args.get_int("--max-buffered", 4000000, 1, 1LL << 40));
   const auto batch_points = static_cast<std::size_t>(args.get_int("--batch", 65536, 1, 1 << 26));
-  if (!args.ok()) return usage_error(kCommand, args.error(), usage.c_str());
+  if (!args.ok()) return usage_error(kCommand, args.error());
   const std::string format = args.get("--format").value_or("xyz");
   if (format != "xyz" && format != "binary") {
-    return usage_error(kCommand, "--format must be xyz or binary", usage.c_str());
+    return usage_error(kCommand, "--format must be xyz or binary");
   }
   Layout layout;
   if (format == "xyz") {
@@ -163,20 +163,31 @@ int run_stream(int argc, char** argv) {
       if (spec[i] == ',') continue;
       const char ch = spec[i] == 'i' ? 'i' : spec[i];
       if (std::string("xyzrgbi_").find(ch) == std::string::npos || (i + 1 < spec.size() && spec[i + 1] != ',')) {
-        return usage_error(kCommand, "--columns takes a comma list of x y z r g b i _", usage.c_str());
+        return usage_error(kCommand, "--columns takes a comma list of x y z r g b i _");
       }
       layout.columns.push_back(ch);
     }
     const auto has = [&](char ch) { return std::count(layout.columns.begin(), layout.columns.end(), ch); };
     if (has('x') != 1 || has('y') != 1 || has('z') != 1) {
-      return usage_error(kCommand, "--columns needs x, y and z once each", usage.c_str());
+      return usage_error(kCommand, "--columns needs x, y and z once each");
     }
     layout.colors = has('r') == 1 && has('g') == 1 && has('b') == 1;
     layout.intensity = has('i') == 1;
   } else {
+    // Each name once, nothing else: a misspelt attribute would otherwise
+    // shift every record silently.
     const std::string attrs = args.get("--attributes").value_or("");
-    layout.colors = attrs.find("rgb") != std::string::npos;
-    layout.intensity = attrs.find("intensity") != std::string::npos;
+    std::size_t start = 0;
+    while (!attrs.empty() && start <= attrs.size()) {
+      const std::size_t comma = std::min(attrs.find(',', start), attrs.size());
+      const std::string name = attrs.substr(start, comma - start);
+      bool& flag = name == "rgb" ? layout.colors : layout.intensity;
+      if ((name != "rgb" && name != "intensity") || flag) {
+        return usage_error(kCommand, "--attributes takes rgb, intensity or rgb,intensity, got '" + attrs + "'");
+      }
+      flag = true;
+      start = comma + 1;
+    }
   }
   const bool quiet = args.has("--quiet");
   so.ingest.progress = progress_printer(quiet);

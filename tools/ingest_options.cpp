@@ -7,7 +7,8 @@ namespace relief::cli {
 
 const char* const kIngestOptionsHelp =
     "Ingest options:\n"
-    "  --memory SIZE          working-memory budget, e.g. 512M, 2G (default 1G; plain number = MiB)\n"
+    "  --memory SIZE          working-memory budget, e.g. 512M, 2G (default 1G, minimum 64M;\n"
+    "                         plain number = MiB)\n"
     "  --threads N            encoder threads (default: all cores)\n"
     "  --tmp DIR              directory for temporary bucket files (default: beside the archive)\n"
     "  --columns SPEC         ASCII XYZ/CSV columns, e.g. x,y,z,i or x,y,z,r,g,b (default x,y,z)\n"
@@ -55,6 +56,9 @@ std::string parse_ingest_options(Args& args, IngestOptions& o) {
   if (auto m = args.get("--memory")) {
     o.memory_budget = parse_size(*m);
     if (o.memory_budget == 0) return "--memory expects a size such as 512M or 2G, got '" + *m + "'";
+    if (o.memory_budget < kMinMemoryBudget) {
+      return "--memory " + *m + " is below the minimum of " + std::to_string(kMinMemoryBudget >> 20) + "M";
+    }
   }
   o.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   if (auto t = args.get("--tmp")) o.tmp_dir = *t;
@@ -63,6 +67,10 @@ std::string parse_ingest_options(Args& args, IngestOptions& o) {
   o.verify_blobs = args.has("--verify");
   if (!args.ok()) return args.error();
   return "";
+}
+
+void print_ingest_warnings(const std::string& command, const IngestResult& r) {
+  for (const std::string& w : r.warnings) std::fprintf(stderr, "relief %s: warning: %s\n", command.c_str(), w.c_str());
 }
 
 void print_ingest_summary(const std::string& path, const IngestResult& r) {

@@ -18,5 +18,7 @@ extern const char* const kModeOptionsHelp;
 std::vector<std::string> mode_option_names();
 std::string parse_mode_options(Args& args, IngestOptions& o);
 void print_ingest_summary(const std::string& path, const IngestResult& r);
+// The readers' warnings (IngestResult::warnings) on stderr, even with --quiet.
+void print_ingest_warnings(const std::string& command, const IngestResult& r);
 
 }  // namespace relief::cli

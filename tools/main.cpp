@@ -54,6 +54,6 @@ int main(int argc, char** argv) {
   if (command == "encode-chunk") return relief::cli::run_encode_chunk(sub_argc, sub_argv);
   if (command == "decode-chunk") return relief::cli::run_decode_chunk(sub_argc, sub_argv);
   if (command == "eval") return relief::cli::run_eval(sub_argc, sub_argv);
-  std::cerr << "relief: unknown command '" << command << "'\n\n" << kUsage;
+  std::cerr << "relief: unknown command '" << command << "'\nsee 'relief --help'\n";
   return relief::cli::kExitUsage;
 }

@@ -11,7 +11,7 @@ namespace relief::cli {
 
 QueryOptions query_options_from(Args& args, const std::string& command) {
   QueryOptions q;
-  q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, 1 << 30));
+  q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, kMaxLod));
   q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   q.skip_corrupt = args.has("--skip-corrupt");
   q.on_warning = [command](const std::string& w) { std::cerr << "relief " << command << ": warning: " << w << "\n"; };

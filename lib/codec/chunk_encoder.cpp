@@ -39,6 +39,17 @@ constexpr int kLumaBlock = 8;
 constexpr int kDensityLevels = 20;
 
 Status check_params(const EncodeParams& p, std::size_t point_count, std::size_t normal_count) {
+  RELIEF_RETURN_IF_ERROR(validate_encode_params(p));
+  if (normal_count != 0 && normal_count != point_count) {
+    return invalid_argument(std::to_string(normal_count) + " normals for " +
+                            std::to_string(point_count) + " points");
+  }
+  return Status::ok();
+}
+
+}  // namespace
+
+Status validate_encode_params(const EncodeParams& p) {
   const auto quality_ok = [](int q) { return q >= 1 && q <= 100; };
   if (p.map_resolution < codec::kMinMapResolution || p.map_resolution > codec::kMaxMapResolution ||
       p.map_resolution % 8 != 0) {
@@ -67,9 +78,8 @@ Status check_params(const EncodeParams& p, std::size_t point_count, std::size_t 
   if (!std::isfinite(p.normal_cone_degrees) || p.normal_cone_degrees < 0 || p.normal_cone_degrees > 180) {
     return invalid_argument("normal cone angle must be between 0 and 180 degrees");
   }
-  if (normal_count != 0 && normal_count != point_count) {
-    return invalid_argument(std::to_string(normal_count) + " normals for " +
-                            std::to_string(point_count) + " points");
+  if (p.fill != FillMethod::kBlockProjection && p.fill != FillMethod::kPushPull && p.fill != FillMethod::kBoxFilter) {
+    return invalid_argument("unknown fill method");
   }
   if (p.grid_origin) {
     const Vec3d& o = *p.grid_origin;
@@ -80,6 +90,8 @@ Status check_params(const EncodeParams& p, std::size_t point_count, std::size_t 
   }
   return Status::ok();
 }
+
+namespace {
 
 // Per-patch accumulation scratch, reused across patches. Only the pixels a
 // patch touches are reset, so a patch costs O(points + r^2 / 8), not O(r^2 * 65 bytes).

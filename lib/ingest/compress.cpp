@@ -130,7 +130,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
                                 const std::string& tmp_parent) {
   const auto t0 = std::chrono::steady_clock::now();
   const unsigned threads = resolve_threads(options.threads);
-  const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, 64u << 20);
+  const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget);
 
   // Budget while reading: 1/8 for bucket staging buffers, 3/16 for batches in flight (plus, without bucket
   // files, the whole input in half the budget). While encoding: 1/3 for two
@@ -154,6 +154,11 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   Progress progress(options.progress, in.all_counts_known ? in.known_total : 0);
   const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
 
+  // Points beyond this would overflow chunk keys or lose the cell's precision.
+  const double coordinate_limit = max_coordinate_magnitude(params.cell_size, grid.chunk_edge);
+  // Points staged so far per input (the stage runs once per batch, in input
+  // order): the index of a refused point within its file.
+  std::vector<std::uint64_t> staged_per_source(in.readers.size(), 0);
   std::uint64_t points_read = 0;
   float intensity_lo = std::numeric_limits<float>::infinity();
   float intensity_hi = -std::numeric_limits<float>::infinity();
@@ -163,6 +168,9 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const auto read_all = [&](const std::function<Status(ReadBatch&)>& stage,
                             const std::function<Status(ReadBatch&)>& sink) -> Status {
     const auto full_stage = [&](ReadBatch& b) -> Status {
+      RELIEF_RETURN_IF_ERROR(
+          check_coordinates(b.points, coordinate_limit, in.sources[b.reader].path, staged_per_source[b.reader]));
+      staged_per_source[b.reader] += b.points.size();
       conform_attributes(b.points, in.colors, in.intensity);
       if (params.bound) snap_to_grid(b.points, *params.bound);
       for (const float v : b.points.intensities) {
@@ -316,7 +324,12 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   }
   RELIEF_RETURN_IF_ERROR(archive.finish_scan(scan_id, in.colors, in.intensity, in.crs));
 
-  return scan_result(pipeline->totals(), points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
+  IngestResult result =
+      scan_result(pipeline->totals(), points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
+  for (const auto& reader : in.readers) {
+    for (const std::string& w : reader->info().warnings) result.warnings.push_back(w);
+  }
+  return result;
 }
 
 IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read,
@@ -516,7 +529,7 @@ Result<double> order_free_cell_size(const std::vector<std::string>& inputs, cons
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
-  constexpr std::size_t kKeep = 2 * kDensitySamplePoints;
+  constexpr std::size_t kKeep = 2 * kOrderFreeSamplePoints;
   const auto hash = [](const Vec3d& p) {
     std::uint64_t h = 0x9E3779B97F4A7C15ULL;
     for (const double c : {p.x, p.y, p.z}) {
@@ -574,13 +587,30 @@ std::string default_tmp_parent(const std::string& archive_path, const IngestOpti
 Result<IngestResult> compress_files(const std::vector<std::string>& inputs, const std::string& archive_path,
                                     const IngestOptions& options) {
   using namespace ingest;
+  RELIEF_RETURN_IF_ERROR(validate_encode_params(options.codec));
+  if (!(options.chunk_edge >= 0) || options.chunk_edge > kMaxCoordinateMagnitude) {
+    return invalid_argument("chunk edge must be a positive number up to 2^50 (0 = automatic)");
+  }
+  if (options.codec.cell_size > kMaxCoordinateMagnitude) {
+    return invalid_argument("cell size must be at most 2^50");
+  }
   struct stat st {};
   if (::stat(archive_path.c_str(), &st) == 0) {
-    return io_error(archive_path + ": already exists (use 'relief append' to add to an archive)");
+    // Say what is there: an archive to append to, or some other file.
+    if (Archive::open(archive_path, Archive::Mode::kReadOnly)) {
+      return io_error(archive_path +
+                      ": already exists (a Relief archive; compress never overwrites, use 'relief append' to add to it)");
+    }
+    return io_error(archive_path + ": already exists and is not a Relief archive (compress never overwrites a file)");
   }
+  RELIEF_RETURN_IF_ERROR(check_output_directory(archive_path));
   RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader));
 
   EncodeParams params = options.codec;
+  // The first points set the cell size (from their density, or by trial
+  // encodes for an error target) and are checked against it; they are then
+  // ingested like every batch. At most a quarter of the budget for them (with
+  // the cell-size scratch).
   PointCloud first;
   const bool bounded = options.mode == IngestMode::kBounded;
   if (bounded) {
@@ -589,21 +619,26 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   } else {
     params.bound.reset();
   }
+  const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget);
+  // The bounded mode derives the base-layer cell from all points (below);
+  // the resampling mode from these first points.
+  const bool derive_from_first = !bounded && (params.cell_size == 0 || options.error_target > 0);
+  // Otherwise only the coordinate and density checks need them: read no
+  // more, so the reading thread takes over sooner.
+  const auto first_points = static_cast<std::size_t>(std::min<std::uint64_t>(
+      derive_from_first ? kReadBatch : kDensitySamplePoints, (budget / 4) / kFirstBatchBytesPerPoint));
+  RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, first_points));
+  conform_attributes(first, in.colors, in.intensity);
+  // The absolute bound first, so no absurd coordinate reaches the cell-size
+  // estimate; the bound for the chosen cell follows below.
+  RELIEF_RETURN_IF_ERROR(check_coordinates(first, kMaxCoordinateMagnitude, inputs[0], 0));
   if (bounded && params.cell_size == 0) {
     // The base layer's cells: from a sample that depends only on the set of
     // input points (not their order, not the memory budget).
     RELIEF_ASSIGN_OR_RETURN(const double cell, order_free_cell_size(inputs, options.reader, params.map_resolution));
     params.cell_size = kBaseCellFactor * cell;
-  } else if (params.cell_size == 0 || options.error_target > 0) {
-    // The first points set the cell size (from their density, or by trial
-    // encodes for an error target); they are then ingested like every batch.
-    // At most a quarter of the budget for it (with the cell-size scratch).
-    const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, 64u << 20);
-    const auto first_points =
-        static_cast<std::size_t>(std::min<std::uint64_t>(kReadBatch, (budget / 4) / kFirstBatchBytesPerPoint));
-    RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, first_points));
+  } else if (derive_from_first) {
     if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
-    conform_attributes(first, in.colors, in.intensity);
     if (options.error_target > 0) {
       RELIEF_ASSIGN_OR_RETURN(params.cell_size, choose_cell_for_error(first, params, options.error_target));
     } else {
@@ -619,13 +654,16 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     const double finest = std::min({params.bound->step.x, params.bound->step.y, params.bound->step.z});
     while (grid.chunk_edge / finest > std::ldexp(1.0, 21) - 4) grid.chunk_edge /= 2;
   }
-  if (!(grid.chunk_edge > 0) || !std::isfinite(grid.chunk_edge)) {
-    return invalid_argument("chunk edge must be a positive number");
+  if (!(grid.chunk_edge > 0) || !std::isfinite(grid.chunk_edge) || grid.chunk_edge > kMaxCoordinateMagnitude) {
+    return invalid_argument("chunk edge must be a positive number up to 2^50");
   }
   if (grid.chunk_edge / params.cell_size > std::ldexp(1.0, 21)) {
     return invalid_argument("chunk edge " + std::to_string(grid.chunk_edge) + " is more than 2^21 cells of " +
                             std::to_string(params.cell_size));
   }
+  RELIEF_RETURN_IF_ERROR(
+      check_coordinates(first, max_coordinate_magnitude(params.cell_size, grid.chunk_edge), inputs[0], 0));
+  if (!options.allow_sparse) RELIEF_RETURN_IF_ERROR(check_sample_density(first, grid, params.cell_size, inputs[0]));
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
                           Archive::create(archive_path, grid, encode_params_to_string(params), options.creator));
   auto result = run_ingest(*archive, grid, params, in, std::move(first), options,

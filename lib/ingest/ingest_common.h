@@ -32,6 +32,27 @@ struct InputSet {
 Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options);
 // Drops attributes the archive does not carry.
 void conform_attributes(PointCloud& batch, bool colors, bool intensity);
+// kInvalidArgument naming `source`, the point's index (first_index + i) and the
+// value when a coordinate of `batch` exceeds `limit` in magnitude
+// (max_coordinate_magnitude): such points would overflow chunk keys or lose
+// the cell's precision.
+Status check_coordinates(const PointCloud& batch, double limit, const std::string& source,
+                         std::uint64_t first_index);
+// kIoError naming the archive and its directory when that directory does not
+// exist (or is not a directory), before anything is created.
+Status check_output_directory(const std::string& archive_path);
+// check_sample_density looks at no more than this many of the first points:
+// the mean density of a run of points is what matters, and it keeps the check
+// to milliseconds before the archive is created.
+inline constexpr std::size_t kDensitySamplePoints = std::size_t{1} << 17;
+// kLimitExceeded when `sample` (the first points of `source`) puts on average
+// fewer than 2 points in a cell or 16 in a chunk: a cell or chunk edge far too
+// small for the data, which would make an archive far larger than its input.
+// Samples under 10,000 points pass; only the first kDensitySamplePoints count.
+Status check_sample_density(const PointCloud& sample, const ArchiveGrid& grid, double cell_size,
+                            const std::string& source);
+// "colours and intensity", "colours, no intensity", ... for mismatch messages.
+std::string attribute_list(bool colors, bool intensity);
 
 struct ChunkKeyHash {
   std::size_t operator()(const ChunkKey& k) const {

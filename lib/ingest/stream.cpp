@@ -52,8 +52,11 @@ class StreamIngestImpl final : public StreamIngest {
     }
     const PointCloud& batch = params_.bound ? snapped : incoming;
     if (batch.has_colors() != colors_ || batch.has_intensity() != intensity_) {
-      return invalid_argument("stream batch attributes differ from the archive's");
+      return invalid_argument("stream batch has " + ingest::attribute_list(batch.has_colors(), batch.has_intensity()) +
+                              " but the stream was opened with " + ingest::attribute_list(colors_, intensity_));
     }
+    RELIEF_RETURN_IF_ERROR(ingest::check_coordinates(
+        batch, max_coordinate_magnitude(params_.cell_size, grid_.chunk_edge), "stream", points_read_));
     points_read_ += batch.size();
     ++batch_index_;
     if (options_.immediate) {
@@ -186,6 +189,7 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   std::unique_ptr<Archive> archive;
   ArchiveGrid grid;
   EncodeParams params = options.ingest.codec;
+  RELIEF_RETURN_IF_ERROR(validate_encode_params(params));
   const bool created = ::stat(archive_path.c_str(), &st) != 0;
   if (!created) {
     RELIEF_ASSIGN_OR_RETURN(archive, Archive::open(archive_path, Archive::Mode::kReadWrite));
@@ -193,7 +197,10 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
     RELIEF_ASSIGN_OR_RETURN(params, encode_params_from_string(info.codec_params));
     grid = info.grid;
     if (info.chunk_count > 0 && (info.has_colors != has_colors || info.has_intensity != has_intensity)) {
-      return invalid_argument(archive_path + ": the stream's attributes differ from the archive's");
+      // Every chunk of an archive carries the same attributes.
+      return invalid_argument(archive_path + ": the archive has " +
+                              ingest::attribute_list(info.has_colors, info.has_intensity) + " but the stream has " +
+                              ingest::attribute_list(has_colors, has_intensity));
     }
   } else {
     if (!(params.cell_size > 0)) {
@@ -211,6 +218,15 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
       const double finest = std::min({params.bound->step.x, params.bound->step.y, params.bound->step.z});
       while (grid.chunk_edge / finest > std::ldexp(1.0, 21) - 4) grid.chunk_edge /= 2;
     }
+    if (!(grid.chunk_edge > 0) || !std::isfinite(grid.chunk_edge) || grid.chunk_edge > kMaxCoordinateMagnitude ||
+        params.cell_size > kMaxCoordinateMagnitude) {
+      return invalid_argument("cell size and chunk edge must be positive numbers up to 2^50");
+    }
+    if (grid.chunk_edge / params.cell_size > std::ldexp(1.0, 21)) {
+      return invalid_argument("chunk edge " + std::to_string(grid.chunk_edge) + " is more than 2^21 cells of " +
+                              std::to_string(params.cell_size));
+    }
+    RELIEF_RETURN_IF_ERROR(ingest::check_output_directory(archive_path));
     RELIEF_ASSIGN_OR_RETURN(archive, Archive::create(archive_path, grid, encode_params_to_string(params),
                                                      options.ingest.creator));
   }

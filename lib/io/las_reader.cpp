@@ -49,6 +49,10 @@ constexpr std::string_view kProjectionUserId = "LASF_Projection";
 constexpr std::size_t header_size_for(int minor) { return minor <= 2 ? 227 : minor == 3 ? 235 : 375; }
 constexpr std::size_t kLargestHeader = 375;
 constexpr std::size_t kSmallestHeader = 227;
+// LASzip sets bit 7 (and some writers bit 6) of the point format byte; the
+// low six bits keep the uncompressed format.
+constexpr std::uint8_t kLazFormatBits = 0xC0;
+constexpr std::uint8_t kLasFormatMask = 0x3F;
 
 struct PointFormat {
   std::size_t min_length;  // bytes of the record without extra bytes
@@ -121,9 +125,14 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
     return format_error(name + ": truncated: the LAS " + version_text(major, minor) + " header needs " +
                         std::to_string(need) + " bytes but the file has " + std::to_string(h.size()));
   }
-  // The top two bits of the format byte mark LASzip-compressed points.
+  // The top two bits of the format byte mark LASzip-compressed points, but
+  // only with a real point format below them; any other value (99 = 0x63) is
+  // an unknown format, not LAZ.
   const std::uint8_t format_byte = h[104];
-  if ((format_byte & 0xC0) != 0) return unsupported(name + ": " + kLazUnsupported);
+  const int base_format = format_byte & kLasFormatMask;
+  if ((format_byte & kLazFormatBits) != 0 && base_format < static_cast<int>(kPointFormats.size())) {
+    return unsupported(name + ": " + kLazUnsupported);
+  }
   out.format = format_byte;
   if (out.format >= static_cast<int>(kPointFormats.size())) {
     return unsupported(name + ": LAS point data format " + std::to_string(out.format) +

@@ -7,6 +7,8 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <string>
 #include <utility>
 
 namespace relief {
@@ -34,7 +36,13 @@ Result<std::unique_ptr<OutputFile>> OutputFile::create(const std::string& path) 
   // not redirect (and truncate) some other file.
   const int fd = ::open(tmp_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW, 0666);
   if (fd < 0) {
-    return io_error(path + ": cannot create temporary file '" + tmp_path + "': " + errno_text(errno));
+    const int err = errno;
+    // The usual cause, said plainly rather than through the temporary name.
+    const std::string dir = std::filesystem::path(path).parent_path().string();
+    if (err == ENOENT && !dir.empty() && !std::filesystem::exists(dir)) {
+      return io_error(path + ": cannot create: the directory " + dir + " does not exist");
+    }
+    return io_error(path + ": cannot create temporary file '" + tmp_path + "': " + errno_text(err));
   }
   return std::unique_ptr<OutputFile>(new OutputFile(path, std::move(tmp_path), fd, false));
 }

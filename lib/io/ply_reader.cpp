@@ -13,6 +13,7 @@
 #include <array>
 #include <bit>
 #include <charconv>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -42,6 +43,8 @@ using ply::ScalarType;
 // whole-file reader reserves at most this much up front and vectors grow as
 // data actually arrives.
 constexpr std::uint64_t kBlindReserve = std::uint64_t{1} << 16;
+// Bytes looked at per step when counting lines after the last vertex.
+constexpr std::size_t kTrailingScanBlock = std::size_t{1} << 16;
 // ascii records are one per line; a line this long is not a point record.
 constexpr std::size_t kMaxAsciiLine = std::size_t{4} << 20;
 
@@ -682,6 +685,9 @@ class PlyPointReader final : public BatchPointReader {
   Status push_vertex(const std::array<double, kFieldCount>& v, std::uint64_t index, PointCloud& out,
                      std::vector<std::uint16_t>* wide) const;
   Status finish_trailing();
+  // When the vertex element is the file's last: records after the declared
+  // count become a warning in info().warnings (the header count is kept).
+  Status note_extra_vertices();
 
   const std::string& name() const { return input_.name; }
   const Element& vertex() const { return header_.elements[vertex_el_]; }
@@ -757,11 +763,54 @@ Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::
     RELIEF_ASSIGN_OR_RETURN(got, read_records(out, wide, at, want));
   }
   done_ += got;
-  if (done_ == vertex().count && check_trailing_ && !trailing_checked_) {
+  if (done_ == vertex().count && !trailing_checked_) {
     trailing_checked_ = true;
-    RELIEF_RETURN_IF_ERROR(finish_trailing());
+    if (check_trailing_) {
+      RELIEF_RETURN_IF_ERROR(finish_trailing());
+    } else if (vertex_el_ + 1 == header_.elements.size()) {
+      RELIEF_RETURN_IF_ERROR(note_extra_vertices());
+    }
   }
   return got;
+}
+
+Status PlyPointReader::note_extra_vertices() {
+  // Only a file of known size can be looked at past the last vertex without
+  // waiting on a pipe; the bytes present bound the work.
+  const auto rem = src_.remaining();
+  if (!rem || *rem == 0) return Status::ok();
+  std::uint64_t extra = 0;
+  if (fixed_binary_) {
+    extra = *rem / layout_.stride;
+  } else if (header_.encoding == PlyEncoding::kAscii) {
+    // Non-blank lines after the last declared vertex.
+    bool blank = true;
+    for (;;) {
+      std::span<const std::uint8_t> view;
+      RELIEF_RETURN_IF_ERROR(src_.fill(kTrailingScanBlock, view));
+      if (view.empty()) break;
+      for (const std::uint8_t c : view) {
+        if (c == '\n') {
+          if (!blank) ++extra;
+          blank = true;
+        } else if (!std::isspace(c)) {
+          blank = false;
+        }
+      }
+      src_.consume(view.size());
+    }
+    if (!blank) ++extra;
+  } else {
+    info_.warnings.push_back(name() + ": " + std::to_string(*rem) + " bytes follow the last of the " +
+                             std::to_string(vertex().count) + " vertices the header declares; they were ignored");
+    return Status::ok();
+  }
+  if (extra > 0) {
+    info_.warnings.push_back(name() + ": the header declares " + std::to_string(vertex().count) + " vertices but " +
+                             std::to_string(vertex().count + extra) + " follow; the last " + std::to_string(extra) +
+                             " were ignored");
+  }
+  return Status::ok();
 }
 
 Result<std::size_t> PlyPointReader::read_fixed(PointCloud& out, std::vector<std::uint16_t>* wide,

@@ -1426,9 +1426,19 @@ Result<std::unique_ptr<SqliteArchive>> open_sqlite(const std::string& path, Arch
     return format_error(path + ": not a Relief archive (empty file)");
   }
 
+  // A cut-short file is reported by SQLite as "not a database" or
+  // "malformed"; when opening fails as malformed, say it is truncated if its
+  // header shows so. (Checked only then: while a writer checkpoints, page 1
+  // may briefly announce pages not yet written.)
+  const auto explain = [&path](Status status) {
+    if (status.code() != StatusCode::kFormatError) return status;
+    Status truncated = store::check_not_truncated(path);
+    return truncated ? status : truncated;
+  };
   const int flags = mode == Mode::kReadOnly ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
-  RELIEF_ASSIGN_OR_RETURN(store::Connection connection,
-                          store::open_connection(path, flags, path, "cannot open"));
+  Result<store::Connection> opened = store::open_connection(path, flags, path, "cannot open");
+  if (!opened) return explain(opened.status());
+  store::Connection connection = std::move(opened).value();
   Result<int> version = identify(connection.get(), path);
   if (!version && version.status().code() == StatusCode::kIoError && mode == Mode::kReadOnly) {
     // A file left in WAL mode (a writer is running, or was killed) needs a
@@ -1445,13 +1455,13 @@ Result<std::unique_ptr<SqliteArchive>> open_sqlite(const std::string& path, Arch
       }
     }
   }
-  if (!version) return version.status();
+  if (!version) return explain(version.status());
   auto archive = std::make_unique<SqliteArchive>(path, std::move(connection), mode, *version);
   const Status initialised = archive->initialise(verify_meta);
   if (init_status != nullptr) {
     *init_status = initialised;
-  } else {
-    RELIEF_RETURN_IF_ERROR(initialised);
+  } else if (!initialised) {
+    return explain(initialised);
   }
   return archive;
 }

@@ -1,7 +1,11 @@
 #include "store/sqlite_util.h"
 
+#include <array>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <system_error>
 #include <utility>
 
 namespace relief::store {
@@ -237,6 +241,47 @@ Status Transaction::commit() {
   RELIEF_RETURN_IF_ERROR(exec(db_, "COMMIT", path_, "commit"));
   active_ = false;
   return Status::ok();
+}
+
+namespace {
+
+// The SQLite database header (sqlite.org/fileformat.html, section 1.3).
+constexpr std::size_t kSqliteHeaderSize = 100;
+constexpr char kSqliteMagic[] = "SQLite format 3";  // 16 bytes with its NUL
+constexpr std::size_t kPageSizeOffset = 16;         // 2 bytes big-endian; 1 means 65536
+constexpr std::size_t kChangeCounterOffset = 24;    // 4 bytes
+constexpr std::size_t kPageCountOffset = 28;        // 4 bytes: database size in pages
+constexpr std::size_t kVersionValidForOffset = 92;  // 4 bytes
+
+std::uint32_t load_be32(const std::uint8_t* p) {
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
+}
+
+}  // namespace
+
+Status check_not_truncated(const std::string& path) {
+  std::error_code ec;
+  const auto file_size = std::filesystem::file_size(path, ec);
+  if (ec) return Status::ok();  // open reports it
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) return Status::ok();
+  std::array<std::uint8_t, kSqliteHeaderSize> h{};
+  const std::size_t got = std::fread(h.data(), 1, h.size(), f);
+  std::fclose(f);
+  if (got < h.size() || std::memcmp(h.data(), kSqliteMagic, sizeof kSqliteMagic) != 0) return Status::ok();
+  const std::uint32_t raw_page = (std::uint32_t{h[kPageSizeOffset]} << 8) | h[kPageSizeOffset + 1];
+  const std::uint64_t page_size = raw_page == 1 ? 65536 : raw_page;
+  const std::uint32_t pages = load_be32(h.data() + kPageCountOffset);
+  // The in-header size is valid only when the last writer that changed the
+  // file also set it (older writers did not).
+  if (load_be32(h.data() + kChangeCounterOffset) != load_be32(h.data() + kVersionValidForOffset)) {
+    return Status::ok();
+  }
+  const std::uint64_t expected = page_size * pages;
+  if (page_size < 512 || expected <= file_size) return Status::ok();
+  return format_error(path + ": truncated: its SQLite header declares " + std::to_string(pages) + " pages of " +
+                      std::to_string(page_size) + " bytes (" + std::to_string(expected) + " bytes) but the file has " +
+                      std::to_string(file_size) + " bytes");
 }
 
 }  // namespace relief::store

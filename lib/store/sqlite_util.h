@@ -44,6 +44,13 @@ Result<Connection> open_connection(const std::string& file, int flags, const std
 // writes the file meanwhile (read-only media). Open it with SQLITE_OPEN_URI.
 std::string immutable_uri(const std::string& path);
 
+// kFormatError "<path>: truncated: ..." when `path` starts with a valid SQLite
+// header whose database size (pages x page size, offsets 16 and 28, trusted
+// when the version-valid-for number matches the change counter) exceeds the
+// file's size: SQLite itself would only say "not a database" or "malformed".
+// OK for anything else, including files that are not SQLite at all.
+Status check_not_truncated(const std::string& path);
+
 // Closes the connection and reports a failure (sqlite3_close, not _v2: a
 // close that cannot finish is an error we want to see, e.g. when creating).
 Status close_connection(Connection connection, const std::string& path);

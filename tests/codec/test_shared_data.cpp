@@ -3,30 +3,25 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
+#include <optional>
+#include <string>
 
 #include "relief/codec.h"
 #include "relief/io.h"
 #include "relief/metrics.h"
+#include "support/shared_data.h"
 
 using namespace relief;
 
 TEST_CASE("shared data files round-trip within the pixel bound", "[shared-data]") {
-  const std::filesystem::path root = RELIEF_SHARED_DATA_DIR;
   const char* files[] = {"small/stanford_bunny.ply", "small/kinect_milk_scene_rgb.ply",
                          "small/kitti_000000.ply", "medium/lone_star_tls_519k.ply",
                          "medium/fr_aerial_rgb_698k.ply"};
-  if (!std::filesystem::exists(root)) {
-    WARN("skipped: " << root.string() << " is absent (optional real-data tests)");
-    return;
-  }
   for (const char* name : files) {
-    const std::filesystem::path path = root / name;
-    if (!std::filesystem::exists(path)) {
-      WARN("skipped: " << path.string() << " is absent");
-      continue;
-    }
-    INFO(path.string());
-    auto cloud = read_ply(path.string());
+    const std::optional<std::string> path = relief::test::shared_file(name);
+    if (!path) continue;
+    INFO(*path);
+    auto cloud = read_ply(*path);
     REQUIRE(cloud.is_ok());
     EncodeParams p;
     p.cell_size = suggest_cell_size(*cloud, p.map_resolution);

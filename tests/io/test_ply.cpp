@@ -738,7 +738,7 @@ TEST_CASE("read_point_file dispatches on the extension", "[io]") {
   }
 }
 
-TEST_CASE("PLY reads the shared aerial sample", "[io]") {
+TEST_CASE("PLY reads the shared aerial sample", "[io][shared-data]") {
   const auto path = test::shared_file("medium/fr_aerial_rgb_698k.ply");
   if (!path) return;
   const Result<PointCloud> r = read_point_file(*path);

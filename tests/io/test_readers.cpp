@@ -560,7 +560,7 @@ TEST_CASE("LAZ files are refused by extension without being read", "[io]") {
 
 using relief::test::shared_file;
 
-TEST_CASE("LAS reads the shared aerial tile exactly as its PLY conversion", "[io]") {
+TEST_CASE("LAS reads the shared aerial tile exactly as its PLY conversion", "[io][shared-data]") {
   const auto las = shared_file("medium/orig/fr_aerial_rgb_698k.las");
   const auto ply = shared_file("medium/fr_aerial_rgb_698k.ply");
   if (!las || !ply) return;
@@ -585,7 +585,7 @@ TEST_CASE("LAS reads the shared aerial tile exactly as its PLY conversion", "[io
   CHECK(*hi == 3004.0f);
 }
 
-TEST_CASE("LAS reads the shared terrestrial scan exactly as its PLY conversion", "[io]") {
+TEST_CASE("LAS reads the shared terrestrial scan exactly as its PLY conversion", "[io][shared-data]") {
   const auto las = shared_file("medium/orig/lone_star_tls_519k.las");
   const auto ply = shared_file("medium/lone_star_tls_519k.ply");
   if (!las || !ply) return;

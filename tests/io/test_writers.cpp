@@ -858,7 +858,7 @@ TEST_CASE("open_point_writer dispatch and misuse", "[io]") {
 
 using relief::test::shared_file;
 
-TEST_CASE("real LAS files survive a read and write round trip", "[io]") {
+TEST_CASE("real LAS files survive a read and write round trip", "[io][shared-data]") {
   TempDir dir;
   for (const char* rel : {"medium/orig/fr_aerial_rgb_698k.las", "medium/orig/lone_star_tls_519k.las"}) {
     const auto las = shared_file(rel);

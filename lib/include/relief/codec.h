@@ -75,10 +75,12 @@ struct EncodeParams {
 };
 
 struct DecodeOptions {
-  // Level of detail: 1 = every point; L = a spatially uniform ~1/L subset,
-  // at least one point from every patch. For an error-bounded blob, a level
-  // whose ~1/L fits in the base layer decodes the base layer alone (fast);
-  // a finer one decodes every point and keeps every L-th in Morton order.
+  // Level of detail: 1 = every point; L = a spatially uniform ~1/L subset
+  // (the quota is spread over the patches by error diffusion, so small patches
+  // take turns and a chunk with fewer than L/2 decoded points gives none).
+  // For an error-bounded blob, a level the base layer can supply (at least
+  // half the wanted points) decodes the base layer alone (fast); a finer one
+  // decodes every point and keeps every L-th in Morton order.
   std::uint32_t lod = 1;
   // Verify the blob's CRC-32 first (turn off only to exercise the inner decoders).
   bool verify_checksum = true;
@@ -123,6 +125,11 @@ struct EncodeStats {
   std::uint32_t decoded_points = 0;
   Box3d decoded_bounds;  // exact bounds of decode_chunk's points (lod 1)
 };
+
+// Checks the parameters alone (ranges, combinations such as 16-bit heights
+// without JPEG 2000) -> kInvalidArgument naming the problem. encode_chunk and
+// the ingest entry points call it before any work.
+Status validate_encode_params(const EncodeParams& params);
 
 // Encodes one chunk. `normals`, when not empty, holds one unit normal per point
 // and enables the octree normal-cone criterion. With `stats`, also reports the

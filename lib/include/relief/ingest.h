@@ -38,11 +38,16 @@ inline constexpr double kDefaultTolerance = 0.0005;
 // kBaseCellFactor of them (the same chunk edge as the resampling mode).
 inline constexpr double kBaseCellFactor = 4;
 // Points of the order-independent density sample (bottom of a hash order).
-inline constexpr std::size_t kDensitySamplePoints = 1u << 18;
+inline constexpr std::size_t kOrderFreeSamplePoints = 1u << 18;
 // A chunk holding more points than this is split into octants (recursively)
 // before encoding, each its own blob of the same voxel: a rule on the points
 // alone, so archives do not depend on --memory.
 inline constexpr std::uint64_t kMaxBoundedChunkPoints = std::uint64_t{1} << 22;
+
+// The smallest working-memory budget ingest works in: buffers and encoder
+// scratch need this much whatever the input. A smaller
+// IngestOptions::memory_budget is raised to it (the CLI refuses one).
+inline constexpr std::uint64_t kMinMemoryBudget = std::uint64_t{64} << 20;
 
 struct IngestOptions {
   IngestMode mode = IngestMode::kBounded;
@@ -75,6 +80,10 @@ struct IngestOptions {
   // way (the encoder reconstructs them from its own maps); this adds a full
   // decode, ~10 % of the ingest time, as a belt-and-braces check.
   bool verify_blobs = false;
+  // compress_files refuses (kLimitExceeded) a cell size or chunk edge that puts
+  // on average fewer than 2 of the first points in a cell or 16 in a chunk: the
+  // archive would be many times larger than the input. true skips that check.
+  bool allow_sparse = false;
   std::string tmp_dir;      // temporary bucket files; empty = beside the archive
   ReaderOptions reader;
   // Called from the ingest's own thread about twice a second and at the end.
@@ -90,6 +99,18 @@ struct IngestOptions {
 // splits into cells exactly).
 inline constexpr int kDefaultCellsPerChunk = 32;
 
+// Whatever the cell size: no coordinate, cell size or chunk edge beyond 2^50
+// (~1.1e15 units), so squares and sums of squares (PCA, distances) stay finite
+// and exact enough.
+inline constexpr double kMaxCoordinateMagnitude = 1125899906842624.0;  // 2^50
+
+// The largest coordinate magnitude an archive with this cell size and chunk
+// edge accepts: 2^36 x min(cell, chunk edge), at most kMaxCoordinateMagnitude. Within
+// it chunk keys stay far inside int64 and a double still resolves 2^-16 of a
+// cell. Ingest refuses points beyond it (kInvalidArgument naming the input,
+// the point and the value); 0 for a non-positive cell or edge.
+double max_coordinate_magnitude(double cell_size, double chunk_edge);
+
 struct IngestResult {
   std::uint64_t points_read = 0;
   std::uint64_t points_decoded = 0;  // points a full decode of the new chunks returns
@@ -99,9 +120,14 @@ struct IngestResult {
   double cell_size = 0;
   double chunk_edge = 0;
   std::int64_t scan_id = 0;
+  // What the input readers noticed but did not refuse (PointStreamInfo::warnings),
+  // e.g. a PLY holding more vertices than its header declares.
+  std::vector<std::string> warnings;
 };
 
-// Creates `archive_path` from `inputs`. The path must not exist. On any error
+// Creates `archive_path` from `inputs`. The path must not exist (compress never
+// overwrites), its directory must. Parameters are checked before any work
+// (validate_encode_params, chunk edge, the density check above). On any error
 // the new archive is removed; killed mid-way (kill -9), the archive holds every
 // chunk committed so far and opens normally.
 Result<IngestResult> compress_files(const std::vector<std::string>& inputs, const std::string& archive_path,

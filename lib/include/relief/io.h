@@ -6,6 +6,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "relief/status.h"
 #include "relief/types.h"
@@ -58,6 +59,10 @@ struct PointStreamInfo {
   // coordinate (organised clouds mark pixels without depth that way). They are
   // included in point_count, which is what the header declares.
   std::uint64_t skipped_points = 0;
+  // Things the reader noticed but did not refuse, each a sentence naming the
+  // file, e.g. a PLY whose vertex records go on past the count its header
+  // declares (the header count is kept). Complete once read() has returned 0.
+  std::vector<std::string> warnings;
 };
 
 struct ReaderOptions {

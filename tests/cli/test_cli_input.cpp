@@ -1,0 +1,305 @@
+// CLI input validation and messages (issue 10): refused coordinates, too-fine
+// cells, option ranges, output paths, short usage errors.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "relief/image.h"
+#include "support/run_cli.h"
+#include "support/temp_dir.h"
+
+namespace fs = std::filesystem;
+
+using relief::test::TempDir;
+
+namespace {
+
+using Run = relief::test::CliRun;
+
+Run run(const std::string& args) { return relief::test::run_cli(RELIEF_CLI, args); }
+
+std::string sample() { return std::string(RELIEF_SOURCE_DIR) + "/tests/data/kinect_milk_scene_rgb.ply"; }
+
+void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+bool has(const Run& r, const std::string& text) { return r.output.find(text) != std::string::npos; }
+
+// 100 points on a 1 m grid, then `extra` as point 100.
+std::string grid_xyz(const std::string& extra) {
+  std::string text;
+  for (int i = 0; i < 100; ++i) text += std::to_string(i % 10) + " " + std::to_string(i / 10) + " 0\n";
+  return text + extra + "\n";
+}
+
+}  // namespace
+
+TEST_CASE("compress refuses coordinates beyond the limit on both sides, naming file, point and value",
+          "[cli][ingest]") {
+  TempDir tmp;
+  for (const char* value : {"1e300", "-1e300", "1e13", "-1e13"}) {
+    INFO(value);
+    write_text(tmp.file("far.xyz"), grid_xyz(std::string(value) + " 0 0"));
+    const Run r = run("compress " + tmp.file("far.xyz") + " -o " + tmp.file("far.relief") + " --cell 0.1 --quiet");
+    CHECK(r.code == 11);
+    CHECK(has(r, "far.xyz: point 100 has x = "));
+    CHECK(has(r, "beyond the limit"));
+    CHECK_FALSE(fs::exists(tmp.file("far.relief")));
+  }
+  // Also when the cell comes from an error target (trial encodes of the first points).
+  write_text(tmp.file("far.xyz"), grid_xyz("1e300 0 0"));
+  const Run target =
+      run("compress " + tmp.file("far.xyz") + " -o " + tmp.file("far.relief") + " --error-target 0.1 --quiet");
+  CHECK(target.code == 11);
+  CHECK(has(target, "far.xyz: point 100 has x = 1e+300"));
+  // The limit is 2^36 cells: 6.87e9 with 0.1 cells; just inside is accepted.
+  write_text(tmp.file("near.xyz"), grid_xyz("-6e9 0 0"));
+  const Run ok = run("compress " + tmp.file("near.xyz") + " -o " + tmp.file("near.relief") + " --cell 0.1 --quiet");
+  CHECK(ok.code == 0);
+  // An absurd chunk edge cannot overflow the keys either.
+  write_text(tmp.file("edge.xyz"), grid_xyz("5 5 5"));
+  const Run edge = run("compress " + tmp.file("edge.xyz") + " -o " + tmp.file("edge.relief") +
+                       " --cell 1e300 --chunk-edge 1e300 --quiet");
+  CHECK(edge.code == 11);
+  CHECK_FALSE(has(edge, "chunk ("));
+}
+
+TEST_CASE("compress refuses a cell far too fine for the data unless --allow-sparse", "[cli][ingest]") {
+  TempDir tmp;
+  const Run r = run("compress " + sample() + " -o " + tmp.file("fine.relief") + " --cell 0.000001 --quiet");
+  CHECK(r.code == 16);
+  CHECK(has(r, "kinect_milk_scene_rgb.ply"));
+  CHECK(has(r, "--allow-sparse"));
+  CHECK_FALSE(fs::exists(tmp.file("fine.relief")));
+  // A chunk edge far too small is refused the same way.
+  const Run chunks = run("compress " + sample() + " -o " + tmp.file("fine.relief") + " --chunk-edge 0.001 --quiet");
+  CHECK(chunks.code == 16);
+  CHECK(has(chunks, "points per chunk"));
+  // The default cell passes; a small input is never refused.
+  CHECK(run("compress " + sample() + " -o " + tmp.file("ok.relief") + " --quiet").code == 0);
+  write_text(tmp.file("small.xyz"), grid_xyz("5 5 5"));
+  CHECK(run("compress " + tmp.file("small.xyz") + " -o " + tmp.file("small.relief") + " --cell 0.001 --quiet").code ==
+        0);
+}
+
+TEST_CASE("compress --allow-sparse overrides the density check", "[cli][ingest]") {
+  TempDir tmp;
+  // 20,000 points 1 m apart on a line, 1 cm cells: one point per cell.
+  std::string text;
+  for (int i = 0; i < 20000; ++i) text += std::to_string(i) + " 0 0\n";
+  write_text(tmp.file("line.xyz"), text);
+  const std::string base = "compress " + tmp.file("line.xyz") + " --cell 0.01 --quiet -o ";
+  CHECK(run(base + tmp.file("a.relief")).code == 16);
+  CHECK(run(base + tmp.file("b.relief") + " --allow-sparse").code == 0);
+}
+
+TEST_CASE("encoding options are usage errors before any work", "[cli]") {
+  TempDir tmp;
+  const std::string out = tmp.file("x.relief");
+  for (const char* opt : {"--resolution 12", "--resolution 72", "--height-bits 12", "--height-bits 16",
+                          "--quality 0", "--color-quality 101", "--intensity-quality -1", "--fill smooth",
+                          "--codec png", "--max-points 0", "--cell -1"}) {
+    INFO(opt);
+    const Run r = run("compress " + sample() + " -o " + out + " --quiet " + opt);
+    CHECK(r.code == 2);
+    CHECK_FALSE(has(r, "chunk ("));
+    CHECK_FALSE(fs::exists(out));
+  }
+  const Run bits = run("roundtrip " + sample() + " --height-bits 16");
+  CHECK(bits.code == 2);
+  CHECK(has(bits, "--codec jpeg2000"));
+  CHECK(run("roundtrip " + sample() + " --height-bits 16 --codec jpeg2000").code == 0);
+  const Run enc = run("encode-chunk " + sample() + " -o " + tmp.file("c.rlfc") + " --resolution 20");
+  CHECK(enc.code == 2);
+  CHECK(has(enc, "--resolution"));
+}
+
+TEST_CASE("compress --memory below the minimum is a usage error stating the minimum", "[cli][ingest]") {
+  TempDir tmp;
+  const Run r = run("compress " + sample() + " -o " + tmp.file("x.relief") + " --memory 10M");
+  CHECK(r.code == 2);
+  CHECK(has(r, "64M"));
+  CHECK(run("compress " + sample() + " -o " + tmp.file("x.relief") + " --memory 64M --quiet").code == 0);
+}
+
+TEST_CASE("query, decompress and preview: --lod beyond 1024 is a usage error", "[cli][query]") {
+  TempDir tmp;
+  const std::string a = tmp.file("k.relief");
+  REQUIRE(run("compress " + sample() + " -o " + a + " --quiet").code == 0);
+  const Run q = run("query " + a + " --box -1,-1,-3,1,1,1 --lod 1000000 -o " + tmp.file("q.ply"));
+  CHECK(q.code == 2);
+  CHECK(has(q, "--lod"));
+  CHECK_FALSE(fs::exists(tmp.file("q.ply")));
+  CHECK(run("decompress " + a + " --lod 2000 -o " + tmp.file("d.ply")).code == 2);
+  CHECK(run("preview " + a + " --lod 5000 -o " + tmp.file("v.png")).code == 2);
+  CHECK(run("query " + a + " --box -1,-1,-3,1,1,1 --lod 1024 -o " + tmp.file("q.ply") + " --quiet").code == 0);
+}
+
+TEST_CASE("preview writes PNG or JPEG by the output's extension and refuses others", "[cli][preview]") {
+  TempDir tmp;
+  const std::string a = tmp.file("k.relief");
+  REQUIRE(run("compress " + sample() + " -o " + a + " --quiet").code == 0);
+  const auto head = [&](const std::string& name) {
+    std::ifstream in(tmp.file(name), std::ios::binary);
+    std::string bytes(8, '\0');
+    in.read(bytes.data(), 8);
+    return bytes;
+  };
+  for (const char* name : {"view.gif", "view", "view.jpg.txt"}) {
+    INFO(name);
+    const Run r = run("preview " + a + " -o " + tmp.file(name));
+    CHECK(r.code == 2);
+    CHECK(has(r, "PNG (.png) or JPEG (.jpg, .jpeg)"));
+    CHECK_FALSE(fs::exists(tmp.file(name)));
+  }
+  for (const char* name : {"view.jpg", "view.JPEG"}) {
+    INFO(name);
+    REQUIRE(run("preview " + a + " -o " + tmp.file(name) + " --quiet").code == 0);
+    CHECK(head(name).substr(0, 3) == "\xFF\xD8\xFF");  // JPEG SOI and the next marker
+    CHECK(fs::file_size(tmp.file(name)) > 1000);
+  }
+  REQUIRE(run("preview " + a + " -o " + tmp.file("view.PNG") + " --quiet").code == 0);
+  CHECK(head("view.PNG") == "\x89PNG\r\n\x1a\n");
+}
+
+TEST_CASE("encode_jpeg_rgb checks its arguments", "[cli][preview]") {
+  const std::vector<std::uint8_t> rgb(4 * 3 * 3, 128);
+  CHECK(relief::encode_jpeg_rgb(rgb, 4, 3, 90).is_ok());
+  CHECK(relief::encode_jpeg_rgb(rgb, 4, 4, 90).status().code() == relief::StatusCode::kInvalidArgument);
+  CHECK(relief::encode_jpeg_rgb(rgb, 4, 3, 0).status().code() == relief::StatusCode::kInvalidArgument);
+  CHECK(relief::encode_jpeg_rgb({}, 0, 0, 90).status().code() == relief::StatusCode::kInvalidArgument);
+}
+
+TEST_CASE("compress names a missing output directory and an existing non-archive", "[cli][ingest]") {
+  TempDir tmp;
+  const Run dir = run("compress " + sample() + " -o " + tmp.file("nodir/x.relief"));
+  CHECK(dir.code == 12);
+  CHECK(has(dir, "the directory " + tmp.file("nodir") + " does not exist"));
+  CHECK_FALSE(has(dir, "unable to open database file"));
+  CHECK_FALSE(fs::exists(tmp.file("nodir")));
+
+  write_text(tmp.file("notes.relief"), "precious");
+  const Run other = run("compress " + sample() + " -o " + tmp.file("notes.relief"));
+  CHECK(other.code == 12);
+  CHECK(has(other, "not a Relief archive"));
+  CHECK(has(other, "never overwrites"));
+  CHECK_FALSE(has(other, "relief append"));
+  CHECK(fs::file_size(tmp.file("notes.relief")) == 8);
+
+  REQUIRE(run("compress " + sample() + " -o " + tmp.file("k.relief") + " --quiet").code == 0);
+  const Run again = run("compress " + sample() + " -o " + tmp.file("k.relief"));
+  CHECK(again.code == 12);
+  CHECK(has(again, "relief append"));
+
+  const Run stream = run("stream " + tmp.file("nodir/s.relief") + " --cell 1 < /dev/null");
+  CHECK(stream.code == 12);
+  CHECK(has(stream, "does not exist"));
+
+  // Outputs of the other commands say the same, not "cannot create temporary file".
+  for (const std::string cmd :
+       {"query " + tmp.file("k.relief") + " --box -1,-1,1,1 -o " + tmp.file("nodir/q.ply"),
+        "preview " + tmp.file("k.relief") + " -o " + tmp.file("nodir/v.png"),
+        "encode-chunk " + sample() + " -o " + tmp.file("nodir/c.rlfc")}) {
+    INFO(cmd);
+    const Run r = run(cmd);
+    CHECK(r.code == 12);
+    CHECK(has(r, "the directory " + tmp.file("nodir") + " does not exist"));
+  }
+}
+
+TEST_CASE("stream names the attribute that differs from the archive's", "[cli][ingest]") {
+  TempDir tmp;
+  const std::string a = tmp.file("s.relief");
+  write_text(tmp.file("in.txt"), grid_xyz("5 5 5"));
+  REQUIRE(run("stream " + a + " --cell 1 --quiet < " + tmp.file("in.txt")).code == 0);
+  write_text(tmp.file("rgb.txt"), "1 1 1 255 0 0\n2 2 2 0 255 0\n");
+  const Run r = run("stream " + a + " --columns x,y,z,r,g,b --quiet < " + tmp.file("rgb.txt"));
+  CHECK(r.code == 11);
+  CHECK(has(r, "the archive has no colours or intensity but the stream has colours"));
+}
+
+TEST_CASE("usage errors print the error and one hint line, not the whole help", "[cli]") {
+  for (const char* args : {"compress", "query x.relief", "preview", "info", "stream", "roundtrip --bogus"}) {
+    INFO(args);
+    const Run r = run(args);
+    CHECK(r.code == 2);
+    CHECK(has(r, "--help'"));
+    CHECK_FALSE(has(r, "usage:"));
+    CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 2);
+  }
+  const Run unknown = run("frobnicate");
+  CHECK(unknown.code == 2);
+  CHECK(std::count(unknown.output.begin(), unknown.output.end(), '\n') == 2);
+}
+
+TEST_CASE("compress warns on stderr when a PLY holds more vertices than its header declares", "[cli][ingest]") {
+  TempDir tmp;
+  std::string text = "ply\nformat ascii 1.0\nelement vertex 40\nproperty float x\nproperty float y\n"
+                     "property float z\nend_header\n";
+  for (int i = 0; i < 50; ++i) text += std::to_string(i % 10) + " " + std::to_string(i / 10) + " 0\n";
+  write_text(tmp.file("more.ply"), text);
+  const Run r = run("compress " + tmp.file("more.ply") + " -o " + tmp.file("m.relief") + " --cell 1 --quiet");
+  CHECK(r.code == 0);
+  CHECK(has(r, "warning: " + tmp.file("more.ply") + ": the header declares 40 vertices but 50 follow"));
+}
+
+TEST_CASE("an archive cut short behind an intact header is called truncated", "[cli][query]") {
+  TempDir tmp;
+  const std::string a = tmp.file("k.relief");
+  REQUIRE(run("compress " + sample() + " -o " + a + " --quiet").code == 0);
+  REQUIRE((!fs::exists(a + "-wal") || fs::file_size(a + "-wal") == 0));  // everything is in the main file
+  const auto size = fs::file_size(a);
+  for (const std::uintmax_t keep : {std::uintmax_t{4096}, size / 2, size - 4096}) {
+    INFO(keep);
+    fs::copy_file(a, tmp.file("cut.relief"), fs::copy_options::overwrite_existing);
+    fs::resize_file(tmp.file("cut.relief"), keep);
+    for (const std::string cmd : {"info " + tmp.file("cut.relief"),
+                                  "query " + tmp.file("cut.relief") + " --box -1,-1,1,1 -o " + tmp.file("q.ply")}) {
+      const Run r = run(cmd);
+      CHECK(r.code == 13);
+      CHECK(has(r, "cut.relief: truncated"));
+      CHECK_FALSE(has(r, "not a SQLite database"));
+    }
+  }
+  // A file that is not SQLite at all keeps its own message.
+  write_text(tmp.file("text.relief"), std::string(200, 'x'));
+  CHECK(has(run("info " + tmp.file("text.relief")), "not a Relief archive"));
+}
+
+TEST_CASE("encode-chunk and roundtrip refuse coordinates beyond 2^50", "[cli]") {
+  TempDir tmp;
+  write_text(tmp.file("far.xyz"), grid_xyz("1e300 0 0"));
+  for (const std::string cmd : {"roundtrip " + tmp.file("far.xyz"),
+                                "encode-chunk " + tmp.file("far.xyz") + " -o " + tmp.file("c.rlfc")}) {
+    INFO(cmd);
+    const Run r = run(cmd);
+    CHECK(r.code == 11);
+    CHECK(has(r, "far.xyz: point 100 has a coordinate 1e+300"));
+  }
+  CHECK_FALSE(fs::exists(tmp.file("c.rlfc")));
+}
+
+TEST_CASE("stream: unknown binary attributes are a usage error", "[cli][ingest]") {
+  TempDir tmp;
+  for (const char* attrs : {"color", "rgb,rgb", "rgb,", "rgb,intensity,x"}) {
+    INFO(attrs);
+    const Run r = run("stream " + tmp.file("s.relief") + " --format binary --cell 1 --attributes " + attrs +
+                      " < /dev/null");
+    CHECK(r.code == 2);
+    CHECK(has(r, "--attributes"));
+  }
+  CHECK_FALSE(fs::exists(tmp.file("s.relief")));
+}
+
+TEST_CASE("stream refuses a chunk edge of more than 2^21 cells before creating the archive", "[cli][ingest]") {
+  TempDir tmp;
+  write_text(tmp.file("in.txt"), grid_xyz("5 5 5"));
+  const Run r = run("stream " + tmp.file("s.relief") + " --cell 1 --chunk-edge 1e9 < " + tmp.file("in.txt"));
+  CHECK(r.code == 11);
+  CHECK(has(r, "more than 2^21 cells"));
+  CHECK_FALSE(has(r, "chunk ("));
+  CHECK_FALSE(fs::exists(tmp.file("s.relief")));
+}
