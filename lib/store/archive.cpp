@@ -1517,6 +1517,10 @@ Status text_rows_problems(sqlite3* db, const char* sql, const std::string& path,
 }  // namespace
 
 Status SqliteArchive::check_chunks(CheckReport& report) const {
+  // One snapshot: a writer appending or aborting meanwhile must not look
+  // like a chunk without its index entry.
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kRead));
   RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> refs, all_chunks());
   // Blobs: read_chunk verifies each CRC-32.
   for (const ChunkRef& ref : refs) {
@@ -1595,7 +1599,7 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
   RELIEF_RETURN_IF_ERROR(text_rows_problems(db(), "SELECT rtreecheck('relief_chunk_index')", path_,
                                             path_ + ": spatial index structure (rtreecheck)", report));
   report.checked("the spatial index's tree structure (rtreecheck)");
-  return Status::ok();
+  return transaction.commit();
 }
 
 Result<ArchiveCheck> check_archive(const std::string& path) {
