@@ -678,6 +678,9 @@ class SqliteArchive final : public Archive {
   // connection. With `verify_meta` false a bad checksum is left for the caller.
   Status initialise(bool verify_meta = true);
   int format_version() const { return format_version_; }
+  // This handle made the file: a failed run removes the whole file, so no
+  // room is kept for undoing it (check_room).
+  void mark_created() { created_ = true; }
   sqlite3* connection() const { return connection_.get(); }
   Status verify_meta_checksum() const;
   // check_archive's chunk and index checks; damage goes to `report`.
@@ -719,6 +722,7 @@ class SqliteArchive final : public Archive {
   bool bounds_index_ = false;  // version 2: relief_chunk_bounds exists
   std::uint64_t page_size_ = 4096;     // read when opened for writing
   std::uint64_t rows_written_ = 0;     // by this handle: what an abort may have to remove
+  bool created_ = false;
   ArchiveGrid grid_;  // fixed at creation, read once on open
   mutable std::array<std::unique_ptr<Statement>, static_cast<std::size_t>(Sql::kCount)> statements_;
   // Atomic so another thread may read it while the owner reads chunks.
@@ -963,6 +967,7 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
 }
 
 Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
+  if (created_) return Status::ok();
   const std::uint64_t frame = page_size_ + kWalFrameHeader;
   const std::uint64_t overflow_page = page_size_ - 4;  // 4 bytes link the overflow chain
   std::uint64_t need = kFixedFrames;
@@ -1376,6 +1381,9 @@ Result<ArchiveInfo> SqliteArchive::info() const {
   return info;
 }
 
+Result<std::unique_ptr<SqliteArchive>> open_sqlite(const std::string& path, Archive::Mode mode, bool verify_meta,
+                                                   Status* init_status);
+
 }  // namespace
 
 // ---- Public entry points
@@ -1401,7 +1409,10 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
     return status;
   }
   sync_directory_of(path);
-  return open(path, Mode::kReadWrite);
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<SqliteArchive> archive,
+                          open_sqlite(path, Mode::kReadWrite, true, nullptr));
+  archive->mark_created();
+  return std::unique_ptr<Archive>(std::move(archive));
 }
 
 namespace {
@@ -1516,6 +1527,10 @@ Status text_rows_problems(sqlite3* db, const char* sql, const std::string& path,
 }  // namespace
 
 Status SqliteArchive::check_chunks(CheckReport& report) const {
+  // One snapshot: a writer appending or aborting meanwhile must not look
+  // like a chunk without its index entry.
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kRead));
   RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> refs, all_chunks());
   // Blobs: read_chunk verifies each CRC-32.
   for (const ChunkRef& ref : refs) {
@@ -1594,7 +1609,7 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
   RELIEF_RETURN_IF_ERROR(text_rows_problems(db(), "SELECT rtreecheck('relief_chunk_index')", path_,
                                             path_ + ": spatial index structure (rtreecheck)", report));
   report.checked("the spatial index's tree structure (rtreecheck)");
-  return Status::ok();
+  return transaction.commit();
 }
 
 Result<ArchiveCheck> check_archive(const std::string& path) {

@@ -1,6 +1,8 @@
 // Tests of the SQLite archive (lib/store, format-spec/archive.md). Raw SQLite
 // is used on purpose to fake, damage and inspect archives behind the store's back.
+#include <signal.h>
 #include <sqlite3.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -1330,6 +1332,62 @@ TEST_CASE("a writer closing while a reader is connected leaves its data in the f
   CHECK(sqlite3_column_int64(stmt, 0) == 2);
   sqlite3_finalize(stmt);
   sqlite3_close(raw);
+}
+
+}  // namespace
+}  // namespace relief
+
+namespace relief {
+namespace {
+
+TEST_CASE("room to undo is kept on archives a handle opened, not on ones it created", "[store][diskfull]") {
+  TempDir dir;
+  const std::string fresh = dir.file("fresh.relief");
+  const std::string old = dir.file("old.relief");
+  create_ok(old);
+  const auto rows_for = [](std::int64_t scan) {
+    std::vector<ChunkRow> rows;
+    for (int i = 0; i < 200; ++i) {
+      const double x = 25.0 * i;
+      rows.push_back(make_row({i, 0, 0}, scan, cube(x + 1, x + 2), 5, 64, static_cast<std::uint64_t>(i)));
+    }
+    return rows;
+  };
+  // 2 MB more per file: plenty for 200 small rows (~1 MB of WAL), not for
+  // them plus the room to remove them again (~4 MB by the store's bound).
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(fs::file_size(old) + (2u << 20));
+    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(10);
+    {
+      auto created = Archive::create(fresh, grid_25m(), "", "test");
+      if (!created) ::_exit(11);
+      auto scan = (*created)->begin_scan({});
+      std::vector<ChunkRow> rows = rows_for(scan ? *scan : 0);
+      if (!scan || !(*created)->put_chunks(rows)) ::_exit(12);  // a new archive: no reserve
+    }
+    auto opened = Archive::open(old, Archive::Mode::kReadWrite);
+    if (!opened) ::_exit(13);
+    auto scan = (*opened)->begin_scan({});
+    std::vector<ChunkRow> rows = rows_for(scan ? *scan : 0);
+    const Status status = (*opened)->put_chunks(rows);
+    if (status.is_ok()) ::_exit(14);
+    const bool full = status.code() == StatusCode::kIoError &&
+                      status.message().find(old + ": the disk is full") == 0;
+    if (!full) ::_exit(15);
+    ::_exit((*opened)->abort_scan(*scan).is_ok() ? 0 : 16);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
+  CHECK(info_ok(*open_ok(fresh, Archive::Mode::kReadOnly)).chunk_count == 200);
+  const ArchiveInfo info = info_ok(*open_ok(old, Archive::Mode::kReadOnly));
+  CHECK(info.chunk_count == 0);
+  CHECK(info.scans.empty());
 }
 
 }  // namespace

@@ -126,6 +126,10 @@ class Archive {
                                           const ScanAttributes& attributes = {}) = 0;
   // Stores the rows in one transaction: assigns each the next free seq of its
   // voxel key and its id; updates the totals. Either all rows land or none.
+  // On an archive this handle opened (not created), a batch is refused with
+  // kIoError ("the disk is full") unless the disk and RLIMIT_FSIZE leave room
+  // for it plus the removal of every row the handle wrote, so abort_scan can
+  // always run.
   virtual Status put_chunks(std::vector<ChunkRow>& rows) = 0;
   // Marks the scan complete (and records its attributes again, as given).
   virtual Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
