@@ -525,7 +525,7 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& b) {
 }
 
 Result<double> order_free_cell_size(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                     int map_resolution) {
+                                     int map_resolution, Box3d* bounds) {
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
@@ -552,6 +552,7 @@ Result<double> order_free_cell_size(const std::vector<std::string>& inputs, cons
       if (got == 0) break;
       total += got;
       for (const Vec3d& p : batch.positions) {
+        if (bounds != nullptr) bounds->add(p);
         const std::uint64_t h = hash(p);
         if (h < threshold) kept.emplace_back(h, p);
       }
@@ -632,10 +633,12 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   // The absolute bound first, so no absurd coordinate reaches the cell-size
   // estimate; the bound for the chosen cell follows below.
   RELIEF_RETURN_IF_ERROR(check_coordinates(first, kMaxCoordinateMagnitude, inputs[0], 0));
+  Box3d all_bounds;
   if (bounded && params.cell_size == 0) {
     // The base layer's cells: from a sample that depends only on the set of
     // input points (not their order, not the memory budget).
-    RELIEF_ASSIGN_OR_RETURN(const double cell, order_free_cell_size(inputs, options.reader, params.map_resolution));
+    RELIEF_ASSIGN_OR_RETURN(const double cell,
+                            order_free_cell_size(inputs, options.reader, params.map_resolution, &all_bounds));
     params.cell_size = kBaseCellFactor * cell;
   } else if (derive_from_first) {
     if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
@@ -646,6 +649,14 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     }
   }
   ArchiveGrid grid;
+  if (!all_bounds.empty()) {
+    // The chunk grid starts at the inputs' minimum corner (known from the
+    // pass above, whatever the order of the points): a scan smaller than a
+    // chunk is one chunk, not up to eight cut at the coordinate axes. One
+    // grid step below it, so no point snaps out of the first chunk.
+    const ErrorBound& b = *params.bound;
+    grid.origin = Vec3d{all_bounds.min.x - b.step.x, all_bounds.min.y - b.step.y, all_bounds.min.z - b.step.z};
+  }
   const double cells_per_chunk = bounded ? kDefaultCellsPerChunk / kBaseCellFactor : kDefaultCellsPerChunk;
   grid.chunk_edge = options.chunk_edge > 0 ? options.chunk_edge : params.cell_size * cells_per_chunk;
   if (bounded && options.chunk_edge == 0) {

@@ -105,8 +105,9 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& bound);
 // The density-derived cell size (suggest_cell_size) of all the inputs' points,
 // estimated from a sample chosen by a hash of each position: one extra read
 // of the inputs, and a result that does not depend on the points' order.
+// With `bounds`, also adds every input point to it.
 Result<double> order_free_cell_size(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                    int map_resolution);
+                                    int map_resolution, Box3d* bounds = nullptr);
 
 // Reads every input into the archive as one scan (see compress.cpp).
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params, InputSet& in,
