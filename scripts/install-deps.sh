@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs what Relief needs from Debian 12 packages, skipping what is present.
 # Idempotent; uses sudo when not root. Set RELIEF_WITH_BENCH=1 to add the peer
-# codecs the benchmarks compare against (draco).
+# codecs the benchmarks compare against (draco), RELIEF_WITH_FUZZ=1 to add clang
+# and its libFuzzer runtime for -DRELIEF_FUZZ=ON (tests/fuzz/README.md; CI
+# does not need them: the corpus replays build with g++).
 set -euo pipefail
 
 packages=(
@@ -11,6 +13,9 @@ packages=(
 )
 if [[ "${RELIEF_WITH_BENCH:-0}" == "1" ]]; then
   packages+=(draco)
+fi
+if [[ "${RELIEF_WITH_FUZZ:-0}" == "1" ]]; then
+  packages+=(clang-14 libclang-rt-14-dev)
 fi
 
 missing=()

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <mutex>
 
 namespace relief::codec {
@@ -40,13 +41,23 @@ AtlasLayout atlas_layout(std::uint32_t patch_count) {
   std::uint32_t side = 1;
   while (static_cast<std::uint64_t>(side) * side < patch_count) side <<= 1;
   layout.tiles_x = side;
-  std::uint32_t tx = 0, ty = 0;
-  std::uint32_t max_y = 0;
-  for (std::uint32_t i = 0; i < patch_count; ++i) {
-    tile_position(i, tx, ty);
-    max_y = std::max(max_y, ty);
+  // tiles_y is 1 + the largest row among indices 0..last. Computed in closed
+  // form, not by visiting every index: a hostile header may claim 2^32 - 1
+  // patches and this runs before any section is read. The row is the odd bits
+  // of the index; the best index <= last clears last's highest set even (x)
+  // bit b and sets every bit below b, which keeps the odd bits above b and
+  // sets all odd bits below it. Without a set even bit, last itself is best.
+  const std::uint32_t last = patch_count - 1;
+  std::uint32_t best = last;
+  const std::uint32_t x_bits = last & 0x55555555u;
+  if (x_bits != 0) {
+    const std::uint32_t b = 31u - static_cast<std::uint32_t>(std::countl_zero(x_bits));
+    const std::uint32_t below = (std::uint32_t{1} << b) - 1;
+    best = (last & ~below & ~(std::uint32_t{1} << b)) | below;
   }
-  layout.tiles_y = max_y + 1;
+  std::uint32_t tx = 0, ty = 0;
+  tile_position(best, tx, ty);
+  layout.tiles_y = ty + 1;
   return layout;
 }
 

@@ -121,14 +121,26 @@ Status check_header(const ChunkHeader& h) {
   if (3 * h.tree_depth < 32 && h.patch_count > (std::uint64_t{1} << (3 * h.tree_depth))) {
     return bad("more patches than cells at depth " + std::to_string(h.tree_depth));
   }
+  // Bound the counts by the atlas the header declares before anything uses
+  // them: one tile per patch, one occupancy pixel per decoded point.
+  if (static_cast<std::uint64_t>(h.tiles_x) * h.map_resolution > kMaxImageSide ||
+      static_cast<std::uint64_t>(h.tiles_y) * h.map_resolution > kMaxImageSide) {
+    return bad("atlas larger than " + std::to_string(kMaxImageSide) + " pixels");
+  }
+  const std::uint64_t tiles = static_cast<std::uint64_t>(h.tiles_x) * h.tiles_y;
+  if (h.patch_count > tiles) {
+    return bad(std::to_string(h.patch_count) + " patches do not fit an atlas of " +
+               std::to_string(h.tiles_x) + "x" + std::to_string(h.tiles_y) + " tiles");
+  }
+  const std::uint64_t pixels = tiles * h.map_resolution * h.map_resolution;
+  if (h.decoded_points > pixels) {
+    return bad(std::to_string(h.decoded_points) + " decoded points do not fit an occupancy map of " +
+               std::to_string(pixels) + " pixels");
+  }
   const AtlasLayout layout = atlas_layout(h.patch_count);
   if (h.tiles_x != layout.tiles_x || h.tiles_y != layout.tiles_y) {
     return bad("atlas of " + std::to_string(h.tiles_x) + "x" + std::to_string(h.tiles_y) +
                " tiles does not match " + std::to_string(h.patch_count) + " patches");
-  }
-  if (static_cast<std::uint64_t>(h.tiles_x) * h.map_resolution > kMaxImageSide ||
-      static_cast<std::uint64_t>(h.tiles_y) * h.map_resolution > kMaxImageSide) {
-    return bad("atlas larger than " + std::to_string(kMaxImageSide) + " pixels");
   }
   const bool finite = std::isfinite(h.grid_origin.x) && std::isfinite(h.grid_origin.y) &&
                       std::isfinite(h.grid_origin.z) && std::isfinite(h.grid_edge) &&
@@ -330,6 +342,15 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
         return corrupt_data("chunk blob: tree section raw size " + std::to_string(s.raw_size) +
                             " exceeds the bound for " + std::to_string(h.patch_count) + " patches");
       }
+      // And the other way: a leaf is one bit of its parent's mask, or (octree)
+      // a mask byte of its own, so the masks hold at most 8 leaves per byte.
+      // Depth 0 is a lone root leaf with no bytes (check_header allows 1 patch).
+      if (h.tree_depth > 0 && h.patch_count > std::uint64_t{kMaxLeavesPerTreeByte} * s.raw_size) {
+        return corrupt_data("chunk blob: tree section of " + std::to_string(s.raw_size) +
+                            " bytes holds at most " +
+                            std::to_string(std::uint64_t{kMaxLeavesPerTreeByte} * s.raw_size) +
+                            " leaves, header declares " + std::to_string(h.patch_count) + " patches");
+      }
     } else if (s.raw_size != expected_raw_size(s.id, h)) {
       return corrupt_data(std::string("chunk blob: ") + section_name(s.id) + " section raw size " +
                           std::to_string(s.raw_size) + ", expected " +
@@ -338,6 +359,11 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
     if (s.codec == SectionCodec::kStored && s.coded_size != s.raw_size) {
       return corrupt_data(std::string("chunk blob: stored ") + section_name(s.id) +
                           " section with coded size != raw size");
+    }
+    if (s.codec == SectionCodec::kLzma2 && s.raw_size > lzma_max_decoded_size(s.coded_size)) {
+      return corrupt_data(std::string("chunk blob: ") + section_name(s.id) + " section of " +
+                          std::to_string(s.coded_size) + " LZMA2 bytes cannot hold " +
+                          std::to_string(s.raw_size) + " bytes");
     }
     payload_total += s.coded_size;
     out.sections.push_back(s);

@@ -63,6 +63,9 @@ inline constexpr int kMaxMapResolution = 64;
 inline constexpr int kMaxTreeDepth = 21;
 // Bytes per patch in the patches section: oct_u, oct_v, offset, umin, umax, vmin, vmax.
 inline constexpr std::size_t kPatchRecordSize = 7;
+// A tree leaf is one bit of its parent's child mask (or an empty mask byte of
+// its own), so n mask bytes describe at most 8 n leaves.
+inline constexpr std::uint32_t kMaxLeavesPerTreeByte = 8;
 
 struct SectionEntry {
   SectionId id{};

@@ -59,6 +59,12 @@ Result<std::vector<std::uint8_t>> bilevel_decode(std::span<const std::uint8_t> d
 Result<std::vector<std::uint8_t>> lzma_compress(std::span<const std::uint8_t> data);
 Result<std::vector<std::uint8_t>> lzma_decompress(std::span<const std::uint8_t> data,
                                                   std::size_t expected_size);
+// Most bytes an LZMA2 stream of `coded_size` bytes can decode to, from the
+// format alone: a compressed chunk is at least 6 bytes (control, unpacked and
+// packed sizes, one payload byte) and unpacks to at most 2 MiB; a stored chunk
+// unpacks to less than its own size. Lets a decoder bound a declared size by
+// the bytes actually present before it allocates.
+std::uint64_t lzma_max_decoded_size(std::size_t coded_size);
 
 // CRC-32 (IEEE 802.3, as zlib and liblzma compute it).
 std::uint32_t crc32(std::span<const std::uint8_t> data);

@@ -30,6 +30,11 @@ constexpr std::uint32_t kLzmaPreset = 6;
 // ~30 KiB of state. Checked so a future change of the constants above cannot
 // silently raise the per-thread decode footprint.
 constexpr std::uint64_t kLzmaDecoderMemLimit = std::uint64_t{2} << 20;
+// LZMA2 chunk limits (liblzma lzma2_decoder.c): a compressed chunk has a
+// control byte, a 16-bit unpacked size (plus 5 bits in the control byte, so at
+// most 2 MiB), a 16-bit packed size and at least one packed byte.
+constexpr std::size_t kLzma2MinChunkSize = 6;
+constexpr std::uint64_t kLzma2MaxChunkOutput = std::uint64_t{1} << 21;
 
 // Smallest power of two >= size within [kLzmaMinDict, kLzmaMaxDict]: a small
 // input does not pay for hashing and allocating a large dictionary.
@@ -170,6 +175,10 @@ Result<std::vector<std::uint8_t>> lzma_decompress(std::span<const std::uint8_t> 
                         " trailing bytes after the stream");
   }
   return out;
+}
+
+std::uint64_t lzma_max_decoded_size(std::size_t coded_size) {
+  return static_cast<std::uint64_t>(coded_size / kLzma2MinChunkSize) * kLzma2MaxChunkOutput;
 }
 
 std::uint32_t crc32(std::span<const std::uint8_t> data) {

@@ -1,0 +1,105 @@
+// libFuzzer target: opening an archive read-only and querying it. SQLite
+// reads a file, so each input is written to one temporary file per process
+// (rewritten in place, no directory churn) and the archive is opened, listed,
+// queried through the spatial index, and its chunks read and decoded; then
+// the same through ArchiveReader::query. SQLite's side files (-wal, -shm,
+// -journal) are removed after every input so one input cannot affect the next.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "relief/archive.h"
+#include "relief/codec.h"
+#include "relief/query.h"
+
+namespace {
+
+// Chunks read and decoded per input: enough to reach every code path, few
+// enough that an archive listing thousands of rows stays fast.
+constexpr std::size_t kMaxChunksRead = 8;
+constexpr std::uint64_t kMaxPoints = 1 << 16;
+
+const std::string& temp_path() {
+  static const std::string path = [] {
+    const char* dir = std::getenv("TMPDIR");
+    std::string p = std::string(dir != nullptr && *dir != '\0' ? dir : "/tmp") + "/relief-fuzz-archive-" +
+                    std::to_string(::getpid()) + ".rla";
+    return p;
+  }();
+  return path;
+}
+
+void remove_side_files(const std::string& path) {
+  for (const char* suffix : {"-wal", "-shm", "-journal"}) std::remove((path + suffix).c_str());
+}
+
+bool write_file(const std::string& path, const std::uint8_t* data, std::size_t size) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+  if (fd < 0) return false;
+  std::size_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::write(fd, data + done, size - done);
+    if (n <= 0) break;
+    done += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  return done == size;
+}
+
+void exercise_archive(const std::string& path) {
+  auto archive = relief::Archive::open(path, relief::Archive::Mode::kReadOnly);
+  if (!archive.is_ok()) return;
+  auto info = (*archive)->info();
+  relief::Box3d box;
+  if (info.is_ok() && !info->bounds.empty()) {
+    box = info->bounds;
+  } else {
+    box.min = {-1e6, -1e6, -1e6};
+    box.max = {1e6, 1e6, 1e6};
+  }
+  auto refs = (*archive)->find_chunks(box);
+  if (!refs.is_ok()) refs = (*archive)->all_chunks();
+  if (!refs.is_ok()) return;
+  relief::DecodeOptions options;
+  options.max_points = kMaxPoints;
+  std::size_t read = 0;
+  for (const relief::ChunkRef& ref : *refs) {
+    if (read++ == kMaxChunksRead) break;
+    auto row = (*archive)->read_chunk(ref.id);
+    if (!row.is_ok()) continue;
+    (void)relief::decode_chunk(row->blob, options);
+  }
+}
+
+void exercise_query(const std::string& path, bool skip_corrupt) {
+  auto reader = relief::ArchiveReader::open(path);
+  if (!reader.is_ok()) return;
+  relief::QueryOptions options;
+  options.threads = 1;
+  options.skip_corrupt = skip_corrupt;
+  options.on_warning = [](const std::string&) {};
+  const relief::Box3d& bounds = (*reader)->info().bounds;
+  relief::Box3d box = bounds;
+  if (bounds.empty()) {
+    box.min = {-1e6, -1e6, -1e6};
+    box.max = {1e6, 1e6, 1e6};
+  }
+  (void)(*reader)->query(box, options, [](const relief::PointCloud&) { return relief::Status::ok(); });
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string& path = temp_path();
+  remove_side_files(path);
+  if (!write_file(path, data, size)) std::abort();  // the fuzzer's own disk problem, not a finding
+  exercise_archive(path);
+  exercise_query(path, size % 2 == 0);
+  remove_side_files(path);
+  return 0;
+}

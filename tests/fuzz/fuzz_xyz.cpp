@@ -1,0 +1,28 @@
+// libFuzzer target: the XYZ/CSV text reader from memory. The first byte picks
+// the column layout (ReaderOptions::xyz_columns), the rest is the file.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "fuzz/fuzz_support.h"
+#include "io/readers.h"
+
+namespace {
+
+// Layouts the CLI's --columns accepts, including skipped and reordered ones
+// and the malformed kinds the option parser must reject.
+constexpr std::array<const char*, 8> kColumns = {
+    "x,y,z", "x,y,z,r,g,b", "x,y,z,i", "x,y,z,r,g,b,i", "_,x,_,y,z", "i,z,y,x", "x,y", "x,y,z,q"};
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  if (size == 0) return 0;
+  relief::ReaderOptions options;
+  options.xyz_columns = kColumns[data[0] % kColumns.size()];
+  const std::span<const std::uint8_t> bytes(data + 1, size - 1);
+  auto reader = relief::open_xyz_reader(relief::InputSpec{"fuzz.xyz", bytes}, options);
+  if (reader.is_ok()) relief::fuzz::drain(**reader, bytes.size(), "xyz reader");
+  return 0;
+}

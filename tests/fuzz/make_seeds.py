@@ -1,0 +1,208 @@
+#!/usr/bin/env python3
+"""Writes the seed inputs of the fuzz corpora (tests/fuzz/README.md).
+
+Usage: tests/fuzz/make_seeds.py BUILD_DIR OUT_DIR
+(RELIEF_SHARED_DATA overrides ../shared/data.) BUILD_DIR holds a built `relief` CLI (encode-chunk and compress make the chunk
+and archive seeds); OUT_DIR/<target>/ receives the files. Real data comes from
+tests/data and, when present, ../shared/data. The committed corpora are these
+seeds plus what the fuzzers found, minimised with -merge=1.
+"""
+import os
+import sqlite3
+import struct
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+SHARED = os.environ.get("RELIEF_SHARED_DATA", os.path.join(os.path.dirname(ROOT), "shared", "data"))
+KINECT = os.path.join(ROOT, "tests", "data", "kinect_milk_scene_rgb.ply")
+
+
+def put(out, target, name, data):
+    d = os.path.join(out, target)
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, name), "wb") as f:
+        f.write(data)
+
+
+def kinect_points(n, stride):
+    """The first n points (every stride-th) of the Kinect scene: (x, y, z, r, g, b)."""
+    with open(KINECT, "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    rec = struct.Struct("<fffBBB")
+    pts = []
+    for i in range(0, n * stride, stride):
+        pts.append(rec.unpack_from(data, end + i * rec.size))
+    return pts
+
+
+def ply(pts, encoding, colors=True, extra=b""):
+    head = b"ply\nformat %s 1.0\n" % encoding.encode()
+    head += extra
+    head += b"element vertex %d\nproperty float x\nproperty float y\nproperty float z\n" % len(pts)
+    if colors:
+        head += b"property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    head += b"end_header\n"
+    body = b""
+    for p in pts:
+        if encoding == "ascii":
+            body += (" ".join("%g" % v for v in (p if colors else p[:3])) + "\n").encode()
+        else:
+            e = "<" if encoding == "binary_little_endian" else ">"
+            body += struct.pack(e + ("fffBBB" if colors else "fff"), *(p if colors else p[:3]))
+    return head + body
+
+
+def ply_seeds(out, pts):
+    put(out, "ply", "le_rgb.ply", ply(pts[:20], "binary_little_endian"))
+    put(out, "ply", "be_xyz.ply", ply(pts[:20], "binary_big_endian", colors=False))
+    put(out, "ply", "ascii_rgb.ply", ply(pts[:12], "ascii"))
+    faces = b"element face 1\nproperty list uchar int vertex_indices\n"
+    body = ply(pts[:3], "ascii", colors=False)
+    body = body.replace(b"end_header\n", faces + b"end_header\n") + b"3 0 1 2\n"
+    put(out, "ply", "ascii_face.ply", body)
+    head = (b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty double x\n"
+            b"property double y\nproperty double z\nproperty ushort red\nproperty ushort green\n"
+            b"property ushort blue\nproperty float intensity\nend_header\n")
+    body = b"".join(struct.pack("<dddHHHf", p[0], p[1], p[2], p[3] * 257, p[4] * 257, p[5] * 257, i)
+                    for i, p in enumerate(pts[:4]))
+    put(out, "ply", "le_double_rgb16_i.ply", head + body)
+
+
+def xyz_seeds(out, pts):
+    # First byte: column layout index (fuzz_xyz.cpp kColumns).
+    lines = "".join("%g %g %g\n" % p[:3] for p in pts[:10]).encode()
+    put(out, "xyz", "plain.xyz", b"\x00" + lines)
+    csv = "x,y,z,r,g,b\n" + "".join("%g,%g,%g,%d,%d,%d\n" % p for p in pts[:10])
+    put(out, "xyz", "rgb.csv", b"\x01" + csv.encode())
+    txt = "# comment\n// other comment\n" + "".join("%g\t%g\t%g\t%d\n" % (p[0], p[1], p[2], i)
+                                                    for i, p in enumerate(pts[:8]))
+    put(out, "xyz", "intensity_tabs.txt", b"\x02" + txt.encode())
+    semi = "".join("%d;%g;%d;%g;%g\n" % (i, p[0], i, p[1], p[2]) for i, p in enumerate(pts[:6]))
+    put(out, "xyz", "skip_semicolon.xyz", b"\x04" + semi.encode())
+    put(out, "xyz", "rgbi_crlf.xyz",
+        b"\x03" + "".join("%g %g %g %d %d %d 0.5\r\n" % p for p in pts[:6]).encode())
+
+
+def pcd(pts, data_kind):
+    head = ("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\n"
+            "TYPE F F F U\nCOUNT 1 1 1 1\nWIDTH %d\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS %d\n"
+            "DATA %s\n" % (len(pts), len(pts), data_kind)).encode()
+    if data_kind == "ascii":
+        body = "".join("%g %g %g %d\n" % (p[0], p[1], p[2], (p[3] << 16) | (p[4] << 8) | p[5])
+                       for p in pts).encode()
+    elif data_kind == "binary":
+        body = b"".join(struct.pack("<fffI", p[0], p[1], p[2], (p[3] << 16) | (p[4] << 8) | p[5]) for p in pts)
+    else:  # binary_compressed is not produced; a header that names it is still a seed
+        body = b""
+    return head + body
+
+
+def pcd_seeds(out, pts):
+    put(out, "pcd", "ascii_rgb.pcd", pcd(pts[:10], "ascii"))
+    put(out, "pcd", "binary_rgb.pcd", pcd(pts[:10], "binary"))
+    put(out, "pcd", "binary_compressed.pcd", pcd(pts[:4], "binary_compressed"))
+    organised = ("VERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\n"
+                 "WIDTH 2\nHEIGHT 2\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA ascii\n"
+                 "1 2 3 0.5\nnan nan nan 0\n4 5 6 1\n7 8 9 2\n").encode()
+    put(out, "pcd", "organised_nan_intensity.pcd", organised)
+
+
+def las_cut(data, keep):
+    """The header, VLRs and the first `keep` point records of a LAS file, counts fixed."""
+    header_size = struct.unpack_from("<H", data, 94)[0]
+    offset = struct.unpack_from("<I", data, 96)[0]
+    record_len = struct.unpack_from("<H", data, 105)[0]
+    legacy_count = struct.unpack_from("<I", data, 107)[0]
+    minor = data[25]
+    total = legacy_count
+    if minor >= 4 and header_size >= 255:
+        total = struct.unpack_from("<Q", data, 247)[0]
+    keep = min(keep, total)
+    out = bytearray(data[:offset + keep * record_len])
+    struct.pack_into("<I", out, 107, keep if legacy_count else 0)
+    struct.pack_into("<5I", out, 111, keep, 0, 0, 0, 0)
+    if minor >= 4 and header_size >= 255:
+        struct.pack_into("<Q", out, 247, keep)
+        struct.pack_into("<15Q", out, 255, *([keep] + [0] * 14))
+        # Extended VLRs after the points would now be past the end: drop them.
+        struct.pack_into("<QI", out, 235, 0, 0)
+    return bytes(out)
+
+
+def las_seeds(out):
+    names = ["las-crs/autzen-thin-srs.las", "las-crs/interesting.las", "las-crs/lots_of_vlr.las",
+             "las-crs/mvk-thin.las", "laz/simple.las", "laz/1.2-with-color.copc.las",
+             "laz/laszip-generated_with2bytespadding.las"]
+    for name in names:
+        path = os.path.join(SHARED, name)
+        if not os.path.exists(path):
+            print("make_seeds: skipping absent", path)
+            continue
+        with open(path, "rb") as f:
+            data = f.read()
+        put(out, "las", os.path.basename(name), las_cut(data, 16))
+
+
+def chunk_and_archive_seeds(out, build, pts):
+    relief = os.path.join(build, "tools", "relief")
+    variants = {
+        "voxel_jpeg_r8": ["--resolution", "8"],
+        "voxel_jpeg_r16_q30": ["--quality", "30", "--color-quality", "20"],
+        "octree_jpeg": ["--decomposition", "octree", "--max-points", "64"],
+        "voxel_j2k": ["--codec", "jpeg2000"],
+        "octree_j2k16": ["--decomposition", "octree", "--max-points", "64", "--codec", "jpeg2000",
+                         "--height-bits", "16"],
+        "voxel_jpeg_r32": ["--resolution", "32"],
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        src = os.path.join(tmp, "in.ply")
+        with open(src, "wb") as f:
+            f.write(ply(pts[:300], "binary_little_endian"))
+        xyz_i = os.path.join(tmp, "in_i.xyz")
+        with open(xyz_i, "w") as f:
+            f.write("".join("%g %g %g %d\n" % (p[0], p[1], p[2], i % 200) for i, p in enumerate(pts[:300])))
+        for name, opts in variants.items():
+            blob = os.path.join(tmp, name + ".rlfc")
+            subprocess.run([relief, "encode-chunk", src, "-o", blob, "--quiet"] + opts, check=True)
+            with open(blob, "rb") as f:
+                put(out, "chunk", name + ".rlfc", f.read())
+        for name, inputs, opts in [("rgb", [src], ["--chunk-edge", "1"]),
+                                   ("intensity_octree", [xyz_i],
+                                    ["--columns", "x,y,z,i", "--decomposition", "octree", "--chunk-edge", "2"])]:
+            arc = os.path.join(tmp, name + ".relief")
+            subprocess.run([relief, "compress"] + inputs + ["-o", arc, "--quiet", "--threads", "1"] + opts,
+                           check=True)
+            # One file: fold the WAL back in so the seed is self-contained.
+            con = sqlite3.connect(arc)
+            con.execute("PRAGMA journal_mode = DELETE")
+            con.execute("PRAGMA page_size = 512")
+            con.execute("VACUUM")
+            blobs = con.execute("SELECT blob FROM relief_chunk ORDER BY id LIMIT 3").fetchall()
+            con.close()
+            with open(arc, "rb") as f:
+                put(out, "archive", name + ".relief", f.read())
+            for i, (b,) in enumerate(blobs):
+                put(out, "chunk", "%s_%d.rlfc" % (name, i), bytes(b))
+    for name in os.listdir(os.path.join(ROOT, "format-spec", "vectors")):
+        if name.endswith(".rlfc"):
+            with open(os.path.join(ROOT, "format-spec", "vectors", name), "rb") as f:
+                put(out, "chunk", name, f.read())
+
+
+def main():
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    build, out = sys.argv[1], sys.argv[2]
+    pts = kinect_points(300, 701)
+    ply_seeds(out, pts)
+    xyz_seeds(out, pts)
+    pcd_seeds(out, pts)
+    las_seeds(out)
+    chunk_and_archive_seeds(out, build, pts)
+
+
+if __name__ == "__main__":
+    main()
