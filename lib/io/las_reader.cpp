@@ -1,4 +1,7 @@
-// LAS 1.0 - 1.4 reader for uncompressed files, point data record formats 0-10.
+// LAS 1.0 - 1.4 reader, point data record formats 0-10, and LAZ (LASzip-
+// compressed LAS, COPC included; formats 0-3 and 6-8) through lib/laz: a LAZ
+// file's chunks are decompressed one at a time into records that the same
+// decoding below reads.
 //
 // Only the fields a point cloud here carries are decoded: X Y Z (scaled
 // integers, x = X * scale + offset computed in double), intensity, and RGB for
@@ -32,6 +35,7 @@
 #include "io/stream_support.h"
 #include "io/text_scan.h"
 #include "relief/io.h"
+#include "relief/laz.h"
 
 namespace relief {
 
@@ -44,6 +48,16 @@ constexpr std::uint64_t kMaxProjectionRecord = std::uint64_t{16} << 20;
 constexpr std::uint16_t kWktRecordId = 2112;
 constexpr std::uint16_t kGeoKeyRecordId = 34735;
 constexpr std::string_view kProjectionUserId = "LASF_Projection";
+// LAZ: the chunk table is 8 bytes plus a few per chunk, a chunk a few MiB;
+// larger ones are refused rather than held in memory.
+constexpr std::uint64_t kMaxChunkTable = std::uint64_t{64} << 20;
+constexpr std::uint64_t kMaxLazChunk = std::uint64_t{256} << 20;
+// Points decompressed per batch handed to the record decoding.
+constexpr std::size_t kLazBatchPoints = 4096;
+constexpr std::size_t kChunkTableOffsetSize = 8;
+// A writer that could not seek back leaves -1 here and the offset in the
+// file's last 8 bytes.
+constexpr std::uint64_t kChunkTableAtEnd = ~std::uint64_t{0};
 
 // Public header size by minor version: 1.0-1.2, 1.3, 1.4.
 constexpr std::size_t header_size_for(int minor) { return minor <= 2 ? 227 : minor == 3 ? 235 : 375; }
@@ -83,6 +97,7 @@ struct LasHeader {
   std::optional<Box3d> bounds;
   std::uint64_t evlr_start = 0;
   std::uint32_t evlr_count = 0;
+  bool compressed = false;  // LAZ
 };
 
 Vec3d load_vec3(const std::uint8_t* p) {
@@ -123,8 +138,8 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
   }
   // The top two bits of the format byte mark LASzip-compressed points.
   const std::uint8_t format_byte = h[104];
-  if ((format_byte & 0xC0) != 0) return unsupported(name + ": " + kLazUnsupported);
-  out.format = format_byte;
+  out.compressed = (format_byte & 0xC0) != 0;
+  out.format = format_byte & 0x3F;
   if (out.format >= static_cast<int>(kPointFormats.size())) {
     return unsupported(name + ": LAS point data format " + std::to_string(out.format) +
                        " is not supported (0 to 10 are)");
@@ -180,13 +195,21 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
 struct ProjectionRecords {
   std::optional<std::string> wkt;
   std::optional<std::vector<std::uint8_t>> geokeys;
+  std::optional<std::vector<std::uint8_t>> laszip;  // the LASzip VLR payload
 };
 
-bool is_projection_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+std::string_view user_id_text(std::span<const std::uint8_t> user_id) {
   // The user id is a 16-byte field padded with NULs.
   const auto* chars = reinterpret_cast<const char*>(user_id.data());
-  const std::string_view id(chars, ::strnlen(chars, user_id.size()));
-  return id == kProjectionUserId && (record_id == kWktRecordId || record_id == kGeoKeyRecordId);
+  return std::string_view(chars, ::strnlen(chars, user_id.size()));
+}
+
+bool is_projection_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+  return user_id_text(user_id) == kProjectionUserId && (record_id == kWktRecordId || record_id == kGeoKeyRecordId);
+}
+
+bool is_laszip_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+  return user_id_text(user_id) == laz::kVlrUserId && record_id == laz::kVlrRecordId;
 }
 
 void keep_projection_record(std::uint16_t record_id, std::span<const std::uint8_t> payload,
@@ -313,6 +336,17 @@ class LasPointReader final : public BatchPointReader {
   Status check_size();
   Status read_vlrs(ProjectionRecords& records);
   Status read_evlrs(ProjectionRecords& records);
+  Status start_laz(const ProjectionRecords& records);
+  Status start_chunk();
+  // The next decoded records: the file's bytes, or for LAZ decompressed ones.
+  Status fill_points(std::size_t stride, std::span<const std::uint8_t>& view);
+  void consume_points(std::size_t n) {
+    if (laz_) {
+      laz_pos_ += n;
+    } else {
+      src_.consume(n);
+    }
+  }
   Status truncated(std::uint64_t holds) const {
     return format_error(name() + ": truncated: header declares " + std::to_string(header_.point_count) +
                         " points but the file holds " + std::to_string(holds));
@@ -328,6 +362,16 @@ class LasPointReader final : public BatchPointReader {
   // sized before they are read.
   bool backed_ = false;
   std::uint64_t done_ = 0;
+  // LAZ state: the chunks, the one being decoded (its bytes stay in src_'s
+  // view until it is done) and a batch of decompressed records.
+  bool laz_ = false;
+  std::vector<laz::Chunk> chunks_;
+  std::unique_ptr<laz::ChunkDecoder> laz_decoder_;
+  std::size_t next_chunk_ = 0;
+  std::uint64_t chunk_left_ = 0;
+  std::size_t chunk_held_ = 0;  // bytes of the current chunk held in src_
+  std::vector<std::uint8_t> laz_buf_;
+  std::size_t laz_pos_ = 0;
 };
 
 Status LasPointReader::start() {
@@ -339,6 +383,7 @@ Status LasPointReader::start() {
   ProjectionRecords records;
   RELIEF_RETURN_IF_ERROR(read_vlrs(records));
   RELIEF_RETURN_IF_ERROR(read_evlrs(records));
+  if (header_.compressed) RELIEF_RETURN_IF_ERROR(start_laz(records));
 
   const PointFormat& pf = kPointFormats[static_cast<std::size_t>(header_.format)];
   has_rgb_ = pf.rgb_offset != 0;
@@ -348,7 +393,7 @@ Status LasPointReader::start() {
   layout_.offset = header_.offset;
 
   info_.path = name();
-  info_.format = "las";
+  info_.format = laz_ ? "laz" : "las";
   info_.point_count = header_.point_count;
   info_.has_colors = has_rgb_;
   info_.has_intensity = true;  // every point format has it
@@ -387,6 +432,7 @@ Status LasPointReader::check_size() {
     }
     end = header_.evlr_start;
   }
+  if (header_.compressed) return Status::ok();  // the chunk table is checked in start_laz()
   const std::uint64_t holds =
       end >= header_.point_offset ? (end - header_.point_offset) / header_.record_length : 0;
   if (header_.point_count > holds) return truncated(holds);
@@ -410,7 +456,8 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
     if (view.size() < kVlrHeaderSize) return format_error(which + " is cut short by the end of the file");
     const auto record_id = load_le<std::uint16_t>(view.data() + 18);
     const auto length = load_le<std::uint16_t>(view.data() + 20);
-    const bool wanted = is_projection_record(view.subspan(2, 16), record_id);
+    const bool laszip = is_laszip_record(view.subspan(2, 16), record_id);
+    const bool wanted = is_projection_record(view.subspan(2, 16), record_id) || laszip;
     src_.consume(kVlrHeaderSize);
     pos += kVlrHeaderSize;
     if (limit - pos < length) {
@@ -420,7 +467,11 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
     if (wanted) {
       RELIEF_RETURN_IF_ERROR(src_.fill(length, view));
       if (view.size() < length) return format_error(which + " is cut short by the end of the file");
-      keep_projection_record(record_id, view.first(length), records);
+      if (laszip) {
+        if (!records.laszip) records.laszip.emplace(view.begin(), view.begin() + length);
+      } else {
+        keep_projection_record(record_id, view.first(length), records);
+      }
       src_.consume(length);
     } else {
       RELIEF_RETURN_IF_ERROR(src_.skip(length, skipped));
@@ -479,6 +530,113 @@ Status LasPointReader::read_evlrs(ProjectionRecords& records) {
   return Status::ok();
 }
 
+// LAZ: the LASzip VLR describes the items, 8 bytes at the point offset give
+// the chunk table's position; the table is read through a second handle
+// (like the extended VLRs), so the chunks then stream in order.
+Status LasPointReader::start_laz(const ProjectionRecords& records) {
+  const auto size = src_.size();
+  if (!size) {
+    return unsupported(name() + ": LAZ cannot be read from a pipe (its chunk table is at the end); "
+                                "give the file itself");
+  }
+  if (!records.laszip) {
+    return format_error(name() + ": the point format byte marks LASzip-compressed points but there is no "
+                                 "LASzip VLR");
+  }
+  RELIEF_ASSIGN_OR_RETURN(laz::Params params,
+                          laz::parse_vlr(*records.laszip, header_.format, header_.record_length, name()));
+  std::span<const std::uint8_t> view;
+  RELIEF_RETURN_IF_ERROR(src_.fill(kChunkTableOffsetSize, view));
+  if (view.size() < kChunkTableOffsetSize) {
+    return format_error(name() + ": truncated: the LAZ chunk table offset at byte " +
+                        std::to_string(header_.point_offset) + " is cut short");
+  }
+  std::uint64_t table_offset = load_le<std::uint64_t>(view.data());
+  src_.consume(kChunkTableOffsetSize);
+  const std::uint64_t first_chunk = header_.point_offset + kChunkTableOffsetSize;
+
+  RELIEF_ASSIGN_OR_RETURN(ByteSource table_src, input_.open());
+  std::uint64_t skipped = 0;
+  if (table_offset == kChunkTableAtEnd) {
+    if (*size < first_chunk + kChunkTableOffsetSize) {
+      return format_error(name() + ": truncated: no room for the LAZ chunk table offset at the end");
+    }
+    RELIEF_RETURN_IF_ERROR(table_src.skip(*size - kChunkTableOffsetSize, skipped));
+    RELIEF_RETURN_IF_ERROR(table_src.fill(kChunkTableOffsetSize, view));
+    if (view.size() < kChunkTableOffsetSize) return format_error(name() + ": truncated at the end");
+    table_offset = load_le<std::uint64_t>(view.data());
+    RELIEF_ASSIGN_OR_RETURN(table_src, input_.open());
+  }
+  // The table runs to the extended VLRs when they follow it, else to the end.
+  std::uint64_t end = *size;
+  if (header_.evlr_count > 0 && header_.evlr_start > table_offset) end = header_.evlr_start;
+  if (table_offset < first_chunk || table_offset >= end) {
+    return format_error(name() + ": the LAZ chunk table offset " + std::to_string(table_offset) +
+                        " lies outside the point data (bytes " + std::to_string(first_chunk) + " to " +
+                        std::to_string(end) + ")");
+  }
+  const auto table_bytes = static_cast<std::size_t>(std::min(end - table_offset, kMaxChunkTable));
+  RELIEF_RETURN_IF_ERROR(table_src.skip(table_offset, skipped));
+  RELIEF_RETURN_IF_ERROR(table_src.fill(table_bytes, view));
+  if (skipped < table_offset || view.size() < table_bytes) {
+    return format_error(name() + ": truncated: the LAZ chunk table is cut short");
+  }
+  RELIEF_ASSIGN_OR_RETURN(chunks_, laz::parse_chunk_table(view.first(table_bytes), params, first_chunk,
+                                                          table_offset, header_.point_count, name()));
+  RELIEF_ASSIGN_OR_RETURN(laz_decoder_, laz::ChunkDecoder::create(params, name()));
+  laz_ = true;
+  backed_ = true;  // the table accounts for every declared point
+  return Status::ok();
+}
+
+// Moves to the next chunk: drops the last one's bytes, skips any gap, and
+// holds the new chunk's bytes in src_'s view while it is decoded.
+Status LasPointReader::start_chunk() {
+  src_.consume(chunk_held_);
+  chunk_held_ = 0;
+  const laz::Chunk& c = chunks_[next_chunk_];
+  const std::string which = name() + ": LAZ chunk " + std::to_string(next_chunk_ + 1);
+  if (c.bytes > kMaxLazChunk) {
+    return limit_exceeded(which + " has " + std::to_string(c.bytes) + " bytes, over the " +
+                          std::to_string(kMaxLazChunk >> 20) + " MiB limit");
+  }
+  std::uint64_t skipped = 0;
+  if (c.offset > src_.position()) {
+    const std::uint64_t gap = c.offset - src_.position();
+    RELIEF_RETURN_IF_ERROR(src_.skip(gap, skipped));
+    if (skipped < gap) return format_error(which + " is cut short by the end of the file");
+  }
+  const auto bytes = static_cast<std::size_t>(c.bytes);
+  std::span<const std::uint8_t> view;
+  RELIEF_RETURN_IF_ERROR(src_.fill(bytes, view));
+  if (view.size() < bytes) return format_error(which + " is cut short by the end of the file");
+  RELIEF_RETURN_IF_ERROR(laz_decoder_->begin(view.first(bytes), c.points, next_chunk_));
+  chunk_held_ = bytes;
+  chunk_left_ = c.points;
+  ++next_chunk_;
+  return Status::ok();
+}
+
+Status LasPointReader::fill_points(std::size_t stride, std::span<const std::uint8_t>& view) {
+  if (!laz_) return src_.fill(stride, view);
+  if (laz_pos_ >= laz_buf_.size()) {
+    while (chunk_left_ == 0) {
+      if (next_chunk_ >= chunks_.size()) {
+        view = {};
+        return Status::ok();
+      }
+      RELIEF_RETURN_IF_ERROR(start_chunk());
+    }
+    const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(chunk_left_, kLazBatchPoints));
+    laz_buf_.resize(n * stride);
+    laz_pos_ = 0;
+    RELIEF_RETURN_IF_ERROR(laz_decoder_->decode(n, laz_buf_.data()));
+    chunk_left_ -= n;
+  }
+  view = std::span<const std::uint8_t>(laz_buf_).subspan(laz_pos_);
+  return Status::ok();
+}
+
 Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::uint16_t>* wide,
                                               std::size_t at, std::size_t max_points) {
   const auto want =
@@ -498,7 +656,7 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
   std::size_t got = 0;
   while (got < want) {
     std::span<const std::uint8_t> view;
-    RELIEF_RETURN_IF_ERROR(src_.fill(stride, view));
+    RELIEF_RETURN_IF_ERROR(fill_points(stride, view));
     const std::size_t avail = view.size() / stride;
     if (avail == 0) return truncated(done_ + got);
     const std::size_t n = std::min(want - got, avail);
@@ -513,7 +671,7 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
     } else {
       decode_las<ColorOut::kNone>(view.data(), n, layout_, pos, intensity, nullptr, nullptr);
     }
-    src_.consume(n * stride);
+    consume_points(n * stride);
     got += n;
   }
   size_to(at + got);

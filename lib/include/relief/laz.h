@@ -1,0 +1,81 @@
+// LASzip (LAZ) point decompression, for LAS readers.
+//
+// A LAZ file is a LAS file whose point format byte has bit 7 set, with a
+// "laszip encoded" VLR (record 22204) naming the compressor and the items of
+// each point, 8 bytes at the point-data offset giving the chunk table's
+// position, the compressed chunks, and the chunk table. COPC files are LAZ
+// files and read the same way. Supported: the chunked pointwise compressor
+// (LASzip 2.x; point formats 0-5 without waveforms, items POINT10, GPSTIME11,
+// RGB12, BYTE in version 2) and the layered chunked compressor (LASzip 3.x;
+// formats 6-8, items POINT14, RGB14, RGBNIR14, BYTE14 in version 3), fixed or
+// variable chunk sizes. Decoding is chunk by chunk, so memory is bounded by
+// one chunk's compressed bytes whatever the file size.
+//
+// Every function checks what it reads against the bytes present; errors name
+// `name` (the file) and the problem.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "relief/status.h"
+
+namespace relief::laz {
+
+inline constexpr std::string_view kVlrUserId = "laszip encoded";
+inline constexpr std::uint16_t kVlrRecordId = 22204;
+
+struct Item {
+  std::uint16_t type = 0;
+  std::uint16_t size = 0;
+  std::uint16_t version = 0;
+};
+
+struct Params {
+  std::uint16_t compressor = 0;  // 2 = pointwise chunked, 3 = layered chunked
+  std::uint32_t chunk_size = 0;  // points per chunk; kVariableChunks when the table says
+  std::vector<Item> items;
+  std::size_t record_length = 0;
+};
+inline constexpr std::uint32_t kVariableChunks = 0xFFFFFFFFu;
+
+struct Chunk {
+  std::uint64_t offset = 0;  // file offset of the chunk's first byte
+  std::uint64_t bytes = 0;
+  std::uint64_t points = 0;
+};
+
+// Parses the LASzip VLR payload and checks it against the LAS header's point
+// format (0-10, compression bits cleared) and record length.
+Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format, std::size_t record_length,
+                         const std::string& name);
+
+// Decodes the chunk table. `table` holds the file from the table's offset to
+// the end of the point region (or the file); chunks start at `first_chunk`
+// (point-data offset + 8) and must end at or before `table_offset`.
+// `point_count` is the header's count: fixed-size chunks take their counts
+// from it, and the table must account for exactly that many points.
+Result<std::vector<Chunk>> parse_chunk_table(std::span<const std::uint8_t> table, const Params& params,
+                                             std::uint64_t first_chunk, std::uint64_t table_offset,
+                                             std::uint64_t point_count, const std::string& name);
+
+// Decompresses chunks into uncompressed LAS point records.
+class ChunkDecoder {
+ public:
+  static Result<std::unique_ptr<ChunkDecoder>> create(const Params& params, const std::string& name);
+  virtual ~ChunkDecoder() = default;
+
+  // Starts the chunk `index` whose compressed bytes are `bytes` (which must
+  // stay alive until the chunk is done) and which holds `points` points.
+  virtual Status begin(std::span<const std::uint8_t> bytes, std::uint64_t points, std::uint64_t index) = 0;
+  // Writes the next `n` records (n * record_length bytes) of the chunk to
+  // `out`; n must not exceed the points left in the chunk.
+  virtual Status decode(std::size_t n, std::uint8_t* out) = 0;
+};
+
+}  // namespace relief::laz
