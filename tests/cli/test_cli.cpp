@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "relief/io.h"
@@ -54,6 +55,32 @@ TEST_CASE("relief roundtrip on the bundled sample prints size, bits per point an
   const Run e = run("eval " + sample() + " " + tmp.file("d.ply") + " --json");
   REQUIRE(e.code == 0);
   CHECK(e.output.find("\"rmse_snn\"") != std::string::npos);
+}
+
+TEST_CASE("compress and append read LAZ, and info records it as laz", "[cli][laz]") {
+  TempDir tmp;
+  const std::string laz = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.laz";
+  const std::string las = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las";
+  const std::string out = tmp.file("a.relief");
+  const Run c = run("compress " + laz + " -o " + out + " --quiet");
+  INFO(c.output);
+  REQUIRE(c.code == 0);
+  const Run a = run("append " + out + " " + las + " --quiet");
+  INFO(a.output);
+  REQUIRE(a.code == 0);
+  const Run i = run("info " + out);
+  REQUIRE(i.code == 0);
+  CHECK(i.output.find("simple.laz (laz, 1065 points") != std::string::npos);
+  CHECK(i.output.find("simple.las (las, 1065 points") != std::string::npos);
+  CHECK(i.output.find("2130 in") != std::string::npos);
+  // A LAZ file cut before its chunk table: malformed input (13), no archive.
+  std::ifstream in(laz, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  write_text(tmp.file("cut.laz"), bytes.substr(0, bytes.size() / 2));
+  const Run cut = run("compress " + tmp.file("cut.laz") + " -o " + tmp.file("b.relief"));
+  CHECK(cut.code == 13);
+  CHECK(cut.output.find("cut.laz") != std::string::npos);
+  CHECK_FALSE(fs::exists(tmp.file("b.relief")));
 }
 
 TEST_CASE("encode-chunk and decode-chunk with a level of detail", "[cli]") {
