@@ -27,6 +27,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -52,8 +53,9 @@ constexpr std::string_view kProjectionUserId = "LASF_Projection";
 // larger ones are refused rather than held in memory.
 constexpr std::uint64_t kMaxChunkTable = std::uint64_t{64} << 20;
 constexpr std::uint64_t kMaxLazChunk = std::uint64_t{256} << 20;
-// Points decompressed per batch handed to the record decoding.
-constexpr std::size_t kLazBatchPoints = 4096;
+// LAZ chunks decoded at once, one per thread (more cores than this do not
+// pay: the ingest's other stages need them).
+constexpr unsigned kMaxLazThreads = 4;
 constexpr std::size_t kChunkTableOffsetSize = 8;
 // A writer that could not seek back leaves -1 here and the offset in the
 // file's last 8 bytes.
@@ -337,7 +339,7 @@ class LasPointReader final : public BatchPointReader {
   Status read_vlrs(ProjectionRecords& records);
   Status read_evlrs(ProjectionRecords& records);
   Status start_laz(const ProjectionRecords& records);
-  Status start_chunk();
+  Status fetch_chunk(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out);
   // The next decoded records: the file's bytes, or for LAZ decompressed ones.
   Status fill_points(std::size_t stride, std::span<const std::uint8_t>& view);
   void consume_points(std::size_t n) {
@@ -362,15 +364,10 @@ class LasPointReader final : public BatchPointReader {
   // sized before they are read.
   bool backed_ = false;
   std::uint64_t done_ = 0;
-  // LAZ state: the chunks, the one being decoded (its bytes stay in src_'s
-  // view until it is done) and a batch of decompressed records.
+  // LAZ state: the chunk reader and the decoded records it last handed out.
   bool laz_ = false;
-  std::vector<laz::Chunk> chunks_;
-  std::unique_ptr<laz::ChunkDecoder> laz_decoder_;
-  std::size_t next_chunk_ = 0;
-  std::uint64_t chunk_left_ = 0;
-  std::size_t chunk_held_ = 0;  // bytes of the current chunk held in src_
-  std::vector<std::uint8_t> laz_buf_;
+  std::unique_ptr<laz::ChunkReader> laz_reader_;
+  std::span<const std::uint8_t> laz_records_;
   std::size_t laz_pos_ = 0;
 };
 
@@ -581,59 +578,48 @@ Status LasPointReader::start_laz(const ProjectionRecords& records) {
   if (skipped < table_offset || view.size() < table_bytes) {
     return format_error(name() + ": truncated: the LAZ chunk table is cut short");
   }
-  RELIEF_ASSIGN_OR_RETURN(chunks_, laz::parse_chunk_table(view.first(table_bytes), params, first_chunk,
-                                                          table_offset, header_.point_count, name()));
-  RELIEF_ASSIGN_OR_RETURN(laz_decoder_, laz::ChunkDecoder::create(params, name()));
+  RELIEF_ASSIGN_OR_RETURN(std::vector<laz::Chunk> chunks,
+                          laz::parse_chunk_table(view.first(table_bytes), params, first_chunk, table_offset,
+                                                 header_.point_count, name()));
+  const unsigned threads = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxLazThreads);
+  RELIEF_ASSIGN_OR_RETURN(laz_reader_, laz::ChunkReader::create(params, std::move(chunks), threads, name()));
   laz_ = true;
   backed_ = true;  // the table accounts for every declared point
   return Status::ok();
 }
 
-// Moves to the next chunk: drops the last one's bytes, skips any gap, and
-// holds the new chunk's bytes in src_'s view while it is decoded.
-Status LasPointReader::start_chunk() {
-  src_.consume(chunk_held_);
-  chunk_held_ = 0;
-  const laz::Chunk& c = chunks_[next_chunk_];
-  const std::string which = name() + ": LAZ chunk " + std::to_string(next_chunk_ + 1);
-  if (c.bytes > kMaxLazChunk) {
-    return limit_exceeded(which + " has " + std::to_string(c.bytes) + " bytes, over the " +
+// Copies one chunk's compressed bytes; chunks come in file order, so this
+// only ever skips forward.
+Status LasPointReader::fetch_chunk(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out) {
+  const std::string which = name() + ": LAZ chunk at byte " + std::to_string(offset);
+  if (bytes > kMaxLazChunk) {
+    return limit_exceeded(which + " has " + std::to_string(bytes) + " bytes, over the " +
                           std::to_string(kMaxLazChunk >> 20) + " MiB limit");
   }
+  if (offset < src_.position()) return format_error(which + " overlaps the chunk before it");
   std::uint64_t skipped = 0;
-  if (c.offset > src_.position()) {
-    const std::uint64_t gap = c.offset - src_.position();
-    RELIEF_RETURN_IF_ERROR(src_.skip(gap, skipped));
-    if (skipped < gap) return format_error(which + " is cut short by the end of the file");
-  }
-  const auto bytes = static_cast<std::size_t>(c.bytes);
+  const std::uint64_t gap = offset - src_.position();
+  RELIEF_RETURN_IF_ERROR(src_.skip(gap, skipped));
+  if (skipped < gap) return format_error(which + " lies past the end of the file");
   std::span<const std::uint8_t> view;
   RELIEF_RETURN_IF_ERROR(src_.fill(bytes, view));
   if (view.size() < bytes) return format_error(which + " is cut short by the end of the file");
-  RELIEF_RETURN_IF_ERROR(laz_decoder_->begin(view.first(bytes), c.points, next_chunk_));
-  chunk_held_ = bytes;
-  chunk_left_ = c.points;
-  ++next_chunk_;
+  out.assign(view.begin(), view.begin() + static_cast<std::ptrdiff_t>(bytes));
+  src_.consume(bytes);
   return Status::ok();
 }
 
 Status LasPointReader::fill_points(std::size_t stride, std::span<const std::uint8_t>& view) {
   if (!laz_) return src_.fill(stride, view);
-  if (laz_pos_ >= laz_buf_.size()) {
-    while (chunk_left_ == 0) {
-      if (next_chunk_ >= chunks_.size()) {
-        view = {};
-        return Status::ok();
-      }
-      RELIEF_RETURN_IF_ERROR(start_chunk());
-    }
-    const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(chunk_left_, kLazBatchPoints));
-    laz_buf_.resize(n * stride);
+  if (laz_pos_ >= laz_records_.size()) {
     laz_pos_ = 0;
-    RELIEF_RETURN_IF_ERROR(laz_decoder_->decode(n, laz_buf_.data()));
-    chunk_left_ -= n;
+    RELIEF_RETURN_IF_ERROR(laz_reader_->next(
+        [this](std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out) {
+          return fetch_chunk(offset, bytes, out);
+        },
+        laz_records_));
   }
-  view = std::span<const std::uint8_t>(laz_buf_).subspan(laz_pos_);
+  view = laz_records_.subspan(laz_pos_);
   return Status::ok();
 }
 

@@ -17,6 +17,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -77,5 +78,40 @@ class ChunkDecoder {
   // `out`; n must not exceed the points left in the chunk.
   virtual Status decode(std::size_t n, std::uint8_t* out) = 0;
 };
+
+// Streams the decoded records of a file's chunks in order, decoding up to
+// `threads` chunks at once (one per thread). Memory: per thread one chunk's
+// compressed bytes and decoded records; a chunk whose records would exceed
+// kMaxParallelChunkBytes is decoded in small batches on the calling thread.
+class ChunkReader {
+ public:
+  // Copies `bytes` bytes at file offset `offset` (never before the end of the
+  // previous fetch) into `out`, or fails naming the file.
+  using Fetch = std::function<Status(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out)>;
+
+  static Result<std::unique_ptr<ChunkReader>> create(const Params& params, std::vector<Chunk> chunks,
+                                                     unsigned threads, const std::string& name);
+  ~ChunkReader();
+
+  // Sets `records` to the next decoded records (a whole number of them;
+  // valid until the next call), empty after the last chunk.
+  Status next(const Fetch& fetch, std::span<const std::uint8_t>& records);
+
+ private:
+  struct Slot;
+  ChunkReader() = default;
+  Status fill_batch(const Fetch& fetch);
+
+  std::size_t record_length_ = 0;
+  std::string name_;
+  std::vector<Chunk> chunks_;
+  std::vector<std::unique_ptr<Slot>> slots_;
+  std::size_t next_chunk_ = 0;
+  std::size_t batch_size_ = 0;  // slots filled by the last batch
+  std::size_t serving_ = 0;     // slot whose records are handed out next
+  bool streaming_ = false;      // slot 0 decodes an oversized chunk piecewise
+  std::uint64_t stream_left_ = 0;
+};
+inline constexpr std::size_t kMaxParallelChunkBytes = std::size_t{64} << 20;
 
 }  // namespace relief::laz
