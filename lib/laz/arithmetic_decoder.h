@@ -43,6 +43,7 @@ class BitModel {
 
  private:
   friend class ArithmeticDecoder;
+  friend class ArithmeticEncoder;
   void update() {
     if ((bit_count_ += update_cycle_) > kBitMaxCount) {
       bit_count_ = (bit_count_ + 1) >> 1;
@@ -82,6 +83,7 @@ class SymbolModel {
 
  private:
   friend class ArithmeticDecoder;
+  friend class ArithmeticEncoder;
   void update() {
     if ((total_count_ += update_cycle_) > kSymbolMaxCount) {
       total_count_ = 0;

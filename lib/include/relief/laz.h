@@ -114,4 +114,36 @@ class ChunkReader {
 };
 inline constexpr std::size_t kMaxParallelChunkBytes = std::size_t{64} << 20;
 
+// Compresses LAS point records of formats 0-3 (no extra bytes) as LASzip
+// does (chunked pointwise compressor, POINT10, GPSTIME11 and RGB12 version 2
+// items), so LASzip-compatible readers read the result.
+class PointCompressor {
+ public:
+  static constexpr std::uint32_t kDefaultChunkSize = 50000;  // LASzip's default
+  static Result<std::unique_ptr<PointCompressor>> create(int point_format, std::size_t record_length,
+                                                         std::uint32_t chunk_size, const std::string& name);
+  ~PointCompressor();
+
+  // The LASzip VLR's payload (user id kVlrUserId, record kVlrRecordId).
+  std::vector<std::uint8_t> vlr_payload() const;
+  // Compresses `n` records; completed chunks are appended to `out`.
+  void add(const std::uint8_t* records, std::size_t n, std::vector<std::uint8_t>& out);
+  // Appends the last chunk to `out` and returns the chunk table, which goes
+  // after the chunks (its offset in the 8 bytes before the first chunk).
+  std::vector<std::uint8_t> finish(std::vector<std::uint8_t>& out);
+
+ private:
+  struct State;
+  PointCompressor();
+  void end_chunk(std::vector<std::uint8_t>& out);
+
+  int format_ = 0;
+  std::size_t record_length_ = 0;
+  std::size_t rgb_offset_ = 0;
+  std::uint32_t chunk_size_ = 0;
+  std::uint32_t in_chunk_ = 0;
+  std::vector<std::uint32_t> chunk_bytes_;
+  std::unique_ptr<State> state_;
+};
+
 }  // namespace relief::laz
