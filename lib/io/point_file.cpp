@@ -74,7 +74,6 @@ constexpr std::array<WriterExtension, 6> kWriterExtensions = {{
 std::string supported_writer_list() {
   std::string out;
   for (const WriterExtension& e : kWriterExtensions) {
-    if (e.kind == WriterKind::kLaz) continue;  // recognised, but only to explain why it is refused
     if (!out.empty()) out += ", ";
     out += e.extension;
   }
@@ -128,7 +127,7 @@ Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, 
     case WriterKind::kLas:
       return open_las_writer(path, options);
     case WriterKind::kLaz:
-      return unsupported(path + ": " + kLazOutputUnsupported);
+      return open_las_writer(path, options, /*laz=*/true);
     case WriterKind::kXyz:
       return open_xyz_writer(path, options, ' ');
     case WriterKind::kCsv:

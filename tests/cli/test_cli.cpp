@@ -57,7 +57,7 @@ TEST_CASE("relief roundtrip on the bundled sample prints size, bits per point an
   CHECK(e.output.find("\"rmse_snn\"") != std::string::npos);
 }
 
-TEST_CASE("compress and append read LAZ, and info records it as laz", "[cli][laz]") {
+TEST_CASE("compress and append read LAZ, decompress writes it, info records it as laz", "[cli][laz]") {
   TempDir tmp;
   const std::string laz = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.laz";
   const std::string las = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las";
@@ -73,6 +73,18 @@ TEST_CASE("compress and append read LAZ, and info records it as laz", "[cli][laz
   CHECK(i.output.find("simple.laz (laz, 1065 points") != std::string::npos);
   CHECK(i.output.find("simple.las (las, 1065 points") != std::string::npos);
   CHECK(i.output.find("2130 in") != std::string::npos);
+  // LAZ output: decompress and query write it, and it reads back like LAS.
+  REQUIRE(run("decompress " + out + " -o " + tmp.file("d.laz") + " --quiet").code == 0);
+  REQUIRE(run("decompress " + out + " -o " + tmp.file("d.las") + " --quiet").code == 0);
+  auto from_laz = relief::read_point_file(tmp.file("d.laz"));
+  auto from_las = relief::read_point_file(tmp.file("d.las"));
+  REQUIRE(from_laz.is_ok());
+  REQUIRE(from_las.is_ok());
+  CHECK(from_laz->size() > 0);
+  CHECK(from_laz->positions == from_las->positions);
+  CHECK(from_laz->colors == from_las->colors);
+  CHECK(from_laz->intensities == from_las->intensities);
+  CHECK(fs::file_size(tmp.file("d.laz")) < fs::file_size(tmp.file("d.las")));
   // A LAZ file cut before its chunk table: malformed input (13), no archive.
   std::ifstream in(laz, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
