@@ -508,3 +508,34 @@ TEST_CASE("PointCompressor writes the bytes LASzip writes (shared files)", "[laz
 }
 
 }  // namespace relief
+
+namespace relief {
+
+TEST_CASE("Damaged layered (v3) LAZ never crashes the decoder", "[laz][reject][shared-data]") {
+  // The COPC file: 65 variable-size chunks of POINT14 + RGB14 layers. Flips
+  // land in raw first points, layer sizes and layer streams.
+  const auto path = test::shared_file("laz/1.2-with-color.copc.laz");
+  if (!path) return;
+  const auto f = slurp(*path);
+  const Header h = header_of(f);
+  const auto table = static_cast<std::size_t>(load_le<std::uint64_t>(f.data() + h.point_offset));
+  test::TempDir tmp;
+  std::size_t refused = 0, tries = 0;
+  for (std::size_t i = h.point_offset + 8; i < table; i += 29) {
+    auto bad = f;
+    bad[i] ^= static_cast<std::uint8_t>(0x3C + i);
+    spit(tmp.file("bad.laz"), bad);
+    const auto r = read_all(tmp.file("bad.laz"));
+    ++tries;
+    if (!r.is_ok()) {
+      ++refused;
+      CHECK(r.status().message().find("bad.laz") != std::string::npos);
+    } else {
+      CHECK(r->positions.size() == h.point_count);
+    }
+  }
+  CHECK(tries > 1000);
+  WARN(refused << " of " << tries << " damaged files refused");
+}
+
+}  // namespace relief
