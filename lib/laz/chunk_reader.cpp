@@ -24,9 +24,11 @@ struct ChunkReader::Slot {
 ChunkReader::~ChunkReader() = default;
 
 Result<std::unique_ptr<ChunkReader>> ChunkReader::create(const Params& params, std::vector<Chunk> chunks,
-                                                         unsigned threads, const std::string& name) {
+                                                         unsigned threads, const std::string& name,
+                                                         std::size_t max_whole_chunk) {
   std::unique_ptr<ChunkReader> r(new ChunkReader());
   r->record_length_ = params.record_length;
+  r->max_whole_chunk_ = max_whole_chunk;
   r->name_ = name;
   r->chunks_ = std::move(chunks);
   threads = std::max(1u, threads);
@@ -47,7 +49,7 @@ Status ChunkReader::fill_batch(const Fetch& fetch) {
     const Chunk& c = chunks_[next_chunk_];
     // Bounded by the chunk table check (points <= bytes * a constant), but
     // records of a huge claimed count are not held whole.
-    const bool oversized = c.points > kMaxParallelChunkBytes / std::max<std::size_t>(record_length_, 1);
+    const bool oversized = c.points > max_whole_chunk_ / std::max<std::size_t>(record_length_, 1);
     if (oversized && batch_size_ > 0) break;
     Slot& slot = *slots_[batch_size_];
     slot.chunk = next_chunk_;

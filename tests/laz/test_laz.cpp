@@ -539,3 +539,69 @@ TEST_CASE("Damaged layered (v3) LAZ never crashes the decoder", "[laz][reject][s
 }
 
 }  // namespace relief
+
+namespace relief {
+namespace {
+
+// Every record of `f` through ChunkReader with the given threads and
+// whole-chunk limit.
+std::vector<std::uint8_t> read_with_chunk_reader(const std::vector<std::uint8_t>& f, unsigned threads,
+                                                 std::size_t max_whole_chunk) {
+  const Header h = header_of(f);
+  const auto [vlr_at, vlr_len] = laszip_vlr(f, h);
+  auto params = laz::parse_vlr(std::span(f).subspan(vlr_at, vlr_len), h.format, h.record_length, "t");
+  REQUIRE(params.is_ok());
+  const auto table = load_le<std::uint64_t>(f.data() + h.point_offset);
+  auto chunks = laz::parse_chunk_table(std::span(f).subspan(table), *params, h.point_offset + 8, table,
+                                       h.point_count, "t");
+  REQUIRE(chunks.is_ok());
+  auto reader = laz::ChunkReader::create(*params, *chunks, threads, "t", max_whole_chunk);
+  REQUIRE(reader.is_ok());
+  std::uint64_t fetched_to = 0;
+  const laz::ChunkReader::Fetch fetch = [&](std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out) {
+    CHECK(offset >= fetched_to);  // chunks are fetched in file order
+    fetched_to = offset + bytes;
+    out.assign(f.begin() + static_cast<std::ptrdiff_t>(offset),
+               f.begin() + static_cast<std::ptrdiff_t>(offset + bytes));
+    return Status::ok();
+  };
+  std::vector<std::uint8_t> all;
+  for (;;) {
+    std::span<const std::uint8_t> records;
+    const Status s = (*reader)->next(fetch, records);
+    INFO(s.to_string());
+    REQUIRE(s.is_ok());
+    if (records.empty()) break;
+    CHECK(records.size() % h.record_length == 0);
+    all.insert(all.end(), records.begin(), records.end());
+  }
+  return all;
+}
+
+}  // namespace
+
+TEST_CASE("ChunkReader: whole chunks in parallel and oversized chunks piecewise give the same records",
+          "[laz]") {
+  std::vector<std::pair<std::string, std::string>> files = {{kSimpleLaz, kSimpleLas}};
+  for (const auto& [laz_rel, las_rel] : {std::pair{"laz/fr_aerial_rgb_698k.laz", "medium/orig/fr_aerial_rgb_698k.las"},
+                                         std::pair{"laz/1.2-with-color.copc.laz", "laz/1.2-with-color.copc.las"}}) {
+    const auto a = test::shared_file(laz_rel);
+    const auto b = test::shared_file(las_rel);
+    if (a && b) files.emplace_back(*a, *b);
+  }
+  for (const auto& [laz_path, las_path] : files) {
+    INFO(laz_path);
+    const auto f = slurp(laz_path);
+    const auto want = twin_records(slurp(las_path), header_of(f));
+    for (unsigned threads : {1u, 2u, 3u}) {
+      // Whole chunks; none whole (every chunk piecewise); a limit between
+      // (fr_aerial: 50,000-point chunks piecewise, its last of 47,721 whole).
+      for (std::size_t limit : {laz::kMaxParallelChunkBytes, std::size_t{0}, std::size_t{48000} * 41}) {
+        INFO("threads " << threads << ", whole-chunk limit " << limit);
+        CHECK(read_with_chunk_reader(f, threads, limit) == want);
+      }
+    }
+  }
+}
+
+}  // namespace relief

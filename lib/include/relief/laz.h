@@ -79,6 +79,8 @@ class ChunkDecoder {
   virtual Status decode(std::size_t n, std::uint8_t* out) = 0;
 };
 
+inline constexpr std::size_t kMaxParallelChunkBytes = std::size_t{16} << 20;
+
 // Streams the decoded records of a file's chunks in order, decoding up to
 // `threads` chunks at once (one per thread). Memory: per thread one chunk's
 // compressed bytes and decoded records; a chunk whose records would exceed
@@ -89,8 +91,11 @@ class ChunkReader {
   // previous fetch) into `out`, or fails naming the file.
   using Fetch = std::function<Status(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out)>;
 
+  // `max_whole_chunk` (bytes of decoded records) is kMaxParallelChunkBytes
+  // but for tests of the piecewise path.
   static Result<std::unique_ptr<ChunkReader>> create(const Params& params, std::vector<Chunk> chunks,
-                                                     unsigned threads, const std::string& name);
+                                                     unsigned threads, const std::string& name,
+                                                     std::size_t max_whole_chunk = kMaxParallelChunkBytes);
   ~ChunkReader();
 
   // Sets `records` to the next decoded records (a whole number of them;
@@ -103,6 +108,7 @@ class ChunkReader {
   Status fill_batch(const Fetch& fetch);
 
   std::size_t record_length_ = 0;
+  std::size_t max_whole_chunk_ = 0;
   std::string name_;
   std::vector<Chunk> chunks_;
   std::vector<std::unique_ptr<Slot>> slots_;
@@ -112,7 +118,6 @@ class ChunkReader {
   bool streaming_ = false;      // slot 0 decodes an oversized chunk piecewise
   std::uint64_t stream_left_ = 0;
 };
-inline constexpr std::size_t kMaxParallelChunkBytes = std::size_t{64} << 20;
 
 // Compresses LAS point records of formats 0-3 (no extra bytes) as LASzip
 // does (chunked pointwise compressor, POINT10, GPSTIME11 and RGB12 version 2
