@@ -1,4 +1,7 @@
-// LAS 1.0 - 1.4 reader for uncompressed files, point data record formats 0-10.
+// LAS 1.0 - 1.4 reader, point data record formats 0-10, and LAZ (LASzip-
+// compressed LAS, COPC included; formats 0-3 and 6-8) through lib/laz: a LAZ
+// file's chunks are decompressed one at a time into records that the same
+// decoding below reads.
 //
 // Only the fields a point cloud here carries are decoded: X Y Z (scaled
 // integers, x = X * scale + offset computed in double), intensity, and RGB for
@@ -24,6 +27,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -32,6 +36,7 @@
 #include "io/stream_support.h"
 #include "io/text_scan.h"
 #include "relief/io.h"
+#include "relief/laz.h"
 
 namespace relief {
 
@@ -44,6 +49,17 @@ constexpr std::uint64_t kMaxProjectionRecord = std::uint64_t{16} << 20;
 constexpr std::uint16_t kWktRecordId = 2112;
 constexpr std::uint16_t kGeoKeyRecordId = 34735;
 constexpr std::string_view kProjectionUserId = "LASF_Projection";
+// LAZ: the chunk table is 8 bytes plus a few per chunk, a chunk a few MiB;
+// larger ones are refused rather than held in memory.
+constexpr std::uint64_t kMaxChunkTable = std::uint64_t{64} << 20;
+constexpr std::uint64_t kMaxLazChunk = std::uint64_t{256} << 20;
+// LAZ chunks decoded at once, one per thread (more cores than this do not
+// pay: the ingest's other stages need them).
+constexpr unsigned kMaxLazThreads = 4;
+constexpr std::size_t kChunkTableOffsetSize = 8;
+// A writer that could not seek back leaves -1 here and the offset in the
+// file's last 8 bytes.
+constexpr std::uint64_t kChunkTableAtEnd = ~std::uint64_t{0};
 
 // Public header size by minor version: 1.0-1.2, 1.3, 1.4.
 constexpr std::size_t header_size_for(int minor) { return minor <= 2 ? 227 : minor == 3 ? 235 : 375; }
@@ -87,6 +103,7 @@ struct LasHeader {
   std::optional<Box3d> bounds;
   std::uint64_t evlr_start = 0;
   std::uint32_t evlr_count = 0;
+  bool compressed = false;  // LAZ
 };
 
 Vec3d load_vec3(const std::uint8_t* p) {
@@ -130,10 +147,8 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
   // an unknown format, not LAZ.
   const std::uint8_t format_byte = h[104];
   const int base_format = format_byte & kLasFormatMask;
-  if ((format_byte & kLazFormatBits) != 0 && base_format < static_cast<int>(kPointFormats.size())) {
-    return unsupported(name + ": " + kLazUnsupported);
-  }
-  out.format = format_byte;
+  out.compressed = (format_byte & kLazFormatBits) != 0 && base_format < static_cast<int>(kPointFormats.size());
+  out.format = out.compressed ? base_format : format_byte;
   if (out.format >= static_cast<int>(kPointFormats.size())) {
     return unsupported(name + ": LAS point data format " + std::to_string(out.format) +
                        " is not supported (0 to 10 are)");
@@ -189,13 +204,21 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
 struct ProjectionRecords {
   std::optional<std::string> wkt;
   std::optional<std::vector<std::uint8_t>> geokeys;
+  std::optional<std::vector<std::uint8_t>> laszip;  // the LASzip VLR payload
 };
 
-bool is_projection_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+std::string_view user_id_text(std::span<const std::uint8_t> user_id) {
   // The user id is a 16-byte field padded with NULs.
   const auto* chars = reinterpret_cast<const char*>(user_id.data());
-  const std::string_view id(chars, ::strnlen(chars, user_id.size()));
-  return id == kProjectionUserId && (record_id == kWktRecordId || record_id == kGeoKeyRecordId);
+  return std::string_view(chars, ::strnlen(chars, user_id.size()));
+}
+
+bool is_projection_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+  return user_id_text(user_id) == kProjectionUserId && (record_id == kWktRecordId || record_id == kGeoKeyRecordId);
+}
+
+bool is_laszip_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+  return user_id_text(user_id) == laz::kVlrUserId && record_id == laz::kVlrRecordId;
 }
 
 void keep_projection_record(std::uint16_t record_id, std::span<const std::uint8_t> payload,
@@ -322,6 +345,17 @@ class LasPointReader final : public BatchPointReader {
   Status check_size();
   Status read_vlrs(ProjectionRecords& records);
   Status read_evlrs(ProjectionRecords& records);
+  Status start_laz(const ProjectionRecords& records);
+  Status fetch_chunk(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out);
+  // The next decoded records: the file's bytes, or for LAZ decompressed ones.
+  Status fill_points(std::size_t stride, std::span<const std::uint8_t>& view);
+  void consume_points(std::size_t n) {
+    if (laz_) {
+      laz_pos_ += n;
+    } else {
+      src_.consume(n);
+    }
+  }
   Status truncated(std::uint64_t holds) const {
     return format_error(name() + ": truncated: header declares " + std::to_string(header_.point_count) +
                         " points but the file holds " + std::to_string(holds));
@@ -337,6 +371,11 @@ class LasPointReader final : public BatchPointReader {
   // sized before they are read.
   bool backed_ = false;
   std::uint64_t done_ = 0;
+  // LAZ state: the chunk reader and the decoded records it last handed out.
+  bool laz_ = false;
+  std::unique_ptr<laz::ChunkReader> laz_reader_;
+  std::span<const std::uint8_t> laz_records_;
+  std::size_t laz_pos_ = 0;
 };
 
 Status LasPointReader::start() {
@@ -348,6 +387,7 @@ Status LasPointReader::start() {
   ProjectionRecords records;
   RELIEF_RETURN_IF_ERROR(read_vlrs(records));
   RELIEF_RETURN_IF_ERROR(read_evlrs(records));
+  if (header_.compressed) RELIEF_RETURN_IF_ERROR(start_laz(records));
 
   const PointFormat& pf = kPointFormats[static_cast<std::size_t>(header_.format)];
   has_rgb_ = pf.rgb_offset != 0;
@@ -357,7 +397,7 @@ Status LasPointReader::start() {
   layout_.offset = header_.offset;
 
   info_.path = name();
-  info_.format = "las";
+  info_.format = laz_ ? "laz" : "las";
   info_.point_count = header_.point_count;
   info_.has_colors = has_rgb_;
   info_.has_intensity = true;  // every point format has it
@@ -397,6 +437,7 @@ Status LasPointReader::check_size() {
     }
     end = header_.evlr_start;
   }
+  if (header_.compressed) return Status::ok();  // the chunk table is checked in start_laz()
   const std::uint64_t holds =
       end >= header_.point_offset ? (end - header_.point_offset) / header_.record_length : 0;
   if (header_.point_count > holds) return truncated(holds);
@@ -420,7 +461,8 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
     if (view.size() < kVlrHeaderSize) return format_error(which + " is cut short by the end of the file");
     const auto record_id = load_le<std::uint16_t>(view.data() + 18);
     const auto length = load_le<std::uint16_t>(view.data() + 20);
-    const bool wanted = is_projection_record(view.subspan(2, 16), record_id);
+    const bool laszip = is_laszip_record(view.subspan(2, 16), record_id);
+    const bool wanted = is_projection_record(view.subspan(2, 16), record_id) || laszip;
     src_.consume(kVlrHeaderSize);
     pos += kVlrHeaderSize;
     if (limit - pos < length) {
@@ -430,7 +472,11 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
     if (wanted) {
       RELIEF_RETURN_IF_ERROR(src_.fill(length, view));
       if (view.size() < length) return format_error(which + " is cut short by the end of the file");
-      keep_projection_record(record_id, view.first(length), records);
+      if (laszip) {
+        if (!records.laszip) records.laszip.emplace(view.begin(), view.begin() + length);
+      } else {
+        keep_projection_record(record_id, view.first(length), records);
+      }
       src_.consume(length);
     } else {
       RELIEF_RETURN_IF_ERROR(src_.skip(length, skipped));
@@ -489,6 +535,102 @@ Status LasPointReader::read_evlrs(ProjectionRecords& records) {
   return Status::ok();
 }
 
+// LAZ: the LASzip VLR describes the items, 8 bytes at the point offset give
+// the chunk table's position; the table is read through a second handle
+// (like the extended VLRs), so the chunks then stream in order.
+Status LasPointReader::start_laz(const ProjectionRecords& records) {
+  const auto size = src_.size();
+  if (!size) {
+    return unsupported(name() + ": LAZ cannot be read from a pipe (its chunk table is at the end); "
+                                "give the file itself");
+  }
+  if (!records.laszip) {
+    return format_error(name() + ": the point format byte marks LAZ (LASzip-compressed points) but there is no "
+                                 "LASzip VLR");
+  }
+  RELIEF_ASSIGN_OR_RETURN(laz::Params params,
+                          laz::parse_vlr(*records.laszip, header_.format, header_.record_length, name()));
+  std::span<const std::uint8_t> view;
+  RELIEF_RETURN_IF_ERROR(src_.fill(kChunkTableOffsetSize, view));
+  if (view.size() < kChunkTableOffsetSize) {
+    return format_error(name() + ": truncated: the LAZ chunk table offset at byte " +
+                        std::to_string(header_.point_offset) + " is cut short");
+  }
+  std::uint64_t table_offset = load_le<std::uint64_t>(view.data());
+  src_.consume(kChunkTableOffsetSize);
+  const std::uint64_t first_chunk = header_.point_offset + kChunkTableOffsetSize;
+
+  RELIEF_ASSIGN_OR_RETURN(ByteSource table_src, input_.open());
+  std::uint64_t skipped = 0;
+  if (table_offset == kChunkTableAtEnd) {
+    if (*size < first_chunk + kChunkTableOffsetSize) {
+      return format_error(name() + ": truncated: no room for the LAZ chunk table offset at the end");
+    }
+    RELIEF_RETURN_IF_ERROR(table_src.skip(*size - kChunkTableOffsetSize, skipped));
+    RELIEF_RETURN_IF_ERROR(table_src.fill(kChunkTableOffsetSize, view));
+    if (view.size() < kChunkTableOffsetSize) return format_error(name() + ": truncated at the end");
+    table_offset = load_le<std::uint64_t>(view.data());
+    RELIEF_ASSIGN_OR_RETURN(table_src, input_.open());
+  }
+  // The table runs to the extended VLRs when they follow it, else to the end.
+  std::uint64_t end = *size;
+  if (header_.evlr_count > 0 && header_.evlr_start > table_offset) end = header_.evlr_start;
+  if (table_offset < first_chunk || table_offset >= end) {
+    return format_error(name() + ": the LAZ chunk table offset " + std::to_string(table_offset) +
+                        " lies outside the point data (bytes " + std::to_string(first_chunk) + " to " +
+                        std::to_string(end) + ")");
+  }
+  const auto table_bytes = static_cast<std::size_t>(std::min(end - table_offset, kMaxChunkTable));
+  RELIEF_RETURN_IF_ERROR(table_src.skip(table_offset, skipped));
+  RELIEF_RETURN_IF_ERROR(table_src.fill(table_bytes, view));
+  if (skipped < table_offset || view.size() < table_bytes) {
+    return format_error(name() + ": truncated: the LAZ chunk table is cut short");
+  }
+  RELIEF_ASSIGN_OR_RETURN(std::vector<laz::Chunk> chunks,
+                          laz::parse_chunk_table(view.first(table_bytes), params, first_chunk, table_offset,
+                                                 header_.point_count, name()));
+  const unsigned threads = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxLazThreads);
+  RELIEF_ASSIGN_OR_RETURN(laz_reader_, laz::ChunkReader::create(params, std::move(chunks), threads, name()));
+  laz_ = true;
+  backed_ = true;  // the table accounts for every declared point
+  return Status::ok();
+}
+
+// Copies one chunk's compressed bytes; chunks come in file order, so this
+// only ever skips forward.
+Status LasPointReader::fetch_chunk(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out) {
+  const std::string which = name() + ": LAZ chunk at byte " + std::to_string(offset);
+  if (bytes > kMaxLazChunk) {
+    return limit_exceeded(which + " has " + std::to_string(bytes) + " bytes, over the " +
+                          std::to_string(kMaxLazChunk >> 20) + " MiB limit");
+  }
+  if (offset < src_.position()) return format_error(which + " overlaps the chunk before it");
+  std::uint64_t skipped = 0;
+  const std::uint64_t gap = offset - src_.position();
+  RELIEF_RETURN_IF_ERROR(src_.skip(gap, skipped));
+  if (skipped < gap) return format_error(which + " lies past the end of the file");
+  std::span<const std::uint8_t> view;
+  RELIEF_RETURN_IF_ERROR(src_.fill(bytes, view));
+  if (view.size() < bytes) return format_error(which + " is cut short by the end of the file");
+  out.assign(view.begin(), view.begin() + static_cast<std::ptrdiff_t>(bytes));
+  src_.consume(bytes);
+  return Status::ok();
+}
+
+Status LasPointReader::fill_points(std::size_t stride, std::span<const std::uint8_t>& view) {
+  if (!laz_) return src_.fill(stride, view);
+  if (laz_pos_ >= laz_records_.size()) {
+    laz_pos_ = 0;
+    RELIEF_RETURN_IF_ERROR(laz_reader_->next(
+        [this](std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out) {
+          return fetch_chunk(offset, bytes, out);
+        },
+        laz_records_));
+  }
+  view = laz_records_.subspan(laz_pos_);
+  return Status::ok();
+}
+
 Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::uint16_t>* wide,
                                               std::size_t at, std::size_t max_points) {
   const auto want =
@@ -508,7 +650,7 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
   std::size_t got = 0;
   while (got < want) {
     std::span<const std::uint8_t> view;
-    RELIEF_RETURN_IF_ERROR(src_.fill(stride, view));
+    RELIEF_RETURN_IF_ERROR(fill_points(stride, view));
     const std::size_t avail = view.size() / stride;
     if (avail == 0) return truncated(done_ + got);
     const std::size_t n = std::min(want - got, avail);
@@ -523,7 +665,7 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
     } else {
       decode_las<ColorOut::kNone>(view.data(), n, layout_, pos, intensity, nullptr, nullptr);
     }
-    src_.consume(n * stride);
+    consume_points(n * stride);
     got += n;
   }
   size_to(at + got);

@@ -28,6 +28,13 @@
 // The header is written first with what is known and rewritten by finish()
 // with the point count and the bounds of the coordinates actually stored
 // (after quantisation, so they match what readers decode).
+//
+// LAZ output (.laz) is the same LAS 1.2 file, format 2 or 0, with the points
+// compressed as LASzip compresses them (lib/laz PointCompressor: bit 7 of the
+// format byte, the "laszip encoded" VLR, the chunk table offset before the
+// chunks, the chunk table after them). A WKT CRS would need the 1.4 formats,
+// which are not compressed here, so with a WKT CRS a LAZ file is LAS 1.4
+// with the legacy format 2 or 0 (1.4 allows WKT with formats 0-5).
 
 #include <algorithm>
 #include <array>
@@ -49,6 +56,7 @@
 #include "io/output_file.h"
 #include "io/point_writers.h"
 #include "io/text_scan.h"
+#include "relief/laz.h"
 
 #ifndef RELIEF_VERSION
 #define RELIEF_VERSION "unknown"
@@ -78,6 +86,10 @@ constexpr std::uint16_t kProjectedCsTypeKey = 3072;
 constexpr std::uint16_t kUserDefined = 32767;
 
 constexpr std::string_view kSystemIdentifier = "Relief";
+constexpr std::uint8_t kLazFormatBit = 0x80;
+constexpr std::size_t kChunkTableOffsetSize = 8;
+// LAZ: records laid out per step before compression.
+constexpr std::size_t kStagingRecords = 8192;
 constexpr std::string_view kGeneratingSoftware = "relief " RELIEF_VERSION;
 
 // Exponents of the automatic scale: 1e-4 (0.1 mm), or 1e-9 degrees.
@@ -256,9 +268,9 @@ std::vector<std::uint8_t> geokey_directory(const std::vector<GeoKey>& keys) {
 // VLR header: reserved u16, user id char[16], record id u16, length after
 // header u16, description char[32] (54 bytes), then the payload.
 void append_vlr(std::vector<std::uint8_t>& out, std::uint16_t record_id, std::string_view description,
-                std::span<const std::uint8_t> payload) {
+                std::span<const std::uint8_t> payload, std::string_view user_id = kProjectionUserId) {
   std::array<std::uint8_t, kVlrHeaderSize> h{};
-  put_field(h.data() + 2, kProjectionUserId, 16);
+  put_field(h.data() + 2, user_id, 16);
   store_le(h.data() + 18, record_id);
   store_le(h.data() + 20, static_cast<std::uint16_t>(payload.size()));
   put_field(h.data() + 22, description, 32);
@@ -381,18 +393,21 @@ EncodeFn pick_encoder(bool colors, bool intensity) {
 
 class LasStreamWriter final : public StreamPointWriter {
  public:
-  LasStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options, CrsPlan crs)
-      : StreamPointWriter(std::move(out), options), crs_(std::move(crs)) {
+  LasStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options, CrsPlan crs, bool laz)
+      : StreamPointWriter(std::move(out), options), crs_(std::move(crs)), laz_(laz) {
     extended_ = crs_.wkt;
     minor_ = extended_ ? 4 : 2;
-    format_ = static_cast<std::uint8_t>(extended_ ? (options.colors ? 7 : 6) : (options.colors ? 2 : 0));
-    record_length_ = static_cast<std::uint16_t>(extended_ ? (options.colors ? 36 : 30)
+    // LAZ keeps the legacy formats (which LAS 1.4 allows with a WKT CRS):
+    // only those are compressed here.
+    const bool point14 = extended_ && !laz_;
+    format_ = static_cast<std::uint8_t>(point14 ? (options.colors ? 7 : 6) : (options.colors ? 2 : 0));
+    record_length_ = static_cast<std::uint16_t>(point14 ? (options.colors ? 36 : 30)
                                                          : (options.colors ? 26 : 20));
     header_size_ = extended_ ? kHeaderSize14 : kHeaderSize12;
     // Return number 1 of 1: bits 0-2 and 3-5 of byte 14 in the legacy
     // formats, bits 0-3 and 4-7 in formats 6-10.
-    blank_[14] = extended_ ? 0x11 : 0x09;
-    encode_ = extended_ ? pick_encoder<true>(options.colors, options.intensity)
+    blank_[14] = point14 ? 0x11 : 0x09;
+    encode_ = point14 ? pick_encoder<true>(options.colors, options.intensity)
                         : pick_encoder<false>(options.colors, options.intensity);
     const std::time_t now = std::time(nullptr);
     std::tm utc{};
@@ -406,10 +421,19 @@ class LasStreamWriter final : public StreamPointWriter {
   // provisional header and the VLRs.
   Status start() {
     if (!options_.expected_bounds.empty()) RELIEF_RETURN_IF_ERROR(place(options_.expected_bounds, true));
+    if (laz_) {
+      RELIEF_ASSIGN_OR_RETURN(compressor_, laz::PointCompressor::create(format_, record_length_,
+                                                                        laz::PointCompressor::kDefaultChunkSize,
+                                                                        out_->path()));
+    }
     build_vlrs();
     const std::vector<std::uint8_t> h = header();
     RELIEF_RETURN_IF_ERROR(out_->append(h.data(), h.size()));
-    return out_->append(vlrs_.data(), vlrs_.size());
+    RELIEF_RETURN_IF_ERROR(out_->append(vlrs_.data(), vlrs_.size()));
+    if (!laz_) return Status::ok();
+    // The chunk table's offset, known once the chunks are written.
+    const std::array<std::uint8_t, kChunkTableOffsetSize> placeholder{};
+    return out_->append(placeholder.data(), placeholder.size());
   }
 
  protected:
@@ -422,6 +446,7 @@ class LasStreamWriter final : public StreamPointWriter {
       return limit_exceeded(out_->path() + ": a LAS 1.2 file holds at most 4294967295 points");
     }
     if (!placed_) RELIEF_RETURN_IF_ERROR(place_from(batch));
+    if (laz_) return write_compressed(batch);
     std::size_t i = 0;
     while (i < n) {
       std::span<std::uint8_t> room;
@@ -437,6 +462,15 @@ class LasStreamWriter final : public StreamPointWriter {
 
   Status complete() override {
     if (!placed_) place_default();
+    if (laz_) {
+      compressed_.clear();
+      const std::vector<std::uint8_t> table = compressor_->finish(compressed_);
+      RELIEF_RETURN_IF_ERROR(out_->append(compressed_.data(), compressed_.size()));
+      std::array<std::uint8_t, kChunkTableOffsetSize> offset{};
+      store_le(offset.data(), out_->position());
+      RELIEF_RETURN_IF_ERROR(out_->append(table.data(), table.size()));
+      RELIEF_RETURN_IF_ERROR(out_->patch(header_size_ + vlrs_.size(), offset.data(), offset.size()));
+    }
     if (evlr_wkt_) {
       // A WKT too long for a VLR follows the points as an extended VLR.
       evlr_start_ = out_->position();
@@ -454,7 +488,30 @@ class LasStreamWriter final : public StreamPointWriter {
     return p;
   }
 
+  // Records are laid out as for LAS in a staging buffer, then compressed;
+  // finished chunks go to the file.
+  Status write_compressed(const PointCloud& batch) {
+    const std::size_t n = batch.size();
+    std::size_t i = 0;
+    while (i < n) {
+      const std::size_t k = std::min(n - i, kStagingRecords);
+      staging_.resize(k * record_length_);
+      const std::size_t done = encode_(batch, i, k, q_, blank_, staging_.data(), bounds_);
+      compressed_.clear();
+      compressor_->add(staging_.data(), done, compressed_);
+      RELIEF_RETURN_IF_ERROR(out_->append(compressed_.data(), compressed_.size()));
+      if (done < k) return out_of_range(batch, i + done);
+      i += k;
+    }
+    return Status::ok();
+  }
+
   void build_vlrs() {
+    if (laz_) {
+      append_vlr(vlrs_, laz::kVlrRecordId, "Relief LAZ (LASzip compatible)", compressor_->vlr_payload(),
+                 laz::kVlrUserId);
+      ++vlr_count_;
+    }
     if (crs_.wkt) {
       const std::vector<std::uint8_t> payload = wkt_payload();
       if (payload.size() > kMaxVlrPayload) {
@@ -586,7 +643,8 @@ class LasStreamWriter final : public StreamPointWriter {
     store_le(p + 94, header_size_);
     store_le(p + 96, static_cast<std::uint32_t>(header_size_ + vlrs_.size()));
     store_le(p + 100, vlr_count_);
-    p[104] = format_;
+    // Bit 7 of the format byte marks LASzip-compressed points.
+    p[104] = static_cast<std::uint8_t>(laz_ ? format_ | kLazFormatBit : format_);
     store_le(p + 105, record_length_);
     const std::uint64_t n = points_written();
     // Formats 6-10 are not legacy compatible: 1.4 wants the legacy counts 0.
@@ -620,6 +678,10 @@ class LasStreamWriter final : public StreamPointWriter {
   }
 
   CrsPlan crs_;
+  bool laz_ = false;
+  std::unique_ptr<laz::PointCompressor> compressor_;
+  std::vector<std::uint8_t> staging_;     // LAZ: uncompressed records of one step
+  std::vector<std::uint8_t> compressed_;  // LAZ: chunks completed by one step
   bool extended_ = false;  // LAS 1.4, formats 6/7
   std::uint8_t minor_ = 2;
   std::uint8_t format_ = 0;
@@ -640,7 +702,8 @@ class LasStreamWriter final : public StreamPointWriter {
 
 }  // namespace
 
-Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, const WriterOptions& options) {
+Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, const WriterOptions& options,
+                                                     bool laz) {
   // Arguments first, so that a bad option is reported as such even when the
   // destination is also unwritable.
   if (!(options.scale >= 0) || !std::isfinite(options.scale)) {
@@ -656,7 +719,7 @@ Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, co
   if (out->is_stdout()) {
     return invalid_argument("LAS cannot be written to standard output (its header is completed last)");
   }
-  auto writer = std::make_unique<LasStreamWriter>(std::move(out), options, std::move(crs));
+  auto writer = std::make_unique<LasStreamWriter>(std::move(out), options, std::move(crs), laz);
   RELIEF_RETURN_IF_ERROR(writer->start());
   return std::unique_ptr<PointWriter>(std::move(writer));
 }

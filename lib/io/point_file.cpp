@@ -16,7 +16,7 @@ namespace relief {
 
 namespace {
 
-enum class Kind { kPly, kLas, kLaz, kXyz, kPcd };
+enum class Kind { kPly, kLas, kXyz, kPcd };
 
 struct Extension {
   std::string_view extension;  // lower case, with the dot
@@ -26,7 +26,7 @@ struct Extension {
 constexpr std::array<Extension, 8> kExtensions = {{
     {".ply", Kind::kPly},
     {".las", Kind::kLas},
-    {".laz", Kind::kLaz},
+    {".laz", Kind::kLas},  // LASzip-compressed LAS (COPC too): the LAS reader decompresses it
     {".xyz", Kind::kXyz},
     {".txt", Kind::kXyz},
     {".csv", Kind::kXyz},
@@ -47,7 +47,6 @@ std::string lower(std::string s) {
 std::string supported_list() {
   std::string out;
   for (const Extension& e : kExtensions) {
-    if (e.kind == Kind::kLaz) continue;  // recognised, but only to explain why it is refused
     if (!out.empty()) out += ", ";
     out += e.extension;
   }
@@ -75,7 +74,6 @@ constexpr std::array<WriterExtension, 6> kWriterExtensions = {{
 std::string supported_writer_list() {
   std::string out;
   for (const WriterExtension& e : kWriterExtensions) {
-    if (e.kind == WriterKind::kLaz) continue;  // recognised, but only to explain why it is refused
     if (!out.empty()) out += ", ";
     out += e.extension;
   }
@@ -105,8 +103,6 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
       return open_ply_reader(input);
     case Kind::kLas:
       return open_las_reader(input);
-    case Kind::kLaz:
-      return unsupported(path + ": " + kLazUnsupported);
     case Kind::kXyz:
       return open_xyz_reader(input, options);
     case Kind::kPcd:
@@ -131,7 +127,7 @@ Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, 
     case WriterKind::kLas:
       return open_las_writer(path, options);
     case WriterKind::kLaz:
-      return unsupported(path + ": " + kLazOutputUnsupported);
+      return open_las_writer(path, options, /*laz=*/true);
     case WriterKind::kXyz:
       return open_xyz_writer(path, options, ' ');
     case WriterKind::kCsv:

@@ -17,14 +17,12 @@ namespace relief {
 // Each creates its output (the temporary file, or stdout for XYZ "-") and
 // writes what of the header it can, so a bad destination fails here.
 Result<std::unique_ptr<PointWriter>> open_ply_writer(const std::string& path, const WriterOptions& options);
-Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, const WriterOptions& options);
+// `laz`: compress the points as LASzip does (a .laz file).
+Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, const WriterOptions& options,
+                                                     bool laz = false);
 // `separator` goes between the columns: ' ' for .xyz/.txt/stdout, ',' for .csv.
 Result<std::unique_ptr<PointWriter>> open_xyz_writer(const std::string& path, const WriterOptions& options,
                                                      char separator);
-
-// The message for LAZ output, after "<path>: ".
-inline constexpr const char* kLazOutputUnsupported =
-    "LAZ output is not supported; write .las and compress with laszip";
 
 // Base of the writers: checks every batch against the options, counts points
 // and makes the first error sticky. After an error the output is discarded at

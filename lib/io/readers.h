@@ -15,7 +15,4 @@ Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input);
 Result<std::unique_ptr<PointReader>> open_xyz_reader(const InputSpec& input, const ReaderOptions& options);
 Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input);
 
-// The message for LAZ input, after "<path>: ".
-inline constexpr const char* kLazUnsupported = "LAZ is not supported yet, decompress with laszip first";
-
 }  // namespace relief

@@ -474,12 +474,11 @@ TEST_CASE("LAS rejects lying and broken headers", "[io]") {
     require_error(status_of(""), StatusCode::kFormatError, path, "empty");
     require_error(status_of("LASF"), StatusCode::kFormatError, path, "truncated");
   }
-  SECTION("LAZ compression bit") {
+  SECTION("LAZ compression bit without a LASzip VLR") {
     s.format_flags = 0x80;
-    require_error(status_of(make_las(s)), StatusCode::kUnsupported, path,
-                  "LAZ is not supported yet, decompress with laszip first");
+    require_error(status_of(make_las(s)), StatusCode::kFormatError, path, "no LASzip VLR");
     s.format_flags = 0x40;
-    require_error(status_of(make_las(s)), StatusCode::kUnsupported, path, "LAZ");
+    require_error(status_of(make_las(s)), StatusCode::kFormatError, path, "no LASzip VLR");
   }
   SECTION("unsupported version and point format") {
     std::string bytes = make_las(s);
@@ -547,13 +546,18 @@ TEST_CASE("LAS read from a pipe, where the size is unknown", "[io]") {
   require_same(*got, las_expected(s, true));  // the first batch holds levels > 255
 }
 
-TEST_CASE("LAZ files are refused by extension without being read", "[io]") {
+TEST_CASE("LAZ files go to the LAS reader", "[io]") {
   TempDir dir;
   const std::string path = dir.file("missing.LAZ");  // does not exist
-  const Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
-  REQUIRE_FALSE(r.is_ok());
-  CHECK(r.status().code() == StatusCode::kUnsupported);
-  CHECK(r.status().message() == path + ": LAZ is not supported yet, decompress with laszip first");
+  require_error(open_point_reader(path).status(), StatusCode::kIoError, path, "No such file");
+  // An uncompressed LAS file named .laz reads as what it is.
+  LasSpec s;
+  s.format = 2;
+  s.points = las_points(20, true);
+  write_file(dir.file("plain.laz"), make_las(s));
+  const Result<PointCloud> got = read_point_file(dir.file("plain.laz"));
+  REQUIRE(got.is_ok());
+  require_same(*got, las_expected(s, true));
 }
 
 // ---------------------------------------------------------------- real data
@@ -969,7 +973,7 @@ TEST_CASE("PLY streaming reports truncated vertex data with the index", "[io]") 
 
 TEST_CASE("open_point_reader dispatch, missing files and unknown extensions", "[io]") {
   TempDir dir;
-  for (const char* name : {"a.ply", "b.LAS", "c.xyz", "d.txt", "e.csv", "f.pts", "g.Pcd"}) {
+  for (const char* name : {"a.ply", "b.LAS", "c.xyz", "d.txt", "e.csv", "f.pts", "g.Pcd", "h.laz"}) {
     const std::string path = dir.file(name);
     const Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
     INFO(name);
@@ -979,7 +983,7 @@ TEST_CASE("open_point_reader dispatch, missing files and unknown extensions", "[
     const std::string path = dir.file(name);
     const Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
     INFO(name);
-    require_error(r.status(), StatusCode::kUnsupported, path, ".ply, .las, .xyz, .txt, .csv, .pts, .pcd");
+    require_error(r.status(), StatusCode::kUnsupported, path, ".ply, .las, .laz, .xyz, .txt, .csv, .pts, .pcd");
     require_error(read_point_file(path).status(), StatusCode::kUnsupported, path);
   }
   // The format comes from the extension, not the contents.

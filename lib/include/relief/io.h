@@ -41,7 +41,7 @@ Result<PointCloud> read_point_file(const std::string& path);
 
 struct PointStreamInfo {
   std::string path;
-  std::string format;                        // "ply", "las", "xyz", "pcd"
+  std::string format;                        // "ply", "las", "laz", "xyz", "pcd"
   std::optional<std::uint64_t> point_count;  // when the header states it
   bool has_colors = false;
   bool has_intensity = false;
@@ -84,8 +84,8 @@ class PointReader {
 };
 
 // Opens a point file for streaming, by extension: .ply, .las, .xyz/.txt/.csv,
-// .pcd (ascii and binary). A .laz file gives kUnsupported "LAZ is not supported
-// yet, decompress with laszip first". Unknown extensions give kUnsupported.
+// .pcd (ascii and binary), .laz (LASzip-compressed LAS, COPC included; see
+// relief/laz.h for what is supported). Unknown extensions give kUnsupported.
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 

@@ -1,0 +1,154 @@
+// LASzip (LAZ) point decompression, for LAS readers.
+//
+// A LAZ file is a LAS file whose point format byte has bit 7 set, with a
+// "laszip encoded" VLR (record 22204) naming the compressor and the items of
+// each point, 8 bytes at the point-data offset giving the chunk table's
+// position, the compressed chunks, and the chunk table. COPC files are LAZ
+// files and read the same way. Supported: the chunked pointwise compressor
+// (LASzip 2.x; point formats 0-5 without waveforms, items POINT10, GPSTIME11,
+// RGB12, BYTE in version 2) and the layered chunked compressor (LASzip 3.x;
+// formats 6-8, items POINT14, RGB14, RGBNIR14, BYTE14 in version 3), fixed or
+// variable chunk sizes. Decoding is chunk by chunk, so memory is bounded by
+// one chunk's compressed bytes whatever the file size.
+//
+// Every function checks what it reads against the bytes present; errors name
+// `name` (the file) and the problem.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "relief/status.h"
+
+namespace relief::laz {
+
+inline constexpr std::string_view kVlrUserId = "laszip encoded";
+inline constexpr std::uint16_t kVlrRecordId = 22204;
+
+struct Item {
+  std::uint16_t type = 0;
+  std::uint16_t size = 0;
+  std::uint16_t version = 0;
+};
+
+struct Params {
+  std::uint16_t compressor = 0;  // 2 = pointwise chunked, 3 = layered chunked
+  std::uint32_t chunk_size = 0;  // points per chunk; kVariableChunks when the table says
+  std::vector<Item> items;
+  std::size_t record_length = 0;
+};
+inline constexpr std::uint32_t kVariableChunks = 0xFFFFFFFFu;
+
+struct Chunk {
+  std::uint64_t offset = 0;  // file offset of the chunk's first byte
+  std::uint64_t bytes = 0;
+  std::uint64_t points = 0;
+};
+
+// Parses the LASzip VLR payload and checks it against the LAS header's point
+// format (0-10, compression bits cleared) and record length.
+Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format, std::size_t record_length,
+                         const std::string& name);
+
+// Decodes the chunk table. `table` holds the file from the table's offset to
+// the end of the point region (or the file); chunks start at `first_chunk`
+// (point-data offset + 8) and must end at or before `table_offset`.
+// `point_count` is the header's count: fixed-size chunks take their counts
+// from it, and the table must account for exactly that many points.
+Result<std::vector<Chunk>> parse_chunk_table(std::span<const std::uint8_t> table, const Params& params,
+                                             std::uint64_t first_chunk, std::uint64_t table_offset,
+                                             std::uint64_t point_count, const std::string& name);
+
+// Decompresses chunks into uncompressed LAS point records.
+class ChunkDecoder {
+ public:
+  static Result<std::unique_ptr<ChunkDecoder>> create(const Params& params, const std::string& name);
+  virtual ~ChunkDecoder() = default;
+
+  // Starts the chunk `index` whose compressed bytes are `bytes` (which must
+  // stay alive until the chunk is done) and which holds `points` points.
+  virtual Status begin(std::span<const std::uint8_t> bytes, std::uint64_t points, std::uint64_t index) = 0;
+  // Writes the next `n` records (n * record_length bytes) of the chunk to
+  // `out`; n must not exceed the points left in the chunk.
+  virtual Status decode(std::size_t n, std::uint8_t* out) = 0;
+};
+
+inline constexpr std::size_t kMaxParallelChunkBytes = std::size_t{16} << 20;
+
+// Streams the decoded records of a file's chunks in order, decoding up to
+// `threads` chunks at once (one per thread). Memory: per thread one chunk's
+// compressed bytes and decoded records; a chunk whose records would exceed
+// kMaxParallelChunkBytes is decoded in small batches on the calling thread.
+class ChunkReader {
+ public:
+  // Copies `bytes` bytes at file offset `offset` (never before the end of the
+  // previous fetch) into `out`, or fails naming the file.
+  using Fetch = std::function<Status(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out)>;
+
+  // `max_whole_chunk` (bytes of decoded records) is kMaxParallelChunkBytes
+  // but for tests of the piecewise path.
+  static Result<std::unique_ptr<ChunkReader>> create(const Params& params, std::vector<Chunk> chunks,
+                                                     unsigned threads, const std::string& name,
+                                                     std::size_t max_whole_chunk = kMaxParallelChunkBytes);
+  ~ChunkReader();
+
+  // Sets `records` to the next decoded records (a whole number of them;
+  // valid until the next call), empty after the last chunk.
+  Status next(const Fetch& fetch, std::span<const std::uint8_t>& records);
+
+ private:
+  struct Slot;
+  ChunkReader() = default;
+  Status fill_batch(const Fetch& fetch);
+
+  std::size_t record_length_ = 0;
+  std::size_t max_whole_chunk_ = 0;
+  std::string name_;
+  std::vector<Chunk> chunks_;
+  std::vector<std::unique_ptr<Slot>> slots_;
+  std::size_t next_chunk_ = 0;
+  std::size_t batch_size_ = 0;  // slots filled by the last batch
+  std::size_t serving_ = 0;     // slot whose records are handed out next
+  bool streaming_ = false;      // slot 0 decodes an oversized chunk piecewise
+  std::uint64_t stream_left_ = 0;
+};
+
+// Compresses LAS point records of formats 0-3 (no extra bytes) as LASzip
+// does (chunked pointwise compressor, POINT10, GPSTIME11 and RGB12 version 2
+// items), so LASzip-compatible readers read the result.
+class PointCompressor {
+ public:
+  static constexpr std::uint32_t kDefaultChunkSize = 50000;  // LASzip's default
+  static Result<std::unique_ptr<PointCompressor>> create(int point_format, std::size_t record_length,
+                                                         std::uint32_t chunk_size, const std::string& name);
+  ~PointCompressor();
+
+  // The LASzip VLR's payload (user id kVlrUserId, record kVlrRecordId).
+  std::vector<std::uint8_t> vlr_payload() const;
+  // Compresses `n` records; completed chunks are appended to `out`.
+  void add(const std::uint8_t* records, std::size_t n, std::vector<std::uint8_t>& out);
+  // Appends the last chunk to `out` and returns the chunk table, which goes
+  // after the chunks (its offset in the 8 bytes before the first chunk).
+  std::vector<std::uint8_t> finish(std::vector<std::uint8_t>& out);
+
+ private:
+  struct State;
+  PointCompressor();
+  void end_chunk(std::vector<std::uint8_t>& out);
+
+  int format_ = 0;
+  std::size_t record_length_ = 0;
+  std::size_t rgb_offset_ = 0;
+  std::uint32_t chunk_size_ = 0;
+  std::uint32_t in_chunk_ = 0;
+  std::vector<std::uint32_t> chunk_bytes_;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace relief::laz

@@ -1,0 +1,114 @@
+// ChunkReader: whole chunks decoded in parallel, handed out in file order.
+#include <algorithm>
+#include <thread>
+#include <utility>
+
+#include "core/parallel.h"
+#include "relief/laz.h"
+
+namespace relief::laz {
+
+namespace {
+// Records per piece when an oversized chunk is decoded piecewise.
+constexpr std::size_t kPieceRecords = 4096;
+}  // namespace
+
+struct ChunkReader::Slot {
+  std::unique_ptr<ChunkDecoder> decoder;
+  std::vector<std::uint8_t> bytes;
+  std::vector<std::uint8_t> records;
+  std::size_t chunk = 0;
+  Status status;
+};
+
+ChunkReader::~ChunkReader() = default;
+
+Result<std::unique_ptr<ChunkReader>> ChunkReader::create(const Params& params, std::vector<Chunk> chunks,
+                                                         unsigned threads, const std::string& name,
+                                                         std::size_t max_whole_chunk) {
+  std::unique_ptr<ChunkReader> r(new ChunkReader());
+  r->record_length_ = params.record_length;
+  r->max_whole_chunk_ = max_whole_chunk;
+  r->name_ = name;
+  r->chunks_ = std::move(chunks);
+  threads = std::max(1u, threads);
+  for (unsigned t = 0; t < threads; ++t) {
+    auto slot = std::make_unique<Slot>();
+    RELIEF_ASSIGN_OR_RETURN(slot->decoder, ChunkDecoder::create(params, name));
+    r->slots_.push_back(std::move(slot));
+  }
+  return r;
+}
+
+// Fetches the next chunks (one per slot, stopping before an oversized one
+// unless it comes first) and decodes them, in parallel when there are several.
+Status ChunkReader::fill_batch(const Fetch& fetch) {
+  batch_size_ = 0;
+  serving_ = 0;
+  while (batch_size_ < slots_.size() && next_chunk_ < chunks_.size()) {
+    const Chunk& c = chunks_[next_chunk_];
+    // Bounded by the chunk table check (points <= bytes * a constant), but
+    // records of a huge claimed count are not held whole.
+    const bool oversized = c.points > max_whole_chunk_ / std::max<std::size_t>(record_length_, 1);
+    if (oversized && batch_size_ > 0) break;
+    Slot& slot = *slots_[batch_size_];
+    slot.chunk = next_chunk_;
+    RELIEF_RETURN_IF_ERROR(fetch(c.offset, static_cast<std::size_t>(c.bytes), slot.bytes));
+    ++next_chunk_;
+    ++batch_size_;
+    if (oversized) {
+      RELIEF_RETURN_IF_ERROR(slot.decoder->begin(slot.bytes, c.points, slot.chunk));
+      streaming_ = true;
+      stream_left_ = c.points;
+      return Status::ok();
+    }
+  }
+  auto decode = [&](std::size_t i) {
+    Slot& slot = *slots_[i];
+    const Chunk& c = chunks_[slot.chunk];
+    slot.records.resize(static_cast<std::size_t>(c.points) * record_length_);
+    slot.status = slot.decoder->begin(slot.bytes, c.points, slot.chunk);
+    if (slot.status.is_ok()) slot.status = slot.decoder->decode(static_cast<std::size_t>(c.points), slot.records.data());
+  };
+  if (batch_size_ == 1) {
+    decode(0);
+  } else {
+    parallel_for_ranges(batch_size_, static_cast<unsigned>(batch_size_), [&](std::size_t b, std::size_t e, unsigned) {
+      for (std::size_t i = b; i < e; ++i) decode(i);
+    });
+  }
+  return Status::ok();
+}
+
+Status ChunkReader::next(const Fetch& fetch, std::span<const std::uint8_t>& records) {
+  for (;;) {
+    if (streaming_) {
+      if (stream_left_ > 0) {
+        Slot& slot = *slots_[0];
+        const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(stream_left_, kPieceRecords));
+        slot.records.resize(n * record_length_);
+        RELIEF_RETURN_IF_ERROR(slot.decoder->decode(n, slot.records.data()));
+        stream_left_ -= n;
+        records = slot.records;
+        return Status::ok();
+      }
+      streaming_ = false;
+      batch_size_ = 0;
+      serving_ = 0;
+    }
+    if (serving_ < batch_size_) {
+      Slot& slot = *slots_[serving_++];
+      RELIEF_RETURN_IF_ERROR(slot.status);
+      if (slot.records.empty()) continue;  // a chunk of no points
+      records = slot.records;
+      return Status::ok();
+    }
+    if (next_chunk_ >= chunks_.size()) {
+      records = {};
+      return Status::ok();
+    }
+    RELIEF_RETURN_IF_ERROR(fill_batch(fetch));
+  }
+}
+
+}  // namespace relief::laz

@@ -1,0 +1,224 @@
+// Item decompressors of LASzip: version 2 (pointwise, one arithmetic stream
+// per chunk) and version 3 (layered: each attribute has its own stream, and
+// POINT14 keeps separate contexts per scanner channel that the other items
+// follow). Each matches LASzip's reader for the same item bit for bit.
+// Internal to lib/laz.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "laz/arithmetic_decoder.h"
+
+namespace relief::laz {
+
+// LASzip item type codes (the VLR's item records).
+enum ItemType : std::uint16_t {
+  kItemByte = 0,
+  kItemPoint10 = 6,
+  kItemGpsTime11 = 7,
+  kItemRgb12 = 8,
+  kItemPoint14 = 10,
+  kItemRgb14 = 11,
+  kItemRgbNir14 = 12,
+  kItemByte14 = 14,
+};
+
+inline constexpr std::size_t kPoint10Size = 20;
+inline constexpr std::size_t kGpsTime11Size = 8;
+inline constexpr std::size_t kRgb12Size = 6;
+inline constexpr std::size_t kPoint14Size = 30;
+inline constexpr std::size_t kRgbNir14Size = 8;
+
+// Running median of the last five values (LASzip's StreamingMedian5).
+class Median5 {
+ public:
+  void init() {
+    v_ = {0, 0, 0, 0, 0};
+    high_ = true;
+  }
+  std::int32_t get() const { return v_[2]; }
+  void add(std::int32_t x);
+
+ private:
+  std::array<std::int32_t, 5> v_{};
+  bool high_ = true;
+};
+
+// The RGB difference coder shared by RGB12 v2, RGB14 v3 and RGBNIR14 v3.
+struct RgbModels {
+  SymbolModel byte_used{128};
+  std::array<SymbolModel, 6> diff{SymbolModel(256), SymbolModel(256), SymbolModel(256),
+                                  SymbolModel(256), SymbolModel(256), SymbolModel(256)};
+  void init() {
+    byte_used.init();
+    for (auto& m : diff) m.init();
+  }
+};
+void decode_rgb(ArithmeticDecoder& dec, RgbModels& m, const std::uint16_t* last, std::uint16_t* out);
+
+// GPS time state of one sequence set (GPSTIME11 v2 and POINT14 v3 differ
+// only in the symbol numbering of the "zero difference" model).
+struct GpsTimeState {
+  explicit GpsTimeState(std::uint32_t zero_diff_symbols, std::uint32_t multi_symbols)
+      : multi(multi_symbols), zero_diff(zero_diff_symbols) {}
+  void init(std::uint64_t first);
+  SymbolModel multi;
+  SymbolModel zero_diff;
+  IntegerDecompressor ic{32, 9};
+  std::uint32_t last = 0, next = 0;
+  std::array<std::uint64_t, 4> time{};
+  std::array<std::int32_t, 4> diff{};
+  std::array<std::int32_t, 4> extreme{};
+};
+
+// Multiplier codes of the GPS time predictor (LASZIP_GPSTIME_MULTI...).
+inline constexpr std::int32_t kGpsMulti = 500;
+inline constexpr std::int32_t kGpsMultiMinus = -10;
+// A switch names another sequence; a valid stream chains at most a few, so
+// more are taken as corrupt data and stop (bounded work on any input).
+inline constexpr int kMaxSequenceSwitches = 4;
+// The difference coded against multi * the sequence's last difference
+// (codes 0 .. kGpsMulti - kGpsMultiMinus, except 1).
+void gps_decode_multiple(ArithmeticDecoder& dec, GpsTimeState& s, std::uint32_t multi);
+// A new sequence whose upper 32 bits are coded against the current one's.
+void gps_decode_full(ArithmeticDecoder& dec, GpsTimeState& s);
+
+// ---------------------------------------------------------------- version 2
+
+class Point10V2 {
+ public:
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  SymbolModel changed_values_{64};
+  IntegerDecompressor ic_intensity_{16, 4};
+  std::array<SymbolModel, 2> scan_angle_{SymbolModel(256), SymbolModel(256)};
+  IntegerDecompressor ic_point_source_{16};
+  std::array<std::unique_ptr<SymbolModel>, 256> bit_byte_, classification_, user_data_;
+  IntegerDecompressor ic_dx_{32, 2};
+  IntegerDecompressor ic_dy_{32, 22};
+  IntegerDecompressor ic_z_{32, 20};
+  std::array<std::uint8_t, kPoint10Size> last_{};
+  std::array<std::uint16_t, 16> last_intensity_{};
+  std::array<Median5, 16> last_x_diff_, last_y_diff_;
+  std::array<std::int32_t, 8> last_height_{};
+};
+
+class GpsTime11V2 {
+ public:
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  GpsTimeState s_{6, 516};
+};
+
+class Rgb12V2 {
+ public:
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  RgbModels m_;
+  std::array<std::uint16_t, 3> last_{};
+};
+
+class ByteV2 {
+ public:
+  explicit ByteV2(std::size_t n);
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  std::vector<SymbolModel> models_;
+  std::vector<std::uint8_t> last_;
+};
+
+// ---------------------------------------------------------------- version 3
+
+// A layer: its bytes in the chunk, its decoder, and whether it is present
+// (a layer of zero bytes means the attribute never changes in the chunk).
+struct Layer {
+  std::uint32_t size = 0;
+  bool changed = false;
+  ArithmeticDecoder dec;
+};
+
+// Starts the decoders of `layers` on consecutive slices of `data`. False
+// when a stream is not decodable.
+bool start_layers(std::span<Layer> layers, std::span<const std::uint8_t> data);
+
+inline constexpr int kScannerChannels = 4;
+
+class Point14V3 {
+ public:
+  static constexpr std::size_t kLayers = 9;
+  Point14V3();
+  ~Point14V3();
+  std::span<Layer> layers() { return layers_; }
+  // The item's scanner channel: the context the other items follow.
+  std::uint32_t init(const std::uint8_t* item);
+  std::uint32_t read(std::uint8_t* item);
+
+  struct Context;
+  struct Fields;
+
+ private:
+  void init_context(std::uint32_t c, const Fields& from);
+  void read_gps_time(Context& ctx);
+
+  std::array<Layer, kLayers> layers_;
+  std::array<std::unique_ptr<Context>, kScannerChannels> contexts_;
+  std::uint32_t current_ = 0;
+};
+
+class Rgb14V3 {
+ public:
+  explicit Rgb14V3(bool nir) : nir_(nir), layers_(nir ? 2 : 1) {}
+  std::span<Layer> layers() { return layers_; }
+  void init(const std::uint8_t* item, std::uint32_t context);
+  void read(std::uint8_t* item, std::uint32_t context);
+
+ private:
+  struct Context {
+    bool unused = true;
+    RgbModels rgb;
+    SymbolModel nir_used{4};
+    std::array<SymbolModel, 2> nir_diff{SymbolModel(256), SymbolModel(256)};
+    std::array<std::uint16_t, 4> last{};
+  };
+  void init_context(std::uint32_t c, const std::uint16_t* from);
+
+  bool nir_;
+  std::vector<Layer> layers_;
+  std::array<std::unique_ptr<Context>, kScannerChannels> contexts_;
+  std::uint32_t current_ = 0;
+};
+
+class Byte14V3 {
+ public:
+  explicit Byte14V3(std::size_t n) : n_(n), layers_(n) {}
+  std::span<Layer> layers() { return layers_; }
+  void init(const std::uint8_t* item, std::uint32_t context);
+  void read(std::uint8_t* item, std::uint32_t context);
+
+ private:
+  struct Context {
+    bool unused = true;
+    std::vector<SymbolModel> models;
+    std::vector<std::uint8_t> last;
+  };
+  void init_context(std::uint32_t c, const std::uint8_t* from);
+
+  std::size_t n_;
+  std::vector<Layer> layers_;
+  std::array<std::unique_ptr<Context>, kScannerChannels> contexts_;
+  std::uint32_t current_ = 0;
+};
+
+}  // namespace relief::laz
