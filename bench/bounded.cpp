@@ -132,7 +132,10 @@ std::optional<double> bd_rate(std::vector<CurvePoint> a, std::vector<CurvePoint>
   };
   const auto [alo, ahi] = range(a);
   const auto [blo, bhi] = range(b);
-  const double lo = std::max(alo, blo), hi = std::min(ahi, bhi);
+  // A hair inside the common range: exp(log(x)) need not give x back, and
+  // the interpolation refuses a point a rounding error outside a curve.
+  const double margin = 1e-9 * (std::min(ahi, bhi) - std::max(alo, blo));
+  const double lo = std::max(alo, blo) + margin, hi = std::min(ahi, bhi) - margin;
   if (!(hi > lo)) return std::nullopt;
   constexpr int kSteps = 200;
   double sum = 0;
