@@ -14,6 +14,7 @@
 #include "relief/codec.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
+#include "support/decode_archive.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -52,23 +53,7 @@ PointCloud shuffled(const PointCloud& in, std::uint64_t seed) {
   return out;
 }
 
-PointCloud decode_all(const std::string& path) {
-  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
-  REQUIRE(archive.is_ok());
-  auto refs = (*archive)->all_chunks();
-  REQUIRE(refs.is_ok());
-  PointCloud all;
-  for (const ChunkRef& ref : *refs) {
-    auto row = (*archive)->read_chunk(ref.id);
-    REQUIRE(row.is_ok());
-    auto pc = decode_chunk(row->blob);
-    REQUIRE(pc.is_ok());
-    all.positions.insert(all.positions.end(), pc->positions.begin(), pc->positions.end());
-    all.colors.insert(all.colors.end(), pc->colors.begin(), pc->colors.end());
-    all.intensities.insert(all.intensities.end(), pc->intensities.begin(), pc->intensities.end());
-  }
-  return all;
-}
+PointCloud decode_all(const std::string& path) { return test::decode_archive(path); }
 
 // Every blob of an archive, keyed by voxel and content (seq may differ).
 std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> blobs(
