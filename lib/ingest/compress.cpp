@@ -524,8 +524,8 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& b) {
   }
 }
 
-Result<double> order_free_cell_size(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                     int map_resolution, Box3d* bounds) {
+Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
+                                         int map_resolution, Box3d* bounds) {
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
@@ -569,7 +569,18 @@ Result<double> order_free_cell_size(const std::vector<std::string>& inputs, cons
   std::sort(kept.begin(), kept.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   for (const auto& e : kept) sample.positions.push_back(e.second);
   const double fraction = static_cast<double>(sample.size()) / static_cast<double>(total);
-  return cell_size_for_density(sample, static_cast<double>(map_resolution) * map_resolution * fraction);
+  OrderFreeCells cells;
+  cells.density_cell = cell_size_for_density(sample, static_cast<double>(map_resolution) * map_resolution * fraction);
+  // The base layer's pixels should hold about kBasePointsPerPixel points
+  // whatever the shape of the data (surfaces fill a cell's r x r pixels,
+  // scan lines only a few). Measured on the sample while it still sees such
+  // pixels (a pixel of n points holds n x fraction sample points); beyond
+  // that (inputs of more than ~5 M points) the surface model decides.
+  const double per_pixel = kBasePointsPerPixel * fraction;
+  cells.base_cell = per_pixel >= kMinSamplePointsPerPixel
+                        ? map_resolution * cell_size_for_density(sample, per_pixel)
+                        : kBaseCellFactor * cells.density_cell;
+  return cells;
 }
 
 void remove_archive_files(const std::string& path) {
@@ -634,12 +645,16 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   // estimate; the bound for the chosen cell follows below.
   RELIEF_RETURN_IF_ERROR(check_coordinates(first, kMaxCoordinateMagnitude, inputs[0], 0));
   Box3d all_bounds;
+  // Bounded mode: chunks are kDefaultCellsPerChunk density cells across,
+  // whatever the base layer's cell.
+  double density_cell = 0;
   if (bounded && params.cell_size == 0) {
     // The base layer's cells: from a sample that depends only on the set of
     // input points (not their order, not the memory budget).
-    RELIEF_ASSIGN_OR_RETURN(const double cell,
-                            order_free_cell_size(inputs, options.reader, params.map_resolution, &all_bounds));
-    params.cell_size = kBaseCellFactor * cell;
+    RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
+                            order_free_cells(inputs, options.reader, params.map_resolution, &all_bounds));
+    params.cell_size = cells.base_cell;
+    density_cell = cells.density_cell;
   } else if (derive_from_first) {
     if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
     if (options.error_target > 0) {
@@ -658,7 +673,9 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     grid.origin = Vec3d{all_bounds.min.x - b.step.x, all_bounds.min.y - b.step.y, all_bounds.min.z - b.step.z};
   }
   const double cells_per_chunk = bounded ? kDefaultCellsPerChunk / kBaseCellFactor : kDefaultCellsPerChunk;
-  grid.chunk_edge = options.chunk_edge > 0 ? options.chunk_edge : params.cell_size * cells_per_chunk;
+  grid.chunk_edge = options.chunk_edge > 0    ? options.chunk_edge
+                    : density_cell > 0        ? density_cell * kDefaultCellsPerChunk
+                                              : params.cell_size * cells_per_chunk;
   if (bounded && options.chunk_edge == 0) {
     // A chunk spans at most 2^21 grid steps (the octree's depth limit), with
     // room for points snapped half a step beyond its faces.

@@ -102,12 +102,17 @@ ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in)
 // Moves every point onto the grid (origin + k * step). Done as points are
 // read, so chunk keys, bucket files and encoders all see the final positions.
 void snap_to_grid(PointCloud& batch, const ErrorBound& bound);
-// The density-derived cell size (suggest_cell_size) of all the inputs' points,
-// estimated from a sample chosen by a hash of each position: one extra read
-// of the inputs, and a result that does not depend on the points' order.
+// The density-derived cell size (suggest_cell_size) of all the inputs' points
+// and the bounded mode's base-layer cell, estimated from a sample chosen by a
+// hash of each position: one extra read of the inputs, and a result that does
+// not depend on the points' order.
 // With `bounds`, also adds every input point to it.
-Result<double> order_free_cell_size(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                    int map_resolution, Box3d* bounds = nullptr);
+struct OrderFreeCells {
+  double density_cell = 0;  // suggest_cell_size of all the points
+  double base_cell = 0;     // the bounded mode's base-layer cell
+};
+Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
+                                        int map_resolution, Box3d* bounds = nullptr);
 
 // Reads every input into the archive as one scan (see compress.cpp).
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params, InputSet& in,

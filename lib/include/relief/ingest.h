@@ -33,9 +33,15 @@ enum class IngestMode { kBounded, kResample };
 // metre units (the 1 mm grid of a typical LAS scale of 0.001).
 inline constexpr double kDefaultTolerance = 0.0005;
 // In the bounded mode the maps are a coarse base layer for previews and
-// levels of detail: cells this many times the density-derived cell (so ~1 map
-// pixel per 16 points on a surface), and chunks of kDefaultCellsPerChunk /
-// kBaseCellFactor of them (the same chunk edge as the resampling mode).
+// levels of detail: cells whose map pixels hold about kBasePointsPerPixel
+// points each (so a level of detail up to ~1/24 is read from the base layer
+// alone), measured on the order-free sample while it holds at least
+// kMinSamplePointsPerPixel points per such pixel; else (very large inputs),
+// kBaseCellFactor times the density-derived cell (~1/16 on a surface).
+// Chunks are kDefaultCellsPerChunk density-derived cells across (the same
+// chunk edge as the resampling mode).
+inline constexpr double kBasePointsPerPixel = 12;
+inline constexpr double kMinSamplePointsPerPixel = 1.5;
 inline constexpr double kBaseCellFactor = 4;
 // Points of the order-independent density sample (bottom of a hash order).
 inline constexpr std::size_t kOrderFreeSamplePoints = 1u << 18;
