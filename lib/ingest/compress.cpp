@@ -49,6 +49,10 @@ constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 4;
 constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
+// Cell of the bounded mode's base layer before kBaseCellFactor when the inputs
+// hold no point (1 unit, metres for most data); the chunk edge follows from it
+// as for any cell. README "Inputs" documents it.
+constexpr double kEmptyInputCellSize = 1.0;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
 constexpr std::uint64_t kUnknownBytesPerPoint = 12;
 
@@ -561,7 +565,7 @@ Result<double> order_free_cell_size(const std::vector<std::string>& inputs, cons
       }
     }
   }
-  if (kept.empty()) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
+  if (kept.empty()) return 0.0;  // no points at all: the caller picks the empty-input cell
   PointCloud sample;
   sample.positions.reserve(kept.size());
   // Sorted, so the estimate does not even see the order the points came in.
@@ -636,10 +640,16 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     // The base layer's cells: from a sample that depends only on the set of
     // input points (not their order, not the memory budget).
     RELIEF_ASSIGN_OR_RETURN(const double cell, order_free_cell_size(inputs, options.reader, params.map_resolution));
-    params.cell_size = kBaseCellFactor * cell;
+    // Inputs without a single point still make a valid (empty) archive, on a
+    // documented default grid, so scripted pipelines need no special case.
+    params.cell_size = kBaseCellFactor * (cell > 0 ? cell : kEmptyInputCellSize);
   } else if (derive_from_first) {
-    if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
-    if (options.error_target > 0) {
+    if (got == 0 && inputs.size() > 1) {
+      return invalid_argument(inputs[0] + ": no points to derive a cell size from (put a non-empty input first)");
+    }
+    if (got == 0) {
+      params.cell_size = kEmptyInputCellSize;  // a single empty input: an empty archive
+    } else if (options.error_target > 0) {
       RELIEF_ASSIGN_OR_RETURN(params.cell_size, choose_cell_for_error(first, params, options.error_target));
     } else {
       params.cell_size = suggest_cell_size(first, params.map_resolution);

@@ -104,7 +104,8 @@ ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in)
 void snap_to_grid(PointCloud& batch, const ErrorBound& bound);
 // The density-derived cell size (suggest_cell_size) of all the inputs' points,
 // estimated from a sample chosen by a hash of each position: one extra read
-// of the inputs, and a result that does not depend on the points' order.
+// of the inputs, and a result that does not depend on the points' order;
+// 0 when the inputs hold no point.
 Result<double> order_free_cell_size(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                                     int map_resolution);
 
