@@ -846,8 +846,8 @@ TEST_CASE("PCD rejects what it cannot read", "[io]") {
   SECTION("binary_compressed") {
     require_error(status_of(pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, "binary_compressed") +
                             std::string(16, '\0')),
-                  StatusCode::kUnsupported, path,
-                  "PCD binary_compressed is not supported yet; convert with pcl_convert_pcd_ascii_binary");
+                  StatusCode::kFormatError, path,
+                  "binary_compressed: uncompressed size 0 is not POINTS x point size = 2 x 12");
   }
   SECTION("truncated ascii body") {
     require_error(status_of(xyz_ascii + "1 2 3\n"), StatusCode::kFormatError, path,

@@ -84,7 +84,8 @@ class PointReader {
 };
 
 // Opens a point file for streaming, by extension: .ply, .las, .xyz/.txt/.csv,
-// .pcd (ascii and binary). A .laz file gives kUnsupported "LAZ is not supported
+// .pcd (ascii, binary and binary_compressed; field names in any case; packed
+// rgb/rgba or separate r g b fields). A .laz file gives kUnsupported "LAZ is not supported
 // yet, decompress with laszip first". Unknown extensions give kUnsupported.
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
