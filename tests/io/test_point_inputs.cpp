@@ -235,6 +235,84 @@ TEST_CASE("PCD binary_compressed reads as PCL writes it", "[io][pcd]") {
   }
 }
 
+// ---------------------------------------------------------------- CSV / text
+
+TEST_CASE("CSV header names give the columns without --columns", "[io][xyz]") {
+  test::TempDir dir;
+  const std::string path = dir.file("scan.csv");
+  PointCloud want;
+  want.positions = {{1, 2, 3}, {4, 5, 6}};
+  want.colors = {{10, 20, 30}, {40, 50, 60}};
+  want.intensities = {0.25f, 0.5f};
+  SECTION("reordered upper-case names, a skipped classification column") {
+    write_file(path, "Intensity,Classification,Z,Y,X,B,G,R\n0.25,2,3,2,1,30,20,10\n0.5,6,6,5,4,60,50,40\n");
+    const Result<PointCloud> got = read_all(path, 1);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    test::require_same(*got, want);
+  }
+  SECTION("CloudCompare's comment header") {
+    write_file(path, "// exported\n//X,Y,Z,R,G,B,Reflectance\n1,2,3,10,20,30,0.25\n4,5,6,40,50,60,0.5\n");
+    const Result<PointCloud> got = read_all(path, 100);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    test::require_same(*got, want);
+  }
+  SECTION("quoted names, semicolons, long colour names") {
+    write_file(path, "\"x\";\"y\";\"z\";\"red\";\"green\";\"blue\";\"i\"\n1;2;3;10;20;30;0.25\n4;5;6;40;50;60;0.5\n");
+    const Result<PointCloud> got = read_all(path, 100);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    test::require_same(*got, want);
+  }
+  SECTION("explicit columns win over the header") {
+    write_file(path, "x y z r g b i\n1 2 3 10 20 30 0.25\n");
+    ReaderOptions o;
+    o.xyz_columns = "x,y,z";
+    const Result<PointCloud> got = read_all(path, 100, o);
+    REQUIRE(got.is_ok());
+    CHECK_FALSE(got->has_colors());
+    CHECK_FALSE(got->has_intensity());
+    CHECK(got->positions == std::vector<Vec3d>{{1, 2, 3}});
+  }
+  SECTION("a header without x y z names keeps x y z; a partial colour set is no colour") {
+    write_file(path, "lon lat h r g\n1 2 3 10 20\n");
+    Result<PointCloud> got = read_all(path, 100);
+    REQUIRE(got.is_ok());
+    CHECK(got->positions == std::vector<Vec3d>{{1, 2, 3}});
+    write_file(path, "z y x r g\n1 2 3 10 20\n");
+    got = read_all(path, 100);
+    REQUIRE(got.is_ok());
+    CHECK_FALSE(got->has_colors());
+    CHECK(got->positions == std::vector<Vec3d>{{3, 2, 1}});
+  }
+}
+
+TEST_CASE("CSV 16-bit colours are narrowed by one rule for the whole file", "[io][xyz]") {
+  test::TempDir dir;
+  const std::string path = dir.file("wide.csv");
+  // 3000 points with 8-bit-looking levels, then one above 255: the file has
+  // 16-bit colours, whatever batch size reads it.
+  std::string text = "x,y,z,red,green,blue\n";
+  for (int i = 0; i < 3000; ++i) text += std::to_string(i) + ",0,0,200,255,1\n";
+  text += "9,9,9,65535,4660,256\n";
+  write_file(path, text);
+  for (const std::size_t batch : {std::size_t{1}, std::size_t{7}, std::size_t{100000}}) {
+    INFO("batch " << batch);
+    const Result<PointCloud> got = read_all(path, batch);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    REQUIRE(got->size() == 3001);
+    CHECK(got->colors.front() == Rgb8{0, 0, 0});
+    CHECK(got->colors.back() == Rgb8{255, 18, 1});
+  }
+  // Without a level above 255 the levels are 8-bit and kept.
+  write_file(path, "x,y,z,red,green,blue\n0,0,0,200,255,1\n");
+  const Result<PointCloud> got = read_all(path, 1);
+  REQUIRE(got.is_ok());
+  CHECK(got->colors == std::vector<Rgb8>{{200, 255, 1}});
+}
+
 }  // namespace
 
 }  // namespace relief
