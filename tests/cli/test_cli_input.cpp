@@ -3,6 +3,8 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -11,6 +13,7 @@
 #include <vector>
 
 #include "relief/image.h"
+#include "relief/io.h"
 #include "support/run_cli.h"
 #include "support/temp_dir.h"
 
@@ -363,6 +366,39 @@ TEST_CASE("empty LAS, PLY and XYZ inputs give empty archives that info and decom
       const Run d = run("decompress " + archive + " -o " + tmp.file("back.xyz") + " --quiet");
       CHECK(d.code == 0);
       CHECK(fs::file_size(tmp.file("back.xyz")) == 0);
+    }
+  }
+}
+
+TEST_CASE("KITTI-like float intensities in 0..1 survive: exactly in PLY, scaled by 65535 in LAS", "[cli][io]") {
+  TempDir tmp;
+  std::string csv = "x,y,z,intensity\n";
+  std::vector<float> values;
+  for (int i = 0; i < 400; ++i) {
+    // Reflectance as KITTI stores it: floats in 0..1, most not integers.
+    const float v = static_cast<float>((i * 37) % 101) / 100.0f;
+    values.push_back(v);
+    char line[96];
+    std::snprintf(line, sizeof line, "%d,%d,%.3f,%.9g\n", i % 20, i / 20, 0.01 * (i % 7), static_cast<double>(v));
+    csv += line;
+  }
+  write_text(tmp.file("kitti.csv"), csv);
+  const Run c = run("compress " + tmp.file("kitti.csv") + " -o " + tmp.file("k.relief") + " --quiet");
+  REQUIRE(c.code == 0);
+  for (const char* out : {"k.ply", "k.las"}) {
+    INFO(out);
+    const Run d = run("decompress " + tmp.file("k.relief") + " -o " + tmp.file(out) + " --quiet");
+    REQUIRE(d.code == 0);
+    const relief::Result<relief::PointCloud> got = relief::read_point_file(tmp.file(out));
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    REQUIRE(got->intensities.size() == values.size());
+    // Decoded order is the archive's: match points by their grid position.
+    for (std::size_t k = 0; k < got->size(); ++k) {
+      const auto i = static_cast<std::size_t>(std::lround(got->positions[k].x + 20 * got->positions[k].y));
+      REQUIRE(i < values.size());
+      const float want = std::string(out) == "k.ply" ? values[i] : static_cast<float>(std::floor(static_cast<double>(values[i]) * 65535.0 + 0.5));
+      CHECK(got->intensities[k] == want);
     }
   }
 }

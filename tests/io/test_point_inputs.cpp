@@ -313,6 +313,54 @@ TEST_CASE("CSV 16-bit colours are narrowed by one rule for the whole file", "[io
   CHECK(got->colors == std::vector<Rgb8>{{200, 255, 1}});
 }
 
+// ---------------------------------------------------------------- float intensities
+
+// Writes `batches` to `path` and reads the intensities back.
+std::vector<float> las_intensities(const std::string& path, const std::vector<std::vector<float>>& batches) {
+  WriterOptions o;
+  o.intensity = true;
+  Result<std::unique_ptr<PointWriter>> w = open_point_writer(path, o);
+  REQUIRE(w.is_ok());
+  double x = 0;
+  for (const std::vector<float>& values : batches) {
+    PointCloud batch;
+    for (const float v : values) {
+      batch.positions.push_back({x, 0, 0});
+      batch.intensities.push_back(v);
+      x += 1;
+    }
+    const Status s = (*w)->write(batch);
+    INFO(s.to_string());
+    REQUIRE(s.is_ok());
+  }
+  const Status s = (*w)->finish();
+  INFO(s.to_string());
+  REQUIRE(s.is_ok());
+  const Result<PointCloud> got = read_point_file(path);
+  INFO(got.status().to_string());
+  REQUIRE(got.is_ok());
+  return got->intensities;
+}
+
+TEST_CASE("LAS output scales intensities in 0..1 by 65535, one rule per file", "[io][intensity]") {
+  test::TempDir dir;
+  const std::string path = dir.file("out.las");
+  const std::vector<float> unit = {0.0f, 0.25f, 0.5f, 0.49999997f, 1.0f};
+  CHECK(las_intensities(path, {unit}) == std::vector<float>{0, 16384, 32768, 32767, 65535});
+  // A later intensity outside 0..1 turns the file to the plain rule, records
+  // already written included; the result is the same in any batching.
+  const std::vector<float> wide = {2.5f, 70000.0f, -3.0f, 0.75f};
+  const std::vector<float> plain = {0, 0, 1, 0, 1, 3, 65535, 0, 1};
+  for (std::size_t split = 0; split <= unit.size() + wide.size(); ++split) {
+    INFO("split " << split);
+    std::vector<float> all = unit;
+    all.insert(all.end(), wide.begin(), wide.end());
+    const std::vector<float> a(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(split));
+    const std::vector<float> b(all.begin() + static_cast<std::ptrdiff_t>(split), all.end());
+    CHECK(las_intensities(path, {a, b}) == plain);
+  }
+}
+
 }  // namespace
 
 }  // namespace relief
