@@ -582,18 +582,17 @@ Status PcdPointReader::expand_compressed() {
     return format_error(where + std::to_string(packed) + " compressed bytes cannot expand to " +
                         std::to_string(unpacked));
   }
-  std::vector<std::uint8_t> packed_bytes(packed);
-  std::uint64_t copied = 0;
-  while (copied < packed) {
+  // Grown as bytes arrive: from a pipe the size cannot be checked in advance.
+  std::vector<std::uint8_t> packed_bytes;
+  while (packed_bytes.size() < packed) {
     RELIEF_RETURN_IF_ERROR(src_.fill(1, view));
     if (view.empty()) {
       return format_error(where + "truncated: compressed size " + std::to_string(packed) + " but the file ends after " +
-                          std::to_string(copied));
+                          std::to_string(packed_bytes.size()));
     }
-    const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(view.size(), packed - copied));
-    std::memcpy(packed_bytes.data() + copied, view.data(), n);
+    const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(view.size(), packed - packed_bytes.size()));
+    packed_bytes.insert(packed_bytes.end(), view.data(), view.data() + n);
     src_.consume(n);
-    copied += n;
   }
   std::vector<std::uint8_t> fields(unpacked);
   const unsigned got = lzf_decompress(packed_bytes.data(), packed, fields.data(), unpacked);
