@@ -49,9 +49,9 @@ constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 4;
 constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
-// Cell of the bounded mode's base layer before kBaseCellFactor when the inputs
-// hold no point (1 unit, metres for most data); the chunk edge follows from it
-// as for any cell. README "Inputs" documents it.
+// Cell when the inputs hold no point to measure a density from (1 unit,
+// metres for most data; the bounded mode's base layer multiplies it by
+// kBaseCellFactor); the chunk edge follows as for any cell. README "Inputs".
 constexpr double kEmptyInputCellSize = 1.0;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
 constexpr std::uint64_t kUnknownBytesPerPoint = 12;
