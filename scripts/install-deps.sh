@@ -9,7 +9,7 @@ set -euo pipefail
 packages=(
   cmake g++ make pkg-config
   libeigen3-dev libopenjp2-7-dev libturbojpeg0-dev liblzma-dev libsqlite3-dev
-  catch2 libjbig-dev libnanoflann-dev libpng-dev
+  catch2 libjbig-dev libnanoflann-dev libpng-dev liblzf-dev
 )
 if [[ "${RELIEF_WITH_BENCH:-0}" == "1" ]]; then
   packages+=(draco)

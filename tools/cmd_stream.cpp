@@ -158,7 +158,7 @@ int run_stream(int argc, char** argv) {
   }
   Layout layout;
   if (format == "xyz") {
-    const std::string spec = so.ingest.reader.xyz_columns;
+    const std::string spec = so.ingest.reader.xyz_columns.value_or("x,y,z");
     for (std::size_t i = 0; i < spec.size(); ++i) {
       if (spec[i] == ',') continue;
       const char ch = spec[i] == 'i' ? 'i' : spec[i];

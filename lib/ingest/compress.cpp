@@ -49,6 +49,10 @@ constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 4;
 constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
+// Cell when the inputs hold no point to measure a density from (1 unit,
+// metres for most data; the bounded mode's base layer multiplies it by
+// kBaseCellFactor); the chunk edge follows as for any cell. README "Inputs".
+constexpr double kEmptyInputCellSize = 1.0;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
 constexpr std::uint64_t kUnknownBytesPerPoint = 12;
 
@@ -562,7 +566,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
       }
     }
   }
-  if (kept.empty()) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
+  if (kept.empty()) return OrderFreeCells{};  // no points at all: the caller picks the empty-input cell
   PointCloud sample;
   sample.positions.reserve(kept.size());
   // Sorted, so the estimate does not even see the order the points came in.
@@ -653,11 +657,17 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     // input points (not their order, not the memory budget).
     RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
                             order_free_cells(inputs, options.reader, params.map_resolution, &all_bounds));
-    params.cell_size = cells.base_cell;
+    // Inputs without a single point still make a valid (empty) archive, on a
+    // documented default grid, so scripted pipelines need no special case.
+    params.cell_size = cells.density_cell > 0 ? cells.base_cell : kBaseCellFactor * kEmptyInputCellSize;
     density_cell = cells.density_cell;
   } else if (derive_from_first) {
-    if (got == 0) return invalid_argument(inputs[0] + ": no points to derive a cell size from");
-    if (options.error_target > 0) {
+    if (got == 0 && inputs.size() > 1) {
+      return invalid_argument(inputs[0] + ": no points to derive a cell size from (put a non-empty input first)");
+    }
+    if (got == 0) {
+      params.cell_size = kEmptyInputCellSize;  // a single empty input: an empty archive
+    } else if (options.error_target > 0) {
       RELIEF_ASSIGN_OR_RETURN(params.cell_size, choose_cell_for_error(first, params, options.error_target));
     } else {
       params.cell_size = suggest_cell_size(first, params.map_resolution);

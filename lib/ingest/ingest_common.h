@@ -105,7 +105,8 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& bound);
 // The density-derived cell size (suggest_cell_size) of all the inputs' points
 // and the bounded mode's base-layer cell, estimated from a sample chosen by a
 // hash of each position: one extra read of the inputs, and a result that does
-// not depend on the points' order.
+// not depend on the points' order; density_cell is 0 when the inputs hold
+// no point.
 // With `bounds`, also adds every input point to it.
 struct OrderFreeCells {
   double density_cell = 0;  // suggest_cell_size of all the points

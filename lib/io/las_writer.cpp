@@ -9,9 +9,18 @@
 // GeoKeyDirectoryTag VLR in the 1.2 file.
 //
 // Every point is "return 1 of 1", classification 0 (never classified), no
-// GPS time, scan angle or user data. Intensity (float) becomes the 16-bit
-// field by clamping to [0, 65535] and rounding to nearest; 8-bit colour
-// levels become 16-bit ones by v * 257 (0 -> 0, 255 -> 65535).
+// GPS time, scan angle or user data. 8-bit colour levels become 16-bit ones
+// by v * 257 (0 -> 0, 255 -> 65535).
+//
+// Intensity (float) becomes the 16-bit field by one rule for the whole file:
+// when every intensity lies in [0, 1] (normalised reflectance, as KITTI's)
+// each is scaled by 65535 and rounded (half up), so the 16-bit field keeps
+// their resolution; otherwise each is clamped to [0, 65535] and rounded. A
+// stream cannot see its last point first, so records are written scaled
+// while every intensity so far is in [0, 1]; if a later one is not, finish()
+// rewrites the records already written to the plain rule. That is exact: for
+// v in [0, 1], round(v * 65535) >= 32768 exactly when v >= 0.5, i.e. when
+// round(v) = 1. So the file depends on the set of points, not on the batches.
 //
 // Coordinates are stored as X = round((x - offset) / scale) in int32, per
 // axis. Scale: WriterOptions::scale when > 0, else 0.1 mm (1e-4; 1e-9 degrees,
@@ -320,8 +329,21 @@ std::int32_t round_to_int32(double v) {
 }
 
 std::uint16_t intensity_level(float v) {
-  return static_cast<std::uint16_t>(std::clamp(v, 0.0f, 65535.0f) + 0.5f);
+  // In double: v + 0.5f in float rounds 0.49999997f up to 1.
+  return static_cast<std::uint16_t>(std::clamp(static_cast<double>(v), 0.0, 65535.0) + 0.5);
 }
+
+// The unit rule (see the top of the file); v is in [0, 1]. v * 65535 is
+// exact in double (24 + 16 significant bits).
+constexpr double kUnitIntensityScale = 65535;
+constexpr std::uint16_t kUnitHalf = 32768;  // round(v * 65535) >= this <=> v >= 0.5
+std::uint16_t unit_intensity_level(float v) {
+  return static_cast<std::uint16_t>(static_cast<double>(v) * kUnitIntensityScale + 0.5);
+}
+bool in_unit_range(float v) { return v >= 0.0f && v <= 1.0f; }
+
+// Offset of the intensity field in every LAS point record format.
+constexpr std::size_t kIntensityOffset = 12;
 
 std::uint16_t wide_level(std::uint8_t v) { return static_cast<std::uint16_t>(v * 257); }
 
@@ -365,7 +387,7 @@ std::size_t encode_las(const PointCloud& batch, std::size_t first, std::size_t n
     store_le(dst, x);
     store_le(dst + 4, y);
     store_le(dst + 8, z);
-    if constexpr (kIntensity) store_le(dst + 12, intensity_level(batch.intensities[first + i]));
+    if constexpr (kIntensity) store_le(dst + kIntensityOffset, intensity_level(batch.intensities[first + i]));
     if constexpr (kColors) {
       const Rgb8& c = batch.colors[first + i];
       store_le(dst + L::kRgb, wide_level(c.r));
@@ -446,6 +468,16 @@ class LasStreamWriter final : public StreamPointWriter {
       return limit_exceeded(out_->path() + ": a LAS 1.2 file holds at most 4294967295 points");
     }
     if (!placed_) RELIEF_RETURN_IF_ERROR(place_from(batch));
+    if (options_.intensity && unit_intensity_ &&
+        !std::all_of(batch.intensities.begin(), batch.intensities.end(), in_unit_range)) {
+      if (laz_ && points_written() > 0) {
+        // Compressed records cannot be rewritten to the plain rule.
+        return invalid_argument(out_->path() + ": intensities within 0..1 were followed by one outside it; the "
+                                "points already compressed cannot be rewritten: write .las instead");
+      }
+      unit_intensity_ = false;
+      unit_records_ = points_written();  // finish() rewrites these
+    }
     if (laz_) return write_compressed(batch);
     std::size_t i = 0;
     while (i < n) {
@@ -453,6 +485,12 @@ class LasStreamWriter final : public StreamPointWriter {
       RELIEF_RETURN_IF_ERROR(out_->room(record_length_, room));
       const std::size_t k = std::min(n - i, room.size() / record_length_);
       const std::size_t done = encode_(batch, i, k, q_, blank_, room.data(), bounds_);
+      if (options_.intensity && unit_intensity_) {
+        for (std::size_t j = 0; j < done; ++j) {
+          store_le(room.data() + j * record_length_ + kIntensityOffset,
+                   unit_intensity_level(batch.intensities[i + j]));
+        }
+      }
       out_->advance(done * record_length_);
       if (done < k) return out_of_range(batch, i + done);
       i += k;
@@ -471,6 +509,7 @@ class LasStreamWriter final : public StreamPointWriter {
       RELIEF_RETURN_IF_ERROR(out_->append(table.data(), table.size()));
       RELIEF_RETURN_IF_ERROR(out_->patch(header_size_ + vlrs_.size(), offset.data(), offset.size()));
     }
+    if (unit_records_ > 0) RELIEF_RETURN_IF_ERROR(unscale_unit_records());
     if (evlr_wkt_) {
       // A WKT too long for a VLR follows the points as an extended VLR.
       evlr_start_ = out_->position();
@@ -482,6 +521,28 @@ class LasStreamWriter final : public StreamPointWriter {
   }
 
  private:
+  // The first unit_records_ records were written by the unit rule before an
+  // intensity outside [0, 1] arrived: rewrite them to the plain rule.
+  Status unscale_unit_records() {
+    const std::uint64_t first = header_size_ + vlrs_.size();
+    const std::size_t per_block = OutputFile::kBlockSize / record_length_;
+    std::vector<std::uint8_t> block(per_block * record_length_);
+    for (std::uint64_t done = 0; done < unit_records_;) {
+      const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(per_block, unit_records_ - done));
+      const std::uint64_t at = first + done * record_length_;
+      RELIEF_RETURN_IF_ERROR(out_->read_at(at, block.data(), n * record_length_));
+      for (std::size_t j = 0; j < n; ++j) {
+        std::uint8_t* field = block.data() + j * record_length_ + kIntensityOffset;
+        const auto scaled = static_cast<std::uint16_t>(field[0] | (field[1] << 8));
+        const std::uint16_t level = scaled >= kUnitHalf ? 1 : 0;
+        store_le(field, level);
+      }
+      RELIEF_RETURN_IF_ERROR(out_->patch(at, block.data(), n * record_length_));
+      done += n;
+    }
+    return Status::ok();
+  }
+
   std::vector<std::uint8_t> wkt_payload() const {
     std::vector<std::uint8_t> p(crs_.wkt_text.begin(), crs_.wkt_text.end());
     p.push_back(0);  // the specification asks for a NUL-terminated string
@@ -497,6 +558,12 @@ class LasStreamWriter final : public StreamPointWriter {
       const std::size_t k = std::min(n - i, kStagingRecords);
       staging_.resize(k * record_length_);
       const std::size_t done = encode_(batch, i, k, q_, blank_, staging_.data(), bounds_);
+      if (options_.intensity && unit_intensity_) {
+        for (std::size_t j = 0; j < done; ++j) {
+          store_le(staging_.data() + j * record_length_ + kIntensityOffset,
+                   unit_intensity_level(batch.intensities[i + j]));
+        }
+      }
       compressed_.clear();
       compressor_->add(staging_.data(), done, compressed_);
       RELIEF_RETURN_IF_ERROR(out_->append(compressed_.data(), compressed_.size()));
@@ -695,6 +762,8 @@ class LasStreamWriter final : public StreamPointWriter {
   std::uint64_t evlr_start_ = 0;
   RecordTemplate blank_{};
   EncodeFn encode_ = nullptr;
+  bool unit_intensity_ = true;     // every intensity so far in [0, 1]
+  std::uint64_t unit_records_ = 0;  // records to rewrite when that ended
   bool placed_ = false;
   Quantizer q_;
   IntBounds bounds_;

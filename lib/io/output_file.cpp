@@ -34,7 +34,8 @@ Result<std::unique_ptr<OutputFile>> OutputFile::create(const std::string& path) 
   std::string tmp_path = path + ".tmp-" + std::to_string(::getpid());
   // O_NOFOLLOW: a symlink planted under the predictable temporary name must
   // not redirect (and truncate) some other file.
-  const int fd = ::open(tmp_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW, 0666);
+  // Read and write: the LAS writer reads records back to rewrite them (read_at).
+  const int fd = ::open(tmp_path.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW, 0666);
   if (fd < 0) {
     const int err = errno;
     // The usual cause, said plainly rather than through the temporary name.
@@ -112,6 +113,25 @@ Status OutputFile::patch(std::uint64_t offset, const void* data, std::size_t n) 
       return io_error(path_ + ": write failed: " + errno_text(errno));
     }
     written += static_cast<std::size_t>(w);
+  }
+  return Status::ok();
+}
+
+Status OutputFile::read_at(std::uint64_t offset, void* data, std::size_t n) {
+  if (stdout_) return internal_error(path_ + ": standard output cannot be read back");
+  if (done_) return internal_error(path_ + ": the output is already closed");
+  if (offset + n > position()) return internal_error(path_ + ": read beyond the written data");
+  RELIEF_RETURN_IF_ERROR(flush());
+  auto* bytes = static_cast<std::uint8_t*>(data);
+  std::size_t got = 0;
+  while (got < n) {
+    const ssize_t r = ::pread(fd_, bytes + got, n - got, static_cast<off_t>(offset + got));
+    if (r < 0) {
+      if (errno == EINTR) continue;
+      return io_error(path_ + ": read back failed: " + errno_text(errno));
+    }
+    if (r == 0) return io_error(path_ + ": read back failed: the file is shorter than written");
+    got += static_cast<std::size_t>(r);
   }
   return Status::ok();
 }

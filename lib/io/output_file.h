@@ -51,6 +51,9 @@ class OutputFile {
   // Overwrites bytes already appended (headers patched at the end). Not for
   // stdout.
   Status patch(std::uint64_t offset, const void* data, std::size_t n);
+  // Reads back bytes already appended (records rewritten at the end). Not for
+  // stdout.
+  Status read_at(std::uint64_t offset, void* data, std::size_t n);
 
   // Flushes, closes and renames the temporary file onto the destination (for
   // stdout only flushes). On failure the temporary file is removed.

@@ -1,8 +1,23 @@
-// PCD reader (PCL point cloud data, header versions 0.6 and 0.7), DATA ascii
-// and binary. Fields x y z (F 4 or F 8) are required; rgb or rgba (4 bytes
-// packed as 0x00RRGGBB, whatever the TYPE says, as PCL does) and intensity (any
-// numeric type) are read when present; every other field is skipped, COUNT
-// values at a time.
+// PCD reader (PCL point cloud data, header versions 0.6 and 0.7), DATA ascii,
+// binary and binary_compressed. Field names match in any case (some exporters
+// write X Y Z RGB). Fields x y z (F 4 or F 8) are required; colour comes from
+// rgb or rgba (4 bytes packed as 0x00RRGGBB, whatever the TYPE says, as PCL
+// does) or else from separate r g b (or red green blue) fields, and intensity
+// (any numeric type) is read when present; every other field is skipped,
+// COUNT values at a time.
+//
+// Separate colour fields follow their declared type, so the rule does not
+// depend on the values or their order: SIZE 2 integers are 16-bit levels
+// (shifted right by 8, as the LAS and wide PLY colours that use the full
+// range); every other type holds 8-bit levels (0..255; floats are rounded and
+// everything saturates at 0 and 255).
+//
+// binary_compressed (PCL's writer): after the header, u32 compressed size,
+// u32 uncompressed size, then LZF data (liblzf) that expands to the fields in
+// structure-of-arrays order: all values of field 1, then of field 2, ... The
+// whole block is expanded at open (PCL does the same), after checking both
+// sizes against the bytes present, POINTS x point size and LZF's largest
+// expansion, and it must expand to exactly the declared size.
 //
 // Points with a NaN coordinate are skipped and counted in
 // PointStreamInfo::skipped_points: organised clouds (WIDTH x HEIGHT images)
@@ -10,11 +25,13 @@
 // coordinate has no such meaning and is reported.
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -27,6 +44,8 @@
 #include "io/stream_support.h"
 #include "io/text_scan.h"
 #include "relief/io.h"
+
+#include <lzf.h>
 
 namespace relief {
 
@@ -43,6 +62,11 @@ constexpr std::size_t kMaxPointSize = std::size_t{1} << 20;
 constexpr std::uint64_t kMaxPoints = std::uint64_t{1} << 40;
 // One ascii point per line.
 constexpr std::size_t kMaxAsciiLine = std::size_t{4} << 20;
+// binary_compressed: the two u32 sizes before the LZF data, and LZF's largest
+// expansion: a 3-byte back reference copies at most 264 bytes, so no valid
+// stream expands more than 88 times (checked before allocating).
+constexpr std::size_t kCompressedHeader = 8;
+constexpr std::uint64_t kMaxLzfExpansion = 88;
 
 struct PcdField {
   std::string name;
@@ -133,7 +157,9 @@ Result<PcdHeader> parse_header(ByteSource& src, const std::string& name) {
     } else if (kw == "POINTS") {
       RELIEF_RETURN_IF_ERROR(one_number(points));
     } else if (kw == "DATA") {
-      if (args.size() != 1) return format_error(where + "expected 'DATA ascii' or 'DATA binary'");
+      if (args.size() != 1) {
+        return format_error(where + "expected 'DATA ascii', 'DATA binary' or 'DATA binary_compressed'");
+      }
       if (args[0] == "ascii") {
         h.data = PcdData::kAscii;
       } else if (args[0] == "binary") {
@@ -147,11 +173,6 @@ Result<PcdHeader> parse_header(ByteSource& src, const std::string& name) {
     } else {
       return format_error(where + "unknown header keyword " + quoted(tok[0]));
     }
-  }
-  if (h.data == PcdData::kBinaryCompressed) {
-    return unsupported(name +
-                       ": PCD binary_compressed is not supported yet; convert with "
-                       "pcl_convert_pcd_ascii_binary");
   }
   if (!have_fields) return format_error(name + ": the PCD header has no FIELDS line");
   const std::size_t n = h.fields.size();
@@ -218,11 +239,27 @@ Result<PcdHeader> parse_header(ByteSource& src, const std::string& name) {
   return h;
 }
 
+// `field_name` is lower case; the file's names match in any case.
 const PcdField* find_field(const PcdHeader& h, std::string_view field_name) {
   for (const PcdField& f : h.fields) {
-    if (f.name == field_name) return &f;
+    if (f.name.size() != field_name.size()) continue;
+    bool same = true;
+    for (std::size_t i = 0; i < f.name.size() && same; ++i) {
+      same = std::tolower(static_cast<unsigned char>(f.name[i])) == field_name[i];
+    }
+    if (same) return &f;
   }
   return nullptr;
+}
+
+// A separate colour value as an 8-bit level, by its declared type (see the
+// top of the file).
+std::uint8_t color_level(double v, const PcdField& f) {
+  constexpr int kWideShift = 8;
+  if (f.type != 'F' && f.size == 2) v = std::floor(v / (1 << kWideShift));
+  if (!(v > 0)) return 0;  // NaN too
+  if (v >= 255) return 255;
+  return static_cast<std::uint8_t>(std::lround(v));
 }
 
 // Any PCD scalar as a double (64-bit integers may round; they never hold
@@ -292,19 +329,40 @@ class PcdPointReader final : public PointReader {
     z_ = find_field(header_, "z");
     rgb_ = find_field(header_, "rgb");
     if (rgb_ == nullptr) rgb_ = find_field(header_, "rgba");
+    if (rgb_ == nullptr) {
+      for (const auto& names : {std::array<const char*, 3>{"r", "g", "b"},
+                                std::array<const char*, 3>{"red", "green", "blue"}}) {
+        const PcdField* r = find_field(header_, names[0]);
+        const PcdField* g = find_field(header_, names[1]);
+        const PcdField* b = find_field(header_, names[2]);
+        if (r != nullptr && g != nullptr && b != nullptr) {
+          split_ = {r, g, b};
+          break;
+        }
+      }
+    }
     intensity_ = find_field(header_, "intensity");
     info_.path = std::move(name);
     info_.format = "pcd";
     info_.point_count = header_.point_count;
-    info_.has_colors = rgb_ != nullptr;
+    info_.has_colors = rgb_ != nullptr || split_[0] != nullptr;
     info_.has_intensity = intensity_ != nullptr;
     roles_.assign(header_.columns, kSkip);
     roles_[x_->column] = kX;
     roles_[y_->column] = kY;
     roles_[z_->column] = kZ;
     if (rgb_ != nullptr) roles_[rgb_->column] = kRgb;
+    if (split_[0] != nullptr) {
+      roles_[split_[0]->column] = kRed;
+      roles_[split_[1]->column] = kGreen;
+      roles_[split_[2]->column] = kBlue;
+    }
     if (intensity_ != nullptr) roles_[intensity_->column] = kIntensity;
   }
+
+  // Expands a binary_compressed body into records laid out as `binary` ones
+  // and reads on from them.
+  Status expand_compressed();
 
   // Checks what the constructor relies on; call before using the reader.
   Status check() {
@@ -320,6 +378,12 @@ class PcdPointReader final : public PointReader {
     if (intensity_ != nullptr && intensity_->count != 1) {
       return format_error(name() + ": field 'intensity' must have COUNT 1");
     }
+    for (const PcdField* f : split_) {
+      if (f != nullptr && f->count != 1) {
+        return format_error(name() + ": colour field " + quoted(f->name) + " must have COUNT 1");
+      }
+    }
+    if (header_.data == PcdData::kBinaryCompressed) RELIEF_RETURN_IF_ERROR(expand_compressed());
     if (header_.data == PcdData::kBinary) {
       if (const auto rem = src_.remaining()) {
         const std::uint64_t holds = *rem / header_.point_size;
@@ -334,11 +398,12 @@ class PcdPointReader final : public PointReader {
 
  private:
   // Column roles in an ascii line.
-  enum : std::uint8_t { kSkip, kX, kY, kZ, kRgb, kIntensity };
+  enum : std::uint8_t { kSkip, kX, kY, kZ, kRgb, kRed, kGreen, kBlue, kIntensity };
 
   struct Values {
     double x = 0, y = 0, z = 0, intensity = 0;
     std::uint32_t rgb = 0;
+    std::array<double, 3> levels{};  // separate r g b fields
   };
 
   const std::string& name() const { return info_.path; }
@@ -354,6 +419,11 @@ class PcdPointReader final : public PointReader {
     v.y = load_value(rec + y_->offset, 'F', y_->size);
     v.z = load_value(rec + z_->offset, 'F', z_->size);
     if (rgb_ != nullptr) v.rgb = load_le<std::uint32_t>(rec + rgb_->offset);
+    if (split_[0] != nullptr) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        v.levels[k] = load_value(rec + split_[k]->offset, split_[k]->type, split_[k]->size);
+      }
+    }
     if (intensity_ != nullptr)
       v.intensity = load_value(rec + intensity_->offset, intensity_->type, intensity_->size);
   }
@@ -369,7 +439,9 @@ class PcdPointReader final : public PointReader {
   const PcdField* z_ = nullptr;
   const PcdField* rgb_ = nullptr;
   const PcdField* intensity_ = nullptr;
+  std::array<const PcdField*, 3> split_{};  // separate r g b, when no packed rgb
   std::vector<std::uint8_t> roles_;
+  std::vector<std::uint8_t> expanded_;  // binary_compressed records; src_ reads them
   std::uint64_t done_ = 0;  // records consumed, kept or skipped
 };
 
@@ -396,6 +468,11 @@ Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, V
         break;
       case kRgb:
         ok = parse_packed_color(tok, rgb_->type, v.rgb);
+        break;
+      case kRed:
+      case kGreen:
+      case kBlue:
+        ok = parse_double(tok, v.levels[role - kRed]);
         break;
       default:
         ok = parse_double(tok, v.intensity);
@@ -429,6 +506,9 @@ Status PcdPointReader::accept(const Values& v, std::uint64_t index, PointCloud& 
   if (rgb_ != nullptr) {
     batch.colors.push_back({static_cast<std::uint8_t>(v.rgb >> 16), static_cast<std::uint8_t>(v.rgb >> 8),
                             static_cast<std::uint8_t>(v.rgb)});
+  } else if (split_[0] != nullptr) {
+    batch.colors.push_back({color_level(v.levels[0], *split_[0]), color_level(v.levels[1], *split_[1]),
+                            color_level(v.levels[2], *split_[2])});
   }
   if (intensity_ != nullptr) batch.intensities.push_back(intensity);
   kept = true;
@@ -436,7 +516,7 @@ Status PcdPointReader::accept(const Values& v, std::uint64_t index, PointCloud& 
 }
 
 Result<std::size_t> PcdPointReader::read(PointCloud& batch, std::size_t max_points) {
-  size_batch(batch, 0, rgb_ != nullptr, intensity_ != nullptr);  // keeps the capacity
+  size_batch(batch, 0, info_.has_colors, intensity_ != nullptr);  // keeps the capacity
   std::size_t got = 0;
   const std::size_t stride = header_.point_size;
   while (got < max_points && done_ < header_.point_count) {
@@ -475,6 +555,67 @@ Result<std::size_t> PcdPointReader::read(PointCloud& batch, std::size_t max_poin
     }
   }
   return got;
+}
+
+Status PcdPointReader::expand_compressed() {
+  std::span<const std::uint8_t> view;
+  RELIEF_RETURN_IF_ERROR(src_.fill(kCompressedHeader, view));
+  if (view.size() < kCompressedHeader) {
+    return format_error(name() + ": truncated: binary_compressed data has no size fields");
+  }
+  const std::uint32_t packed = load_le<std::uint32_t>(view.data());
+  const std::uint32_t unpacked = load_le<std::uint32_t>(view.data() + 4);
+  src_.consume(kCompressedHeader);
+  // point_size <= 2^20 and point_count <= 2^40: the product cannot overflow.
+  const std::uint64_t expected = header_.point_count * header_.point_size;
+  const std::string where = name() + ": binary_compressed: ";
+  if (unpacked != expected) {
+    return format_error(where + "uncompressed size " + std::to_string(unpacked) + " is not POINTS x point size = " +
+                        std::to_string(header_.point_count) + " x " + std::to_string(header_.point_size));
+  }
+  if (expected == 0) return Status::ok();
+  if (const auto rem = src_.remaining(); rem && packed > *rem) {
+    return format_error(where + "compressed size " + std::to_string(packed) + " but only " + std::to_string(*rem) +
+                        " bytes follow");
+  }
+  if (std::uint64_t{unpacked} > std::uint64_t{packed} * kMaxLzfExpansion) {
+    return format_error(where + std::to_string(packed) + " compressed bytes cannot expand to " +
+                        std::to_string(unpacked));
+  }
+  // Grown as bytes arrive: from a pipe the size cannot be checked in advance.
+  std::vector<std::uint8_t> packed_bytes;
+  while (packed_bytes.size() < packed) {
+    RELIEF_RETURN_IF_ERROR(src_.fill(1, view));
+    if (view.empty()) {
+      return format_error(where + "truncated: compressed size " + std::to_string(packed) + " but the file ends after " +
+                          std::to_string(packed_bytes.size()));
+    }
+    const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(view.size(), packed - packed_bytes.size()));
+    packed_bytes.insert(packed_bytes.end(), view.data(), view.data() + n);
+    src_.consume(n);
+  }
+  std::vector<std::uint8_t> fields(unpacked);
+  const unsigned got = lzf_decompress(packed_bytes.data(), packed, fields.data(), unpacked);
+  if (got != unpacked) {
+    return format_error(where + "the LZF data is corrupt (it expands to " + std::to_string(got) + " of " +
+                        std::to_string(unpacked) + " bytes)");
+  }
+  packed_bytes = {};
+  // Structure of arrays to records: field f of point i moves from
+  // soa(f) + i * width(f) to i * point_size + offset(f).
+  const auto n = static_cast<std::size_t>(header_.point_count);
+  expanded_.resize(fields.size());
+  std::size_t soa = 0;
+  for (const PcdField& f : header_.fields) {
+    const std::size_t width = f.size * f.count;
+    for (std::size_t i = 0; i < n; ++i) {
+      std::memcpy(expanded_.data() + i * header_.point_size + f.offset, fields.data() + soa + i * width, width);
+    }
+    soa += width * n;
+  }
+  src_ = ByteSource::from_memory(expanded_);
+  header_.data = PcdData::kBinary;
+  return Status::ok();
 }
 
 }  // namespace

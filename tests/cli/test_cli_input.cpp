@@ -3,12 +3,17 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
 
 #include "relief/image.h"
+#include "relief/io.h"
 #include "support/run_cli.h"
 #include "support/temp_dir.h"
 
@@ -302,4 +307,98 @@ TEST_CASE("stream refuses a chunk edge of more than 2^21 cells before creating t
   CHECK(has(r, "more than 2^21 cells"));
   CHECK_FALSE(has(r, "chunk ("));
   CHECK_FALSE(fs::exists(tmp.file("s.relief")));
+}
+
+namespace {
+
+// A valid LAS 1.2 header (point format 0) declaring no points.
+std::string empty_las() {
+  std::string h;
+  auto put = [&h](auto v) {
+    for (std::size_t i = 0; i < sizeof v; ++i) {
+      std::uint64_t bits = 0;
+      std::memcpy(&bits, &v, sizeof v);
+      h.push_back(static_cast<char>((bits >> (8 * i)) & 0xFF));
+    }
+  };
+  h += "LASF";
+  put(std::uint16_t{0});                 // file source id
+  put(std::uint16_t{0});                 // global encoding
+  h.append(16, '\0');                    // project GUID
+  put(std::uint8_t{1});                  // version 1.2
+  put(std::uint8_t{2});
+  h.append(64, '\0');                    // system identifier, generating software
+  put(std::uint16_t{1});                 // creation day, year
+  put(std::uint16_t{2024});
+  put(std::uint16_t{227});               // header size
+  put(std::uint32_t{227});               // offset to point data
+  put(std::uint32_t{0});                 // VLR count
+  put(std::uint8_t{0});                  // point format
+  put(std::uint16_t{20});                // record length
+  for (int i = 0; i < 6; ++i) put(std::uint32_t{0});  // point count, by return
+  for (int i = 0; i < 3; ++i) put(0.001);             // scale
+  for (int i = 0; i < 9; ++i) put(0.0);               // offset, then max/min per axis
+  return h;
+}
+
+}  // namespace
+
+TEST_CASE("empty LAS, PLY and XYZ inputs give empty archives that info and decompress read", "[cli][ingest]") {
+  TempDir tmp;
+  const std::string las = empty_las();
+  REQUIRE(las.size() == 227);
+  std::ofstream(tmp.file("empty.las"), std::ios::binary) << las;
+  write_text(tmp.file("empty.ply"),
+             "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+             "property float z\nend_header\n");
+  write_text(tmp.file("empty.xyz"), "# no points here\n");
+  for (const char* name : {"empty.las", "empty.ply", "empty.xyz"}) {
+    for (const char* mode : {"bounded", "resample"}) {
+      INFO(name << " " << mode);
+      const std::string archive = tmp.file(std::string(name) + "." + mode + ".relief");
+      const Run c = run("compress " + tmp.file(name) + " -o " + archive + " --mode " + mode + " --quiet");
+      CHECK(c.code == 0);
+      CHECK(c.output == "");
+      const Run info = run("info " + archive);
+      CHECK(info.code == 0);
+      CHECK(has(info, "points          0 in, 0 decodable"));
+      CHECK(has(info, "chunk edge 32"));
+      const Run d = run("decompress " + archive + " -o " + tmp.file("back.xyz") + " --quiet");
+      CHECK(d.code == 0);
+      CHECK(fs::file_size(tmp.file("back.xyz")) == 0);
+    }
+  }
+}
+
+TEST_CASE("KITTI-like float intensities in 0..1 survive: exactly in PLY, scaled by 65535 in LAS", "[cli][io]") {
+  TempDir tmp;
+  std::string csv = "x,y,z,intensity\n";
+  std::vector<float> values;
+  for (int i = 0; i < 400; ++i) {
+    // Reflectance as KITTI stores it: floats in 0..1, most not integers.
+    const float v = static_cast<float>((i * 37) % 101) / 100.0f;
+    values.push_back(v);
+    char line[96];
+    std::snprintf(line, sizeof line, "%d,%d,%.3f,%.9g\n", i % 20, i / 20, 0.01 * (i % 7), static_cast<double>(v));
+    csv += line;
+  }
+  write_text(tmp.file("kitti.csv"), csv);
+  const Run c = run("compress " + tmp.file("kitti.csv") + " -o " + tmp.file("k.relief") + " --quiet");
+  REQUIRE(c.code == 0);
+  for (const char* out : {"k.ply", "k.las"}) {
+    INFO(out);
+    const Run d = run("decompress " + tmp.file("k.relief") + " -o " + tmp.file(out) + " --quiet");
+    REQUIRE(d.code == 0);
+    const relief::Result<relief::PointCloud> got = relief::read_point_file(tmp.file(out));
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    REQUIRE(got->intensities.size() == values.size());
+    // Decoded order is the archive's: match points by their grid position.
+    for (std::size_t k = 0; k < got->size(); ++k) {
+      const auto i = static_cast<std::size_t>(std::lround(got->positions[k].x + 20 * got->positions[k].y));
+      REQUIRE(i < values.size());
+      const float want = std::string(out) == "k.ply" ? values[i] : static_cast<float>(std::floor(static_cast<double>(values[i]) * 65535.0 + 0.5));
+      CHECK(got->intensities[k] == want);
+    }
+  }
 }

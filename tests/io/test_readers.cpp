@@ -716,8 +716,10 @@ TEST_CASE("XYZ rejects bad lines naming the line", "[io]") {
   require_error(status_of("1 2 3\nnan 2 3\n"), StatusCode::kFormatError, path, "line 2: non-finite");
   require_error(status_of("1 2 3\n1 inf 3\n"), StatusCode::kFormatError, path, "line 2: non-finite");
   require_error(status_of("1 2 3\n1 2 1e999\n"), StatusCode::kFormatError, path, "line 2");
-  require_error(status_of("1 2 3 0 0 256\n", "x,y,z,r,g,b"), StatusCode::kFormatError, path,
-                "line 1: colour level 256 is outside 0..255");
+  require_error(status_of("1 2 3 0 0 65536\n", "x,y,z,r,g,b"), StatusCode::kFormatError, path,
+                "line 1: colour level 65536 is outside 0..65535");
+  require_error(status_of("1 2 3 0 -1 0\n", "x,y,z,r,g,b"), StatusCode::kFormatError, path,
+                "line 1: colour level -1 is outside 0..65535");
   require_error(status_of("1 2 3 1e300\n", "x,y,z,i"), StatusCode::kFormatError, path, "line 1: intensity");
   // Only the first line may be a header.
   require_error(status_of("x y z\nalpha beta gamma\n"), StatusCode::kFormatError, path, "line 2");
@@ -850,8 +852,8 @@ TEST_CASE("PCD rejects what it cannot read", "[io]") {
   SECTION("binary_compressed") {
     require_error(status_of(pcd_header("x y z", "4 4 4", "F F F", "1 1 1", 2, 1, "binary_compressed") +
                             std::string(16, '\0')),
-                  StatusCode::kUnsupported, path,
-                  "PCD binary_compressed is not supported yet; convert with pcl_convert_pcd_ascii_binary");
+                  StatusCode::kFormatError, path,
+                  "binary_compressed: uncompressed size 0 is not POINTS x point size = 2 x 12");
   }
   SECTION("truncated ascii body") {
     require_error(status_of(xyz_ascii + "1 2 3\n"), StatusCode::kFormatError, path,

@@ -67,10 +67,15 @@ struct PointStreamInfo {
 
 struct ReaderOptions {
   // ASCII XYZ/CSV: the meaning of each column, comma separated, from x y z
-  // r g b (0..255) i (intensity) and _ (skip); default "x,y,z". Columns may be
+  // r g b i (intensity) and _ (skip). Unset: the names of a header line (the
+  // first line when it is not numeric, or a comment line such as
+  // "//X,Y,Z,R,G,B" naming x, y and z; names in any case, red/green/blue,
+  // intensity/reflectance and their initials), else "x,y,z". Columns may be
   // separated by commas, semicolons, tabs or spaces; lines starting with '#'
   // or '//' and a first line that is not numeric (a header) are skipped.
-  std::string xyz_columns = "x,y,z";
+  // Colour levels are 0..255, or 0..65535 shifted to 8 bits by the 16-bit
+  // rule when the first 2^20 points hold a level above 255.
+  std::optional<std::string> xyz_columns;
 };
 
 class PointReader {
@@ -84,8 +89,10 @@ class PointReader {
 };
 
 // Opens a point file for streaming, by extension: .ply, .las, .xyz/.txt/.csv,
-// .pcd (ascii and binary), .laz (LASzip-compressed LAS, COPC included; see
-// relief/laz.h for what is supported). Unknown extensions give kUnsupported.
+// .pcd (ascii, binary and binary_compressed; field names in any case; packed
+// rgb/rgba or separate r g b fields), .laz (LASzip-compressed LAS, COPC
+// included; see relief/laz.h for what is supported). Unknown extensions give
+// kUnsupported.
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
