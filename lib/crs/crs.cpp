@@ -467,8 +467,11 @@ Result<Pj> vertical_crs(PJ_CONTEXT* ctx, GTIF* gt, const std::string& where) {
   const std::string unit = name ? name : "unknown";
   if (name) GTIFFreeMemory(name);
   const std::string datum_code = std::to_string(datum);
-  const std::string crs_name = citation.empty() ? "unknown" : citation;
-  Pj v(proj_create_vertical_crs_ex(ctx, crs_name.c_str(), nullptr, "EPSG", datum_code.c_str(), unit.c_str(), in_metres,
+  Pj datum_object = from_database(ctx, datum, PJ_CATEGORY_DATUM);
+  if (!datum_object) return format_error(where + ": GeoTIFF keys: unknown vertical datum EPSG:" + datum_code);
+  const std::string datum_name = proj_get_name(datum_object.get());
+  const std::string crs_name = citation.empty() ? datum_name + " height" : citation;
+  Pj v(proj_create_vertical_crs_ex(ctx, crs_name.c_str(), datum_name.c_str(), "EPSG", datum_code.c_str(), unit.c_str(), in_metres,
                                    nullptr, nullptr, nullptr, nullptr, nullptr));
   if (!v) return format_error(where + ": GeoTIFF keys: vertical datum " + datum_code + ": " + last_error(ctx));
   return v;
