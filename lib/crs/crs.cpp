@@ -39,6 +39,7 @@
 #include <cstring>
 #include <initializer_list>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -106,6 +107,10 @@ using Pj = std::unique_ptr<PJ, PjDeleter>;
 // One context per call: PROJ contexts are not shared across threads, and
 // ingest reads inputs on several.
 Context new_context() {
+  // libgeotiff looks some codes up through PROJ's default context, which
+  // would print "not found" lines for a file's unknown codes on stderr.
+  static std::once_flag quiet_default;
+  std::call_once(quiet_default, [] { proj_log_level(nullptr, PJ_LOG_NONE); });
   Context ctx(proj_context_create());
   // Errors come back as statuses, not as lines on stderr.
   if (ctx) proj_log_level(ctx.get(), PJ_LOG_NONE);
@@ -339,6 +344,29 @@ Result<Pj> with_linear_unit(PJ_CONTEXT* ctx, Pj crs, int code, const std::string
   return unnamed ? std::move(unnamed) : std::move(axes);
 }
 
+// GTIFGetProj4Defn prints the parameters with "%f"-style formats into fixed
+// buffers: a huge value (1e300 from a hostile file) overflows them (glibc's
+// fortify check aborts the process). No real ellipsoid, projection parameter
+// or unit comes near these bounds.
+Status check_printable(const GTIFDefn& d, const std::string& where) {
+  constexpr double kMaxParameter = 1e9;  // metres or degrees
+  const auto bad = [&](double v) { return !std::isfinite(v) || std::fabs(v) > kMaxParameter; };
+  std::string what;
+  if (bad(d.SemiMajor) || bad(d.SemiMinor)) what = "ellipsoid axis";
+  if (bad(d.PMLongToGreenwich)) what = "prime meridian";
+  if (bad(d.UOMLengthInMeters) || bad(d.UOMAngleInDegrees)) what = "unit size";
+  for (int i = 0; i < d.nParms && i < MAX_GTIF_PROJPARMS; ++i) {
+    if (bad(d.ProjParm[i])) what = "projection parameter (key " + std::to_string(d.ProjParmId[i]) + ")";
+  }
+#if !defined(GEO_NORMALIZE_DISABLE_TOWGS84)
+  for (int i = 0; i < d.TOWGS84Count && i < 7; ++i) {
+    if (bad(d.TOWGS84[i])) what = "TOWGS84 value";
+  }
+#endif
+  if (what.empty()) return Status::ok();
+  return format_error(where + ": GeoTIFF keys: implausible " + what + " (beyond 1e9 in magnitude, or not finite)");
+}
+
 // The value libgeotiff normalised to metres for the first of `keys` present.
 std::optional<double> defn_parameter(const GTIFDefn& d, std::initializer_list<int> keys) {
   for (int key : keys) {
@@ -402,6 +430,7 @@ Result<Pj> projected_crs(PJ_CONTEXT* ctx, GTIF* gt, GTIFDefn& d, const std::stri
   Pj conversion;
   if (is_code(d.ProjCode)) conversion = from_database(ctx, d.ProjCode, PJ_CATEGORY_COORDINATE_OPERATION);
   if (!conversion) {
+    RELIEF_RETURN_IF_ERROR(check_printable(d, where));
     // libgeotiff's PROJ string carries the method and its parameters (in
     // metres and degrees); only the conversion is taken from it.
     char* text = GTIFGetProj4Defn(&d);
