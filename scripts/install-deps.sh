@@ -10,6 +10,7 @@ packages=(
   cmake g++ make pkg-config
   libeigen3-dev libopenjp2-7-dev libturbojpeg0-dev liblzma-dev libsqlite3-dev
   catch2 libjbig-dev libnanoflann-dev libpng-dev liblzf-dev
+  libgeotiff-dev libproj-dev
 )
 if [[ "${RELIEF_WITH_BENCH:-0}" == "1" ]]; then
   packages+=(draco)

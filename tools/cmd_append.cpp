@@ -12,8 +12,11 @@ int run_append(int argc, char** argv) {
   static const std::string usage = std::string(
       "usage: relief append ARCHIVE IN... [options]\n"
       "Adds point files to an existing archive with the archive's grid and codec parameters.\n"
-      "If it fails, the archive is left as it was.\n\n") + kIngestOptionsHelp;
-  Args args(argc, argv, {"--help", "--quiet", "--verify"}, ingest_option_names());
+      "If it fails, the archive is left as it was.\n"
+      "  --assume-crs           inputs whose CRS differs from the archive's (or each other's):\n"
+      "                         keep the archive's (with a warning) instead of refusing (exit 11)\n\n") +
+      kIngestOptionsHelp;
+  Args args(argc, argv, {"--help", "--quiet", "--verify", "--assume-crs"}, ingest_option_names());
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -24,6 +27,7 @@ int run_append(int argc, char** argv) {
   if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
     return usage_error("append", err);
   }
+  o.assume_crs = args.has("--assume-crs");
   const bool quiet = args.has("--quiet");
   o.progress = progress_printer(quiet);
   o.cancel = install_interrupt_flag();

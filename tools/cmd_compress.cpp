@@ -23,13 +23,15 @@ int run_compress(int argc, char** argv) {
       "  --error-target M       resample mode: choose the cell size for this RMSE_SNN (by trial\n"
       "                         encodes of the first points; overrides --cell; implies --mode resample)\n"
       "  --allow-sparse         go ahead although the cell or chunk edge puts on average fewer than\n"
-      "                         2 points in a cell or 16 in a chunk (refused by default: exit 16)\n\n") +
+      "                         2 points in a cell or 16 in a chunk (refused by default: exit 16)\n"
+      "  --assume-crs           inputs with different CRSs: take the first input's for all (with a\n"
+      "                         warning) instead of refusing them (exit 11)\n\n") +
       kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = encode_option_names();
   for (const std::string& o : ingest_option_names()) options.push_back(o);
   for (const std::string& o : mode_option_names()) options.push_back(o);
   options.insert(options.end(), {"-o", "--chunk-edge", "--error-target"});
-  Args args(argc, argv, {"--help", "--quiet", "--verify", "--allow-sparse"}, options);
+  Args args(argc, argv, {"--help", "--quiet", "--verify", "--allow-sparse", "--assume-crs"}, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -61,6 +63,7 @@ int run_compress(int argc, char** argv) {
   }
   if (args.has("--chunk-edge") && !(o.chunk_edge > 0)) return usage_error(kCommand, "--chunk-edge must be positive");
   o.allow_sparse = args.has("--allow-sparse");
+  o.assume_crs = args.has("--assume-crs");
   const bool quiet = args.has("--quiet");
   o.progress = progress_printer(quiet);
   o.cancel = install_interrupt_flag();

@@ -27,6 +27,7 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   w.colors = info.has_colors;
   w.intensity = info.has_intensity;
   w.crs = info.crs;
+  w.crs_source = info.crs_source;
   w.expected_bounds = info.bounds;
   // An error-bounded archive's points lie on its grid: LAS output uses that
   // grid as scale and offset, so a LAS source's integers come back as they were.

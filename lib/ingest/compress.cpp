@@ -22,6 +22,7 @@
 #include "ingest/ingest_common.h"
 #include "ingest/prefetch.h"
 #include "relief/archive.h"
+#include "relief/crs.h"
 #include "relief/ingest.h"
 
 namespace relief {
@@ -96,8 +97,16 @@ std::uint64_t file_size_or_zero(const std::string& path) {
 
 }  // namespace
 
-Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options) {
+bool same_crs(const std::string& a, const std::string& b) {
+  if (a == b) return true;
+  Result<bool> equivalent = crs_equivalent(a, b);
+  return equivalent.is_ok() && *equivalent;
+}
+
+Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
+                             bool assume_crs) {
   if (inputs.empty()) return invalid_argument("no input files");
+  std::vector<std::string> without_crs;
   InputSet set;
   set.colors = true;
   set.intensity = true;
@@ -113,13 +122,30 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
     }
     if (info.point_count) set.known_total += *info.point_count;
     set.all_counts_known = set.all_counts_known && info.point_count.has_value();
-    if (set.crs.empty()) set.crs = info.crs;
+    if (info.crs.empty()) {
+      without_crs.push_back(path);
+    } else if (set.crs.empty()) {
+      set.crs = info.crs;
+      set.crs_from = path;
+    } else if (!same_crs(set.crs, info.crs)) {
+      const std::string both = path + " has the CRS " + crs_label(info.crs) + " but " + set.crs_from + " has " +
+                               crs_label(set.crs);
+      if (!assume_crs) {
+        return invalid_argument(both + "; one archive holds one CRS (--assume-crs takes the first input's for all)");
+      }
+      set.warnings.push_back(both + "; --assume-crs: the archive takes " + crs_label(set.crs));
+    }
     ArchiveSource src;
     src.path = path;
     src.format = info.format;
-    src.crs = info.crs;
+    src.crs = info.crs_source.empty() ? info.crs : info.crs_source;
     set.sources.push_back(src);
     set.readers.push_back(std::move(r));
+  }
+  if (!set.crs.empty()) {
+    for (const std::string& path : without_crs) {
+      set.warnings.push_back(path + " has no CRS; the archive takes " + crs_label(set.crs) + " of " + set.crs_from);
+    }
   }
   return set;
 }
@@ -330,6 +356,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
 
   IngestResult result =
       scan_result(pipeline->totals(), points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
+  result.warnings.insert(result.warnings.end(), in.warnings.begin(), in.warnings.end());
   for (const auto& reader : in.readers) {
     for (const std::string& w : reader->info().warnings) result.warnings.push_back(w);
   }
@@ -620,7 +647,7 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     return io_error(archive_path + ": already exists and is not a Relief archive (compress never overwrites a file)");
   }
   RELIEF_RETURN_IF_ERROR(check_output_directory(archive_path));
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs));
 
   EncodeParams params = options.codec;
   // The first points set the cell size (from their density, or by trial
@@ -719,9 +746,24 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
 Result<IngestResult> append_files(const std::string& archive_path, const std::vector<std::string>& inputs,
                                   const IngestOptions& options) {
   using namespace ingest;
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs));
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive, Archive::open(archive_path, Archive::Mode::kReadWrite));
   RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
+  // One CRS per archive: the archive's wins over the inputs' when they differ
+  // and the user said --assume-crs; otherwise a different one is refused.
+  if (!info.crs.empty() && !in.crs.empty() && !same_crs(info.crs, in.crs)) {
+    const std::string both = archive_path + " has the CRS " + crs_label(info.crs) + " but " + in.crs_from +
+                             " has " + crs_label(in.crs);
+    if (!options.assume_crs) {
+      return invalid_argument(both + "; one archive holds one CRS (--assume-crs keeps the archive's)");
+    }
+    in.warnings.push_back(both + "; --assume-crs: the archive keeps " + crs_label(info.crs));
+    in.crs = info.crs;
+  } else if (!info.crs.empty() && in.crs.empty()) {
+    in.warnings.push_back("the new input has no CRS; the archive keeps " + crs_label(info.crs));
+  } else if (info.crs.empty() && !in.crs.empty() && !info.sources.empty()) {
+    in.warnings.push_back(archive_path + " had no CRS; it takes " + crs_label(in.crs) + " of " + in.crs_from);
+  }
   RELIEF_ASSIGN_OR_RETURN(EncodeParams params, encode_params_from_string(info.codec_params));
   if (info.chunk_count > 0) {
     // Keep one attribute set per archive so every chunk decodes alike.

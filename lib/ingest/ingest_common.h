@@ -24,12 +24,22 @@ struct InputSet {
   std::uint64_t estimated_points = 0;
   std::uint64_t known_total = 0;
   bool all_counts_known = true;
-  std::string crs;  // of the first input that has one
+  std::string crs;  // WKT2 of the first input that has one
+  std::string crs_from;  // that input's path
+  // CRS decisions the user should hear of (inputs without a CRS among ones
+  // with, a different CRS overridden by --assume-crs).
+  std::vector<std::string> warnings;
 };
 
 // Opens every input up front, so a missing or unsupported file fails before
-// anything is created.
-Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options);
+// anything is created. Inputs whose CRSs differ are refused (kInvalidArgument
+// naming both) unless `assume_crs`, when the first one's is taken for all
+// (with a warning).
+Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
+                             bool assume_crs = false);
+// Whether two CRSs are the same (PROJ equivalence; text equality for a CRS
+// PROJ cannot read).
+bool same_crs(const std::string& a, const std::string& b);
 // Drops attributes the archive does not carry.
 void conform_attributes(PointCloud& batch, bool colors, bool intensity);
 // kInvalidArgument naming `source`, the point's index (first_index + i) and the

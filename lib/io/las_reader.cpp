@@ -35,6 +35,7 @@
 #include "io/readers.h"
 #include "io/stream_support.h"
 #include "io/text_scan.h"
+#include "relief/crs.h"
 #include "relief/io.h"
 #include "relief/laz.h"
 
@@ -48,6 +49,8 @@ constexpr std::size_t kEvlrHeaderSize = 60;
 constexpr std::uint64_t kMaxProjectionRecord = std::uint64_t{16} << 20;
 constexpr std::uint16_t kWktRecordId = 2112;
 constexpr std::uint16_t kGeoKeyRecordId = 34735;
+constexpr std::uint16_t kGeoDoubleRecordId = 34736;
+constexpr std::uint16_t kGeoAsciiRecordId = 34737;
 constexpr std::string_view kProjectionUserId = "LASF_Projection";
 // LAZ: the chunk table is 8 bytes plus a few per chunk, a chunk a few MiB;
 // larger ones are refused rather than held in memory.
@@ -203,7 +206,7 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
 
 struct ProjectionRecords {
   std::optional<std::string> wkt;
-  std::optional<std::vector<std::uint8_t>> geokeys;
+  GeoTiffRecords geotiff;  // keys empty when the file has none
   std::optional<std::vector<std::uint8_t>> laszip;  // the LASzip VLR payload
 };
 
@@ -214,7 +217,9 @@ std::string_view user_id_text(std::span<const std::uint8_t> user_id) {
 }
 
 bool is_projection_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
-  return user_id_text(user_id) == kProjectionUserId && (record_id == kWktRecordId || record_id == kGeoKeyRecordId);
+  return user_id_text(user_id) == kProjectionUserId &&
+         (record_id == kWktRecordId || record_id == kGeoKeyRecordId || record_id == kGeoDoubleRecordId ||
+          record_id == kGeoAsciiRecordId);
 }
 
 bool is_laszip_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
@@ -233,48 +238,41 @@ void keep_projection_record(std::uint16_t record_id, std::span<const std::uint8_
       wkt.pop_back();
     }
     if (!wkt.empty()) out.wkt = std::move(wkt);
-  } else if (!out.geokeys) {
-    out.geokeys.emplace(payload.begin(), payload.end());
+    return;
   }
+  std::vector<std::uint8_t>& slot = record_id == kGeoKeyRecordId      ? out.geotiff.keys
+                                    : record_id == kGeoDoubleRecordId ? out.geotiff.doubles
+                                                                      : out.geotiff.ascii;
+  if (slot.empty()) slot.assign(payload.begin(), payload.end());  // the first one wins
 }
 
-// The GeoKeyDirectoryTag: u16 KeyDirectoryVersion, KeyRevision, MinorRevision,
-// NumberOfKeys, then per key u16 KeyID, TIFFTagLocation, Count, Value_Offset.
-// A key with TIFFTagLocation 0 holds its value directly in Value_Offset.
-std::string crs_from_geokeys(std::span<const std::uint8_t> bytes) {
-  constexpr std::uint16_t kModelType = 1024;  // GTModelTypeGeoKey: 1 projected, 2 geographic
-  constexpr std::uint16_t kGeographicType = 2048;
-  constexpr std::uint16_t kProjectedCsType = 3072;
-  constexpr std::uint16_t kUserDefined = 32767;
-  const std::size_t words = bytes.size() / 2;
-  if (words < 4) return "";
-  auto word = [&](std::size_t i) { return load_le<std::uint16_t>(bytes.data() + 2 * i); };
-  const std::size_t keys = std::min<std::size_t>(word(3), (words - 4) / 4);  // never past the record
-  std::optional<std::uint16_t> projected;
-  std::optional<std::uint16_t> geographic;
-  std::optional<std::uint16_t> model;
-  std::string listed;
-  for (std::size_t k = 0; k < keys; ++k) {
-    const std::uint16_t id = word(4 + 4 * k);
-    const std::uint16_t location = word(5 + 4 * k);
-    const std::uint16_t value = word(7 + 4 * k);
-    if (location != 0) continue;  // the value lives in another tag
-    if (!listed.empty()) listed += ", ";
-    listed += std::to_string(id) + "=" + std::to_string(value);
-    // 0 means undefined and 32767 user-defined: neither is an EPSG code.
-    const bool code = value != 0 && value != kUserDefined;
-    if (id == kProjectedCsType && code) projected = value;
-    if (id == kGeographicType && code) geographic = value;
-    if (id == kModelType) model = value;
+// The CRS of the file (lib/crs): LAS 1.4 names it by WKT, earlier versions
+// by GeoTIFF keys (a WKT VLR there is a courtesy copy some writers add, used
+// only without keys). A malformed key directory is an error naming the file;
+// a WKT PROJ cannot read, or keys that name no CRS, are kept as given or
+// dropped with a warning.
+Status take_crs(const ProjectionRecords& records, int version_minor, const std::string& name,
+                PointStreamInfo& info) {
+  const bool use_wkt = records.wkt && (version_minor >= 4 || records.geotiff.keys.empty());
+  if (use_wkt) {
+    info.crs_source = *records.wkt;
+    Result<std::string> wkt2 = crs_to_wkt2(*records.wkt, name + ": WKT VLR");
+    if (wkt2.is_ok()) {
+      info.crs = *wkt2;
+    } else {
+      info.crs = *records.wkt;
+      info.warnings.push_back(wkt2.status().message() + "; the WKT is kept as given");
+    }
+  } else if (!records.geotiff.keys.empty()) {
+    RELIEF_ASSIGN_OR_RETURN(CrsDefinition crs, crs_from_geotiff(records.geotiff, name));
+    if (crs.wkt.empty()) {
+      info.warnings.push_back(name + ": the GeoTIFF keys name no coordinate reference system; none is recorded");
+    } else {
+      info.crs = std::move(crs.wkt);
+      info.crs_source = std::move(crs.source);
+    }
   }
-  // A code stands for the CRS only when the model type agrees with it (or is
-  // absent); otherwise the keys are recorded as given, so a file whose keys
-  // name a geographic base under another model type (e.g. 1024=3) is not
-  // mistaken for latitude/longitude data.
-  if (projected && (!model || *model == 1)) return "EPSG:" + std::to_string(*projected);
-  if (geographic && !projected && (!model || *model == 2)) return "EPSG:" + std::to_string(*geographic);
-  if (listed.empty()) return "";
-  return "GeoTIFF keys: " + listed;
+  return Status::ok();
 }
 
 // ---------------------------------------------------------------- points
@@ -401,12 +399,7 @@ Status LasPointReader::start() {
   info_.point_count = header_.point_count;
   info_.has_colors = has_rgb_;
   info_.has_intensity = true;  // every point format has it
-  // WKT wins over GeoTIFF keys: it is the newer, complete description.
-  if (records.wkt) {
-    info_.crs = *records.wkt;
-  } else if (records.geokeys) {
-    info_.crs = crs_from_geokeys(*records.geokeys);
-  }
+  RELIEF_RETURN_IF_ERROR(take_crs(records, header_.version_minor, name(), info_));
   info_.header_bounds = header_.bounds;
   info_.scale = header_.scale;
   info_.offset = header_.offset;

@@ -5,8 +5,10 @@
 // 0, which every LAS tool reads. A WKT coordinate system needs LAS 1.4 (the
 // WKT VLR and the global-encoding WKT bit are 1.4 features, and 1.4 wants the
 // 1.4 point formats with WKT), so then the file is LAS 1.4 with format 7
-// (RGB) or 6. "EPSG:<code>" and "GeoTIFF keys: ..." are written as a GeoTIFF
-// GeoKeyDirectoryTag VLR in the 1.2 file.
+// (RGB) or 6. A CRS whose source gave it as GeoTIFF records gets those
+// records back verbatim in the 1.2 file; one given as WKT gets that WKT.
+// "EPSG:<code>" and "GeoTIFF keys: ..." (archives made before the crs
+// module) are written as a GeoTIFF GeoKeyDirectoryTag VLR in the 1.2 file.
 //
 // Every point is "return 1 of 1", classification 0 (never classified), no
 // GPS time, scan angle or user data. 8-bit colour levels become 16-bit ones
@@ -66,6 +68,7 @@
 #include "io/point_writers.h"
 #include "io/text_scan.h"
 #include "relief/laz.h"
+#include "relief/crs.h"
 
 #ifndef RELIEF_VERSION
 #define RELIEF_VERSION "unknown"
@@ -82,6 +85,8 @@ constexpr std::size_t kEvlrHeaderSize = 60;
 constexpr std::size_t kMaxVlrPayload = 65535;  // the VLR length field is 16 bits
 constexpr std::uint16_t kWktRecordId = 2112;
 constexpr std::uint16_t kGeoKeyRecordId = 34735;
+constexpr std::uint16_t kGeoDoubleRecordId = 34736;
+constexpr std::uint16_t kGeoAsciiRecordId = 34737;
 constexpr std::string_view kProjectionUserId = "LASF_Projection";
 constexpr std::uint16_t kWktGlobalEncodingBit = 1u << 4;
 constexpr std::string_view kEpsgPrefix = "EPSG:";
@@ -177,6 +182,7 @@ struct CrsPlan {
   bool wkt = false;
   std::string wkt_text;
   std::vector<GeoKey> keys;  // sorted by id; empty without GeoTIFF keys
+  GeoTiffRecords records;    // the source's GeoTIFF records, written verbatim
   bool geographic = false;   // x and y are degrees
 };
 
@@ -205,9 +211,27 @@ bool wkt_is_geographic(std::string_view wkt) {
   return geographic < projected;
 }
 
-Result<CrsPlan> plan_crs(const std::string& crs, const std::string& path) {
+Result<CrsPlan> plan_crs(const std::string& crs, const std::string& source, const std::string& path) {
   CrsPlan plan;
   if (crs.empty()) return plan;
+  // A CRS that came from GeoTIFF keys goes back as the same records, in a
+  // LAS 1.2 file; one that came as WKT as that WKT text (LAS 1.4).
+  if (parse_geotiff_source_text(source, plan.records)) {
+    if (plan.records.keys.size() > kMaxVlrPayload || plan.records.doubles.size() > kMaxVlrPayload ||
+        plan.records.ascii.size() > kMaxVlrPayload) {
+      return invalid_argument(path + ": the GeoTIFF records of the CRS are too large for LAS VLRs");
+    }
+    // The archive's WKT2 says whether x and y are degrees.
+    Result<CrsSummary> summary = describe_crs(crs, path);
+    plan.geographic = summary.is_ok() ? summary->geographic : wkt_is_geographic(crs);
+    return plan;
+  }
+  if (!source.empty()) {
+    plan.wkt = true;
+    plan.wkt_text = source;
+    plan.geographic = wkt_is_geographic(source);
+    return plan;
+  }
   const std::string where = path + ": CRS " + quoted(crs) + ": ";
   const std::string_view text(crs);
   if (text.substr(0, kEpsgPrefix.size()) == kEpsgPrefix) {
@@ -587,6 +611,17 @@ class LasStreamWriter final : public StreamPointWriter {
         append_vlr(vlrs_, kWktRecordId, "OGC WKT coordinate system", payload);
         ++vlr_count_;
       }
+    } else if (!crs_.records.keys.empty()) {
+      append_vlr(vlrs_, kGeoKeyRecordId, "GeoTIFF GeoKeyDirectoryTag", crs_.records.keys);
+      ++vlr_count_;
+      if (!crs_.records.doubles.empty()) {
+        append_vlr(vlrs_, kGeoDoubleRecordId, "GeoTIFF GeoDoubleParamsTag", crs_.records.doubles);
+        ++vlr_count_;
+      }
+      if (!crs_.records.ascii.empty()) {
+        append_vlr(vlrs_, kGeoAsciiRecordId, "GeoTIFF GeoAsciiParamsTag", crs_.records.ascii);
+        ++vlr_count_;
+      }
     } else if (!crs_.keys.empty()) {
       append_vlr(vlrs_, kGeoKeyRecordId, "GeoTIFF GeoKeyDirectoryTag", geokey_directory(crs_.keys));
       ++vlr_count_;
@@ -783,7 +818,7 @@ Result<std::unique_ptr<PointWriter>> open_las_writer(const std::string& path, co
   if (!eb.empty() && (!all_finite(eb.min) || !all_finite(eb.max))) {
     return invalid_argument(path + ": the expected bounds are not finite");
   }
-  RELIEF_ASSIGN_OR_RETURN(CrsPlan crs, plan_crs(options.crs, path));
+  RELIEF_ASSIGN_OR_RETURN(CrsPlan crs, plan_crs(options.crs, options.crs_source, path));
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<OutputFile> out, OutputFile::create(path));
   if (out->is_stdout()) {
     return invalid_argument("LAS cannot be written to standard output (its header is completed last)");

@@ -250,6 +250,7 @@ enum class Sql : std::size_t {
   kScanFinish,
   kScanSummary,
   kScanFirstCrs,
+  kScanFirstCrsSource,
   kScanDelete,
   kSourceInsert,
   kSourceDeleteOfScan,
@@ -340,6 +341,10 @@ SqlText sql_text(Sql id) {
     case Sql::kScanFirstCrs:
       return {"summarise scans",
               "SELECT crs FROM relief_scan WHERE crs <> '' ORDER BY id LIMIT 1"};
+    case Sql::kScanFirstCrsSource:
+      return {"read the CRS source form",
+              "SELECT crs FROM relief_source WHERE crs <> '' AND scan_id = "
+              "(SELECT id FROM relief_scan WHERE crs <> '' ORDER BY id LIMIT 1) ORDER BY id LIMIT 1"};
     case Sql::kScanDelete:
       return {"delete scan", "DELETE FROM relief_scan WHERE id = ?1"};
     case Sql::kSourceInsert:
@@ -584,7 +589,7 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
     RELIEF_RETURN_IF_ERROR(store::exec(db, store::kCreateSchemaSql, path, "create the schema"));
     RELIEF_RETURN_IF_ERROR(store::exec(db, store::kCreateBoundsIndexSql, path, "create the schema"));
 
-    const std::array<std::pair<const char*, std::string>, 10> meta = {{
+    const std::array<std::pair<const char*, std::string>, 11> meta = {{
         {store::kMetaFormatVersion, std::to_string(kArchiveFormatVersion)},
         {store::kMetaOriginX, format_double(grid.origin.x)},
         {store::kMetaOriginY, format_double(grid.origin.y)},
@@ -594,6 +599,7 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
         {store::kMetaCreator, creator},
         {store::kMetaCreatedAt, utc_now_iso8601()},
         {store::kMetaCrs, ""},
+        {store::kMetaCrsSource, ""},
         {store::kMetaAttributes, ""},
     }};
     const SqlText put = sql_text(Sql::kMetaPut);
@@ -931,8 +937,16 @@ Status SqliteArchive::refresh_scan_summary() {
     RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
     if (row) crs = statement->column_text(0);
   }
+  std::string crs_source;
+  if (!crs.empty()) {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanFirstCrsSource));
+    StatementScope scope(*statement);
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (row) crs_source = statement->column_text(0);
+  }
   RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaAttributes, attributes));
   RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaCrs, crs));
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaCrsSource, crs_source));
   return write_meta_checksum();
 }
 
@@ -1310,6 +1324,7 @@ Result<ArchiveInfo> SqliteArchive::info() const {
     info.codec_params = meta[store::kMetaCodecParams];
     info.creator = meta[store::kMetaCreator];
     info.crs = meta[store::kMetaCrs];
+    info.crs_source = meta[store::kMetaCrsSource];
     // "rgb,intensity": names separated by commas; unknown names are ignored.
     const std::string& attributes = meta[store::kMetaAttributes];
     std::size_t start = 0;

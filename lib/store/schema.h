@@ -83,6 +83,9 @@ inline constexpr char kMetaCodecParams[] = "codec_params";
 inline constexpr char kMetaCreator[] = "creator";
 inline constexpr char kMetaCreatedAt[] = "created_at";
 inline constexpr char kMetaCrs[] = "crs";
+// How the first source with the archive's CRS gave it (relief/crs.h "source
+// form"): its relief_source.crs. Absent in archives written before it.
+inline constexpr char kMetaCrsSource[] = "crs_source";
 inline constexpr char kMetaAttributes[] = "attributes";
 // Version 2: CRC-32 of every other relief_meta row (format-spec/archive.md,
 // section 2.1), as 8 upper-case hexadecimal digits.

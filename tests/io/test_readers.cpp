@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "relief/crs.h"
 #include "relief/io.h"
 #include "support/same_cloud.h"
 #include "support/synthetic.h"
@@ -364,12 +365,24 @@ TEST_CASE("LAS 16-bit colours are shifted only when the sample needs it", "[io]"
 TEST_CASE("LAS coordinate reference systems", "[io]") {
   TempDir dir;
   const std::string path = dir.file("crs.las");
-  auto crs_of = [&](const LasSpec& s) {
+  auto open_las = [&](const LasSpec& s) {
     write_file(path, make_las(s));
-    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    return open_point_reader(path);
+  };
+  auto info_of = [&](const LasSpec& s) {
+    Result<std::unique_ptr<PointReader>> r = open_las(s);
     INFO(r.status().to_string());
     REQUIRE(r.is_ok());
-    return (*r)->info().crs;
+    return (*r)->info();
+  };
+  auto crs_of = [&](const LasSpec& s) { return info_of(s).crs; };
+  // The EPSG code of the WKT2 the reader made (0 when none).
+  auto epsg_of = [&](const LasSpec& s) {
+    const std::string crs = crs_of(s);
+    Result<CrsSummary> d = describe_crs(crs, "test");
+    INFO(crs);
+    REQUIRE(d.is_ok());
+    return d->epsg.value_or(0);
   };
   LasSpec s;
   s.format = 1;
@@ -377,31 +390,46 @@ TEST_CASE("LAS coordinate reference systems", "[io]") {
   SECTION("none") { CHECK(crs_of(s).empty()); }
   SECTION("projected GeoTIFF code") {
     s.vlrs = {geokey_record({{1024, 0, 1, 1}, {1025, 0, 1, 1}, {3072, 0, 1, 32612}, {2048, 0, 1, 4326}})};
-    CHECK(crs_of(s) == "EPSG:32612");
+    CHECK(epsg_of(s) == 32612);
+    CHECK_THAT(crs_of(s), StartsWith("PROJCRS[\"WGS 84 / UTM zone 12N\""));
+    CHECK_THAT(info_of(s).crs_source, StartsWith("GeoTIFF VLRs: 34735="));
   }
   SECTION("geographic GeoTIFF code") {
     s.vlrs = {geokey_record({{1024, 0, 1, 2}, {2048, 0, 1, 4326}})};
-    CHECK(crs_of(s) == "EPSG:4326");
+    CHECK(epsg_of(s) == 4326);
   }
-  SECTION("a geographic code under another model type is recorded as given") {
+  SECTION("keys under a model type that names no CRS give none, with a warning") {
     s.vlrs = {geokey_record({{1025, 0, 1, 2}, {1024, 0, 1, 3}, {2048, 0, 1, 4326}})};
-    CHECK(crs_of(s) == "GeoTIFF keys: 1025=2, 1024=3, 2048=4326");
+    const PointStreamInfo info = info_of(s);
+    CHECK(info.crs.empty());
+    REQUIRE(info.warnings.size() == 1);
+    CHECK_THAT(info.warnings[0], Contains("name no coordinate reference system"));
   }
-  SECTION("no usable code lists the direct keys") {
+  SECTION("a key pointing at a GeoDoubleParams record the file lacks is refused") {
     s.vlrs = {geokey_record({{1024, 0, 1, 1}, {3072, 0, 1, 32767}, {3076, 34736, 1, 0}})};
-    CHECK(crs_of(s) == "GeoTIFF keys: 1024=1, 3072=32767");
+    Result<std::unique_ptr<PointReader>> r = open_las(s);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kFormatError);
+    CHECK_THAT(r.status().message(), Contains(path));
   }
-  SECTION("a key count beyond the record is cut to the record") {
+  SECTION("a key count beyond the record is refused") {
     std::string keys = geokeys({{1024, 0, 1, 2}, {2048, 0, 1, 4267}});
     keys[6] = 99;  // NumberOfKeys
     s.vlrs = {{"LASF_Projection", 34735, keys}};
-    CHECK(crs_of(s) == "EPSG:4267");
+    Result<std::unique_ptr<PointReader>> r = open_las(s);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK_THAT(r.status().message(), Contains(path) && Contains("declares 99 keys"));
   }
-  SECTION("WKT wins over GeoTIFF keys, in either order") {
-    s.vlrs = {geokey_record({{3072, 0, 1, 2154}}), wkt_record("PROJCRS[\"RGF93 / Lambert-93\"]")};
-    CHECK(crs_of(s) == "PROJCRS[\"RGF93 / Lambert-93\"]");
+  SECTION("LAS 1.0-1.3: GeoTIFF keys win over a WKT VLR, in either order; WKT alone is used") {
+    s.vlrs = {geokey_record({{1024, 0, 1, 1}, {3072, 0, 1, 2154}}), wkt_record("PROJCRS[\"RGF93 / Lambert-93\"]")};
+    CHECK(epsg_of(s) == 2154);
     std::swap(s.vlrs[0], s.vlrs[1]);
-    CHECK(crs_of(s) == "PROJCRS[\"RGF93 / Lambert-93\"]");
+    CHECK(epsg_of(s) == 2154);
+    s.vlrs = {wkt_record("PROJCRS[\"not complete\"]")};
+    const PointStreamInfo info = info_of(s);
+    CHECK(info.crs == "PROJCRS[\"not complete\"]");  // PROJ cannot read it: kept as given
+    REQUIRE(info.warnings.size() == 1);
+    CHECK_THAT(info.warnings[0], Contains("kept as given"));
   }
   SECTION("LAS 1.4 extended VLRs after the points") {
     s.minor = 4;
@@ -598,9 +626,9 @@ TEST_CASE("LAS reads the shared terrestrial scan exactly as its PLY conversion",
   const PointStreamInfo& info = (*r)->info();
   CHECK(info.point_count == std::optional<std::uint64_t>(518862));
   CHECK_FALSE(info.has_colors);
-  // Its keys are 1025=2, 1024=3 (geocentric model), 2048=4326: not a plain
-  // geographic CRS, so they are recorded as given (PROVENANCE: UTM zone 12N).
-  CHECK(info.crs == "GeoTIFF keys: 1025=2, 1024=3, 2048=4326");
+  // Its keys are 1025=2, 1024=3 (geocentric model), 2048=4326: no CRS that
+  // libgeotiff and PROJ make of them (PROVENANCE: UTM zone 12N), so none.
+  CHECK(info.crs.empty());
   CHECK(info.scale == Vec3d{0.00025, 0.00025, 0.00025});
   const Result<PointCloud> got = read_stream(**r, 100000);
   REQUIRE(got.is_ok());

@@ -42,7 +42,7 @@ struct ArchiveSource {
   std::string path;
   std::string format;  // "ply", "las", "laz", "xyz", "pcd", "stream"
   std::uint64_t point_count = 0;
-  std::string crs;     // as the file gave it, empty when none
+  std::string crs;     // as the file gave it (relief/crs.h source form), empty when none
   std::int64_t scan_id = 0;
 };
 
@@ -50,7 +50,7 @@ struct ArchiveSource {
 struct ScanAttributes {
   bool has_colors = false;
   bool has_intensity = false;
-  std::string crs;  // of the scan's sources; empty when none
+  std::string crs;  // of the scan's sources (WKT2, relief/crs.h); empty when none
 };
 
 // A scan is what one compress, append or stream run adds.
@@ -65,7 +65,12 @@ struct ArchiveInfo {
   ArchiveGrid grid;
   std::string codec_params;  // the codec's defaults for this archive (encode_params_to_string)
   std::string creator;       // tool and version that created the archive
-  std::string crs;           // of the first source that had one; empty when none
+  // Of the earliest scan that had one: WKT2 (archives before the crs module:
+  // as the file gave it, e.g. "EPSG:2154"); empty when none.
+  std::string crs;
+  // How the first source with that CRS gave it (ArchiveSource::crs of that
+  // source), so a LAS writer can give it back the same way; may be empty.
+  std::string crs_source;
   bool has_colors = false;
   bool has_intensity = false;
   // Totals over all chunk rows (every scan, complete or not).

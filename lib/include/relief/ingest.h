@@ -90,6 +90,10 @@ struct IngestOptions {
   // on average fewer than 2 of the first points in a cell or 16 in a chunk: the
   // archive would be many times larger than the input. true skips that check.
   bool allow_sparse = false;
+  // Inputs (or an archive and its new inputs) with different CRSs are
+  // refused (kInvalidArgument naming both). true: the first input's CRS, or
+  // the archive's, is taken for all, with a warning in IngestResult.
+  bool assume_crs = false;
   std::string tmp_dir;      // temporary bucket files; empty = beside the archive
   ReaderOptions reader;
   // Called from the ingest's own thread about twice a second and at the end.

@@ -45,11 +45,13 @@ struct PointStreamInfo {
   std::optional<std::uint64_t> point_count;  // when the header states it
   bool has_colors = false;
   bool has_intensity = false;
-  // Coordinate reference system as the file gives it: WKT (LAS WKT VLR, PLY/PCD
-  // never), or for a LAS GeoTIFF key directory "EPSG:<code>" when it names a
-  // projected or geographic CRS code, else "GeoTIFF keys: <key>=<value>, ...".
-  // Empty when the file has none.
+  // Coordinate reference system (LAS only; relief/crs.h) as WKT2, from the
+  // LAS WKT VLR or GeoTIFF keys; empty when the file has none. A WKT that
+  // PROJ cannot read is kept as the file gave it (with a warning).
   std::string crs;
+  // The CRS as the file gave it (relief/crs.h "source form"): the WKT text,
+  // or "GeoTIFF VLRs: ..." with the key records verbatim.
+  std::string crs_source;
   std::optional<Box3d> header_bounds;        // LAS header min/max
   // Coordinate precision the file stores (LAS scale factors), 0 when not known,
   // and the offset of that grid (LAS: x = X * scale + offset).
@@ -101,9 +103,12 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
 struct WriterOptions {
   bool colors = false;
   bool intensity = false;
-  // LAS: coordinate reference system to write back, in the form
-  // PointStreamInfo::crs uses (WKT, "EPSG:<code>" or "GeoTIFF keys: ...").
+  // LAS: coordinate reference system to write back: WKT (1 or 2), or from
+  // older archives "EPSG:<code>" or "GeoTIFF keys: <key>=<value>, ...".
   std::string crs;
+  // LAS: how the source gave the CRS (PointStreamInfo::crs_source). GeoTIFF
+  // records are written back verbatim, a WKT source as its WKT; empty: as crs.
+  std::string crs_source;
   // LAS: bounds of the data to come (to choose offset and to check that the
   // scale fits int32); an empty box lets the writer choose from the first batch.
   Box3d expected_bounds;
