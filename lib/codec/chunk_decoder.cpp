@@ -127,6 +127,10 @@ Result<PointCloud> decode_maps(const codec::ParsedBlob& parsed, std::uint64_t ke
   const std::uint32_t n = h.patch_count;
   const std::uint32_t aw = static_cast<std::uint32_t>(h.tiles_x) * static_cast<std::uint32_t>(r);
   const std::uint32_t ah = static_cast<std::uint32_t>(h.tiles_y) * static_cast<std::uint32_t>(r);
+  if (static_cast<std::uint64_t>(aw) * ah > options.max_atlas_pixels) {
+    return limit_exceeded("chunk blob: a map atlas of " + std::to_string(aw) + " x " + std::to_string(ah) +
+                          " pixels exceeds the decoder limit of " + std::to_string(options.max_atlas_pixels));
+  }
 
   RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> masks, unpack_bytes(section(SectionId::kTree), "tree"));
   RELIEF_ASSIGN_OR_RETURN(std::vector<codec::Leaf> leaves,

@@ -685,7 +685,8 @@ Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, const Enc
   h.patch_count = static_cast<std::uint32_t>(enc.leaves.size());
   const codec::AtlasLayout layout = codec::atlas_layout(h.patch_count);
   const auto r = static_cast<std::uint32_t>(params.map_resolution);
-  if (static_cast<std::uint64_t>(layout.tiles_x) * r > codec::kMaxImageSide) {
+  if (static_cast<std::uint64_t>(layout.tiles_x) * r > codec::kMaxImageSide ||
+      static_cast<std::uint64_t>(layout.tiles_x) * layout.tiles_y * r * r > kMaxAtlasPixels) {
     return limit_exceeded("chunk: " + std::to_string(h.patch_count) +
                           " patches do not fit one atlas image; use a larger cell size or smaller chunks");
   }

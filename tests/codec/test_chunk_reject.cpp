@@ -274,3 +274,20 @@ TEST_CASE("the closed-form atlas layout matches placing every tile", "[codec][re
   CHECK(codec::atlas_layout(0xffffffffu).tiles_x == 65536);
   CHECK(codec::atlas_layout(0xffffffffu).tiles_y == 65536);
 }
+
+TEST_CASE("an atlas above the decoder's pixel limit is refused before any image is decoded", "[codec][reject]") {
+  for (ImageCodec codec : {ImageCodec::kJpeg, ImageCodec::kJpeg2000}) {
+    const std::vector<std::uint8_t> blob = small_blob(codec);
+    auto info = inspect_chunk(blob);
+    REQUIRE(info.is_ok());
+    const std::uint64_t pixels = static_cast<std::uint64_t>(info->atlas_width) * info->atlas_height;
+    DecodeOptions o;
+    o.max_atlas_pixels = pixels;
+    CHECK(decode_chunk(blob, o).is_ok());
+    o.max_atlas_pixels = pixels - 1;
+    auto r = decode_chunk(blob, o);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kLimitExceeded);
+    CHECK(r.status().message().find("atlas") != std::string::npos);
+  }
+}

@@ -74,6 +74,10 @@ struct EncodeParams {
   std::optional<ErrorBound> bound;
 };
 
+// Largest map atlas the encoder writes (tiles x r squared), so that a blob's
+// images stay within a few hundred MB to decode.
+inline constexpr std::uint64_t kMaxAtlasPixels = std::uint64_t{1} << 26;
+
 struct DecodeOptions {
   // Level of detail: 1 = every point; L = a spatially uniform ~1/L subset
   // (the quota is spread over the patches by error diffusion, so small patches
@@ -86,6 +90,10 @@ struct DecodeOptions {
   bool verify_checksum = true;
   // Refuse blobs that claim more decoded points than this (bounds memory).
   std::uint64_t max_points = std::uint64_t{1} << 26;
+  // Refuse blobs whose map atlas has more pixels than this before decoding
+  // any image (a header can claim up to 65500 x 65500; the encoder never
+  // writes more than kMaxAtlasPixels).
+  std::uint64_t max_atlas_pixels = kMaxAtlasPixels;
 };
 
 struct ChunkSectionInfo {
