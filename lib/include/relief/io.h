@@ -53,6 +53,14 @@ struct PointStreamInfo {
   // or "GeoTIFF VLRs: ..." with the key records verbatim.
   std::string crs_source;
   std::optional<Box3d> header_bounds;        // LAS header min/max
+  // LAS/LAZ only: the point data record format (0-10) and LAS minor version
+  // of the source (-1 otherwise), the LasAttributeBits every batch carries,
+  // and the raw payload of the Extra Bytes VLR (LASF_Spec, record 4; empty
+  // when the file has none) describing PointCloud::las.extra_bytes.
+  int las_point_format = -1;
+  int las_version_minor = -1;
+  std::uint32_t las_attributes = 0;
+  std::string extra_bytes_vlr;
   // Coordinate precision the file stores (LAS scale factors), 0 when not known,
   // and the offset of that grid (LAS: x = X * scale + offset).
   Vec3d scale{0, 0, 0};

@@ -40,12 +40,70 @@ struct Box3d {
   Vec3d extent() const;
 };
 
+// One bit per LasAttributes vector, for the set an input, a chunk or an
+// archive carries (a batch of 0 points cannot show it by its vectors).
+enum LasAttributeBits : std::uint32_t {
+  kLasClassification = 1u << 0,
+  kLasClassFlags = 1u << 1,
+  kLasReturnNumber = 1u << 2,
+  kLasNumberOfReturns = 1u << 3,
+  kLasScanFlags = 1u << 4,
+  kLasScanAngle = 1u << 5,
+  kLasUserData = 1u << 6,
+  kLasPointSourceId = 1u << 7,
+  kLasGpsTime = 1u << 8,
+  kLasNir = 1u << 9,
+  kLasColorLow = 1u << 10,
+  kLasExtraBytes = 1u << 11,
+};
+
+// Per-point LAS attributes beyond XYZ, RGB and intensity (ASPRS LAS 1.4
+// names). Each vector is empty (the cloud does not carry that attribute) or
+// holds one value per point. Values are the LAS record's own integers, so a
+// LAS/LAZ file comes back bit for bit; the units are chosen so that every
+// point format (0-10) maps to them exactly.
+struct LasAttributes {
+  // Classification value. Formats 0-5 keep 5 bits (0..31), formats 6-10 8 bits.
+  std::vector<std::uint8_t> classification;
+  // Classification flags, LAS 1.4 bit order: bit 0 synthetic, bit 1 key-point,
+  // bit 2 withheld, bit 3 overlap (formats 0-5 have no overlap bit).
+  std::vector<std::uint8_t> class_flags;
+  // Return number and number of returns (formats 0-5: 0..7, 6-10: 0..15).
+  std::vector<std::uint8_t> return_number;
+  std::vector<std::uint8_t> number_of_returns;
+  // Bit 0 scan direction flag, bit 1 edge of flight line, bits 2-3 scanner
+  // channel (formats 6-10 only).
+  std::vector<std::uint8_t> scan_flags;
+  // Scan angle in thousandths of a degree: formats 0-5 store whole degrees
+  // (x1000 here), formats 6-10 steps of 0.006 degrees (x6 here). Exact both ways.
+  std::vector<std::int32_t> scan_angle;
+  std::vector<std::uint8_t> user_data;
+  std::vector<std::uint16_t> point_source_id;
+  std::vector<double> gps_time;
+  std::vector<std::uint16_t> nir;
+  // Low bytes of 16-bit LAS colours whose low byte is not implied by the high
+  // byte: the LAS value is (colors[i].r << 8) | color_low[i].r. Empty when the
+  // source's colours are 8-bit (the colour is colors[i] itself).
+  std::vector<Rgb8> color_low;
+  // LAS "extra bytes": extra_bytes_size raw bytes per point, described by the
+  // source's Extra Bytes VLR (PointStreamInfo::extra_bytes_vlr); extra_bytes
+  // holds size() * extra_bytes_size bytes, or is empty.
+  std::vector<std::uint8_t> extra_bytes;
+  std::uint32_t extra_bytes_size = 0;
+
+  // True when no per-point LAS attribute is carried.
+  bool empty() const;
+  // The LasAttributeBits of the non-empty vectors.
+  std::uint32_t carried() const;
+};
+
 // A point cloud with optional per-point attributes. Coordinates are double
 // end to end so georeferenced data keeps sub-millimetre precision.
 struct PointCloud {
   std::vector<Vec3d> positions;
   std::vector<Rgb8> colors;         // empty, or one per position
   std::vector<float> intensities;   // empty, or one per position
+  LasAttributes las;                // each vector empty, or one per position
 
   std::size_t size() const { return positions.size(); }
   bool empty() const { return positions.empty(); }
@@ -57,6 +115,23 @@ struct PointCloud {
   Status validate(const std::string& what) const;
   Box3d bounds() const;
   void reserve(std::size_t n, bool with_colors, bool with_intensity);
+
+  // Generic per-point operations over every attribute the cloud carries
+  // (positions, colours, intensities and each non-empty LasAttributes vector),
+  // so code that moves points never forgets one.
+  // A cloud "carries" an attribute when its vector is non-empty, so a cloud
+  // of 0 points carries none; code that needs the set for empty batches keeps
+  // it elsewhere (PointStreamInfo, archive metadata).
+  // Removes all points (every vector cleared; extra_bytes_size kept).
+  void clear_points();
+  // Appends point `i` of `src`, which must carry the same attributes.
+  void push_back_from(const PointCloud& src, std::size_t i);
+  // Reorders (or selects) points: the result's point k is this cloud's point order[k].
+  PointCloud gathered(const std::vector<std::uint32_t>& order) const;
+  // Resizes positions and every carried attribute to n points (new points zeroed).
+  void resize_points(std::size_t n);
+  // True when `other` carries the same set of attributes (same extra_bytes_size).
+  bool same_attributes(const PointCloud& other) const;
 };
 
 }  // namespace relief
