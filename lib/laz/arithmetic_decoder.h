@@ -1,8 +1,9 @@
 // The LASzip entropy decoder: a 32-bit range coder (after Amir Said's
-// "FastAC") with adaptive bit and symbol models, plus the integer
-// decompressor LASzip builds on them. Bit-exact with LASzip's
-// ArithmeticDecoder / ArithmeticModel / IntegerCompressor, so every constant
-// and update rule below is part of the format. Internal to lib/laz.
+// "FastAC") with adaptive bit and symbol models (shared with the encoder in
+// arithmetic_encoder.h; the integer coder LASzip builds on them is in
+// integer_coder.h). Bit-exact with LASzip's ArithmeticDecoder /
+// ArithmeticModel, so every constant and update rule below is part of the
+// format. Internal to lib/laz.
 //
 // Safety: the decoder reads only inside its span; past the end it feeds
 // zeros and counts them, and callers reject a chunk whose decoders ran more
@@ -239,79 +240,6 @@ class ArithmeticDecoder {
   std::size_t overrun_ = 0;
   std::uint32_t value_ = 0;
   std::uint32_t length_ = 0;
-};
-
-// LASzip's IntegerCompressor, decoding side: a corrector's bit length k is a
-// symbol (per context), then the low bits are a symbol (k <= bits_high) or a
-// symbol plus raw bits.
-class IntegerDecompressor {
- public:
-  explicit IntegerDecompressor(std::uint32_t bits = 16, std::uint32_t contexts = 1, std::uint32_t bits_high = 8)
-      : bits_high_(bits_high) {
-    if (bits != 0 && bits < 32) {
-      corr_bits_ = bits;
-      corr_range_ = 1u << bits;
-      corr_min_ = -static_cast<std::int32_t>(corr_range_ / 2);
-    } else {
-      corr_bits_ = 32;
-      corr_range_ = 0;
-      corr_min_ = INT32_MIN;
-    }
-    for (std::uint32_t i = 0; i < contexts; ++i) bits_models_.emplace_back(corr_bits_ + 1);
-    for (std::uint32_t i = 1; i <= corr_bits_; ++i) {
-      correctors_.emplace_back(i <= bits_high_ ? (1u << i) : (1u << bits_high_));
-    }
-  }
-  void init() {
-    for (auto& m : bits_models_) m.init();
-    corrector0_.init();
-    for (auto& m : correctors_) m.init();
-  }
-  // Bit length of the last corrector (LASzip's getK()).
-  std::uint32_t k() const { return k_; }
-
-  // Returns pred + corrector, wrapped into the corrector range (mod 2^32
-  // for 32-bit values).
-  std::int32_t decompress(ArithmeticDecoder& dec, std::int32_t pred, std::uint32_t context = 0) {
-    const std::uint32_t c = read_corrector(dec, bits_models_[context]);
-    std::uint32_t real = static_cast<std::uint32_t>(pred) + c;
-    if (corr_range_ != 0) {
-      if (static_cast<std::int32_t>(real) < 0) {
-        real += corr_range_;
-      } else if (real >= corr_range_) {
-        real -= corr_range_;
-      }
-    }
-    return static_cast<std::int32_t>(real);
-  }
-
- private:
-  std::uint32_t read_corrector(ArithmeticDecoder& dec, SymbolModel& bits_model) {
-    k_ = dec.decode_symbol(bits_model);
-    if (k_ == 0) return dec.decode_bit(corrector0_);
-    if (k_ >= 32) return static_cast<std::uint32_t>(corr_min_);
-    std::uint32_t c;
-    if (k_ <= bits_high_) {
-      c = dec.decode_symbol(correctors_[k_ - 1]);
-    } else {
-      const std::uint32_t k1 = k_ - bits_high_;
-      c = dec.decode_symbol(correctors_[k_ - 1]);
-      const std::uint32_t low = dec.read_bits(k1);
-      c = (c << k1) | low;
-    }
-    // c in [0, 2^k) maps to [-(2^k - 1), -2^(k-1)] and [2^(k-1) + 1, 2^k].
-    if (c >= (1u << (k_ - 1))) return c + 1;
-    return c - ((1u << k_) - 1);
-  }
-
-  std::uint32_t bits_high_;
-  std::uint32_t corr_bits_ = 0;
-  std::uint32_t corr_range_ = 0;
-  std::int32_t corr_min_ = 0;
-  std::uint32_t k_ = 0;
-  std::vector<SymbolModel> bits_models_;
-  BitModel corrector0_;
-  std::vector<SymbolModel> correctors_;
 };
 
 }  // namespace relief::laz

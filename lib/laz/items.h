@@ -1,8 +1,11 @@
-// Item decompressors of LASzip: version 2 (pointwise, one arithmetic stream
-// per chunk) and version 3 (layered: each attribute has its own stream, and
+// Item coders of LASzip: version 2 (pointwise, one arithmetic stream per
+// chunk) and version 3 (layered: each attribute has its own stream, and
 // POINT14 keeps separate contexts per scanner channel that the other items
-// follow). Each matches LASzip's reader for the same item bit for bit.
-// Internal to lib/laz.
+// follow). Each class holds one item's models and predictor state and both
+// directions: read() (items_v2.cpp, items_v3.cpp) matches LASzip's reader
+// bit for bit, write() (items_v2_write.cpp, items_v3_write.cpp) LASzip's
+// writer byte for byte, and the two use the same state so that every model
+// is initialised and updated in one place. Internal to lib/laz.
 #pragma once
 
 #include <array>
@@ -12,6 +15,8 @@
 #include <vector>
 
 #include "laz/arithmetic_decoder.h"
+#include "laz/arithmetic_encoder.h"
+#include "laz/integer_coder.h"
 
 namespace relief::laz {
 
@@ -32,6 +37,35 @@ inline constexpr std::size_t kGpsTime11Size = 8;
 inline constexpr std::size_t kRgb12Size = 6;
 inline constexpr std::size_t kPoint14Size = 30;
 inline constexpr std::size_t kRgbNir14Size = 8;
+
+// The items of a point format before any extra bytes (empty for formats
+// LAZ does not cover here) and their total size.
+struct FormatItems {
+  std::vector<std::uint16_t> types;
+  std::size_t size = 0;
+};
+FormatItems items_for_format(int format);
+// The size of a fixed-size item (0 for BYTE and BYTE14).
+std::size_t fixed_item_size(std::uint16_t type);
+
+// POINT10 byte offsets.
+namespace p10 {
+inline constexpr int kX = 0, kY = 4, kZ = 8, kIntensity = 12, kBits = 14, kClass = 15, kAngle = 16, kUser = 17,
+                     kSource = 18;
+}  // namespace p10
+
+// A context's symbol model, created on first use (as LASzip does: most
+// contexts of a 256-way table never occur).
+inline SymbolModel& model_for(std::unique_ptr<SymbolModel>& m, std::uint32_t symbols) {
+  if (!m) m = std::make_unique<SymbolModel>(symbols);
+  return *m;
+}
+template <std::size_t N>
+void init_existing(std::array<std::unique_ptr<SymbolModel>, N>& models) {
+  for (auto& m : models) {
+    if (m) m->init();
+  }
+}
 
 // Running median of the last five values (LASzip's StreamingMedian5).
 class Median5 {
@@ -59,6 +93,10 @@ struct RgbModels {
   }
 };
 void decode_rgb(ArithmeticDecoder& dec, RgbModels& m, const std::uint16_t* last, std::uint16_t* out);
+// Codes colour `c` against `last`; returns the symbol written first (bits
+// 0-5: which bytes differ from `last`, bit 6: the channels differ), so 0
+// means the colour added nothing.
+std::uint32_t encode_rgb(ArithmeticEncoder& enc, RgbModels& m, const std::uint16_t* last, const std::uint16_t* c);
 
 // GPS time state of one sequence set (GPSTIME11 v2 and POINT14 v3 differ
 // only in the symbol numbering of the "zero difference" model).
@@ -68,7 +106,7 @@ struct GpsTimeState {
   void init(std::uint64_t first);
   SymbolModel multi;
   SymbolModel zero_diff;
-  IntegerDecompressor ic{32, 9};
+  IntegerCoder ic{32, 9};
   std::uint32_t last = 0, next = 0;
   std::array<std::uint64_t, 4> time{};
   std::array<std::int32_t, 4> diff{};
@@ -87,22 +125,39 @@ void gps_decode_multiple(ArithmeticDecoder& dec, GpsTimeState& s, std::uint32_t 
 // A new sequence whose upper 32 bits are coded against the current one's.
 void gps_decode_full(ArithmeticDecoder& dec, GpsTimeState& s);
 
+// The symbols of the two GPS time coders (they differ by the "unchanged"
+// code that only version 2 has: version 3 codes a time only when it changed).
+struct GpsCodes {
+  bool has_unchanged;              // v2: the time may repeat the sequence's last
+  std::uint32_t zero_unchanged;    // zero-difference model: time repeats
+  std::uint32_t zero_small;        // ... a 32-bit difference follows
+  std::uint32_t zero_full;         // ... a new sequence starts
+  std::uint32_t multi_unchanged;   // multiplier model: time repeats
+  std::uint32_t multi_full;        // ... a new sequence starts; + i: switch by i
+};
+inline constexpr GpsCodes kGpsCodesV2{true, 0, 1, 2, kGpsMulti - kGpsMultiMinus + 1, kGpsMulti - kGpsMultiMinus + 2};
+inline constexpr GpsCodes kGpsCodesV3{false, 0, 0, 1, 0, kGpsMulti - kGpsMultiMinus + 1};
+// Codes time `t` (the double's bits) as LASzip's writer does.
+void gps_encode(ArithmeticEncoder& enc, GpsTimeState& s, std::uint64_t t, const GpsCodes& codes);
+
 // ---------------------------------------------------------------- version 2
 
 class Point10V2 {
  public:
   void init(const std::uint8_t* item);
   void read(ArithmeticDecoder& dec, std::uint8_t* item);
+  void write(ArithmeticEncoder& enc, const std::uint8_t* item);
 
  private:
   SymbolModel changed_values_{64};
-  IntegerDecompressor ic_intensity_{16, 4};
+  IntegerCoder ic_intensity_{16, 4};
   std::array<SymbolModel, 2> scan_angle_{SymbolModel(256), SymbolModel(256)};
-  IntegerDecompressor ic_point_source_{16};
+  IntegerCoder ic_point_source_{16};
+  // Created on first use, as LASzip does (most of the 256 never are).
   std::array<std::unique_ptr<SymbolModel>, 256> bit_byte_, classification_, user_data_;
-  IntegerDecompressor ic_dx_{32, 2};
-  IntegerDecompressor ic_dy_{32, 22};
-  IntegerDecompressor ic_z_{32, 20};
+  IntegerCoder ic_dx_{32, 2};
+  IntegerCoder ic_dy_{32, 22};
+  IntegerCoder ic_z_{32, 20};
   std::array<std::uint8_t, kPoint10Size> last_{};
   std::array<std::uint16_t, 16> last_intensity_{};
   std::array<Median5, 16> last_x_diff_, last_y_diff_;
@@ -113,6 +168,7 @@ class GpsTime11V2 {
  public:
   void init(const std::uint8_t* item);
   void read(ArithmeticDecoder& dec, std::uint8_t* item);
+  void write(ArithmeticEncoder& enc, const std::uint8_t* item);
 
  private:
   GpsTimeState s_{6, 516};
@@ -122,6 +178,7 @@ class Rgb12V2 {
  public:
   void init(const std::uint8_t* item);
   void read(ArithmeticDecoder& dec, std::uint8_t* item);
+  void write(ArithmeticEncoder& enc, const std::uint8_t* item);
 
  private:
   RgbModels m_;
@@ -133,6 +190,7 @@ class ByteV2 {
   explicit ByteV2(std::size_t n);
   void init(const std::uint8_t* item);
   void read(ArithmeticDecoder& dec, std::uint8_t* item);
+  void write(ArithmeticEncoder& enc, const std::uint8_t* item);
 
  private:
   std::vector<SymbolModel> models_;
@@ -141,8 +199,9 @@ class ByteV2 {
 
 // ---------------------------------------------------------------- version 3
 
-// A layer: its bytes in the chunk, its decoder, and whether it is present
-// (a layer of zero bytes means the attribute never changes in the chunk).
+// A layer being read: its bytes in the chunk, its decoder, and whether it is
+// present (a layer of zero bytes means the attribute never changes in the
+// chunk).
 struct Layer {
   std::uint32_t size = 0;
   bool changed = false;
@@ -153,6 +212,20 @@ struct Layer {
 // when a stream is not decodable.
 bool start_layers(std::span<Layer> layers, std::span<const std::uint8_t> data);
 
+// A layer being written: its own stream, stored only if `changed` (some
+// point of the chunk differs from its predecessor in it) or `always`.
+struct OutLayer {
+  std::vector<std::uint8_t> bytes;
+  ArithmeticEncoder enc;
+  bool changed = false;
+  bool always = false;
+  void start() {
+    bytes.clear();
+    enc.init(bytes);
+    changed = always;
+  }
+};
+
 inline constexpr int kScannerChannels = 4;
 
 class Point14V3 {
@@ -161,9 +234,13 @@ class Point14V3 {
   Point14V3();
   ~Point14V3();
   std::span<Layer> layers() { return layers_; }
-  // The item's scanner channel: the context the other items follow.
+  std::span<OutLayer> out_layers() { return out_layers_; }
+  // Starts a chunk at its first item (stored raw); returns the item's
+  // scanner channel: the context the other items follow. (A writer starts
+  // the out_layers() itself.)
   std::uint32_t init(const std::uint8_t* item);
   std::uint32_t read(std::uint8_t* item);
+  std::uint32_t write(const std::uint8_t* item);
 
   struct Context;
   struct Fields;
@@ -173,16 +250,19 @@ class Point14V3 {
   void read_gps_time(Context& ctx);
 
   std::array<Layer, kLayers> layers_;
+  std::array<OutLayer, kLayers> out_layers_;
   std::array<std::unique_ptr<Context>, kScannerChannels> contexts_;
   std::uint32_t current_ = 0;
 };
 
 class Rgb14V3 {
  public:
-  explicit Rgb14V3(bool nir) : nir_(nir), layers_(nir ? 2 : 1) {}
+  explicit Rgb14V3(bool nir);
   std::span<Layer> layers() { return layers_; }
+  std::span<OutLayer> out_layers() { return out_layers_; }
   void init(const std::uint8_t* item, std::uint32_t context);
   void read(std::uint8_t* item, std::uint32_t context);
+  void write(const std::uint8_t* item, std::uint32_t context);
 
  private:
   struct Context {
@@ -193,19 +273,23 @@ class Rgb14V3 {
     std::array<std::uint16_t, 4> last{};
   };
   void init_context(std::uint32_t c, const std::uint16_t* from);
+  std::uint16_t* switch_context(std::uint32_t context);
 
   bool nir_;
   std::vector<Layer> layers_;
+  std::vector<OutLayer> out_layers_;
   std::array<std::unique_ptr<Context>, kScannerChannels> contexts_;
   std::uint32_t current_ = 0;
 };
 
 class Byte14V3 {
  public:
-  explicit Byte14V3(std::size_t n) : n_(n), layers_(n) {}
+  explicit Byte14V3(std::size_t n) : n_(n), layers_(n), out_layers_(n) {}
   std::span<Layer> layers() { return layers_; }
+  std::span<OutLayer> out_layers() { return out_layers_; }
   void init(const std::uint8_t* item, std::uint32_t context);
   void read(std::uint8_t* item, std::uint32_t context);
+  void write(const std::uint8_t* item, std::uint32_t context);
 
  private:
   struct Context {
@@ -214,9 +298,11 @@ class Byte14V3 {
     std::vector<std::uint8_t> last;
   };
   void init_context(std::uint32_t c, const std::uint8_t* from);
+  std::uint8_t* switch_context(std::uint32_t context);
 
   std::size_t n_;
   std::vector<Layer> layers_;
+  std::vector<OutLayer> out_layers_;
   std::array<std::unique_ptr<Context>, kScannerChannels> contexts_;
   std::uint32_t current_ = 0;
 };

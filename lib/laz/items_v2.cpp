@@ -1,4 +1,5 @@
-// LASzip item decompressors, version 2, and the pieces version 3 shares.
+// LASzip item decompressors, version 2, and the pieces version 3 shares
+// (the compressors are in items_v2_write.cpp).
 #include <cstring>
 
 #include "laz/items.h"
@@ -119,33 +120,7 @@ void GpsTimeState::init(std::uint64_t first) {
 
 // ---------------------------------------------------------------- POINT10
 
-namespace {
-
-std::int32_t get_i32(const std::uint8_t* p) {
-  std::uint32_t v;
-  std::memcpy(&v, p, 4);
-  return static_cast<std::int32_t>(v);
-}
-void put_i32(std::uint8_t* p, std::int32_t v) { std::memcpy(p, &v, 4); }
-std::uint16_t get_u16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
-void put_u16(std::uint8_t* p, std::uint32_t v) {
-  p[0] = static_cast<std::uint8_t>(v);
-  p[1] = static_cast<std::uint8_t>(v >> 8);
-}
-std::int32_t wrap_add(std::int32_t a, std::int32_t b) {
-  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) + static_cast<std::uint32_t>(b));
-}
-std::uint32_t zero_bit0(std::uint32_t k) { return k & ~1u; }
-
-// POINT10 byte offsets.
-constexpr int kX = 0, kY = 4, kZ = 8, kIntensity = 12, kBits = 14, kClass = 15, kAngle = 16, kUser = 17,
-              kSource = 18;
-
-void ensure(std::unique_ptr<SymbolModel>& m, std::uint32_t symbols) {
-  if (!m) m = std::make_unique<SymbolModel>(symbols);
-}
-
-}  // namespace
+using namespace p10;
 
 void Point10V2::init(const std::uint8_t* item) {
   for (int i = 0; i < 16; ++i) {
@@ -185,9 +160,8 @@ void Point10V2::read(ArithmeticDecoder& dec, std::uint8_t* item) {
   };
   if (changed != 0) {
     if (changed & 32) {
-      auto& model = bit_byte_[last[kBits]];
-      ensure(model, 256);
-      last[kBits] = static_cast<std::uint8_t>(dec.decode_symbol(*model));
+      SymbolModel& model = model_for(bit_byte_[last[kBits]], 256);
+      last[kBits] = static_cast<std::uint8_t>(dec.decode_symbol(model));
     }
     returns();
     if (changed & 16) {
@@ -198,18 +172,16 @@ void Point10V2::read(ArithmeticDecoder& dec, std::uint8_t* item) {
       put_u16(last + kIntensity, last_intensity_[m]);
     }
     if (changed & 8) {
-      auto& model = classification_[last[kClass]];
-      ensure(model, 256);
-      last[kClass] = static_cast<std::uint8_t>(dec.decode_symbol(*model));
+      SymbolModel& model = model_for(classification_[last[kClass]], 256);
+      last[kClass] = static_cast<std::uint8_t>(dec.decode_symbol(model));
     }
     if (changed & 4) {
       const int v = static_cast<int>(dec.decode_symbol(scan_angle_[(last[kBits] >> 6) & 1]));
       last[kAngle] = fold8(v + last[kAngle]);
     }
     if (changed & 2) {
-      auto& model = user_data_[last[kUser]];
-      ensure(model, 256);
-      last[kUser] = static_cast<std::uint8_t>(dec.decode_symbol(*model));
+      SymbolModel& model = model_for(user_data_[last[kUser]], 256);
+      last[kUser] = static_cast<std::uint8_t>(dec.decode_symbol(model));
     }
     if (changed & 1) {
       const auto v = ic_point_source_.decompress(dec, get_u16(last + kSource));
@@ -241,16 +213,8 @@ void Point10V2::read(ArithmeticDecoder& dec, std::uint8_t* item) {
 // ---------------------------------------------------------------- GPSTIME11
 
 namespace {
-
-constexpr std::uint32_t kGpsMultiUnchangedV2 = kGpsMulti - kGpsMultiMinus + 1;  // 511
-constexpr std::uint32_t kGpsMultiCodeFullV2 = kGpsMulti - kGpsMultiMinus + 2;   // 512
-}  // namespace
-
-namespace {
-std::int32_t times(std::int32_t a, std::int32_t b) {
-  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) * static_cast<std::uint32_t>(b));
-}
-
+constexpr std::uint32_t kGpsMultiUnchangedV2 = kGpsCodesV2.multi_unchanged;  // 511
+constexpr std::uint32_t kGpsMultiCodeFullV2 = kGpsCodesV2.multi_full;         // 512
 }  // namespace
 
 void gps_decode_multiple(ArithmeticDecoder& dec, GpsTimeState& s, std::uint32_t multi_u) {
@@ -265,9 +229,9 @@ void gps_decode_multiple(ArithmeticDecoder& dec, GpsTimeState& s, std::uint32_t 
       extreme = 0;
     }
   } else if (multi < kGpsMulti) {
-    d = s.ic.decompress(dec, times(multi, last_diff), multi < 10 ? 2 : 3);
+    d = s.ic.decompress(dec, wrap_mul(multi, last_diff), multi < 10 ? 2 : 3);
   } else if (multi == kGpsMulti) {
-    d = s.ic.decompress(dec, times(kGpsMulti, last_diff), 4);
+    d = s.ic.decompress(dec, wrap_mul(kGpsMulti, last_diff), 4);
     if (++extreme > 3) {
       last_diff = d;
       extreme = 0;
@@ -275,9 +239,9 @@ void gps_decode_multiple(ArithmeticDecoder& dec, GpsTimeState& s, std::uint32_t 
   } else {
     const std::int32_t back = kGpsMulti - multi;
     if (back > kGpsMultiMinus) {
-      d = s.ic.decompress(dec, times(back, last_diff), 5);
+      d = s.ic.decompress(dec, wrap_mul(back, last_diff), 5);
     } else {
-      d = s.ic.decompress(dec, times(kGpsMultiMinus, last_diff), 6);
+      d = s.ic.decompress(dec, wrap_mul(kGpsMultiMinus, last_diff), 6);
       if (++extreme > 3) {
         last_diff = d;
         extreme = 0;
@@ -298,11 +262,7 @@ void gps_decode_full(ArithmeticDecoder& dec, GpsTimeState& s) {
   s.extreme[s.last] = 0;
 }
 
-void GpsTime11V2::init(const std::uint8_t* item) {
-  std::uint64_t t;
-  std::memcpy(&t, item, 8);
-  s_.init(t);
-}
+void GpsTime11V2::init(const std::uint8_t* item) { s_.init(get_u64(item)); }
 
 void GpsTime11V2::read(ArithmeticDecoder& dec, std::uint8_t* item) {
   for (int hop = 0; hop <= kMaxSequenceSwitches; ++hop) {
@@ -335,7 +295,7 @@ void GpsTime11V2::read(ArithmeticDecoder& dec, std::uint8_t* item) {
     }
     break;
   }
-  std::memcpy(item, &s_.time[s_.last], 8);
+  put_u64(item, s_.time[s_.last]);
 }
 
 // ---------------------------------------------------------------- RGB12, BYTE

@@ -1,8 +1,9 @@
 // LASzip item decompressors, version 3 (the layered chunked compressor of
-// LAS 1.4 point formats 6-8).
+// LAS 1.4 point formats 6-8); the compressors are in items_v3_write.cpp.
 #include <cstring>
 
 #include "laz/items.h"
+#include "laz/items_v3_state.h"
 #include "laz/tables.h"
 
 namespace relief::laz {
@@ -20,111 +21,11 @@ bool start_layers(std::span<Layer> layers, std::span<const std::uint8_t> data) {
   return true;
 }
 
-namespace {
-
-constexpr std::uint32_t kGpsMultiCodeFullV3 = kGpsMulti - kGpsMultiMinus + 1;  // 511
-constexpr std::uint32_t kGpsMultiTotalV3 = kGpsMulti - kGpsMultiMinus + 5;     // 515
-constexpr std::uint32_t kGpsZeroDiffSymbolsV3 = 5;
-
-// Layer order in the chunk (and of the byte counts before the layers).
-enum Point14Layer : std::size_t {
-  kXY = 0,
-  kZ,
-  kClassification,
-  kFlags,
-  kIntensity,
-  kScanAngle,
-  kUserData,
-  kPointSource,
-  kGpsTime,
-};
-
-std::uint16_t get_u16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
-void put_u16(std::uint8_t* p, std::uint32_t v) {
-  p[0] = static_cast<std::uint8_t>(v);
-  p[1] = static_cast<std::uint8_t>(v >> 8);
+Point14V3::Point14V3() {
+  // LASzip stores these two layers in every chunk, changed or not.
+  out_layers_[kXY].always = true;
+  out_layers_[kZ].always = true;
 }
-std::uint32_t zero_bit0(std::uint32_t k) { return k & ~1u; }
-
-void ensure(std::unique_ptr<SymbolModel>& m, std::uint32_t symbols) {
-  if (!m) m = std::make_unique<SymbolModel>(symbols);
-}
-template <std::size_t N>
-void init_existing(std::array<std::unique_ptr<SymbolModel>, N>& models) {
-  for (auto& m : models) {
-    if (m) m->init();
-  }
-}
-
-}  // namespace
-
-// The POINT14 fields the coder works on (LASzip's LASpoint14 minus legacy copies).
-struct Point14V3::Fields {
-  std::int32_t x = 0, y = 0, z = 0;
-  std::uint16_t intensity = 0;
-  std::uint32_t return_number = 0, number_of_returns = 0;
-  std::uint32_t classification_flags = 0, scanner_channel = 0, scan_direction = 0, edge = 0;
-  std::uint32_t classification = 0, user_data = 0;
-  std::int16_t scan_angle = 0;
-  std::uint16_t point_source = 0;
-  std::uint64_t gps_time = 0;
-  bool gps_time_change = false;
-
-  void load(const std::uint8_t* p) {
-    std::memcpy(&x, p, 4);
-    std::memcpy(&y, p + 4, 4);
-    std::memcpy(&z, p + 8, 4);
-    intensity = get_u16(p + 12);
-    return_number = p[14] & 0xF;
-    number_of_returns = p[14] >> 4;
-    classification_flags = p[15] & 0xF;
-    scanner_channel = (p[15] >> 4) & 0x3;
-    scan_direction = (p[15] >> 6) & 1;
-    edge = p[15] >> 7;
-    classification = p[16];
-    user_data = p[17];
-    scan_angle = static_cast<std::int16_t>(get_u16(p + 18));
-    point_source = get_u16(p + 20);
-    std::memcpy(&gps_time, p + 22, 8);
-  }
-  void store(std::uint8_t* p) const {
-    std::memcpy(p, &x, 4);
-    std::memcpy(p + 4, &y, 4);
-    std::memcpy(p + 8, &z, 4);
-    put_u16(p + 12, intensity);
-    p[14] = static_cast<std::uint8_t>(return_number | (number_of_returns << 4));
-    p[15] = static_cast<std::uint8_t>(classification_flags | (scanner_channel << 4) | (scan_direction << 6) |
-                                      (edge << 7));
-    p[16] = static_cast<std::uint8_t>(classification);
-    p[17] = static_cast<std::uint8_t>(user_data);
-    put_u16(p + 18, static_cast<std::uint16_t>(scan_angle));
-    put_u16(p + 20, point_source);
-    std::memcpy(p + 22, &gps_time, 8);
-  }
-};
-
-// Models and predictor state of one scanner channel.
-struct Point14V3::Context {
-  bool unused = true;
-  Fields last;
-  std::vector<SymbolModel> changed_values = std::vector<SymbolModel>(8, SymbolModel(128));
-  SymbolModel scanner_channel{3};
-  std::array<std::unique_ptr<SymbolModel>, 16> number_of_returns, return_number;
-  SymbolModel return_number_gps_same{13};
-  IntegerDecompressor ic_dx{32, 2};
-  IntegerDecompressor ic_dy{32, 22};
-  IntegerDecompressor ic_z{32, 20};
-  std::array<std::unique_ptr<SymbolModel>, 64> classification, flags, user_data;
-  IntegerDecompressor ic_intensity{16, 4};
-  IntegerDecompressor ic_scan_angle{16, 2};
-  IntegerDecompressor ic_point_source{16};
-  GpsTimeState gps{kGpsZeroDiffSymbolsV3, kGpsMultiTotalV3};
-  std::array<std::uint16_t, 8> last_intensity{};
-  std::array<Median5, 12> last_x_diff, last_y_diff;
-  std::array<std::int32_t, 8> last_z{};
-};
-
-Point14V3::Point14V3() = default;
 Point14V3::~Point14V3() = default;
 
 void Point14V3::init_context(std::uint32_t c, const Fields& from) {
@@ -234,9 +135,8 @@ std::uint32_t Point14V3::read(std::uint8_t* item) {
   const std::uint32_t last_r = last->return_number;
   std::uint32_t n = last_n;
   if (changed & (1 << 2)) {
-    auto& model = ctx->number_of_returns[last_n];
-    ensure(model, 16);
-    n = xy.decode_symbol(*model);
+    SymbolModel& model = model_for(ctx->number_of_returns[last_n], 16);
+    n = xy.decode_symbol(model);
     last->number_of_returns = n;
   }
   std::uint32_t r = last_r;
@@ -251,9 +151,8 @@ std::uint32_t Point14V3::read(std::uint8_t* item) {
       break;
     default:
       if (gps_time_change) {
-        auto& model = ctx->return_number[last_r];
-        ensure(model, 16);
-        r = xy.decode_symbol(*model);
+        SymbolModel& model = model_for(ctx->return_number[last_r], 16);
+        r = xy.decode_symbol(model);
       } else {
         r = (last_r + xy.decode_symbol(ctx->return_number_gps_same) + 2) % 16;
       }
@@ -261,20 +160,16 @@ std::uint32_t Point14V3::read(std::uint8_t* item) {
   }
   last->return_number = r;
 
-  const std::uint32_t m = kNumberReturnMap6[n][r];
-  const std::uint32_t l = number_return_level8(n, r);
-  // Current point: 1 first, 2 last, 3 single, 0 intermediate.
-  std::uint32_t cpr = r == 1 ? 1 : 0;
-  cpr += r >= n ? 2 : 0;
+  const auto [m, l, cpr] = return_contexts(n, r);
   const std::uint32_t gps_bit = gps_time_change ? 1 : 0;
 
   const std::size_t mi = (m << 1) | gps_bit;
   std::int32_t diff = ctx->ic_dx.decompress(xy, ctx->last_x_diff[mi].get(), n == 1);
-  last->x = static_cast<std::int32_t>(static_cast<std::uint32_t>(last->x) + static_cast<std::uint32_t>(diff));
+  last->x = wrap_add(last->x, diff);
   ctx->last_x_diff[mi].add(diff);
   std::uint32_t k_bits = ctx->ic_dx.k();
   diff = ctx->ic_dy.decompress(xy, ctx->last_y_diff[mi].get(), (n == 1) + (k_bits < 20 ? zero_bit0(k_bits) : 20));
-  last->y = static_cast<std::int32_t>(static_cast<std::uint32_t>(last->y) + static_cast<std::uint32_t>(diff));
+  last->y = wrap_add(last->y, diff);
   ctx->last_y_diff[mi].add(diff);
 
   if (layers_[kZ].changed) {
@@ -285,15 +180,13 @@ std::uint32_t Point14V3::read(std::uint8_t* item) {
   }
   if (layers_[kClassification].changed) {
     const std::uint32_t ccc = ((last->classification & 0x1F) << 1) + (cpr == 3 ? 1 : 0);
-    auto& model = ctx->classification[ccc];
-    ensure(model, 256);
-    last->classification = layers_[kClassification].dec.decode_symbol(*model);
+    SymbolModel& model = model_for(ctx->classification[ccc], 256);
+    last->classification = layers_[kClassification].dec.decode_symbol(model);
   }
   if (layers_[kFlags].changed) {
     const std::uint32_t last_flags = (last->edge << 5) | (last->scan_direction << 4) | last->classification_flags;
-    auto& model = ctx->flags[last_flags];
-    ensure(model, 64);
-    const std::uint32_t flags = layers_[kFlags].dec.decode_symbol(*model);
+    SymbolModel& model = model_for(ctx->flags[last_flags], 64);
+    const std::uint32_t flags = layers_[kFlags].dec.decode_symbol(model);
     last->edge = (flags >> 5) & 1;
     last->scan_direction = (flags >> 4) & 1;
     last->classification_flags = flags & 0x0F;
@@ -310,9 +203,8 @@ std::uint32_t Point14V3::read(std::uint8_t* item) {
         ctx->ic_scan_angle.decompress(layers_[kScanAngle].dec, last->scan_angle, gps_bit));
   }
   if (layers_[kUserData].changed) {
-    auto& model = ctx->user_data[last->user_data / 4];
-    ensure(model, 256);
-    last->user_data = layers_[kUserData].dec.decode_symbol(*model);
+    SymbolModel& model = model_for(ctx->user_data[last->user_data / 4], 256);
+    last->user_data = layers_[kUserData].dec.decode_symbol(model);
   }
   if (layers_[kPointSource].changed && point_source_change) {
     last->point_source = static_cast<std::uint16_t>(
@@ -350,10 +242,12 @@ void Rgb14V3::init(const std::uint8_t* item, std::uint32_t context) {
   init_context(current_, first);
 }
 
-void Rgb14V3::read(std::uint8_t* item, std::uint32_t context) {
-  // As in LASzip, the values predicted from stay those of the previous
-  // channel when switching to a channel already seen in this chunk; only a
-  // channel's first use copies them.
+Rgb14V3::Rgb14V3(bool nir) : nir_(nir), layers_(nir ? 2 : 1), out_layers_(nir ? 2 : 1) {}
+
+std::uint16_t* Rgb14V3::switch_context(std::uint32_t context) {
+  // As in LASzip, the values predicted from (and updated) stay those of the
+  // previous channel when switching to a channel already seen in this chunk;
+  // only a channel's first use copies them.
   std::uint16_t* last = contexts_[current_]->last.data();
   if (current_ != context) {
     current_ = context;
@@ -363,6 +257,11 @@ void Rgb14V3::read(std::uint8_t* item, std::uint32_t context) {
       last = contexts_[current_]->last.data();
     }
   }
+  return last;
+}
+
+void Rgb14V3::read(std::uint8_t* item, std::uint32_t context) {
+  std::uint16_t* last = switch_context(context);
   Context& ctx = *contexts_[current_];
   if (layers_[0].changed) {
     std::uint16_t out[3];
@@ -417,7 +316,8 @@ void Byte14V3::init(const std::uint8_t* item, std::uint32_t context) {
   init_context(current_, item);
 }
 
-void Byte14V3::read(std::uint8_t* item, std::uint32_t context) {
+std::uint8_t* Byte14V3::switch_context(std::uint32_t context) {
+  // The same quirk as Rgb14V3::switch_context.
   std::uint8_t* last = contexts_[current_]->last.data();
   if (current_ != context) {
     current_ = context;
@@ -427,6 +327,11 @@ void Byte14V3::read(std::uint8_t* item, std::uint32_t context) {
       last = contexts_[current_]->last.data();
     }
   }
+  return last;
+}
+
+void Byte14V3::read(std::uint8_t* item, std::uint32_t context) {
+  std::uint8_t* last = switch_context(context);
   Context& ctx = *contexts_[current_];
   for (std::size_t i = 0; i < n_; ++i) {
     if (layers_[i].changed) {

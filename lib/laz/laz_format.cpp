@@ -11,6 +11,7 @@
 
 #include "core/byte_io.h"
 #include "laz/arithmetic_decoder.h"
+#include "laz/integer_coder.h"
 #include "laz/items.h"
 #include "relief/laz.h"
 
@@ -51,11 +52,8 @@ std::string item_name(std::uint16_t type) {
   }
 }
 
-// The items each point format needs, before any extra bytes.
-struct FormatItems {
-  std::vector<std::uint16_t> types;
-  std::size_t size;
-};
+}  // namespace
+
 FormatItems items_for_format(int format) {
   switch (format) {
     case 0: return {{kItemPoint10}, 20};
@@ -80,8 +78,6 @@ std::size_t fixed_item_size(std::uint16_t type) {
     default: return 0;
   }
 }
-
-}  // namespace
 
 Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format, std::size_t record_length,
                          const std::string& name) {
@@ -186,7 +182,7 @@ Result<std::vector<Chunk>> parse_chunk_table(std::span<const std::uint8_t> table
   const bool variable = params.chunk_size == kVariableChunks;
   ArithmeticDecoder dec;
   if (!dec.init(table.subspan(kChunkTableHeader))) return format_error(what + " is corrupt");
-  IntegerDecompressor ic(32, 2);
+  IntegerCoder ic(32, 2);
   ic.init();
   std::vector<Chunk> chunks(count);
   std::uint32_t prev_points = 0, prev_bytes = 0;

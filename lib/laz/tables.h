@@ -9,6 +9,43 @@ namespace relief::laz {
 inline std::uint8_t fold8(int v) { return static_cast<std::uint8_t>(v & 0xFF); }
 // LASzip's U8_CLAMP.
 inline int clamp8(int v) { return v < 0 ? 0 : (v > 255 ? 255 : v); }
+// LASzip's U32_ZERO_BIT_0: a corrector's bit length rounded down to even,
+// the context of the next coordinate.
+inline std::uint32_t zero_bit0(std::uint32_t k) { return k & ~1u; }
+
+// Little-endian fields of a record, byte by byte (compilers turn these into
+// single loads and stores on little-endian machines).
+inline std::uint16_t get_u16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
+inline void put_u16(std::uint8_t* p, std::uint32_t v) {
+  p[0] = static_cast<std::uint8_t>(v);
+  p[1] = static_cast<std::uint8_t>(v >> 8);
+}
+inline std::uint32_t get_u32(const std::uint8_t* p) {
+  return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
+         (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
+}
+inline void put_u32(std::uint8_t* p, std::uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+inline std::int32_t get_i32(const std::uint8_t* p) { return static_cast<std::int32_t>(get_u32(p)); }
+inline void put_i32(std::uint8_t* p, std::int32_t v) { put_u32(p, static_cast<std::uint32_t>(v)); }
+inline std::uint64_t get_u64(const std::uint8_t* p) {
+  return get_u32(p) | (static_cast<std::uint64_t>(get_u32(p + 4)) << 32);
+}
+inline void put_u64(std::uint8_t* p, std::uint64_t v) {
+  put_u32(p, static_cast<std::uint32_t>(v));
+  put_u32(p + 4, static_cast<std::uint32_t>(v >> 32));
+}
+// Two's complement sum and difference, as LASzip's I32 arithmetic wraps.
+inline std::int32_t wrap_add(std::int32_t a, std::int32_t b) {
+  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) + static_cast<std::uint32_t>(b));
+}
+inline std::int32_t wrap_sub(std::int32_t a, std::int32_t b) {
+  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) - static_cast<std::uint32_t>(b));
+}
+inline std::int32_t wrap_mul(std::int32_t a, std::int32_t b) {
+  return static_cast<std::int32_t>(static_cast<std::uint32_t>(a) * static_cast<std::uint32_t>(b));
+}
 
 // POINT10: context of a (number of returns, return number) pair, and the
 // "level" |n - r| that picks the z predictor. Both are completed for the

@@ -1,15 +1,18 @@
-// LASzip (LAZ) point decompression, for LAS readers.
+// LASzip (LAZ) point compression and decompression, for the LAS reader and
+// writer.
 //
 // A LAZ file is a LAS file whose point format byte has bit 7 set, with a
 // "laszip encoded" VLR (record 22204) naming the compressor and the items of
 // each point, 8 bytes at the point-data offset giving the chunk table's
 // position, the compressed chunks, and the chunk table. COPC files are LAZ
-// files and read the same way. Supported: the chunked pointwise compressor
-// (LASzip 2.x; point formats 0-5 without waveforms, items POINT10, GPSTIME11,
-// RGB12, BYTE in version 2) and the layered chunked compressor (LASzip 3.x;
-// formats 6-8, items POINT14, RGB14, RGBNIR14, BYTE14 in version 3), fixed or
-// variable chunk sizes. Decoding is chunk by chunk, so memory is bounded by
-// one chunk's compressed bytes whatever the file size.
+// files and read the same way. Supported, both ways: the chunked pointwise
+// compressor (LASzip 2.x; point formats 0-3, items POINT10, GPSTIME11, RGB12
+// and BYTE in version 2) and the layered chunked compressor (LASzip 3.x;
+// formats 6-8, items POINT14, RGB14, RGBNIR14 and BYTE14 in version 3), extra
+// bytes, fixed or variable chunk sizes. Not supported: waveform formats 4, 5,
+// 9 and 10, LASzip 1.x's unchunked compressor, item versions 1 and 4.
+// Decoding and encoding go chunk by chunk, so memory is bounded by one
+// chunk's compressed bytes whatever the file size.
 //
 // Every function checks what it reads against the bytes present; errors name
 // `name` (the file) and the problem.
@@ -119,12 +122,20 @@ class ChunkReader {
   std::uint64_t stream_left_ = 0;
 };
 
-// Compresses LAS point records of formats 0-3 (no extra bytes) as LASzip
-// does (chunked pointwise compressor, POINT10, GPSTIME11 and RGB12 version 2
-// items), so LASzip-compatible readers read the result.
+// Compresses LAS point records as LASzip does, so LASzip-compatible readers
+// (and ChunkDecoder) read the result: formats 0-3 with the chunked pointwise
+// compressor (items POINT10, GPSTIME11, RGB12 and, for records longer than
+// the format's, BYTE, all version 2) and formats 6-8 with the layered
+// chunked compressor (POINT14, RGB14 or RGBNIR14 and BYTE14, version 3; the
+// LAS header must then say LAS 1.4). With LASzip's chunking the chunks are
+// LASzip's byte for byte.
 class PointCompressor {
  public:
   static constexpr std::uint32_t kDefaultChunkSize = 50000;  // LASzip's default
+  // `chunk_size` points per chunk, or kVariableChunks to end chunks only at
+  // flush_chunk() (as COPC does, one chunk per octree node). Refuses the
+  // formats above (waveform formats 4, 5, 9, 10 are not written) and a
+  // record_length shorter than the format's.
   static Result<std::unique_ptr<PointCompressor>> create(int point_format, std::size_t record_length,
                                                          std::uint32_t chunk_size, const std::string& name);
   ~PointCompressor();
@@ -133,6 +144,10 @@ class PointCompressor {
   std::vector<std::uint8_t> vlr_payload() const;
   // Compresses `n` records; completed chunks are appended to `out`.
   void add(const std::uint8_t* records, std::size_t n, std::vector<std::uint8_t>& out);
+  // Ends the current chunk (if it holds points) and appends it to `out`.
+  // With a fixed chunk size only the last chunk may be short, so this is for
+  // kVariableChunks.
+  void flush_chunk(std::vector<std::uint8_t>& out);
   // Appends the last chunk to `out` and returns the chunk table, which goes
   // after the chunks (its offset in the 8 bytes before the first chunk).
   std::vector<std::uint8_t> finish(std::vector<std::uint8_t>& out);
@@ -140,14 +155,9 @@ class PointCompressor {
  private:
   struct State;
   PointCompressor();
+  void start_chunk(const std::uint8_t* record);
   void end_chunk(std::vector<std::uint8_t>& out);
 
-  int format_ = 0;
-  std::size_t record_length_ = 0;
-  std::size_t rgb_offset_ = 0;
-  std::uint32_t chunk_size_ = 0;
-  std::uint32_t in_chunk_ = 0;
-  std::vector<std::uint32_t> chunk_bytes_;
   std::unique_ptr<State> state_;
 };
 
