@@ -3,6 +3,12 @@
 //
 //   build/bench/ingest [--sizes 1,10,100] [--threads 1,2] [--repeat 3] [--data DIR]
 //                      [--tmp DIR] [--no-shared] [--no-chunk-sweep]
+//   build/bench/ingest --laz-vs-las [--threads 2] [--repeat 3] [--data DIR]
+//
+// --laz-vs-las times `relief compress` on each shared LAZ file against its LAS
+// twin (the same points), the two runs interleaved so that both see the same
+// machine load, and prints both rates and LAZ's share of the LAS rate (the
+// target is >= 0.5); it skips the other measurements.
 //
 // Each measurement runs the CLI in a child process: wall time from fork to
 // exit, peak RSS from wait4(). Generated inputs are written to --tmp (default
@@ -38,6 +44,7 @@ struct Options {
   bool shared = true;
   bool chunk_sweep = true;
   bool error_targets = true;
+  bool laz_vs_las = false;
 };
 
 using relief::bench::run_child;
@@ -167,6 +174,56 @@ void measure(const Options& o, const std::string& label, const std::string& inpu
   std::fflush(stdout);
 }
 
+// LAZ against LAS: one `relief compress` of each per round, alternating, so
+// that load on a shared machine falls on both alike; medians of the rounds.
+void measure_laz_vs_las(const Options& o) {
+  struct Pair {
+    const char* name;
+    const char* laz;
+    const char* las;
+  };
+  const Pair pairs[] = {
+      {"fr_aerial_rgb_698k", "laz/fr_aerial_rgb_698k.laz", "medium/orig/fr_aerial_rgb_698k.las"},
+      {"lone_star_tls_519k", "laz/lone_star_tls_519k.laz", "medium/orig/lone_star_tls_519k.las"},
+      {"autzen_trim", "laz/autzen_trim.laz", "laz/autzen_trim.las"},
+  };
+  std::printf("kind,input,points,threads,las_seconds,las_mpts_s,laz_seconds,laz_mpts_s,laz_over_las_rate\n");
+  const std::string out = o.tmp + "/relief-bench-laz-vs-las.relief";
+  for (const Pair& p : pairs) {
+    const std::string laz = o.data_dir + "/" + p.laz, las = o.data_dir + "/" + p.las;
+    if (!fs::exists(laz) || !fs::exists(las)) {
+      std::printf("# skipped %s: %s or its twin absent\n", p.name, laz.c_str());
+      continue;
+    }
+    auto info = relief::open_point_reader(las);
+    if (!info) continue;
+    const std::uint64_t n = (*info)->info().point_count.value_or(0);
+    for (int t : o.threads) {
+      std::vector<double> las_s, laz_s;
+      bool failed = false;
+      for (int k = 0; k < o.repeat && !failed; ++k) {
+        for (const std::string* in : {&las, &laz}) {
+          remove_archive(out);
+          const auto r = run_child({o.cli, "compress", *in, "-o", out, "--threads", std::to_string(t), "--quiet"});
+          if (r.code != 0) {
+            std::fprintf(stderr, "error: %s: relief compress exited %d\n", in->c_str(), r.code);
+            failed = true;
+            break;
+          }
+          (in == &las ? las_s : laz_s).push_back(r.seconds);
+        }
+      }
+      remove_archive(out);
+      if (failed) continue;
+      const double a = median(las_s), b = median(laz_s);
+      const double points = static_cast<double>(n);
+      std::printf("laz_vs_las,%s,%llu,%d,%.3f,%.3f,%.3f,%.3f,%.2f\n", p.name, static_cast<unsigned long long>(n), t,
+                  a, points / a * 1e-6, b, points / b * 1e-6, a / b);
+      std::fflush(stdout);
+    }
+  }
+}
+
 std::vector<int> parse_list(const char* s) {
   std::vector<int> v;
   for (const char* p = s; *p;) {
@@ -201,12 +258,19 @@ int main(int argc, char** argv) {
       o.chunk_sweep = false;
     } else if (a == "--no-error-targets") {
       o.error_targets = false;
+    } else if (a == "--laz-vs-las") {
+      o.laz_vs_las = true;
     } else {
       std::fprintf(stderr,
                    "usage: ingest [--sizes 1,10,100] [--threads 1,2] [--repeat N] [--data DIR] [--tmp DIR]\n"
-                   "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n");
+                   "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n"
+                   "       ingest --laz-vs-las [--threads 2] [--repeat N] [--data DIR] [--tmp DIR]\n");
       return a == "--help" ? 0 : 2;
     }
+  }
+  if (o.laz_vs_las) {
+    measure_laz_vs_las(o);
+    return 0;
   }
   std::printf("kind,input,points,threads,seconds,mpts_s,peak_rss_mib,chunks,archive_bytes,bpp\n");
   for (int m : o.sizes_m) {
