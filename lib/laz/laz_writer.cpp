@@ -247,7 +247,7 @@ void PointCompressor::add(const std::uint8_t* records, std::size_t n, std::vecto
 }
 
 void PointCompressor::flush_chunk(std::vector<std::uint8_t>& out) {
-  if (state_->in_chunk > 0) end_chunk(out);
+  if (state_->chunk_size == kVariableChunks && state_->in_chunk > 0) end_chunk(out);
 }
 
 std::vector<std::uint8_t> PointCompressor::finish(std::vector<std::uint8_t>& out) {

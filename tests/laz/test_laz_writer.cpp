@@ -208,6 +208,25 @@ TEST_CASE("LAZ writer: no points makes an empty chunk table", "[laz][writer]") {
   }
 }
 
+TEST_CASE("LAZ writer: flush_chunk ends variable chunks only", "[laz][writer]") {
+  const std::size_t rl = base_size(7);
+  const auto records = random_records(7, rl, 500, 11);
+  const auto compress = [&](std::uint32_t chunk_size, bool flush) {
+    auto comp = laz::PointCompressor::create(7, rl, chunk_size, "flush");
+    REQUIRE(comp.is_ok());
+    std::vector<std::uint8_t> out;
+    (*comp)->add(records.data(), 123, out);
+    if (flush) (*comp)->flush_chunk(out);
+    (*comp)->add(records.data() + 123 * rl, 500 - 123, out);
+    const auto table = (*comp)->finish(out);
+    out.insert(out.end(), table.begin(), table.end());
+    return out;
+  };
+  // Fixed chunks of 200: a short chunk at 123 would make readers count wrong.
+  CHECK(compress(200, true) == compress(200, false));
+  CHECK(compress(laz::kVariableChunks, true) != compress(laz::kVariableChunks, false));
+}
+
 TEST_CASE("LAZ writer: the VLR names the items of the format and its extra bytes", "[laz][writer]") {
   struct Case {
     int format;

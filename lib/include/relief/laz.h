@@ -132,10 +132,12 @@ class ChunkReader {
 class PointCompressor {
  public:
   static constexpr std::uint32_t kDefaultChunkSize = 50000;  // LASzip's default
-  // `chunk_size` points per chunk, or kVariableChunks to end chunks only at
-  // flush_chunk() (as COPC does, one chunk per octree node). Refuses the
-  // formats above (waveform formats 4, 5, 9, 10 are not written) and a
-  // record_length shorter than the format's.
+  // `chunk_size` points per chunk, or kVariableChunks to end chunks at
+  // flush_chunk() (as COPC does, one chunk per octree node). Refuses other
+  // formats (waveform formats 4, 5, 9, 10 are not written), a record_length
+  // shorter than the format's or over 65535, and chunks so long that their
+  // byte counts could overflow the chunk table's 32 bits (a variable chunk
+  // ends there by itself).
   static Result<std::unique_ptr<PointCompressor>> create(int point_format, std::size_t record_length,
                                                          std::uint32_t chunk_size, const std::string& name);
   ~PointCompressor();
@@ -144,9 +146,9 @@ class PointCompressor {
   std::vector<std::uint8_t> vlr_payload() const;
   // Compresses `n` records; completed chunks are appended to `out`.
   void add(const std::uint8_t* records, std::size_t n, std::vector<std::uint8_t>& out);
-  // Ends the current chunk (if it holds points) and appends it to `out`.
-  // With a fixed chunk size only the last chunk may be short, so this is for
-  // kVariableChunks.
+  // With kVariableChunks, ends the current chunk (if it holds points) and
+  // appends it to `out`. With a fixed chunk size it does nothing: readers
+  // take every chunk but the last to hold chunk_size points.
   void flush_chunk(std::vector<std::uint8_t>& out);
   // Appends the last chunk to `out` and returns the chunk table, which goes
   // after the chunks (its offset in the 8 bytes before the first chunk).
