@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs what Relief needs from Debian 12 packages, skipping what is present.
+# Installs what Relief needs from Debian 12 packages, skipping what is present
+# (pybind11, python3-dev, numpy and pytest build and test the Python bindings).
 # Idempotent; uses sudo when not root. Set RELIEF_WITH_BENCH=1 to add the peer
 # codecs the benchmarks compare against (draco), RELIEF_WITH_FUZZ=1 to add clang
 # and its libFuzzer runtime for -DRELIEF_FUZZ=ON (tests/fuzz/README.md; CI
@@ -11,6 +12,7 @@ packages=(
   libeigen3-dev libopenjp2-7-dev libturbojpeg0-dev liblzma-dev libsqlite3-dev
   catch2 libjbig-dev libnanoflann-dev libpng-dev liblzf-dev
   libgeotiff-dev libproj-dev
+  pybind11-dev python3-dev python3-numpy python3-pytest
 )
 if [[ "${RELIEF_WITH_BENCH:-0}" == "1" ]]; then
   packages+=(draco)

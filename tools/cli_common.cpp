@@ -128,62 +128,26 @@ const char* const kEncodeOptionsHelp =
     "  --fill project|pushpull|box   fill of empty map pixels (default project: push-pull, then\n"
     "                         low-frequency projection per JPEG block; box = the paper's)\n";
 
-std::vector<std::string> encode_option_names() {
-  return {"--cell", "--decomposition", "--max-points", "--resolution", "--codec", "--quality",
-          "--color-quality", "--intensity-quality", "--height-bits", "--fill"};
-}
+std::vector<std::string> encode_option_names() { return cli_names(relief::encode_option_names()); }
 
 std::string parse_encode_params(Args& args, EncodeParams& p) {
-  p.cell_size = args.get_double("--cell", 0);
-  if (args.has("--cell") && !(p.cell_size > 0)) return "--cell must be positive";
-  if (auto d = args.get("--decomposition")) {
-    if (*d == "voxel") {
-      p.decomposition = Decomposition::kVoxelGrid;
-    } else if (*d == "octree") {
-      p.decomposition = Decomposition::kOctree;
-    } else {
-      return "--decomposition must be voxel or octree, got '" + *d + "'";
-    }
+  const Status s = apply_encode_options(given_options(args, relief::encode_option_names()), OptionSpelling::kCli, p);
+  return s.is_ok() ? "" : s.message();
+}
+
+std::vector<std::string> cli_names(const std::vector<std::string>& names) {
+  std::vector<std::string> out;
+  out.reserve(names.size());
+  for (const std::string& n : names) out.push_back("--" + n);
+  return out;
+}
+
+std::vector<NamedOption> given_options(const Args& args, const std::vector<std::string>& names) {
+  std::vector<NamedOption> given;
+  for (const std::string& n : names) {
+    if (auto v = args.get("--" + n)) given.push_back({n, *v});
   }
-  p.octree_max_points = static_cast<std::uint32_t>(args.get_int("--max-points", p.octree_max_points, 1, 1 << 30));
-  p.map_resolution = static_cast<int>(args.get_int("--resolution", p.map_resolution, 8, 64));
-  if (auto c = args.get("--codec")) {
-    if (*c == "jpeg") {
-      p.image_codec = ImageCodec::kJpeg;
-    } else if (*c == "jpeg2000" || *c == "j2k") {
-      p.image_codec = ImageCodec::kJpeg2000;
-    } else {
-      return "--codec must be jpeg or jpeg2000, got '" + *c + "'";
-    }
-  }
-  p.height_quality = static_cast<int>(args.get_int("--quality", p.height_quality, 1, 100));
-  p.color_quality = static_cast<int>(args.get_int("--color-quality", p.color_quality, 1, 100));
-  p.intensity_quality = static_cast<int>(args.get_int("--intensity-quality", p.intensity_quality, 1, 100));
-  p.height_bits = static_cast<int>(args.get_int("--height-bits", p.height_bits, 8, 16));
-  if (auto f = args.get("--fill")) {
-    if (*f == "project") {
-      p.fill = FillMethod::kBlockProjection;
-    } else if (*f == "pushpull") {
-      p.fill = FillMethod::kPushPull;
-    } else if (*f == "box") {
-      p.fill = FillMethod::kBoxFilter;
-    } else {
-      return "--fill must be project, pushpull or box, got '" + *f + "'";
-    }
-  }
-  if (!args.ok()) return args.error();
-  // Caught here, before any work, rather than as a failure of the first chunk.
-  if (p.map_resolution % 8 != 0) {
-    return "--resolution must be a multiple of 8 from 8 to 64, got " + std::to_string(p.map_resolution);
-  }
-  if (p.height_bits != 8 && p.height_bits != 16) {
-    return "--height-bits must be 8 or 16, got " + std::to_string(p.height_bits);
-  }
-  if (p.height_bits == 16 && p.image_codec != ImageCodec::kJpeg2000) {
-    return "--height-bits 16 needs --codec jpeg2000 (JPEG is 8-bit)";
-  }
-  if (Status s = validate_encode_params(p); !s) return s.message();
-  return "";
+  return given;
 }
 
 Status check_chunk_coordinates(const PointCloud& cloud, const std::string& path) {
@@ -247,30 +211,7 @@ std::int64_t now_ns() {
 
 double seconds_since(std::int64_t start_ns) { return static_cast<double>(now_ns() - start_ns) * 1e-9; }
 
-std::uint64_t parse_size(const std::string& text) {
-  if (text.empty()) return 0;
-  double v = 0;
-  const char* end = text.data() + text.size();
-  const auto r = std::from_chars(text.data(), end, v);
-  if (r.ec != std::errc() || !(v > 0)) return 0;
-  std::string unit(r.ptr, end);
-  for (char& ch : unit) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
-  if (!unit.empty() && unit.back() == 'B') unit.pop_back();
-  if (!unit.empty() && unit.back() == 'I') unit.pop_back();  // GiB, MiB
-  double scale = 0;
-  if (unit.empty() || unit == "M") {
-    scale = 1024.0 * 1024.0;
-  } else if (unit == "K") {
-    scale = 1024.0;
-  } else if (unit == "G") {
-    scale = 1024.0 * 1024.0 * 1024.0;
-  } else if (unit == "T") {
-    scale = 1024.0 * 1024.0 * 1024.0 * 1024.0;
-  } else {
-    return 0;
-  }
-  return static_cast<std::uint64_t>(v * scale);
-}
+std::uint64_t parse_size(const std::string& text) { return parse_byte_size(text); }
 
 namespace {
 

@@ -12,6 +12,7 @@
 
 #include "relief/codec.h"
 #include "relief/ingest.h"
+#include "relief/query.h"
 #include "relief/status.h"
 
 namespace relief::cli {
@@ -49,16 +50,19 @@ class Args {
   std::string error_;
 };
 
-// --lod L is 1..kMaxLod. A level of detail keeps ~1/L of each chunk's points
-// (error diffusion over its patches), so a chunk with fewer than L/2 points
-// gives none; far larger values would return nothing from most archives.
-inline constexpr long long kMaxLod = 1024;
+// --lod L is 1..kMaxLod (relief::kMaxQueryLod says why).
+inline constexpr long long kMaxLod = kMaxQueryLod;
 
 // Encoder options shared by encode-chunk and roundtrip.
 extern const char* const kEncodeOptionsHelp;
 std::vector<std::string> encode_option_names();
-// Fills params from args; returns an error message or "".
+// Fills params from args (relief::apply_encode_options); returns an error message or "".
 std::string parse_encode_params(Args& args, EncodeParams& params);
+// "--" before each library option name (relief::ingest_option_names ...).
+std::vector<std::string> cli_names(const std::vector<std::string>& names);
+// The options among `names` (library spelling, no dashes) that args holds, for
+// relief::apply_ingest_options; flags come with an empty value.
+std::vector<NamedOption> given_options(const Args& args, const std::vector<std::string>& names);
 
 // kInvalidArgument naming `path`, the point and the value when a coordinate of
 // `cloud` exceeds kMaxCoordinateMagnitude (2^50): a single chunk (encode-chunk,

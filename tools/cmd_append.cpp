@@ -16,7 +16,9 @@ int run_append(int argc, char** argv) {
       "  --assume-crs           inputs whose CRS differs from the archive's (or each other's):\n"
       "                         keep the archive's (with a warning) instead of refusing (exit 11)\n\n") +
       kIngestOptionsHelp;
-  Args args(argc, argv, {"--help", "--quiet", "--verify", "--assume-crs"}, ingest_option_names());
+  std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kAppend);
+  flags.insert(flags.end(), {"--help", "--quiet"});
+  Args args(argc, argv, flags, ingest_cli_options(IngestOptionSet::kAppend));
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -24,10 +26,9 @@ int run_append(int argc, char** argv) {
   if (!args.ok()) return usage_error("append", args.error());
   if (args.positional().size() < 2) return usage_error("append", "expected ARCHIVE and at least one input");
   IngestOptions o;
-  if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
+  if (const std::string err = parse_ingest_options(args, IngestOptionSet::kAppend, o); !err.empty()) {
     return usage_error("append", err);
   }
-  o.assume_crs = args.has("--assume-crs");
   const bool quiet = args.has("--quiet");
   o.progress = progress_printer(quiet);
   o.cancel = install_interrupt_flag();

@@ -27,11 +27,11 @@ int run_compress(int argc, char** argv) {
       "  --assume-crs           inputs with different CRSs: take the first input's for all (with a\n"
       "                         warning) instead of refusing them (exit 11)\n\n") +
       kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
-  std::vector<std::string> options = encode_option_names();
-  for (const std::string& o : ingest_option_names()) options.push_back(o);
-  for (const std::string& o : mode_option_names()) options.push_back(o);
-  options.insert(options.end(), {"-o", "--chunk-edge", "--error-target"});
-  Args args(argc, argv, {"--help", "--quiet", "--verify", "--allow-sparse", "--assume-crs"}, options);
+  std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
+  options.push_back("-o");
+  std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kCompress);
+  flags.insert(flags.end(), {"--help", "--quiet"});
+  Args args(argc, argv, flags, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -41,29 +41,9 @@ int run_compress(int argc, char** argv) {
   const auto out = args.get("-o");
   if (!out) return usage_error(kCommand, "missing -o OUT.relief");
   IngestOptions o;
-  if (const std::string err = parse_encode_params(args, o.codec); !err.empty()) {
+  if (const std::string err = parse_ingest_options(args, IngestOptionSet::kCompress, o); !err.empty()) {
     return usage_error(kCommand, err);
   }
-  o.chunk_edge = args.get_double("--chunk-edge", 0);
-  o.error_target = args.get_double("--error-target", 0);
-  if (args.has("--error-target") && !(o.error_target > 0)) {
-    return usage_error(kCommand, "--error-target must be positive");
-  }
-  if (args.has("--error-target")) {
-    if (args.has("--mode") && *args.get("--mode") != "resample") {
-      return usage_error(kCommand, "--error-target needs --mode resample");
-    }
-    o.mode = IngestMode::kResample;
-  }
-  if (const std::string err = parse_mode_options(args, o); !err.empty()) {
-    return usage_error(kCommand, err);
-  }
-  if (const std::string err = parse_ingest_options(args, o); !err.empty()) {
-    return usage_error(kCommand, err);
-  }
-  if (args.has("--chunk-edge") && !(o.chunk_edge > 0)) return usage_error(kCommand, "--chunk-edge must be positive");
-  o.allow_sparse = args.has("--allow-sparse");
-  o.assume_crs = args.has("--assume-crs");
   const bool quiet = args.has("--quiet");
   o.progress = progress_printer(quiet);
   o.cancel = install_interrupt_flag();

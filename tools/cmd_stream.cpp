@@ -125,11 +125,11 @@ int run_stream(int argc, char** argv) {
       "  --immediate            encode every batch at once (no buffering)\n"
       "  --chunk-edge M         chunk edge of a new archive (default 32 cells; 8 in bounded mode)\n\n") +
       kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
-  std::vector<std::string> options = encode_option_names();
-  for (const std::string& o : ingest_option_names()) options.push_back(o);
-  for (const std::string& o : mode_option_names()) options.push_back(o);
+  std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kStream);
   options.insert(options.end(), {"--format", "--attributes", "--batch", "--idle", "--max-buffered", "--chunk-edge"});
-  Args args(argc, argv, {"--help", "--quiet", "--immediate", "--verify"}, options);
+  std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kStream);
+  flags.insert(flags.end(), {"--help", "--quiet", "--immediate"});
+  Args args(argc, argv, flags, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -137,13 +137,7 @@ int run_stream(int argc, char** argv) {
   if (!args.ok()) return usage_error(kCommand, args.error());
   if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE");
   StreamOptions so;
-  if (const std::string err = parse_encode_params(args, so.ingest.codec); !err.empty()) {
-    return usage_error(kCommand, err);
-  }
-  if (const std::string err = parse_ingest_options(args, so.ingest); !err.empty()) {
-    return usage_error(kCommand, err);
-  }
-  if (const std::string err = parse_mode_options(args, so.ingest); !err.empty()) {
+  if (const std::string err = parse_ingest_options(args, IngestOptionSet::kStream, so.ingest); !err.empty()) {
     return usage_error(kCommand, err);
   }
   so.ingest.chunk_edge = args.get_double("--chunk-edge", 0);

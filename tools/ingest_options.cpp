@@ -1,6 +1,5 @@
 #include "ingest_options.h"
 
-#include <cmath>
 #include <cstdio>
 
 namespace relief::cli {
@@ -25,47 +24,16 @@ const char* const kModeOptionsHelp =
     "                         else 0.0005)\n"
     "  --color-tolerance C    bounded: largest error per colour channel, 0..127 (default 0 = exact)\n";
 
-std::vector<std::string> mode_option_names() { return {"--mode", "--tolerance", "--color-tolerance"}; }
+std::vector<std::string> ingest_cli_options(IngestOptionSet set) { return cli_names(ingest_option_names(set)); }
+std::vector<std::string> ingest_cli_flags(IngestOptionSet set) { return cli_names(ingest_flag_names(set)); }
 
-std::string parse_mode_options(Args& args, IngestOptions& o) {
-  if (auto m = args.get("--mode")) {
-    if (*m == "bounded") {
-      o.mode = IngestMode::kBounded;
-    } else if (*m == "resample") {
-      o.mode = IngestMode::kResample;
-    } else {
-      return "--mode must be bounded or resample, got '" + *m + "'";
-    }
+std::string parse_ingest_options(Args& args, IngestOptionSet set, IngestOptions& o) {
+  std::vector<std::string> names = ingest_option_names(set);
+  for (const std::string& f : ingest_flag_names(set)) names.push_back(f);
+  if (Status s = apply_ingest_options(set, given_options(args, names), OptionSpelling::kCli, o); !s) {
+    return s.message();
   }
-  if (args.has("--tolerance")) {
-    o.tolerance = args.get_double("--tolerance", 0);
-    if (!(o.tolerance > 0) || !std::isfinite(o.tolerance)) return "--tolerance must be a positive number";
-  }
-  o.color_tolerance = static_cast<int>(args.get_int("--color-tolerance", 0, 0, 127));
-  const bool bounded_only = args.has("--tolerance") || args.has("--color-tolerance");
-  if (o.mode == IngestMode::kResample && bounded_only) {
-    return "--tolerance and --color-tolerance apply to --mode bounded";
-  }
-  if (!args.ok()) return args.error();
-  return "";
-}
-
-std::vector<std::string> ingest_option_names() { return {"--memory", "--threads", "--tmp", "--columns"}; }
-
-std::string parse_ingest_options(Args& args, IngestOptions& o) {
-  if (auto m = args.get("--memory")) {
-    o.memory_budget = parse_size(*m);
-    if (o.memory_budget == 0) return "--memory expects a size such as 512M or 2G, got '" + *m + "'";
-    if (o.memory_budget < kMinMemoryBudget) {
-      return "--memory " + *m + " is below the minimum of " + std::to_string(kMinMemoryBudget >> 20) + "M";
-    }
-  }
-  o.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
-  if (auto t = args.get("--tmp")) o.tmp_dir = *t;
-  if (auto c = args.get("--columns")) o.reader.xyz_columns = *c;
   o.creator = std::string("relief ") + RELIEF_VERSION;
-  o.verify_blobs = args.has("--verify");
-  if (!args.ok()) return args.error();
   return "";
 }
 

@@ -10,13 +10,14 @@
 namespace relief::cli {
 
 extern const char* const kIngestOptionsHelp;
-std::vector<std::string> ingest_option_names();
-// Fills memory, threads, tmp dir, columns and creator; returns an error or "".
-std::string parse_ingest_options(Args& args, IngestOptions& o);
 // --mode, --tolerance, --color-tolerance (commands that create archives).
 extern const char* const kModeOptionsHelp;
-std::vector<std::string> mode_option_names();
-std::string parse_mode_options(Args& args, IngestOptions& o);
+// The options and flags of `set` as the CLI spells them ("--tolerance").
+std::vector<std::string> ingest_cli_options(IngestOptionSet set);
+std::vector<std::string> ingest_cli_flags(IngestOptionSet set);
+// Fills `o` from args through relief::apply_ingest_options (the parser the
+// Python bindings use too) and sets the creator; returns an error or "".
+std::string parse_ingest_options(Args& args, IngestOptionSet set, IngestOptions& o);
 void print_ingest_summary(const std::string& path, const IngestResult& r);
 // The readers' warnings (IngestResult::warnings) on stderr, even with --quiet.
 void print_ingest_warnings(const std::string& command, const IngestResult& r);

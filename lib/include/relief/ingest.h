@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "relief/codec.h"
@@ -148,6 +149,46 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
 // chunks are removed again; the archive is as before.
 Result<IngestResult> append_files(const std::string& archive_path, const std::vector<std::string>& inputs,
                                   const IngestOptions& options);
+
+// ---- Ingest options by name: the one parser behind the CLI's options and the
+// Python bindings' keyword arguments, so both accept and refuse the same values.
+
+// Which command the options are for. Compress takes every option; stream all
+// but chunk-edge, error-target, allow-sparse and assume-crs (its chunk edge
+// is its own); append only the run's own (memory, threads, tmp, columns,
+// verify, assume-crs): the archive fixes the rest.
+enum class IngestOptionSet { kCompress, kAppend, kStream };
+
+// How option names appear in messages: "--color-tolerance" (the CLI) or
+// "color_tolerance" (Python keyword arguments).
+enum class OptionSpelling { kCli, kPython };
+
+struct NamedOption {
+  // The CLI's name without dashes, e.g. "color-tolerance"; '_' is read as '-'.
+  std::string name;
+  // The value as text, as on a command line: "0.01", "512M", "resample".
+  // Flags (ingest_flag_names): "" or "true" sets them, "false" leaves them off.
+  std::string value;
+};
+
+// The names apply_ingest_options accepts for `set`, CLI spelling without
+// dashes: the options taking a value, and the flags.
+std::vector<std::string> ingest_option_names(IngestOptionSet set);
+std::vector<std::string> ingest_flag_names(IngestOptionSet set);
+// Applies `given` to `options` (over their current values) and checks them
+// together, before any work: kInvalidArgument naming the option (spelled per
+// `spelling`) and its value for an unknown name, a malformed or out-of-range
+// value, or a combination that cannot work (--tolerance with --mode resample).
+Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>& given, OptionSpelling spelling,
+                            IngestOptions& options);
+// The codec's options alone (cell, decomposition, max-points, resolution,
+// codec, quality, color-quality, intensity-quality, height-bits, fill), for
+// commands that encode single chunks; apply_ingest_options includes them.
+std::vector<std::string> encode_option_names();
+Status apply_encode_options(const std::vector<NamedOption>& given, OptionSpelling spelling, EncodeParams& params);
+// "1G", "512M", "64K", "2GiB" (binary units) or a plain number of MiB; 0 when
+// the text is none of these.
+std::uint64_t parse_byte_size(std::string_view text);
 
 // The largest cell size whose RMSE_SNN on `sample` stays at or below
 // `target`, found by bisection in log space over real encode/decode round

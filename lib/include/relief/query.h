@@ -14,6 +14,12 @@
 
 namespace relief {
 
+// The largest level of detail the CLI and the Python bindings accept. A level
+// of detail keeps ~1/L of each chunk's points (error diffusion over its
+// patches), so a chunk with fewer than L/2 points gives none; far larger
+// values would return nothing from most archives.
+inline constexpr std::uint32_t kMaxQueryLod = 1024;
+
 struct QueryOptions {
   // 1 = every point; L = a spatially uniform ~1/L subset (decodes faster).
   std::uint32_t lod = 1;
@@ -55,6 +61,12 @@ class ArchiveReader {
   // Every point of the archive.
   virtual Result<QueryStats> query_all(const QueryOptions& options, const PointSink& sink) = 0;
 };
+
+// The archive's description as one JSON object ("path" is `path` as given):
+// what `relief info --json` prints and the Python bindings' Archive.info holds
+// (README "relief info"). Always valid UTF-8: text from files that is not
+// becomes U+FFFD.
+std::string archive_info_json(const ArchiveInfo& info, const std::string& path);
 
 // A box for "all heights" from a 2D box: z from -inf to +inf.
 Box3d box_2d(double xmin, double ymin, double xmax, double ymax);

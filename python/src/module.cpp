@@ -1,0 +1,374 @@
+// relief._relief: the C++ side of the Python package (python/relief/__init__.py
+// holds the public API). Every library call runs without the GIL; a failed
+// Status becomes the relief.Error subclass of its code (made by the factory
+// the package registers), never a crash.
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <atomic>
+#include <cmath>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "arrays.h"
+#include "batch_stream.h"
+#include "relief/ingest.h"
+#include "relief/query.h"
+#include "relief/status.h"
+
+namespace py = pybind11;
+
+namespace relief::python {
+
+namespace {
+
+// relief._make_error(code, code_name, message) -> an exception instance.
+// Leaked on purpose: destroying a Python object at exit, after the
+// interpreter is gone, would crash.
+py::object* error_factory = nullptr;
+
+[[noreturn]] void raise_status(const Status& s) {
+  if (error_factory == nullptr) throw std::runtime_error(s.to_string());
+  py::object e = (*error_factory)(static_cast<int>(s.code()), status_code_name(s.code()), s.message());
+  PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
+  throw py::error_already_set();
+}
+
+IngestOptionSet option_set(const std::string& command) {
+  if (command == "compress") return IngestOptionSet::kCompress;
+  if (command == "append") return IngestOptionSet::kAppend;
+  throw py::value_error("unknown command '" + command + "'");
+}
+
+py::dict progress_dict(const IngestProgress& p) {
+  py::dict d;
+  d["points_read"] = p.points_read;
+  d["points_total"] = p.points_total;
+  d["chunks_written"] = p.chunks_written;
+  d["bytes_written"] = p.bytes_written;
+  d["seconds"] = p.seconds;
+  d["phase"] = std::string(p.phase);
+  return d;
+}
+
+py::dict result_dict(const IngestResult& r) {
+  py::dict d;
+  d["points_read"] = r.points_read;
+  d["points_decoded"] = r.points_decoded;
+  d["chunks_written"] = r.chunks_written;
+  d["blob_bytes"] = r.blob_bytes;
+  d["seconds"] = r.seconds;
+  d["cell_size"] = r.cell_size;
+  d["chunk_edge"] = r.chunk_edge;
+  d["scan_id"] = r.scan_id;
+  d["warnings"] = r.warnings;
+  return d;
+}
+
+// compress / append: `options` are (name, text) pairs already checked against
+// option_names by the package; the library checks their values.
+py::dict ingest(const std::string& command, const std::vector<std::string>& inputs,
+                const std::string& archive, const std::vector<std::pair<std::string, std::string>>& options,
+                const py::object& progress) {
+  const IngestOptionSet set = option_set(command);
+  IngestOptions o;
+  std::vector<NamedOption> given;
+  for (const auto& [name, value] : options) given.push_back({name, value});
+  if (Status s = apply_ingest_options(set, given, OptionSpelling::kPython, o); !s) raise_status(s);
+  o.creator = std::string("relief ") + RELIEF_VERSION + " (python)";
+
+  // The progress callable, and Ctrl-C, are seen at the ingest's progress
+  // calls (about twice a second): an exception there cancels the ingest and
+  // is raised once it has stopped.
+  std::atomic<bool> cancel{false};
+  std::unique_ptr<py::error_already_set> pending;
+  o.cancel = &cancel;
+  o.progress = [&](const IngestProgress& p) {
+    if (cancel.load()) return;
+    py::gil_scoped_acquire gil;
+    try {
+      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+      if (!progress.is_none()) progress(progress_dict(p));
+    } catch (py::error_already_set& e) {
+      pending = std::make_unique<py::error_already_set>(std::move(e));
+      cancel.store(true);
+    }
+  };
+  std::optional<Result<IngestResult>> r;
+  {
+    py::gil_scoped_release release;
+    r.emplace(set == IngestOptionSet::kCompress ? compress_files(inputs, archive, o)
+                                                : append_files(archive, inputs, o));
+  }
+  if (pending) {
+    pending->restore();
+    pending.reset();
+    throw py::error_already_set();
+  }
+  if (!*r) raise_status(r->status());
+  return result_dict(r->value());
+}
+
+std::vector<std::string> option_names(const std::string& command, bool flags) {
+  const IngestOptionSet set = option_set(command);
+  return flags ? ingest_flag_names(set) : ingest_option_names(set);
+}
+
+QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrupt) {
+  if (lod < 1 || lod > kMaxQueryLod) {
+    raise_status(invalid_argument("lod must be a whole number from 1 to " + std::to_string(kMaxQueryLod) +
+                                  ", got " + std::to_string(lod)));
+  }
+  QueryOptions q;
+  q.lod = lod;
+  q.threads = threads;
+  q.skip_corrupt = skip_corrupt;
+  return q;
+}
+
+// A box from the package: None, or 6 (3-D) or 4 (2-D: every height) numbers.
+std::optional<Box3d> to_box(const std::optional<std::vector<double>>& b) {
+  if (!b) return std::nullopt;
+  for (const double v : *b) {
+    if (!std::isfinite(v)) raise_status(invalid_argument("box values must be finite numbers"));
+  }
+  if (b->size() == 4) return box_2d((*b)[0], (*b)[1], (*b)[2], (*b)[3]);
+  if (b->size() != 6) {
+    raise_status(invalid_argument(
+        "box must be (xmin, ymin, zmin, xmax, ymax, zmax) or (xmin, ymin, xmax, ymax), got " +
+        std::to_string(b->size()) + " numbers"));
+  }
+  Box3d box;
+  box.min = {(*b)[0], (*b)[1], (*b)[2]};
+  box.max = {(*b)[3], (*b)[4], (*b)[5]};
+  return box;
+}
+
+// The fields every array of the archive has (what its info says); batches
+// may add LAS attributes the archive-level info does not list.
+FieldSet archive_fields(const ArchiveInfo& info) {
+  FieldSet f;
+  f.colors = info.has_colors;
+  f.intensity = info.has_intensity;
+  return f;
+}
+
+// Archive.query(batches=True) on the C++ side: next() -> (array, warnings),
+// StopIteration at the end, the query's error raised in its place.
+class BatchIterator {
+ public:
+  BatchIterator(std::unique_ptr<BatchStream> stream, FieldSet fields)
+      : stream_(std::move(stream)), fields_(fields) {}
+  ~BatchIterator() {
+    py::gil_scoped_release release;
+    stream_.reset();
+  }
+
+  py::tuple next() {
+    if (!stream_) throw py::stop_iteration();
+    PointCloud batch;
+    Status status;
+    bool more = false;
+    {
+      py::gil_scoped_release release;
+      more = stream_->next(batch, status);
+    }
+    std::vector<std::string> warnings = stream_->take_warnings();
+    if (!more) {
+      close();
+      if (!status) raise_status(status);
+      if (!warnings.empty()) return py::make_tuple(py::none(), warnings);
+      throw py::stop_iteration();
+    }
+    FieldSet f = fields_;
+    f.add(batch);
+    std::vector<PointCloud> one;
+    one.push_back(std::move(batch));
+    return py::make_tuple(to_array(one, f), warnings);
+  }
+
+  void close() {
+    if (!stream_) return;
+    py::gil_scoped_release release;
+    stream_->close();
+    stream_.reset();
+  }
+
+ private:
+  std::unique_ptr<BatchStream> stream_;
+  FieldSet fields_;
+};
+
+// An open archive. One query at a time uses its reader (the mutex); batch
+// queries open their own reader so they can run beside it.
+class Reader {
+ public:
+  explicit Reader(const std::string& path) : path_(path) {
+    Result<std::unique_ptr<ArchiveReader>> r = [&] {
+      py::gil_scoped_release release;
+      return ArchiveReader::open(path);
+    }();
+    if (!r) raise_status(r.status());
+    reader_ = std::move(r).value();
+  }
+
+  std::string info_json() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return archive_info_json(reader().info(), path_);
+  }
+
+  // The whole answer as one array, plus the warnings of skipped chunks.
+  py::tuple query(const std::optional<std::vector<double>>& box_values, std::uint32_t lod, unsigned threads,
+                  bool skip_corrupt) {
+    const std::optional<Box3d> box = to_box(box_values);
+    std::vector<PointCloud> batches;
+    std::vector<std::string> warnings;
+    QueryOptions q = query_options(lod, threads, skip_corrupt);
+    q.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
+    FieldSet fields;
+    Result<QueryStats> r = Status(internal_error("query did not run"));
+    reader();  // refuses a closed archive while the GIL is held
+    {
+      py::gil_scoped_release release;
+      const std::lock_guard<std::mutex> lock(mutex_);
+      ArchiveReader& rd = reader();
+      fields = archive_fields(rd.info());
+      const PointSink sink = [&](const PointCloud& batch) {
+        fields.add(batch);
+        batches.push_back(batch);
+        return Status::ok();
+      };
+      r = box ? rd.query(*box, q, sink) : rd.query_all(q, sink);
+    }
+    if (!r) raise_status(r.status());
+    return py::make_tuple(to_array(batches, fields), warnings);
+  }
+
+  std::unique_ptr<BatchIterator> batches(const std::optional<std::vector<double>>& box_values,
+                                         std::uint32_t lod, unsigned threads, bool skip_corrupt) {
+    const std::optional<Box3d> box = to_box(box_values);
+    QueryOptions q = query_options(lod, threads, skip_corrupt);
+    reader();  // refuses a closed archive
+    Result<std::unique_ptr<ArchiveReader>> own = [&] {
+      py::gil_scoped_release release;
+      return ArchiveReader::open(path_);
+    }();
+    if (!own) raise_status(own.status());
+    const FieldSet fields = archive_fields((*own)->info());
+    auto stream = std::make_unique<BatchStream>(std::move(own).value(), box, std::move(q));
+    return std::make_unique<BatchIterator>(std::move(stream), fields);
+  }
+
+  void close() {
+    py::gil_scoped_release release;
+    const std::lock_guard<std::mutex> lock(mutex_);
+    reader_.reset();
+  }
+
+  bool closed() const { return reader_ == nullptr; }
+  const std::string& path() const { return path_; }
+
+ private:
+  ArchiveReader& reader() {
+    if (!reader_) throw py::value_error("the archive " + path_ + " is closed");
+    return *reader_;
+  }
+
+  std::string path_;
+  std::mutex mutex_;
+  std::unique_ptr<ArchiveReader> reader_;
+};
+
+// A synthetic cloud carrying `las` (LasAttributeBits) with known values, for
+// the tests of the array conversion while no reader or codec fills LAS
+// attributes: point i has classification i % 32, gps_time i * 0.5, ...
+py::array synthetic_las_batch(std::size_t n, std::uint32_t las, std::uint32_t extra_bytes_size) {
+  PointCloud c;
+  c.las.extra_bytes_size = (las & kLasExtraBytes) ? extra_bytes_size : 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double v = static_cast<double>(i);
+    c.positions.push_back({v, 2 * v, 3 * v});
+    c.colors.push_back(
+        {static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(i + 1), static_cast<std::uint8_t>(i + 2)});
+    c.intensities.push_back(static_cast<float>(v) / 2);
+    LasAttributes& a = c.las;
+    const auto u8 = [&](std::uint32_t k) { return static_cast<std::uint8_t>((i + k) % 32); };
+    if (las & kLasClassification) a.classification.push_back(u8(0));
+    if (las & kLasClassFlags) a.class_flags.push_back(static_cast<std::uint8_t>(i % 16));
+    if (las & kLasReturnNumber) a.return_number.push_back(u8(1) % 8);
+    if (las & kLasNumberOfReturns) a.number_of_returns.push_back(7);
+    if (las & kLasScanFlags) a.scan_flags.push_back(static_cast<std::uint8_t>(i % 4));
+    if (las & kLasScanAngle) a.scan_angle.push_back(-1000 * static_cast<std::int32_t>(i % 90));
+    if (las & kLasUserData) a.user_data.push_back(u8(5));
+    if (las & kLasPointSourceId) a.point_source_id.push_back(static_cast<std::uint16_t>(1000 + i));
+    if (las & kLasGpsTime) a.gps_time.push_back(v * 0.5);
+    if (las & kLasNir) a.nir.push_back(static_cast<std::uint16_t>(65535 - i));
+    if (las & kLasColorLow) a.color_low.push_back({0x11, 0x22, 0x33});
+    if (las & kLasExtraBytes) {
+      for (std::uint32_t k = 0; k < extra_bytes_size; ++k)
+        a.extra_bytes.push_back(static_cast<std::uint8_t>(i + k));
+    }
+  }
+  FieldSet f;
+  f.add(c);
+  return to_array({c}, f);
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_relief, m) {
+  m.doc() = "C++ side of the relief package (use `import relief`).";
+  m.attr("__version__") = RELIEF_VERSION;
+  m.def("_set_error_factory", [](py::object f) { error_factory = new py::object(std::move(f)); });
+  m.def("status_codes", [] {
+    py::dict d;
+    for (int c = static_cast<int>(StatusCode::kInvalidArgument); c <= static_cast<int>(StatusCode::kInternal);
+         ++c) {
+      d[py::int_(c)] = status_code_name(static_cast<StatusCode>(c));
+    }
+    return d;
+  });
+  m.def("option_names", &option_names, py::arg("command"), py::arg("flags"));
+  m.def("ingest", &ingest, py::arg("command"), py::arg("inputs"), py::arg("archive"), py::arg("options"),
+        py::arg("progress"));
+
+  py::class_<BatchIterator>(m, "BatchIterator")
+      .def("__iter__", [](BatchIterator& it) -> BatchIterator& { return it; })
+      .def("__next__", &BatchIterator::next)
+      .def("close", &BatchIterator::close);
+
+  py::class_<Reader>(m, "Reader")
+      .def(py::init<const std::string&>(), py::arg("path"))
+      .def("info_json", &Reader::info_json)
+      .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
+           py::arg("skip_corrupt"))
+      .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
+           py::arg("skip_corrupt"))
+      .def("close", &Reader::close)
+      .def_property_readonly("closed", &Reader::closed)
+      .def_property_readonly("path", &Reader::path);
+
+  m.def("_synthetic_las_batch", &synthetic_las_batch, py::arg("n"), py::arg("las"),
+        py::arg("extra_bytes_size"));
+  m.attr("LAS_BITS") =
+      py::dict(py::arg("classification") = static_cast<std::uint32_t>(kLasClassification),
+               py::arg("class_flags") = static_cast<std::uint32_t>(kLasClassFlags),
+               py::arg("return_number") = static_cast<std::uint32_t>(kLasReturnNumber),
+               py::arg("number_of_returns") = static_cast<std::uint32_t>(kLasNumberOfReturns),
+               py::arg("scan_flags") = static_cast<std::uint32_t>(kLasScanFlags),
+               py::arg("scan_angle") = static_cast<std::uint32_t>(kLasScanAngle),
+               py::arg("user_data") = static_cast<std::uint32_t>(kLasUserData),
+               py::arg("point_source_id") = static_cast<std::uint32_t>(kLasPointSourceId),
+               py::arg("gps_time") = static_cast<std::uint32_t>(kLasGpsTime),
+               py::arg("nir") = static_cast<std::uint32_t>(kLasNir),
+               py::arg("color_low") = static_cast<std::uint32_t>(kLasColorLow),
+               py::arg("extra_bytes") = static_cast<std::uint32_t>(kLasExtraBytes));
+}
+
+}  // namespace relief::python

@@ -1,0 +1,351 @@
+"""The Python bindings end to end: compress synthetic scenes, open, info,
+query (whole, batches, boxes, levels of detail), append, and the errors with
+their stable codes."""
+
+import gc
+import json
+import os
+import re
+import sqlite3
+import subprocess
+import warnings
+
+import numpy as np
+import pytest
+
+import relief
+from conftest import GRID, LAS_SCALE, as_rows, make_scene, write_las, write_ply, write_xyz
+
+XYZRGBI = ("x", "y", "z", "red", "green", "blue", "intensity")
+
+
+def test_version():
+    assert re.fullmatch(r"\d+\.\d+\.\d+", relief.__version__)
+
+
+def test_compress_result_and_info(xyz_archive, scene):
+    path, result = xyz_archive
+    n = len(scene["x"])
+    assert result["points_read"] == n
+    assert result["points_decoded"] == n  # bounded mode: every point back
+    assert result["chunks_written"] >= 25  # 40 m square, 8 m chunks
+    assert result["blob_bytes"] > 0
+    assert result["chunk_edge"] == 8
+    assert result["warnings"] == []
+    with relief.open(path) as a:
+        info = a.info
+        assert info["points_in"] == n
+        assert info["points_decoded"] == n
+        assert info["chunks"] == result["chunks_written"]
+        assert info["attributes"] == ["rgb", "intensity"]
+        assert info["grid"]["chunk_edge"] == 8
+        assert info["sources"][0]["points"] == n
+        assert info["creator"].startswith("relief " + relief.__version__)
+        assert len(info["scans"]) == 1 and info["scans"][0]["complete"]
+
+
+def test_info_is_the_clis_json(xyz_archive):
+    cli = os.environ.get("RELIEF_CLI")
+    if not cli:
+        pytest.skip("RELIEF_CLI not set (ctest sets it to the built relief tool)")
+    path, _ = xyz_archive
+    out = subprocess.run([cli, "info", "--json", str(path)], check=True, capture_output=True, text=True).stdout
+    with relief.open(str(path)) as a:
+        assert a.info == json.loads(out)
+
+
+def test_query_whole_gives_every_point_back(xyz_archive, scene):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        pts = a.query()
+    assert isinstance(pts, np.ndarray)
+    assert pts.dtype.names == XYZRGBI
+    assert pts.dtype["x"] == np.float64 and pts.dtype["red"] == np.uint8 and pts.dtype["intensity"] == np.float32
+    assert len(pts) == len(scene["x"])
+    # Coordinates on the tolerance grid come back exactly; colour and intensity are exact.
+    assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(scene, XYZRGBI))
+
+
+def test_query_batches_stream_the_same_points(xyz_archive):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        whole = a.query()
+        parts = list(a.query(batches=True, threads=1))
+    assert len(parts) >= 1
+    assert all(isinstance(p, np.ndarray) and p.dtype == whole.dtype for p in parts)
+    assert sum(len(p) for p in parts) == len(whole)
+    assert np.array_equal(as_rows(np.concatenate(parts), XYZRGBI), as_rows(whole, XYZRGBI))
+
+
+def test_batches_stopped_early_and_beside_other_queries(xyz_archive):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        it = a.query(batches=True)
+        first = next(it)
+        assert len(first) > 0
+        # The batch query has its own reader: a whole query runs beside it.
+        assert len(a.query((0, 0, 10, 10))) > 0
+        it.close()  # stops the worker; nothing hangs
+        with pytest.raises(StopIteration):
+            next(it)
+        # Abandoned without close: collected, the worker stops too.
+        it2 = a.query(batches=True)
+        next(it2)
+        del it2
+        gc.collect()
+        assert len(a.query()) == a.info["points_decoded"]
+
+
+@pytest.mark.parametrize("dims", [3, 2])
+def test_box_query(xyz_archive, scene, dims):
+    path, _ = xyz_archive
+    lo, hi = (5.0, 12.0, -1.0), (17.5, 20.0, 1.0)
+    box = lo + hi if dims == 3 else (lo[0], lo[1], hi[0], hi[1])
+    inside = (scene["x"] >= lo[0]) & (scene["x"] <= hi[0]) & (scene["y"] >= lo[1]) & (scene["y"] <= hi[1])
+    if dims == 3:
+        inside &= (scene["z"] >= lo[2]) & (scene["z"] <= hi[2])
+    expected = {k: v[inside] for k, v in scene.items()}
+    with relief.open(path) as a:
+        pts = a.query(box)
+        parts = list(a.query(box, batches=True))
+    assert 0 < len(pts) < len(scene["x"])
+    assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(expected, XYZRGBI))
+    assert sum(len(p) for p in parts) == len(pts)
+
+
+def test_empty_box_gives_an_empty_array_with_the_fields(xyz_archive):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        pts = a.query((1000, 1000, 0, 1001, 1001, 1))
+        assert len(pts) == 0 and pts.dtype.names == XYZRGBI
+        assert list(a.query((1000, 1000, 1001, 1001), batches=True)) == []
+
+
+def test_lod_gives_a_subset(xyz_archive, scene):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        coarse = a.query(lod=8)
+        coarse_batches = list(a.query(lod=8, batches=True))
+    n = len(scene["x"])
+    assert 0 < len(coarse) < n / 2
+    assert sum(len(p) for p in coarse_batches) == len(coarse)
+    # A coarse box query is clipped to the box like any (its points come
+    # from the base layer's maps, not from the input).
+    with relief.open(path) as a:
+        part = a.query((5, 5, 20, 30), lod=8)
+        assert 0 < len(part) < len(a.query((5, 5, 20, 30)))
+    assert np.all((part["x"] >= 5) & (part["x"] <= 20) & (part["y"] >= 5) & (part["y"] <= 30))
+
+
+def test_ply_with_colour_and_append(tmp_path):
+    a_scene = make_scene(n=8000, seed=1)
+    b_scene = make_scene(n=6000, seed=2, x0=40.0)
+    write_ply(tmp_path / "a.ply", a_scene)
+    write_ply(tmp_path / "b.ply", b_scene)
+    out = tmp_path / "ab.relief"
+    seen = []
+    r1 = relief.compress(str(tmp_path / "a.ply"), str(out), progress=seen.append)
+    assert r1["points_read"] == 8000
+    assert seen and {"points_read", "points_total", "chunks_written", "bytes_written", "seconds", "phase"} <= set(seen[-1])
+    r2 = relief.append(out, [tmp_path / "b.ply"], threads=1)
+    assert r2["points_read"] == 6000 and r2["scan_id"] != r1["scan_id"]
+    names = ("x", "y", "z", "red", "green", "blue")
+    with relief.open(out) as a:
+        assert a.info["points_in"] == 14000
+        assert [s["complete"] for s in a.info["scans"]] == [True, True]
+        pts = a.query()
+        assert pts.dtype.names == names
+        both = {k: np.concatenate([a_scene[k], b_scene[k]]) for k in names}
+        assert np.array_equal(as_rows(pts, names), as_rows(both, names))
+        # 2-D box over the appended part only.
+        assert len(a.query((40, 0, 80, 40))) == 6000
+
+
+def test_las_input(tmp_path):
+    s = make_scene(n=6000, seed=3)
+    classification = (np.arange(6000) % 7).astype(np.uint8)
+    write_las(tmp_path / "s.las", s, classification)
+    out = tmp_path / "s.relief"
+    relief.compress([tmp_path / "s.las"], out)
+    with relief.open(out) as a:
+        pts = a.query()
+    assert len(pts) == 6000
+    for k in ("x", "y", "z"):
+        # LAS default tolerance: half the scale, so the integers come back.
+        assert np.array_equal(np.sort(np.round(pts[k] / LAS_SCALE)), np.sort(np.round(s[k] / LAS_SCALE)))
+    assert np.array_equal(np.sort(pts["red"]), np.sort(s["red"]))
+    assert np.array_equal(np.sort(pts["intensity"]), np.sort(s["intensity"]))
+
+
+def test_las_attributes_in_archive(tmp_path):
+    s = make_scene(n=6000, seed=3)
+    classification = (np.arange(6000) % 7).astype(np.uint8)
+    write_las(tmp_path / "s.las", s, classification)
+    out = tmp_path / "s.relief"
+    relief.compress([tmp_path / "s.las"], out)
+    with relief.open(out) as a:
+        pts = a.query()
+    if "classification" not in pts.dtype.names:
+        pytest.skip("archives do not carry LAS attributes yet (reader/codec work in progress): "
+                    "test_las_attribute_fields covers the array conversion")
+    order = np.lexsort((pts["z"], pts["y"], pts["x"]))
+    src_order = np.lexsort((s["z"], s["y"], s["x"]))
+    assert np.array_equal(pts["classification"][order], classification[src_order])
+    assert np.all(pts["point_source_id"] == 7)
+    assert np.all(pts["return_number"] == 1) and np.all(pts["number_of_returns"] == 1)
+
+
+def test_las_attribute_fields():
+    # A PointCloud carrying every LAS attribute, through the converter the
+    # queries use (nothing fills them from files yet).
+    bits = relief._relief.LAS_BITS
+    everything = 0
+    for b in bits.values():
+        everything |= b
+    a = relief._relief._synthetic_las_batch(50, everything, 4)
+    assert a.dtype.names == (
+        "x", "y", "z", "red", "green", "blue", "intensity", "classification", "class_flags", "return_number",
+        "number_of_returns", "scan_flags", "scan_angle", "user_data", "point_source_id", "gps_time", "nir",
+        "extra_bytes",
+    )
+    i = np.arange(50)
+    assert np.array_equal(a["y"], 2.0 * i)
+    # 16-bit colours: the LAS value from the high byte and the stored low byte.
+    assert a.dtype["red"] == np.uint16 and np.array_equal(a["red"], (i << 8) | 0x11)
+    assert np.array_equal(a["blue"], ((i + 2) << 8) | 0x33)
+    assert np.array_equal(a["classification"], i % 32)
+    assert np.array_equal(a["return_number"], ((i + 1) % 32) % 8)
+    assert a.dtype["scan_angle"] == np.int32 and np.array_equal(a["scan_angle"], -1000 * (i % 90))
+    assert a.dtype["point_source_id"] == np.uint16 and np.array_equal(a["point_source_id"], 1000 + i)
+    assert a.dtype["gps_time"] == np.float64 and np.array_equal(a["gps_time"], 0.5 * i)
+    assert np.array_equal(a["nir"], 65535 - i)
+    assert a.dtype["extra_bytes"].itemsize == 4
+    assert a["extra_bytes"][3].tobytes() == bytes([3, 4, 5, 6])
+    # Only what the cloud carries becomes a field; 8-bit colours stay uint8.
+    b = relief._relief._synthetic_las_batch(3, bits["classification"] | bits["gps_time"], 0)
+    assert b.dtype.names == ("x", "y", "z", "red", "green", "blue", "intensity", "classification", "gps_time")
+    assert b.dtype["red"] == np.uint8
+
+
+# ---- Errors: relief.Error subclasses with the stable codes of relief/status.h.
+
+
+def test_missing_file(tmp_path):
+    missing = str(tmp_path / "nope.relief")
+    with pytest.raises(relief.Error) as e:
+        relief.open(missing)
+    assert e.value.code == 2 and e.value.code_name == "io-error"
+    assert isinstance(e.value, relief.IoError) and missing in str(e.value)
+    with pytest.raises(relief.IoError) as e:
+        relief.compress([tmp_path / "nope.xyz"], tmp_path / "out.relief")
+    assert "nope.xyz" in str(e.value)
+    assert not (tmp_path / "out.relief").exists()
+
+
+def test_not_an_archive(tmp_path):
+    bad = tmp_path / "garbage.relief"
+    bad.write_bytes(b"this is not a SQLite file at all" * 100)
+    with pytest.raises(relief.FormatError) as e:
+        relief.open(bad)
+    assert e.value.code == 3 and e.value.code_name == "format-error"
+    assert "garbage.relief" in str(e.value)
+
+
+def test_corrupt_chunk(tmp_path, scene):
+    src = tmp_path / "s.xyz"
+    write_xyz(src, scene)
+    out = tmp_path / "s.relief"
+    relief.compress([src], out, columns="x,y,z,r,g,b,i", chunk_edge=8)
+    with relief.open(out) as a:
+        total = len(a.query())
+    db = sqlite3.connect(out)
+    (chunk_id, points) = db.execute("SELECT id, decoded_points FROM relief_chunk ORDER BY id LIMIT 1").fetchone()
+    db.execute("UPDATE relief_chunk SET blob = zeroblob(length(blob)) WHERE id = ?", (chunk_id,))
+    db.commit()
+    db.close()
+    with relief.open(out) as a:
+        with pytest.raises(relief.CorruptDataError) as e:
+            a.query()
+        assert e.value.code == 4 and e.value.code_name == "corrupt-data" and "s.relief" in str(e.value)
+        with pytest.raises(relief.CorruptDataError):
+            list(a.query(batches=True))
+        with pytest.warns(RuntimeWarning):
+            kept = a.query(skip_corrupt=True)
+        assert len(kept) == total - points
+        with pytest.warns(RuntimeWarning):
+            kept_batches = list(a.query(batches=True, skip_corrupt=True))
+        assert sum(len(p) for p in kept_batches) == total - points
+
+
+def test_bad_options(tmp_path, scene):
+    src = tmp_path / "s.xyz"
+    write_xyz(src, scene)
+    out = tmp_path / "o.relief"
+    cases = [
+        ({"tolerance": -1}, "tolerance must be a positive number"),
+        ({"color_tolerance": 500}, "color_tolerance"),
+        ({"mode": "lossy"}, "mode must be bounded or resample"),
+        ({"mode": "resample", "tolerance": 0.01}, "tolerance and color_tolerance apply to mode bounded"),
+        ({"memory": "1M"}, "below the minimum"),
+        ({"threads": "many"}, "threads"),
+        ({"resolution": 12}, "resolution"),
+    ]
+    for options, text in cases:
+        with pytest.raises(relief.InvalidArgumentError) as e:
+            relief.compress([src], out, columns="x,y,z,r,g,b,i", **options)
+        assert e.value.code == 1 and e.value.code_name == "invalid-argument"
+        assert isinstance(e.value, ValueError)
+        assert text in str(e.value), (options, str(e.value))
+        assert not out.exists()
+    with pytest.raises(TypeError, match="speed"):
+        relief.compress([src], out, speed=11)
+    # append takes only the run's options: the archive fixes the rest.
+    with pytest.raises(TypeError, match="tolerance"):
+        relief.append(out, [src], tolerance=0.1)
+    with pytest.raises(TypeError, match="must be a number, a string or a bool"):
+        relief.compress([src], out, tolerance=[1])
+
+
+def test_existing_archive_is_not_overwritten(xyz_archive, tmp_path):
+    path, _ = xyz_archive
+    before = path.read_bytes()
+    src = tmp_path / "x.xyz"
+    write_xyz(src, make_scene(n=100))
+    with pytest.raises(relief.Error) as e:
+        relief.compress([src], path, columns="x,y,z,r,g,b,i")
+    assert e.value.code == 2 and str(path) in str(e.value)
+    assert path.read_bytes() == before
+
+
+def test_bad_queries(xyz_archive):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        with pytest.raises(relief.InvalidArgumentError):
+            a.query((10, 10, 10, 0, 0, 0))  # inverted
+        with pytest.raises(relief.InvalidArgumentError, match="box"):
+            a.query((0, 0, 1))
+        with pytest.raises(relief.InvalidArgumentError, match="finite"):
+            a.query((0, 0, float("nan"), 1))
+        with pytest.raises(relief.InvalidArgumentError, match="lod"):
+            a.query(lod=0)
+        with pytest.raises(relief.InvalidArgumentError, match="lod"):
+            a.query(lod=5000, batches=True)
+        with pytest.raises(TypeError, match="colour"):
+            a.query(colour=True)
+    with pytest.raises(ValueError, match="closed"):
+        a.query()
+    assert a.closed
+
+
+def test_progress_exception_stops_the_ingest(tmp_path, scene):
+    src = tmp_path / "s.xyz"
+    write_xyz(src, scene)
+
+    class Stop(Exception):
+        pass
+
+    def progress(p):
+        raise Stop(p["phase"])
+
+    with pytest.raises(Stop):
+        relief.compress([src], tmp_path / "p.relief", columns="x,y,z,r,g,b,i", progress=progress)

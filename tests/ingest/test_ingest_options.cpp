@@ -1,0 +1,89 @@
+// apply_ingest_options: the one parser of ingest options by name (the CLI's
+// flags and the Python bindings' keyword arguments).
+#include <catch2/catch.hpp>
+
+#include "relief/ingest.h"
+
+using namespace relief;
+
+namespace {
+
+Status apply(IngestOptionSet set, std::vector<NamedOption> given, IngestOptions& o,
+             OptionSpelling spelling = OptionSpelling::kPython) {
+  return apply_ingest_options(set, given, spelling, o);
+}
+
+}  // namespace
+
+TEST_CASE("ingest options: values by the CLI's names reach IngestOptions", "[ingest][options]") {
+  IngestOptions o;
+  REQUIRE(apply(IngestOptionSet::kCompress,
+                {{"tolerance", "0.01"}, {"color_tolerance", "3"}, {"threads", "2"}, {"memory", "512M"},
+                 {"chunk-edge", "8"}, {"cell", "0.25"}, {"codec", "jpeg2000"}, {"verify", "true"},
+                 {"allow_sparse", ""}, {"columns", "x,y,z"}},
+                o)
+              .is_ok());
+  CHECK(o.mode == IngestMode::kBounded);
+  CHECK(o.tolerance == 0.01);
+  CHECK(o.color_tolerance == 3);
+  CHECK(o.threads == 2);
+  CHECK(o.memory_budget == (std::uint64_t{512} << 20));
+  CHECK(o.chunk_edge == 8);
+  CHECK(o.codec.cell_size == 0.25);
+  CHECK(o.codec.image_codec == ImageCodec::kJpeg2000);
+  CHECK(o.verify_blobs);
+  CHECK(o.allow_sparse);
+  CHECK_FALSE(o.assume_crs);
+  CHECK(o.reader.xyz_columns == "x,y,z");
+
+  IngestOptions r;
+  REQUIRE(apply(IngestOptionSet::kCompress, {{"error-target", "0.02"}}, r).is_ok());
+  CHECK(r.mode == IngestMode::kResample);
+  CHECK(r.error_target == 0.02);
+}
+
+TEST_CASE("ingest options: refused values name the option as the caller spells it", "[ingest][options]") {
+  const auto refused = [](IngestOptionSet set, std::vector<NamedOption> given, OptionSpelling spelling) {
+    IngestOptions o;
+    const Status s = apply_ingest_options(set, given, spelling, o);
+    CHECK(s.code() == StatusCode::kInvalidArgument);
+    return s.message();
+  };
+  const auto py = OptionSpelling::kPython;
+  const auto cli = OptionSpelling::kCli;
+  CHECK(refused(IngestOptionSet::kCompress, {{"tolerance", "0"}}, py) == "tolerance must be a positive number");
+  CHECK(refused(IngestOptionSet::kCompress, {{"tolerance", "nan"}}, cli) ==
+        "option --tolerance expects a number, got 'nan'");
+  CHECK(refused(IngestOptionSet::kCompress, {{"color_tolerance", "128"}}, py) ==
+        "option color_tolerance expects a whole number from 0 to 127, got '128'");
+  CHECK(refused(IngestOptionSet::kCompress, {{"mode", "resample"}, {"tolerance", "0.1"}}, cli) ==
+        "--tolerance and --color-tolerance apply to --mode bounded");
+  CHECK(refused(IngestOptionSet::kCompress, {{"mode", "lossy"}}, py) ==
+        "mode must be bounded or resample, got 'lossy'");
+  CHECK(refused(IngestOptionSet::kCompress, {{"memory", "1M"}}, py) ==
+        "memory 1M is below the minimum of 64M");
+  CHECK(refused(IngestOptionSet::kCompress, {{"memory", "lots"}}, py) ==
+        "memory expects a size such as 512M or 2G, got 'lots'");
+  CHECK(refused(IngestOptionSet::kCompress, {{"threads", "-1"}}, py) ==
+        "option threads expects a whole number from 0 to 1024, got '-1'");
+  CHECK(refused(IngestOptionSet::kCompress, {{"verify", "maybe"}}, py) ==
+        "option verify is a flag (true or false), got 'maybe'");
+  CHECK(refused(IngestOptionSet::kCompress, {{"height-bits", "16"}}, cli) ==
+        "--height-bits 16 needs --codec jpeg2000 (JPEG is 8-bit)");
+  CHECK(refused(IngestOptionSet::kCompress, {{"error-target", "1"}, {"mode", "bounded"}}, cli) ==
+        "--error-target needs --mode resample");
+  CHECK(refused(IngestOptionSet::kCompress, {{"speed", "11"}}, py) == "unknown option speed");
+  // Append takes only the run's own options: the archive fixes the rest.
+  CHECK(refused(IngestOptionSet::kAppend, {{"tolerance", "0.1"}}, py) == "unknown option tolerance");
+  CHECK(refused(IngestOptionSet::kStream, {{"assume_crs", ""}}, py) == "unknown option assume_crs");
+}
+
+TEST_CASE("ingest options: byte sizes", "[ingest][options]") {
+  CHECK(parse_byte_size("2G") == (std::uint64_t{2} << 30));
+  CHECK(parse_byte_size("64KiB") == (std::uint64_t{64} << 10));
+  CHECK(parse_byte_size("100") == (std::uint64_t{100} << 20));
+  CHECK(parse_byte_size("") == 0);
+  CHECK(parse_byte_size("-5M") == 0);
+  CHECK(parse_byte_size("5Q") == 0);
+  CHECK(parse_byte_size("1e30T") == 0);
+}
