@@ -5,6 +5,7 @@
 #include "codec/atlas.h"
 #include "codec/chunk_format.h"
 #include "codec/coders.h"
+#include "codec/las_attribute_coder.h"
 #include "core/byte_io.h"
 
 namespace relief {
@@ -29,7 +30,14 @@ namespace codec {
 
 namespace {
 
+// Names of the LAS attribute sections, by bit index.
+constexpr const char* kLasSectionNames[kLasAttributeCount] = {
+    "classification", "classification flags", "return number", "number of returns",
+    "scan flags",     "scan angle",           "user data",     "point source ID",
+    "GPS time",       "NIR",                  "colour low byte", "extra bytes"};
+
 const char* section_name(SectionId id) {
+  if (is_las_section(id)) return kLasSectionNames[static_cast<std::uint8_t>(id) - kFirstLasSection];
   switch (id) {
     case SectionId::kTree: return "tree";
     case SectionId::kPatches: return "patches";
@@ -61,7 +69,7 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
     case SectionId::kPointIntensity:
       return c == SectionCodec::kArithmetic;
   }
-  return false;
+  return is_las_section(id) && c == SectionCodec::kArithmetic;
 }
 
 // The error-bounded layer's fields (version 2).
@@ -91,6 +99,20 @@ Status check_bounded_header(const ChunkHeader& h) {
   if ((h.flags & kFlagColors) == 0 && h.color_tolerance != 0) return bad("colour tolerance without colours");
   if (h.input_points == 0 && (h.patch_count != 0 || h.geometry_depth != 0)) return bad("empty chunk with content");
   if (h.input_points > 0 && h.patch_count == 0) return bad("points without a base layer");
+  if (h.version >= 3) {
+    // Version 3 exists for the LAS attributes: a blob without any is version 2.
+    if (h.las_attributes == 0 || (h.las_attributes & ~kKnownLasAttributes) != 0) {
+      return bad("LAS attribute set " + std::to_string(h.las_attributes) + " invalid");
+    }
+    if (h.input_points == 0) return bad("LAS attributes in an empty chunk");
+    const bool extra = (h.las_attributes & kLasExtraBytes) != 0;
+    if (extra ? (h.extra_bytes_size == 0 || h.extra_bytes_size > kMaxExtraBytesSize) : h.extra_bytes_size != 0) {
+      return bad("extra bytes size " + std::to_string(h.extra_bytes_size) + " invalid");
+    }
+    if ((h.las_attributes & kLasColorLow) != 0 && (h.flags & kFlagColors) == 0) {
+      return bad("colour low bytes without colours");
+    }
+  }
   return Status::ok();
 }
 
@@ -166,7 +188,7 @@ std::uint64_t expected_raw_size(SectionId id, const ChunkHeader& h) {
     case SectionId::kPointColor:
     case SectionId::kPointIntensity: return h.input_points;
   }
-  return 0;
+  return is_las_section(id) ? h.input_points : 0;
 }
 
 }  // namespace
@@ -182,6 +204,11 @@ std::vector<SectionId> required_sections(const ChunkHeader& header) {
     if (header.flags & kFlagColors) ids.push_back(SectionId::kPointColor);
     if (header.flags & kFlagIntensity) ids.push_back(SectionId::kPointIntensity);
   }
+  if (header.version >= 3) {
+    for (int b = 0; b < kLasAttributeCount; ++b) {
+      if (header.las_attributes & (1u << b)) ids.push_back(static_cast<SectionId>(kFirstLasSection + b));
+    }
+  }
   return ids;
 }
 
@@ -189,7 +216,7 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
   ByteWriter w;
   w.bytes(kMagic, 4);
   w.u16(h.version);
-  w.u16(h.version >= 2 ? kHeaderSizeV2 : kHeaderSizeV1);
+  w.u16(header_size_for(h.version));
   w.u8(h.flags);
   w.u8(static_cast<std::uint8_t>(h.decomposition));
   w.u8(static_cast<std::uint8_t>(h.image_codec));
@@ -225,6 +252,10 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
     w.u8(0);   // reserved
     w.u32(0);  // reserved
   }
+  if (h.version >= 3) {
+    w.u32(h.las_attributes);
+    w.u32(h.extra_bytes_size);
+  }
   for (const SectionEntry& s : sections) {
     w.u8(static_cast<std::uint8_t>(s.id));
     w.u8(static_cast<std::uint8_t>(s.codec));
@@ -254,7 +285,7 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
   std::uint16_t header_size = 0;
   std::uint8_t decomposition = 0, image_codec = 0, section_count = 0, reserved8 = 0;
   RELIEF_RETURN_IF_ERROR(r.u16(header_size, "header_size"));
-  const std::uint16_t want_header = h.version >= 2 ? kHeaderSizeV2 : kHeaderSizeV1;
+  const std::uint16_t want_header = header_size_for(h.version);
   if (header_size != want_header) {
     return corrupt_data("chunk blob: header size " + std::to_string(header_size) + ", expected " +
                         std::to_string(want_header));
@@ -304,6 +335,10 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
     RELIEF_RETURN_IF_ERROR(r.u32(reserved_w, "reserved"));
     h.intensity_coding = static_cast<IntensityCoding>(coding);
     if (reserved_b != 0 || reserved_w != 0) return corrupt_data("chunk header: reserved bytes are not 0");
+    if (h.version >= 3) {
+      RELIEF_RETURN_IF_ERROR(r.u32(h.las_attributes, "las_attributes"));
+      RELIEF_RETURN_IF_ERROR(r.u32(h.extra_bytes_size, "extra_bytes_size"));
+    }
     RELIEF_RETURN_IF_ERROR(check_bounded_header(h));
   }
   RELIEF_RETURN_IF_ERROR(check_header(h));

@@ -94,6 +94,8 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
     info.decoded_points = h.input_points;
     info.quant_step = h.quant_step;
     info.color_tolerance = h.color_tolerance;
+    info.las_attributes = h.las_attributes;
+    info.extra_bytes_size = h.extra_bytes_size;
   }
   for (const SectionEntry& s : parsed.sections) {
     info.sections.push_back({static_cast<std::uint8_t>(s.id), static_cast<std::uint8_t>(s.codec),
@@ -244,15 +246,10 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
   RELIEF_ASSIGN_OR_RETURN(PointCloud all, codec::decode_bounded_points(parsed));
   if (options.lod == 1) return all;
   // Every lod-th point in the layer's Morton order: spread over the chunk.
-  PointCloud out;
-  const std::size_t keep = (all.size() + options.lod - 1) / options.lod;
-  out.reserve(keep, all.has_colors(), all.has_intensity());
-  for (std::size_t i = 0; i < all.size(); i += options.lod) {
-    out.positions.push_back(all.positions[i]);
-    if (all.has_colors()) out.colors.push_back(all.colors[i]);
-    if (all.has_intensity()) out.intensities.push_back(all.intensities[i]);
-  }
-  return out;
+  std::vector<std::uint32_t> keep;
+  keep.reserve((all.size() + options.lod - 1) / options.lod);
+  for (std::size_t i = 0; i < all.size(); i += options.lod) keep.push_back(static_cast<std::uint32_t>(i));
+  return all.gathered(keep);
 }
 
 }  // namespace relief

@@ -622,6 +622,49 @@ Status gather_subset(const PointCloud& cloud, std::span<const std::uint32_t> sub
     return invalid_argument("chunk: attribute arrays do not match the positions");
   }
   const std::size_t n = subset.size();
+  if (!cloud.las.empty()) {
+    // The LAS attributes travel with their points. Only the subset is copied
+    // (an ingest encodes many subsets of one large cloud); the sizes are
+    // checked against the whole cloud and the copy by validate() below.
+    LasAttributes& dst = out.las;
+    const LasAttributes& src = cloud.las;
+    dst.extra_bytes_size = src.extra_bytes_size;
+    bool sizes_ok = true;
+    const auto gather = [&](const auto& from, auto& to) {
+      if (from.empty()) return;
+      if (from.size() != cloud.size()) {
+        sizes_ok = false;
+        return;
+      }
+      to.resize(n);
+      for (std::size_t k = 0; k < n; ++k) to[k] = subset[k] < from.size() ? from[subset[k]] : to[k];
+    };
+    gather(src.classification, dst.classification);
+    gather(src.class_flags, dst.class_flags);
+    gather(src.return_number, dst.return_number);
+    gather(src.number_of_returns, dst.number_of_returns);
+    gather(src.scan_flags, dst.scan_flags);
+    gather(src.scan_angle, dst.scan_angle);
+    gather(src.user_data, dst.user_data);
+    gather(src.point_source_id, dst.point_source_id);
+    gather(src.gps_time, dst.gps_time);
+    gather(src.nir, dst.nir);
+    gather(src.color_low, dst.color_low);
+    if (!src.extra_bytes.empty()) {
+      const std::size_t w = src.extra_bytes_size;
+      if (w == 0 || src.extra_bytes.size() != cloud.size() * w) {
+        sizes_ok = false;
+      } else {
+        dst.extra_bytes.resize(n * w);
+        for (std::size_t k = 0; k < n; ++k) {
+          if (subset[k] >= cloud.size()) continue;  // refused below
+          std::copy_n(src.extra_bytes.begin() + static_cast<std::ptrdiff_t>(subset[k] * w), w,
+                      dst.extra_bytes.begin() + static_cast<std::ptrdiff_t>(k * w));
+        }
+      }
+    }
+    if (!sizes_ok) return invalid_argument("chunk: LAS attribute arrays do not match the positions");
+  }
   out.positions.resize(n);
   out.colors.resize(cloud.has_colors() ? n : 0);
   out.intensities.resize(cloud.has_intensity() ? n : 0);
@@ -646,6 +689,8 @@ Status gather_subset(const PointCloud& cloud, std::span<const std::uint32_t> sub
       out.intensities[k] = v;
     }
   }
+  // GPS times finite, colour low bytes only with colours.
+  if (!out.las.empty()) RELIEF_RETURN_IF_ERROR(out.validate("chunk"));
   return Status::ok();
 }
 

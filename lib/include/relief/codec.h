@@ -29,7 +29,9 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // Highest chunk format version this build writes and reads. Version 1: the
 // paper's maps alone (resampling). Version 2: the maps as a base layer plus an
 // error-bounded layer that gives back every point (format-spec/chunk.md).
-inline constexpr std::uint16_t kChunkFormatVersion = 2;
+// Version 3: version 2 plus the LAS attributes (PointCloud::las) of every
+// point; the encoder writes it only for clouds that carry some.
+inline constexpr std::uint16_t kChunkFormatVersion = 3;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
@@ -119,6 +121,9 @@ struct ChunkInfo {
   std::uint32_t base_points = 0;     // points of the base layer (occupied pixels)
   Vec3d quant_step;                  // coordinate step; the error bound is half of it
   int color_tolerance = 0;
+  // Format 3: the LasAttributeBits every point carries, and extra bytes per point.
+  std::uint32_t las_attributes = 0;
+  std::uint32_t extra_bytes_size = 0;
   std::uint32_t patch_count = 0;
   std::uint32_t atlas_width = 0;   // pixels
   std::uint32_t atlas_height = 0;  // pixels

@@ -1,0 +1,393 @@
+// Mirror pair in one file: each LAS attribute's encoder and decoder run the
+// same routine (code_attribute), parameterised by the bit coder, as
+// geometry_coder.cpp does, so they cannot drift apart. format-spec/chunk.md
+// §11.7 is the normative description.
+//
+// Points arrive in cell order, so the previous point is a spatial neighbour:
+// categorical values (classification, returns, flags, user data) are coded
+// with adaptive models whose context is the previous point's value; numeric
+// ones (scan angle, GPS time, NIR) as differences from the previous point
+// with models chosen by the size of the previous difference.
+#include "codec/las_attribute_coder.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <string>
+
+#include "codec/range_coder.h"
+
+namespace relief::codec {
+
+namespace {
+
+// ---- Bit coders with one interface: the encoder passes the true value and
+// gets it back, the decoder ignores what it is given and returns what it read.
+class EncCoder {
+ public:
+  explicit EncCoder(RangeEncoder& e) : e_(e) {}
+  int bit(BitModel& m, int b) {
+    e_.encode(m, b);
+    return b;
+  }
+  bool sint(SIntModel& m, std::int64_t& v) {
+    encode_sint(e_, m, v);
+    return true;
+  }
+  bool ok() const { return true; }
+
+ private:
+  RangeEncoder& e_;
+};
+
+class DecCoder {
+ public:
+  explicit DecCoder(RangeDecoder& d) : d_(d) {}
+  int bit(BitModel& m, int) { return d_.decode(m); }
+  bool sint(SIntModel& m, std::int64_t& v) { return decode_sint(d_, m, v); }
+  bool ok() const { return !d_.exhausted(); }
+
+ private:
+  RangeDecoder& d_;
+};
+
+// A byte as 8 binary decisions down a tree (node 1 is the root, node k's
+// children are 2k and 2k + 1), most significant bit first.
+struct ByteModel {
+  BitModel node[256];
+};
+
+template <typename C>
+void code_byte(C& c, ByteModel& m, std::uint8_t& v) {
+  unsigned node = 1;
+  for (int i = 7; i >= 0; --i) node = 2 * node + static_cast<unsigned>(c.bit(m.node[node], (v >> i) & 1));
+  v = static_cast<std::uint8_t>(node - 256);
+}
+
+// Byte models per context, made when a context is first used: a small chunk
+// touches a few of them, and none costs its 1.5 KB until then.
+class ByteContexts {
+ public:
+  explicit ByteContexts(std::size_t count) : models_(count) {}
+  ByteModel& operator[](std::size_t i) {
+    std::unique_ptr<ByteModel>& p = models_[i];
+    if (!p) p = std::make_unique<ByteModel>();
+    return *p;
+  }
+
+ private:
+  std::vector<std::unique_ptr<ByteModel>> models_;
+};
+
+constexpr std::size_t kByteContexts = 256;
+
+// A u8 attribute with the previous point's value as context.
+template <typename C>
+bool code_bytes_prev(C& c, std::vector<std::uint8_t>& v) {
+  ByteContexts models(kByteContexts);
+  std::uint8_t prev = 0;
+  for (std::uint8_t& x : v) {
+    code_byte(c, models[prev], x);
+    prev = x;
+    if (!c.ok()) return false;
+  }
+  return true;
+}
+
+// Size classes of a difference: how often |r| can be shifted right by 2
+// before it reaches 0, at most 11 (as the intensity section, §11.5).
+constexpr int kDeltaClasses = 12;
+int delta_class(std::int64_t r) {
+  const std::uint64_t m = r < 0 ? std::uint64_t{0} - static_cast<std::uint64_t>(r) : static_cast<std::uint64_t>(r);
+  int c = 0;
+  for (std::uint64_t v = m; v != 0 && c < kDeltaClasses - 1; v >>= 2) ++c;
+  return c;
+}
+
+// Integers coded as differences from the previous point (modulo 2^64), with
+// the class of the previous difference as context. `get(i)` gives the value
+// (encoder), `put(i, v)` stores a decoded one and returns false when it is out
+// of the attribute's range.
+template <typename C, typename Get, typename Put>
+bool code_deltas(C& c, std::size_t n, Get&& get, Put&& put) {
+  auto models = std::make_unique<SIntModel[]>(kDeltaClasses);
+  std::uint64_t prev = 0;
+  int cls = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    auto r = static_cast<std::int64_t>(get(i) - prev);
+    if (!c.sint(models[static_cast<std::size_t>(cls)], r) || !c.ok()) return false;
+    prev += static_cast<std::uint64_t>(r);
+    if (!put(i, prev)) return false;
+    cls = delta_class(r);
+  }
+  return true;
+}
+
+// Point source IDs: a move-to-front list of the last kSourceSlots distinct
+// IDs (flight lines overlap, so cell order alternates between a few); the
+// symbol is the slot of the ID (0..3) or kSourceSlots for a new one, coded
+// with the previous symbol as context, a new ID then as two bytes.
+constexpr int kSourceSlots = 4;
+constexpr int kSourceSymbolBits = 3;
+template <typename C>
+bool code_point_source(C& c, std::vector<std::uint16_t>& v) {
+  struct Models {
+    BitModel symbol[kSourceSlots + 1][1 << kSourceSymbolBits];
+    ByteModel high, low;
+  };
+  auto m = std::make_unique<Models>();
+  std::array<std::uint16_t, kSourceSlots> slots{};
+  int prev_sym = 0;
+  for (std::uint16_t& x : v) {
+    int sym = kSourceSlots;
+    for (int s = 0; s < kSourceSlots; ++s) {
+      if (slots[static_cast<std::size_t>(s)] == x) {
+        sym = s;
+        break;
+      }
+    }
+    unsigned node = 1;
+    for (int i = kSourceSymbolBits - 1; i >= 0; --i) {
+      node = 2 * node + static_cast<unsigned>(c.bit(m->symbol[prev_sym][node], (sym >> i) & 1));
+    }
+    sym = static_cast<int>(node - (1u << kSourceSymbolBits));
+    if (sym > kSourceSlots) return false;
+    std::uint16_t id = 0;
+    if (sym == kSourceSlots) {
+      std::uint8_t hi = static_cast<std::uint8_t>(x >> 8), lo = static_cast<std::uint8_t>(x);
+      code_byte(c, m->high, hi);
+      code_byte(c, m->low, lo);
+      id = static_cast<std::uint16_t>(hi << 8 | lo);
+      sym = kSourceSlots - 1;  // a new ID enters at the front, the last slot drops out
+    } else {
+      id = slots[static_cast<std::size_t>(sym)];
+    }
+    for (int s = sym; s > 0; --s) slots[static_cast<std::size_t>(s)] = slots[static_cast<std::size_t>(s - 1)];
+    slots[0] = id;
+    x = id;
+    prev_sym = static_cast<int>(node - (1u << kSourceSymbolBits));
+    if (!c.ok()) return false;
+  }
+  return true;
+}
+
+// Extra bytes: per byte column j, the difference from the previous point's
+// byte in that column (modulo 256), with the column (columns from
+// kExtraColumns - 1 on share one) and the class of that column's previous
+// difference as context.
+constexpr std::size_t kExtraColumns = 64;
+constexpr std::size_t kExtraClasses = 4;
+std::size_t byte_delta_class(std::uint8_t d) {
+  if (d == 0) return 0;
+  if (d == 1 || d == 255) return 1;
+  if (d < 16 || d > 240) return 2;
+  return 3;
+}
+template <typename C>
+bool code_extra_bytes(C& c, std::vector<std::uint8_t>& v, std::size_t width) {
+  ByteContexts models(kExtraColumns * kExtraClasses);
+  std::vector<std::uint8_t> prev(width, 0), cls(width, 0);
+  const std::size_t n = width == 0 ? 0 : v.size() / width;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* row = v.data() + i * width;
+    for (std::size_t j = 0; j < width; ++j) {
+      std::uint8_t d = static_cast<std::uint8_t>(row[j] - prev[j]);
+      code_byte(c, models[std::min(j, kExtraColumns - 1) * kExtraClasses + cls[j]], d);
+      row[j] = static_cast<std::uint8_t>(prev[j] + d);
+      prev[j] = row[j];
+      cls[j] = static_cast<std::uint8_t>(byte_delta_class(d));
+    }
+    if (!c.ok()) return false;
+  }
+  return true;
+}
+
+std::uint64_t double_bits(double v) { return std::bit_cast<std::uint64_t>(v); }
+
+constexpr int kMaxReturnContext = 15;
+
+// Codes attribute `bit` of las (every vector already sized to n points).
+template <typename C>
+bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n) {
+  switch (bit) {
+    case kLasClassification: return code_bytes_prev(c, las.classification);
+    case kLasClassFlags: return code_bytes_prev(c, las.class_flags);
+    case kLasReturnNumber: return code_bytes_prev(c, las.return_number);
+    case kLasNumberOfReturns: {
+      // The point's own return number (coded before) and the previous
+      // point's number of returns: a pulse's returns share their count.
+      ByteContexts models(static_cast<std::size_t>(kMaxReturnContext + 1) * (kMaxReturnContext + 1));
+      const bool has_rn = !las.return_number.empty();
+      std::uint8_t prev = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const int rn = has_rn ? std::min<int>(las.return_number[i], kMaxReturnContext) : 0;
+        const std::size_t ctx = static_cast<std::size_t>(rn) * (kMaxReturnContext + 1) +
+                                static_cast<std::size_t>(std::min<int>(prev, kMaxReturnContext));
+        code_byte(c, models[ctx], las.number_of_returns[i]);
+        prev = las.number_of_returns[i];
+        if (!c.ok()) return false;
+      }
+      return true;
+    }
+    case kLasScanFlags: return code_bytes_prev(c, las.scan_flags);
+    case kLasScanAngle:
+      return code_deltas(
+          c, n, [&](std::size_t i) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(las.scan_angle[i])); },
+          [&](std::size_t i, std::uint64_t v) {
+            const auto s = static_cast<std::int64_t>(v);
+            if (s < INT32_MIN || s > INT32_MAX) return false;
+            las.scan_angle[i] = static_cast<std::int32_t>(s);
+            return true;
+          });
+    case kLasUserData: return code_bytes_prev(c, las.user_data);
+    case kLasPointSourceId: return code_point_source(c, las.point_source_id);
+    case kLasGpsTime:
+      // The IEEE bit pattern: for times of one sign and binade its
+      // differences are the time differences in units of the last place.
+      return code_deltas(
+          c, n, [&](std::size_t i) { return double_bits(las.gps_time[i]); },
+          [&](std::size_t i, std::uint64_t v) {
+            const double t = std::bit_cast<double>(v);
+            if (!std::isfinite(t)) return false;
+            las.gps_time[i] = t;
+            return true;
+          });
+    case kLasNir:
+      return code_deltas(
+          c, n, [&](std::size_t i) { return std::uint64_t{las.nir[i]}; },
+          [&](std::size_t i, std::uint64_t v) {
+            if (v > 0xFFFF) return false;
+            las.nir[i] = static_cast<std::uint16_t>(v);
+            return true;
+          });
+    case kLasColorLow: {
+      auto channels = std::make_unique<ByteModel[]>(3);
+      for (std::size_t i = 0; i < n; ++i) {
+        Rgb8& p = las.color_low[i];
+        code_byte(c, channels[0], p.r);
+        code_byte(c, channels[1], p.g);
+        code_byte(c, channels[2], p.b);
+        if (!c.ok()) return false;
+      }
+      return true;
+    }
+    case kLasExtraBytes: return code_extra_bytes(c, las.extra_bytes, las.extra_bytes_size);
+    default: return false;
+  }
+}
+
+// The fewest binary decisions one point of attribute `bit` can take: a
+// stream must be long enough for n points before anything is allocated.
+std::uint64_t min_decisions_per_point(std::uint32_t bit, std::uint32_t extra_bytes_size) {
+  switch (bit) {
+    case kLasScanAngle:
+    case kLasGpsTime:
+    case kLasNir: return 1;  // a zero difference
+    case kLasPointSourceId: return kSourceSymbolBits;
+    case kLasColorLow: return 3 * 8;
+    case kLasExtraBytes: return 8 * std::uint64_t{extra_bytes_size};
+    default: return 8;  // one byte
+  }
+}
+
+// Resizes the vector of attribute `bit` to n points.
+void size_attribute(std::uint32_t bit, LasAttributes& las, std::size_t n) {
+  switch (bit) {
+    case kLasClassification: las.classification.assign(n, 0); break;
+    case kLasClassFlags: las.class_flags.assign(n, 0); break;
+    case kLasReturnNumber: las.return_number.assign(n, 0); break;
+    case kLasNumberOfReturns: las.number_of_returns.assign(n, 0); break;
+    case kLasScanFlags: las.scan_flags.assign(n, 0); break;
+    case kLasScanAngle: las.scan_angle.assign(n, 0); break;
+    case kLasUserData: las.user_data.assign(n, 0); break;
+    case kLasPointSourceId: las.point_source_id.assign(n, 0); break;
+    case kLasGpsTime: las.gps_time.assign(n, 0); break;
+    case kLasNir: las.nir.assign(n, 0); break;
+    case kLasColorLow: las.color_low.assign(n, Rgb8{}); break;
+    case kLasExtraBytes: las.extra_bytes.assign(n * std::size_t{las.extra_bytes_size}, 0); break;
+    default: break;
+  }
+}
+
+template <typename T>
+int cmp(const T& a, const T& b) {
+  return a < b ? -1 : (b < a ? 1 : 0);
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n) {
+  // The shared routine writes back what it codes (the decoder's side of the
+  // interface); the encoder's values come back unchanged, but it needs a
+  // mutable copy of the one vector it codes.
+  LasAttributes work;
+  work.extra_bytes_size = las.extra_bytes_size;
+  switch (bit) {
+    case kLasClassification: work.classification = las.classification; break;
+    case kLasClassFlags: work.class_flags = las.class_flags; break;
+    case kLasReturnNumber: work.return_number = las.return_number; break;
+    case kLasNumberOfReturns:
+      work.number_of_returns = las.number_of_returns;
+      work.return_number = las.return_number;
+      break;
+    case kLasScanFlags: work.scan_flags = las.scan_flags; break;
+    case kLasScanAngle: work.scan_angle = las.scan_angle; break;
+    case kLasUserData: work.user_data = las.user_data; break;
+    case kLasPointSourceId: work.point_source_id = las.point_source_id; break;
+    case kLasGpsTime: work.gps_time = las.gps_time; break;
+    case kLasNir: work.nir = las.nir; break;
+    case kLasColorLow: work.color_low = las.color_low; break;
+    case kLasExtraBytes: work.extra_bytes = las.extra_bytes; break;
+    default: break;
+  }
+  RangeEncoder enc;
+  EncCoder c(enc);
+  code_attribute(c, bit, work, n);
+  return enc.finish();
+}
+
+Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las) {
+  const std::uint64_t need = min_decisions_per_point(bit, las.extra_bytes_size);
+  if (n > 0 && need > 0 && n > max_decisions(data.size()) / need) {
+    return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) + "): " +
+                        std::to_string(data.size()) + " bytes cannot hold " + std::to_string(n) + " points");
+  }
+  size_attribute(bit, las, n);
+  RangeDecoder dec(data);
+  DecCoder c(dec);
+  if (!code_attribute(c, bit, las, n) || dec.overrun() > 0) {
+    return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) +
+                        "): invalid or truncated stream");
+  }
+  return Status::ok();
+}
+
+int compare_las_points(const LasAttributes& las, std::size_t a, std::size_t b) {
+  const auto col = [&](const auto& v) { return v.empty() ? 0 : cmp(v[a], v[b]); };
+  int r = 0;
+  if ((r = col(las.classification)) != 0) return r;
+  if ((r = col(las.class_flags)) != 0) return r;
+  if ((r = col(las.return_number)) != 0) return r;
+  if ((r = col(las.number_of_returns)) != 0) return r;
+  if ((r = col(las.scan_flags)) != 0) return r;
+  if ((r = col(las.scan_angle)) != 0) return r;
+  if ((r = col(las.user_data)) != 0) return r;
+  if ((r = col(las.point_source_id)) != 0) return r;
+  if (!las.gps_time.empty() && (r = cmp(double_bits(las.gps_time[a]), double_bits(las.gps_time[b]))) != 0) return r;
+  if ((r = col(las.nir)) != 0) return r;
+  if (!las.color_low.empty()) {
+    const Rgb8 x = las.color_low[a], y = las.color_low[b];
+    if ((r = cmp(std::array{x.r, x.g, x.b}, std::array{y.r, y.g, y.b})) != 0) return r;
+  }
+  if (!las.extra_bytes.empty() && las.extra_bytes_size > 0) {
+    const std::size_t w = las.extra_bytes_size;
+    r = std::memcmp(las.extra_bytes.data() + a * w, las.extra_bytes.data() + b * w, w);
+    if (r != 0) return r < 0 ? -1 : 1;
+  }
+  return 0;
+}
+
+}  // namespace relief::codec
