@@ -5,7 +5,9 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -278,4 +280,19 @@ TEST_CASE("LAS attributes: truncated and lying attribute sections are refused", 
     }
     CHECK(refused > 0);
   }
+}
+
+// Not run by default: writes the chunk fuzz target's seed with LAS attributes,
+//   RELIEF_FUZZ_SEED_DIR=tests/fuzz/corpus/chunk ./test_codec "[.seed]"
+TEST_CASE("LAS attributes: write the fuzz seed", "[.seed]") {
+  const char* dir = std::getenv("RELIEF_FUZZ_SEED_DIR");
+  if (dir == nullptr) return;
+  PointCloud in = scene(12, 120, true);
+  test::add_las_attributes(in, 0xFFF, 3, 12, false);
+  EncodeParams p = params_for(0.005, 2.0);
+  p.map_resolution = 8;
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  std::ofstream(std::string(dir) + "/seed-v3-las-attributes.rlfc", std::ios::binary)
+      .write(reinterpret_cast<const char*>(blob->data()), static_cast<std::streamsize>(blob->size()));
 }
