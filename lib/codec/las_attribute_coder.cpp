@@ -158,6 +158,58 @@ bool code_unit(C& c, std::uint64_t& unit, std::uint64_t max_unit) {
   return c.ok();
 }
 
+// GPS times: in cell order consecutive points are spatial neighbours, but
+// the previous point often lies on an adjacent scan line, far away in time,
+// while one of the few points before it lies on the same line. Each point
+// names one of the last kGpsWindow points as its reference (the encoder takes
+// the nearest in time, the lowest index on ties; context: the previous
+// point's choice) and codes its bit-pattern difference from that reference,
+// modelled by the class of the previous difference.
+constexpr int kGpsWindowBits = 5;
+constexpr std::size_t kGpsWindow = std::size_t{1} << kGpsWindowBits;
+template <typename C>
+bool code_gps(C& c, std::vector<double>& v) {
+  struct Models {
+    BitModel ref[kGpsWindow][kGpsWindow];
+    SIntModel delta[kDeltaClasses];
+  };
+  auto m = std::make_unique<Models>();
+  // window[(i - 1 - j) mod kGpsWindow] is the bit pattern of point i - 1 - j
+  // (0 before the first point).
+  std::array<std::uint64_t, kGpsWindow> window{};
+  std::size_t prev_ref = 0;
+  int cls = 0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const std::uint64_t bits = std::bit_cast<std::uint64_t>(v[i]);
+    const auto slot = [&](std::size_t j) { return (i + 2 * kGpsWindow - 1 - j) % kGpsWindow; };
+    std::size_t best = 0;
+    std::uint64_t best_dist = ~std::uint64_t{0};
+    for (std::size_t j = 0; j < kGpsWindow; ++j) {
+      const std::uint64_t d = bits - window[slot(j)];
+      const std::uint64_t dist = std::min(d, std::uint64_t{0} - d);
+      if (dist < best_dist) {
+        best_dist = dist;
+        best = j;
+      }
+    }
+    unsigned node = 1;
+    for (int b = kGpsWindowBits - 1; b >= 0; --b) {
+      node = 2 * node + static_cast<unsigned>(c.bit(m->ref[prev_ref][node], static_cast<int>(best >> b) & 1));
+    }
+    const std::size_t j = node - kGpsWindow;
+    const std::uint64_t ref = window[slot(j)];
+    auto r = static_cast<std::int64_t>(bits - ref);
+    if (!c.sint(m->delta[cls], r) || !c.ok()) return false;
+    const std::uint64_t got = ref + static_cast<std::uint64_t>(r);
+    v[i] = std::bit_cast<double>(got);
+    if (!std::isfinite(v[i])) return false;
+    window[i % kGpsWindow] = got;
+    prev_ref = j;
+    cls = delta_class(r);
+  }
+  return true;
+}
+
 // Point source IDs: a move-to-front list of the last kSourceSlots distinct
 // IDs (flight lines overlap, so cell order alternates between a few); the
 // symbol is the slot of the ID (0..3) or kSourceSlots for a new one, coded
@@ -286,17 +338,10 @@ bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, 
     case kLasGpsTime:
       // The IEEE bit pattern: for times of one sign and binade its
       // differences are the time differences in units of the last place.
-      // (Picking the nearest of the last 8 times as the reference instead
-      // measured no better on the shared aerial tile: in cell order the
-      // nearest time is usually an adjacent scan line's either way.)
-      return code_deltas(
-          c, n, [&](std::size_t i) { return double_bits(las.gps_time[i]); },
-          [&](std::size_t i, std::uint64_t v) {
-            const double t = std::bit_cast<double>(v);
-            if (!std::isfinite(t)) return false;
-            las.gps_time[i] = t;
-            return true;
-          });
+      // (A move-to-front list of 8 "tracks" measured no better than the
+      // previous point; the window of the last 32 points gains 2.7-3.6
+      // bits per point on the shared aerial files.)
+      return code_gps(c, las.gps_time);
     case kLasNir: {
       constexpr std::uint64_t kMaxUnit = 0xFFFF;
       if (!code_unit(c, unit, kMaxUnit)) return false;
@@ -318,8 +363,8 @@ bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, 
 std::uint64_t min_decisions_per_point(std::uint32_t bit, std::uint32_t extra_bytes_size) {
   switch (bit) {
     case kLasScanAngle:
-    case kLasGpsTime:
     case kLasNir: return 1;  // a zero difference
+    case kLasGpsTime: return kGpsWindowBits + 1;  // a reference and a zero difference
     case kLasPointSourceId: return kSourceSymbolBits;
     case kLasColorLow: return 3;  // three zero differences
     case kLasExtraBytes: return 8 * std::uint64_t{extra_bytes_size};
