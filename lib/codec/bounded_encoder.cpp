@@ -202,6 +202,11 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
                          static_cast<std::uint32_t>(n), 0, {}});
     }
   }
+  if (las_bits & kLasClassification) {
+    // The base layer's classification map: the majority class per pixel.
+    base.las.classification.resize(n);
+    for (std::size_t k = 0; k < n; ++k) base.las.classification[k] = cloud.las.classification[order[k].index];
+  }
   EncodeParams base_params = params;
   base_params.bound.reset();
   if (base_params.grid_origin) {
@@ -233,11 +238,20 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   h.height_max = bh.height_max;
   h.intensity_min = bh.intensity_min;
   h.intensity_max = bh.intensity_max;
-  std::vector<SectionEntry> sections = parsed.sections;
+  // Sections in id order: the maps, the error-bounded layer, then the base
+  // layer's classification map.
+  h.flags |= static_cast<std::uint8_t>(bh.flags & kFlagClassMap);
+  std::vector<SectionEntry> sections;
+  for (const SectionEntry& s : parsed.sections) {
+    if (s.id != SectionId::kClassMap) sections.push_back(s);
+  }
   for (std::size_t s = 0; s < refined.size(); ++s) {
     refined[s].payload = payloads[s];
     refined[s].coded_size = static_cast<std::uint32_t>(payloads[s].size());
     sections.push_back(refined[s]);
+  }
+  for (const SectionEntry& s : parsed.sections) {
+    if (s.id == SectionId::kClassMap) sections.push_back(s);
   }
   if (stats) {
     stats->decoded_points = static_cast<std::uint32_t>(n);

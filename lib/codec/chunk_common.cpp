@@ -48,6 +48,7 @@ const char* section_name(SectionId id) {
     case SectionId::kGeometry: return "geometry";
     case SectionId::kPointColor: return "point colour";
     case SectionId::kPointIntensity: return "point intensity";
+    case SectionId::kClassMap: return "classification map";
   }
   return "unknown";
 }
@@ -67,6 +68,7 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
     case SectionId::kGeometry:
     case SectionId::kPointColor:
     case SectionId::kPointIntensity:
+    case SectionId::kClassMap:
       return c == SectionCodec::kArithmetic;
   }
   return is_las_section(id) && c == SectionCodec::kArithmetic;
@@ -99,7 +101,7 @@ Status check_bounded_header(const ChunkHeader& h) {
   if ((h.flags & kFlagColors) == 0 && h.color_tolerance != 0) return bad("colour tolerance without colours");
   if (h.input_points == 0 && (h.patch_count != 0 || h.geometry_depth != 0)) return bad("empty chunk with content");
   if (h.input_points > 0 && h.patch_count == 0) return bad("points without a base layer");
-  if (h.version >= 3) {
+  if (h.version == 3) {
     // Version 3 exists for the LAS attributes: a blob without any is version 2.
     if (h.las_attributes == 0 || (h.las_attributes & ~kKnownLasAttributes) != 0) {
       return bad("LAS attribute set " + std::to_string(h.las_attributes) + " invalid");
@@ -112,13 +114,21 @@ Status check_bounded_header(const ChunkHeader& h) {
     if ((h.las_attributes & kLasColorLow) != 0 && (h.flags & kFlagColors) == 0) {
       return bad("colour low bytes without colours");
     }
+    // The base layer has a classification map exactly when the points carry classes.
+    if (((h.flags & kFlagClassMap) != 0) != ((h.las_attributes & kLasClassification) != 0)) {
+      return bad("classification map flag does not match the LAS attributes");
+    }
   }
   return Status::ok();
 }
 
 Status check_header(const ChunkHeader& h) {
   const auto bad = [](const std::string& m) { return corrupt_data("chunk header: " + m); };
-  if ((h.flags & ~kKnownFlags) != 0) return bad("reserved flag bits set");
+  if ((h.flags & ~(h.version >= 3 ? kKnownFlagsV3 : kKnownFlags)) != 0) return bad("reserved flag bits set");
+  // Version 4 exists for the classification map: without one a blob is version 1.
+  if (h.version == 4 && ((h.flags & kFlagClassMap) == 0 || h.patch_count == 0)) {
+    return bad("version 4 without a classification map");
+  }
   if (h.decomposition != Decomposition::kVoxelGrid && h.decomposition != Decomposition::kOctree) {
     return bad("unknown decomposition id " + std::to_string(static_cast<int>(h.decomposition)));
   }
@@ -187,6 +197,7 @@ std::uint64_t expected_raw_size(SectionId id, const ChunkHeader& h) {
     case SectionId::kGeometry:
     case SectionId::kPointColor:
     case SectionId::kPointIntensity: return h.input_points;
+    case SectionId::kClassMap: return h.decoded_points;
   }
   return is_las_section(id) ? h.input_points : 0;
 }
@@ -199,16 +210,17 @@ std::vector<SectionId> required_sections(const ChunkHeader& header) {
   ids = {SectionId::kTree, SectionId::kPatches, SectionId::kOccupancy, SectionId::kHeight};
   if (header.flags & kFlagColors) ids.push_back(SectionId::kColor);
   if (header.flags & kFlagIntensity) ids.push_back(SectionId::kIntensity);
-  if (header.version >= 2) {
+  if (has_bounded_layer(header.version)) {
     ids.push_back(SectionId::kGeometry);
     if (header.flags & kFlagColors) ids.push_back(SectionId::kPointColor);
     if (header.flags & kFlagIntensity) ids.push_back(SectionId::kPointIntensity);
   }
-  if (header.version >= 3) {
+  if (header.version == 3) {
     for (int b = 0; b < kLasAttributeCount; ++b) {
       if (header.las_attributes & (1u << b)) ids.push_back(static_cast<SectionId>(kFirstLasSection + b));
     }
   }
+  if (header.flags & kFlagClassMap) ids.push_back(SectionId::kClassMap);
   return ids;
 }
 
@@ -238,7 +250,7 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
   w.f64(h.height_max);
   w.f32(h.intensity_min);
   w.f32(h.intensity_max);
-  if (h.version >= 2) {
+  if (has_bounded_layer(h.version)) {
     w.f64(h.quant_step.x);
     w.f64(h.quant_step.y);
     w.f64(h.quant_step.z);
@@ -252,7 +264,7 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
     w.u8(0);   // reserved
     w.u32(0);  // reserved
   }
-  if (h.version >= 3) {
+  if (h.version == 3) {
     w.u32(h.las_attributes);
     w.u32(h.extra_bytes_size);
   }
@@ -314,7 +326,7 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
   h.decomposition = static_cast<Decomposition>(decomposition);
   h.image_codec = static_cast<ImageCodec>(image_codec);
   if (reserved8 != 0) return corrupt_data("chunk header: reserved byte is not 0");
-  if (h.version >= 2) {
+  if (has_bounded_layer(h.version)) {
     RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.x, "quant_step_x"));
     RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.y, "quant_step_y"));
     RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.z, "quant_step_z"));
@@ -335,7 +347,7 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
     RELIEF_RETURN_IF_ERROR(r.u32(reserved_w, "reserved"));
     h.intensity_coding = static_cast<IntensityCoding>(coding);
     if (reserved_b != 0 || reserved_w != 0) return corrupt_data("chunk header: reserved bytes are not 0");
-    if (h.version >= 3) {
+    if (h.version == 3) {
       RELIEF_RETURN_IF_ERROR(r.u32(h.las_attributes, "las_attributes"));
       RELIEF_RETURN_IF_ERROR(r.u32(h.extra_bytes_size, "extra_bytes_size"));
     }

@@ -27,7 +27,10 @@ inline constexpr std::size_t kChecksumSize = 4;
 // Header flag bits; all others are reserved and must be 0.
 inline constexpr std::uint8_t kFlagColors = 0x01;
 inline constexpr std::uint8_t kFlagIntensity = 0x02;
+// Versions 3 and 4: the maps carry a classification map (section 22).
+inline constexpr std::uint8_t kFlagClassMap = 0x04;
 inline constexpr std::uint8_t kKnownFlags = kFlagColors | kFlagIntensity;
+inline constexpr std::uint8_t kKnownFlagsV3 = kFlagColors | kFlagIntensity | kFlagClassMap;
 
 // Section ids, in the order they must appear.
 enum class SectionId : std::uint8_t {
@@ -42,6 +45,8 @@ enum class SectionId : std::uint8_t {
   kPointColor = 8,
   kPointIntensity = 9,
   // Version 3: ids 10..21 are the LAS attributes (kFirstLasSection + bit).
+  // Versions 3 and 4: the majority class of every occupied map pixel.
+  kClassMap = 22,
 };
 
 // Section codec ids. Never reuse a value.
@@ -115,9 +120,12 @@ struct ChunkHeader {
   std::uint32_t extra_bytes_size = 0;
 };
 
-// Header size of a format version (1, 2 or 3).
+// Versions 2 and 3 hold the error-bounded layer; 1 and 4 the maps alone
+// (4: with a classification map).
+inline bool has_bounded_layer(std::uint16_t version) { return version == 2 || version == 3; }
+// Header size of a format version (1..4).
 inline std::uint16_t header_size_for(std::uint16_t version) {
-  return version >= 3 ? kHeaderSizeV3 : (version == 2 ? kHeaderSizeV2 : kHeaderSizeV1);
+  return version == 3 ? kHeaderSizeV3 : (version == 2 ? kHeaderSizeV2 : kHeaderSizeV1);
 }
 inline bool is_las_section(SectionId id) {
   const auto v = static_cast<std::uint8_t>(id);

@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -214,7 +215,8 @@ TEST_CASE("LAS attributes: subsets, and levels of detail from the point layer", 
     REQUIRE(half->size() == (all->size() + 1) / 2);
     for (std::size_t k = 0; k < half->size(); ++k) CHECK(test::point_record(*half, k) == test::point_record(*all, 2 * k));
   } else {
-    CHECK(half->las.empty());  // the base layer carries no LAS attributes
+    // The base layer carries the majority class per pixel, nothing else.
+    CHECK(half->las.carried() == kLasClassification);
   }
 }
 
@@ -295,4 +297,118 @@ TEST_CASE("LAS attributes: write the fuzz seed", "[.seed]") {
   REQUIRE(blob.is_ok());
   std::ofstream(std::string(dir) + "/seed-v3-las-attributes.rlfc", std::ios::binary)
       .write(reinterpret_cast<const char*>(blob->data()), static_cast<std::streamsize>(blob->size()));
+}
+
+TEST_CASE("classification map: resampled points get their pixel's majority class", "[codec][las][classmap]") {
+  EncodeParams p;
+  p.cell_size = 0.5;
+  SECTION("two regions") {
+    test::SceneOptions o;
+    o.seed = 31;
+    o.points = 20000;
+    PointCloud in = test::make_terrain(o, 4.0, 0.2);
+    for (const Vec3d& q : in.positions) in.las.classification.push_back(q.x < 0 ? 2 : 6);
+    in.las.user_data.assign(in.size(), 9);  // other attributes are not kept by the maps
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == 4);
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    REQUIRE(out->las.carried() == kLasClassification);
+    std::size_t checked = 0;
+    for (std::size_t i = 0; i < out->size(); ++i) {
+      const double x = out->positions[i].x;
+      if (std::fabs(x) < 0.1) continue;  // pixels straddling the border may vote either way
+      CHECK(out->las.classification[i] == (x < 0 ? 2 : 6));
+      ++checked;
+    }
+    CHECK(checked > out->size() / 2);
+    // Without classification the blob stays version 1.
+    in.las = LasAttributes{};
+    auto plain = encode_chunk(in, p);
+    REQUIRE(plain.is_ok());
+    CHECK(inspect_chunk(*plain)->format_version == 1);
+  }
+  SECTION("majority and ties within one pixel") {
+    for (const auto& [classes, want] : std::vector<std::pair<std::vector<std::uint8_t>, std::uint8_t>>{
+             {{3, 5, 3, 5, 3}, 3}, {{7, 4, 7, 4}, 4}, {{200}, 200}, {{9, 1, 9, 9, 1, 1, 1}, 1}}) {
+      PointCloud in;
+      for (const std::uint8_t c : classes) {
+        in.positions.push_back({0.25, 0.25, 0.25});
+        in.las.classification.push_back(c);
+      }
+      auto blob = encode_chunk(in, p);
+      REQUIRE(blob.is_ok());
+      auto out = decode_chunk(*blob);
+      REQUIRE(out.is_ok());
+      REQUIRE(out->size() == 1);
+      CHECK(out->las.classification[0] == want);
+    }
+  }
+}
+
+TEST_CASE("classification map: lying flags and sections are refused", "[codec][las][classmap][reject]") {
+  test::SceneOptions o;
+  o.seed = 32;
+  o.points = 3000;
+  PointCloud in = test::make_terrain(o, 4.0, 0.2);
+  for (const Vec3d& q : in.positions) in.las.classification.push_back(q.y < 0 ? 1 : 2);
+  EncodeParams resample;
+  resample.cell_size = 0.5;
+  auto v4 = encode_chunk(in, resample);
+  REQUIRE(v4.is_ok());
+  EncodeParams bounded = params_for(0.002, 0.5);
+  auto v3 = encode_chunk(in, bounded);
+  REQUIRE(v3.is_ok());
+  REQUIRE(inspect_chunk(*v3)->format_version == 3);
+  DecodeOptions nocrc;
+  nocrc.verify_checksum = false;
+  const auto corrupt = [&](std::vector<std::uint8_t> b) {
+    auto r = decode_chunk(b, nocrc);
+    return !r.is_ok() && r.status().code() == StatusCode::kCorruptData;
+  };
+  constexpr std::size_t kFlags = 8, kVersion = 4;
+  std::vector<std::uint8_t> bad = *v4;
+  bad[kFlags] = 0;  // version 4 without its map
+  CHECK(corrupt(bad));
+  bad = *v4;
+  bad[kVersion] = 1;  // version 1 with the flag
+  CHECK(corrupt(bad));
+  bad = *v3;
+  bad[kFlags] = static_cast<std::uint8_t>(bad[kFlags] & ~4u);  // classes without the map
+  CHECK(corrupt(bad));
+  for (std::size_t len = 0; len < v4->size(); len += 5) {
+    CHECK_FALSE(decode_chunk(std::span<const std::uint8_t>(v4->data(), len)).is_ok());
+  }
+  // The map section is the last: every flip in it decodes or is refused.
+  test::Rng rng(5);
+  for (int t = 0; t < 300; ++t) {
+    bad = *v4;
+    const std::size_t at = bad.size() - 5 - rng.next() % 40;
+    bad[at] = static_cast<std::uint8_t>(bad[at] ^ (1u + rng.next() % 255));
+    auto r = decode_chunk(bad, nocrc);
+    if (r.is_ok()) CHECK(r->las.classification.size() == r->size());
+  }
+}
+
+TEST_CASE("classification map: coarse levels from the base layer keep the classes", "[codec][las][classmap]") {
+  test::SceneOptions o;
+  o.seed = 33;
+  o.points = 40000;
+  PointCloud in = test::make_terrain(o, 20.0, 1.0);
+  for (const Vec3d& q : in.positions) in.las.classification.push_back(q.x < 0 ? 2 : 5);
+  in.las.gps_time.assign(in.size(), 7.0);
+  auto blob = encode_chunk(in, params_for(0.002, 4.0));
+  REQUIRE(blob.is_ok());
+  DecodeOptions d;
+  d.lod = 64;
+  auto out = decode_chunk(*blob, d);
+  REQUIRE(out.is_ok());
+  REQUIRE(!out->empty());
+  CHECK(out->las.carried() == kLasClassification);  // GPS time needs the point layer
+  for (std::size_t i = 0; i < out->size(); ++i) {
+    if (std::fabs(out->positions[i].x) > 1.0) CHECK(out->las.classification[i] == (out->positions[i].x < 0 ? 2 : 5));
+  }
 }

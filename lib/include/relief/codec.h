@@ -31,7 +31,7 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // error-bounded layer that gives back every point (format-spec/chunk.md).
 // Version 3: version 2 plus the LAS attributes (PointCloud::las) of every
 // point; the encoder writes it only for clouds that carry some.
-inline constexpr std::uint16_t kChunkFormatVersion = 3;
+inline constexpr std::uint16_t kChunkFormatVersion = 4;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
