@@ -164,21 +164,23 @@ bool code_unit(C& c, std::uint64_t& unit, std::uint64_t max_unit) {
 // names one of the last kGpsWindow points as its reference (the encoder takes
 // the nearest in time, the lowest index on ties; context: the previous
 // point's choice) and codes its bit-pattern difference from that reference,
-// modelled by the class of the previous difference.
+// modelled by how far back the reference is (0, 1, 2, 3+) and by the class of
+// the reference's own difference (its scan line's regime).
 constexpr int kGpsWindowBits = 5;
 constexpr std::size_t kGpsWindow = std::size_t{1} << kGpsWindowBits;
+constexpr std::size_t kGpsReach = 4;
 template <typename C>
 bool code_gps(C& c, std::vector<double>& v) {
   struct Models {
     BitModel ref[kGpsWindow][kGpsWindow];
-    SIntModel delta[kDeltaClasses];
+    SIntModel delta[kGpsReach][kDeltaClasses];
   };
   auto m = std::make_unique<Models>();
   // window[(i - 1 - j) mod kGpsWindow] is the bit pattern of point i - 1 - j
   // (0 before the first point).
   std::array<std::uint64_t, kGpsWindow> window{};
+  std::array<int, kGpsWindow> window_cls{};
   std::size_t prev_ref = 0;
-  int cls = 0;
   for (std::size_t i = 0; i < v.size(); ++i) {
     const std::uint64_t bits = std::bit_cast<std::uint64_t>(v[i]);
     const auto slot = [&](std::size_t j) { return (i + 2 * kGpsWindow - 1 - j) % kGpsWindow; };
@@ -199,13 +201,13 @@ bool code_gps(C& c, std::vector<double>& v) {
     const std::size_t j = node - kGpsWindow;
     const std::uint64_t ref = window[slot(j)];
     auto r = static_cast<std::int64_t>(bits - ref);
-    if (!c.sint(m->delta[cls], r) || !c.ok()) return false;
+    if (!c.sint(m->delta[std::min(j, kGpsReach - 1)][window_cls[slot(j)]], r) || !c.ok()) return false;
     const std::uint64_t got = ref + static_cast<std::uint64_t>(r);
     v[i] = std::bit_cast<double>(got);
     if (!std::isfinite(v[i])) return false;
     window[i % kGpsWindow] = got;
+    window_cls[i % kGpsWindow] = delta_class(r);
     prev_ref = j;
-    cls = delta_class(r);
   }
   return true;
 }
