@@ -393,6 +393,62 @@ void size_attribute(std::uint32_t bit, LasAttributes& las, std::size_t n) {
   }
 }
 
+// Calls f(vector) with the vector of attribute `bit` (not extra bytes or
+// colour low bytes, which have their own handling below).
+template <typename F>
+void with_column(std::uint32_t bit, LasAttributes& las, F&& f) {
+  switch (bit) {
+    case kLasClassification: f(las.classification); break;
+    case kLasClassFlags: f(las.class_flags); break;
+    case kLasReturnNumber: f(las.return_number); break;
+    case kLasNumberOfReturns: f(las.number_of_returns); break;
+    case kLasScanFlags: f(las.scan_flags); break;
+    case kLasScanAngle: f(las.scan_angle); break;
+    case kLasUserData: f(las.user_data); break;
+    case kLasPointSourceId: f(las.point_source_id); break;
+    case kLasNir: f(las.nir); break;
+    default: break;
+  }
+}
+
+// True when every point has the same value (GPS times: the same bit pattern).
+bool all_equal(std::uint32_t bit, LasAttributes& las) {
+  if (bit == kLasGpsTime) {
+    const std::vector<double>& v = las.gps_time;
+    return std::all_of(v.begin(), v.end(), [&](double t) { return double_bits(t) == double_bits(v.front()); });
+  }
+  if (bit == kLasExtraBytes) {
+    const std::size_t w = las.extra_bytes_size;
+    const std::vector<std::uint8_t>& v = las.extra_bytes;
+    for (std::size_t at = w; at < v.size(); at += w) {
+      if (!std::equal(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(w), v.begin() + static_cast<std::ptrdiff_t>(at))) {
+        return false;
+      }
+    }
+    return true;
+  }
+  bool equal = true;
+  with_column(bit, las, [&](const auto& v) {
+    equal = std::adjacent_find(v.begin(), v.end(), [](const auto& a, const auto& b) { return !(a == b); }) == v.end();
+  });
+  return equal;
+}
+
+// Resizes attribute `bit` to n points, each a copy of point 0.
+void spread_first(std::uint32_t bit, LasAttributes& las, std::size_t n) {
+  if (bit == kLasGpsTime) {
+    las.gps_time.resize(n, las.gps_time.front());
+  } else if (bit == kLasExtraBytes) {
+    const std::size_t w = las.extra_bytes_size;
+    las.extra_bytes.resize(n * w);
+    for (std::size_t i = 1; i < n; ++i) {
+      std::copy_n(las.extra_bytes.begin(), w, las.extra_bytes.begin() + static_cast<std::ptrdiff_t>(i * w));
+    }
+  } else {
+    with_column(bit, las, [&](auto& v) { v.resize(n, v.front()); });
+  }
+}
+
 template <typename T>
 int cmp(const T& a, const T& b) {
   return a < b ? -1 : (b < a ? 1 : 0);
@@ -424,16 +480,44 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     default: break;
   }
   if (bit == kLasColorLow) return encode_colors(las.color_low, 0);
+  // A constant attribute (user data 0, one flight line, no flags) is one
+  // value: a flag, then the attribute coded for point 0 alone.
+  RangeEncoder enc;
+  EncCoder c(enc);
+  BitModel constant_flag;
+  const bool constant = n > 0 && all_equal(bit, work);
+  if (n > 0) c.bit(constant_flag, constant ? 1 : 0);
+  std::size_t coded = n;
+  if (constant) {
+    coded = 1;
+    if (bit == kLasGpsTime) work.gps_time.resize(1);
+    if (bit == kLasExtraBytes) work.extra_bytes.resize(work.extra_bytes_size);
+    with_column(bit, work, [](auto& v) { v.resize(1); });
+  }
   std::uint64_t unit = 1;
   if (bit == kLasScanAngle) unit = common_unit(work.scan_angle);
   if (bit == kLasNir) unit = common_unit(work.nir);
-  RangeEncoder enc;
-  EncCoder c(enc);
-  code_attribute(c, bit, work, n, unit);
+  code_attribute(c, bit, work, coded, unit);
   return enc.finish();
 }
 
 Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las) {
+  if (bit != kLasColorLow && n > 0) {
+    RangeDecoder dec(data);
+    DecCoder c(dec);
+    BitModel constant_flag;
+    if (c.bit(constant_flag, 0) == 1) {
+      // One value for every point: n is the layer's count, which the
+      // geometry section has already been decoded against.
+      size_attribute(bit, las, 1);
+      if (!code_attribute(c, bit, las, 1, 1) || dec.overrun() > 0) {
+        return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) +
+                            "): invalid or truncated stream");
+      }
+      spread_first(bit, las, n);
+      return Status::ok();
+    }
+  }
   const std::uint64_t need = min_decisions_per_point(bit, las.extra_bytes_size);
   if (n > 0 && need > 0 && n > max_decisions(data.size()) / need) {
     return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) + "): " +
@@ -448,6 +532,8 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
   size_attribute(bit, las, n);
   RangeDecoder dec(data);
   DecCoder c(dec);
+  BitModel constant_flag;
+  if (n > 0) c.bit(constant_flag, 0);  // 0: read above
   if (!code_attribute(c, bit, las, n, 1) || dec.overrun() > 0) {
     return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) +
                         "): invalid or truncated stream");
