@@ -97,6 +97,8 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
     info.color_tolerance = h.color_tolerance;
     info.las_attributes = h.las_attributes;
     info.extra_bytes_size = h.extra_bytes_size;
+  } else if ((h.flags & codec::kFlagClassMap) != 0) {
+    info.las_attributes = kLasClassification;  // every resampled point gets its pixel's class
   }
   for (const SectionEntry& s : parsed.sections) {
     info.sections.push_back({static_cast<std::uint8_t>(s.id), static_cast<std::uint8_t>(s.codec),

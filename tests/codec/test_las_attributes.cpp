@@ -297,6 +297,13 @@ TEST_CASE("LAS attributes: write the fuzz seed", "[.seed]") {
   REQUIRE(blob.is_ok());
   std::ofstream(std::string(dir) + "/seed-v3-las-attributes.rlfc", std::ios::binary)
       .write(reinterpret_cast<const char*>(blob->data()), static_cast<std::streamsize>(blob->size()));
+  EncodeParams resample;
+  resample.cell_size = 0.5;
+  resample.map_resolution = 8;
+  auto v4 = encode_chunk(in, resample);
+  REQUIRE(v4.is_ok());
+  std::ofstream(std::string(dir) + "/seed-v4-class-map.rlfc", std::ios::binary)
+      .write(reinterpret_cast<const char*>(v4->data()), static_cast<std::streamsize>(v4->size()));
 }
 
 TEST_CASE("classification map: resampled points get their pixel's majority class", "[codec][las][classmap]") {
@@ -314,6 +321,7 @@ TEST_CASE("classification map: resampled points get their pixel's majority class
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
     CHECK(info->format_version == 4);
+    CHECK(info->las_attributes == kLasClassification);
     auto out = decode_chunk(*blob);
     REQUIRE(out.is_ok());
     REQUIRE(out->las.carried() == kLasClassification);
