@@ -30,14 +30,8 @@ namespace codec {
 
 namespace {
 
-// Names of the LAS attribute sections, by bit index.
-constexpr const char* kLasSectionNames[kLasAttributeCount] = {
-    "classification", "classification flags", "return number", "number of returns",
-    "scan flags",     "scan angle",           "user data",     "point source ID",
-    "GPS time",       "NIR",                  "colour low byte", "extra bytes"};
-
 const char* section_name(SectionId id) {
-  if (is_las_section(id)) return kLasSectionNames[static_cast<std::uint8_t>(id) - kFirstLasSection];
+  if (is_las_section(id)) return las_attribute_name(las_section_bit(id));
   switch (id) {
     case SectionId::kTree: return "tree";
     case SectionId::kPatches: return "patches";

@@ -456,6 +456,15 @@ int cmp(const T& a, const T& b) {
 
 }  // namespace
 
+const char* las_attribute_name(std::uint32_t bit) {
+  static constexpr const char* kNames[kLasAttributeCount] = {
+      "classification", "classification flags", "return number", "number of returns",
+      "scan flags",     "scan angle",           "user data",     "point source ID",
+      "GPS time",       "NIR",                  "colour low byte", "extra bytes"};
+  const int b = std::countr_zero(bit);
+  return b < kLasAttributeCount ? kNames[b] : "unknown LAS attribute";
+}
+
 std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n) {
   // The shared routine writes back what it codes (the decoder's side of the
   // interface); the encoder's values come back unchanged, but it needs a
@@ -511,8 +520,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
       // geometry section has already been decoded against.
       size_attribute(bit, las, 1);
       if (!code_attribute(c, bit, las, 1, 1) || dec.overrun() > 0) {
-        return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) +
-                            "): invalid or truncated stream");
+        return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
       }
       spread_first(bit, las, n);
       return Status::ok();
@@ -520,7 +528,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
   }
   const std::uint64_t need = min_decisions_per_point(bit, las.extra_bytes_size);
   if (n > 0 && need > 0 && n > max_decisions(data.size()) / need) {
-    return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) + "): " +
+    return corrupt_data(std::string(las_attribute_name(bit)) + " section: " +
                         std::to_string(data.size()) + " bytes cannot hold " + std::to_string(n) + " points");
   }
   if (bit == kLasColorLow) {
@@ -535,8 +543,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
   BitModel constant_flag;
   if (n > 0) c.bit(constant_flag, 0);  // 0: read above
   if (!code_attribute(c, bit, las, n, 1) || dec.overrun() > 0) {
-    return corrupt_data("LAS attribute section (bit " + std::to_string(std::countr_zero(bit)) +
-                        "): invalid or truncated stream");
+    return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
   }
   return Status::ok();
 }

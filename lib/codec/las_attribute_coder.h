@@ -16,6 +16,9 @@ namespace relief::codec {
 // LasAttributeBits in use (bits 0..11); the rest are reserved.
 inline constexpr int kLasAttributeCount = 12;
 inline constexpr std::uint32_t kKnownLasAttributes = (1u << kLasAttributeCount) - 1;
+// The attribute's name in messages ("classification", "GPS time", ...).
+const char* las_attribute_name(std::uint32_t bit);
+
 // LAS point records are at most 65535 bytes, so are their extra bytes.
 inline constexpr std::uint32_t kMaxExtraBytesSize = 65535;
 
