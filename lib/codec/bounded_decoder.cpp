@@ -6,6 +6,7 @@
 #include "codec/attribute_coder.h"
 #include "codec/bounded.h"
 #include "codec/geometry_coder.h"
+#include "codec/las_attribute_coder.h"
 #include "codec/octree.h"
 
 namespace relief::codec {
@@ -62,6 +63,14 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
         out.intensities[i] = f;
       }
     }
+  }
+  // LAS attribute sections, in table (= bit) order: a section may use the
+  // attributes of lower bits as context.
+  out.las.extra_bytes_size = h.extra_bytes_size;
+  for (const SectionEntry& s : blob.sections) {
+    if (!is_las_section(s.id)) continue;
+    RELIEF_RETURN_IF_ERROR(
+        decode_las_attribute(las_section_bit(s.id), s.payload, n, out.las).with_context("chunk blob"));
   }
   return out;
 }

@@ -13,6 +13,7 @@
 #include "codec/attribute_coder.h"
 #include "codec/bounded.h"
 #include "codec/geometry_coder.h"
+#include "codec/las_attribute_coder.h"
 #include "codec/octree.h"
 
 namespace relief::codec {
@@ -64,6 +65,18 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   h.quant_step = bound.step;
   h.quant_origin = bound.origin;
   h.color_tolerance = static_cast<std::uint8_t>(has_rgb ? bound.color_tolerance : 0);
+  // LAS attributes make the blob version 3; without them it stays version 2,
+  // byte for byte what earlier builds wrote.
+  const std::uint32_t las_bits = cloud.las.carried();
+  if (las_bits != 0) {
+    if (cloud.las.extra_bytes_size > kMaxExtraBytesSize) {
+      return invalid_argument("chunk: " + std::to_string(cloud.las.extra_bytes_size) +
+                              " extra bytes per point, more than a LAS record holds");
+    }
+    h.version = 3;
+    h.las_attributes = las_bits;
+    h.extra_bytes_size = (las_bits & kLasExtraBytes) != 0 ? cloud.las.extra_bytes_size : 0;
+  }
   if (n == 0) {
     h.grid_edge = 1;
     h.intensity_coding = has_i ? IntensityCoding::kUInt16 : IntensityCoding::kNone;
@@ -118,8 +131,11 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       if (ca.g != cb.g) return ca.g < cb.g;
       if (ca.b != cb.b) return ca.b < cb.b;
     }
-    if (has_i) return float_bits(cloud.intensities[a.index]) < float_bits(cloud.intensities[b.index]);
-    return false;
+    if (has_i) {
+      const std::uint32_t ia = float_bits(cloud.intensities[a.index]), ib = float_bits(cloud.intensities[b.index]);
+      if (ia != ib) return ia < ib;
+    }
+    return las_bits != 0 && compare_las_points(cloud.las, a.index, b.index) < 0;
   };
   OccupiedCells cells;
   for (std::size_t i = 0; i < n;) {
@@ -171,6 +187,26 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     payloads.push_back(encode_values(values));
     refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
   }
+  if (las_bits != 0) {
+    std::vector<std::uint32_t> perm(n);
+    for (std::size_t k = 0; k < n; ++k) perm[k] = order[k].index;
+    PointCloud only_las;
+    only_las.positions.resize(cloud.size());  // gathered() keys the point count on positions
+    only_las.las = cloud.las;
+    const LasAttributes ordered = only_las.gathered(perm).las;
+    for (int b = 0; b < kLasAttributeCount; ++b) {
+      const std::uint32_t bit = 1u << b;
+      if ((las_bits & bit) == 0) continue;
+      payloads.push_back(encode_las_attribute(bit, ordered, n));
+      refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
+                         static_cast<std::uint32_t>(n), 0, {}});
+    }
+  }
+  if (las_bits & kLasClassification) {
+    // The base layer's classification map: the majority class per pixel.
+    base.las.classification.resize(n);
+    for (std::size_t k = 0; k < n; ++k) base.las.classification[k] = cloud.las.classification[order[k].index];
+  }
   EncodeParams base_params = params;
   base_params.bound.reset();
   if (base_params.grid_origin) {
@@ -202,11 +238,20 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   h.height_max = bh.height_max;
   h.intensity_min = bh.intensity_min;
   h.intensity_max = bh.intensity_max;
-  std::vector<SectionEntry> sections = parsed.sections;
+  // Sections in id order: the maps, the error-bounded layer, then the base
+  // layer's classification map.
+  h.flags |= static_cast<std::uint8_t>(bh.flags & kFlagClassMap);
+  std::vector<SectionEntry> sections;
+  for (const SectionEntry& s : parsed.sections) {
+    if (s.id != SectionId::kClassMap) sections.push_back(s);
+  }
   for (std::size_t s = 0; s < refined.size(); ++s) {
     refined[s].payload = payloads[s];
     refined[s].coded_size = static_cast<std::uint32_t>(payloads[s].size());
     sections.push_back(refined[s]);
+  }
+  for (const SectionEntry& s : parsed.sections) {
+    if (s.id == SectionId::kClassMap) sections.push_back(s);
   }
   if (stats) {
     stats->decoded_points = static_cast<std::uint32_t>(n);

@@ -5,6 +5,7 @@
 #include "codec/atlas.h"
 #include "codec/chunk_format.h"
 #include "codec/coders.h"
+#include "codec/las_attribute_coder.h"
 #include "core/byte_io.h"
 
 namespace relief {
@@ -30,6 +31,7 @@ namespace codec {
 namespace {
 
 const char* section_name(SectionId id) {
+  if (is_las_section(id)) return las_attribute_name(las_section_bit(id));
   switch (id) {
     case SectionId::kTree: return "tree";
     case SectionId::kPatches: return "patches";
@@ -40,6 +42,7 @@ const char* section_name(SectionId id) {
     case SectionId::kGeometry: return "geometry";
     case SectionId::kPointColor: return "point colour";
     case SectionId::kPointIntensity: return "point intensity";
+    case SectionId::kClassMap: return "classification map";
   }
   return "unknown";
 }
@@ -59,9 +62,10 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
     case SectionId::kGeometry:
     case SectionId::kPointColor:
     case SectionId::kPointIntensity:
+    case SectionId::kClassMap:
       return c == SectionCodec::kArithmetic;
   }
-  return false;
+  return is_las_section(id) && c == SectionCodec::kArithmetic;
 }
 
 // The error-bounded layer's fields (version 2).
@@ -91,12 +95,34 @@ Status check_bounded_header(const ChunkHeader& h) {
   if ((h.flags & kFlagColors) == 0 && h.color_tolerance != 0) return bad("colour tolerance without colours");
   if (h.input_points == 0 && (h.patch_count != 0 || h.geometry_depth != 0)) return bad("empty chunk with content");
   if (h.input_points > 0 && h.patch_count == 0) return bad("points without a base layer");
+  if (h.version == 3) {
+    // Version 3 exists for the LAS attributes: a blob without any is version 2.
+    if (h.las_attributes == 0 || (h.las_attributes & ~kKnownLasAttributes) != 0) {
+      return bad("LAS attribute set " + std::to_string(h.las_attributes) + " invalid");
+    }
+    if (h.input_points == 0) return bad("LAS attributes in an empty chunk");
+    const bool extra = (h.las_attributes & kLasExtraBytes) != 0;
+    if (extra ? (h.extra_bytes_size == 0 || h.extra_bytes_size > kMaxExtraBytesSize) : h.extra_bytes_size != 0) {
+      return bad("extra bytes size " + std::to_string(h.extra_bytes_size) + " invalid");
+    }
+    if ((h.las_attributes & kLasColorLow) != 0 && (h.flags & kFlagColors) == 0) {
+      return bad("colour low bytes without colours");
+    }
+    // The base layer has a classification map exactly when the points carry classes.
+    if (((h.flags & kFlagClassMap) != 0) != ((h.las_attributes & kLasClassification) != 0)) {
+      return bad("classification map flag does not match the LAS attributes");
+    }
+  }
   return Status::ok();
 }
 
 Status check_header(const ChunkHeader& h) {
   const auto bad = [](const std::string& m) { return corrupt_data("chunk header: " + m); };
-  if ((h.flags & ~kKnownFlags) != 0) return bad("reserved flag bits set");
+  if ((h.flags & ~(h.version >= 3 ? kKnownFlagsV3 : kKnownFlags)) != 0) return bad("reserved flag bits set");
+  // Version 4 exists for the classification map: without one a blob is version 1.
+  if (h.version == 4 && ((h.flags & kFlagClassMap) == 0 || h.patch_count == 0)) {
+    return bad("version 4 without a classification map");
+  }
   if (h.decomposition != Decomposition::kVoxelGrid && h.decomposition != Decomposition::kOctree) {
     return bad("unknown decomposition id " + std::to_string(static_cast<int>(h.decomposition)));
   }
@@ -165,8 +191,9 @@ std::uint64_t expected_raw_size(SectionId id, const ChunkHeader& h) {
     case SectionId::kGeometry:
     case SectionId::kPointColor:
     case SectionId::kPointIntensity: return h.input_points;
+    case SectionId::kClassMap: return h.decoded_points;
   }
-  return 0;
+  return is_las_section(id) ? h.input_points : 0;
 }
 
 }  // namespace
@@ -177,11 +204,17 @@ std::vector<SectionId> required_sections(const ChunkHeader& header) {
   ids = {SectionId::kTree, SectionId::kPatches, SectionId::kOccupancy, SectionId::kHeight};
   if (header.flags & kFlagColors) ids.push_back(SectionId::kColor);
   if (header.flags & kFlagIntensity) ids.push_back(SectionId::kIntensity);
-  if (header.version >= 2) {
+  if (has_bounded_layer(header.version)) {
     ids.push_back(SectionId::kGeometry);
     if (header.flags & kFlagColors) ids.push_back(SectionId::kPointColor);
     if (header.flags & kFlagIntensity) ids.push_back(SectionId::kPointIntensity);
   }
+  if (header.version == 3) {
+    for (int b = 0; b < kLasAttributeCount; ++b) {
+      if (header.las_attributes & (1u << b)) ids.push_back(static_cast<SectionId>(kFirstLasSection + b));
+    }
+  }
+  if (header.flags & kFlagClassMap) ids.push_back(SectionId::kClassMap);
   return ids;
 }
 
@@ -189,7 +222,7 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
   ByteWriter w;
   w.bytes(kMagic, 4);
   w.u16(h.version);
-  w.u16(h.version >= 2 ? kHeaderSizeV2 : kHeaderSizeV1);
+  w.u16(header_size_for(h.version));
   w.u8(h.flags);
   w.u8(static_cast<std::uint8_t>(h.decomposition));
   w.u8(static_cast<std::uint8_t>(h.image_codec));
@@ -211,7 +244,7 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
   w.f64(h.height_max);
   w.f32(h.intensity_min);
   w.f32(h.intensity_max);
-  if (h.version >= 2) {
+  if (has_bounded_layer(h.version)) {
     w.f64(h.quant_step.x);
     w.f64(h.quant_step.y);
     w.f64(h.quant_step.z);
@@ -224,6 +257,10 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
     w.u8(static_cast<std::uint8_t>(h.intensity_coding));
     w.u8(0);   // reserved
     w.u32(0);  // reserved
+  }
+  if (h.version == 3) {
+    w.u32(h.las_attributes);
+    w.u32(h.extra_bytes_size);
   }
   for (const SectionEntry& s : sections) {
     w.u8(static_cast<std::uint8_t>(s.id));
@@ -254,7 +291,7 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
   std::uint16_t header_size = 0;
   std::uint8_t decomposition = 0, image_codec = 0, section_count = 0, reserved8 = 0;
   RELIEF_RETURN_IF_ERROR(r.u16(header_size, "header_size"));
-  const std::uint16_t want_header = h.version >= 2 ? kHeaderSizeV2 : kHeaderSizeV1;
+  const std::uint16_t want_header = header_size_for(h.version);
   if (header_size != want_header) {
     return corrupt_data("chunk blob: header size " + std::to_string(header_size) + ", expected " +
                         std::to_string(want_header));
@@ -283,7 +320,7 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
   h.decomposition = static_cast<Decomposition>(decomposition);
   h.image_codec = static_cast<ImageCodec>(image_codec);
   if (reserved8 != 0) return corrupt_data("chunk header: reserved byte is not 0");
-  if (h.version >= 2) {
+  if (has_bounded_layer(h.version)) {
     RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.x, "quant_step_x"));
     RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.y, "quant_step_y"));
     RELIEF_RETURN_IF_ERROR(r.f64(h.quant_step.z, "quant_step_z"));
@@ -304,6 +341,10 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
     RELIEF_RETURN_IF_ERROR(r.u32(reserved_w, "reserved"));
     h.intensity_coding = static_cast<IntensityCoding>(coding);
     if (reserved_b != 0 || reserved_w != 0) return corrupt_data("chunk header: reserved bytes are not 0");
+    if (h.version == 3) {
+      RELIEF_RETURN_IF_ERROR(r.u32(h.las_attributes, "las_attributes"));
+      RELIEF_RETURN_IF_ERROR(r.u32(h.extra_bytes_size, "extra_bytes_size"));
+    }
     RELIEF_RETURN_IF_ERROR(check_bounded_header(h));
   }
   RELIEF_RETURN_IF_ERROR(check_header(h));

@@ -8,6 +8,7 @@
 #include "codec/chunk_format.h"
 #include "codec/coders.h"
 #include "codec/jpeg_tables.h"
+#include "codec/las_attribute_coder.h"
 #include "codec/octree.h"
 #include "codec/patch.h"
 #include "codec/reconstruct.h"
@@ -88,12 +89,16 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
   info.grid_origin = h.grid_origin;
   info.grid_edge = h.grid_edge;
   info.blob_size = blob.size();
-  if (h.version >= 2) {
+  if (codec::has_bounded_layer(h.version)) {
     info.error_bounded = true;
     info.base_points = h.decoded_points;
     info.decoded_points = h.input_points;
     info.quant_step = h.quant_step;
     info.color_tolerance = h.color_tolerance;
+    info.las_attributes = h.las_attributes;
+    info.extra_bytes_size = h.extra_bytes_size;
+  } else if ((h.flags & codec::kFlagClassMap) != 0) {
+    info.las_attributes = kLasClassification;  // every resampled point gets its pixel's class
   }
   for (const SectionEntry& s : parsed.sections) {
     info.sections.push_back({static_cast<std::uint8_t>(s.id), static_cast<std::uint8_t>(s.codec),
@@ -191,12 +196,29 @@ Result<PointCloud> decode_maps(const codec::ParsedBlob& parsed, std::uint64_t ke
     RELIEF_ASSIGN_OR_RETURN(intensity, decode_image8(section(SectionId::kIntensity), aw, ah, 1, "intensity"));
   }
 
+  // Classification map: the classes of the occupied pixels in raster order,
+  // spread onto an atlas plane so the reconstruction can look them up.
+  std::vector<std::uint8_t> class_plane;
+  const bool has_class = (h.flags & codec::kFlagClassMap) != 0;
+  if (has_class) {
+    LasAttributes map;
+    RELIEF_RETURN_IF_ERROR(codec::decode_las_attribute(kLasClassification, section(SectionId::kClassMap).payload,
+                                                       h.decoded_points, map)
+                               .with_context("chunk blob: classification map"));
+    class_plane.assign(occupancy.size(), 0);
+    std::size_t next = 0;
+    for (std::size_t a = 0; a < occupancy.size(); ++a) {
+      if (occupancy[a]) class_plane[a] = map.classification[next++];  // total == decoded_points, checked above
+    }
+  }
+
   const std::vector<std::uint32_t> quota = lod_quota(occupied, keep_num, keep_den);
   std::uint64_t out_count = 0;
   for (std::uint32_t q : quota) out_count += q;
   out.positions.resize(out_count);
   if (has_rgb) out.colors.resize(out_count);
   if (has_i) out.intensities.resize(out_count);
+  if (has_class) out.las.classification.resize(out_count);
   std::size_t k = 0;  // next output point
 
   const double i_step = static_cast<double>(h.intensity_max - h.intensity_min) / 255.0;
@@ -217,6 +239,7 @@ Result<PointCloud> decode_maps(const codec::ParsedBlob& parsed, std::uint64_t ke
       out.positions[k] = pos;
       if (has_rgb) out.colors[k] = {colors.pixels[a * 3], colors.pixels[a * 3 + 1], colors.pixels[a * 3 + 2]};
       if (has_i) out.intensities[k] = static_cast<float>(h.intensity_min + intensity.pixels[a] * i_step);
+      if (has_class) out.las.classification[k] = class_plane[a];
       ++k;
     });
   }
@@ -229,7 +252,7 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
   if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
   RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, options.verify_checksum));
   const codec::ChunkHeader& h = parsed.header;
-  if (h.version < 2) return decode_maps(parsed, 1, options.lod, options);
+  if (!codec::has_bounded_layer(h.version)) return decode_maps(parsed, 1, options.lod, options);
   const std::uint64_t n = h.input_points;
   if (n > options.max_points) {
     return limit_exceeded("chunk blob: " + std::to_string(n) + " points exceed the decoder limit of " +
@@ -244,15 +267,10 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
   RELIEF_ASSIGN_OR_RETURN(PointCloud all, codec::decode_bounded_points(parsed));
   if (options.lod == 1) return all;
   // Every lod-th point in the layer's Morton order: spread over the chunk.
-  PointCloud out;
-  const std::size_t keep = (all.size() + options.lod - 1) / options.lod;
-  out.reserve(keep, all.has_colors(), all.has_intensity());
-  for (std::size_t i = 0; i < all.size(); i += options.lod) {
-    out.positions.push_back(all.positions[i]);
-    if (all.has_colors()) out.colors.push_back(all.colors[i]);
-    if (all.has_intensity()) out.intensities.push_back(all.intensities[i]);
-  }
-  return out;
+  std::vector<std::uint32_t> keep;
+  keep.reserve((all.size() + options.lod - 1) / options.lod);
+  for (std::size_t i = 0; i < all.size(); i += options.lod) keep.push_back(static_cast<std::uint32_t>(i));
+  return all.gathered(keep);
 }
 
 }  // namespace relief

@@ -11,6 +11,7 @@
 #include "codec/coders.h"
 #include "codec/fill.h"
 #include "codec/jpeg_tables.h"
+#include "codec/las_attribute_coder.h"
 #include "codec/octree.h"
 #include "codec/patch.h"
 #include "codec/reconstruct.h"
@@ -104,6 +105,10 @@ struct PatchScratch {
   std::vector<double> sum_i;
   std::vector<std::uint8_t> occupied;
   std::vector<float> tile_h, tile_rgb, tile_i;
+  // Classification: (pixel << 8 | class) per point, sorted for the
+  // per-pixel majority; the tile's class per pixel.
+  std::vector<std::uint32_t> class_votes;
+  std::vector<std::uint8_t> tile_class;
   codec::FillScratch fill;
 };
 
@@ -126,6 +131,7 @@ struct Encoder {
   std::vector<Vec3d> pos;
   std::vector<Rgb8> col;
   std::vector<float> inten;
+  std::vector<std::uint8_t> cls;  // classification, when the cloud carries it
   std::vector<std::uint8_t> tree_masks;
   std::vector<Leaf> leaves;
 
@@ -135,6 +141,7 @@ struct Encoder {
   std::vector<float> heights;    // normalised (height / cell edge), filled
   std::vector<std::uint8_t> rgb;
   std::vector<float> intensity;  // raw intensity, filled
+  std::vector<std::uint8_t> class_plane;  // majority class of occupied pixels
   std::vector<std::uint8_t> patch_records;  // structure of arrays, 7 planes
   std::uint64_t decoded_points = 0;
   double h_lo = std::numeric_limits<double>::infinity();
@@ -217,6 +224,10 @@ void Encoder::build_decomposition() {
   if (cloud.has_intensity()) {
     inten.resize(sorted.size());
     for (std::size_t i = 0; i < sorted.size(); ++i) inten[i] = cloud.intensities[sorted[i].index];
+  }
+  if (!cloud.las.classification.empty()) {
+    cls.resize(sorted.size());
+    for (std::size_t i = 0; i < sorted.size(); ++i) cls[i] = cloud.las.classification[sorted[i].index];
   }
 
   codec::LeafPredicate predicate;
@@ -342,8 +353,11 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
     s.tile_h.assign(rr, 0.0f);
     s.tile_rgb.assign(rr * 3, 0.0f);
     s.tile_i.assign(rr, 0.0f);
+    s.tile_class.assign(rr, 0);
   }
   s.touched.clear();
+  s.class_votes.clear();
+  const bool has_class = !cls.empty();
   const bool has_rgb = cloud.has_colors(), has_i = cloud.has_intensity();
   const double inv_pu = 1.0 / f.pixel_u, inv_pv = 1.0 / f.pixel_v;
   const double rmax = r - 1;
@@ -367,6 +381,23 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
       s.sum_rgb[pi * 3 + 2] += c.b;
     }
     if (has_i) s.sum_i[pi] += inten[src];
+    if (has_class) s.class_votes.push_back(static_cast<std::uint32_t>(pi << 8 | cls[src]));
+  }
+  if (has_class) {
+    // Majority class per pixel; ties go to the lowest class value.
+    std::sort(s.class_votes.begin(), s.class_votes.end());
+    std::size_t best_run = 0;
+    for (std::size_t a = 0; a < s.class_votes.size();) {
+      std::size_t b = a + 1;
+      while (b < s.class_votes.size() && s.class_votes[b] == s.class_votes[a]) ++b;
+      const std::uint32_t pixel = s.class_votes[a] >> 8;
+      if (a == 0 || (s.class_votes[a - 1] >> 8) != pixel) best_run = 0;
+      if (b - a > best_run) {
+        best_run = b - a;
+        s.tile_class[pixel] = static_cast<std::uint8_t>(s.class_votes[a] & 0xFF);
+      }
+      a = b;
+    }
   }
   std::fill(s.occupied.begin(), s.occupied.end(), std::uint8_t{0});
   const double inv_edge = 1.0 / edge;
@@ -431,6 +462,7 @@ void Encoder::encode_patch(std::size_t index, const Leaf& leaf, PatchScratch& s)
         }
       }
       if (has_i) intensity[row + x] = s.tile_i[src + x];
+      if (has_class) class_plane[row + x] = s.occupied[src + x] ? s.tile_class[src + x] : 0;
     }
   }
 }
@@ -569,6 +601,19 @@ Result<std::vector<std::uint8_t>> Encoder::finish() {
       sections.push_back({SectionId::kIntensity, image_codec, pixels, 0, {}});
     }
   }
+  if (!cls.empty()) {
+    // The occupied pixels' classes in atlas raster order (format-spec/chunk.md §7).
+    LasAttributes map;
+    map.classification.reserve(header.decoded_points);
+    for (std::size_t a = 0; a < occupancy.size(); ++a) {
+      if (occupancy[a]) map.classification.push_back(class_plane[a]);
+    }
+    storage.push_back(codec::encode_las_attribute(kLasClassification, map, map.classification.size()));
+    sections.push_back({SectionId::kClassMap, SectionCodec::kArithmetic,
+                        static_cast<std::uint32_t>(map.classification.size()), 0, {}});
+    header.flags |= codec::kFlagClassMap;
+    header.version = 4;  // the bounded encoder moves these sections into its own version-3 blob
+  }
   for (std::size_t i = 0; i < sections.size(); ++i) {
     sections[i].payload = storage[i];
     sections[i].coded_size = static_cast<std::uint32_t>(storage[i].size());
@@ -622,6 +667,49 @@ Status gather_subset(const PointCloud& cloud, std::span<const std::uint32_t> sub
     return invalid_argument("chunk: attribute arrays do not match the positions");
   }
   const std::size_t n = subset.size();
+  if (!cloud.las.empty()) {
+    // The LAS attributes travel with their points. Only the subset is copied
+    // (an ingest encodes many subsets of one large cloud); the sizes are
+    // checked against the whole cloud and the copy by validate() below.
+    LasAttributes& dst = out.las;
+    const LasAttributes& src = cloud.las;
+    dst.extra_bytes_size = src.extra_bytes_size;
+    bool sizes_ok = true;
+    const auto gather = [&](const auto& from, auto& to) {
+      if (from.empty()) return;
+      if (from.size() != cloud.size()) {
+        sizes_ok = false;
+        return;
+      }
+      to.resize(n);
+      for (std::size_t k = 0; k < n; ++k) to[k] = subset[k] < from.size() ? from[subset[k]] : to[k];
+    };
+    gather(src.classification, dst.classification);
+    gather(src.class_flags, dst.class_flags);
+    gather(src.return_number, dst.return_number);
+    gather(src.number_of_returns, dst.number_of_returns);
+    gather(src.scan_flags, dst.scan_flags);
+    gather(src.scan_angle, dst.scan_angle);
+    gather(src.user_data, dst.user_data);
+    gather(src.point_source_id, dst.point_source_id);
+    gather(src.gps_time, dst.gps_time);
+    gather(src.nir, dst.nir);
+    gather(src.color_low, dst.color_low);
+    if (!src.extra_bytes.empty()) {
+      const std::size_t w = src.extra_bytes_size;
+      if (w == 0 || src.extra_bytes.size() != cloud.size() * w) {
+        sizes_ok = false;
+      } else {
+        dst.extra_bytes.resize(n * w);
+        for (std::size_t k = 0; k < n; ++k) {
+          if (subset[k] >= cloud.size()) continue;  // refused below
+          std::copy_n(src.extra_bytes.begin() + static_cast<std::ptrdiff_t>(subset[k] * w), w,
+                      dst.extra_bytes.begin() + static_cast<std::ptrdiff_t>(k * w));
+        }
+      }
+    }
+    if (!sizes_ok) return invalid_argument("chunk: LAS attribute arrays do not match the positions");
+  }
   out.positions.resize(n);
   out.colors.resize(cloud.has_colors() ? n : 0);
   out.intensities.resize(cloud.has_intensity() ? n : 0);
@@ -646,6 +734,8 @@ Status gather_subset(const PointCloud& cloud, std::span<const std::uint32_t> sub
       out.intensities[k] = v;
     }
   }
+  // GPS times finite, colour low bytes only with colours.
+  if (!out.las.empty()) RELIEF_RETURN_IF_ERROR(out.validate("chunk"));
   return Status::ok();
 }
 
@@ -700,6 +790,7 @@ Result<std::vector<std::uint8_t>> encode_impl(const PointCloud& cloud, const Enc
   enc.heights.assign(pixels, nan);
   if (cloud.has_colors()) enc.rgb.assign(pixels * 3, 128);
   if (cloud.has_intensity()) enc.intensity.assign(pixels, nan);
+  if (!cloud.las.classification.empty()) enc.class_plane.assign(pixels, 0);
   enc.patch_records.assign(enc.leaves.size() * codec::kPatchRecordSize, 0);
   enc.patch_occupied.assign(enc.leaves.size(), 0);
   enc.stats = stats;

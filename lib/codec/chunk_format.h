@@ -15,13 +15,22 @@ inline constexpr std::uint8_t kMagic[4] = {'R', 'L', 'F', 'C'};
 inline constexpr std::uint16_t kHeaderSizeV1 = 88;
 // Version 2 appends the error-bounded layer's fields (format-spec/chunk.md §2).
 inline constexpr std::uint16_t kHeaderSizeV2 = 168;
+// Version 3 appends the LAS attribute set and the extra-bytes width (§2).
+inline constexpr std::uint16_t kHeaderSizeV3 = 176;
+// Version 3 adds one section per carried LAS attribute: id kFirstLasSection +
+// the attribute's bit index (LasAttributeBits), in increasing bit order.
+inline constexpr std::uint8_t kFirstLasSection = 10;
+inline constexpr std::uint8_t kLastLasSection = 21;
 inline constexpr std::size_t kSectionEntrySize = 12;
 inline constexpr std::size_t kChecksumSize = 4;
 
 // Header flag bits; all others are reserved and must be 0.
 inline constexpr std::uint8_t kFlagColors = 0x01;
 inline constexpr std::uint8_t kFlagIntensity = 0x02;
+// Versions 3 and 4: the maps carry a classification map (section 22).
+inline constexpr std::uint8_t kFlagClassMap = 0x04;
 inline constexpr std::uint8_t kKnownFlags = kFlagColors | kFlagIntensity;
+inline constexpr std::uint8_t kKnownFlagsV3 = kFlagColors | kFlagIntensity | kFlagClassMap;
 
 // Section ids, in the order they must appear.
 enum class SectionId : std::uint8_t {
@@ -35,6 +44,9 @@ enum class SectionId : std::uint8_t {
   kGeometry = 7,
   kPointColor = 8,
   kPointIntensity = 9,
+  // Version 3: ids 10..21 are the LAS attributes (kFirstLasSection + bit).
+  // Versions 3 and 4: the majority class of every occupied map pixel.
+  kClassMap = 22,
 };
 
 // Section codec ids. Never reuse a value.
@@ -102,7 +114,27 @@ struct ChunkHeader {
   std::uint8_t geometry_depth = 0;  // local coordinates < 2^geometry_depth
   std::uint8_t color_tolerance = 0;
   IntensityCoding intensity_coding = IntensityCoding::kNone;
+  // Version 3 only: the LasAttributeBits the layer carries (non-zero) and the
+  // extra bytes per point (non-zero exactly when kLasExtraBytes is set).
+  std::uint32_t las_attributes = 0;
+  std::uint32_t extra_bytes_size = 0;
 };
+
+// Versions 2 and 3 hold the error-bounded layer; 1 and 4 the maps alone
+// (4: with a classification map).
+inline bool has_bounded_layer(std::uint16_t version) { return version == 2 || version == 3; }
+// Header size of a format version (1..4).
+inline std::uint16_t header_size_for(std::uint16_t version) {
+  return version == 3 ? kHeaderSizeV3 : (version == 2 ? kHeaderSizeV2 : kHeaderSizeV1);
+}
+inline bool is_las_section(SectionId id) {
+  const auto v = static_cast<std::uint8_t>(id);
+  return v >= kFirstLasSection && v <= kLastLasSection;
+}
+// The LasAttributeBits value of a LAS section id.
+inline std::uint32_t las_section_bit(SectionId id) {
+  return 1u << (static_cast<std::uint8_t>(id) - kFirstLasSection);
+}
 
 struct ParsedBlob {
   ChunkHeader header;

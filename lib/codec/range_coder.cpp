@@ -4,12 +4,6 @@ namespace relief::codec {
 
 namespace {
 
-// A decision costs at least -log2(1 - kProbMin / 2^16) ~ 0.000705 bits, so
-// one byte carries at most ~11,350 of them; the constant leaves headroom for
-// the coder's 4-byte window.
-constexpr std::uint64_t kMaxDecisionsPerByte = 12000;
-constexpr std::uint64_t kSlackBytes = 8;
-
 __extension__ typedef unsigned __int128 u128;
 
 int bit_width128(u128 w) {
@@ -46,7 +40,7 @@ std::vector<std::uint8_t> RangeEncoder::finish() {
 }
 
 RangeDecoder::RangeDecoder(std::span<const std::uint8_t> data)
-    : data_(data), max_decisions_(kMaxDecisionsPerByte * (data.size() + kSlackBytes)) {
+    : data_(data), max_decisions_(max_decisions(data.size())) {
   for (int i = 0; i < 4; ++i) code_ = (code_ << 8) | next_byte();
 }
 

@@ -25,6 +25,15 @@ inline constexpr std::uint32_t kProbOne = 1u << kProbBits;
 inline constexpr std::uint32_t kProbMin = 32;
 inline constexpr std::uint32_t kProbMax = kProbOne - kProbMin;
 inline constexpr int kFastShift = 4;
+// A decision costs at least -log2(1 - kProbMin / 2^16) ~ 0.000705 bits, so
+// one byte carries at most ~11,350 of them; the constant leaves headroom for
+// the coder's 4-byte window. A decoder given `bytes` of input stops after
+// max_decisions(bytes) decisions.
+inline constexpr std::uint64_t kMaxDecisionsPerByte = 12000;
+inline constexpr std::uint64_t kDecisionSlackBytes = 8;
+inline constexpr std::uint64_t max_decisions(std::size_t bytes) {
+  return kMaxDecisionsPerByte * (bytes + kDecisionSlackBytes);
+}
 inline constexpr int kSlowShift = 7;
 
 struct BitModel {

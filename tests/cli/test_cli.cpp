@@ -179,7 +179,7 @@ TEST_CASE("usage errors exit 2 and --help exits 0", "[cli]") {
     CHECK(h.code == 0);
     CHECK(h.output.find("usage: relief") != std::string::npos);
   }
-  CHECK(run("--version").output.find("chunk format 2") != std::string::npos);
+  CHECK(run("--version").output.find("chunk format 4") != std::string::npos);
 }
 
 TEST_CASE("compress: bad inputs exit non-zero with a clear error and leave no archive", "[cli][ingest]") {

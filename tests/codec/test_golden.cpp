@@ -1,16 +1,19 @@
-// Golden vectors for chunk format versions 1 and 2 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 4 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
 // and bump the format version if the meaning of existing bytes changed.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 
 #include "relief/codec.h"
 #include "relief/io.h"
+#include "support/las_attributes.h"
 #include "support/synthetic.h"
 
 using namespace relief;
@@ -31,6 +34,13 @@ PointCloud voxel_scene() {
   o.colors = true;
   o.intensity = true;
   return test::make_terrain(o, 4.0, 0.3);
+}
+
+// Every LAS attribute, survey-like, 5 extra bytes per point.
+PointCloud las_scene() {
+  PointCloud c = voxel_scene();
+  test::add_las_attributes(c, 0xFFF, 5, 2026, false);
+  return c;
 }
 
 PointCloud octree_scene() {
@@ -66,11 +76,42 @@ std::vector<Vector> vectors() {
           {"octree_j2k16_v1", octree, octree_scene, 1},
           {"bounded_rgb_intensity_v2", bounded, voxel_scene, 2},
           {"bounded_rgb_tolerance6_v2", bounded_lossy, voxel_scene, 2},
-          {"bounded_geometry_octree_v2", bounded_geometry, octree_scene, 2}};
+          {"bounded_geometry_octree_v2", bounded_geometry, octree_scene, 2},
+          {"bounded_las_attributes_v3", bounded, las_scene, 3},
+          {"voxel_class_map_v4", voxel, las_scene, 4}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
   return std::string(RELIEF_SOURCE_DIR) + "/format-spec/vectors/" + name + ext;
+}
+
+// The LAS attributes of decoded points, one text line per point (the PLY
+// beside a version-3 vector cannot hold them): classification, flags, return
+// number, number of returns, scan flags, scan angle, user data, point source
+// ID, GPS time bits (hex), NIR, colour low r g b, extra bytes (hex).
+std::string las_text(const PointCloud& c) {
+  std::string out;
+  const LasAttributes& a = c.las;
+  char buf[64];
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    if (a.carried() == kLasClassification) {  // a classification map (version 4)
+      out += std::to_string(a.classification[i]) + "\n";
+      continue;
+    }
+    std::uint64_t g = 0;
+    std::memcpy(&g, &a.gps_time[i], 8);
+    std::snprintf(buf, sizeof buf, "%u %u %u %u %u %d %u %u %016llx %u %u %u %u ", a.classification[i],
+                  a.class_flags[i], a.return_number[i], a.number_of_returns[i], a.scan_flags[i], a.scan_angle[i],
+                  a.user_data[i], a.point_source_id[i], static_cast<unsigned long long>(g), a.nir[i],
+                  a.color_low[i].r, a.color_low[i].g, a.color_low[i].b);
+    out += buf;
+    for (std::uint32_t j = 0; j < a.extra_bytes_size; ++j) {
+      std::snprintf(buf, sizeof buf, "%02x", a.extra_bytes[i * a.extra_bytes_size + j]);
+      out += buf;
+    }
+    out += '\n';
+  }
+  return out;
 }
 
 std::vector<std::uint8_t> slurp(const std::string& path) {
@@ -80,7 +121,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 and 2 decode and re-encode identically", "[golden]") {
+TEST_CASE("golden chunk blobs of format versions 1 to 4 decode and re-encode identically", "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
     INFO(v.name);
@@ -95,6 +136,7 @@ TEST_CASE("golden chunk blobs of format versions 1 and 2 decode and re-encode id
       auto decoded = decode_chunk(*blob);
       REQUIRE(decoded.is_ok());
       REQUIRE(write_ply(ply_path, *decoded, {PlyEncoding::kAscii, PlyCoordinateType::kFloat64}).is_ok());
+      if (v.version >= 3) std::ofstream(vector_path(v.name, ".decoded.las.txt"), std::ios::binary) << las_text(*decoded);
     }
     const std::vector<std::uint8_t> golden = slurp(blob_path);
     REQUIRE(!golden.empty());
@@ -119,5 +161,12 @@ TEST_CASE("golden chunk blobs of format versions 1 and 2 decode and re-encode id
     CHECK(worst < 1e-9);
     if (decoded->has_colors()) CHECK(decoded->colors == expected->colors);
     if (decoded->has_intensity()) CHECK(decoded->intensities == expected->intensities);
+    if (v.version >= 3) {
+      REQUIRE(decoded->las.carried() == (v.version == 3 ? 0xFFFu : kLasClassification));
+      const std::vector<std::uint8_t> text = slurp(vector_path(v.name, ".decoded.las.txt"));
+      CHECK(las_text(*decoded) == std::string(text.begin(), text.end()));
+    } else {
+      CHECK(decoded->las.empty());
+    }
   }
 }

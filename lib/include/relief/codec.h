@@ -29,7 +29,13 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // Highest chunk format version this build writes and reads. Version 1: the
 // paper's maps alone (resampling). Version 2: the maps as a base layer plus an
 // error-bounded layer that gives back every point (format-spec/chunk.md).
-inline constexpr std::uint16_t kChunkFormatVersion = 2;
+// Version 3: version 2 plus the LAS attributes (PointCloud::las) of every
+// point; the encoder writes it only for clouds that carry some. Version 4:
+// version 1 plus a map of the majority classification per pixel, written by
+// the resampling codec for clouds that carry a classification (no other LAS
+// attribute survives resampling; the base layer of a version-3 blob has the
+// same map).
+inline constexpr std::uint16_t kChunkFormatVersion = 4;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
@@ -70,7 +76,8 @@ struct EncodeParams {
   double grid_edge = 0;  // with grid_origin: edge of the cube; must contain every point
   // Set: error-bounded mode (chunk format 2): every point back within the
   // bound, the maps above (with cell_size) become the coarse base layer that
-  // levels of detail decode. Unset: the paper's resampling codec (format 1).
+  // levels of detail decode. Unset: the paper's resampling codec (format 1,
+  // or 4 when the cloud carries a LAS classification).
   std::optional<ErrorBound> bound;
 };
 
@@ -84,7 +91,9 @@ struct DecodeOptions {
   // take turns and a chunk with fewer than L/2 decoded points gives none).
   // For an error-bounded blob, a level the base layer can supply (at least
   // half the wanted points) decodes the base layer alone (fast); a finer one
-  // decodes every point and keeps every L-th in Morton order.
+  // decodes every point and keeps every L-th in Morton order. Points decoded
+  // from maps carry no LAS attribute but a classification (the majority of
+  // their pixel) when the blob has a classification map.
   std::uint32_t lod = 1;
   // Verify the blob's CRC-32 first (turn off only to exercise the inner decoders).
   bool verify_checksum = true;
@@ -119,6 +128,10 @@ struct ChunkInfo {
   std::uint32_t base_points = 0;     // points of the base layer (occupied pixels)
   Vec3d quant_step;                  // coordinate step; the error bound is half of it
   int color_tolerance = 0;
+  // The LasAttributeBits a full decode returns (format 3: those of the
+  // points; format 4: classification, from the map), and extra bytes per point.
+  std::uint32_t las_attributes = 0;
+  std::uint32_t extra_bytes_size = 0;
   std::uint32_t patch_count = 0;
   std::uint32_t atlas_width = 0;   // pixels
   std::uint32_t atlas_height = 0;  // pixels

@@ -1,0 +1,339 @@
+// bench/attributes: what the error-bounded codec spends on each LAS attribute
+// of the shared LAZ files, against the LAZ file itself.
+//
+// The points come from each LAZ file's LAS twin, parsed here (LAS 1.0-1.4
+// point formats 0-10, ASPRS layouts) straight into PointCloud::las, so the
+// codec can be measured before the readers fill it. Points are cut into
+// chunks of --chunk points in Morton order of their LAS integers (spatially
+// compact, like the archive's chunks) and encoded at the LAS scale (tolerance
+// half the scale: lossless); the coded bytes of every section are summed over
+// the chunks. For layered LAZ (point formats 6-10) the LAZ bytes of each layer
+// are read from the chunk headers, so the two columns compare like for like.
+// Options: --chunk N (points per chunk, default 131072), --data DIR (the
+// shared data folder, default ../shared/data beside the checkout).
+// Prints CSV: file, points, part, relief bytes, relief bits/point, LAZ bytes,
+// LAZ bits/point.
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "relief/codec.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace relief;
+
+std::vector<std::uint8_t> slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+template <typename T>
+T get(const std::vector<std::uint8_t>& d, std::size_t at) {
+  T v{};
+  if (at + sizeof(T) <= d.size()) std::memcpy(&v, d.data() + at, sizeof(T));
+  return v;
+}
+
+struct LasFile {
+  int format = 0;
+  PointCloud cloud;
+  std::vector<std::array<std::int32_t, 3>> ints;
+  Vec3d scale, offset;
+};
+
+// Standard record sizes of point formats 0-10; the rest of a record is extra bytes.
+constexpr int kRecordSize[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+
+bool parse_las(const fs::path& path, LasFile& out, std::string& error) {
+  const std::vector<std::uint8_t> d = slurp(path);
+  if (d.size() < 227 || std::memcmp(d.data(), "LASF", 4) != 0) {
+    error = "not a LAS file";
+    return false;
+  }
+  const int minor = d[25];
+  const auto offset = get<std::uint32_t>(d, 96);
+  const int format = d[104] & 0x3F;
+  const auto rec = get<std::uint16_t>(d, 105);
+  std::uint64_t n = get<std::uint32_t>(d, 107);
+  if (minor >= 4 && d.size() >= 255 && n == 0) n = get<std::uint64_t>(d, 247);
+  if (format > 10 || rec < kRecordSize[format] || offset + n * rec > d.size()) {
+    error = "unsupported point format or truncated records";
+    return false;
+  }
+  out.format = format;
+  out.scale = {get<double>(d, 131), get<double>(d, 139), get<double>(d, 147)};
+  out.offset = {get<double>(d, 155), get<double>(d, 163), get<double>(d, 171)};
+  const bool legacy = format <= 5;
+  const bool has_gps = format == 1 || format >= 3;
+  const bool has_rgb = format == 2 || format == 3 || format == 5 || format == 7 || format == 8 || format == 10;
+  const bool has_nir = format == 8 || format == 10;
+  const std::uint32_t extra = rec - static_cast<std::uint32_t>(kRecordSize[format]);
+  PointCloud& c = out.cloud;
+  LasAttributes& a = c.las;
+  a.extra_bytes_size = extra;
+  std::vector<std::array<std::uint16_t, 3>> rgb16;
+  for (std::uint64_t i = 0; i < n; ++i) {
+    const std::size_t p = offset + i * rec;
+    const std::array<std::int32_t, 3> xyz{get<std::int32_t>(d, p), get<std::int32_t>(d, p + 4), get<std::int32_t>(d, p + 8)};
+    out.ints.push_back(xyz);
+    c.positions.push_back({out.offset.x + xyz[0] * out.scale.x, out.offset.y + xyz[1] * out.scale.y,
+                           out.offset.z + xyz[2] * out.scale.z});
+    c.intensities.push_back(get<std::uint16_t>(d, p + 12));
+    std::size_t gps_at = 0, rgb_at = 0;
+    if (legacy) {
+      const std::uint8_t ret = d[p + 14], cls = d[p + 15];
+      a.return_number.push_back(ret & 7);
+      a.number_of_returns.push_back((ret >> 3) & 7);
+      a.scan_flags.push_back(static_cast<std::uint8_t>(ret >> 6));
+      a.classification.push_back(cls & 31);
+      a.class_flags.push_back(static_cast<std::uint8_t>(cls >> 5));
+      a.scan_angle.push_back(static_cast<std::int8_t>(d[p + 16]) * 1000);
+      a.user_data.push_back(d[p + 17]);
+      a.point_source_id.push_back(get<std::uint16_t>(d, p + 18));
+      gps_at = p + 20;
+      rgb_at = format == 2 ? p + 20 : p + 28;
+    } else {
+      const std::uint8_t ret = d[p + 14], flags = d[p + 15];
+      a.return_number.push_back(ret & 15);
+      a.number_of_returns.push_back(ret >> 4);
+      a.class_flags.push_back(flags & 15);
+      a.scan_flags.push_back(static_cast<std::uint8_t>(((flags >> 6) & 3) | ((flags >> 4) & 3) << 2));
+      a.classification.push_back(d[p + 16]);
+      a.user_data.push_back(d[p + 17]);
+      a.scan_angle.push_back(get<std::int16_t>(d, p + 18) * 6);
+      a.point_source_id.push_back(get<std::uint16_t>(d, p + 20));
+      gps_at = p + 22;
+      rgb_at = p + 30;
+    }
+    if (has_gps) a.gps_time.push_back(get<double>(d, gps_at));
+    if (has_rgb) {
+      rgb16.push_back({get<std::uint16_t>(d, rgb_at), get<std::uint16_t>(d, rgb_at + 2), get<std::uint16_t>(d, rgb_at + 4)});
+    }
+    if (has_nir) a.nir.push_back(get<std::uint16_t>(d, rgb_at + 6));
+    const std::size_t extra_at = p + static_cast<std::size_t>(kRecordSize[format]);
+    a.extra_bytes.insert(a.extra_bytes.end(), d.begin() + static_cast<std::ptrdiff_t>(extra_at),
+                         d.begin() + static_cast<std::ptrdiff_t>(extra_at + extra));
+  }
+  if (has_rgb) {
+    // 8-bit sources scale by 256 or 257: then the high byte alone is the colour.
+    bool implied = true;
+    for (const auto& v : rgb16) {
+      for (const std::uint16_t ch : v) implied = implied && ((ch & 0xFF) == 0 || (ch & 0xFF) == (ch >> 8));
+    }
+    for (const auto& v : rgb16) {
+      c.colors.push_back({static_cast<std::uint8_t>(v[0] >> 8), static_cast<std::uint8_t>(v[1] >> 8),
+                          static_cast<std::uint8_t>(v[2] >> 8)});
+      if (!implied) {
+        a.color_low.push_back({static_cast<std::uint8_t>(v[0]), static_cast<std::uint8_t>(v[1]),
+                               static_cast<std::uint8_t>(v[2])});
+      }
+    }
+  }
+  if (extra == 0) a.extra_bytes_size = 0;
+  return true;
+}
+
+// LAZ layer bytes of a layered (point format 6-10) file, by layer name;
+// empty when the file is pointwise or not understood.
+std::map<std::string, std::uint64_t> laz_layers(const fs::path& path, int format, std::uint32_t extra) {
+  std::map<std::string, std::uint64_t> out;
+  if (format < 6) return out;
+  const std::vector<std::uint8_t> d = slurp(path);
+  const auto offset = get<std::uint32_t>(d, 96);
+  const auto rec = get<std::uint16_t>(d, 105);
+  std::uint64_t n = get<std::uint32_t>(d, 107);
+  if (n == 0) n = get<std::uint64_t>(d, 247);
+  std::vector<std::string> names = {"xy", "z", "classification", "flags", "intensity", "scan_angle", "user_data",
+                                    "point_source_id", "gps_time"};
+  if (format == 7 || format == 8 || format == 10) names.push_back("rgb");
+  if (format == 8 || format == 10) names.push_back("nir");
+  for (std::uint32_t j = 0; j < extra; ++j) names.push_back("extra_bytes");
+  const auto table = get<std::int64_t>(d, offset);
+  std::size_t at = offset + 8;
+  std::uint64_t seen = 0;
+  while (seen < n && at + rec + 4 <= d.size()) {
+    at += rec;  // the chunk's first point, raw
+    const auto count = get<std::uint32_t>(d, at);
+    at += 4;
+    std::vector<std::uint32_t> sizes(names.size());
+    for (auto& s : sizes) {
+      s = get<std::uint32_t>(d, at);
+      at += 4;
+    }
+    out["first point + sizes"] += rec + 4 + 4 * names.size();
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      out[names[k]] += sizes[k];
+      at += sizes[k];
+    }
+    seen += count;
+  }
+  if (static_cast<std::int64_t>(at) != table) out.clear();  // not the layout we expect
+  return out;
+}
+
+std::uint64_t spread3(std::uint32_t v) {
+  std::uint64_t x = v & 0x1FFFFF;
+  x = (x | x << 32) & 0x1F00000000FFFFull;
+  x = (x | x << 16) & 0x1F0000FF0000FFull;
+  x = (x | x << 8) & 0x100F00F00F00F00Full;
+  x = (x | x << 4) & 0x10C30C30C30C30C3ull;
+  x = (x | x << 2) & 0x1249249249249249ull;
+  return x;
+}
+
+const char* section_name(int id) {
+  static const char* const kNames[] = {"?", "tree", "patches", "occupancy", "height", "colour map", "intensity map",
+                                       "geometry", "rgb", "intensity", "classification", "class_flags",
+                                       "return_number", "number_of_returns", "scan_flags", "scan_angle", "user_data",
+                                       "point_source_id", "gps_time", "nir", "color_low", "extra_bytes", "classification map (base layer)"};
+  return id >= 0 && id < 23 ? kNames[id] : "?";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::size_t chunk = std::size_t{1} << 17;
+  fs::path data = RELIEF_BENCH_DATA_DIR;
+  bool no_las = false;  // encode without the LAS attributes (for the time they cost)
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--chunk") == 0 && i + 1 < argc) chunk = std::strtoull(argv[++i], nullptr, 10);
+    if (std::strcmp(argv[i], "--data") == 0 && i + 1 < argc) data = argv[++i];
+    if (std::strcmp(argv[i], "--no-las") == 0) no_las = true;
+  }
+  if (chunk == 0) chunk = 1;
+  const fs::path dir = data / "laz";
+  if (!fs::exists(dir)) {
+    std::fprintf(stderr, "attributes: %s is absent; nothing to measure\n", dir.c_str());
+    return 0;
+  }
+  std::vector<fs::path> lazs;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() == ".laz") lazs.push_back(e.path());
+  }
+  std::sort(lazs.begin(), lazs.end());
+  std::printf("file,points,part,relief_bytes,relief_bits_per_point,laz_bytes,laz_bits_per_point\n");
+  for (const fs::path& laz : lazs) {
+    fs::path twin = laz;
+    twin.replace_extension(".las");
+    if (!fs::exists(twin)) twin = dir.parent_path() / "medium" / "orig" / twin.filename();
+    if (!fs::exists(twin)) {
+      std::fprintf(stderr, "attributes: no LAS twin for %s\n", laz.c_str());
+      continue;
+    }
+    LasFile las;
+    std::string error;
+    if (!parse_las(twin, las, error)) {
+      std::fprintf(stderr, "attributes: %s: %s\n", twin.c_str(), error.c_str());
+      continue;
+    }
+    const std::size_t n = las.cloud.size();
+    // Morton order of the LAS integers, then runs of `chunk` points.
+    std::array<std::int32_t, 3> lo{INT32_MAX, INT32_MAX, INT32_MAX};
+    for (const auto& v : las.ints) {
+      for (int a = 0; a < 3; ++a) lo[static_cast<std::size_t>(a)] = std::min(lo[static_cast<std::size_t>(a)], v[static_cast<std::size_t>(a)]);
+    }
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& v = las.ints[i];
+      const auto c = [&](int a) {
+        return static_cast<std::uint32_t>(static_cast<std::int64_t>(v[static_cast<std::size_t>(a)]) - lo[static_cast<std::size_t>(a)]) >> 0;
+      };
+      keys[i] = {spread3(c(0) >> 3) | spread3(c(1) >> 3) << 1 | spread3(c(2) >> 3) << 2, static_cast<std::uint32_t>(i)};
+    }
+    std::sort(keys.begin(), keys.end());
+    EncodeParams p;
+    p.bound = ErrorBound{};
+    p.bound->step = las.scale;
+    p.bound->origin = las.offset;
+    std::map<int, std::uint64_t> bytes;
+    std::uint64_t total = 0;
+    double seconds = 0, decode_seconds = 0;
+    for (std::size_t s = 0; s < n; s += chunk) {
+      std::vector<std::uint32_t> idx;
+      for (std::size_t k = s; k < std::min(n, s + chunk); ++k) idx.push_back(keys[k].second);
+      PointCloud part = las.cloud.gathered(idx);
+      if (no_las) part.las = LasAttributes{};
+      p.cell_size = suggest_cell_size(part, 16);
+      const auto t0 = std::chrono::steady_clock::now();
+      auto blob = encode_chunk(part, p);
+      seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      if (!blob) {
+        std::fprintf(stderr, "attributes: %s: %s\n", laz.c_str(), blob.status().to_string().c_str());
+        return 1;
+      }
+      const auto t1 = std::chrono::steady_clock::now();
+      auto check = decode_chunk(*blob);
+      decode_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+      if (!check || check->size() != part.size() || check->las.carried() != part.las.carried()) {
+        std::fprintf(stderr, "attributes: %s: the blob does not decode back\n", laz.c_str());
+        return 1;
+      }
+      auto info = inspect_chunk(*blob);
+      total += blob->size();
+      for (const auto& sec : info->sections) bytes[sec.id] += sec.coded_size;
+    }
+    const std::uint32_t extra = las.cloud.las.extra_bytes_size;
+    const std::map<std::string, std::uint64_t> layers = laz_layers(laz, las.format, extra);
+    const auto bpp = [n](std::uint64_t b) { return 8.0 * static_cast<double>(b) / static_cast<double>(n); };
+    const std::string name = laz.filename().string();
+    // LAZ's layers that hold one relief section, where the split is the same.
+    const std::map<std::string, std::string> same = {
+        {"classification", "classification"}, {"user_data", "user_data"}, {"point_source_id", "point_source_id"},
+        {"gps_time", "gps_time"}, {"scan_angle", "scan_angle"}, {"nir", "nir"}, {"extra_bytes", "extra_bytes"},
+        {"rgb", "rgb"}, {"intensity", "intensity"}};
+    std::uint64_t base = 0;
+    for (const auto& [id, b] : bytes) {
+      if (id <= 6) {
+        base += b;
+        continue;
+      }
+      const std::string part = section_name(id);
+      const auto it = same.count(part) ? layers.find(part) : layers.end();
+      if (it != layers.end()) {
+        std::printf("%s,%zu,%s,%llu,%.3f,%llu,%.3f\n", name.c_str(), n, part.c_str(), static_cast<unsigned long long>(b),
+                    bpp(b), static_cast<unsigned long long>(it->second), bpp(it->second));
+      } else {
+        std::printf("%s,%zu,%s,%llu,%.3f,,\n", name.c_str(), n, part.c_str(), static_cast<unsigned long long>(b), bpp(b));
+      }
+    }
+    // LAZ's "flags" layer holds the classification flags, scan direction,
+    // edge and scanner channel; its "xy" layer also holds the return numbers.
+    const auto sum = [&](std::initializer_list<int> ids) {
+      std::uint64_t b = 0;
+      for (const int id : ids) b += bytes.count(id) ? bytes[id] : 0;
+      return b;
+    };
+    if (layers.count("flags")) {
+      const std::uint64_t flags = sum({11, 14});
+      std::printf("%s,%zu,class_flags+scan_flags vs LAZ flags,%llu,%.3f,%llu,%.3f\n", name.c_str(), n,
+                  static_cast<unsigned long long>(flags), bpp(flags),
+                  static_cast<unsigned long long>(layers.at("flags")), bpp(layers.at("flags")));
+      const std::uint64_t geo = sum({7, 12, 13});
+      const std::uint64_t xyz = layers.at("xy") + layers.at("z");
+      std::printf("%s,%zu,geometry+returns vs LAZ xy+z,%llu,%.3f,%llu,%.3f\n", name.c_str(), n,
+                  static_cast<unsigned long long>(geo), bpp(geo), static_cast<unsigned long long>(xyz), bpp(xyz));
+    }
+    std::printf("%s,%zu,base layer (maps),%llu,%.3f,,\n", name.c_str(), n, static_cast<unsigned long long>(base), bpp(base));
+    const auto laz_size = static_cast<std::uint64_t>(fs::file_size(laz));
+    std::printf("%s,%zu,whole (blobs / LAZ file),%llu,%.3f,%llu,%.3f\n", name.c_str(), n,
+                static_cast<unsigned long long>(total), bpp(total), static_cast<unsigned long long>(laz_size),
+                bpp(laz_size));
+    std::fprintf(stderr,
+                 "%s: point format %d, %zu points, %u extra bytes, encode %.2f s (%.2f M points/s), decode %.2f s "
+                 "(%.2f M points/s), one thread\n",
+                 name.c_str(), las.format, n, extra, seconds, static_cast<double>(n) / seconds * 1e-6, decode_seconds,
+                 static_cast<double>(n) / decode_seconds * 1e-6);
+  }
+  return 0;
+}

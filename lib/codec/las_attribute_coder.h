@@ -1,0 +1,42 @@
+// LAS per-point attributes of the error-bounded layer (chunk format 3,
+// format-spec/chunk.md §11.7): one arithmetic-coded section per carried
+// LasAttributes vector, lossless, in the canonical point order. Mirror pair in
+// one file (las_attribute_coder.cpp). Internal to the codec.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "relief/status.h"
+#include "relief/types.h"
+
+namespace relief::codec {
+
+// LasAttributeBits in use (bits 0..11); the rest are reserved.
+inline constexpr int kLasAttributeCount = 12;
+inline constexpr std::uint32_t kKnownLasAttributes = (1u << kLasAttributeCount) - 1;
+// The attribute's name in messages ("classification", "GPS time", ...).
+const char* las_attribute_name(std::uint32_t bit);
+
+// LAS point records are at most 65535 bytes, so are their extra bytes.
+inline constexpr std::uint32_t kMaxExtraBytesSize = 65535;
+
+// Codes attribute `bit` (one LasAttributeBits value) of the n points of `las`,
+// which are in canonical order. Attributes with a lower bit may serve as
+// context, so sections are coded and decoded in increasing bit order.
+std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n);
+
+// Decodes attribute `bit` of n points into `las` (resizing its vector; for
+// extra bytes las.extra_bytes_size must be set). Attributes with a lower bit
+// must already be decoded. A stream too short to hold n points is refused
+// before anything is allocated.
+Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las);
+
+// Orders two points of `las` by every carried attribute, in bit order
+// (gps_time by bit pattern, extra bytes as unsigned byte strings): the
+// tie-break that makes a cell's point order independent of the input order.
+// Returns <0, 0 or >0.
+int compare_las_points(const LasAttributes& las, std::size_t a, std::size_t b);
+
+}  // namespace relief::codec

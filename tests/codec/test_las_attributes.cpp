@@ -1,0 +1,422 @@
+// LAS attributes through the error-bounded codec (chunk format 3): every
+// LasAttributes vector comes back exactly, per point, for every combination
+// of carried attributes; blobs depend only on the multiset of points; lying
+// or truncated attribute sections are refused.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "relief/codec.h"
+#include "support/las_attributes.h"
+#include "support/synthetic.h"
+
+using namespace relief;
+
+namespace {
+
+double snap(double v, double origin, double step) {
+  return origin + static_cast<double>(std::llround((v - origin) / step)) * step;
+}
+
+EncodeParams params_for(double tolerance, double cell) {
+  EncodeParams p;
+  p.cell_size = cell;
+  p.bound = ErrorBound{};
+  p.bound->step = {2 * tolerance, 2 * tolerance, 2 * tolerance};
+  return p;
+}
+
+// The multiset of records the decoder must return: snapped positions, every
+// other field as given.
+std::vector<std::string> expected_records(PointCloud c, const ErrorBound& b) {
+  for (Vec3d& p : c.positions) p = {snap(p.x, b.origin.x, b.step.x), snap(p.y, b.origin.y, b.step.y), snap(p.z, b.origin.z, b.step.z)};
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::string> records(const PointCloud& c) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+PointCloud scene(std::uint64_t seed, std::size_t points, bool colors) {
+  test::SceneOptions o;
+  o.seed = seed;
+  o.points = points;
+  o.colors = colors;
+  o.intensity = true;
+  return test::make_terrain(o, 6.0, 0.5);
+}
+
+// Header offsets of the version-3 fields (format-spec/chunk.md §2).
+constexpr std::size_t kLasAttributesOffset = 168;
+constexpr std::size_t kExtraBytesSizeOffset = 172;
+
+void put_u32(std::vector<std::uint8_t>& b, std::size_t at, std::uint32_t v) {
+  for (int k = 0; k < 4; ++k) b[at + static_cast<std::size_t>(k)] = static_cast<std::uint8_t>(v >> (8 * k));
+}
+
+}  // namespace
+
+TEST_CASE("LAS attributes: every combination of carried attributes round-trips exactly", "[codec][las]") {
+  const PointCloud base = scene(3, 60, true);
+  const EncodeParams p = params_for(0.002, 2.0);
+  for (std::uint32_t bits = 1; bits < (1u << 12); ++bits) {
+    INFO("attributes " << bits);
+    PointCloud in = base;
+    test::add_las_attributes(in, bits, 1 + bits % 64, bits, (bits & 1) != 0);
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == 3);
+    CHECK(info->las_attributes == bits);
+    CHECK(info->extra_bytes_size == ((bits & kLasExtraBytes) ? 1 + bits % 64 : 0));
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    CHECK(out->las.carried() == bits);
+    CHECK(records(*out) == expected_records(in, *p.bound));
+  }
+}
+
+TEST_CASE("LAS attributes: survey-like and uniform values, every extra-bytes width", "[codec][las]") {
+  const EncodeParams p = params_for(0.001, 1.5);
+  for (std::uint32_t width = 1; width <= 64; ++width) {
+    for (const bool uniform : {false, true}) {
+      INFO("width " << width << " uniform " << uniform);
+      PointCloud in = scene(100 + width, 700, width % 2 == 0);
+      test::add_las_attributes(in, 0xFFF & ~(width % 2 == 0 ? 0u : kLasColorLow), width, width * 7 + uniform, uniform);
+      auto blob = encode_chunk(in, p);
+      REQUIRE(blob.is_ok());
+      auto out = decode_chunk(*blob);
+      REQUIRE(out.is_ok());
+      CHECK(out->las.extra_bytes_size == width);
+      CHECK(records(*out) == expected_records(in, *p.bound));
+    }
+  }
+}
+
+TEST_CASE("LAS attributes: 0 and 1 points, duplicates with differing attributes", "[codec][las]") {
+  const EncodeParams p = params_for(0.01, 1.0);
+  SECTION("an empty cloud is an empty version-2 blob") {
+    PointCloud empty;
+    empty.las.extra_bytes_size = 8;
+    auto blob = encode_chunk(empty, p);
+    REQUIRE(blob.is_ok());
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == 2);
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    CHECK(out->empty());
+  }
+  SECTION("one point") {
+    PointCloud one;
+    one.positions = {{1.234, -5.5, 7.0}};
+    test::add_las_attributes(one, 0xFFF, 64, 5, true);
+    auto blob = encode_chunk(one, p);
+    REQUIRE(blob.is_ok());
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    CHECK(records(*out) == expected_records(one, *p.bound));
+  }
+  SECTION("duplicates that differ in one attribute each") {
+    PointCloud dup;
+    for (std::uint32_t b = 0; b < 12; ++b) {
+      for (int k = 0; k < 3; ++k) dup.positions.push_back({0.5, 0.5, 0.5});
+    }
+    test::add_las_attributes(dup, 0xFFF, 3, 11, false);
+    for (std::size_t i = 0; i < dup.size(); ++i) {
+      dup.las.classification[i] = 2;
+      dup.las.gps_time[i] = 1000.0;
+      dup.las.extra_bytes[3 * i] = 0;
+    }
+    // Point i differs from the others of its position in attribute i / 3 only.
+    for (std::size_t i = 0; i < dup.size(); ++i) {
+      const auto v = static_cast<std::uint8_t>(i % 3);
+      switch (i / 3) {
+        case 0: dup.las.classification[i] = v; break;
+        case 1: dup.las.class_flags[i] = v; break;
+        case 2: dup.las.return_number[i] = v; break;
+        case 3: dup.las.number_of_returns[i] = v; break;
+        case 4: dup.las.scan_flags[i] = v; break;
+        case 5: dup.las.scan_angle[i] = -v; break;
+        case 6: dup.las.user_data[i] = v; break;
+        case 7: dup.las.point_source_id[i] = v; break;
+        case 8: dup.las.gps_time[i] = v == 0 ? 0.0 : (v == 1 ? -0.0 : 1e-310); break;
+        case 9: dup.las.nir[i] = v; break;
+        case 10: dup.las.color_low[i].g = v; break;
+        default: dup.las.extra_bytes[3 * i] = v; break;
+      }
+    }
+    auto blob = encode_chunk(dup, p);
+    REQUIRE(blob.is_ok());
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    CHECK(records(*out) == expected_records(dup, *p.bound));
+  }
+}
+
+TEST_CASE("LAS attributes: the blob depends only on the multiset of points", "[codec][las]") {
+  PointCloud in = scene(8, 5000, true);
+  // Duplicates whose positions, colours and intensities agree: only the LAS
+  // attributes order them.
+  for (std::size_t i = 0; i < 300; ++i) in.push_back_from(PointCloud(in), i % 20);
+  test::add_las_attributes(in, 0xFFF, 5, 42, false);
+  for (std::size_t i = 0; i < 300; ++i) in.las.extra_bytes[(5000 + i) * 5 + 4] = static_cast<std::uint8_t>(i);
+  const EncodeParams p = params_for(0.002, 1.0);
+  auto a = encode_chunk(in, p);
+  REQUIRE(a.is_ok());
+  test::Rng rng(77);
+  for (int t = 0; t < 3; ++t) {
+    std::vector<std::uint32_t> perm(in.size());
+    for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
+    for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+    auto b = encode_chunk(in.gathered(perm), p);
+    REQUIRE(b.is_ok());
+    CHECK(*a == *b);
+  }
+}
+
+TEST_CASE("LAS attributes: subsets, and levels of detail from the point layer", "[codec][las]") {
+  PointCloud in = scene(9, 4000, false);
+  test::add_las_attributes(in, 0xFFF & ~kLasColorLow, 2, 9, false);
+  const EncodeParams p = params_for(0.002, 1.0);
+  std::vector<std::uint32_t> subset;
+  for (std::uint32_t i = 0; i < in.size(); i += 3) subset.push_back(i);
+  auto sub_blob = encode_chunk_subset(in, subset, p);
+  REQUIRE(sub_blob.is_ok());
+  auto direct = encode_chunk(in.gathered(subset), p);
+  REQUIRE(direct.is_ok());
+  CHECK(*sub_blob == *direct);
+
+  // A fine level (decoded from the point layer) keeps each kept point's attributes.
+  auto blob = encode_chunk(in, params_for(0.002, 0.05));
+  REQUIRE(blob.is_ok());
+  auto info = inspect_chunk(*blob);
+  REQUIRE(info.is_ok());
+  auto all = decode_chunk(*blob);
+  REQUIRE(all.is_ok());
+  DecodeOptions d;
+  d.lod = 2;
+  auto half = decode_chunk(*blob, d);
+  REQUIRE(half.is_ok());
+  if (2ull * info->base_points < (in.size() + 1) / 2) {
+    REQUIRE(half->size() == (all->size() + 1) / 2);
+    for (std::size_t k = 0; k < half->size(); ++k) CHECK(test::point_record(*half, k) == test::point_record(*all, 2 * k));
+  } else {
+    // The base layer carries the majority class per pixel, nothing else.
+    CHECK(half->las.carried() == kLasClassification);
+  }
+}
+
+TEST_CASE("LAS attributes: encoder refuses inconsistent attributes", "[codec][las]") {
+  PointCloud in = scene(10, 100, false);
+  const EncodeParams p = params_for(0.01, 1.0);
+  PointCloud short_class = in;
+  short_class.las.classification.assign(99, 1);
+  CHECK(encode_chunk(short_class, p).status().code() == StatusCode::kInvalidArgument);
+  PointCloud nan_time = in;
+  nan_time.las.gps_time.assign(100, 1.0);
+  nan_time.las.gps_time[5] = std::nan("");
+  CHECK(encode_chunk(nan_time, p).status().code() == StatusCode::kInvalidArgument);
+  PointCloud low_without_rgb = in;
+  low_without_rgb.las.color_low.assign(100, Rgb8{});
+  CHECK(encode_chunk(low_without_rgb, p).status().code() == StatusCode::kInvalidArgument);
+  std::vector<std::uint32_t> subset = {1, 2, 3};
+  CHECK(encode_chunk_subset(nan_time, std::vector<std::uint32_t>{4, 5}, p).status().code() ==
+        StatusCode::kInvalidArgument);
+  CHECK(encode_chunk_subset(short_class, subset, p).status().code() == StatusCode::kInvalidArgument);
+}
+
+TEST_CASE("LAS attributes: truncated and lying attribute sections are refused", "[codec][las][reject]") {
+  PointCloud in = scene(11, 800, true);
+  test::add_las_attributes(in, 0xFFF, 6, 11, false);
+  auto blob = encode_chunk(in, params_for(0.002, 1.0));
+  REQUIRE(blob.is_ok());
+  for (std::size_t len = 0; len < blob->size(); len += 3) {
+    std::vector<std::uint8_t> cut(blob->begin(), blob->begin() + static_cast<std::ptrdiff_t>(len));
+    CHECK_FALSE(decode_chunk(cut).is_ok());
+  }
+  DecodeOptions nocrc;
+  nocrc.verify_checksum = false;
+  SECTION("header fields") {
+    const auto refused = [&](std::size_t at, std::uint32_t v) {
+      std::vector<std::uint8_t> bad = *blob;
+      put_u32(bad, at, v);
+      auto r = decode_chunk(bad, nocrc);
+      return !r.is_ok() && r.status().code() == StatusCode::kCorruptData;
+    };
+    CHECK(refused(kLasAttributesOffset, 0));             // version 3 without attributes
+    CHECK(refused(kLasAttributesOffset, 0xFFF | 1u << 12));  // a reserved bit
+    CHECK(refused(kLasAttributesOffset, 0xFFE));         // one section fewer than the table
+    CHECK(refused(kExtraBytesSizeOffset, 0));            // extra bytes of width 0
+    CHECK(refused(kExtraBytesSizeOffset, 65536));        // wider than a LAS record
+    // Extra bytes 65535 wide: the section cannot hold them, refused before allocating.
+    CHECK(refused(kExtraBytesSizeOffset, 65535));
+  }
+  SECTION("every section payload byte flipped decodes or is refused, never crashes") {
+    test::Rng rng(3);
+    int refused = 0;
+    for (int t = 0; t < 500; ++t) {
+      std::vector<std::uint8_t> bad = *blob;
+      // The LAS sections are at the end of the blob, before the CRC.
+      const std::size_t at = bad.size() - 5 - rng.next() % std::min<std::size_t>(bad.size() / 3, 3000);
+      bad[at] = static_cast<std::uint8_t>(bad[at] ^ (1u + rng.next() % 255));
+      auto r = decode_chunk(bad, nocrc);
+      if (!r.is_ok()) {
+        ++refused;
+      } else {
+        CHECK(r->size() == in.size());
+      }
+    }
+    CHECK(refused > 0);
+  }
+}
+
+// Not run by default: writes the chunk fuzz target's seed with LAS attributes,
+//   RELIEF_FUZZ_SEED_DIR=tests/fuzz/corpus/chunk ./test_codec "[.seed]"
+TEST_CASE("LAS attributes: write the fuzz seed", "[.seed]") {
+  const char* dir = std::getenv("RELIEF_FUZZ_SEED_DIR");
+  if (dir == nullptr) return;
+  PointCloud in = scene(12, 120, true);
+  test::add_las_attributes(in, 0xFFF, 3, 12, false);
+  EncodeParams p = params_for(0.005, 2.0);
+  p.map_resolution = 8;
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  std::ofstream(std::string(dir) + "/seed-v3-las-attributes.rlfc", std::ios::binary)
+      .write(reinterpret_cast<const char*>(blob->data()), static_cast<std::streamsize>(blob->size()));
+  EncodeParams resample;
+  resample.cell_size = 0.5;
+  resample.map_resolution = 8;
+  auto v4 = encode_chunk(in, resample);
+  REQUIRE(v4.is_ok());
+  std::ofstream(std::string(dir) + "/seed-v4-class-map.rlfc", std::ios::binary)
+      .write(reinterpret_cast<const char*>(v4->data()), static_cast<std::streamsize>(v4->size()));
+}
+
+TEST_CASE("classification map: resampled points get their pixel's majority class", "[codec][las][classmap]") {
+  EncodeParams p;
+  p.cell_size = 0.5;
+  SECTION("two regions") {
+    test::SceneOptions o;
+    o.seed = 31;
+    o.points = 20000;
+    PointCloud in = test::make_terrain(o, 4.0, 0.2);
+    for (const Vec3d& q : in.positions) in.las.classification.push_back(q.x < 0 ? 2 : 6);
+    in.las.user_data.assign(in.size(), 9);  // other attributes are not kept by the maps
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == 4);
+    CHECK(info->las_attributes == kLasClassification);
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    REQUIRE(out->las.carried() == kLasClassification);
+    std::size_t checked = 0;
+    for (std::size_t i = 0; i < out->size(); ++i) {
+      const double x = out->positions[i].x;
+      if (std::fabs(x) < 0.1) continue;  // pixels straddling the border may vote either way
+      CHECK(out->las.classification[i] == (x < 0 ? 2 : 6));
+      ++checked;
+    }
+    CHECK(checked > out->size() / 2);
+    // Without classification the blob stays version 1.
+    in.las = LasAttributes{};
+    auto plain = encode_chunk(in, p);
+    REQUIRE(plain.is_ok());
+    CHECK(inspect_chunk(*plain)->format_version == 1);
+  }
+  SECTION("majority and ties within one pixel") {
+    for (const auto& [classes, want] : std::vector<std::pair<std::vector<std::uint8_t>, std::uint8_t>>{
+             {{3, 5, 3, 5, 3}, 3}, {{7, 4, 7, 4}, 4}, {{200}, 200}, {{9, 1, 9, 9, 1, 1, 1}, 1}}) {
+      PointCloud in;
+      for (const std::uint8_t c : classes) {
+        in.positions.push_back({0.25, 0.25, 0.25});
+        in.las.classification.push_back(c);
+      }
+      auto blob = encode_chunk(in, p);
+      REQUIRE(blob.is_ok());
+      auto out = decode_chunk(*blob);
+      REQUIRE(out.is_ok());
+      REQUIRE(out->size() == 1);
+      CHECK(out->las.classification[0] == want);
+    }
+  }
+}
+
+TEST_CASE("classification map: lying flags and sections are refused", "[codec][las][classmap][reject]") {
+  test::SceneOptions o;
+  o.seed = 32;
+  o.points = 3000;
+  PointCloud in = test::make_terrain(o, 4.0, 0.2);
+  for (const Vec3d& q : in.positions) in.las.classification.push_back(q.y < 0 ? 1 : 2);
+  EncodeParams resample;
+  resample.cell_size = 0.5;
+  auto v4 = encode_chunk(in, resample);
+  REQUIRE(v4.is_ok());
+  EncodeParams bounded = params_for(0.002, 0.5);
+  auto v3 = encode_chunk(in, bounded);
+  REQUIRE(v3.is_ok());
+  REQUIRE(inspect_chunk(*v3)->format_version == 3);
+  DecodeOptions nocrc;
+  nocrc.verify_checksum = false;
+  const auto corrupt = [&](std::vector<std::uint8_t> b) {
+    auto r = decode_chunk(b, nocrc);
+    return !r.is_ok() && r.status().code() == StatusCode::kCorruptData;
+  };
+  constexpr std::size_t kFlags = 8, kVersion = 4;
+  std::vector<std::uint8_t> bad = *v4;
+  bad[kFlags] = 0;  // version 4 without its map
+  CHECK(corrupt(bad));
+  bad = *v4;
+  bad[kVersion] = 1;  // version 1 with the flag
+  CHECK(corrupt(bad));
+  bad = *v3;
+  bad[kFlags] = static_cast<std::uint8_t>(bad[kFlags] & ~4u);  // classes without the map
+  CHECK(corrupt(bad));
+  for (std::size_t len = 0; len < v4->size(); len += 5) {
+    CHECK_FALSE(decode_chunk(std::span<const std::uint8_t>(v4->data(), len)).is_ok());
+  }
+  // The map section is the last: every flip in it decodes or is refused.
+  test::Rng rng(5);
+  for (int t = 0; t < 300; ++t) {
+    bad = *v4;
+    const std::size_t at = bad.size() - 5 - rng.next() % 40;
+    bad[at] = static_cast<std::uint8_t>(bad[at] ^ (1u + rng.next() % 255));
+    auto r = decode_chunk(bad, nocrc);
+    if (r.is_ok()) CHECK(r->las.classification.size() == r->size());
+  }
+}
+
+TEST_CASE("classification map: coarse levels from the base layer keep the classes", "[codec][las][classmap]") {
+  test::SceneOptions o;
+  o.seed = 33;
+  o.points = 40000;
+  PointCloud in = test::make_terrain(o, 20.0, 1.0);
+  for (const Vec3d& q : in.positions) in.las.classification.push_back(q.x < 0 ? 2 : 5);
+  in.las.gps_time.assign(in.size(), 7.0);
+  auto blob = encode_chunk(in, params_for(0.002, 4.0));
+  REQUIRE(blob.is_ok());
+  DecodeOptions d;
+  d.lod = 64;
+  auto out = decode_chunk(*blob, d);
+  REQUIRE(out.is_ok());
+  REQUIRE(!out->empty());
+  CHECK(out->las.carried() == kLasClassification);  // GPS time needs the point layer
+  for (std::size_t i = 0; i < out->size(); ++i) {
+    if (std::fabs(out->positions[i].x) > 1.0) CHECK(out->las.classification[i] == (out->positions[i].x < 0 ? 2 : 5));
+  }
+}
