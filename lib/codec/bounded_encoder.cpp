@@ -56,7 +56,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = 2;
+  h.version = 5;  // geometry codec 7 (single-child coding), LAS fields (possibly none)
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -65,15 +65,13 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   h.quant_step = bound.step;
   h.quant_origin = bound.origin;
   h.color_tolerance = static_cast<std::uint8_t>(has_rgb ? bound.color_tolerance : 0);
-  // LAS attributes make the blob version 3; without them it stays version 2,
-  // byte for byte what earlier builds wrote.
+  // The LAS attributes the points carry (sections 10-21), possibly none.
   const std::uint32_t las_bits = cloud.las.carried();
   if (las_bits != 0) {
     if (cloud.las.extra_bytes_size > kMaxExtraBytesSize) {
       return invalid_argument("chunk: " + std::to_string(cloud.las.extra_bytes_size) +
                               " extra bytes per point, more than a LAS record holds");
     }
-    h.version = 3;
     h.las_attributes = las_bits;
     h.extra_bytes_size = (las_bits & kLasExtraBytes) != 0 ? cloud.las.extra_bytes_size : 0;
   }
@@ -149,8 +147,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
 
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;
-  payloads.push_back(encode_geometry(cells, depth));
-  refined.push_back({SectionId::kGeometry, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
+  payloads.push_back(encode_geometry(cells, depth, OctreeCoding::kSingleChild));
+  refined.push_back({SectionId::kGeometry, SectionCodec::kOctreeSingleChild, static_cast<std::uint32_t>(n), 0, {}});
 
   // ---- The base layer is built from what the decoder will return.
   PointCloud base;

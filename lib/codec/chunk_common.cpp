@@ -47,7 +47,7 @@ const char* section_name(SectionId id) {
   return "unknown";
 }
 
-bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
+bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec, std::uint16_t version) {
   switch (id) {
     case SectionId::kTree:
     case SectionId::kPatches:
@@ -60,6 +60,8 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec) {
       if (image_codec == ImageCodec::kJpeg) return c == SectionCodec::kJpeg || c == SectionCodec::kJpegAbbreviated;
       return c == SectionCodec::kJpeg2000;
     case SectionId::kGeometry:
+      // One coding per version: codec 6 in versions 2 and 3, codec 7 in 5.
+      return c == (version >= 5 ? SectionCodec::kOctreeSingleChild : SectionCodec::kArithmetic);
     case SectionId::kPointColor:
     case SectionId::kPointIntensity:
     case SectionId::kClassMap:
@@ -95,12 +97,13 @@ Status check_bounded_header(const ChunkHeader& h) {
   if ((h.flags & kFlagColors) == 0 && h.color_tolerance != 0) return bad("colour tolerance without colours");
   if (h.input_points == 0 && (h.patch_count != 0 || h.geometry_depth != 0)) return bad("empty chunk with content");
   if (h.input_points > 0 && h.patch_count == 0) return bad("points without a base layer");
-  if (h.version == 3) {
+  if (has_las_fields(h.version)) {
     // Version 3 exists for the LAS attributes: a blob without any is version 2.
-    if (h.las_attributes == 0 || (h.las_attributes & ~kKnownLasAttributes) != 0) {
+    // Version 5 (every bounded blob) may carry none.
+    if ((h.version == 3 && h.las_attributes == 0) || (h.las_attributes & ~kKnownLasAttributes) != 0) {
       return bad("LAS attribute set " + std::to_string(h.las_attributes) + " invalid");
     }
-    if (h.input_points == 0) return bad("LAS attributes in an empty chunk");
+    if (h.input_points == 0 && h.las_attributes != 0) return bad("LAS attributes in an empty chunk");
     const bool extra = (h.las_attributes & kLasExtraBytes) != 0;
     if (extra ? (h.extra_bytes_size == 0 || h.extra_bytes_size > kMaxExtraBytesSize) : h.extra_bytes_size != 0) {
       return bad("extra bytes size " + std::to_string(h.extra_bytes_size) + " invalid");
@@ -209,7 +212,7 @@ std::vector<SectionId> required_sections(const ChunkHeader& header) {
     if (header.flags & kFlagColors) ids.push_back(SectionId::kPointColor);
     if (header.flags & kFlagIntensity) ids.push_back(SectionId::kPointIntensity);
   }
-  if (header.version == 3) {
+  if (has_las_fields(header.version)) {
     for (int b = 0; b < kLasAttributeCount; ++b) {
       if (header.las_attributes & (1u << b)) ids.push_back(static_cast<SectionId>(kFirstLasSection + b));
     }
@@ -258,7 +261,7 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
     w.u8(0);   // reserved
     w.u32(0);  // reserved
   }
-  if (h.version == 3) {
+  if (has_las_fields(h.version)) {
     w.u32(h.las_attributes);
     w.u32(h.extra_bytes_size);
   }
@@ -341,7 +344,7 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
     RELIEF_RETURN_IF_ERROR(r.u32(reserved_w, "reserved"));
     h.intensity_coding = static_cast<IntensityCoding>(coding);
     if (reserved_b != 0 || reserved_w != 0) return corrupt_data("chunk header: reserved bytes are not 0");
-    if (h.version == 3) {
+    if (has_las_fields(h.version)) {
       RELIEF_RETURN_IF_ERROR(r.u32(h.las_attributes, "las_attributes"));
       RELIEF_RETURN_IF_ERROR(r.u32(h.extra_bytes_size, "extra_bytes_size"));
     }
@@ -372,7 +375,7 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
                           std::to_string(static_cast<int>(want[i])) + " (" + section_name(want[i]) + ")");
     }
     if (reserved16 != 0) return corrupt_data(name + ": reserved field is not 0");
-    if (!codec_allowed(s.id, s.codec, h.image_codec)) {
+    if (!codec_allowed(s.id, s.codec, h.image_codec, h.version)) {
       return corrupt_data(std::string("chunk blob: ") + section_name(s.id) + " section has codec id " +
                           std::to_string(codec) + ", not allowed here");
     }

@@ -25,8 +25,18 @@ namespace {
 constexpr int kOccupancyContexts = 1 << 14;
 constexpr int kCountContexts = 2;
 
+// Single-child coding (codec 7): the "exactly one child" flag's contexts
+// (occupied face neighbours 0..3, parent had one child, levels to the leaves
+// 0..3) and the index bits' (tree position 1..7, the axis's plane prediction,
+// the node's -a/+a face neighbours, the -a neighbour has children, levels to
+// the leaves).
+constexpr int kSingleFlagContexts = 4 * 2 * 4;
+constexpr int kSingleIndexContexts = 8 * 3 * 4 * 2 * 4;
+
 struct GeometryModels {
   BitModel occupancy[kOccupancyContexts];
+  BitModel single_flag[kSingleFlagContexts];
+  BitModel single_index[kSingleIndexContexts];
   BitModel duplicate[kCountContexts];
   UIntModel extra;
 };
@@ -95,8 +105,9 @@ class PlaneMemory {
 constexpr std::uint8_t kUpperHalf[3] = {0xAA, 0xCC, 0xF0};
 
 template <typename Code, typename TrueByte, typename Grow>
-bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& nodes, Code&& code,
-                 TrueByte&& true_byte, Grow&& grow) {
+bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
+                 Code&& code, TrueByte&& true_byte, Grow&& grow) {
+  const bool single_mode = coding == OctreeCoding::kSingleChild;
   nodes.assign(1, 0);  // the root
   // Per node of the current level: its six face neighbours' indices in the
   // level (-x, +x, -y, +y, -z, +z; kMissing when empty), its child byte and
@@ -105,11 +116,16 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
   // child of its parent's neighbour), so no lookup structure is needed.
   std::vector<std::uint32_t> nb(6, kMissing), next_nb;
   std::vector<std::uint8_t> occ;
+  // Per node of the current level: its parent had exactly one child.
+  std::vector<std::uint8_t> lone, next_lone;
   std::vector<std::uint32_t> first;
   std::vector<std::uint64_t> next;
   auto planes = std::make_unique<PlaneMemory>();
+  lone.assign(1, 0);
   for (int d = 0; d < depth; ++d) {
     planes->reset();
+    const int to_leaves = std::min(depth - 1 - d, 3);
+    next_lone.clear();
     const std::size_t count = nodes.size();
     occ.assign(count, 0);
     first.assign(count, 0);
@@ -128,7 +144,29 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
       std::uint8_t byte = 0;
       int siblings = 0;
       first[i] = static_cast<std::uint32_t>(next.size());
-      for (int k = 0; k < 8; ++k) {
+      bool single = false;
+      if (single_mode) {
+        int faces = 0;
+        for (int q = 0; q < 6; ++q) faces += n6[q] != kMissing ? 1 : 0;
+        const int flag_ctx = (std::min(faces, 3) << 3) | (lone[i] << 2) | to_leaves;
+        single = code(models.single_flag[flag_ctx], kBitCount[truth] == 1 ? 1 : 0) != 0;
+      }
+      if (single) {
+        // The child's index, z bit first: node t of the binary tree (1, then 2t + bit).
+        const int truth_k = kBitCount[truth] == 1 ? kBitCount[static_cast<std::uint8_t>(truth - 1)] : 0;
+        int t = 1;
+        for (int a = 2; a >= 0; --a) {
+          const int faces_a = (n6[2 * a] != kMissing ? 1 : 0) | (n6[2 * a + 1] != kMissing ? 2 : 0);
+          const int ctx = ((((t * 3 + plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2) |
+                          to_leaves;
+          t = 2 * t + code(models.single_index[ctx], (truth_k >> a) & 1);
+        }
+        const int k = t - 8;
+        byte = static_cast<std::uint8_t>(1u << k);
+        siblings = 1;
+        next.push_back((nodes[i] << 3) | static_cast<std::uint64_t>(k));
+      }
+      for (int k = 0; k < 8 && !single; ++k) {
         int near = 0, child_nb = 0;
         for (int a = 0; a < 3; ++a) {
           const int c = (k >> a) & 1;
@@ -148,7 +186,10 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
           if (plane_pred[a] != 0) score += (plane_pred[a] > 0) == (((k >> a) & 1) != 0) ? 1 : -1;
         }
         const int ctx = near | (child_nb << 3) | (k << 6) | (std::min(siblings, 3) << 9) | ((score + 3) << 11);
-        const int bit = code(models.occupancy[ctx], (truth >> k) & 1);
+        // With single-child coding a coded byte has at least two bits set:
+        // when the bits left are exactly the ones still needed they are 1.
+        const bool forced = single_mode && 8 - k <= 2 - siblings;
+        const int bit = forced ? 1 : code(models.occupancy[ctx], (truth >> k) & 1);
         if (bit) {
           byte = static_cast<std::uint8_t>(byte | (1u << k));
           ++siblings;
@@ -158,6 +199,7 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
       // An occupied node has at least one occupied child.
       if (byte == 0) return false;
       occ[i] = byte;
+      if (single_mode) next_lone.insert(next_lone.end(), kBitCount[byte], kBitCount[byte] == 1 ? 1 : 0);
       for (int a = 0; a < 3; ++a) {
         const std::uint8_t halves = static_cast<std::uint8_t>(((byte & ~kUpperHalf[a] & 0xFF) ? 1 : 0) |
                                                               ((byte & kUpperHalf[a]) ? 2 : 0));
@@ -187,13 +229,14 @@ bool code_octree(int depth, GeometryModels& models, std::vector<std::uint64_t>& 
     }
     nb.swap(next_nb);
     nodes.swap(next);
+    lone.swap(next_lone);
   }
   return true;
 }
 
 }  // namespace
 
-std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth) {
+std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth, OctreeCoding coding) {
   RangeEncoder enc;
   auto models = std::make_unique<GeometryModels>();
   // Child occupancy bytes of every level, from the leaves up.
@@ -216,7 +259,7 @@ std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth)
   }
   std::vector<std::uint64_t> nodes;
   code_octree(
-      depth, *models, nodes,
+      depth, coding, *models, nodes,
       [&](BitModel& m, int bit) {
         enc.encode(m, bit);
         return bit;
@@ -233,7 +276,8 @@ std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth)
   return enc.finish();
 }
 
-Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count) {
+Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count,
+                                      OctreeCoding coding) {
   if (depth < 0 || depth > kMaxGeometryDepth) return corrupt_data("geometry: depth out of range");
   if (point_count == 0) return corrupt_data("geometry: no points");
   RangeDecoder dec(data);
@@ -241,7 +285,7 @@ Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int de
   OccupiedCells cells;
   bool over = false;
   const bool ok = code_octree(
-      depth, *models, cells.keys, [&](BitModel& m, int) { return dec.decode(m); },
+      depth, coding, *models, cells.keys, [&](BitModel& m, int) { return dec.decode(m); },
       [](int, std::size_t) { return std::uint8_t{0}; },
       [&](std::size_t n) {
         // Every node holds a point; a stream read past its end stops here.

@@ -21,12 +21,24 @@ struct OccupiedCells {
   std::vector<std::uint32_t> counts;
 };
 
-// `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.
-std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth);
+// How the octree's child bytes are coded (the geometry section's codec id).
+enum class OctreeCoding {
+  // Codec 6 (format 2): 8 context-coded bits per node.
+  kBitwise,
+  // Codec 7 (format 3): a per-node flag "exactly one child"; a single child
+  // is coded as its 3-bit index, other nodes as 8 bits (at least two set).
+  // Smaller (sparse levels dominate fine grids) and fewer decisions.
+  kSingleChild,
+};
 
-// Decodes a stream made by encode_geometry. The stream must describe exactly
-// `point_count` points; the work done is bounded by the stream's size and by
-// `point_count` (every octree node holds at least one point).
-Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count);
+// `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.
+std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
+                                          OctreeCoding coding = OctreeCoding::kSingleChild);
+
+// Decodes a stream made by encode_geometry with the same coding. The stream
+// must describe exactly `point_count` points; the work done is bounded by the
+// stream's size and by `point_count` (every octree node holds at least one point).
+Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count,
+                                      OctreeCoding coding);
 
 }  // namespace relief::codec

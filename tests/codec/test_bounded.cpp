@@ -95,7 +95,7 @@ TEST_CASE("bounded: every point comes back within the tolerance, attributes exac
     }
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == 2);
+    CHECK(info->format_version == kChunkFormatVersion);
     CHECK(info->error_bounded);
     CHECK(info->decoded_points == in.size());
   }

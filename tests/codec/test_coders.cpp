@@ -11,6 +11,7 @@ extern "C" {
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -21,6 +22,7 @@ extern "C" {
 #include <vector>
 
 #include "codec/coders.h"
+#include "codec/geometry_coder.h"
 #include "relief/status.h"
 
 namespace {
@@ -831,4 +833,105 @@ TEST_CASE("crc32 matches the IEEE 802.3 check value", "[coders]") {
   CHECK(crc32(bytes) == 0xCBF43926u);
   CHECK(crc32({}) == 0u);
   CHECK(crc32(std::vector<std::uint8_t>{0}) == 0xD202EF8Du);
+}
+
+// ---- Octree geometry coder (format-spec/chunk.md §11.3), both codings.
+
+namespace {
+
+relief::codec::OccupiedCells random_cells(std::mt19937_64& rng, int depth, std::size_t n, bool clustered) {
+  std::vector<std::uint64_t> keys;
+  const std::uint64_t side = std::uint64_t{1} << depth;
+  std::uniform_int_distribution<std::uint64_t> coord(0, side - 1);
+  std::uniform_int_distribution<int> step(-2, 2);
+  std::uint64_t x = coord(rng), y = coord(rng), z = coord(rng);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (clustered) {  // a random walk: surfaces and lines, dense octree nodes
+      const auto move = [&](std::uint64_t& c) {
+        const std::int64_t v = static_cast<std::int64_t>(c) + step(rng);
+        c = static_cast<std::uint64_t>(std::clamp<std::int64_t>(v, 0, static_cast<std::int64_t>(side - 1)));
+      };
+      move(x), move(y), move(z);
+    } else {  // scattered: long single-child chains
+      x = coord(rng), y = coord(rng), z = coord(rng);
+    }
+    std::uint64_t key = 0;
+    for (int b = 0; b < depth; ++b) {
+      key |= ((x >> b) & 1) << (3 * b) | ((y >> b) & 1) << (3 * b + 1) | ((z >> b) & 1) << (3 * b + 2);
+    }
+    keys.push_back(key);
+  }
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  relief::codec::OccupiedCells cells;
+  cells.keys = keys;
+  std::uniform_int_distribution<int> dup(0, 9);
+  for (std::size_t i = 0; i < keys.size(); ++i) cells.counts.push_back(dup(rng) == 0 ? 2 + dup(rng) : 1);
+  return cells;
+}
+
+std::uint64_t total_points(const relief::codec::OccupiedCells& c) {
+  std::uint64_t t = 0;
+  for (const std::uint32_t n : c.counts) t += n;
+  return t;
+}
+
+}  // namespace
+
+TEST_CASE("octree geometry round trips with both codings", "[coders][geometry]") {
+  std::mt19937_64 rng(77);
+  for (const relief::codec::OctreeCoding coding : {relief::codec::OctreeCoding::kBitwise, relief::codec::OctreeCoding::kSingleChild}) {
+    for (const int depth : {0, 1, 2, 5, 12, 21}) {
+      for (const bool clustered : {false, true}) {
+        for (const std::size_t n : {std::size_t{1}, std::size_t{7}, std::size_t{3000}}) {
+          INFO("coding " << static_cast<int>(coding) << " depth " << depth << " clustered " << clustered << " n "
+                         << n);
+          const relief::codec::OccupiedCells cells = random_cells(rng, depth, depth == 0 ? 1 : n, clustered);
+          const auto stream = relief::codec::encode_geometry(cells, depth, coding);
+          auto back = relief::codec::decode_geometry(stream, depth, total_points(cells), coding);
+          REQUIRE(back.is_ok());
+          CHECK(back->keys == cells.keys);
+          CHECK(back->counts == cells.counts);
+        }
+      }
+    }
+  }
+}
+
+TEST_CASE("single-child coding is smaller on sparse and on surface-like octrees", "[coders][geometry]") {
+  std::mt19937_64 rng(78);
+  for (const bool clustered : {false, true}) {
+    const relief::codec::OccupiedCells cells = random_cells(rng, 16, 20000, clustered);
+    const auto bitwise = relief::codec::encode_geometry(cells, 16, relief::codec::OctreeCoding::kBitwise);
+    const auto single = relief::codec::encode_geometry(cells, 16, relief::codec::OctreeCoding::kSingleChild);
+    INFO("clustered " << clustered << ": bitwise " << bitwise.size() << " bytes, single-child " << single.size());
+    CHECK(single.size() < bitwise.size());
+  }
+}
+
+TEST_CASE("octree geometry streams of the other coding, truncated or flipped fail cleanly", "[coders][geometry]") {
+  std::mt19937_64 rng(79);
+  const relief::codec::OccupiedCells cells = random_cells(rng, 14, 2000, true);
+  const std::uint64_t n = total_points(cells);
+  const auto stream = relief::codec::encode_geometry(cells, 14, relief::codec::OctreeCoding::kSingleChild);
+  // Read with the wrong coding: an error or a different set, never a crash.
+  auto other = relief::codec::decode_geometry(stream, 14, n, relief::codec::OctreeCoding::kBitwise);
+  CHECK((!other.is_ok() || other->keys != cells.keys));
+  for (std::size_t cut = 0; cut < stream.size(); cut += std::max<std::size_t>(1, stream.size() / 23)) {
+    const std::vector<std::uint8_t> part(stream.begin(), stream.begin() + static_cast<std::ptrdiff_t>(cut));
+    auto r = relief::codec::decode_geometry(part, 14, n, relief::codec::OctreeCoding::kSingleChild);
+    CHECK((!r.is_ok() || r->keys != cells.keys || cut == stream.size()));
+  }
+  std::uniform_int_distribution<std::size_t> pos(0, stream.size() - 1);
+  for (int i = 0; i < 200; ++i) {
+    std::vector<std::uint8_t> bad = stream;
+    bad[pos(rng)] ^= static_cast<std::uint8_t>(1u << (i % 8));
+    auto r = relief::codec::decode_geometry(bad, 14, n, relief::codec::OctreeCoding::kSingleChild);
+    if (r.is_ok()) {  // a flip the coder absorbs must still describe n points in valid cells
+      std::uint64_t t = 0;
+      for (const std::uint32_t c : r->counts) t += c;
+      CHECK(t == n);
+      CHECK(std::is_sorted(r->keys.begin(), r->keys.end()));
+    }
+  }
 }

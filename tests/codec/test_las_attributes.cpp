@@ -79,7 +79,7 @@ TEST_CASE("LAS attributes: every combination of carried attributes round-trips e
     REQUIRE(blob.is_ok());
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == 3);
+    CHECK(info->format_version == kChunkFormatVersion);
     CHECK(info->las_attributes == bits);
     CHECK(info->extra_bytes_size == ((bits & kLasExtraBytes) ? 1 + bits % 64 : 0));
     auto out = decode_chunk(*blob);
@@ -108,14 +108,15 @@ TEST_CASE("LAS attributes: survey-like and uniform values, every extra-bytes wid
 
 TEST_CASE("LAS attributes: 0 and 1 points, duplicates with differing attributes", "[codec][las]") {
   const EncodeParams p = params_for(0.01, 1.0);
-  SECTION("an empty cloud is an empty version-2 blob") {
+  SECTION("an empty cloud is an empty blob without LAS attributes") {
     PointCloud empty;
     empty.las.extra_bytes_size = 8;
     auto blob = encode_chunk(empty, p);
     REQUIRE(blob.is_ok());
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == 2);
+    CHECK(info->format_version == kChunkFormatVersion);
+    CHECK(info->las_attributes == 0);
     auto out = decode_chunk(*blob);
     REQUIRE(out.is_ok());
     CHECK(out->empty());
@@ -370,7 +371,7 @@ TEST_CASE("classification map: lying flags and sections are refused", "[codec][l
   EncodeParams bounded = params_for(0.002, 0.5);
   auto v3 = encode_chunk(in, bounded);
   REQUIRE(v3.is_ok());
-  REQUIRE(inspect_chunk(*v3)->format_version == 3);
+  REQUIRE(inspect_chunk(*v3)->format_version == kChunkFormatVersion);
   DecodeOptions nocrc;
   nocrc.verify_checksum = false;
   const auto corrupt = [&](std::vector<std::uint8_t> b) {

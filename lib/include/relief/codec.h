@@ -34,8 +34,11 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // version 1 plus a map of the majority classification per pixel, written by
 // the resampling codec for clouds that carry a classification (no other LAS
 // attribute survives resampling; the base layer of a version-3 blob has the
-// same map).
-inline constexpr std::uint16_t kChunkFormatVersion = 4;
+// same map). Version 5: the error-bounded layer as in versions 2 and 3 (the
+// version-3 header, its attribute set possibly empty) with the geometry coded
+// by codec 7 (single-child octree coding); the bounded encoder writes it for
+// every cloud.
+inline constexpr std::uint16_t kChunkFormatVersion = 5;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
