@@ -11,6 +11,7 @@ packages=(
   libeigen3-dev libopenjp2-7-dev libturbojpeg0-dev liblzma-dev libsqlite3-dev
   catch2 libjbig-dev libnanoflann-dev libpng-dev liblzf-dev
   libgeotiff-dev libproj-dev
+  python3-distributed python3-numpy python3-pytest
 )
 if [[ "${RELIEF_WITH_BENCH:-0}" == "1" ]]; then
   packages+=(draco)
