@@ -14,6 +14,7 @@
 #include "relief/ingest.h"
 #include "relief/io.h"
 #include "relief/shard.h"
+#include "support/run_cli.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -323,4 +324,44 @@ TEST_CASE("sharded build: stages and merge refuse what does not fit", "[shard]")
     REQUIRE_FALSE(r.is_ok());
     CHECK(r.status().code() == StatusCode::kInvalidArgument);
   }
+}
+
+TEST_CASE("sharded build: the CLI stages and merge, with their exit codes", "[shard][cli]") {
+  using test::run_cli;
+  TempDir dir;
+  const Scene s{61, 40000, 2, true, true, {0, 0, 0}, 0, 1.5, kMaxBoundedChunkPoints};
+  const std::vector<std::string> inputs = write_inputs(dir, s);
+  const std::string cli = RELIEF_CLI;
+  const std::string in = inputs[0] + " " + inputs[1];
+  REQUIRE(run_cli(cli, "compress " + in + " -o " + dir.file("one.relief") + " --chunk-edge 1.5 --quiet").code == 0);
+  std::filesystem::create_directories(dir.file("parts"));
+  const std::string plan = dir.file("plan.txt");
+  auto planned = run_cli(cli, "shard-plan " + in + " -o " + plan + " --chunk-edge 1.5 --ranges 2");
+  REQUIRE(planned.code == 0);
+  CHECK(planned.output.find("2 key ranges") != std::string::npos);
+  for (int i = 0; i < 2; ++i) {
+    REQUIRE(run_cli(cli, "shard-partition " + plan + " --input " + std::to_string(i) + " --dir " + dir.file("parts") +
+                             " --quiet")
+                .code == 0);
+  }
+  // Input 2 does not exist: exit 10 + kInvalidArgument.
+  CHECK(run_cli(cli, "shard-partition " + plan + " --input 2 --dir " + dir.file("parts")).code == 11);
+  for (int r = 0; r < 2; ++r) {
+    REQUIRE(run_cli(cli, "shard-encode " + plan + " --range " + std::to_string(r) + " --dir " + dir.file("parts") +
+                             " -o " + dir.file("s" + std::to_string(r) + ".relief") + " --quiet")
+                .code == 0);
+  }
+  const std::string shards = dir.file("s0.relief") + " " + dir.file("s1.relief");
+  REQUIRE(run_cli(cli, "merge " + shards + " -o " + dir.file("m.relief")).code == 0);
+  CHECK(rows_of(dir.file("m.relief")) == rows_of(dir.file("one.relief")));
+  // Never over an existing file (exit 10 + kIoError), never the same shard twice.
+  auto again = run_cli(cli, "merge " + shards + " -o " + dir.file("m.relief"));
+  CHECK(again.code == 12);
+  CHECK(again.output.find("already exists") != std::string::npos);
+  auto twice = run_cli(cli, "merge " + dir.file("s0.relief") + " " + dir.file("s0.relief") + " -o " +
+                                dir.file("m2.relief"));
+  CHECK(twice.code == 11);
+  CHECK(twice.output.find("s0.relief") != std::string::npos);
+  CHECK(run_cli(cli, "merge -o " + dir.file("m3.relief")).code == 2);
+  CHECK(run_cli(cli, "shard-encode " + plan + " --dir " + dir.file("parts") + " -o x.relief").code == 2);
 }
