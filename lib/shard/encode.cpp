@@ -48,6 +48,12 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     }
     total += n;
   }
+  std::uint64_t read = 0;
+  for (const ArchiveSource& src : sources) read += src.point_count;
+  if (read != plan.points) {
+    return invalid_argument(base + ": stage 1 read " + std::to_string(read) + " points where the plan read " +
+                            std::to_string(plan.points) + ": the inputs changed since the plan (make a new plan)");
+  }
   // In input order, each file in read order: the order compress_files sees.
   PointCloud points;
   points.reserve(static_cast<std::size_t>(total), plan.colors, plan.intensity);

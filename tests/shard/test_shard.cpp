@@ -307,6 +307,17 @@ TEST_CASE("sharded build: stages and merge refuse what does not fit", "[shard]")
     REQUIRE_FALSE(foreign.is_ok());
     CHECK(foreign.status().message().find("another plan") != std::string::npos);
   }
+  SECTION("an input changed since the plan") {
+    auto cloud = read_point_file(inputs[1]);
+    REQUIRE(cloud.is_ok());
+    cloud->resize_points(cloud->size() / 2);
+    REQUIRE(write_ply(inputs[1], *cloud).is_ok());
+    REQUIRE(partition_input(plan, 1, dir.file("a/parts")).is_ok());
+    auto r = encode_shard(plan, 0, dir.file("a/parts"), dir.file("x.relief"));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK(r.status().message().find("changed since the plan") != std::string::npos);
+  }
   SECTION("a damaged plan file") {
     const std::string text = shard_plan_text(plan);
     for (std::size_t cut : {std::size_t{0}, text.size() / 2, text.size() - 4}) {
