@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what Relief needs from Debian 12 packages, skipping what is present
-# (pybind11, python3-dev, numpy and pytest build and test the Python bindings).
+# (pybind11, python3-dev, numpy and pytest build and test the Python bindings; python3-distributed
+# runs the sharded build on Dask).
 # Idempotent; uses sudo when not root. Set RELIEF_WITH_BENCH=1 to add the peer
 # codecs the benchmarks compare against (draco), RELIEF_WITH_FUZZ=1 to add clang
 # and its libFuzzer runtime for -DRELIEF_FUZZ=ON (tests/fuzz/README.md; CI
@@ -12,7 +13,7 @@ packages=(
   libeigen3-dev libopenjp2-7-dev libturbojpeg0-dev liblzma-dev libsqlite3-dev
   catch2 libjbig-dev libnanoflann-dev libpng-dev liblzf-dev
   libgeotiff-dev libproj-dev
-  pybind11-dev python3-dev python3-numpy python3-pytest
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-distributed
 )
 if [[ "${RELIEF_WITH_BENCH:-0}" == "1" ]]; then
   packages+=(draco)

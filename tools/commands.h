@@ -15,5 +15,9 @@ int run_query(int argc, char** argv);
 int run_decompress(int argc, char** argv);
 int run_info(int argc, char** argv);
 int run_check(int argc, char** argv);
+int run_shard_plan(int argc, char** argv);
+int run_shard_partition(int argc, char** argv);
+int run_shard_encode(int argc, char** argv);
+int run_merge(int argc, char** argv);
 
 }  // namespace relief::cli

@@ -20,6 +20,10 @@ constexpr const char* kUsage =
     "  decompress ARCHIVE -o OUT         every point of an archive\n"
     "  info ARCHIVE [--json]             what an archive holds\n"
     "  check ARCHIVE                     verify a whole archive and list what is damaged\n"
+    "  merge SHARD... -o OUT.relief      join the shard archives of a sharded build\n"
+    "  shard-plan IN... -o PLAN          sharded build, stage 0: fix every parameter\n"
+    "  shard-partition PLAN --input I --dir DIR    stage 1: one input into key-range files\n"
+    "  shard-encode PLAN --range R --dir DIR -o SHARD    stage 2: one key range into a shard\n"
     "  roundtrip IN.ply          compress one file as a chunk, decompress it, print size and error\n"
     "  encode-chunk IN.ply -o OUT.rlfc   compress a point file into one chunk blob\n"
     "  decode-chunk IN.rlfc -o OUT.ply   decompress a chunk blob\n"
@@ -50,6 +54,10 @@ int main(int argc, char** argv) {
   if (command == "decompress") return relief::cli::run_decompress(sub_argc, sub_argv);
   if (command == "info") return relief::cli::run_info(sub_argc, sub_argv);
   if (command == "check") return relief::cli::run_check(sub_argc, sub_argv);
+  if (command == "merge") return relief::cli::run_merge(sub_argc, sub_argv);
+  if (command == "shard-plan") return relief::cli::run_shard_plan(sub_argc, sub_argv);
+  if (command == "shard-partition") return relief::cli::run_shard_partition(sub_argc, sub_argv);
+  if (command == "shard-encode") return relief::cli::run_shard_encode(sub_argc, sub_argv);
   if (command == "roundtrip") return relief::cli::run_roundtrip(sub_argc, sub_argv);
   if (command == "encode-chunk") return relief::cli::run_encode_chunk(sub_argc, sub_argv);
   if (command == "decode-chunk") return relief::cli::run_decode_chunk(sub_argc, sub_argv);

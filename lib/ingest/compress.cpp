@@ -155,6 +155,36 @@ void conform_attributes(PointCloud& batch, bool colors, bool intensity) {
   if (!intensity) batch.intensities.clear();
 }
 
+Status stage_points(PointCloud& batch, double coordinate_limit, const std::string& source, std::uint64_t first_index,
+                    bool colors, bool intensity, const EncodeParams& params) {
+  RELIEF_RETURN_IF_ERROR(check_coordinates(batch, coordinate_limit, source, first_index));
+  conform_attributes(batch, colors, intensity);
+  if (params.bound) snap_to_grid(batch, *params.bound);
+  return Status::ok();
+}
+
+void widen_intensity_range(const PointCloud& batch, float& lo, float& hi) {
+  for (const float v : batch.intensities) {
+    lo = std::min(lo, v);
+    hi = std::max(hi, v);
+  }
+}
+
+EncodeParams with_intensity_range(const EncodeParams& params, bool intensity, float lo, float hi) {
+  EncodeParams p = params;
+  if (intensity && lo <= hi) p.intensity_range = std::make_pair(lo, hi);
+  return p;
+}
+
+Result<std::int64_t> begin_scan(Archive& archive, const std::vector<ArchiveSource>& sources, bool colors,
+                                bool intensity, const std::string& crs) {
+  return archive.begin_scan(sources, {colors, intensity, crs});
+}
+
+Status finish_scan(Archive& archive, std::int64_t scan_id, bool colors, bool intensity, const std::string& crs) {
+  return archive.finish_scan(scan_id, colors, intensity, crs);
+}
+
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params,
                                 InputSet& in, PointCloud pending, const IngestOptions& options,
                                 const std::string& tmp_parent) {
@@ -198,15 +228,10 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const auto read_all = [&](const std::function<Status(ReadBatch&)>& stage,
                             const std::function<Status(ReadBatch&)>& sink) -> Status {
     const auto full_stage = [&](ReadBatch& b) -> Status {
-      RELIEF_RETURN_IF_ERROR(
-          check_coordinates(b.points, coordinate_limit, in.sources[b.reader].path, staged_per_source[b.reader]));
+      RELIEF_RETURN_IF_ERROR(stage_points(b.points, coordinate_limit, in.sources[b.reader].path,
+                                          staged_per_source[b.reader], in.colors, in.intensity, params));
       staged_per_source[b.reader] += b.points.size();
-      conform_attributes(b.points, in.colors, in.intensity);
-      if (params.bound) snap_to_grid(b.points, *params.bound);
-      for (const float v : b.points.intensities) {
-        intensity_lo = std::min(intensity_lo, v);
-        intensity_hi = std::max(intensity_hi, v);
-      }
+      widen_intensity_range(b.points, intensity_lo, intensity_hi);
       return stage(b);
     };
     std::vector<std::uint64_t> per_source(in.readers.size(), 0);
@@ -240,11 +265,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
 
   // Every chunk of the scan quantises intensity over the scan's range, so the
   // step does not depend on how the points fall into chunks.
-  const auto with_ranges = [&] {
-    EncodeParams p = params;
-    if (in.intensity && intensity_lo <= intensity_hi) p.intensity_range = std::make_pair(intensity_lo, intensity_hi);
-    return p;
-  };
+  const auto with_ranges = [&] { return with_intensity_range(params, in.intensity, intensity_lo, intensity_hi); };
   std::int64_t scan_id = 0;
   // Declared before the pipeline: its workers return slices here.
   SlicePool slices;
@@ -312,7 +333,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return format_error(names + ": " + std::to_string(points_read) + " points read where the headers declare " +
                           std::to_string(total));
     }
-    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, {in.colors, in.intensity, in.crs}));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, begin_scan(archive, in.sources, in.colors, in.intensity, in.crs));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, task_points, grouping, split_grid), tick));
@@ -330,7 +351,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
         read_all(key_batch, [&](ReadBatch& b) -> Status { return files.append(b.points, b.keys.data()); }));
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
-    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, {in.colors, in.intensity, in.crs}));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, begin_scan(archive, in.sources, in.colors, in.intensity, in.crs));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     // The next slice loads while the workers encode the current one; each
@@ -352,7 +373,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     }
     RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
   }
-  RELIEF_RETURN_IF_ERROR(archive.finish_scan(scan_id, in.colors, in.intensity, in.crs));
+  RELIEF_RETURN_IF_ERROR(finish_scan(archive, scan_id, in.colors, in.intensity, in.crs));
 
   IngestResult result =
       scan_result(pipeline->totals(), points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
@@ -556,7 +577,7 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& b) {
 }
 
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                         int map_resolution, Box3d* bounds) {
+                                         int map_resolution, Box3d* bounds, OrderFreeSample* extra) {
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
@@ -582,6 +603,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
       RELIEF_ASSIGN_OR_RETURN(const std::size_t got, reader->read(batch, kReadBatch));
       if (got == 0) break;
       total += got;
+      if (extra != nullptr) widen_intensity_range(batch, extra->intensity_lo, extra->intensity_hi);
       for (const Vec3d& p : batch.positions) {
         if (bounds != nullptr) bounds->add(p);
         const std::uint64_t h = hash(p);
@@ -593,12 +615,14 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
       }
     }
   }
+  if (extra != nullptr) extra->points = total;
   if (kept.empty()) return OrderFreeCells{};  // no points at all: the caller picks the empty-input cell
   PointCloud sample;
   sample.positions.reserve(kept.size());
   // Sorted, so the estimate does not even see the order the points came in.
   std::sort(kept.begin(), kept.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   for (const auto& e : kept) sample.positions.push_back(e.second);
+  if (extra != nullptr) extra->positions = sample.positions;
   const double fraction = static_cast<double>(sample.size()) / static_cast<double>(total);
   OrderFreeCells cells;
   cells.density_cell = cell_size_for_density(sample, static_cast<double>(map_resolution) * map_resolution * fraction);
@@ -625,11 +649,7 @@ std::string default_tmp_parent(const std::string& archive_path, const IngestOpti
   return parent.empty() ? "." : parent;
 }
 
-}  // namespace ingest
-
-Result<IngestResult> compress_files(const std::vector<std::string>& inputs, const std::string& archive_path,
-                                    const IngestOptions& options) {
-  using namespace ingest;
+Status validate_build_options(const IngestOptions& options) {
   RELIEF_RETURN_IF_ERROR(validate_encode_params(options.codec));
   if (!(options.chunk_edge >= 0) || options.chunk_edge > kMaxCoordinateMagnitude) {
     return invalid_argument("chunk edge must be a positive number up to 2^50 (0 = automatic)");
@@ -637,24 +657,16 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   if (options.codec.cell_size > kMaxCoordinateMagnitude) {
     return invalid_argument("cell size must be at most 2^50");
   }
-  struct stat st {};
-  if (::stat(archive_path.c_str(), &st) == 0) {
-    // Say what is there: an archive to append to, or some other file.
-    if (Archive::open(archive_path, Archive::Mode::kReadOnly)) {
-      return io_error(archive_path +
-                      ": already exists (a Relief archive; compress never overwrites, use 'relief append' to add to it)");
-    }
-    return io_error(archive_path + ": already exists and is not a Relief archive (compress never overwrites a file)");
-  }
-  RELIEF_RETURN_IF_ERROR(check_output_directory(archive_path));
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs));
+  return Status::ok();
+}
 
+Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& inputs, const IngestOptions& options,
+                                                InputSet& in, PointCloud& first, OrderFreeSample* sample) {
   EncodeParams params = options.codec;
   // The first points set the cell size (from their density, or by trial
   // encodes for an error target) and are checked against it; they are then
   // ingested like every batch. At most a quarter of the budget for them (with
   // the cell-size scratch).
-  PointCloud first;
   const bool bounded = options.mode == IngestMode::kBounded;
   if (bounded) {
     params.bound = resolve_error_bound(options, in);
@@ -683,12 +695,17 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     // The base layer's cells: from a sample that depends only on the set of
     // input points (not their order, not the memory budget).
     RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
-                            order_free_cells(inputs, options.reader, params.map_resolution, &all_bounds));
+                            order_free_cells(inputs, options.reader, params.map_resolution, &all_bounds, sample));
     // Inputs without a single point still make a valid (empty) archive, on a
     // documented default grid, so scripted pipelines need no special case.
     params.cell_size = cells.density_cell > 0 ? cells.base_cell : kBaseCellFactor * kEmptyInputCellSize;
     density_cell = cells.density_cell;
-  } else if (derive_from_first) {
+  } else if (sample != nullptr) {
+    // The caller wants the pass anyway (a shard plan): the sample, not the
+    // cells, and no bounds, so the grid is the one this branch would get.
+    RELIEF_RETURN_IF_ERROR(order_free_cells(inputs, options.reader, params.map_resolution, nullptr, sample).status());
+  }
+  if (derive_from_first) {
     if (got == 0 && inputs.size() > 1) {
       return invalid_argument(inputs[0] + ": no points to derive a cell size from (put a non-empty input first)");
     }
@@ -729,6 +746,33 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   RELIEF_RETURN_IF_ERROR(
       check_coordinates(first, max_coordinate_magnitude(params.cell_size, grid.chunk_edge), inputs[0], 0));
   if (!options.allow_sparse) RELIEF_RETURN_IF_ERROR(check_sample_density(first, grid, params.cell_size, inputs[0]));
+  BuildParameters built;
+  built.params = params;
+  built.grid = grid;
+  return built;
+}
+
+}  // namespace ingest
+
+Result<IngestResult> compress_files(const std::vector<std::string>& inputs, const std::string& archive_path,
+                                    const IngestOptions& options) {
+  using namespace ingest;
+  RELIEF_RETURN_IF_ERROR(validate_build_options(options));
+  struct stat st {};
+  if (::stat(archive_path.c_str(), &st) == 0) {
+    // Say what is there: an archive to append to, or some other file.
+    if (Archive::open(archive_path, Archive::Mode::kReadOnly)) {
+      return io_error(archive_path +
+                      ": already exists (a Relief archive; compress never overwrites, use 'relief append' to add to it)");
+    }
+    return io_error(archive_path + ": already exists and is not a Relief archive (compress never overwrites a file)");
+  }
+  RELIEF_RETURN_IF_ERROR(check_output_directory(archive_path));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs));
+  PointCloud first;
+  RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, options, in, first));
+  const EncodeParams& params = built.params;
+  const ArchiveGrid& grid = built.grid;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
                           Archive::create(archive_path, grid, encode_params_to_string(params), options.creator));
   auto result = run_ingest(*archive, grid, params, in, std::move(first), options,

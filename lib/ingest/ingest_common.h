@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -122,8 +123,49 @@ struct OrderFreeCells {
   double density_cell = 0;  // suggest_cell_size of all the points
   double base_cell = 0;     // the bounded mode's base-layer cell
 };
+// With `extra`, also what a shard plan needs from the same pass (below).
+struct OrderFreeSample {
+  std::vector<Vec3d> positions;  // the hash-chosen sample, in hash order
+  std::uint64_t points = 0;      // points read
+  // Of every point's intensity (widen_intensity_range): the scan's range.
+  float intensity_lo = std::numeric_limits<float>::infinity();
+  float intensity_hi = -std::numeric_limits<float>::infinity();
+};
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                        int map_resolution, Box3d* bounds = nullptr);
+                                        int map_resolution, Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr);
+
+// ---- The steps of a new archive's build, shared by compress_files and the
+// sharded build (lib/shard), so both make the same decisions.
+
+// The option checks made before anything is read.
+Status validate_build_options(const IngestOptions& options);
+// Every global parameter of a new archive, derived from all the inputs: the
+// codec parameters (error bound, base cell; no intensity range yet) and the
+// chunk grid (edge, origin). Reads the first points of input 0 into `first`
+// (they are then ingested like every batch) and checks them. With `sample`,
+// the order-free pass always runs and fills it (in the bounded mode with a
+// given cell size the pass is otherwise skipped; the result is the same).
+struct BuildParameters {
+  EncodeParams params;
+  ArchiveGrid grid;
+};
+Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& inputs, const IngestOptions& options,
+                                                InputSet& in, PointCloud& first, OrderFreeSample* sample = nullptr);
+// What every point goes through between its reader and its chunk key: the
+// coordinate limit (naming `source` and the point's index first_index + i),
+// the archive's attribute set, the error-bounded grid.
+Status stage_points(PointCloud& batch, double coordinate_limit, const std::string& source, std::uint64_t first_index,
+                    bool colors, bool intensity, const EncodeParams& params);
+// Widens [lo, hi] to the batch's intensities (NaN ignored).
+void widen_intensity_range(const PointCloud& batch, float& lo, float& hi);
+// The parameters every chunk of a scan is encoded with: intensity quantised
+// over the scan's range, so the step does not depend on how points fall into
+// chunks.
+EncodeParams with_intensity_range(const EncodeParams& params, bool intensity, float lo, float hi);
+// A scan's metadata rows (begin with the sources, finish with the attributes).
+Result<std::int64_t> begin_scan(Archive& archive, const std::vector<ArchiveSource>& sources, bool colors,
+                                bool intensity, const std::string& crs);
+Status finish_scan(Archive& archive, std::int64_t scan_id, bool colors, bool intensity, const std::string& crs);
 
 // Reads every input into the archive as one scan (see compress.cpp).
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params, InputSet& in,

@@ -1,0 +1,119 @@
+// Stage 2 of a sharded build: one key range's points from every input's
+// partition file -> a shard archive, encoded exactly as compress_files
+// encodes those chunks (same grouping, split rule, parameters, pipeline).
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <memory>
+
+#include "core/parallel.h"
+#include "ingest/chunk_pipeline.h"
+#include "ingest/ingest_common.h"
+#include "relief/codec.h"
+#include "relief/shard.h"
+#include "shard/partition_file.h"
+#include "shard/shard_files.h"
+
+namespace relief {
+
+Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, const std::string& dir,
+                                  const std::string& out, const EncodeShardOptions& options) {
+  using namespace ingest;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (range >= plan.range_count()) {
+    return invalid_argument("range " + std::to_string(range) + " of a plan of " + std::to_string(plan.range_count()) +
+                            " ranges");
+  }
+  RELIEF_ASSIGN_OR_RETURN(const EncodeParams params, encode_params_from_string(plan.archive_params));
+  EncodeParams chunk_params = params;
+  if (plan.has_intensity_range) chunk_params.intensity_range = std::make_pair(plan.intensity_lo, plan.intensity_hi);
+  const std::uint64_t plan_id = shard_plan_id(plan);
+  const std::string base = dir.empty() ? std::string(".") : dir;
+  // Every input's manifest (its point count) and the size of its range file,
+  // all checked before any point is read or memory reserved.
+  std::vector<ArchiveSource> sources = plan.sources;
+  std::vector<std::string> warnings = plan.warnings;
+  std::uint64_t total = 0;
+  for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
+    RELIEF_ASSIGN_OR_RETURN(const shard::Manifest m,
+                            shard::read_manifest(base + "/" + partition_manifest_name(i), plan_id, i));
+    sources[i].point_count = m.points;
+    warnings.insert(warnings.end(), m.warnings.begin(), m.warnings.end());
+    RELIEF_ASSIGN_OR_RETURN(const std::uint64_t n,
+                            shard::partition_file_points(base + "/" + partition_file_name(i, range), plan_id, i, range,
+                                                         plan.colors, plan.intensity));
+    if (n > m.points) {
+      return corrupt_data(base + "/" + partition_file_name(i, range) + ": more points than its input's manifest says");
+    }
+    total += n;
+  }
+  std::uint64_t read = 0;
+  for (const ArchiveSource& src : sources) read += src.point_count;
+  if (read != plan.points) {
+    return invalid_argument(base + ": stage 1 read " + std::to_string(read) + " points where the plan read " +
+                            std::to_string(plan.points) + ": the inputs changed since the plan (make a new plan)");
+  }
+  // In input order, each file in read order: the order compress_files sees.
+  PointCloud points;
+  points.reserve(static_cast<std::size_t>(total), plan.colors, plan.intensity);
+  for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
+    RELIEF_RETURN_IF_ERROR(shard::read_partition_file(base + "/" + partition_file_name(i, range), plan_id, i, range,
+                                                      plan.colors, plan.intensity, points)
+                               .status());
+  }
+  const std::string where = base + "/" + "range " + std::to_string(range);
+  RELIEF_RETURN_IF_ERROR(check_coordinates(points, max_coordinate_magnitude(params.cell_size, plan.grid.chunk_edge),
+                                           where, 0));
+  Grouping grouping;
+  grouping.add(points.positions.data(), points.size(), plan.grid);
+  for (const ChunkKey& k : grouping.keys) {
+    if (plan.range_of(k) != range) {
+      std::string chunk = where;
+      chunk += ": holds a point of chunk ";
+      chunk += std::to_string(k.ix) + "," + std::to_string(k.iy) + "," + std::to_string(k.iz);
+      return corrupt_data(chunk + ", which belongs to range " + std::to_string(plan.range_of(k)));
+    }
+  }
+  std::vector<ChunkTask> tasks = make_tasks(points, plan.split_points, grouping, &plan.grid);
+
+  const std::string tmp = shard::temp_name(out);
+  remove_archive_files(tmp);
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
+                          Archive::create(tmp, plan.grid, plan.archive_params, plan.creator));
+  const auto failed = [&](Status s) -> Result<IngestResult> {
+    archive.reset();
+    remove_archive_files(tmp);
+    return s;
+  };
+  auto scan_id = begin_scan(*archive, sources, plan.colors, plan.intensity, plan.crs);
+  if (!scan_id) return failed(scan_id.status());
+  PipelineTotals totals;
+  {
+    ChunkPipeline pipeline(*archive, chunk_params, plan.grid, *scan_id, resolve_threads(options.threads), nullptr,
+                           options.verify_blobs);
+    if (Status s = pipeline.run(std::move(tasks), nullptr); !s) return failed(s);
+    totals = pipeline.totals();
+  }
+  if (Status s = finish_scan(*archive, *scan_id, plan.colors, plan.intensity, plan.crs); !s) return failed(s);
+  archive.reset();  // closed: SQLite folds its WAL into the file
+  // No journal of an earlier file of that name may be replayed into this one.
+  for (const char* suffix : {"-wal", "-journal"}) ::unlink((out + suffix).c_str());
+  if (std::rename(tmp.c_str(), out.c_str()) != 0) {
+    remove_archive_files(tmp);
+    return io_error(out + ": cannot rename the finished shard into place");
+  }
+  IngestResult r;
+  r.points_read = points.size();
+  r.points_decoded = totals.points_decoded;
+  r.chunks_written = totals.chunks;
+  r.blob_bytes = totals.blob_bytes;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.cell_size = params.cell_size;
+  r.chunk_edge = plan.grid.chunk_edge;
+  r.scan_id = *scan_id;
+  r.warnings = std::move(warnings);
+  return r;
+}
+
+}  // namespace relief

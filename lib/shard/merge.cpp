@@ -1,0 +1,190 @@
+// relief merge: shard archives -> one archive, rows copied as they are.
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <tuple>
+
+#include "ingest/ingest_common.h"
+#include "relief/shard.h"
+#include "shard/shard_files.h"
+
+namespace relief {
+
+namespace {
+
+// A transaction per this many rows or blob bytes (as the ingest pipeline).
+constexpr std::size_t kBatchRows = 64;
+constexpr std::size_t kBatchBytes = std::size_t{32} << 20;
+
+std::string key_text(const ChunkKey& k) {
+  // Appended piece by piece: GCC 12 warns falsely (-Wrestrict, bug 105329)
+  // on a literal plus a temporary string.
+  std::string text = "(";
+  text += std::to_string(k.ix);
+  text += ',';
+  text += std::to_string(k.iy);
+  text += ',';
+  text += std::to_string(k.iz);
+  text += ')';
+  return text;
+}
+
+bool same_sources(const std::vector<ArchiveSource>& a, const std::vector<ArchiveSource>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (a[i].path != b[i].path || a[i].format != b[i].format || a[i].point_count != b[i].point_count ||
+        a[i].crs != b[i].crs) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// What must be equal in every shard, and the name of the first difference.
+std::string difference(const ArchiveInfo& a, const ArchiveInfo& b) {
+  if (a.format_version != b.format_version) return "format version";
+  if (!(a.grid.origin == b.grid.origin) || a.grid.chunk_edge != b.grid.chunk_edge) return "grid";
+  if (a.codec_params != b.codec_params) return "codec parameters";
+  if (a.creator != b.creator) return "creator";
+  if (a.crs != b.crs) return "CRS";
+  if (a.has_colors != b.has_colors || a.has_intensity != b.has_intensity) return "attributes";
+  if (!same_sources(a.sources, b.sources)) return "sources (paths, formats or point counts)";
+  return "";
+}
+
+}  // namespace
+
+Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const std::string& out) {
+  using namespace ingest;
+  if (shards.empty()) return invalid_argument("no shards to merge");
+  struct stat st {};
+  if (::stat(out.c_str(), &st) == 0) return io_error(out + ": already exists (merge never overwrites)");
+  RELIEF_RETURN_IF_ERROR(check_output_directory(out));
+  struct Shard {
+    std::unique_ptr<Archive> archive;
+    ArchiveInfo info;
+  };
+  std::vector<Shard> opened;
+  std::map<std::pair<dev_t, ino_t>, std::string> files;
+  for (const std::string& path : shards) {
+    struct stat shard_stat {};
+    if (::stat(path.c_str(), &shard_stat) == 0) {
+      const auto [it, inserted] = files.emplace(std::make_pair(shard_stat.st_dev, shard_stat.st_ino), path);
+      if (!inserted) return invalid_argument(path + ": given twice (also as " + it->second + ")");
+    }
+    Shard s;
+    RELIEF_ASSIGN_OR_RETURN(s.archive, Archive::open(path, Archive::Mode::kReadOnly));
+    RELIEF_ASSIGN_OR_RETURN(s.info, s.archive->info());
+    if (s.info.scans.size() != 1 || !s.info.scans[0].complete) {
+      return invalid_argument(path + ": not a shard (one complete scan) but an archive of " +
+                              std::to_string(s.info.scans.size()) + " scans" +
+                              (s.info.scans.size() == 1 ? ", incomplete (its encode was killed?)" : ""));
+    }
+    if (!opened.empty()) {
+      const std::string diff = difference(opened[0].info, s.info);
+      if (!diff.empty()) {
+        return invalid_argument(path + ": its " + diff + " differ from " + shards[0] +
+                                "'s: not a shard of the same plan");
+      }
+    }
+    opened.push_back(std::move(s));
+  }
+  // Every chunk, in key order; a voxel must come from one shard only.
+  struct Entry {
+    ChunkKey key;
+    std::size_t shard;
+    std::int64_t id;
+  };
+  std::vector<Entry> entries;
+  std::map<ChunkKey, std::size_t> owner;
+  for (std::size_t i = 0; i < opened.size(); ++i) {
+    RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> refs, opened[i].archive->all_chunks());
+    for (const ChunkRef& ref : refs) {
+      const auto [it, inserted] = owner.emplace(ref.key, i);
+      if (!inserted && it->second != i) {
+        return invalid_argument(shards[i] + " and " + shards[it->second] + " both hold chunk " + key_text(ref.key) +
+                                ": shards must hold disjoint key ranges (the same shard twice?)");
+      }
+      entries.push_back(Entry{ref.key, i, ref.id});
+    }
+  }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return std::tie(a.key, a.shard, a.id) < std::tie(b.key, b.shard, b.id);
+  });
+
+  const ArchiveInfo& first = opened[0].info;
+  const std::string tmp = shard::temp_name(out);
+  remove_archive_files(tmp);
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
+                          Archive::create(tmp, first.grid, first.codec_params, first.creator));
+  const auto failed = [&](Status s) -> Result<MergeResult> {
+    archive.reset();
+    remove_archive_files(tmp);
+    return s;
+  };
+  auto scan_id = begin_scan(*archive, first.sources, first.has_colors, first.has_intensity, first.crs);
+  if (!scan_id) return failed(scan_id.status());
+  MergeResult result;
+  result.shards = opened.size();
+  std::vector<ChunkRow> batch;
+  std::size_t batch_bytes = 0;
+  std::string row_params;
+  const auto flush = [&]() -> Status {
+    if (batch.empty()) return Status::ok();
+    RELIEF_RETURN_IF_ERROR(archive->put_chunks(batch));
+    batch.clear();
+    batch_bytes = 0;
+    return Status::ok();
+  };
+  for (std::size_t i = 0; i < entries.size();) {
+    // One voxel's blobs (the parts of a split chunk), ordered by content:
+    // the merged archive does not depend on the order the shard committed them.
+    std::size_t j = i;
+    std::vector<ChunkRow> voxel;
+    for (; j < entries.size() && entries[j].key == entries[i].key; ++j) {
+      auto row = opened[entries[j].shard].archive->read_chunk(entries[j].id);
+      if (!row) return failed(row.status());
+      if (row_params.empty()) row_params = row->codec_params;
+      if (row->codec_params != row_params) {
+        return failed(invalid_argument(shards[entries[j].shard] + ": chunk " + key_text(row->ref.key) +
+                                       " was encoded with other parameters than " + shards[entries[0].shard] +
+                                       "'s chunks (another plan?)"));
+      }
+      row->ref.scan_id = *scan_id;
+      voxel.push_back(std::move(row).value());
+    }
+    std::sort(voxel.begin(), voxel.end(), [](const ChunkRow& a, const ChunkRow& b) { return a.blob < b.blob; });
+    for (ChunkRow& row : voxel) {
+      ++result.chunks;
+      result.input_points += row.ref.input_points;
+      result.blob_bytes += row.blob.size();
+      batch_bytes += row.blob.size();
+      batch.push_back(std::move(row));
+    }
+    if (batch.size() >= kBatchRows || batch_bytes >= kBatchBytes) {
+      if (Status s = flush(); !s) return failed(s);
+    }
+    i = j;
+  }
+  if (Status s = flush(); !s) return failed(s);
+  if (Status s = finish_scan(*archive, *scan_id, first.has_colors, first.has_intensity, first.crs); !s) {
+    return failed(s);
+  }
+  archive.reset();
+  // Into place only when complete, and never over a file that appeared
+  // meanwhile: link(2) fails on an existing name where rename would replace it.
+  if (::link(tmp.c_str(), out.c_str()) != 0) {
+    const int err = errno;
+    remove_archive_files(tmp);
+    return io_error(out + ": cannot move the merged archive into place: " + std::strerror(err));
+  }
+  ::unlink(tmp.c_str());
+  return result;
+}
+
+}  // namespace relief

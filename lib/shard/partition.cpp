@@ -1,0 +1,359 @@
+// Stage 1 of a sharded build: one input file -> one partition file per key
+// range (partition_file.h), then the input's manifest.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+
+#include "core/byte_io.h"
+#include "ingest/ingest_common.h"
+#include "relief/codec.h"
+#include "relief/io.h"
+#include "relief/shard.h"
+#include "shard/partition_file.h"
+#include "shard/shard_files.h"
+
+namespace relief {
+
+namespace {
+
+// Points per read from the input.
+constexpr std::size_t kReadBatch = std::size_t{1} << 20;
+// A range's staged records are written out at this size: at most
+// kMaxShardRanges x this staged at once (128 MiB).
+constexpr std::size_t kFlushBytes = std::size_t{256} << 10;
+// Records read per block from a partition file.
+constexpr std::uint64_t kReadBlockPoints = std::uint64_t{1} << 16;
+
+Status write_all(int fd, const std::uint8_t* data, std::size_t n, const std::string& path) {
+  while (n > 0) {
+    const ssize_t w = ::write(fd, data, n);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) return io_error(path + ": write failed: " + std::strerror(errno));
+    data += w;
+    n -= static_cast<std::size_t>(w);
+  }
+  return Status::ok();
+}
+
+Status read_all(int fd, std::uint8_t* data, std::size_t n, const std::string& path) {
+  while (n > 0) {
+    const ssize_t r = ::read(fd, data, n);
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) return io_error(path + ": read failed: " + std::strerror(errno));
+    if (r == 0) return corrupt_data(path + ": ends early");
+    data += r;
+    n -= static_cast<std::size_t>(r);
+  }
+  return Status::ok();
+}
+
+void header_bytes(ByteWriter& w, std::uint64_t plan_id, std::uint32_t input, std::uint32_t range, bool colors,
+                  bool intensity, std::uint64_t count) {
+  w.bytes(shard::kPartitionMagic, sizeof shard::kPartitionMagic);
+  w.u32(kPartitionFormatVersion);
+  w.u64(plan_id);
+  w.u32(input);
+  w.u32(range);
+  w.u32((colors ? shard::kFlagRgb : 0) | (intensity ? shard::kFlagIntensity : 0));
+  w.u64(count);
+}
+
+// The temporary files of one partition task; removed unless committed.
+struct TempFiles {
+  std::vector<int> fds;
+  std::vector<std::string> tmp;
+  ~TempFiles() {
+    for (std::size_t i = 0; i < fds.size(); ++i) {
+      if (fds[i] >= 0) {
+        ::close(fds[i]);
+        ::unlink(tmp[i].c_str());
+      }
+    }
+  }
+};
+
+// Opens a partition file and checks its header; returns the fd (caller
+// closes) and the point count, checked against the file size.
+Result<std::pair<int, std::uint64_t>> open_partition(const std::string& path, std::uint64_t plan_id,
+                                                     std::uint32_t input, std::uint32_t range, bool colors,
+                                                     bool intensity) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    if (errno == ENOENT) {
+      return io_error(path + ": missing (stage 1 of input " + std::to_string(input) + " has not finished)");
+    }
+    return io_error(path + ": cannot open: " + std::strerror(errno));
+  }
+  const auto fail = [fd](Status s) -> Result<std::pair<int, std::uint64_t>> {
+    ::close(fd);
+    return s;
+  };
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return fail(io_error(path + ": cannot stat: " + std::strerror(errno)));
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  if (size < shard::kPartitionHeaderBytes) return fail(corrupt_data(path + ": shorter than a partition header"));
+  std::uint8_t header[shard::kPartitionHeaderBytes];
+  if (Status s = read_all(fd, header, sizeof header, path); !s) return fail(s);
+  if (std::memcmp(header, shard::kPartitionMagic, sizeof shard::kPartitionMagic) != 0) {
+    return fail(format_error(path + ": not a Relief partition file"));
+  }
+  ByteReader r(std::span<const std::uint8_t>(header + sizeof shard::kPartitionMagic,
+                                             sizeof header - sizeof shard::kPartitionMagic),
+               path);
+  std::uint32_t version = 0, file_input = 0, file_range = 0, flags = 0;
+  std::uint64_t file_plan = 0, count = 0;
+  if (Status s = r.u32(version, "version"); !s) return fail(s);
+  if (version != static_cast<std::uint32_t>(kPartitionFormatVersion)) {
+    return fail(unsupported(path + ": partition format version " + std::to_string(version)));
+  }
+  if (Status s = r.u64(file_plan, "plan id"); !s) return fail(s);
+  if (Status s = r.u32(file_input, "input"); !s) return fail(s);
+  if (Status s = r.u32(file_range, "range"); !s) return fail(s);
+  if (Status s = r.u32(flags, "flags"); !s) return fail(s);
+  if (Status s = r.u64(count, "point count"); !s) return fail(s);
+  if (file_plan != plan_id) {
+    return fail(invalid_argument(path + ": written for another plan (" + shard::hex64(file_plan) + ", not " +
+                                 shard::hex64(plan_id) + "); clear the partition directory"));
+  }
+  if (file_input != input || file_range != range) {
+    return fail(corrupt_data(path + ": holds input " + std::to_string(file_input) + ", range " +
+                             std::to_string(file_range) + " under the name of input " + std::to_string(input) +
+                             ", range " + std::to_string(range)));
+  }
+  const std::uint32_t want = (colors ? shard::kFlagRgb : 0) | (intensity ? shard::kFlagIntensity : 0);
+  if (flags != want) return fail(corrupt_data(path + ": attribute flags differ from the plan's"));
+  const std::uint64_t record = shard::partition_record_bytes(colors, intensity);
+  const std::uint64_t body = size - shard::kPartitionHeaderBytes;
+  if (body % record != 0 || body / record != count) {
+    return fail(corrupt_data(path + ": " + std::to_string(size) + " bytes, but its header says " +
+                             std::to_string(count) + " points (truncated or damaged)"));
+  }
+  return std::make_pair(fd, count);
+}
+
+}  // namespace
+
+namespace shard {
+
+std::size_t partition_record_bytes(bool colors, bool intensity) {
+  return 24 + (colors ? 3 : 0) + (intensity ? 4 : 0);
+}
+
+Result<std::uint64_t> partition_file_points(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
+                                            std::uint32_t range, bool colors, bool intensity) {
+  RELIEF_ASSIGN_OR_RETURN(const auto opened, open_partition(path, plan_id, input, range, colors, intensity));
+  ::close(opened.first);
+  return opened.second;
+}
+
+Result<std::uint64_t> read_partition_file(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
+                                          std::uint32_t range, bool colors, bool intensity, PointCloud& out) {
+  RELIEF_ASSIGN_OR_RETURN(const auto opened, open_partition(path, plan_id, input, range, colors, intensity));
+  const int fd = opened.first;
+  const std::uint64_t count = opened.second;
+  const std::size_t record = partition_record_bytes(colors, intensity);
+  std::vector<std::uint8_t> block;
+  std::uint64_t done = 0;
+  while (done < count) {
+    const auto n = static_cast<std::size_t>(std::min(kReadBlockPoints, count - done));
+    block.resize(n * record);
+    if (Status s = read_all(fd, block.data(), block.size(), path); !s) {
+      ::close(fd);
+      return s;
+    }
+    const std::uint8_t* p = block.data();
+    for (std::size_t i = 0; i < n; ++i) {
+      double xyz[3];
+      for (double& c : xyz) {
+        std::uint64_t bits = 0;
+        for (int b = 0; b < 8; ++b) bits |= static_cast<std::uint64_t>(p[b]) << (8 * b);
+        std::memcpy(&c, &bits, sizeof c);
+        p += 8;
+      }
+      out.positions.push_back(Vec3d{xyz[0], xyz[1], xyz[2]});
+      if (colors) {
+        out.colors.push_back(Rgb8{p[0], p[1], p[2]});
+        p += 3;
+      }
+      if (intensity) {
+        std::uint32_t bits = 0;
+        for (int b = 0; b < 4; ++b) bits |= static_cast<std::uint32_t>(p[b]) << (8 * b);
+        float v = 0;
+        std::memcpy(&v, &bits, sizeof v);
+        out.intensities.push_back(v);
+        p += 4;
+      }
+    }
+    done += n;
+  }
+  ::close(fd);
+  return count;
+}
+
+Result<Manifest> read_manifest(const std::string& path, std::uint64_t plan_id, std::uint32_t input) {
+  constexpr std::uint64_t kMaxManifestBytes = std::uint64_t{16} << 20;
+  auto text = read_text(path, kMaxManifestBytes);
+  if (!text) {
+    if (::access(path.c_str(), F_OK) != 0) {
+      return io_error(path + ": missing (stage 1 of input " + std::to_string(input) + " has not finished)");
+    }
+    return text.status();
+  }
+  RELIEF_ASSIGN_OR_RETURN(const std::vector<TextLine> lines, split_lines(path, *text));
+  Manifest m;
+  bool ended = false, have_points = false;
+  const auto bad = [&path](const std::string& what) { return format_error(path + ": " + what); };
+  if (lines.empty() || lines[0].key != kManifestMagic || lines[0].fields.size() != 1 ||
+      lines[0].fields[0] != std::to_string(kPartitionFormatVersion)) {
+    return bad("not a Relief partition manifest of version " + std::to_string(kPartitionFormatVersion));
+  }
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const TextLine& l = lines[i];
+    if (ended) return bad("text after 'end'");
+    if (l.key == "plan" && l.fields.size() == 1) {
+      if (l.fields[0] != hex64(plan_id)) {
+        return invalid_argument(path + ": written for another plan (" + l.fields[0] + ", not " + hex64(plan_id) +
+                                "); clear the partition directory");
+      }
+    } else if (l.key == "input" && l.fields.size() == 1) {
+      if (l.fields[0] != std::to_string(input)) return bad("names input " + l.fields[0]);
+    } else if (l.key == "points" && l.fields.size() == 1) {
+      char* end = nullptr;
+      errno = 0;
+      const unsigned long long v = std::strtoull(l.fields[0].c_str(), &end, 10);
+      if (l.fields[0].empty() || *end != '\0' || errno != 0 || l.fields[0][0] == '-') return bad("a bad point count");
+      m.points = v;
+      have_points = true;
+    } else if (l.key == "warning" && l.fields.size() == 1) {
+      m.warnings.push_back(l.fields[0]);
+    } else if (l.key == "end" && l.fields.empty()) {
+      ended = true;
+    } else {
+      return bad("unexpected line '" + l.key + "'");
+    }
+  }
+  if (!ended || !have_points) return bad("truncated manifest");
+  return m;
+}
+
+}  // namespace shard
+
+std::string partition_file_name(std::uint32_t input, std::uint32_t range) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "input-%06u.range-%04u.rpart", input, range);
+  return buf;
+}
+
+std::string partition_manifest_name(std::uint32_t input) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "input-%06u.done", input);
+  return buf;
+}
+
+Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t input, const std::string& dir) {
+  using namespace ingest;
+  if (input >= plan.input_count()) {
+    return invalid_argument("input " + std::to_string(input) + " of a plan of " + std::to_string(plan.input_count()) +
+                            " inputs");
+  }
+  RELIEF_ASSIGN_OR_RETURN(const EncodeParams params, encode_params_from_string(plan.archive_params));
+  const std::string& path = plan.sources[input].path;
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, plan.reader_options()));
+  const PointStreamInfo& info = reader->info();
+  if ((plan.colors && !info.has_colors) || (plan.intensity && !info.has_intensity) ||
+      info.format != plan.sources[input].format) {
+    return invalid_argument(path + ": is not the file the plan was made from (format or attributes differ)");
+  }
+  const std::uint64_t plan_id = shard_plan_id(plan);
+  const std::uint32_t ranges = plan.range_count();
+  const std::string base = dir.empty() ? std::string(".") : dir;
+  TempFiles files;
+  std::vector<std::string> finals(ranges);
+  std::vector<ByteWriter> staged(ranges);
+  std::vector<std::uint64_t> counts(ranges, 0);
+  for (std::uint32_t r = 0; r < ranges; ++r) {
+    finals[r] = base + "/" + partition_file_name(input, r);
+    files.tmp.push_back(shard::temp_name(finals[r]));
+    const int fd = ::open(files.tmp.back().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0) {
+      files.tmp.pop_back();
+      return io_error(finals[r] + ": cannot create: " + std::strerror(errno));
+    }
+    files.fds.push_back(fd);
+    // The header's count is written last, over this placeholder.
+    header_bytes(staged[r], plan_id, input, r, plan.colors, plan.intensity, 0);
+  }
+  const double limit = max_coordinate_magnitude(params.cell_size, plan.grid.chunk_edge);
+  PointCloud batch;
+  std::vector<ChunkKey> keys;
+  std::uint64_t read = 0;
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const std::size_t got, reader->read(batch, kReadBatch));
+    if (got == 0) break;
+    RELIEF_RETURN_IF_ERROR(stage_points(batch, limit, path, read, plan.colors, plan.intensity, params));
+    read += got;
+    keys.resize(batch.size());
+    plan.grid.keys_of(batch.positions.data(), batch.size(), keys.data());
+    ChunkKey last{};
+    std::uint32_t last_range = 0;
+    bool have_last = false;
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      if (!have_last || !(keys[i] == last)) {
+        last = keys[i];
+        last_range = plan.range_of(last);
+        have_last = true;
+      }
+      ByteWriter& w = staged[last_range];
+      const Vec3d& p = batch.positions[i];
+      w.f64(p.x);
+      w.f64(p.y);
+      w.f64(p.z);
+      if (plan.colors) {
+        w.u8(batch.colors[i].r);
+        w.u8(batch.colors[i].g);
+        w.u8(batch.colors[i].b);
+      }
+      if (plan.intensity) w.f32(batch.intensities[i]);
+      ++counts[last_range];
+      if (w.size() >= kFlushBytes) {
+        RELIEF_RETURN_IF_ERROR(write_all(files.fds[last_range], w.buffer().data(), w.size(), finals[last_range]));
+        w.buffer().clear();
+      }
+    }
+  }
+  for (std::uint32_t r = 0; r < ranges; ++r) {
+    ByteWriter& w = staged[r];
+    RELIEF_RETURN_IF_ERROR(write_all(files.fds[r], w.buffer().data(), w.size(), finals[r]));
+    w.buffer().clear();
+    ByteWriter header;
+    header_bytes(header, plan_id, input, r, plan.colors, plan.intensity, counts[r]);
+    if (::pwrite(files.fds[r], header.buffer().data(), header.size(), 0) != static_cast<ssize_t>(header.size())) {
+      return io_error(finals[r] + ": write failed: " + std::strerror(errno));
+    }
+  }
+  for (std::uint32_t r = 0; r < ranges; ++r) {
+    const int fd = files.fds[r];
+    files.fds[r] = -1;  // sync_and_rename closes it (and removes it on failure)
+    RELIEF_RETURN_IF_ERROR(shard::sync_and_rename(fd, files.tmp[r], finals[r]));
+  }
+  PartitionResult result;
+  result.points = read;
+  result.range_points = counts;
+  result.warnings = info.warnings;
+  // The manifest last: its presence says every range file of this input is in place.
+  std::string manifest = std::string(shard::kManifestMagic) + "\t" + std::to_string(kPartitionFormatVersion) + "\n";
+  manifest += "plan\t" + shard::hex64(plan_id) + "\n";
+  manifest += "input\t" + std::to_string(input) + "\n";
+  manifest += "points\t" + std::to_string(read) + "\n";
+  for (const std::string& w : result.warnings) manifest += "warning\t" + shard::escape_field(w) + "\n";
+  manifest += "end\n";
+  RELIEF_RETURN_IF_ERROR(shard::write_text_atomic(base + "/" + partition_manifest_name(input), manifest));
+  return result;
+}
+
+}  // namespace relief

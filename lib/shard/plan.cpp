@@ -1,0 +1,304 @@
+// Stage 0 of a sharded build: every decision compress_files derives from all
+// the inputs, made by the same functions (lib/ingest) and written to a plan
+// file (format-spec/shard.md, "Plan file").
+#include <algorithm>
+#include <cerrno>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+
+#include "ingest/ingest_common.h"
+#include "relief/codec.h"
+#include "relief/shard.h"
+#include "shard/shard_files.h"
+
+namespace relief {
+
+namespace {
+
+constexpr char kPlanMagic[] = "relief-shard-plan";
+// A plan is a few lines per input; anything larger is not a plan.
+constexpr std::uint64_t kMaxPlanBytes = std::uint64_t{64} << 20;
+
+std::string number(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+std::string number(float v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.9g", static_cast<double>(v));
+  return buf;
+}
+
+}  // namespace
+
+std::uint32_t ShardPlan::range_of(const ChunkKey& key) const {
+  const auto it = std::upper_bound(range_starts.begin() + 1, range_starts.end(), key);
+  return static_cast<std::uint32_t>(it - range_starts.begin() - 1);
+}
+
+ReaderOptions ShardPlan::reader_options() const {
+  ReaderOptions r;
+  if (has_xyz_columns) r.xyz_columns = xyz_columns;
+  return r;
+}
+
+Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const ShardPlanOptions& options) {
+  using namespace ingest;
+  const IngestOptions& o = options.ingest;
+  if (o.mode != IngestMode::kBounded) {
+    return invalid_argument("a sharded build makes error-bounded archives (the resampling mode's chunks depend on "
+                            "the memory budget and the first input's first points)");
+  }
+  if (options.ranges > kMaxShardRanges) {
+    return invalid_argument("at most " + std::to_string(kMaxShardRanges) + " key ranges");
+  }
+  RELIEF_RETURN_IF_ERROR(validate_build_options(o));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, o.reader, o.assume_crs));
+  PointCloud first;
+  OrderFreeSample sample;
+  RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, o, in, first, &sample));
+  ShardPlan plan;
+  plan.creator = o.creator;
+  plan.archive_params = encode_params_to_string(built.params);
+  plan.grid = built.grid;
+  plan.colors = in.colors;
+  plan.intensity = in.intensity;
+  plan.crs = in.crs;
+  // compress_files' with_intensity_range over the same points.
+  const EncodeParams chunk_params =
+      with_intensity_range(built.params, in.intensity, sample.intensity_lo, sample.intensity_hi);
+  if (chunk_params.intensity_range) {
+    plan.has_intensity_range = true;
+    plan.intensity_lo = chunk_params.intensity_range->first;
+    plan.intensity_hi = chunk_params.intensity_range->second;
+  }
+  plan.split_points = std::max<std::uint64_t>(1, o.split_points);
+  plan.has_xyz_columns = o.reader.xyz_columns.has_value();
+  if (plan.has_xyz_columns) plan.xyz_columns = *o.reader.xyz_columns;
+  plan.points = sample.points;
+  plan.sources = in.sources;
+  for (ArchiveSource& s : plan.sources) s.point_count = 0;
+  plan.warnings = in.warnings;
+  for (const auto& reader : in.readers) {
+    for (const std::string& w : reader->info().warnings) plan.warnings.push_back(w);
+  }
+  // Key ranges of about equal point counts: quantiles of the order-free
+  // sample's chunk keys (a uniform sample of the points), so the ranges too
+  // depend only on the set of input points. Balance only: no blob depends on
+  // where a range ends.
+  std::uint32_t want = options.ranges;
+  if (want == 0) {
+    want = static_cast<std::uint32_t>(
+        std::clamp<std::uint64_t>((sample.points + kDefaultRangePoints - 1) / kDefaultRangePoints, 1, kMaxShardRanges));
+  }
+  PointCloud snapped;
+  snapped.positions = sample.positions;
+  if (built.params.bound) snap_to_grid(snapped, *built.params.bound);
+  std::vector<ChunkKey> keys(snapped.size());
+  built.grid.keys_of(snapped.positions.data(), snapped.size(), keys.data());
+  std::sort(keys.begin(), keys.end());
+  constexpr std::int64_t kLowest = std::numeric_limits<std::int64_t>::min();
+  plan.range_starts.push_back(ChunkKey{kLowest, kLowest, kLowest});
+  // A new range starts at the first chunk after the sample points seen so far
+  // reach the next multiple of 1/want: no range is empty of sample chunks,
+  // and a chunk larger than a share makes fewer, not empty, ranges.
+  std::uint64_t seen = 0;
+  for (std::size_t j = 0; j < keys.size();) {
+    std::size_t end = j;
+    while (end < keys.size() && keys[end] == keys[j]) ++end;
+    const auto r = static_cast<std::uint64_t>(plan.range_starts.size());
+    if (j > 0 && r < want && seen * want >= r * keys.size()) plan.range_starts.push_back(keys[j]);
+    seen += end - j;
+    j = end;
+  }
+  return plan;
+}
+
+std::string shard_plan_text(const ShardPlan& plan) {
+  using shard::escape_field;
+  std::string t;
+  const auto line = [&t](const std::string& key, const std::vector<std::string>& fields) {
+    t += key;
+    for (const std::string& f : fields) {
+      t += '\t';
+      t += escape_field(f);
+    }
+    t += "\n";
+  };
+  line(kPlanMagic, {std::to_string(kShardPlanVersion)});
+  line("creator", {plan.creator});
+  line("archive_params", {plan.archive_params});
+  if (plan.has_intensity_range) line("intensity_range", {number(plan.intensity_lo), number(plan.intensity_hi)});
+  line("grid", {number(plan.grid.origin.x), number(plan.grid.origin.y), number(plan.grid.origin.z),
+                number(plan.grid.chunk_edge)});
+  line("attributes", {plan.colors ? "1" : "0", plan.intensity ? "1" : "0"});
+  line("crs", {plan.crs});
+  line("split_points", {std::to_string(plan.split_points)});
+  if (plan.has_xyz_columns) line("xyz_columns", {plan.xyz_columns});
+  line("points", {std::to_string(plan.points)});
+  for (const ArchiveSource& s : plan.sources) line("input", {s.path, s.format, s.crs});
+  line("ranges", {std::to_string(plan.range_count())});
+  for (std::size_t r = 1; r < plan.range_starts.size(); ++r) {
+    const ChunkKey& k = plan.range_starts[r];
+    line("range_start", {std::to_string(k.ix), std::to_string(k.iy), std::to_string(k.iz)});
+  }
+  line("end", {});
+  return t;
+}
+
+std::uint64_t shard_plan_id(const ShardPlan& plan) { return shard::fnv1a64(shard_plan_text(plan)); }
+
+Status write_shard_plan(const ShardPlan& plan, const std::string& path) {
+  return shard::write_text_atomic(path, shard_plan_text(plan));
+}
+
+Result<ShardPlan> read_shard_plan(const std::string& path) {
+  using shard::TextLine;
+  RELIEF_ASSIGN_OR_RETURN(const std::string text, shard::read_text(path, kMaxPlanBytes));
+  RELIEF_ASSIGN_OR_RETURN(const std::vector<TextLine> lines, shard::split_lines(path, text));
+  const auto bad = [&path](std::size_t line, const std::string& what) {
+    return format_error(path + ": line " + std::to_string(line) + ": " + what + " (not a Relief shard plan?)");
+  };
+  if (lines.empty() || lines[0].key != kPlanMagic || lines[0].fields.size() != 1) {
+    return format_error(path + ": not a Relief shard plan (no '" + kPlanMagic + "' line)");
+  }
+  if (lines[0].fields[0] != std::to_string(kShardPlanVersion)) {
+    return unsupported(path + ": shard plan version " + lines[0].fields[0] + " (this build reads version " +
+                       std::to_string(kShardPlanVersion) + ")");
+  }
+  ShardPlan plan;
+  constexpr std::int64_t kLowest = std::numeric_limits<std::int64_t>::min();
+  plan.range_starts.push_back(ChunkKey{kLowest, kLowest, kLowest});
+  std::uint64_t declared_ranges = 0;
+  bool ended = false, have_grid = false, have_params = false, have_ranges = false;
+  for (std::size_t i = 1; i < lines.size(); ++i) {
+    const TextLine& l = lines[i];
+    const std::size_t n = i + 1;
+    if (ended) return bad(n, "text after 'end'");
+    const auto want = [&](std::size_t count) -> Status {
+      if (l.fields.size() != count) {
+        return bad(n, "'" + l.key + "' takes " + std::to_string(count) + " fields, not " +
+                          std::to_string(l.fields.size()));
+      }
+      return Status::ok();
+    };
+    const auto parse_double = [&](const std::string& f, double& out) -> Status {
+      char* end = nullptr;
+      errno = 0;
+      out = std::strtod(f.c_str(), &end);
+      if (f.empty() || *end != '\0' || errno != 0 || !std::isfinite(out)) return bad(n, "not a number: " + f);
+      return Status::ok();
+    };
+    const auto parse_int = [&](const std::string& f, std::int64_t& out) -> Status {
+      char* end = nullptr;
+      errno = 0;
+      const long long v = std::strtoll(f.c_str(), &end, 10);
+      if (f.empty() || *end != '\0' || errno != 0) return bad(n, "not an integer: " + f);
+      out = v;
+      return Status::ok();
+    };
+    const auto parse_flag = [&](const std::string& f, bool& out) -> Status {
+      if (f != "0" && f != "1") return bad(n, "not 0 or 1: " + f);
+      out = f == "1";
+      return Status::ok();
+    };
+    if (l.key == "creator") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      plan.creator = l.fields[0];
+    } else if (l.key == "archive_params") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      plan.archive_params = l.fields[0];
+      auto params = encode_params_from_string(plan.archive_params);
+      if (!params) return bad(n, "codec parameters: " + params.status().message());
+      if (!params->bound) return bad(n, "codec parameters without an error bound");
+      have_params = true;
+    } else if (l.key == "intensity_range") {
+      RELIEF_RETURN_IF_ERROR(want(2));
+      double lo = 0, hi = 0;
+      RELIEF_RETURN_IF_ERROR(parse_double(l.fields[0], lo));
+      RELIEF_RETURN_IF_ERROR(parse_double(l.fields[1], hi));
+      if (!(lo <= hi)) return bad(n, "an empty intensity range");
+      plan.has_intensity_range = true;
+      plan.intensity_lo = static_cast<float>(lo);
+      plan.intensity_hi = static_cast<float>(hi);
+    } else if (l.key == "grid") {
+      RELIEF_RETURN_IF_ERROR(want(4));
+      RELIEF_RETURN_IF_ERROR(parse_double(l.fields[0], plan.grid.origin.x));
+      RELIEF_RETURN_IF_ERROR(parse_double(l.fields[1], plan.grid.origin.y));
+      RELIEF_RETURN_IF_ERROR(parse_double(l.fields[2], plan.grid.origin.z));
+      RELIEF_RETURN_IF_ERROR(parse_double(l.fields[3], plan.grid.chunk_edge));
+      if (!(plan.grid.chunk_edge > 0) || plan.grid.chunk_edge > kMaxCoordinateMagnitude) {
+        return bad(n, "chunk edge out of range");
+      }
+      have_grid = true;
+    } else if (l.key == "attributes") {
+      RELIEF_RETURN_IF_ERROR(want(2));
+      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[0], plan.colors));
+      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[1], plan.intensity));
+    } else if (l.key == "crs") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      plan.crs = l.fields[0];
+    } else if (l.key == "split_points") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      std::int64_t v = 0;
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[0], v));
+      if (v < 1) return bad(n, "split_points must be positive");
+      plan.split_points = static_cast<std::uint64_t>(v);
+    } else if (l.key == "xyz_columns") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      plan.has_xyz_columns = true;
+      plan.xyz_columns = l.fields[0];
+    } else if (l.key == "points") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      std::int64_t v = 0;
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[0], v));
+      if (v < 0) return bad(n, "a negative point count");
+      plan.points = static_cast<std::uint64_t>(v);
+    } else if (l.key == "input") {
+      RELIEF_RETURN_IF_ERROR(want(3));
+      ArchiveSource s;
+      s.path = l.fields[0];
+      s.format = l.fields[1];
+      s.crs = l.fields[2];
+      plan.sources.push_back(s);
+    } else if (l.key == "ranges") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      std::int64_t v = 0;
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[0], v));
+      if (v < 1 || v > static_cast<std::int64_t>(kMaxShardRanges)) return bad(n, "ranges out of range");
+      declared_ranges = static_cast<std::uint64_t>(v);
+      have_ranges = true;
+    } else if (l.key == "range_start") {
+      RELIEF_RETURN_IF_ERROR(want(3));
+      ChunkKey k;
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[0], k.ix));
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[1], k.iy));
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[2], k.iz));
+      if (!(plan.range_starts.back() < k)) return bad(n, "range starts must increase");
+      if (plan.range_starts.size() >= kMaxShardRanges) return bad(n, "too many ranges");
+      plan.range_starts.push_back(k);
+    } else if (l.key == "end") {
+      RELIEF_RETURN_IF_ERROR(want(0));
+      ended = true;
+    } else {
+      return bad(n, "unknown key '" + l.key + "'");
+    }
+  }
+  if (!ended) return format_error(path + ": truncated shard plan (no 'end' line)");
+  if (!have_grid || !have_params || !have_ranges || plan.sources.empty()) {
+    return format_error(path + ": shard plan lacks its grid, codec parameters, ranges or inputs");
+  }
+  if (declared_ranges != plan.range_starts.size()) {
+    return format_error(path + ": shard plan declares " + std::to_string(declared_ranges) + " ranges but lists " +
+                        std::to_string(plan.range_starts.size()));
+  }
+  return plan;
+}
+
+}  // namespace relief

@@ -1,0 +1,124 @@
+"""relief.distributed on a LocalCluster of 3 worker processes: the merged
+archive holds the same chunk rows, blob for blob, and the same metadata as a
+one-box ``relief compress``, also when a worker is killed mid-build.
+
+Run: PYTHONPATH=python RELIEF_CLI=build/tools/relief /usr/bin/python3 -m pytest python/tests
+(ctest runs it through run_distributed_tests.py, which reports a missing
+dask/distributed as a skip.)"""
+
+import os
+import sqlite3
+import subprocess
+
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from relief import distributed as rd  # noqa: E402  (python/ on PYTHONPATH)
+
+PLY_DTYPE = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("red", "u1"), ("green", "u1"),
+                      ("blue", "u1"), ("intensity", "<f4")])
+
+
+def write_scene(directory, seed, points, files):
+    """A seeded terrain with colour and intensity, dealt round-robin into
+    `files` binary PLY files."""
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0, 60, points)
+    y = rng.uniform(0, 40, points)
+    z = 2.0 * np.sin(x / 5.0) * np.cos(y / 7.0) + rng.normal(0, 0.01, points)
+    cloud = np.empty(points, PLY_DTYPE)
+    cloud["x"], cloud["y"], cloud["z"] = x, y, z
+    cloud["red"] = (x * 4).astype(np.uint8)
+    cloud["green"] = (y * 6).astype(np.uint8)
+    cloud["blue"] = rng.integers(0, 256, points, dtype=np.uint8)
+    cloud["intensity"] = rng.uniform(0, 4000, points).astype(np.float32)
+    paths = []
+    for k in range(files):
+        part = cloud[k::files]
+        path = os.path.join(directory, "in%d.ply" % k)
+        with open(path, "wb") as f:
+            f.write(("ply\nformat binary_little_endian 1.0\nelement vertex %d\n"
+                     "property double x\nproperty double y\nproperty double z\n"
+                     "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+                     "property float intensity\nend_header\n" % len(part)).encode())
+            f.write(part.tobytes())
+        paths.append(path)
+    return paths
+
+
+def archive_content(path):
+    """Chunk rows (key, bounds, counts, codec, parameters, CRC, blob) as a sorted
+    list, and the metadata that does not name a time."""
+    db = sqlite3.connect("file:%s?mode=ro" % path, uri=True)
+    try:
+        rows = sorted(db.execute(
+            "SELECT ix, iy, iz, min_x, min_y, min_z, max_x, max_y, max_z, input_points, "
+            "decoded_points, codec, codec_params, crc32, blob FROM relief_chunk").fetchall())
+        meta = dict(db.execute("SELECT key, value FROM relief_meta "
+                               "WHERE key NOT IN ('created_at', 'meta_crc32')").fetchall())
+        sources = db.execute("SELECT path, format, point_count, crs FROM relief_source ORDER BY id").fetchall()
+        scans = db.execute("SELECT complete, has_rgb, has_intensity, crs FROM relief_scan").fetchall()
+    finally:
+        db.close()
+    return rows, meta, sources, scans
+
+
+OPTIONS = {"chunk_edge": 8, "tolerance": 0.002}
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    # Workers are fresh processes: they import relief.distributed from PYTHONPATH.
+    with distributed.LocalCluster(n_workers=3, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as c, distributed.Client(c) as client:
+        yield client
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    d = tmp_path_factory.mktemp("scene")
+    inputs = write_scene(str(d), seed=1234, points=240000, files=5)
+    one = os.path.join(str(d), "one.relief")
+    subprocess.run([rd.find_cli(), "compress"] + inputs + ["-o", one, "--quiet"] + rd.plan_options(OPTIONS),
+                   check=True)
+    return inputs, one
+
+
+def test_same_archive_as_one_box(cluster, scene, tmp_path):
+    inputs, one = scene
+    out = str(tmp_path / "dask.relief")
+    result = rd.compress(inputs, out, client=cluster, ranges=4, **OPTIONS)
+    assert result["ranges"] == 4
+    want = archive_content(one)
+    assert len(want[0]) >= 12
+    assert archive_content(out) == want
+    assert not os.path.exists(out + ".work")  # the work files are gone
+    with pytest.raises(FileExistsError):
+        rd.compress(inputs, out, client=cluster, ranges=4, **OPTIONS)
+
+
+def test_worker_killed_mid_build(cluster, scene, tmp_path):
+    inputs, one = scene
+    markers = tmp_path / "markers"
+    markers.mkdir()
+    out = str(tmp_path / "dask.relief")
+    # Partition task 2 and encode task 1 each kill their worker process once,
+    # after writing their files and before Dask hears of it: the scheduler
+    # runs them (and whatever the dead worker held) again elsewhere.
+    kill = (str(markers), [("partition", 2), ("encode", 1)])
+    rd.compress(inputs, out, client=cluster, ranges=4, _test_kill_once=kill, **OPTIONS)
+    assert sorted(os.listdir(markers)) == ["killed-encode-1", "killed-partition-2"]
+    assert archive_content(out) == archive_content(one)
+
+
+def test_failed_stage_names_the_problem(cluster, tmp_path):
+    bad = tmp_path / "bad.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 1000\n"
+                    b"property double x\nproperty double y\nproperty double z\nend_header\n" + b"\0" * 24)
+    with pytest.raises(rd.ReliefCliError) as e:
+        rd.compress([str(bad)], str(tmp_path / "out.relief"), client=cluster)
+    assert e.value.exit_code >= 10
+    assert "bad.ply" in str(e.value)
+    assert not os.path.exists(tmp_path / "out.relief")

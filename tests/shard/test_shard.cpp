@@ -1,0 +1,378 @@
+// The sharded build: plan, partition, encode and merge give the archive a
+// one-box compress_files gives (same blobs byte for byte, same metadata), for
+// any number of shards; merge refuses shards that do not fit together; a
+// stage run again writes the same files.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <tuple>
+
+#include "relief/archive.h"
+#include "relief/ingest.h"
+#include "relief/io.h"
+#include "relief/shard.h"
+#include "support/run_cli.h"
+#include "support/synthetic.h"
+#include "support/temp_dir.h"
+
+using namespace relief;
+using relief::test::TempDir;
+
+namespace {
+
+struct Scene {
+  std::uint64_t seed;
+  std::size_t points;
+  std::size_t inputs;
+  bool colors;
+  bool intensity;
+  Vec3d offset;
+  double tolerance;    // 0 = automatic
+  double chunk_edge;   // 0 = automatic
+  std::uint64_t split_points;
+  double gap = 0;  // the terrain this far beside the room (x)
+};
+
+PointCloud make_scene(const Scene& s) {
+  test::SceneOptions o;
+  o.seed = s.seed;
+  o.points = s.points / 2;
+  o.colors = s.colors;
+  o.intensity = s.intensity;
+  o.noise = 0.003;
+  o.offset = s.offset;
+  PointCloud a = test::make_room(o, 8.0);
+  o.seed = s.seed + 1;
+  PointCloud b = test::make_terrain(o, 8.0, 0.4);
+  for (Vec3d& p : b.positions) p.x += s.gap;
+  a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
+  a.colors.insert(a.colors.end(), b.colors.begin(), b.colors.end());
+  a.intensities.insert(a.intensities.end(), b.intensities.begin(), b.intensities.end());
+  return a;
+}
+
+// The scene cut into `inputs` PLY files, interleaved (so every file spans the
+// whole scene and every range gets points from every input).
+std::vector<std::string> write_inputs(const TempDir& dir, const Scene& s) {
+  const PointCloud all = make_scene(s);
+  std::vector<std::string> paths;
+  for (std::size_t k = 0; k < s.inputs; ++k) {
+    PointCloud part;
+    for (std::size_t i = k; i < all.size(); i += s.inputs) {
+      part.positions.push_back(all.positions[i]);
+      if (s.colors) part.colors.push_back(all.colors[i]);
+      if (s.intensity) part.intensities.push_back(all.intensities[i]);
+    }
+    paths.push_back(dir.file("in" + std::to_string(k) + ".ply"));
+    REQUIRE(write_ply(paths.back(), part).is_ok());
+  }
+  return paths;
+}
+
+IngestOptions options_for(const Scene& s) {
+  IngestOptions o;
+  o.tolerance = s.tolerance;
+  o.chunk_edge = s.chunk_edge;
+  o.split_points = s.split_points;
+  o.threads = 2;
+  return o;
+}
+
+// One chunk row as compared: key, bounds, counts, codec, parameters, blob.
+using Row = std::tuple<std::int64_t, std::int64_t, std::int64_t, double, double, double, double, double, double,
+                       std::uint64_t, std::uint64_t, std::uint32_t, std::string, std::vector<std::uint8_t>>;
+
+std::vector<Row> rows_of(const std::string& path) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  std::vector<Row> rows;
+  for (const ChunkRef& ref : *refs) {
+    auto row = (*archive)->read_chunk(ref.id);
+    REQUIRE(row.is_ok());
+    const Box3d& b = ref.bounds;
+    rows.emplace_back(ref.key.ix, ref.key.iy, ref.key.iz, b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z,
+                      ref.input_points, ref.decoded_points, row->codec, row->codec_params, row->blob);
+  }
+  std::sort(rows.begin(), rows.end());
+  return rows;
+}
+
+ArchiveInfo info_of(const std::string& path) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  REQUIRE(info.is_ok());
+  return *info;
+}
+
+void check_same_metadata(const ArchiveInfo& a, const ArchiveInfo& b) {
+  CHECK(a.format_version == b.format_version);
+  CHECK(a.grid.origin == b.grid.origin);
+  CHECK(a.grid.chunk_edge == b.grid.chunk_edge);
+  CHECK(a.codec_params == b.codec_params);
+  CHECK(a.creator == b.creator);
+  CHECK(a.crs == b.crs);
+  CHECK(a.crs_source == b.crs_source);
+  CHECK(a.has_colors == b.has_colors);
+  CHECK(a.has_intensity == b.has_intensity);
+  CHECK(a.input_points == b.input_points);
+  CHECK(a.decoded_points == b.decoded_points);
+  CHECK(a.chunk_count == b.chunk_count);
+  CHECK(a.blob_bytes == b.blob_bytes);
+  CHECK(a.bounds.min == b.bounds.min);
+  CHECK(a.bounds.max == b.bounds.max);
+  REQUIRE(a.sources.size() == b.sources.size());
+  for (std::size_t i = 0; i < a.sources.size(); ++i) {
+    CHECK(a.sources[i].path == b.sources[i].path);
+    CHECK(a.sources[i].format == b.sources[i].format);
+    CHECK(a.sources[i].point_count == b.sources[i].point_count);
+    CHECK(a.sources[i].crs == b.sources[i].crs);
+  }
+  REQUIRE(a.scans.size() == 1);
+  REQUIRE(b.scans.size() == 1);
+  CHECK(a.scans[0].complete == b.scans[0].complete);
+}
+
+std::vector<std::uint8_t> file_bytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+// Stages 0-2 in `work` (partition files in work/parts); returns the shards.
+std::vector<std::string> build_shards(const std::vector<std::string>& inputs, const IngestOptions& o,
+                                      std::uint32_t ranges, const std::string& work, ShardPlan* plan_out = nullptr) {
+  std::filesystem::create_directories(work + "/parts");
+  ShardPlanOptions po;
+  po.ingest = o;
+  po.ranges = ranges;
+  auto plan = plan_shards(inputs, po);
+  REQUIRE(plan.is_ok());
+  // Every stage reads the plan from its file, as tasks on other machines do.
+  REQUIRE(write_shard_plan(*plan, work + "/plan.txt").is_ok());
+  auto reread = read_shard_plan(work + "/plan.txt");
+  REQUIRE(reread.is_ok());
+  CHECK(shard_plan_text(*reread) == shard_plan_text(*plan));
+  for (std::uint32_t i = 0; i < reread->input_count(); ++i) {
+    auto r = partition_input(*reread, i, work + "/parts");
+    REQUIRE(r.is_ok());
+  }
+  std::vector<std::string> shards;
+  for (std::uint32_t r = 0; r < reread->range_count(); ++r) {
+    shards.push_back(work + "/shard-" + std::to_string(r) + ".relief");
+    EncodeShardOptions eo;
+    eo.threads = 2;
+    auto e = encode_shard(*reread, r, work + "/parts", shards.back(), eo);
+    REQUIRE(e.is_ok());
+  }
+  if (plan_out != nullptr) *plan_out = *reread;
+  return shards;
+}
+
+}  // namespace
+
+TEST_CASE("sharded build: the merged archive equals a one-box compress", "[shard]") {
+  const Scene scenes[] = {
+      // Many chunks, some split into octants, colours and intensity.
+      {11, 120000, 3, true, true, {0, 0, 0}, 0, 1.5, 3000},
+      // Georeferenced offsets, a given tolerance, no attributes, four inputs.
+      {21, 80000, 4, false, false, {431000.0, 5200000.0, 120.0}, 0.002, 2.0, kMaxBoundedChunkPoints},
+      // Every parameter automatic, two inputs; two clusters far apart, so
+      // even the automatic (large) chunks are several.
+      {31, 60000, 2, true, false, {0, 0, 0}, 0, 0, kMaxBoundedChunkPoints, 500.0},
+  };
+  for (const Scene& s : scenes) {
+    TempDir dir;
+    const std::vector<std::string> inputs = write_inputs(dir, s);
+    const IngestOptions o = options_for(s);
+    auto one = compress_files(inputs, dir.file("one.relief"), o);
+    REQUIRE(one.is_ok());
+    const std::vector<Row> want = rows_of(dir.file("one.relief"));
+    const ArchiveInfo want_info = info_of(dir.file("one.relief"));
+    CHECK(want.size() >= 2);
+    for (std::uint32_t ranges = 1; ranges <= 4; ++ranges) {
+      INFO("scene seed " << s.seed << ", " << ranges << " ranges");
+      const std::string work = dir.file("work" + std::to_string(ranges));
+      ShardPlan plan;
+      const std::vector<std::string> shards = build_shards(inputs, o, ranges, work, &plan);
+      // Scenes with enough chunks really are cut into that many shards.
+      if (want.size() >= 8) CHECK(plan.range_count() == ranges);
+      auto merged = merge_archives(shards, work + "/merged.relief");
+      REQUIRE(merged.is_ok());
+      CHECK(merged->chunks == want.size());
+      CHECK(rows_of(work + "/merged.relief") == want);
+      check_same_metadata(info_of(work + "/merged.relief"), want_info);
+      auto check = check_archive(work + "/merged.relief");
+      REQUIRE(check.is_ok());
+      CHECK(check->problems.empty());
+      // Nothing but the finished files is left behind.
+      for (const std::string& name : TempDir::list(work)) CHECK(name.find(".tmp-") == std::string::npos);
+    }
+  }
+}
+
+TEST_CASE("sharded build: a stage run again writes the same files", "[shard]") {
+  TempDir dir;
+  const Scene s{41, 60000, 2, true, true, {0, 0, 0}, 0, 1.5, 4000};
+  const std::vector<std::string> inputs = write_inputs(dir, s);
+  ShardPlan plan;
+  const std::vector<std::string> shards = build_shards(inputs, options_for(s), 3, dir.file("w"), &plan);
+  REQUIRE(plan.range_count() == 3);
+  const std::string parts = dir.file("w/parts");
+  std::vector<std::vector<std::uint8_t>> before;
+  for (const std::string& name : TempDir::list(parts)) before.push_back(file_bytes(parts + "/" + name));
+  const std::vector<Row> shard_rows = rows_of(shards[1]);
+  // A killed task's leftovers (a temporary file) do not disturb the retry.
+  { std::ofstream(parts + "/" + partition_file_name(1, 0) + ".tmp-deadhost-1") << "partial"; }
+  // The retries: input 1 partitioned again, range 1 encoded again.
+  REQUIRE(partition_input(plan, 1, parts).is_ok());
+  std::filesystem::remove(parts + "/" + partition_file_name(1, 0) + ".tmp-deadhost-1");
+  std::vector<std::vector<std::uint8_t>> after;
+  for (const std::string& name : TempDir::list(parts)) after.push_back(file_bytes(parts + "/" + name));
+  CHECK(after == before);
+  REQUIRE(encode_shard(plan, 1, parts, shards[1]).is_ok());
+  CHECK(rows_of(shards[1]) == shard_rows);
+  REQUIRE(merge_archives(shards, dir.file("merged.relief")).is_ok());
+}
+
+TEST_CASE("sharded build: stages and merge refuse what does not fit", "[shard]") {
+  TempDir dir;
+  const Scene s{51, 60000, 2, true, true, {0, 0, 0}, 0, 1.5, kMaxBoundedChunkPoints};
+  const std::vector<std::string> inputs = write_inputs(dir, s);
+  IngestOptions o = options_for(s);
+  ShardPlan plan;
+  const std::vector<std::string> shards = build_shards(inputs, o, 2, dir.file("a"), &plan);
+  REQUIRE(shards.size() == 2);
+
+  SECTION("the same shard twice") {
+    auto r = merge_archives({shards[0], shards[0]}, dir.file("m.relief"));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK(r.status().message().find("given twice") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("m.relief")));
+  }
+  SECTION("overlapping shards (two plans' ranges)") {
+    const std::vector<std::string> one = build_shards(inputs, o, 1, dir.file("b"));
+    auto r = merge_archives({shards[0], one[0]}, dir.file("m.relief"));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK(r.status().message().find("both hold chunk") != std::string::npos);
+    CHECK(r.status().message().find(one[0]) != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("m.relief")));
+  }
+  SECTION("shards of another plan (another tolerance)") {
+    IngestOptions other = o;
+    other.tolerance = 0.004;
+    const std::vector<std::string> b = build_shards(inputs, other, 2, dir.file("b"));
+    auto r = merge_archives({shards[0], b[1]}, dir.file("m.relief"));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK(r.status().message().find(b[1]) != std::string::npos);
+    CHECK(r.status().message().find("not a shard of the same plan") != std::string::npos);
+  }
+  SECTION("an existing output is never overwritten") {
+    { std::ofstream(dir.file("m.relief")) << "keep me"; }
+    auto r = merge_archives(shards, dir.file("m.relief"));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kIoError);
+    CHECK(file_bytes(dir.file("m.relief")).size() == 7);
+  }
+  SECTION("an unfinished stage 1 and damaged partition files") {
+    const std::string parts = dir.file("a/parts");
+    const std::string file = parts + "/" + partition_file_name(1, 0);
+    std::filesystem::rename(parts + "/" + partition_manifest_name(1), parts + "/moved");
+    auto missing = encode_shard(plan, 0, parts, dir.file("x.relief"));
+    REQUIRE_FALSE(missing.is_ok());
+    CHECK(missing.status().message().find("stage 1 of input 1 has not finished") != std::string::npos);
+    std::filesystem::rename(parts + "/moved", parts + "/" + partition_manifest_name(1));
+    const std::vector<std::uint8_t> bytes = file_bytes(file);
+    REQUIRE(bytes.size() > 100);
+    std::filesystem::resize_file(file, bytes.size() - 5);
+    auto truncated = encode_shard(plan, 0, parts, dir.file("x.relief"));
+    REQUIRE_FALSE(truncated.is_ok());
+    CHECK(truncated.status().code() == StatusCode::kCorruptData);
+    CHECK(truncated.status().message().find(file) != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("x.relief")));
+    // A partition file of another plan.
+    IngestOptions other = o;
+    other.tolerance = 0.004;
+    build_shards(inputs, other, 2, dir.file("b"));
+    std::filesystem::copy_file(dir.file("b/parts/") + partition_file_name(1, 0), file,
+                               std::filesystem::copy_options::overwrite_existing);
+    auto foreign = encode_shard(plan, 0, parts, dir.file("x.relief"));
+    REQUIRE_FALSE(foreign.is_ok());
+    CHECK(foreign.status().message().find("another plan") != std::string::npos);
+  }
+  SECTION("an input changed since the plan") {
+    auto cloud = read_point_file(inputs[1]);
+    REQUIRE(cloud.is_ok());
+    cloud->resize_points(cloud->size() / 2);
+    REQUIRE(write_ply(inputs[1], *cloud).is_ok());
+    REQUIRE(partition_input(plan, 1, dir.file("a/parts")).is_ok());
+    auto r = encode_shard(plan, 0, dir.file("a/parts"), dir.file("x.relief"));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK(r.status().message().find("changed since the plan") != std::string::npos);
+  }
+  SECTION("a damaged plan file") {
+    const std::string text = shard_plan_text(plan);
+    for (std::size_t cut : {std::size_t{0}, text.size() / 2, text.size() - 4}) {
+      { std::ofstream(dir.file("p.txt"), std::ios::binary) << text.substr(0, cut); }
+      auto r = read_shard_plan(dir.file("p.txt"));
+      REQUIRE_FALSE(r.is_ok());
+      CHECK(r.status().message().find(dir.file("p.txt")) != std::string::npos);
+    }
+  }
+  SECTION("the resampling mode is refused") {
+    ShardPlanOptions po;
+    po.ingest = o;
+    po.ingest.mode = IngestMode::kResample;
+    auto r = plan_shards(inputs, po);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+  }
+}
+
+TEST_CASE("sharded build: the CLI stages and merge, with their exit codes", "[shard][cli]") {
+  using test::run_cli;
+  TempDir dir;
+  const Scene s{61, 40000, 2, true, true, {0, 0, 0}, 0, 1.5, kMaxBoundedChunkPoints};
+  const std::vector<std::string> inputs = write_inputs(dir, s);
+  const std::string cli = RELIEF_CLI;
+  const std::string in = inputs[0] + " " + inputs[1];
+  REQUIRE(run_cli(cli, "compress " + in + " -o " + dir.file("one.relief") + " --chunk-edge 1.5 --quiet").code == 0);
+  std::filesystem::create_directories(dir.file("parts"));
+  const std::string plan = dir.file("plan.txt");
+  auto planned = run_cli(cli, "shard-plan " + in + " -o " + plan + " --chunk-edge 1.5 --ranges 2");
+  REQUIRE(planned.code == 0);
+  CHECK(planned.output.find("2 key ranges") != std::string::npos);
+  for (int i = 0; i < 2; ++i) {
+    REQUIRE(run_cli(cli, "shard-partition " + plan + " --input " + std::to_string(i) + " --dir " + dir.file("parts") +
+                             " --quiet")
+                .code == 0);
+  }
+  // Input 2 does not exist: exit 10 + kInvalidArgument.
+  CHECK(run_cli(cli, "shard-partition " + plan + " --input 2 --dir " + dir.file("parts")).code == 11);
+  for (int r = 0; r < 2; ++r) {
+    REQUIRE(run_cli(cli, "shard-encode " + plan + " --range " + std::to_string(r) + " --dir " + dir.file("parts") +
+                             " -o " + dir.file("s" + std::to_string(r) + ".relief") + " --quiet")
+                .code == 0);
+  }
+  const std::string shards = dir.file("s0.relief") + " " + dir.file("s1.relief");
+  REQUIRE(run_cli(cli, "merge " + shards + " -o " + dir.file("m.relief")).code == 0);
+  CHECK(rows_of(dir.file("m.relief")) == rows_of(dir.file("one.relief")));
+  // Never over an existing file (exit 10 + kIoError), never the same shard twice.
+  auto again = run_cli(cli, "merge " + shards + " -o " + dir.file("m.relief"));
+  CHECK(again.code == 12);
+  CHECK(again.output.find("already exists") != std::string::npos);
+  auto twice = run_cli(cli, "merge " + dir.file("s0.relief") + " " + dir.file("s0.relief") + " -o " +
+                                dir.file("m2.relief"));
+  CHECK(twice.code == 11);
+  CHECK(twice.output.find("s0.relief") != std::string::npos);
+  CHECK(run_cli(cli, "merge -o " + dir.file("m3.relief")).code == 2);
+  CHECK(run_cli(cli, "shard-encode " + plan + " --dir " + dir.file("parts") + " -o x.relief").code == 2);
+}

@@ -1,0 +1,43 @@
+// relief merge SHARD... -o OUT: joins the shard archives of a sharded build.
+#include <cstdio>
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "relief/shard.h"
+
+namespace relief::cli {
+
+namespace {
+
+constexpr const char* kCommand = "merge";
+
+}  // namespace
+
+int run_merge(int argc, char** argv) {
+  static const std::string usage =
+      "usage: relief merge SHARD... -o OUT.relief [--quiet]\n"
+      "Joins the shard archives of a sharded build (shard-encode) into one new archive: the\n"
+      "chunk rows are copied as they are, under one spatial index and one scan. The shards must\n"
+      "come from one plan (same grid, codec parameters, CRS, attributes and sources) and hold\n"
+      "disjoint chunks. OUT appears only when complete and is never overwritten.\n";
+  Args args(argc, argv, {"--help", "--quiet"}, {"-o"});
+  if (args.has("--help")) {
+    std::cout << usage;
+    return kExitOk;
+  }
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().empty()) return usage_error(kCommand, "expected at least one shard");
+  const auto out = args.get("-o");
+  if (!out) return usage_error(kCommand, "missing -o OUT.relief");
+  auto r = merge_archives(args.positional(), *out);
+  if (!r) return fail(kCommand, r.status());
+  if (!args.has("--quiet")) {
+    std::printf("%s: %llu shards -> %llu chunks, %llu points, %s of blobs\n", out->c_str(),
+                static_cast<unsigned long long>(r->shards), static_cast<unsigned long long>(r->chunks),
+                static_cast<unsigned long long>(r->input_points), format_bytes(r->blob_bytes).c_str());
+  }
+  return kExitOk;
+}
+
+}  // namespace relief::cli

@@ -1,0 +1,49 @@
+// relief shard-encode PLAN --range R --dir DIR -o SHARD: stage 2 of a sharded build.
+#include <cstdio>
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "ingest_options.h"
+#include "relief/shard.h"
+
+namespace relief::cli {
+
+namespace {
+
+constexpr const char* kCommand = "shard-encode";
+
+}  // namespace
+
+int run_shard_encode(int argc, char** argv) {
+  static const std::string usage =
+      "usage: relief shard-encode PLAN --range R --dir DIR -o SHARD.relief [--threads N] [--verify] [--quiet]\n"
+      "Stage 2 of a sharded build: encodes key range R from every input's partition file in DIR\n"
+      "(all stage-1 tasks must have finished) into the shard archive SHARD.relief, which is\n"
+      "written under a temporary name and renamed when complete (replacing an earlier one: safe\n"
+      "to retry). Join the shards with 'relief merge'.\n";
+  Args args(argc, argv, {"--help", "--quiet", "--verify"}, {"--range", "--dir", "-o", "--threads"});
+  if (args.has("--help")) {
+    std::cout << usage;
+    return kExitOk;
+  }
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().size() != 1) return usage_error(kCommand, "expected one plan file");
+  if (!args.has("--range") || !args.has("--dir") || !args.has("-o")) {
+    return usage_error(kCommand, "missing --range R, --dir DIR or -o SHARD");
+  }
+  const auto range = static_cast<std::uint32_t>(args.get_int("--range", 0, 0, kMaxShardRanges - 1));
+  EncodeShardOptions o;
+  o.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
+  o.verify_blobs = args.has("--verify");
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  auto plan = read_shard_plan(args.positional()[0]);
+  if (!plan) return fail(kCommand, plan.status());
+  const std::string out = *args.get("-o");
+  auto r = encode_shard(*plan, range, *args.get("--dir"), out, o);
+  if (!r) return fail(kCommand, r.status());
+  if (!args.has("--quiet")) print_ingest_summary(out, *r);
+  return kExitOk;
+}
+
+}  // namespace relief::cli

@@ -1,0 +1,66 @@
+// relief shard-plan IN... -o PLAN: stage 0 of a sharded build (README,
+// "Sharded builds"): every global parameter, from one pass over the inputs.
+#include <cstdio>
+#include <iostream>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "ingest_options.h"
+#include "relief/shard.h"
+
+namespace relief::cli {
+
+namespace {
+
+constexpr const char* kCommand = "shard-plan";
+
+}  // namespace
+
+int run_shard_plan(int argc, char** argv) {
+  static const std::string usage = std::string(
+      "usage: relief shard-plan IN... -o PLAN [--ranges N] [compress options]\n"
+      "Stage 0 of a sharded build: reads every input once and writes the plan (grid, codec\n"
+      "parameters, attributes, CRS, inputs, chunk-key ranges) that shard-partition and\n"
+      "shard-encode follow, so the merged archive has the blobs 'relief compress' makes.\n"
+      "  --ranges N             key ranges = shards (default: about 8 M points each; at most 512)\n"
+      "  --chunk-edge M         as for compress\n"
+      "  --allow-sparse, --assume-crs   as for compress\n"
+      "  --columns SPEC         XYZ/CSV columns (recorded in the plan for every stage)\n"
+      "  --quiet                print nothing but errors and warnings\n\n") +
+      kModeOptionsHelp + "\n" + kEncodeOptionsHelp;
+  std::vector<std::string> options = encode_option_names();
+  for (const std::string& o : mode_option_names()) options.push_back(o);
+  options.insert(options.end(), {"-o", "--chunk-edge", "--ranges", "--columns"});
+  Args args(argc, argv, {"--help", "--quiet", "--allow-sparse", "--assume-crs"}, options);
+  if (args.has("--help")) {
+    std::cout << usage;
+    return kExitOk;
+  }
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  if (args.positional().empty()) return usage_error(kCommand, "expected at least one input file");
+  const auto out = args.get("-o");
+  if (!out) return usage_error(kCommand, "missing -o PLAN");
+  ShardPlanOptions po;
+  IngestOptions& o = po.ingest;
+  if (const std::string err = parse_encode_params(args, o.codec); !err.empty()) return usage_error(kCommand, err);
+  if (const std::string err = parse_mode_options(args, o); !err.empty()) return usage_error(kCommand, err);
+  o.chunk_edge = args.get_double("--chunk-edge", 0);
+  if (args.has("--chunk-edge") && !(o.chunk_edge > 0)) return usage_error(kCommand, "--chunk-edge must be positive");
+  po.ranges = static_cast<std::uint32_t>(args.get_int("--ranges", 0, 1, kMaxShardRanges));
+  if (auto c = args.get("--columns")) o.reader.xyz_columns = *c;
+  if (!args.ok()) return usage_error(kCommand, args.error());
+  o.allow_sparse = args.has("--allow-sparse");
+  o.assume_crs = args.has("--assume-crs");
+  o.creator = std::string("relief ") + RELIEF_VERSION;
+  auto plan = plan_shards(args.positional(), po);
+  if (!plan) return fail(kCommand, plan.status());
+  for (const std::string& w : plan->warnings) std::fprintf(stderr, "relief %s: warning: %s\n", kCommand, w.c_str());
+  if (Status s = write_shard_plan(*plan, *out); !s) return fail(kCommand, s);
+  if (!args.has("--quiet")) {
+    std::printf("%s: %u inputs, %llu points, %u key ranges, chunk edge %.6g\n", out->c_str(), plan->input_count(),
+                static_cast<unsigned long long>(plan->points), plan->range_count(), plan->grid.chunk_edge);
+  }
+  return kExitOk;
+}
+
+}  // namespace relief::cli
