@@ -23,15 +23,16 @@ int run_shard_plan(int argc, char** argv) {
       "parameters, attributes, CRS, inputs, chunk-key ranges) that shard-partition and\n"
       "shard-encode follow, so the merged archive has the blobs 'relief compress' makes.\n"
       "  --ranges N             key ranges = shards (default: about 8 M points each; at most 512)\n"
-      "  --chunk-edge M         as for compress\n"
-      "  --allow-sparse, --assume-crs   as for compress\n"
-      "  --columns SPEC         XYZ/CSV columns (recorded in the plan for every stage)\n"
-      "  --quiet                print nothing but errors and warnings\n\n") +
-      kModeOptionsHelp + "\n" + kEncodeOptionsHelp;
-  std::vector<std::string> options = encode_option_names();
-  for (const std::string& o : mode_option_names()) options.push_back(o);
-  options.insert(options.end(), {"-o", "--chunk-edge", "--ranges", "--columns"});
-  Args args(argc, argv, {"--help", "--quiet", "--allow-sparse", "--assume-crs"}, options);
+      "  --quiet                print nothing but errors and warnings\n"
+      "Every option of 'relief compress' (below) is taken and recorded in the plan\n"
+      "(--chunk-edge, --allow-sparse, --assume-crs, --columns...).\n\n") +
+      kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
+  // Every option compress takes (the same library parser), plus --ranges.
+  std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
+  options.insert(options.end(), {"-o", "--ranges"});
+  std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kCompress);
+  flags.insert(flags.end(), {"--help", "--quiet"});
+  Args args(argc, argv, flags, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -42,16 +43,11 @@ int run_shard_plan(int argc, char** argv) {
   if (!out) return usage_error(kCommand, "missing -o PLAN");
   ShardPlanOptions po;
   IngestOptions& o = po.ingest;
-  if (const std::string err = parse_encode_params(args, o.codec); !err.empty()) return usage_error(kCommand, err);
-  if (const std::string err = parse_mode_options(args, o); !err.empty()) return usage_error(kCommand, err);
-  o.chunk_edge = args.get_double("--chunk-edge", 0);
-  if (args.has("--chunk-edge") && !(o.chunk_edge > 0)) return usage_error(kCommand, "--chunk-edge must be positive");
+  if (const std::string err = parse_ingest_options(args, IngestOptionSet::kCompress, o); !err.empty()) {
+    return usage_error(kCommand, err);
+  }
   po.ranges = static_cast<std::uint32_t>(args.get_int("--ranges", 0, 1, kMaxShardRanges));
-  if (auto c = args.get("--columns")) o.reader.xyz_columns = *c;
   if (!args.ok()) return usage_error(kCommand, args.error());
-  o.allow_sparse = args.has("--allow-sparse");
-  o.assume_crs = args.has("--assume-crs");
-  o.creator = std::string("relief ") + RELIEF_VERSION;
   auto plan = plan_shards(args.positional(), po);
   if (!plan) return fail(kCommand, plan.status());
   for (const std::string& w : plan->warnings) std::fprintf(stderr, "relief %s: warning: %s\n", kCommand, w.c_str());
