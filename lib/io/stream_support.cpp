@@ -41,6 +41,13 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
   shift_known_ = true;
   batch.colors.resize(n);
   narrow_colors(wide.data(), n, color_shift_, batch.colors.data());
+  if (color_low_) {
+    batch.las.color_low.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      batch.las.color_low[i] = Rgb8{low_level(wide[3 * i], color_shift_), low_level(wide[3 * i + 1], color_shift_),
+                                    low_level(wide[3 * i + 2], color_shift_)};
+    }
+  }
   return n;
 }
 

@@ -106,6 +106,32 @@ class PointReader {
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
+// ---- LAS extra bytes
+
+// One field of a LAS Extra Bytes VLR (LASF_Spec record 4; ASPRS LAS 1.4 R15,
+// section 2.5): a 192-byte descriptor per field, the fields laid out in order
+// in the extra bytes of every point record.
+struct ExtraBytesField {
+  std::string name;         // up to 32 characters
+  std::string description;  // up to 32 characters
+  int data_type = 0;        // 0 = undocumented bytes (options = size), 1-10 scalars, 11-30 arrays (deprecated)
+  std::uint8_t options = 0; // bit 0 no_data, 1 min, 2 max, 3 scale, 4 offset are meaningful
+  std::size_t offset = 0;   // of the field within a point's extra bytes
+  std::size_t size = 0;     // bytes per point
+  // Type name ("uint8", "int16", "float64", "uint32[3]", "bytes[5]", ...).
+  std::string type_name;
+  // Scale and offset of the first component (1 and 0 when options say none).
+  double scale = 1;
+  double value_offset = 0;
+};
+
+// Parses an Extra Bytes VLR payload. kFormatError naming `what` when the
+// payload is not a whole number of 192-byte descriptors, a data type is
+// reserved (> 30), a size is 0, or the fields need more than `record_extra`
+// bytes per point (the bytes the point records have beyond their format).
+Result<std::vector<ExtraBytesField>> parse_extra_bytes_vlr(std::span<const std::uint8_t> payload,
+                                                           std::size_t record_extra, const std::string& what);
+
 // ---- Streaming writers: outputs larger than memory are written in batches.
 
 struct WriterOptions {
