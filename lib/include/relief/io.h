@@ -61,6 +61,11 @@ struct PointStreamInfo {
   int las_version_minor = -1;
   std::uint32_t las_attributes = 0;
   std::string extra_bytes_vlr;
+  // LAS/LAZ with RGB: the file stores 8-bit levels (0..255) in its 16-bit
+  // colour fields (the colour rule kept them unshifted), so a LAS writer
+  // should write each level as it is rather than (colour << 8) | low.
+  // Known once read() has returned points (the rule samples them).
+  bool las_colors_8bit = false;
   // Coordinate precision the file stores (LAS scale factors), 0 when not known,
   // and the offset of that grid (LAS: x = X * scale + offset).
   Vec3d scale{0, 0, 0};
@@ -155,6 +160,21 @@ struct WriterOptions {
   std::optional<Vec3d> grid_scale;
   std::optional<Vec3d> grid_offset;
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
+  // LAS/LAZ: the per-point LAS attributes (LasAttributeBits) every batch
+  // carries and the file records; the source's point format and LAS minor
+  // version (-1: none, e.g. an archive made from PLY), from which the output
+  // format is chosen (see open_point_writer); the Extra Bytes VLR payload
+  // describing las.extra_bytes, extra_bytes_size bytes per point (written
+  // back as the file's Extra Bytes VLR; empty: the extra bytes are written
+  // undocumented). Other formats ignore these.
+  std::uint32_t las_attributes = 0;
+  int las_point_format = -1;
+  int las_version_minor = -1;
+  std::string extra_bytes_vlr;
+  std::uint32_t extra_bytes_size = 0;
+  // LAS/LAZ: write colour levels as the 8-bit values themselves (the source
+  // stored 8-bit levels in its 16-bit fields, PointStreamInfo::las_colors_8bit).
+  bool las_colors_8bit = false;
 };
 
 class PointWriter {
@@ -169,7 +189,11 @@ class PointWriter {
 };
 
 // Opens a writer by extension: .ply (binary little endian by default),
-// .las (LAS 1.2, point format 2/0, or 1.4 formats 7/6 when the CRS is WKT),
+// .las and .laz: the source's point format where it can (its legacy format
+// 0-3 in LAS 1.2, with GPS time and RGB as carried; wave packets are not
+// kept, so 4/5 become 1/3), LAS 1.4 with format 6, 7 or 8 where it must (the
+// source was 6-10, NIR is carried, or a WKT CRS in a .las); without LAS
+// attributes LAS 1.2 format 2/0, or 1.4 formats 7/6 when the CRS is WKT.
 // .xyz/.txt/.csv (text "x y z [r g b] [i]"). "-" writes XYZ text to stdout.
 // The file is written beside the destination and renamed by finish().
 Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options);
