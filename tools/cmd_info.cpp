@@ -3,12 +3,16 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <span>
+#include <string>
 #include <string_view>
+#include <vector>
 
 #include "cli_common.h"
 #include "commands.h"
 #include "relief/codec.h"
 #include "relief/crs.h"
+#include "relief/io.h"
 #include "relief/query.h"
 
 namespace relief::cli {
@@ -159,18 +163,66 @@ std::string crs_text(const std::string& crs) {
   return s->name + (s->epsg ? " (EPSG:" + std::to_string(*s->epsg) + ")" : " (no EPSG code)");
 }
 
+// Names of every attribute: rgb, intensity, then the LAS ones (relief/types.h).
+std::vector<std::string> attribute_names(const ArchiveInfo& i) {
+  std::vector<std::string> names;
+  if (i.has_colors) names.push_back("rgb");
+  if (i.has_intensity) names.push_back("intensity");
+  for (std::uint32_t b = 0; b < kLasAttributeCount; ++b) {
+    if ((i.las_attributes & (1u << b)) != 0) names.push_back(kLasAttributeNames[b]);
+  }
+  return names;
+}
+
 std::string json_attributes(const ArchiveInfo& i) {
   std::string a = "[";
-  if (i.has_colors) a += "\"rgb\"";
-  if (i.has_intensity) a += i.has_colors ? ", \"intensity\"" : "\"intensity\"";
+  for (const std::string& name : attribute_names(i)) a += (a.size() > 1 ? ", " : "") + json_string(name);
   return a + "]";
 }
 
 std::string attributes(const ArchiveInfo& i) {
   std::string a;
-  if (i.has_colors) a += "rgb";
-  if (i.has_intensity) a += a.empty() ? "intensity" : ",intensity";
+  for (const std::string& name : attribute_names(i)) a += (a.empty() ? "" : ",") + name;
   return a.empty() ? "none" : a;
+}
+
+// The typed fields of the archive's Extra Bytes VLR (empty when none or when
+// it does not parse, which the reader that stored it had checked).
+std::vector<ExtraBytesField> extra_fields(const ArchiveInfo& i) {
+  if (i.extra_bytes_vlr.empty()) return {};
+  const std::span<const std::uint8_t> vlr(reinterpret_cast<const std::uint8_t*>(i.extra_bytes_vlr.data()),
+                                          i.extra_bytes_vlr.size());
+  Result<std::vector<ExtraBytesField>> fields = parse_extra_bytes_vlr(vlr, i.extra_bytes_size, "archive");
+  return fields ? *fields : std::vector<ExtraBytesField>{};
+}
+
+std::string json_las(const ArchiveInfo& i) {
+  if (i.las_point_format < 0) return "null";
+  std::string out = "{\"point_format\": " + std::to_string(i.las_point_format) +
+                    ", \"version\": " + json_string("1." + std::to_string(i.las_version_minor)) +
+                    ", \"extra_bytes_per_point\": " + std::to_string(i.extra_bytes_size) + ", \"extra_bytes\": [";
+  bool first = true;
+  for (const ExtraBytesField& f : extra_fields(i)) {
+    out += std::string(first ? "" : ", ") + "{\"name\": " + json_string(f.name) + ", \"type\": " +
+           json_string(f.type_name) + ", \"offset\": " + std::to_string(f.offset) + ", \"size\": " +
+           std::to_string(f.size) + ", \"scale\": " + json_number(f.scale) + ", \"value_offset\": " +
+           json_number(f.value_offset) + ", \"description\": " + json_string(f.description) + "}";
+    first = false;
+  }
+  return out + "]}";
+}
+
+std::string las_text(const ArchiveInfo& i) {
+  std::string out = "point format " + std::to_string(i.las_point_format) + ", LAS 1." +
+                    std::to_string(i.las_version_minor);
+  if (i.extra_bytes_size > 0) {
+    out += ", " + std::to_string(i.extra_bytes_size) + " extra bytes";
+    const std::vector<ExtraBytesField> fields = extra_fields(i);
+    for (std::size_t k = 0; k < fields.size(); ++k) {
+      out += (k == 0 ? ": " : ", ") + fields[k].name + " (" + fields[k].type_name + ")";
+    }
+  }
+  return out;
 }
 
 }  // namespace
@@ -213,6 +265,7 @@ int run_info(int argc, char** argv) {
     std::printf("  \"blob_bytes\": %llu,\n", static_cast<unsigned long long>(i.blob_bytes));
     std::printf("  \"bits_per_point\": %s,\n", json_number(bpp).c_str());
     std::printf("  \"attributes\": %s,\n", json_attributes(i).c_str());
+    std::printf("  \"las\": %s,\n", json_las(i).c_str());
     std::printf("  \"crs\": %s,\n", json_crs(i.crs).c_str());
     std::printf("  \"creator\": %s,\n", json_string(i.creator).c_str());
     std::printf("  \"sources\": [");
@@ -259,6 +312,7 @@ int run_info(int argc, char** argv) {
   std::printf("size on disk    %s (%.3f bits/point; blobs %s = %.3f bits/point)\n", format_bytes(i.file_bytes).c_str(),
               bpp, format_bytes(i.blob_bytes).c_str(), blob_bpp);
   std::printf("attributes      %s\n", attributes(i).c_str());
+  if (i.las_point_format >= 0) std::printf("las source      %s\n", las_text(i).c_str());
   std::printf("crs             %s\n", crs_text(i.crs).c_str());
   std::printf("creator         %s\n", i.creator.c_str());
   for (const ArchiveSource& s : i.sources) {

@@ -533,6 +533,7 @@ Status LasPointReader::start() {
     RELIEF_RETURN_IF_ERROR(parse_extra_bytes_vlr(*records.extra_bytes, layout_.extra_size, name()).status());
     info_.extra_bytes_vlr.assign(records.extra_bytes->begin(), records.extra_bytes->end());
   }
+  info_.extra_bytes_size = static_cast<std::uint32_t>(layout_.extra_size);
   info_.las_point_format = header_.format;
   info_.las_version_minor = header_.version_minor;
   info_.las_attributes = format_attributes(header_.format) | (layout_.extra_size != 0 ? kLasExtraBytes : 0u);

@@ -61,6 +61,8 @@ struct PointStreamInfo {
   int las_version_minor = -1;
   std::uint32_t las_attributes = 0;
   std::string extra_bytes_vlr;
+  // Extra bytes per point record (LasAttributes::extra_bytes_size); 0 when none.
+  std::uint32_t extra_bytes_size = 0;
   // LAS/LAZ with RGB: the file stores 8-bit levels (0..255) in its 16-bit
   // colour fields (the colour rule kept them unshifted), so a LAS writer
   // should write each level as it is rather than (colour << 8) | low.

@@ -23,6 +23,16 @@ struct QueryOptions {
   // on_warning and skipped.
   bool skip_corrupt = false;
   std::function<void(const std::string&)> on_warning;
+  // Filters on LAS attributes, combined (a point must pass every one set):
+  // classification in `classes` (when non-empty), return number 1
+  // (first_returns), return number == number of returns (last_returns). An
+  // archive that does not carry the attribute a filter needs is
+  // kInvalidArgument. With a filter, a level of detail above 1 decodes every
+  // point (the base layer of coarse levels has no LAS attributes) and keeps
+  // ~1/lod of the matching points.
+  std::vector<std::uint8_t> classes;
+  bool first_returns = false;
+  bool last_returns = false;
 };
 
 struct QueryStats {
@@ -34,6 +44,9 @@ struct QueryStats {
   double seconds = 0;
 };
 
+// Batches carry the archive's attributes (ArchiveInfo: colours, intensity,
+// and each LAS attribute, zero-filled for points of scans that lacked one
+// and for coarse levels of detail read from a chunk's base layer).
 // Receives the query's points batch by batch (one or more chunks at a time, in
 // chunk id order). Returning an error stops the query with that error.
 using PointSink = std::function<Status(const PointCloud& batch)>;
