@@ -288,3 +288,28 @@ TEST_CASE("Shared LAS/LAZ twins: every field matches the reference decode", "[la
     }
   }
 }
+
+TEST_CASE("CSV classification column fills the LAS classification", "[xyz][attributes]") {
+  TempDir dir;
+  const std::string path = dir.file("c.csv");
+  {
+    std::ofstream f(path);
+    f << "X,Y,Z,Classification\n1,2,3,2\n4,5,6,65\n7,8,9,0\n";
+  }
+  const ReadBack got = read_all(path);
+  CHECK(got.info.las_attributes == relief::kLasClassification);
+  REQUIRE(got.cloud.las.classification == std::vector<std::uint8_t>{2, 65, 0});
+  relief::ReaderOptions o;
+  o.xyz_columns = "x,y,z,c";
+  const std::string bad = dir.file("bad.txt");
+  {
+    std::ofstream f(bad);
+    f << "1 2 3 2.5\n";
+  }
+  auto r = relief::open_point_reader(bad, o);
+  REQUIRE(r.is_ok());
+  relief::PointCloud batch;
+  auto n = (*r)->read(batch, 10);
+  REQUIRE_FALSE(n.is_ok());
+  CHECK(n.status().message().find("classification 2.5") != std::string::npos);
+}

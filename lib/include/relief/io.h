@@ -84,10 +84,11 @@ struct PointStreamInfo {
 
 struct ReaderOptions {
   // ASCII XYZ/CSV: the meaning of each column, comma separated, from x y z
-  // r g b i (intensity) and _ (skip). Unset: the names of a header line (the
-  // first line when it is not numeric, or a comment line such as
-  // "//X,Y,Z,R,G,B" naming x, y and z; names in any case, red/green/blue,
-  // intensity/reflectance and their initials), else "x,y,z". Columns may be
+  // r g b i (intensity) c (classification, 0..255, into las.classification)
+  // and _ (skip). Unset: the names of a header line (the first line when it
+  // is not numeric, or a comment line such as "//X,Y,Z,R,G,B" naming x, y
+  // and z; names in any case, red/green/blue, intensity/reflectance and their
+  // initials, classification/class), else "x,y,z". Columns may be
   // separated by commas, semicolons, tabs or spaces; lines starting with '#'
   // or '//' and a first line that is not numeric (a header) are skipped.
   // Colour levels are 0..255, or 0..65535 shifted to 8 bits by the 16-bit
