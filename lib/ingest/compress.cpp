@@ -137,7 +137,12 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
       set.warnings.push_back(both + "; --assume-crs: the archive takes " + crs_label(set.crs));
     }
     set.las_attributes |= info.las_attributes;
-    set.las_point_format = std::max(set.las_point_format, info.las_point_format);
+    // LAS attributes from a non-LAS input (a CSV classification column) may
+    // hold values only the LAS 1.4 formats can: the archive then names 6.
+    constexpr int kFirstExtendedFormat = 6;
+    const int format = info.las_point_format < 0 && info.las_attributes != 0 ? kFirstExtendedFormat
+                                                                              : info.las_point_format;
+    set.las_point_format = std::max(set.las_point_format, format);
     set.las_version_minor = std::max(set.las_version_minor, info.las_version_minor);
     if ((info.las_attributes & kLasExtraBytes) != 0) {
       if (set.extra_bytes_from.empty()) {

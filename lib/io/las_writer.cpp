@@ -12,7 +12,8 @@
 //
 // Point format: WriterOptions::las_attributes and las_point_format (the
 // archive's LAS attributes and source format) choose it. Formats 6-10 (or
-// NIR, or a WKT CRS in a .las) give LAS 1.4 with format 8 when NIR is carried,
+// NIR, or a WKT CRS in a .las, or LAS attributes without a source format)
+// give LAS 1.4 with format 8 when NIR is carried,
 // else 7 with RGB, else 6; otherwise the legacy format 3/1 (GPS time carried)
 // or 2/0 in LAS 1.2. Records are the format's length plus extra_bytes_size
 // extra bytes, described by the Extra Bytes VLR when one is given. Each LAS
@@ -554,7 +555,10 @@ RecordPlan plan_records(const WriterOptions& options, bool wkt, bool laz) {
   const bool gps = (bits & kLasGpsTime) != 0;
   // A legacy source with a WKT CRS keeps its format in LAS 1.4 (1.4 allows
   // WKT with formats 0-5); without a source, a .las takes 6/7 as before.
-  plan.extended = options.las_point_format >= 6 || nir || (wkt && !laz && options.las_point_format < 0);
+  // LAS attributes without a LAS source (a CSV classification column, a
+  // cloud made in code) may hold values only 1.4 formats can: 6-8 then.
+  const bool no_source = options.las_point_format < 0;
+  plan.extended = options.las_point_format >= 6 || nir || (wkt && !laz && no_source) || (no_source && bits != 0);
   plan.attributes = bits;
   plan.colors_8bit = options.las_colors_8bit && options.colors;
   plan.extra_size = (bits & kLasExtraBytes) != 0 ? options.extra_bytes_size : 0;

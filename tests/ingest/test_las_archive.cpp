@@ -9,6 +9,8 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
@@ -305,4 +307,20 @@ TEST_CASE("an input without an attribute gets zeros", "[las][archive][needs-code
               .is_ok());
   CHECK(points == 6000);
   CHECK(zero_class >= 3000);
+}
+
+TEST_CASE("a CSV classification column is a LAS attribute of the archive", "[las][archive]") {
+  TempDir dir;
+  const std::string csv = dir.file("c.csv");
+  {
+    std::ofstream f(csv);
+    f << "x,y,z,classification\n";
+    for (int i = 0; i < 3000; ++i) f << 0.1 * (i % 60) << "," << 0.1 * (i / 60) << ",1," << (i % 3 == 0 ? 65 : 2) << "\n";
+  }
+  const std::string archive = dir.file("c.relief");
+  REQUIRE(relief::compress_files({csv}, archive, {}).is_ok());
+  const relief::ArchiveInfo info = archive_info(archive);
+  CHECK(info.las_attributes == relief::kLasClassification);
+  // Classes above 31 need a LAS 1.4 format: the archive names 6.
+  CHECK(info.las_point_format == 6);
 }

@@ -313,3 +313,25 @@ TEST_CASE("CSV classification column fills the LAS classification", "[xyz][attri
   REQUIRE_FALSE(n.is_ok());
   CHECK(n.status().message().find("classification 2.5") != std::string::npos);
 }
+
+TEST_CASE("LAS attributes without a source format give LAS 1.4 format 6", "[las][attributes]") {
+  TempDir dir;
+  relief::PointCloud c;
+  c.positions = {{1, 2, 3}, {4, 5, 6}};
+  c.las.classification = {40, 200};
+  relief::WriterOptions w;
+  w.las_attributes = relief::kLasClassification;
+  const std::string out = dir.file("o.las");
+  auto writer = relief::open_point_writer(out, w);
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(c).is_ok());
+  REQUIRE((*writer)->finish().is_ok());
+  const auto back = read_las_records(out);
+  REQUIRE(back);
+  CHECK(back->format == 6);
+  CHECK(back->version_minor == 4);
+  REQUIRE(back->records.size() == 2);
+  CHECK(back->records[0].classification == 40);
+  CHECK(back->records[1].classification == 200);
+  CHECK(back->records[0].return_number == 1);  // not carried: "return 1 of 1"
+}

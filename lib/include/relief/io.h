@@ -195,7 +195,8 @@ class PointWriter {
 // .las and .laz: the source's point format where it can (its legacy format
 // 0-3 in LAS 1.2, with GPS time and RGB as carried; wave packets are not
 // kept, so 4/5 become 1/3), LAS 1.4 with format 6, 7 or 8 where it must (the
-// source was 6-10, NIR is carried, or a WKT CRS in a .las); without LAS
+// source was 6-10, NIR is carried, a WKT CRS in a .las, or LAS attributes
+// without a source format); without LAS
 // attributes LAS 1.2 format 2/0, or 1.4 formats 7/6 when the CRS is WKT.
 // .xyz/.txt/.csv (text "x y z [r g b] [i]"). "-" writes XYZ text to stdout.
 // The file is written beside the destination and renamed by finish().
