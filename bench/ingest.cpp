@@ -293,13 +293,17 @@ int main(int argc, char** argv) {
       std::printf("# skipped shared data: %s absent\n", o.data_dir.c_str());
     } else {
       for (const char* f : {"small/stanford_bunny.ply", "small/kitti_000000.ply", "small/kinect_milk_scene_rgb.ply",
-                            "medium/lone_star_tls_519k.ply", "medium/fr_aerial_rgb_698k.ply"}) {
+                            "medium/lone_star_tls_519k.ply", "medium/fr_aerial_rgb_698k.ply",
+                            "medium/orig/fr_aerial_rgb_698k.las"}) {
         const std::string path = o.data_dir + "/" + f;
         if (!fs::exists(path)) continue;
         auto info = relief::open_point_reader(path);
         if (!info) continue;
         const std::uint64_t n = (*info)->info().point_count.value_or(0);
-        for (int t : o.threads) measure(o, fs::path(path).stem().string(), path, n, static_cast<unsigned>(t), {});
+        // The LAS source beside its PLY conversion: labelled by file name.
+        const std::string label = fs::path(path).extension() == ".las" ? fs::path(path).filename().string()
+                                                                      : fs::path(path).stem().string();
+        for (int t : o.threads) measure(o, label, path, n, static_cast<unsigned>(t), {});
       }
     }
   }

@@ -43,6 +43,10 @@ class Args {
   // Typed getters; on a malformed value they record an error and return the default.
   double get_double(const std::string& name, double fallback);
   long long get_int(const std::string& name, long long fallback, long long lo, long long hi);
+  // Records a malformed value found by the caller (the first error is kept).
+  void add_error(const std::string& message) {
+    if (error_.empty()) error_ = message;
+  }
 
  private:
   std::map<std::string, std::string> values_;

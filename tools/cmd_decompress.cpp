@@ -9,11 +9,12 @@ namespace relief::cli {
 
 int run_decompress(int argc, char** argv) {
   constexpr const char* kUsage =
-      "usage: relief decompress ARCHIVE -o OUT [--lod L] [--skip-corrupt] [--threads N] [--quiet]\n"
+      "usage: relief decompress ARCHIVE -o OUT [--lod L] [--class C,...] [--first-returns] [--last-returns]\n"
+      "                         [--skip-corrupt] [--threads N] [--quiet]\n"
       "Writes every point of the archive (.ply, .las, .xyz; '-' = XYZ text on stdout).\n";
-  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt"}, {"--lod", "-o", "--threads"});
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--lod", "-o", "--threads", "--class"});
   if (args.has("--help")) {
-    std::cout << kUsage;
+    std::cout << kUsage << kQueryFilterHelp;
     return kExitOk;
   }
   const QueryOptions q = query_options_from(args, "decompress");

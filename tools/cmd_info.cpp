@@ -2,11 +2,16 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "cli_common.h"
 #include "commands.h"
 #include "relief/codec.h"
 #include "relief/crs.h"
+#include "relief/io.h"
 #include "relief/query.h"
 
 namespace relief::cli {
@@ -28,9 +33,21 @@ std::string crs_text(const std::string& crs) {
 
 std::string attributes(const ArchiveInfo& i) {
   std::string a;
-  if (i.has_colors) a += "rgb";
-  if (i.has_intensity) a += a.empty() ? "intensity" : ",intensity";
+  for (const std::string& name : archive_attribute_names(i)) a += (a.empty() ? "" : ",") + name;
   return a.empty() ? "none" : a;
+}
+
+std::string las_text(const ArchiveInfo& i) {
+  std::string out = "point format " + std::to_string(i.las_point_format) + ", LAS 1." +
+                    std::to_string(i.las_version_minor);
+  if (i.extra_bytes_size > 0) {
+    out += ", " + std::to_string(i.extra_bytes_size) + " extra bytes";
+    const std::vector<ExtraBytesField> fields = archive_extra_bytes_fields(i);
+    for (std::size_t k = 0; k < fields.size(); ++k) {
+      out += (k == 0 ? ": " : ", ") + fields[k].name + " (" + fields[k].type_name + ")";
+    }
+  }
+  return out;
 }
 
 }  // namespace
@@ -79,6 +96,7 @@ int run_info(int argc, char** argv) {
   std::printf("size on disk    %s (%.3f bits/point; blobs %s = %.3f bits/point)\n", format_bytes(i.file_bytes).c_str(),
               bpp, format_bytes(i.blob_bytes).c_str(), blob_bpp);
   std::printf("attributes      %s\n", attributes(i).c_str());
+  if (i.las_point_format >= 0) std::printf("las source      %s\n", las_text(i).c_str());
   std::printf("crs             %s\n", crs_text(i.crs).c_str());
   std::printf("creator         %s\n", i.creator.c_str());
   for (const ArchiveSource& s : i.sources) {

@@ -11,7 +11,8 @@ namespace relief::cli {
 namespace {
 constexpr const char* kCommand = "query";
 constexpr const char* kUsageText =
-    "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L] -o OUT\n"
+    "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L] [--class C,...]\n"
+    "                    [--first-returns] [--last-returns] -o OUT\n"
     "Writes the archive's points inside the box (bounds included). Only the chunks the box\n"
     "touches are read and decoded.\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"
@@ -23,9 +24,9 @@ constexpr const char* kUsageText =
 }  // namespace
 
 int run_query(int argc, char** argv) {
-  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt"}, {"--box", "--lod", "-o", "--threads"});
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--box", "--lod", "-o", "--threads", "--class"});
   if (args.has("--help")) {
-    std::cout << kUsageText;
+    std::cout << kUsageText << kQueryFilterHelp;
     return kExitOk;
   }
   const QueryOptions q = query_options_from(args, kCommand);

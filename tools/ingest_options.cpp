@@ -10,7 +10,7 @@ const char* const kIngestOptionsHelp =
     "                         plain number = MiB)\n"
     "  --threads N            encoder threads (default: all cores)\n"
     "  --tmp DIR              directory for temporary bucket files (default: beside the archive)\n"
-    "  --columns SPEC         XYZ/CSV columns, e.g. x,y,z,r,g,b,i (default: header names, else x,y,z)\n"
+    "  --columns SPEC         XYZ/CSV columns, e.g. x,y,z,r,g,b,i,c (c = classification; default: header names, else x,y,z)\n"
     "  --verify               decode every blob back before committing it (about 10 % slower)\n"
     "  --quiet                no progress or summary\n";
 

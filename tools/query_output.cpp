@@ -2,6 +2,7 @@
 
 #include "relief/codec.h"
 
+#include <charconv>
 #include <cstdio>
 #include <iostream>
 
@@ -14,6 +15,26 @@ QueryOptions query_options_from(Args& args, const std::string& command) {
   q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, kMaxLod));
   q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   q.skip_corrupt = args.has("--skip-corrupt");
+  q.first_returns = args.has("--first-returns");
+  q.last_returns = args.has("--last-returns");
+  if (const auto classes = args.get("--class")) {
+    // "2,6": LAS classification values 0..255.
+    std::size_t start = 0;
+    const std::string& text = *classes;
+    while (start <= text.size()) {
+      std::size_t end = text.find(',', start);
+      if (end == std::string::npos) end = text.size();
+      const std::string item = text.substr(start, end - start);
+      unsigned value = 0;
+      const auto [p, ec] = std::from_chars(item.data(), item.data() + item.size(), value);
+      if (item.empty() || ec != std::errc{} || p != item.data() + item.size() || value > 255) {
+        args.add_error("--class: expected classification values 0..255 separated by commas, got '" + text + "'");
+        break;
+      }
+      q.classes.push_back(static_cast<std::uint8_t>(value));
+      start = end + 1;
+    }
+  }
   q.on_warning = [command](const std::string& w) { std::cerr << "relief " << command << ": warning: " << w << "\n"; };
   return q;
 }
@@ -29,6 +50,12 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   w.crs = info.crs;
   w.crs_source = info.crs_source;
   w.expected_bounds = info.bounds;
+  w.las_attributes = info.las_attributes;
+  w.las_point_format = info.las_point_format;
+  w.las_version_minor = info.las_version_minor;
+  w.extra_bytes_vlr = info.extra_bytes_vlr;
+  w.extra_bytes_size = info.extra_bytes_size;
+  w.las_colors_8bit = info.las_colors_8bit;
   // An error-bounded archive's points lie on its grid: LAS output uses that
   // grid as scale and offset, so a LAS source's integers come back as they were.
   if (auto params = encode_params_from_string(info.codec_params); params && params->bound) {

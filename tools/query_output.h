@@ -9,9 +9,18 @@
 
 namespace relief::cli {
 
-// Query options from --lod, --threads and --skip-corrupt (malformed values are
-// recorded in `args`); warnings go to stderr prefixed "relief COMMAND: ".
+// Query options from --lod, --threads, --skip-corrupt and the LAS filters
+// --class, --first-returns, --last-returns (kQueryFilterFlags,
+// kQueryFilterOptions; malformed values are recorded in `args`); warnings go
+// to stderr prefixed "relief COMMAND: ".
 QueryOptions query_options_from(Args& args, const std::string& command);
+
+// Help lines for the LAS filters, shared by query and decompress.
+inline constexpr const char* kQueryFilterHelp =
+    "  --class C,...     only points whose LAS classification is one of these (0..255)\n"
+    "  --first-returns   only first returns (return number 1)\n"
+    "  --last-returns    only last returns (return number = number of returns)\n"
+    "                    Filters combine; they need an archive that carries the LAS attributes\n";
 
 // Runs `box` (or everything when `all`) against the archive at `archive_path`
 // into `out_path`. Returns the process exit code; prints errors and, unless

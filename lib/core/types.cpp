@@ -5,6 +5,31 @@
 
 namespace relief {
 
+std::string las_attribute_list(std::uint32_t bits) {
+  std::string out;
+  for (std::uint32_t i = 0; i < kLasAttributeCount; ++i) {
+    if ((bits & (1u << i)) == 0) continue;
+    if (!out.empty()) out += ",";
+    out += kLasAttributeNames[i];
+  }
+  return out;
+}
+
+std::uint32_t las_attributes_from_list(const std::string& list) {
+  std::uint32_t bits = 0;
+  std::size_t start = 0;
+  while (start <= list.size()) {
+    std::size_t end = list.find(',', start);
+    if (end == std::string::npos) end = list.size();
+    const std::string name = list.substr(start, end - start);
+    for (std::uint32_t i = 0; i < kLasAttributeCount; ++i) {
+      if (name == kLasAttributeNames[i]) bits |= 1u << i;
+    }
+    start = end + 1;
+  }
+  return bits;
+}
+
 Vec3d Box3d::extent() const {
   if (empty()) return {};
   return {max.x - min.x, max.y - min.y, max.z - min.z};
@@ -200,6 +225,35 @@ void PointCloud::resize_points(std::size_t n) {
   });
   positions.resize(n);
   if (!las.extra_bytes.empty()) las.extra_bytes.resize(n * std::size_t{las.extra_bytes_size});
+}
+
+void conform_las_attributes(PointCloud& cloud, std::uint32_t bits, std::uint32_t extra_bytes_size) {
+  const std::size_t n = cloud.size();
+  LasAttributes& a = cloud.las;
+  if (cloud.colors.size() != n) bits &= ~std::uint32_t{kLasColorLow};
+  const bool low_missing = (bits & kLasColorLow) != 0 && a.color_low.size() != n;
+  // for_each_column visits positions, colours and intensities, then the LAS
+  // vectors in LasAttributeBits order.
+  constexpr int kBaseColumns = 3;
+  int column = 0;
+  std::uint32_t bit = 1;
+  for_each_column(cloud, [&](auto& v) {
+    if (column++ < kBaseColumns) return;
+    if ((bits & bit) == 0) {
+      v.clear();
+    } else if (v.size() != n) {
+      v.assign(n, {});
+    }
+    bit <<= 1;
+  });
+  if (low_missing) std::copy(cloud.colors.begin(), cloud.colors.end(), a.color_low.begin());
+  if ((bits & kLasExtraBytes) == 0) {
+    a.extra_bytes.clear();
+    a.extra_bytes_size = 0;
+  } else if (a.extra_bytes_size != extra_bytes_size || a.extra_bytes.size() != n * std::size_t{extra_bytes_size}) {
+    a.extra_bytes.assign(n * std::size_t{extra_bytes_size}, 0);
+    a.extra_bytes_size = extra_bytes_size;
+  }
 }
 
 bool PointCloud::same_attributes(const PointCloud& other) const {

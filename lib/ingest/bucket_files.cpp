@@ -1,4 +1,5 @@
 #include "ingest/bucket_files.h"
+#include "ingest/las_columns.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -152,7 +153,8 @@ void remove_stale_temp_dirs(const std::string& parent) {
 }  // namespace
 
 Result<BucketFiles> BucketFiles::create(const std::string& parent, std::uint32_t buckets, const ArchiveGrid& grid,
-                                        bool colors, bool intensity, std::size_t staging_bytes) {
+                                        bool colors, bool intensity, std::size_t staging_bytes,
+                                        std::uint32_t las_attributes, std::uint32_t extra_bytes_size) {
   BucketFiles b;
   const std::string dir = parent.empty() ? std::string(".") : parent;
   // A run killed with SIGKILL cannot remove its directory; the next one does.
@@ -168,7 +170,9 @@ Result<BucketFiles> BucketFiles::create(const std::string& parent, std::uint32_t
   b.grid_ = grid;
   b.colors_ = colors;
   b.intensity_ = intensity;
-  b.record_ = 12 + (colors ? 3 : 0) + (intensity ? 4 : 0);
+  b.las_ = las_attributes;
+  b.extra_size_ = (las_attributes & kLasExtraBytes) != 0 ? extra_bytes_size : 0;
+  b.record_ = 12 + (colors ? 3 : 0) + (intensity ? 4 : 0) + las_record_bytes(las_attributes, b.extra_size_);
   b.files_.assign(buckets, -1);
   b.counts_.assign(buckets, 0);
   b.bytes_.assign(buckets, 0);
@@ -220,6 +224,8 @@ BucketFiles& BucketFiles::operator=(BucketFiles&& o) noexcept {
     grid_ = o.grid_;
     colors_ = o.colors_;
     intensity_ = o.intensity_;
+    las_ = o.las_;
+    extra_size_ = o.extra_size_;
     record_ = o.record_;
     o.dir_.clear();
     o.paths_.clear();
@@ -313,7 +319,11 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
       r[off + 2] = points.colors[i].b;
       off += 3;
     }
-    if (intensity_) put_f32(r + off, points.intensities[i]);
+    if (intensity_) {
+      put_f32(r + off, points.intensities[i]);
+      off += 4;
+    }
+    if (las_ != 0) put_las_record(r + off, points.las, i, las_);
   }
   return Status::ok();
 }
@@ -373,9 +383,7 @@ Status BucketFiles::read_range(std::uint32_t bucket, std::uint64_t from, std::si
 
 Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std::uint64_t max_points,
                                PointCloud& out, Grouping& g, AlignedBuffer& buf) const {
-  out.positions.clear();
-  out.colors.clear();
-  out.intensities.clear();
+  out.clear_points();
   g.clear();
   // Capacity for the whole slice up front: growing block by block would
   // double the vectors past the slice's share of the memory budget.
@@ -415,6 +423,7 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
     out.positions.resize(at + points);
     if (colors_) out.colors.resize(at + points);
     if (intensity_) out.intensities.resize(at + points);
+    if (las_ != 0) resize_las(out.las, at + points, las_, extra_size_);
     const std::uint8_t* r = block + static_cast<std::size_t>(chunks) * kChunkEntry;
     std::size_t k = at;
     std::uint64_t listed = 0;
@@ -435,7 +444,11 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
           out.colors[k] = {r[off], r[off + 1], r[off + 2]};
           off += 3;
         }
-        if (intensity_) out.intensities[k] = get_f32(r + off);
+        if (intensity_) {
+          out.intensities[k] = get_f32(r + off);
+          off += 4;
+        }
+        if (las_ != 0) get_las_record(r + off, out.las, k, las_);
       }
     }
     if (listed != points) return damaged("chunk counts do not add up to the block's points");

@@ -11,6 +11,7 @@
 //     u32 qx, qy, qz   position in the chunk cube, fixed point
 //     u8 r, g, b       if colours
 //     f32 intensity    if intensity
+//     LAS attributes   the carried ones (ingest/las_columns.h), then extra bytes
 //
 // q = floor((p - chunk_min) / edge * 2^32), clamped to [0, 2^32 - 1], is read
 // back as chunk_min + (q + 1/2) * edge / 2^32: within edge * 2^-33 of the input
@@ -59,7 +60,8 @@ class BucketFiles {
   // the file system supports it: gigabytes of temporary records then neither
   // fill the page cache nor pay for its page allocation, twice.
   static Result<BucketFiles> create(const std::string& parent, std::uint32_t buckets, const ArchiveGrid& grid,
-                                    bool colors, bool intensity, std::size_t staging_bytes);
+                                    bool colors, bool intensity, std::size_t staging_bytes,
+                                    std::uint32_t las_attributes = 0, std::uint32_t extra_bytes_size = 0);
   BucketFiles(BucketFiles&&) noexcept;
   BucketFiles& operator=(BucketFiles&&) noexcept;
   BucketFiles(const BucketFiles&) = delete;
@@ -117,6 +119,8 @@ class BucketFiles {
   ArchiveGrid grid_;
   bool colors_ = false;
   bool intensity_ = false;
+  std::uint32_t las_ = 0;  // LasAttributeBits in every record
+  std::uint32_t extra_size_ = 0;
   std::size_t record_ = 0;
 };
 

@@ -20,6 +20,7 @@
 #include "ingest/bucket_files.h"
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
+#include "ingest/las_columns.h"
 #include "ingest/prefetch.h"
 #include "relief/archive.h"
 #include "relief/crs.h"
@@ -135,6 +136,26 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
       }
       set.warnings.push_back(both + "; --assume-crs: the archive takes " + crs_label(set.crs));
     }
+    set.las_attributes |= info.las_attributes;
+    // LAS attributes from a non-LAS input (a CSV classification column) may
+    // hold values only the LAS 1.4 formats can: the archive then names 6.
+    constexpr int kFirstExtendedFormat = 6;
+    const int format = info.las_point_format < 0 && info.las_attributes != 0 ? kFirstExtendedFormat
+                                                                              : info.las_point_format;
+    set.las_point_format = std::max(set.las_point_format, format);
+    set.las_version_minor = std::max(set.las_version_minor, info.las_version_minor);
+    if ((info.las_attributes & kLasExtraBytes) != 0) {
+      if (set.extra_bytes_from.empty()) {
+        set.extra_bytes_vlr = info.extra_bytes_vlr;
+        set.extra_bytes_size = info.extra_bytes_size;
+        set.extra_bytes_from = path;
+      } else if (set.extra_bytes_vlr != info.extra_bytes_vlr || set.extra_bytes_size != info.extra_bytes_size) {
+        return invalid_argument(path + " has " + std::to_string(info.extra_bytes_size) +
+                                " extra bytes per point described by a different Extra Bytes VLR than " +
+                                set.extra_bytes_from + " (" + std::to_string(set.extra_bytes_size) +
+                                " bytes); one archive holds one extra bytes layout");
+      }
+    }
     ArchiveSource src;
     src.path = path;
     src.format = info.format;
@@ -142,6 +163,8 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
     set.sources.push_back(src);
     set.readers.push_back(std::move(r));
   }
+  // Colour low bytes only travel with colours.
+  if (!set.colors) set.las_attributes &= ~std::uint32_t{kLasColorLow};
   if (!set.crs.empty()) {
     for (const std::string& path : without_crs) {
       set.warnings.push_back(path + " has no CRS; the archive takes " + crs_label(set.crs) + " of " + set.crs_from);
@@ -185,10 +208,46 @@ Status finish_scan(Archive& archive, std::int64_t scan_id, bool colors, bool int
   return archive.finish_scan(scan_id, colors, intensity, crs);
 }
 
+void conform_attributes(PointCloud& batch, const InputSet& in) {
+  conform_attributes(batch, in.colors, in.intensity);
+  conform_las(batch, in.las_attributes, in.extra_bytes_size);
+}
+
+ScanAttributes scan_attributes(const InputSet& in) {
+  ScanAttributes a;
+  a.has_colors = in.colors;
+  a.has_intensity = in.intensity;
+  a.crs = in.crs;
+  a.las_attributes = in.las_attributes;
+  a.las_point_format = in.las_point_format;
+  a.las_version_minor = in.las_version_minor;
+  a.extra_bytes_vlr = in.extra_bytes_vlr;
+  a.extra_bytes_size = in.extra_bytes_size;
+  // 8-bit levels only when every LAS input with colours stored them so.
+  bool any = false;
+  bool all = true;
+  for (const auto& reader : in.readers) {
+    const PointStreamInfo& info = reader->info();
+    if ((info.las_attributes & kLasColorLow) == 0) continue;
+    any = true;
+    all = all && info.las_colors_8bit;
+  }
+  a.las_colors_8bit = any && all;
+  return a;
+}
+
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params,
                                 InputSet& in, PointCloud pending, const IngestOptions& options,
                                 const std::string& tmp_parent) {
   const auto t0 = std::chrono::steady_clock::now();
+  // Only the error-bounded codec keeps per-point LAS attributes; the
+  // resampling mode keeps the majority classification of each map pixel
+  // (chunk format 4) and nothing else, so its archives record at most that.
+  if (!params.bound) {
+    in.las_attributes &= kLasClassification;
+    in.extra_bytes_size = 0;
+    in.extra_bytes_vlr.clear();
+  }
   const unsigned threads = resolve_threads(options.threads);
   const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget);
 
@@ -231,6 +290,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       RELIEF_RETURN_IF_ERROR(stage_points(b.points, coordinate_limit, in.sources[b.reader].path,
                                           staged_per_source[b.reader], in.colors, in.intensity, params));
       staged_per_source[b.reader] += b.points.size();
+      // LAS attributes the archive carries and this input lacks: zeros.
+      conform_las(b.points, in.las_attributes, in.extra_bytes_size);
       widen_intensity_range(b.points, intensity_lo, intensity_hi);
       return stage(b);
     };
@@ -283,6 +344,9 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     const auto total = static_cast<std::size_t>(in.known_total);
     PointCloud all;
     all.reserve(total, in.colors, in.intensity);
+    // Reserved whole, like the arrays above: cover() grows them while the
+    // reading thread copies into the part already covered.
+    if (in.las_attributes != 0) reserve_las(all.las, total, in.las_attributes, in.extra_bytes_size);
     grouping.ids.reserve(total);
     core::advise_huge_pages(all.positions);
     core::advise_huge_pages(all.colors);
@@ -305,6 +369,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       all.positions.resize(n);
       if (in.colors) all.colors.resize(n);
       if (in.intensity) all.intensities.resize(n);
+      if (in.las_attributes != 0) resize_las(all.las, n, in.las_attributes, in.extra_bytes_size);
       covered.store(n, std::memory_order_release);
     };
     const auto copy_in = [&](ReadBatch& b) -> Status {
@@ -319,6 +384,9 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       std::copy(batch.positions.begin(), batch.positions.end(), positions + b.first);
       if (in.colors) std::copy(batch.colors.begin(), batch.colors.end(), colors + b.first);
       if (in.intensity) std::copy(batch.intensities.begin(), batch.intensities.end(), intensities + b.first);
+      // The LAS vectors are sized by cover() on this thread's side too, but
+      // never reallocated after the first call (reserved below).
+      if (in.las_attributes != 0) copy_las(batch.las, all.las, b.first);
       return Status::ok();
     };
     cover(pending.size() + 2 * read_batch);
@@ -333,7 +401,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return format_error(names + ": " + std::to_string(points_read) + " points read where the headers declare " +
                           std::to_string(total));
     }
-    RELIEF_ASSIGN_OR_RETURN(scan_id, begin_scan(archive, in.sources, in.colors, in.intensity, in.crs));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, task_points, grouping, split_grid), tick));
@@ -341,7 +409,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     // ---- External distribution sort: every point into its chunk's bucket
     // file. The reading thread keys each batch; this one packs and writes.
     RELIEF_ASSIGN_OR_RETURN(BucketFiles files, BucketFiles::create(tmp_parent, buckets, grid, in.colors,
-                                                                   in.intensity, staging_bytes));
+                                                                   in.intensity, staging_bytes, in.las_attributes,
+                                                                   in.extra_bytes_size));
     const auto key_batch = [&](ReadBatch& b) -> Status {
       b.keys.resize(b.points.size());
       grid.keys_of(b.points.positions.data(), b.points.size(), b.keys.data());
@@ -351,7 +420,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
         read_all(key_batch, [&](ReadBatch& b) -> Status { return files.append(b.points, b.keys.data()); }));
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
-    RELIEF_ASSIGN_OR_RETURN(scan_id, begin_scan(archive, in.sources, in.colors, in.intensity, in.crs));
+    RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     // The next slice loads while the workers encode the current one; each
@@ -683,7 +752,7 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   const auto first_points = static_cast<std::size_t>(std::min<std::uint64_t>(
       derive_from_first ? kReadBatch : kDensitySamplePoints, (budget / 4) / kFirstBatchBytesPerPoint));
   RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, first_points));
-  conform_attributes(first, in.colors, in.intensity);
+  conform_attributes(first, in);
   // The absolute bound first, so no absurd coordinate reaches the cell-size
   // estimate; the bound for the chosen cell follows below.
   RELIEF_RETURN_IF_ERROR(check_coordinates(first, kMaxCoordinateMagnitude, inputs[0], 0));
@@ -820,6 +889,23 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
     in.colors = info.has_colors;
     in.intensity = info.has_intensity;
   }
+  // LAS attributes: the archive's set and the inputs' make one (the points of
+  // either side that lack one read it as 0); the extra bytes must agree.
+  if ((info.las_attributes & kLasExtraBytes) != 0 && (in.las_attributes & kLasExtraBytes) != 0 &&
+      (info.extra_bytes_vlr != in.extra_bytes_vlr || info.extra_bytes_size != in.extra_bytes_size)) {
+    return invalid_argument(in.extra_bytes_from + " has " + std::to_string(in.extra_bytes_size) +
+                            " extra bytes per point described by a different Extra Bytes VLR than " + archive_path +
+                            " (" + std::to_string(info.extra_bytes_size) +
+                            " bytes); one archive holds one extra bytes layout");
+  }
+  if ((info.las_attributes & kLasExtraBytes) != 0) {
+    in.extra_bytes_vlr = info.extra_bytes_vlr;
+    in.extra_bytes_size = info.extra_bytes_size;
+  }
+  in.las_attributes |= info.las_attributes;
+  if (!in.colors) in.las_attributes &= ~std::uint32_t{kLasColorLow};
+  in.las_point_format = std::max(in.las_point_format, info.las_point_format);
+  in.las_version_minor = std::max(in.las_version_minor, info.las_version_minor);
   auto result = run_ingest(*archive, info.grid, params, in, PointCloud(), options,
                            default_tmp_parent(archive_path, options));
   if (!result) {

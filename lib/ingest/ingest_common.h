@@ -25,6 +25,16 @@ struct InputSet {
   std::uint64_t estimated_points = 0;
   std::uint64_t known_total = 0;
   bool all_counts_known = true;
+  // LAS attributes: the union over the inputs (an input without one gets
+  // zeros, ingest/las_columns.h), the widest source point format and highest
+  // minor version, the extra bytes (every input with extra bytes must have
+  // the same Extra Bytes VLR and size; extra_bytes_from names the first).
+  std::uint32_t las_attributes = 0;
+  int las_point_format = -1;
+  int las_version_minor = -1;
+  std::string extra_bytes_vlr;
+  std::uint32_t extra_bytes_size = 0;
+  std::string extra_bytes_from;
   std::string crs;  // WKT2 of the first input that has one
   std::string crs_from;  // that input's path
   // CRS decisions the user should hear of (inputs without a CRS among ones
@@ -41,8 +51,13 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
 // Whether two CRSs are the same (PROJ equivalence; text equality for a CRS
 // PROJ cannot read).
 bool same_crs(const std::string& a, const std::string& b);
-// Drops attributes the archive does not carry.
+// Drops attributes the archive does not carry; gives the batch exactly the
+// set's LAS attributes (zero-filled where it has none).
 void conform_attributes(PointCloud& batch, bool colors, bool intensity);
+void conform_attributes(PointCloud& batch, const InputSet& in);
+// The ScanAttributes of the inputs (after reading: the colour-level rule of
+// LAS inputs is known once they have been read).
+ScanAttributes scan_attributes(const InputSet& in);
 // kInvalidArgument naming `source`, the point's index (first_index + i) and the
 // value when a coordinate of `batch` exceeds `limit` in magnitude
 // (max_coordinate_magnitude): such points would overflow chunk keys or lose

@@ -45,12 +45,16 @@ class StreamIngestImpl final : public StreamIngest {
   Status push(const PointCloud& incoming) override {
     if (finished_) return invalid_argument("stream already finished");
     RELIEF_RETURN_IF_ERROR(incoming.validate("stream batch"));
+    // A stream records no LAS attributes (StreamIngest opens with colours and
+    // intensity only): they are dropped here, as the archive will not list them.
     PointCloud snapped;
-    if (params_.bound) {
+    const bool copy = params_.bound.has_value() || !incoming.las.empty();
+    if (copy) {
       snapped = incoming;
-      ingest::snap_to_grid(snapped, *params_.bound);
+      snapped.las = LasAttributes();
+      if (params_.bound) ingest::snap_to_grid(snapped, *params_.bound);
     }
-    const PointCloud& batch = params_.bound ? snapped : incoming;
+    const PointCloud& batch = copy ? snapped : incoming;
     if (batch.has_colors() != colors_ || batch.has_intensity() != intensity_) {
       return invalid_argument("stream batch has " + ingest::attribute_list(batch.has_colors(), batch.has_intensity()) +
                               " but the stream was opened with " + ingest::attribute_list(colors_, intensity_));
@@ -233,7 +237,10 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   ArchiveSource src;
   src.path = "-";
   src.format = "stream";
-  Result<std::int64_t> scan_id = archive->begin_scan({src}, {has_colors, has_intensity, ""});
+  ScanAttributes attributes;
+  attributes.has_colors = has_colors;
+  attributes.has_intensity = has_intensity;
+  Result<std::int64_t> scan_id = archive->begin_scan({src}, attributes);
   if (!scan_id) {
     if (created) {
       archive.reset();

@@ -3,19 +3,26 @@
 // file's chunks are decompressed one at a time into records that the same
 // decoding below reads.
 //
-// Only the fields a point cloud here carries are decoded: X Y Z (scaled
-// integers, x = X * scale + offset computed in double), intensity, and RGB for
-// the formats that have it. Every other field, and the extra bytes a record may
-// have beyond its format's minimum, is skipped by stepping over the record
-// length the header gives. The header is validated against the file size
-// before anything is allocated from it; VLRs before the points and extended
-// VLRs after them (LAS 1.4, read through a second handle that seeks there) are
-// scanned for the coordinate reference system.
+// Every field of the record is decoded: X Y Z (scaled integers, x = X * scale
+// + offset computed in double), intensity, RGB, and into PointCloud::las the
+// classification and its flags, return number and number of returns, scan
+// flags (direction, edge, scanner channel), scan angle, user data, point
+// source ID, GPS time, NIR, and the record's extra bytes beyond its format's
+// minimum, raw (described by the Extra Bytes VLR, kept in
+// PointStreamInfo::extra_bytes_vlr and checked against the record length).
+// Wave packet descriptors (formats 4, 5, 9, 10) are skipped. The header is
+// validated against the file size before anything is allocated from it; VLRs
+// before the points and extended VLRs after them (LAS 1.4, read through a
+// second handle that seeks there) are scanned for the coordinate reference
+// system and the Extra Bytes VLR.
 //
 // LAS colours are 16-bit. They become 8-bit by the rule in io/stream_support.h:
 // from a sample of the first 2^20 points (the whole file when smaller), shift
 // every level right by 8 if any sampled level is above 255, else keep the
-// levels (files that store 8-bit levels in the 16-bit fields).
+// levels (files that store 8-bit levels in the 16-bit fields). The low byte
+// goes to las.color_low (io/stream_support.h low_level): with the shift the
+// 16-bit level comes back exactly as (colour << 8) | low; without it (8-bit
+// levels) as level * 257.
 
 #include <algorithm>
 #include <array>
@@ -52,6 +59,11 @@ constexpr std::uint16_t kGeoKeyRecordId = 34735;
 constexpr std::uint16_t kGeoDoubleRecordId = 34736;
 constexpr std::uint16_t kGeoAsciiRecordId = 34737;
 constexpr std::string_view kProjectionUserId = "LASF_Projection";
+constexpr std::string_view kSpecUserId = "LASF_Spec";
+constexpr std::uint16_t kExtraBytesRecordId = 4;
+// Extra Bytes descriptors are 192 bytes each; more than this many bytes of
+// them (a record holds at most 65535 extra bytes) is refused.
+constexpr std::uint64_t kMaxExtraBytesRecord = std::uint64_t{192} * 65535;
 // LAZ: the chunk table is 8 bytes plus a few per chunk, a chunk a few MiB;
 // larger ones are refused rather than held in memory.
 constexpr std::uint64_t kMaxChunkTable = std::uint64_t{64} << 20;
@@ -76,22 +88,41 @@ constexpr std::uint8_t kLasFormatMask = 0x3F;
 struct PointFormat {
   std::size_t min_length;  // bytes of the record without extra bytes
   std::size_t rgb_offset;  // 0 when the format has no colour
+  std::size_t gps_offset;  // 0 when the format has no GPS time
+  std::size_t nir_offset;  // 0 when the format has no NIR
 };
 
 // Formats 0-5 share the legacy 20-byte core; 6-10 the 30-byte 1.4 core.
 constexpr std::array<PointFormat, 11> kPointFormats = {{
-    {20, 0},   // 0
-    {28, 0},   // 1: + GPS time
-    {26, 20},  // 2: + RGB
-    {34, 28},  // 3: + GPS time + RGB
-    {57, 0},   // 4: 1 + wave packet
-    {63, 28},  // 5: 3 + wave packet
-    {30, 0},   // 6
-    {36, 30},  // 7: + RGB
-    {38, 30},  // 8: + RGB + NIR
-    {59, 0},   // 9: 6 + wave packet
-    {67, 30},  // 10: 8 + wave packet
+    {20, 0, 0, 0},    // 0
+    {28, 0, 20, 0},   // 1: + GPS time
+    {26, 20, 0, 0},   // 2: + RGB
+    {34, 28, 20, 0},  // 3: + GPS time + RGB
+    {57, 0, 20, 0},   // 4: 1 + wave packet
+    {63, 28, 20, 0},  // 5: 3 + wave packet
+    {30, 0, 22, 0},   // 6
+    {36, 30, 22, 0},  // 7: + RGB
+    {38, 30, 22, 36}, // 8: + RGB + NIR
+    {59, 0, 22, 0},   // 9: 6 + wave packet
+    {67, 30, 22, 36}, // 10: 8 + wave packet
 }};
+constexpr int kFirstExtendedFormat = 6;
+// Scan angle units in LasAttributes::scan_angle (thousandths of a degree):
+// formats 0-5 store whole degrees, 6-10 steps of 0.006 degrees.
+constexpr std::int32_t kLegacyScanAngleUnit = 1000;
+constexpr std::int32_t kExtendedScanAngleUnit = 6;
+
+// The LasAttributeBits a point format carries (colour low bytes and extra
+// bytes are decided by the reader).
+std::uint32_t format_attributes(int format) {
+  const PointFormat& pf = kPointFormats[static_cast<std::size_t>(format)];
+  std::uint32_t bits = kLasClassification | kLasClassFlags | kLasReturnNumber | kLasNumberOfReturns | kLasScanFlags |
+                       kLasScanAngle | kLasUserData | kLasPointSourceId;
+  if (pf.gps_offset != 0) bits |= kLasGpsTime;
+  if (pf.nir_offset != 0) bits |= kLasNir;
+  if (pf.rgb_offset != 0) bits |= kLasColorLow;
+  return bits;
+}
 
 struct LasHeader {
   int version_minor = 0;
@@ -205,6 +236,7 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
 // ---------------------------------------------------------------- CRS
 
 struct ProjectionRecords {
+  std::optional<std::vector<std::uint8_t>> extra_bytes;  // the Extra Bytes VLR payload
   std::optional<std::string> wkt;
   GeoTiffRecords geotiff;  // keys empty when the file has none
   std::optional<std::vector<std::uint8_t>> laszip;  // the LASzip VLR payload
@@ -220,6 +252,10 @@ bool is_projection_record(std::span<const std::uint8_t> user_id, std::uint16_t r
   return user_id_text(user_id) == kProjectionUserId &&
          (record_id == kWktRecordId || record_id == kGeoKeyRecordId || record_id == kGeoDoubleRecordId ||
           record_id == kGeoAsciiRecordId);
+}
+
+bool is_extra_bytes_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+  return user_id_text(user_id) == kSpecUserId && record_id == kExtraBytesRecordId;
 }
 
 bool is_laszip_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
@@ -282,39 +318,132 @@ enum class ColorOut { kNone, kNarrow, kWide };
 struct LasLayout {
   std::size_t record_length = 0;
   std::size_t rgb_offset = 0;
+  std::size_t gps_offset = 0;
+  std::size_t nir_offset = 0;
+  std::size_t extra_offset = 0;  // first extra byte (the format's minimum length)
+  std::size_t extra_size = 0;    // extra bytes per record
   Vec3d scale;
   Vec3d offset;
   int color_shift = 0;
 };
 
-template <ColorOut kColor>
-void decode_las(const std::uint8_t* src, std::size_t n, const LasLayout& lay, Vec3d* pos, float* intensity,
-                Rgb8* col, std::uint16_t* wide) {
+// Where one batch's values go; `at` is already applied.
+struct LasTargets {
+  Vec3d* pos = nullptr;
+  float* intensity = nullptr;
+  Rgb8* col = nullptr;
+  Rgb8* low = nullptr;  // with col: the colour low bytes
+  std::uint16_t* wide = nullptr;
+  LasAttributes* las = nullptr;
+  std::size_t at = 0;
+};
+
+// Decodes the fields every format has, and the colour. One loop per format
+// family (legacy 0-5, extended 6-10) and colour mode: no per-point branch.
+template <ColorOut kColor, bool kExtended>
+void decode_las(const std::uint8_t* src, std::size_t n, const LasLayout& lay, const LasTargets& t) {
   const std::size_t stride = lay.record_length;
   const Vec3d s = lay.scale;
   const Vec3d o = lay.offset;
+  LasAttributes& a = *t.las;
+  std::uint8_t* const cls = a.classification.data() + t.at;
+  std::uint8_t* const flags = a.class_flags.data() + t.at;
+  std::uint8_t* const ret = a.return_number.data() + t.at;
+  std::uint8_t* const nret = a.number_of_returns.data() + t.at;
+  std::uint8_t* const scan = a.scan_flags.data() + t.at;
+  std::int32_t* const angle = a.scan_angle.data() + t.at;
+  std::uint8_t* const user = a.user_data.data() + t.at;
+  std::uint16_t* const source = a.point_source_id.data() + t.at;
   for (std::size_t i = 0; i < n; ++i, src += stride) {
     const auto x = load_le<std::int32_t>(src);
     const auto y = load_le<std::int32_t>(src + 4);
     const auto z = load_le<std::int32_t>(src + 8);
-    pos[i] = Vec3d{static_cast<double>(x) * s.x + o.x, static_cast<double>(y) * s.y + o.y,
-                   static_cast<double>(z) * s.z + o.z};
-    intensity[i] = static_cast<float>(load_le<std::uint16_t>(src + 12));
+    t.pos[i] = Vec3d{static_cast<double>(x) * s.x + o.x, static_cast<double>(y) * s.y + o.y,
+                     static_cast<double>(z) * s.z + o.z};
+    t.intensity[i] = static_cast<float>(load_le<std::uint16_t>(src + 12));
+    const std::uint8_t b14 = src[14];
+    const std::uint8_t b15 = src[15];
+    if constexpr (kExtended) {
+      // 14: return number (0-3), number of returns (4-7); 15: classification
+      // flags (0-3), scanner channel (4-5), scan direction (6), edge (7);
+      // 16 classification, 17 user data, 18 scan angle i16, 20 source ID.
+      ret[i] = b14 & 0x0F;
+      nret[i] = b14 >> 4;
+      flags[i] = b15 & 0x0F;
+      scan[i] = static_cast<std::uint8_t>(((b15 >> 6) & 0x03) | (((b15 >> 4) & 0x03) << 2));
+      cls[i] = src[16];
+      user[i] = src[17];
+      angle[i] = static_cast<std::int32_t>(load_le<std::int16_t>(src + 18)) * kExtendedScanAngleUnit;
+      source[i] = load_le<std::uint16_t>(src + 20);
+    } else {
+      // 14: return number (0-2), number of returns (3-5), scan direction (6),
+      // edge (7); 15: classification (0-4), synthetic, key-point, withheld;
+      // 16 scan angle rank i8, 17 user data, 18 source ID.
+      ret[i] = b14 & 0x07;
+      nret[i] = (b14 >> 3) & 0x07;
+      scan[i] = b14 >> 6;
+      cls[i] = b15 & 0x1F;
+      flags[i] = b15 >> 5;
+      angle[i] = static_cast<std::int32_t>(static_cast<std::int8_t>(src[16])) * kLegacyScanAngleUnit;
+      user[i] = src[17];
+      source[i] = load_le<std::uint16_t>(src + 18);
+    }
     if constexpr (kColor != ColorOut::kNone) {
       const std::uint8_t* c = src + lay.rgb_offset;
       const auto r = load_le<std::uint16_t>(c);
       const auto g = load_le<std::uint16_t>(c + 2);
       const auto b = load_le<std::uint16_t>(c + 4);
       if constexpr (kColor == ColorOut::kWide) {
-        wide[3 * i] = r;
-        wide[3 * i + 1] = g;
-        wide[3 * i + 2] = b;
+        t.wide[3 * i] = r;
+        t.wide[3 * i + 1] = g;
+        t.wide[3 * i + 2] = b;
       } else {
-        col[i] = Rgb8{narrow_level(r, lay.color_shift), narrow_level(g, lay.color_shift),
-                      narrow_level(b, lay.color_shift)};
+        t.col[i] = Rgb8{narrow_level(r, lay.color_shift), narrow_level(g, lay.color_shift),
+                        narrow_level(b, lay.color_shift)};
+        if (t.low != nullptr) {
+          t.low[i] = Rgb8{low_level(r, lay.color_shift), low_level(g, lay.color_shift),
+                          low_level(b, lay.color_shift)};
+        }
       }
     }
   }
+}
+
+// The fields only some formats have, each in its own pass over the records.
+void decode_las_optional(const std::uint8_t* src, std::size_t n, const LasLayout& lay, const LasTargets& t) {
+  const std::size_t stride = lay.record_length;
+  LasAttributes& a = *t.las;
+  if (lay.gps_offset != 0) {
+    double* gps = a.gps_time.data() + t.at;
+    const std::uint8_t* p = src + lay.gps_offset;
+    for (std::size_t i = 0; i < n; ++i, p += stride) gps[i] = load_le<double>(p);
+  }
+  if (lay.nir_offset != 0) {
+    std::uint16_t* nir = a.nir.data() + t.at;
+    const std::uint8_t* p = src + lay.nir_offset;
+    for (std::size_t i = 0; i < n; ++i, p += stride) nir[i] = load_le<std::uint16_t>(p);
+  }
+  if (lay.extra_size != 0) {
+    const std::size_t w = lay.extra_size;
+    std::uint8_t* extra = a.extra_bytes.data() + t.at * w;
+    const std::uint8_t* p = src + lay.extra_offset;
+    for (std::size_t i = 0; i < n; ++i, p += stride, extra += w) std::memcpy(extra, p, w);
+  }
+}
+
+using DecodeFn = void (*)(const std::uint8_t*, std::size_t, const LasLayout&, const LasTargets&);
+
+template <bool kExtended>
+DecodeFn pick_decoder(ColorOut color) {
+  switch (color) {
+    case ColorOut::kWide:
+      return &decode_las<ColorOut::kWide, kExtended>;
+    case ColorOut::kNarrow:
+      return &decode_las<ColorOut::kNarrow, kExtended>;
+    case ColorOut::kNone:
+      break;
+  }
+  return &decode_las<ColorOut::kNone, kExtended>;
 }
 
 class LasPointReader final : public BatchPointReader {
@@ -365,6 +494,7 @@ class LasPointReader final : public BatchPointReader {
   LasHeader header_;
   LasLayout layout_;
   bool has_rgb_ = false;
+  bool extended_ = false;  // point formats 6-10
   // The file size is known and holds every declared point, so batches may be
   // sized before they are read.
   bool backed_ = false;
@@ -391,8 +521,23 @@ Status LasPointReader::start() {
   has_rgb_ = pf.rgb_offset != 0;
   layout_.record_length = header_.record_length;
   layout_.rgb_offset = pf.rgb_offset;
+  layout_.gps_offset = pf.gps_offset;
+  layout_.nir_offset = pf.nir_offset;
+  layout_.extra_offset = pf.min_length;
+  layout_.extra_size = header_.record_length - pf.min_length;
   layout_.scale = header_.scale;
   layout_.offset = header_.offset;
+  extended_ = header_.format >= kFirstExtendedFormat;
+  if (records.extra_bytes) {
+    // Checked now, so every reader of the archive can trust the VLR.
+    RELIEF_RETURN_IF_ERROR(parse_extra_bytes_vlr(*records.extra_bytes, layout_.extra_size, name()).status());
+    info_.extra_bytes_vlr.assign(records.extra_bytes->begin(), records.extra_bytes->end());
+  }
+  info_.extra_bytes_size = static_cast<std::uint32_t>(layout_.extra_size);
+  info_.las_point_format = header_.format;
+  info_.las_version_minor = header_.version_minor;
+  info_.las_attributes = format_attributes(header_.format) | (layout_.extra_size != 0 ? kLasExtraBytes : 0u);
+  color_low_ = has_rgb_;
 
   info_.path = name();
   info_.format = laz_ ? "laz" : "las";
@@ -455,7 +600,8 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
     const auto record_id = load_le<std::uint16_t>(view.data() + 18);
     const auto length = load_le<std::uint16_t>(view.data() + 20);
     const bool laszip = is_laszip_record(view.subspan(2, 16), record_id);
-    const bool wanted = is_projection_record(view.subspan(2, 16), record_id) || laszip;
+    const bool extra = is_extra_bytes_record(view.subspan(2, 16), record_id);
+    const bool wanted = is_projection_record(view.subspan(2, 16), record_id) || laszip || extra;
     src_.consume(kVlrHeaderSize);
     pos += kVlrHeaderSize;
     if (limit - pos < length) {
@@ -467,6 +613,8 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
       if (view.size() < length) return format_error(which + " is cut short by the end of the file");
       if (laszip) {
         if (!records.laszip) records.laszip.emplace(view.begin(), view.begin() + length);
+      } else if (extra) {
+        if (!records.extra_bytes) records.extra_bytes.emplace(view.begin(), view.begin() + length);
       } else {
         keep_projection_record(record_id, view.first(length), records);
       }
@@ -503,21 +651,26 @@ Status LasPointReader::read_evlrs(ProjectionRecords& records) {
     }
     const auto record_id = load_le<std::uint16_t>(view.data() + 18);
     const auto length = load_le<std::uint64_t>(view.data() + 20);
-    const bool wanted = is_projection_record(view.subspan(2, 16), record_id);
+    const bool extra = is_extra_bytes_record(view.subspan(2, 16), record_id);
+    const bool wanted = is_projection_record(view.subspan(2, 16), record_id) || extra;
     evlr_src.consume(kEvlrHeaderSize);
     pos += kEvlrHeaderSize;
     if (*size - pos < length) {
       return format_error(which + " (" + std::to_string(length) + " bytes) runs past the end of the file");
     }
     if (wanted) {
-      if (length > kMaxProjectionRecord) {
-        return format_error(which + ": a projection record of " + std::to_string(length) +
-                            " bytes is absurdly large");
+      if (length > (extra ? kMaxExtraBytesRecord : kMaxProjectionRecord)) {
+        return format_error(which + ": a " + (extra ? "Extra Bytes" : "projection") + " record of " +
+                            std::to_string(length) + " bytes is absurdly large");
       }
       const auto len = static_cast<std::size_t>(length);
       RELIEF_RETURN_IF_ERROR(evlr_src.fill(len, view));
       if (view.size() < len) return format_error(which + " is cut short by the end of the file");
-      keep_projection_record(record_id, view.first(len), records);
+      if (extra) {
+        if (!records.extra_bytes) records.extra_bytes.emplace(view.begin(), view.begin() + len);
+      } else {
+        keep_projection_record(record_id, view.first(len), records);
+      }
       evlr_src.consume(len);
     } else {
       RELIEF_RETURN_IF_ERROR(evlr_src.skip(length, skipped));
@@ -630,15 +783,34 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
       static_cast<std::size_t>(std::min<std::uint64_t>(max_points, header_.point_count - done_));
   const bool to_wide = wide != nullptr && has_rgb_;
   const bool col8 = has_rgb_ && !to_wide;
+  // With wide colours the low bytes are filled by read() once the shift is known.
+  const bool low = col8 && color_low_;
+  const std::uint32_t bits = info_.las_attributes;
   auto size_to = [&](std::size_t n) {
     size_batch(out, n, col8, true);
     if (to_wide) wide->resize(3 * n);
+    LasAttributes& a = out.las;
+    a.classification.resize(n);
+    a.class_flags.resize(n);
+    a.return_number.resize(n);
+    a.number_of_returns.resize(n);
+    a.scan_flags.resize(n);
+    a.scan_angle.resize(n);
+    a.user_data.resize(n);
+    a.point_source_id.resize(n);
+    a.gps_time.resize((bits & kLasGpsTime) != 0 ? n : 0);
+    a.nir.resize((bits & kLasNir) != 0 ? n : 0);
+    a.color_low.resize(low ? n : 0);
+    a.extra_bytes_size = static_cast<std::uint32_t>(layout_.extra_size);
+    a.extra_bytes.resize(n * layout_.extra_size);
   };
   // Sized once when the file is known to hold the points, so that a batch
   // reused at the same size is not touched twice; otherwise grown as data
   // arrives, so a lying header on a pipe allocates nothing.
   if (backed_) size_to(at + want);
   layout_.color_shift = color_shift_;
+  const ColorOut color = to_wide ? ColorOut::kWide : col8 ? ColorOut::kNarrow : ColorOut::kNone;
+  const DecodeFn decode = extended_ ? pick_decoder<true>(color) : pick_decoder<false>(color);
   const std::size_t stride = layout_.record_length;
   std::size_t got = 0;
   while (got < want) {
@@ -649,15 +821,16 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
     const std::size_t n = std::min(want - got, avail);
     const std::size_t i0 = at + got;
     if (!backed_) size_to(i0 + n);
-    Vec3d* pos = out.positions.data() + i0;
-    float* intensity = out.intensities.data() + i0;
-    if (to_wide) {
-      decode_las<ColorOut::kWide>(view.data(), n, layout_, pos, intensity, nullptr, wide->data() + 3 * i0);
-    } else if (col8) {
-      decode_las<ColorOut::kNarrow>(view.data(), n, layout_, pos, intensity, out.colors.data() + i0, nullptr);
-    } else {
-      decode_las<ColorOut::kNone>(view.data(), n, layout_, pos, intensity, nullptr, nullptr);
-    }
+    LasTargets t;
+    t.pos = out.positions.data() + i0;
+    t.intensity = out.intensities.data() + i0;
+    t.col = col8 ? out.colors.data() + i0 : nullptr;
+    t.low = low ? out.las.color_low.data() + i0 : nullptr;
+    t.wide = to_wide ? wide->data() + 3 * i0 : nullptr;
+    t.las = &out.las;
+    t.at = i0;
+    decode(view.data(), n, layout_, t);
+    decode_las_optional(view.data(), n, layout_, t);
     consume_points(n * stride);
     got += n;
   }

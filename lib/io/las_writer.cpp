@@ -10,9 +10,24 @@
 // "EPSG:<code>" and "GeoTIFF keys: ..." (archives made before the crs
 // module) are written as a GeoTIFF GeoKeyDirectoryTag VLR in the 1.2 file.
 //
-// Every point is "return 1 of 1", classification 0 (never classified), no
-// GPS time, scan angle or user data. 8-bit colour levels become 16-bit ones
-// by v * 257 (0 -> 0, 255 -> 65535).
+// Point format: WriterOptions::las_attributes and las_point_format (the
+// archive's LAS attributes and source format) choose it. Formats 6-10 (or
+// NIR, or a WKT CRS in a .las, or LAS attributes without a source format)
+// give LAS 1.4 with format 8 when NIR is carried,
+// else 7 with RGB, else 6; otherwise the legacy format 3/1 (GPS time carried)
+// or 2/0 in LAS 1.2. Records are the format's length plus extra_bytes_size
+// extra bytes, described by the Extra Bytes VLR when one is given. Each LAS
+// attribute carried is written field by field; one not carried is 0, except
+// the return number and number of returns, which are 1 ("return 1 of 1").
+// The scan angle converts exactly when the units allow (whole degrees for
+// 0-5, 0.006 degrees for 6-10) and is rounded to the nearest step otherwise
+// (an archive mixing legacy and 1.4 sources). A value a legacy record cannot
+// hold (classification above 31, return numbers above 7, the overlap flag, a
+// scanner channel) is an error naming the point, never a truncated field.
+// 8-bit colour levels become 16-bit ones by (v << 8) | low with the colour
+// low bytes (LasAttributes::color_low), else by v * 257 (0 -> 0, 255 -> 65535);
+// with WriterOptions::las_colors_8bit (a source that stored 8-bit levels in
+// its 16-bit fields) they are written as they are.
 //
 // Intensity (float) becomes the 16-bit field by one rule for the whole file:
 // when every intensity lies in [0, 1] (normalised reflectance, as KITTI's)
@@ -40,12 +55,12 @@
 // with the point count and the bounds of the coordinates actually stored
 // (after quantisation, so they match what readers decode).
 //
-// LAZ output (.laz) is the same LAS 1.2 file, format 2 or 0, with the points
-// compressed as LASzip compresses them (lib/laz PointCompressor: bit 7 of the
-// format byte, the "laszip encoded" VLR, the chunk table offset before the
-// chunks, the chunk table after them). A WKT CRS would need the 1.4 formats,
-// which are not compressed here, so with a WKT CRS a LAZ file is LAS 1.4
-// with the legacy format 2 or 0 (1.4 allows WKT with formats 0-5).
+// LAZ output (.laz) is the same file with the points compressed as LASzip
+// compresses them (lib/laz PointCompressor: bit 7 of the format byte, the
+// "laszip encoded" VLR, the chunk table offset before the chunks, the chunk
+// table after them); a format the compressor does not support is its error,
+// naming the output. With a WKT CRS and a legacy source a LAZ file is LAS
+// 1.4 with the legacy format (1.4 allows WKT with formats 0-5).
 
 #include <algorithm>
 #include <array>
@@ -89,6 +104,23 @@ constexpr std::uint16_t kGeoDoubleRecordId = 34736;
 constexpr std::uint16_t kGeoAsciiRecordId = 34737;
 constexpr std::string_view kProjectionUserId = "LASF_Projection";
 constexpr std::uint16_t kWktGlobalEncodingBit = 1u << 4;
+// Global encoding bit 0: GPS times are adjusted standard GPS time (LAS 1.4
+// requires it with formats 6-10).
+constexpr std::uint16_t kStandardGpsTimeBit = 1u << 0;
+constexpr std::string_view kSpecUserId = "LASF_Spec";
+constexpr std::uint16_t kExtraBytesRecordId = 4;
+// Legacy formats: 5-bit classification, 3-bit return numbers; 1.4 formats
+// 4-bit return numbers; point counts by return: 5 legacy, 15 in LAS 1.4.
+constexpr std::uint8_t kLegacyMaxClass = 31;
+constexpr std::uint8_t kLegacyMaxReturn = 7;
+constexpr std::uint8_t kExtendedMaxReturn = 15;
+constexpr std::size_t kLegacyReturnCounts = 5;
+constexpr std::size_t kExtendedReturnCounts = 15;
+constexpr std::uint8_t kOverlapFlag = 1u << 3;
+constexpr std::uint8_t kScannerChannelBits = 0x0C;
+constexpr std::int32_t kLegacyScanAngleUnit = 1000;  // thousandths of a degree per LAS unit
+constexpr std::int32_t kExtendedScanAngleUnit = 6;
+constexpr std::uint32_t kKnownAttributes = (kLasExtraBytes << 1) - 1;
 constexpr std::string_view kEpsgPrefix = "EPSG:";
 constexpr std::string_view kGeoKeysPrefix = "GeoTIFF keys:";
 
@@ -371,29 +403,35 @@ constexpr std::size_t kIntensityOffset = 12;
 
 std::uint16_t wide_level(std::uint8_t v) { return static_cast<std::uint16_t>(v * 257); }
 
-// Record layouts: the legacy formats 0/2 and the 1.4 formats 6/7.
-template <bool kExtended, bool kColors>
-struct Layout {
-  static constexpr std::size_t kLength = kExtended ? (kColors ? 36 : 30) : (kColors ? 26 : 20);
-  static constexpr std::size_t kRgb = kExtended ? 30 : 20;
+// Where the fields of the chosen point format lie.
+struct RecordPlan {
+  bool extended = false;  // formats 6-10
+  std::size_t length = 0;
+  std::size_t rgb = 0;    // 0 when no colour
+  std::size_t gps = 0;    // 0 when no GPS time
+  std::size_t nir = 0;    // 0 when no NIR
+  std::size_t extra = 0;  // first extra byte
+  std::uint32_t attributes = 0;  // LasAttributeBits written from the batch
+  std::uint32_t extra_size = 0;
+  bool colors_8bit = false;  // colour levels written as they are (WriterOptions::las_colors_8bit)
 };
 
-using RecordTemplate = std::array<std::uint8_t, 36>;
-
-// Encodes points [first, first + n) of `batch` at `dst`. Returns n, or the
-// index (from first) of the first point whose coordinates do not fit (which
-// includes NaN and infinities).
-template <bool kExtended, bool kColors, bool kIntensity>
+// Encodes coordinates, intensity and colour of points [first, first + n) of
+// `batch` at `dst` (records of plan.length bytes, zeroed here). Returns n, or
+// the index (from first) of the first point whose coordinates do not fit
+// (which includes NaN and infinities).
+template <bool kColors, bool kIntensity>
 std::size_t encode_las(const PointCloud& batch, std::size_t first, std::size_t n, const Quantizer& q,
-                       const RecordTemplate& blank, std::uint8_t* dst, IntBounds& b) {
-  using L = Layout<kExtended, kColors>;
+                       const RecordPlan& plan, std::uint8_t* dst, IntBounds& b) {
   const Vec3d* pos = batch.positions.data() + first;
   const Vec3d o = q.offset;
   const Vec3d inv = q.inverse;
+  const std::size_t stride = plan.length;
+  const std::size_t rgb = plan.rgb;
   std::int32_t min_x = b.min[0], min_y = b.min[1], min_z = b.min[2];
   std::int32_t max_x = b.max[0], max_y = b.max[1], max_z = b.max[2];
   std::size_t i = 0;
-  for (; i < n; ++i, dst += L::kLength) {
+  for (; i < n; ++i, dst += stride) {
     const double vx = (pos[i].x - o.x) * inv.x;
     const double vy = (pos[i].y - o.y) * inv.y;
     const double vz = (pos[i].z - o.z) * inv.z;
@@ -407,16 +445,16 @@ std::size_t encode_las(const PointCloud& batch, std::size_t first, std::size_t n
     max_x = std::max(max_x, x);
     max_y = std::max(max_y, y);
     max_z = std::max(max_z, z);
-    std::memcpy(dst, blank.data(), L::kLength);
+    std::memset(dst, 0, stride);
     store_le(dst, x);
     store_le(dst + 4, y);
     store_le(dst + 8, z);
     if constexpr (kIntensity) store_le(dst + kIntensityOffset, intensity_level(batch.intensities[first + i]));
     if constexpr (kColors) {
       const Rgb8& c = batch.colors[first + i];
-      store_le(dst + L::kRgb, wide_level(c.r));
-      store_le(dst + L::kRgb + 2, wide_level(c.g));
-      store_le(dst + L::kRgb + 4, wide_level(c.b));
+      store_le(dst + rgb, wide_level(c.r));
+      store_le(dst + rgb + 2, wide_level(c.g));
+      store_le(dst + rgb + 4, wide_level(c.b));
     }
   }
   b.min = {min_x, min_y, min_z};
@@ -424,15 +462,138 @@ std::size_t encode_las(const PointCloud& batch, std::size_t first, std::size_t n
   return i;
 }
 
-using EncodeFn = std::size_t (*)(const PointCloud&, std::size_t, std::size_t, const Quantizer&,
-                                 const RecordTemplate&, std::uint8_t*, IntBounds&);
+using EncodeFn = std::size_t (*)(const PointCloud&, std::size_t, std::size_t, const Quantizer&, const RecordPlan&,
+                                 std::uint8_t*, IntBounds&);
 
-template <bool kExtended>
 EncodeFn pick_encoder(bool colors, bool intensity) {
-  if (colors) {
-    return intensity ? &encode_las<kExtended, true, true> : &encode_las<kExtended, true, false>;
+  if (colors) return intensity ? &encode_las<true, true> : &encode_las<true, false>;
+  return intensity ? &encode_las<false, true> : &encode_las<false, false>;
+}
+
+// A scan angle in thousandths of a degree as `unit`s, rounded half away from
+// zero and clamped to the field (exact when it is a multiple of the unit).
+template <typename T>
+T scan_angle_field(std::int32_t millidegrees, std::int32_t unit) {
+  const std::int64_t m = millidegrees;
+  const std::int64_t q = (m >= 0 ? m + unit / 2 : m - unit / 2) / unit;
+  return static_cast<T>(std::clamp<std::int64_t>(q, std::numeric_limits<T>::min(), std::numeric_limits<T>::max()));
+}
+
+// Writes the LAS attributes of points [first, first + n) into records the
+// encoder made; counts points by return (index return number - 1). Returns
+// n, or the index (from first) of the first point whose values the format
+// cannot hold, with `why` saying which.
+std::size_t encode_attributes(const PointCloud& batch, std::size_t first, std::size_t n, const RecordPlan& plan,
+                              std::uint8_t* dst, std::vector<std::uint64_t>& by_return, std::string& why) {
+  const LasAttributes& a = batch.las;
+  const std::uint32_t bits = plan.attributes;
+  const auto has = [bits](std::uint32_t bit) { return (bits & bit) != 0; };
+  const std::size_t stride = plan.length;
+  for (std::size_t i = 0; i < n; ++i, dst += stride) {
+    const std::size_t k = first + i;
+    const std::uint8_t cls = has(kLasClassification) ? a.classification[k] : 0;
+    const std::uint8_t flags = has(kLasClassFlags) ? a.class_flags[k] : 0;
+    const std::uint8_t ret = has(kLasReturnNumber) ? a.return_number[k] : 1;
+    const std::uint8_t nret = has(kLasNumberOfReturns) ? a.number_of_returns[k] : 1;
+    const std::uint8_t scan = has(kLasScanFlags) ? a.scan_flags[k] : 0;
+    const std::int32_t angle = has(kLasScanAngle) ? a.scan_angle[k] : 0;
+    const std::uint8_t user = has(kLasUserData) ? a.user_data[k] : 0;
+    const std::uint16_t source = has(kLasPointSourceId) ? a.point_source_id[k] : 0;
+    if (plan.extended) {
+      if (ret > kExtendedMaxReturn || nret > kExtendedMaxReturn || flags > 0x0F || scan > 0x0F) {
+        why = "has return " + std::to_string(ret) + " of " + std::to_string(nret) + ", classification flags " +
+              std::to_string(flags) + " or scan flags " + std::to_string(scan) + " beyond LAS 1.4's fields";
+        return i;
+      }
+      dst[14] = static_cast<std::uint8_t>(ret | (nret << 4));
+      dst[15] = static_cast<std::uint8_t>(flags | ((scan >> 2) << 4) | ((scan & 0x03) << 6));
+      dst[16] = cls;
+      dst[17] = user;
+      store_le(dst + 18, scan_angle_field<std::int16_t>(angle, kExtendedScanAngleUnit));
+      store_le(dst + 20, source);
+    } else {
+      if (cls > kLegacyMaxClass || ret > kLegacyMaxReturn || nret > kLegacyMaxReturn ||
+          (flags & kOverlapFlag) != 0 || flags > 0x0F || (scan & kScannerChannelBits) != 0 || scan > 0x0F) {
+        why = "has classification " + std::to_string(cls) + ", return " + std::to_string(ret) + " of " +
+              std::to_string(nret) + ", classification flags " + std::to_string(flags) + " or scan flags " +
+              std::to_string(scan) + ", which legacy LAS point formats 0-5 cannot hold";
+        return i;
+      }
+      dst[14] = static_cast<std::uint8_t>(ret | (nret << 3) | (scan << 6));
+      dst[15] = static_cast<std::uint8_t>(cls | (flags << 5));
+      dst[16] = static_cast<std::uint8_t>(scan_angle_field<std::int8_t>(angle, kLegacyScanAngleUnit));
+      dst[17] = user;
+      store_le(dst + 18, source);
+    }
+    if (ret >= 1 && ret <= by_return.size()) ++by_return[ret - 1];
+    if (plan.gps != 0 && has(kLasGpsTime)) store_le(dst + plan.gps, a.gps_time[k]);
+    if (plan.nir != 0 && has(kLasNir)) store_le(dst + plan.nir, a.nir[k]);
+    if (plan.rgb != 0 && plan.colors_8bit) {
+      const Rgb8& c = batch.colors[k];
+      store_le(dst + plan.rgb, std::uint16_t{c.r});
+      store_le(dst + plan.rgb + 2, std::uint16_t{c.g});
+      store_le(dst + plan.rgb + 4, std::uint16_t{c.b});
+    } else if (plan.rgb != 0 && has(kLasColorLow)) {
+      const Rgb8& c = batch.colors[k];
+      const Rgb8& l = a.color_low[k];
+      store_le(dst + plan.rgb, static_cast<std::uint16_t>((c.r << 8) | l.r));
+      store_le(dst + plan.rgb + 2, static_cast<std::uint16_t>((c.g << 8) | l.g));
+      store_le(dst + plan.rgb + 4, static_cast<std::uint16_t>((c.b << 8) | l.b));
+    }
+    if (plan.extra_size != 0 && has(kLasExtraBytes)) {
+      std::memcpy(dst + plan.extra, a.extra_bytes.data() + k * plan.extra_size, plan.extra_size);
+    }
   }
-  return intensity ? &encode_las<kExtended, false, true> : &encode_las<kExtended, false, false>;
+  return n;
+}
+
+// The point format and record layout for `options` (see the top of the file).
+RecordPlan plan_records(const WriterOptions& options, bool wkt, bool laz) {
+  RecordPlan plan;
+  const std::uint32_t bits = options.las_attributes;
+  const bool nir = (bits & kLasNir) != 0;
+  const bool gps = (bits & kLasGpsTime) != 0;
+  // A legacy source with a WKT CRS keeps its format in LAS 1.4 (1.4 allows
+  // WKT with formats 0-5); without a source, a .las takes 6/7 as before.
+  // LAS attributes without a LAS source (a CSV classification column, a
+  // cloud made in code) may hold values only 1.4 formats can: 6-8 then.
+  const bool no_source = options.las_point_format < 0;
+  plan.extended = options.las_point_format >= 6 || nir || (wkt && !laz && no_source) || (no_source && bits != 0);
+  plan.attributes = bits;
+  plan.colors_8bit = options.las_colors_8bit && options.colors;
+  plan.extra_size = (bits & kLasExtraBytes) != 0 ? options.extra_bytes_size : 0;
+  std::size_t base = 0;
+  if (plan.extended) {
+    plan.gps = 22;
+    if (nir) {
+      base = 38;
+      plan.rgb = 30;
+      plan.nir = 36;
+    } else if (options.colors) {
+      base = 36;
+      plan.rgb = 30;
+    } else {
+      base = 30;
+    }
+  } else {
+    base = 20;
+    if (gps) {
+      plan.gps = 20;
+      base = 28;
+    }
+    if (options.colors) {
+      plan.rgb = base;
+      base += 6;
+    }
+  }
+  plan.extra = base;
+  plan.length = base + plan.extra_size;
+  return plan;
+}
+
+int format_of(const RecordPlan& plan) {
+  if (plan.extended) return plan.nir != 0 ? 8 : plan.rgb != 0 ? 7 : 6;
+  return (plan.gps != 0 ? 1 : 0) + (plan.rgb != 0 ? 2 : 0);
 }
 
 // ---------------------------------------------------------------- writer
@@ -441,20 +602,14 @@ class LasStreamWriter final : public StreamPointWriter {
  public:
   LasStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options, CrsPlan crs, bool laz)
       : StreamPointWriter(std::move(out), options), crs_(std::move(crs)), laz_(laz) {
-    extended_ = crs_.wkt;
+    plan_ = plan_records(options, crs_.wkt, laz_);
+    extended_ = crs_.wkt || plan_.extended;
     minor_ = extended_ ? 4 : 2;
-    // LAZ keeps the legacy formats (which LAS 1.4 allows with a WKT CRS):
-    // only those are compressed here.
-    const bool point14 = extended_ && !laz_;
-    format_ = static_cast<std::uint8_t>(point14 ? (options.colors ? 7 : 6) : (options.colors ? 2 : 0));
-    record_length_ = static_cast<std::uint16_t>(point14 ? (options.colors ? 36 : 30)
-                                                         : (options.colors ? 26 : 20));
+    format_ = static_cast<std::uint8_t>(format_of(plan_));
+    record_length_ = static_cast<std::uint16_t>(plan_.length);
     header_size_ = extended_ ? kHeaderSize14 : kHeaderSize12;
-    // Return number 1 of 1: bits 0-2 and 3-5 of byte 14 in the legacy
-    // formats, bits 0-3 and 4-7 in formats 6-10.
-    blank_[14] = point14 ? 0x11 : 0x09;
-    encode_ = point14 ? pick_encoder<true>(options.colors, options.intensity)
-                        : pick_encoder<false>(options.colors, options.intensity);
+    by_return_.assign(extended_ ? kExtendedReturnCounts : kLegacyReturnCounts, 0);
+    encode_ = pick_encoder(options.colors, options.intensity);
     const std::time_t now = std::time(nullptr);
     std::tm utc{};
     if (::gmtime_r(&now, &utc) != nullptr) {
@@ -466,6 +621,22 @@ class LasStreamWriter final : public StreamPointWriter {
   // Chooses scale and offset now when the extent is known, and writes the
   // provisional header and the VLRs.
   Status start() {
+    if (options_.las_attributes & ~kKnownAttributes) {
+      return invalid_argument(out_->path() + ": unknown LAS attribute bits " + std::to_string(options_.las_attributes));
+    }
+    if (record_length_ != plan_.length) {
+      return invalid_argument(out_->path() + ": " + std::to_string(plan_.extra_size) +
+                              " extra bytes per point do not fit a LAS record");
+    }
+    if (!options_.extra_bytes_vlr.empty()) {
+      if (options_.extra_bytes_vlr.size() > kMaxVlrPayload) {
+        return invalid_argument(out_->path() + ": the Extra Bytes VLR (" +
+                                std::to_string(options_.extra_bytes_vlr.size()) + " bytes) is too large for a VLR");
+      }
+      const std::span<const std::uint8_t> vlr(reinterpret_cast<const std::uint8_t*>(options_.extra_bytes_vlr.data()),
+                                              options_.extra_bytes_vlr.size());
+      RELIEF_RETURN_IF_ERROR(parse_extra_bytes_vlr(vlr, plan_.extra_size, out_->path()).status());
+    }
     if (!options_.expected_bounds.empty()) RELIEF_RETURN_IF_ERROR(place(options_.expected_bounds, true));
     if (laz_) {
       RELIEF_ASSIGN_OR_RETURN(compressor_, laz::PointCompressor::create(format_, record_length_,
@@ -492,6 +663,7 @@ class LasStreamWriter final : public StreamPointWriter {
       return limit_exceeded(out_->path() + ": a LAS 1.2 file holds at most 4294967295 points");
     }
     if (!placed_) RELIEF_RETURN_IF_ERROR(place_from(batch));
+    RELIEF_RETURN_IF_ERROR(check_attributes(batch));
     if (options_.intensity && unit_intensity_ &&
         !std::all_of(batch.intensities.begin(), batch.intensities.end(), in_unit_range)) {
       if (laz_ && points_written() > 0) {
@@ -508,14 +680,18 @@ class LasStreamWriter final : public StreamPointWriter {
       std::span<std::uint8_t> room;
       RELIEF_RETURN_IF_ERROR(out_->room(record_length_, room));
       const std::size_t k = std::min(n - i, room.size() / record_length_);
-      const std::size_t done = encode_(batch, i, k, q_, blank_, room.data(), bounds_);
+      std::size_t done = encode_(batch, i, k, q_, plan_, room.data(), bounds_);
       if (options_.intensity && unit_intensity_) {
         for (std::size_t j = 0; j < done; ++j) {
           store_le(room.data() + j * record_length_ + kIntensityOffset,
                    unit_intensity_level(batch.intensities[i + j]));
         }
       }
+      const std::size_t coded = done;
+      std::string why;
+      done = encode_attributes(batch, i, coded, plan_, room.data(), by_return_, why);
       out_->advance(done * record_length_);
+      if (done < coded) return point_error(points_written() + i + done, why);
       if (done < k) return out_of_range(batch, i + done);
       i += k;
     }
@@ -581,18 +757,56 @@ class LasStreamWriter final : public StreamPointWriter {
     while (i < n) {
       const std::size_t k = std::min(n - i, kStagingRecords);
       staging_.resize(k * record_length_);
-      const std::size_t done = encode_(batch, i, k, q_, blank_, staging_.data(), bounds_);
+      std::size_t done = encode_(batch, i, k, q_, plan_, staging_.data(), bounds_);
       if (options_.intensity && unit_intensity_) {
         for (std::size_t j = 0; j < done; ++j) {
           store_le(staging_.data() + j * record_length_ + kIntensityOffset,
                    unit_intensity_level(batch.intensities[i + j]));
         }
       }
+      const std::size_t coded = done;
+      std::string why;
+      done = encode_attributes(batch, i, coded, plan_, staging_.data(), by_return_, why);
       compressed_.clear();
       compressor_->add(staging_.data(), done, compressed_);
       RELIEF_RETURN_IF_ERROR(out_->append(compressed_.data(), compressed_.size()));
+      if (done < coded) return point_error(points_written() + i + done, why);
       if (done < k) return out_of_range(batch, i + done);
       i += k;
+    }
+    return Status::ok();
+  }
+
+  // Every LAS attribute the options name, one value per point.
+  Status check_attributes(const PointCloud& batch) const {
+    const std::uint32_t carried = batch.las.carried();
+    if (carried != options_.las_attributes ||
+        ((carried & kLasExtraBytes) != 0 && batch.las.extra_bytes_size != plan_.extra_size)) {
+      return invalid_argument(out_->path() + ": a batch carries LAS attributes " + std::to_string(carried) +
+                              " (" + std::to_string(batch.las.extra_bytes_size) +
+                              " extra bytes) but the writer was opened with " +
+                              std::to_string(options_.las_attributes) + " (" + std::to_string(plan_.extra_size) +
+                              ")");
+    }
+    if (carried == 0) return Status::ok();
+    // Sizes only: coordinates are checked as they are encoded.
+    const LasAttributes& a = batch.las;
+    const std::size_t n = batch.size();
+    for (const std::size_t have :
+         {a.classification.size(), a.class_flags.size(), a.return_number.size(), a.number_of_returns.size(),
+          a.scan_flags.size(), a.scan_angle.size(), a.user_data.size(), a.point_source_id.size(), a.gps_time.size(),
+          a.nir.size(), a.color_low.size()}) {
+      if (have != 0 && have != n) {
+        return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) + " points has " +
+                                std::to_string(have) + " values of a LAS attribute");
+      }
+    }
+    if (!a.color_low.empty() && batch.colors.size() != n) {
+      return invalid_argument(out_->path() + ": colour low bytes without colours");
+    }
+    if (!a.extra_bytes.empty() && a.extra_bytes.size() != n * std::size_t{a.extra_bytes_size}) {
+      return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) + " points has " +
+                              std::to_string(a.extra_bytes.size()) + " extra bytes");
     }
     return Status::ok();
   }
@@ -601,6 +815,12 @@ class LasStreamWriter final : public StreamPointWriter {
     if (laz_) {
       append_vlr(vlrs_, laz::kVlrRecordId, "Relief LAZ (LASzip compatible)", compressor_->vlr_payload(),
                  laz::kVlrUserId);
+      ++vlr_count_;
+    }
+    if (!options_.extra_bytes_vlr.empty() && plan_.extra_size != 0) {
+      const std::span<const std::uint8_t> vlr(reinterpret_cast<const std::uint8_t*>(options_.extra_bytes_vlr.data()),
+                                              options_.extra_bytes_vlr.size());
+      append_vlr(vlrs_, kExtraBytesRecordId, "Extra Bytes", vlr, kSpecUserId);
       ++vlr_count_;
     }
     if (crs_.wkt) {
@@ -735,7 +955,8 @@ class LasStreamWriter final : public StreamPointWriter {
     std::uint8_t* p = h.data();
     std::memcpy(p, "LASF", 4);
     // 4: file source id 0; 8-23: GUID all zero.
-    store_le(p + 6, static_cast<std::uint16_t>(crs_.wkt ? kWktGlobalEncodingBit : 0));
+    store_le(p + 6, static_cast<std::uint16_t>((crs_.wkt ? kWktGlobalEncodingBit : 0) |
+                                               (format_ >= 6 ? kStandardGpsTimeBit : 0)));
     p[24] = 1;
     p[25] = minor_;
     put_field(p + 26, kSystemIdentifier, 32);
@@ -753,7 +974,10 @@ class LasStreamWriter final : public StreamPointWriter {
     const bool legacy = format_ < 6 && n <= std::numeric_limits<std::uint32_t>::max();
     const auto legacy_count = static_cast<std::uint32_t>(legacy ? n : 0);
     store_le(p + 107, legacy_count);
-    store_le(p + 111, legacy_count);  // every point is return 1; returns 2-5 stay 0
+    // Points by return: 5 legacy counts, 15 in LAS 1.4 (return 0 counts nowhere).
+    for (std::size_t r = 0; r < kLegacyReturnCounts; ++r) {
+      store_le(p + 111 + 4 * r, static_cast<std::uint32_t>(legacy ? by_return_[r] : 0));
+    }
     for (int a = 0; a < 3; ++a) {
       const auto k = static_cast<std::size_t>(8 * a);
       store_le(p + 131 + k, axis(q_.scale, a));
@@ -774,7 +998,9 @@ class LasStreamWriter final : public StreamPointWriter {
       store_le(p + 235, evlr_start_);
       store_le<std::uint32_t>(p + 243, evlr_wkt_ ? 1 : 0);
       store_le(p + 247, n);
-      store_le(p + 255, n);  // points by return 1 of 15
+      for (std::size_t r = 0; r < kExtendedReturnCounts; ++r) {
+        store_le(p + 255 + 8 * r, static_cast<std::uint64_t>(r < by_return_.size() ? by_return_[r] : 0));
+      }
     }
     return h;
   }
@@ -784,7 +1010,7 @@ class LasStreamWriter final : public StreamPointWriter {
   std::unique_ptr<laz::PointCompressor> compressor_;
   std::vector<std::uint8_t> staging_;     // LAZ: uncompressed records of one step
   std::vector<std::uint8_t> compressed_;  // LAZ: chunks completed by one step
-  bool extended_ = false;  // LAS 1.4, formats 6/7
+  bool extended_ = false;  // LAS 1.4
   std::uint8_t minor_ = 2;
   std::uint8_t format_ = 0;
   std::uint16_t record_length_ = 0;
@@ -795,7 +1021,8 @@ class LasStreamWriter final : public StreamPointWriter {
   std::uint32_t vlr_count_ = 0;
   bool evlr_wkt_ = false;
   std::uint64_t evlr_start_ = 0;
-  RecordTemplate blank_{};
+  RecordPlan plan_;
+  std::vector<std::uint64_t> by_return_;  // points by return number 1..5 (legacy) or 1..15
   EncodeFn encode_ = nullptr;
   bool unit_intensity_ = true;     // every intensity so far in [0, 1]
   std::uint64_t unit_records_ = 0;  // records to rewrite when that ended

@@ -30,6 +30,7 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
       RELIEF_ASSIGN_OR_RETURN(const std::uint16_t max, probe->sample_max_level(sample));
       color_shift_ = color_shift_for(max);
       shift_known_ = true;
+      info_.las_colors_8bit = color_low_ && color_shift_ == 0;
       return read_into(batch, nullptr, 0, max_points);
     }
   }
@@ -39,8 +40,16 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
   const auto sampled = static_cast<std::size_t>(std::min<std::uint64_t>(n, sample));
   color_shift_ = color_shift_for(max_level(wide.data(), 3 * sampled));
   shift_known_ = true;
+  info_.las_colors_8bit = color_low_ && color_shift_ == 0;
   batch.colors.resize(n);
   narrow_colors(wide.data(), n, color_shift_, batch.colors.data());
+  if (color_low_) {
+    batch.las.color_low.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      batch.las.color_low[i] = Rgb8{low_level(wide[3 * i], color_shift_), low_level(wide[3 * i + 1], color_shift_),
+                                    low_level(wide[3 * i + 2], color_shift_)};
+    }
+  }
   return n;
 }
 

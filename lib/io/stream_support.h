@@ -74,6 +74,15 @@ inline std::uint8_t narrow_level(std::uint16_t v, int shift) {
   return static_cast<std::uint8_t>(std::min(v >> shift, 255));
 }
 
+// The low byte kept beside a narrowed LAS colour (LasAttributes::color_low),
+// so that (narrow << 8) | low gives the 16-bit level back: with shift 8 the
+// level's own low byte (exact), with shift 0 (8-bit levels stored in the
+// 16-bit fields) the narrowed level itself, so the level comes back as
+// v * 257, the standard 8- to 16-bit scaling.
+inline std::uint8_t low_level(std::uint16_t v, int shift) {
+  return shift != 0 ? static_cast<std::uint8_t>(v & 0xFF) : narrow_level(v, 0);
+}
+
 inline std::uint16_t max_level(const std::uint16_t* levels, std::size_t count) {
   std::uint16_t m = 0;
   for (std::size_t i = 0; i < count; ++i) m = std::max(m, levels[i]);
@@ -111,6 +120,7 @@ class BatchPointReader : public PointReader {
 
   PointStreamInfo info_;
   bool wide_colors_ = false;  // colours need the 16-bit rule
+  bool color_low_ = false;    // also fill las.color_low (LAS colours, low_level)
   int color_shift_ = 0;       // valid once decided
 
  private:

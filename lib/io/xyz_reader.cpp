@@ -6,8 +6,10 @@
 // number, or else the last comment line before the data (CloudCompare writes
 // "//X,Y,Z,R,G,B") when it names x, y and z. Names match in any case, with
 // quotes and a leading '#' or "//" removed: x y z; red green blue (or r g b,
-// diffuse_red ...); intensity (or i, reflectance, scalar_intensity). Other
-// names (classification, normals, time ...) are skipped columns. A header
+// diffuse_red ...); intensity (or i, reflectance, scalar_intensity);
+// classification (or class, scalar_classification: LAS classes 0..255, into
+// PointCloud::las.classification). Other names (normals, time ...) are
+// skipped columns. A header
 // that does not name x, y and z leaves the columns at x y z.
 //
 // Colour levels may be 8- or 16-bit: text declares no type, so the file-wide
@@ -53,18 +55,22 @@ namespace {
 // A point line is short; a line this long is not one (binary junk, say).
 constexpr std::size_t kMaxLine = std::size_t{1} << 20;
 
-enum class Role : std::uint8_t { kSkip, kX, kY, kZ, kRed, kGreen, kBlue, kIntensity };
+enum class Role : std::uint8_t { kSkip, kX, kY, kZ, kRed, kGreen, kBlue, kIntensity, kClass };
+constexpr std::size_t kRoleCount = 9;
+// Classification values are LAS classes, 0..255.
+constexpr double kMaxClass = 255;
 
 struct ColumnPlan {
   std::vector<Role> roles;  // up to the last used column
   bool colors = false;
   bool intensity = false;
+  bool classification = false;
 };
 
 Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& name) {
   const std::string where = name + ": column spec '" + spec + "': ";
   ColumnPlan plan;
-  std::array<int, 8> seen{};
+  std::array<int, kRoleCount> seen{};
   std::size_t pos = 0;
   for (;;) {
     const std::size_t comma = std::min(spec.find(',', pos), spec.size());
@@ -86,9 +92,11 @@ Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& nam
       role = Role::kBlue;
     } else if (tok == "i" || tok == "I") {
       role = Role::kIntensity;
+    } else if (tok == "c" || tok == "C") {
+      role = Role::kClass;
     } else if (tok != "_") {
       return invalid_argument(where + "unknown column " + quoted(tok) +
-                              " (use x y z r g b i or _, comma separated)");
+                              " (use x y z r g b i c or _, comma separated)");
     }
     if (role != Role::kSkip && ++seen[static_cast<std::size_t>(role)] > 1) {
       return invalid_argument(where + "column " + quoted(tok) + " appears twice");
@@ -106,6 +114,7 @@ Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& nam
   if (rgb != 0 && rgb != 3) return invalid_argument(where + "r, g and b go together (all or none)");
   plan.colors = rgb == 3;
   plan.intensity = has(Role::kIntensity);
+  plan.classification = has(Role::kClass);
   while (plan.roles.back() == Role::kSkip) plan.roles.pop_back();  // x is there, so this stops
   return plan;
 }
@@ -124,6 +133,7 @@ std::optional<Role> role_of_name(std::string_view name) {
   if (n == "green" || n == "g" || n == "diffuse_green") return Role::kGreen;
   if (n == "blue" || n == "b" || n == "diffuse_blue") return Role::kBlue;
   if (n == "intensity" || n == "i" || n == "reflectance" || n == "scalar_intensity") return Role::kIntensity;
+  if (n == "classification" || n == "class" || n == "scalar_classification") return Role::kClass;
   return std::nullopt;
 }
 
@@ -131,7 +141,7 @@ std::optional<Role> role_of_name(std::string_view name) {
 // ',' and ';'. A name seen twice keeps its first column.
 std::optional<ColumnPlan> plan_from_header(std::string_view line) {
   ColumnPlan plan;
-  std::array<bool, 8> seen{};
+  std::array<bool, kRoleCount> seen{};
   std::size_t pos = 0;
   while (pos < line.size()) {
     while (pos < line.size() && is_blank(line[pos])) ++pos;
@@ -158,6 +168,7 @@ std::optional<ColumnPlan> plan_from_header(std::string_view line) {
     }
   }
   plan.intensity = has(Role::kIntensity);
+  plan.classification = has(Role::kClass);
   while (plan.roles.back() == Role::kSkip) plan.roles.pop_back();  // x is there, so this stops
   return plan;
 }
@@ -310,13 +321,14 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   }
   info_.has_colors = plan_.colors;
   info_.has_intensity = plan_.intensity;
+  info_.las_attributes = plan_.classification ? std::uint32_t{kLasClassification} : 0u;
   wide_colors_ = plan_.colors;  // levels may be 16-bit (see the top of the file)
   return Status::ok();
 }
 
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                                    std::vector<std::uint16_t>* wide) {
-  double v[8] = {};
+  double v[kRoleCount] = {};
   std::size_t pos = 0;
   while (pos < line.size() && is_blank(line[pos])) ++pos;
   const std::size_t columns = plan_.roles.size();
@@ -368,7 +380,16 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     }
     intensity = static_cast<float>(raw);
   }
+  std::uint8_t cls = 0;
+  if (plan_.classification) {
+    const double raw = v[static_cast<std::size_t>(Role::kClass)];
+    if (!(raw >= 0 && raw <= kMaxClass) || raw != std::floor(raw)) {
+      return line_error(line_no, "classification " + format_double(raw) + " is not a whole number from 0 to 255");
+    }
+    cls = static_cast<std::uint8_t>(raw);
+  }
   out.positions.push_back(p);
+  if (plan_.classification) out.las.classification.push_back(cls);
   if (plan_.colors) {
     if (wide != nullptr) {
       wide->insert(wide->end(), levels, levels + 3);
@@ -387,6 +408,7 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
   out.positions.resize(at);
   out.colors.resize(plan_.colors && !to_wide ? at : 0);
   out.intensities.resize(plan_.intensity ? at : 0);
+  out.las.classification.resize(plan_.classification ? at : 0);
   if (to_wide) wide->resize(3 * at);
   std::vector<std::uint16_t>* levels = to_wide ? wide : nullptr;
   std::size_t got = 0;

@@ -1,5 +1,6 @@
 // Box queries over an archive: index lookup, blob reads with checksum, parallel
 // decode at the requested level of detail, clipping, in-order delivery.
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -28,7 +29,70 @@ std::string chunk_name(const ChunkRef& r) {
          ") seq " + std::to_string(r.seq) + " (id " + std::to_string(r.id) + ")";
 }
 
+bool inside(const Vec3d& p, const Box3d& box) {
+  return !(p.x < box.min.x || p.x > box.max.x || p.y < box.min.y || p.y > box.max.y || p.z < box.min.z ||
+           p.z > box.max.z);
+}
+
+// The LAS filters of QueryOptions, checked against what the archive carries.
+struct LasFilter {
+  std::array<bool, 256> classes{};
+  bool by_class = false;
+  bool first = false;
+  bool last = false;
+  bool any() const { return by_class || first || last; }
+  bool pass(const LasAttributes& a, std::size_t i) const {
+    if (by_class && !classes[a.classification[i]]) return false;
+    if (first && a.return_number[i] != 1) return false;
+    if (last && a.return_number[i] != a.number_of_returns[i]) return false;
+    return true;
+  }
+};
+
+Result<LasFilter> make_filter(const QueryOptions& o, const ArchiveInfo& info, const std::string& path) {
+  LasFilter f;
+  const auto need = [&](std::uint32_t bits, const char* what, const char* filter) -> Status {
+    if ((info.las_attributes & bits) == bits) return Status::ok();
+    return invalid_argument(path + ": " + filter + " needs " + what +
+                            ", which this archive does not carry (it keeps LAS attributes only from LAS/LAZ "
+                            "sources, in the error-bounded mode)");
+  };
+  if (!o.classes.empty()) {
+    RELIEF_RETURN_IF_ERROR(need(kLasClassification, "the LAS classification", "--class"));
+    f.by_class = true;
+    for (const std::uint8_t c : o.classes) f.classes[c] = true;
+  }
+  if (o.first_returns) {
+    RELIEF_RETURN_IF_ERROR(need(kLasReturnNumber, "return numbers", "--first-returns"));
+    f.first = true;
+  }
+  if (o.last_returns) {
+    RELIEF_RETURN_IF_ERROR(
+        need(kLasReturnNumber | kLasNumberOfReturns, "return numbers and numbers of returns", "--last-returns"));
+    f.last = true;
+  }
+  return f;
+}
+
+// Keeps the points inside `box` that pass `filter`, then with `every` > 1
+// every every-th of them (a level of detail taken after filtering).
+void select(PointCloud& cloud, const Box3d& box, bool clip_box, const LasFilter& filter, std::uint32_t every) {
+  std::vector<std::uint32_t> order;
+  order.reserve(cloud.size());
+  std::uint64_t matched = 0;
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (clip_box && !inside(cloud.positions[i], box)) continue;
+    if (!filter.pass(cloud.las, i)) continue;
+    if (matched++ % every == 0) order.push_back(static_cast<std::uint32_t>(i));
+  }
+  if (order.size() != cloud.size()) cloud = cloud.gathered(order);
+}
+
 void clip(PointCloud& cloud, const Box3d& box) {
+  if (!cloud.las.empty()) {
+    select(cloud, box, true, LasFilter{}, 1);
+    return;
+  }
   std::size_t kept = 0;
   const bool colors = cloud.has_colors(), intensity = cloud.has_intensity();
   for (std::size_t i = 0; i < cloud.size(); ++i) {
@@ -82,8 +146,12 @@ class Reader final : public ArchiveReader {
     stats.chunks_in_index = refs.size();
     const unsigned threads = resolve_threads(options.threads);
     const std::size_t wave = static_cast<std::size_t>(threads) * kChunksPerThreadPerWave;
+    RELIEF_ASSIGN_OR_RETURN(const LasFilter filter, make_filter(options, info_, archive_->path()));
     DecodeOptions dec;
-    dec.lod = options.lod;
+    // A filter needs every point's LAS attributes: the full layer, with the
+    // level of detail applied to the matching points here.
+    dec.lod = filter.any() ? 1 : options.lod;
+    const std::uint32_t every = filter.any() ? options.lod : 1;
 
     struct Slot {
       ChunkRef ref;
@@ -118,7 +186,14 @@ class Reader final : public ArchiveReader {
             continue;
           }
           s.points = std::move(pts).value();
-          if (!contains(box, s.ref.bounds)) clip(s.points, box);
+          // Every batch carries the archive's LAS attributes, whatever the
+          // chunk's scan or layer had.
+          conform_las_attributes(s.points, info_.las_attributes, info_.extra_bytes_size);
+          if (filter.any()) {
+            select(s.points, box, !contains(box, s.ref.bounds), filter, every);
+          } else if (!contains(box, s.ref.bounds)) {
+            clip(s.points, box);
+          }
         }
       };
       // This thread decodes too; the others join it for the wave.

@@ -4,9 +4,12 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <span>
+#include <vector>
 #include <string_view>
 
 #include "relief/crs.h"
+#include "relief/io.h"
 #include "relief/query.h"
 
 namespace relief {
@@ -175,12 +178,47 @@ std::string json_crs(const std::string& crs) {
 
 std::string json_attributes(const ArchiveInfo& i) {
   std::string a = "[";
-  if (i.has_colors) a += "\"rgb\"";
-  if (i.has_intensity) a += i.has_colors ? ", \"intensity\"" : "\"intensity\"";
+  for (const std::string& name : archive_attribute_names(i)) a += (a.size() > 1 ? ", " : "") + json_string(name);
   return a + "]";
 }
 
+// The LAS source: point format, version, extra bytes and their typed fields
+// (null when the archive has no LAS attributes).
+std::string json_las(const ArchiveInfo& i) {
+  if (i.las_point_format < 0) return "null";
+  std::string out = "{\"point_format\": " + std::to_string(i.las_point_format) +
+                    ", \"version\": " + json_string("1." + std::to_string(i.las_version_minor)) +
+                    ", \"extra_bytes_per_point\": " + std::to_string(i.extra_bytes_size) + ", \"extra_bytes\": [";
+  bool first = true;
+  for (const ExtraBytesField& f : archive_extra_bytes_fields(i)) {
+    out += std::string(first ? "" : ", ") + "{\"name\": " + json_string(f.name) + ", \"type\": " +
+           json_string(f.type_name) + ", \"offset\": " + std::to_string(f.offset) + ", \"size\": " +
+           std::to_string(f.size) + ", \"scale\": " + json_number(f.scale) + ", \"value_offset\": " +
+           json_number(f.value_offset) + ", \"description\": " + json_string(f.description) + "}";
+    first = false;
+  }
+  return out + "]}";
+}
+
 }  // namespace
+
+std::vector<std::string> archive_attribute_names(const ArchiveInfo& i) {
+  std::vector<std::string> names;
+  if (i.has_colors) names.push_back("rgb");
+  if (i.has_intensity) names.push_back("intensity");
+  for (std::uint32_t b = 0; b < kLasAttributeCount; ++b) {
+    if ((i.las_attributes & (1u << b)) != 0) names.push_back(kLasAttributeNames[b]);
+  }
+  return names;
+}
+
+std::vector<ExtraBytesField> archive_extra_bytes_fields(const ArchiveInfo& i) {
+  if (i.extra_bytes_vlr.empty()) return {};
+  const std::span<const std::uint8_t> vlr(reinterpret_cast<const std::uint8_t*>(i.extra_bytes_vlr.data()),
+                                          i.extra_bytes_vlr.size());
+  Result<std::vector<ExtraBytesField>> fields = parse_extra_bytes_vlr(vlr, i.extra_bytes_size, "archive");
+  return fields ? *fields : std::vector<ExtraBytesField>{};
+}
 
 std::string archive_info_json(const ArchiveInfo& i, const std::string& path) {
   const double bpp = i.input_points > 0
@@ -210,6 +248,7 @@ std::string archive_info_json(const ArchiveInfo& i, const std::string& path) {
   appendf(out, "  \"blob_bytes\": %llu,\n", static_cast<unsigned long long>(i.blob_bytes));
   appendf(out, "  \"bits_per_point\": %s,\n", json_number(bpp).c_str());
   appendf(out, "  \"attributes\": %s,\n", json_attributes(i).c_str());
+  appendf(out, "  \"las\": %s,\n", json_las(i).c_str());
   appendf(out, "  \"crs\": %s,\n", json_crs(i.crs).c_str());
   appendf(out, "  \"creator\": %s,\n", json_string(i.creator).c_str());
   appendf(out, "  \"sources\": [");

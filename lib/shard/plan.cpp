@@ -60,6 +60,17 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
   }
   RELIEF_RETURN_IF_ERROR(validate_build_options(o));
   RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, o.reader, o.assume_crs));
+  // Partition files (format-spec/shard.md, version 1) hold positions, colours
+  // and intensities only: refuse rather than drop a survey's LAS attributes.
+  if (in.las_attributes != 0) {
+    for (const auto& reader : in.readers) {
+      if (reader->info().las_attributes != 0) {
+        return unsupported(reader->info().path +
+                           ": carries per-point LAS attributes (classification, returns, GPS time...), which a "
+                           "sharded build does not carry yet; use relief compress");
+      }
+    }
+  }
   PointCloud first;
   OrderFreeSample sample;
   RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, o, in, first, &sample));

@@ -86,6 +86,38 @@ std::string key_text(const ChunkKey& key) {
   return text;
 }
 
+// Bytes as lower-case hexadecimal (binary metadata values) and back.
+std::string hex_bytes(const std::string& bytes) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(2 * bytes.size());
+  for (const char c : bytes) {
+    const auto b = static_cast<unsigned char>(c);
+    out += kDigits[b >> 4];
+    out += kDigits[b & 15];
+  }
+  return out;
+}
+
+std::optional<std::string> bytes_from_hex(const std::string& hex) {
+  if (hex.size() % 2 != 0) return std::nullopt;
+  const auto digit = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+  };
+  std::string out;
+  out.reserve(hex.size() / 2);
+  for (std::size_t i = 0; i < hex.size(); i += 2) {
+    const int hi = digit(hex[i]);
+    const int lo = digit(hex[i + 1]);
+    if (hi < 0 || lo < 0) return std::nullopt;
+    out += static_cast<char>((hi << 4) | lo);
+  }
+  return out;
+}
+
 std::string hex32(std::uint32_t value) {
   std::array<char, 16> buffer{};
   std::snprintf(buffer.data(), buffer.size(), "0x%08X", value);
@@ -718,6 +750,9 @@ class SqliteArchive final : public Archive {
   Status require_writable(const char* operation) const;
   Result<std::optional<std::string>> meta_value(const char* key) const;
   Status put_meta(const char* key, const std::string& value);
+  // Adds a scan's LAS attributes to the archive's (ArchiveInfo::las_attributes).
+  Status merge_las_meta(const ScanAttributes& attributes);
+  Status read_las_meta(std::map<std::string, std::string>& meta, ArchiveInfo& info) const;
   Status write_meta_checksum();
   Status upgrade_to_current_version();
   Status check_room(const std::vector<ChunkRow>& rows) const;
@@ -950,6 +985,52 @@ Status SqliteArchive::refresh_scan_summary() {
   return write_meta_checksum();
 }
 
+// The archive's LAS attributes are the union over its scans, kept in
+// relief_meta as each scan begins (an aborted scan may leave the set larger:
+// the extra attributes then read as 0). Extra bytes must be the same
+// (ingest refuses different ones before it gets here).
+Status SqliteArchive::merge_las_meta(const ScanAttributes& a) {
+  if (a.las_attributes == 0 && a.las_point_format < 0) return Status::ok();
+  const auto number = [&](const char* key, long long fallback) -> Result<long long> {
+    RELIEF_ASSIGN_OR_RETURN(std::optional<std::string> v, meta_value(key));
+    if (!v || v->empty()) return fallback;
+    char* end = nullptr;
+    const long long n = std::strtoll(v->c_str(), &end, 10);
+    if (end == v->c_str() || *end != '\0') return format_error(path_ + ": metadata " + key + " is not a number");
+    return n;
+  };
+  RELIEF_ASSIGN_OR_RETURN(std::optional<std::string> names, meta_value(store::kMetaLasAttributes));
+  const std::uint32_t old_bits = names ? las_attributes_from_list(*names) : 0;
+  RELIEF_ASSIGN_OR_RETURN(const long long old_format, number(store::kMetaLasPointFormat, -1));
+  RELIEF_ASSIGN_OR_RETURN(const long long old_minor, number(store::kMetaLasVersionMinor, -1));
+  RELIEF_ASSIGN_OR_RETURN(const long long old_size, number(store::kMetaLasExtraBytesSize, 0));
+  RELIEF_ASSIGN_OR_RETURN(const long long old_8bit, number(store::kMetaLasColors8bit, 0));
+  RELIEF_ASSIGN_OR_RETURN(std::optional<std::string> old_vlr, meta_value(store::kMetaLasExtraBytesVlr));
+  const bool old_extra = (old_bits & kLasExtraBytes) != 0;
+  const bool new_extra = (a.las_attributes & kLasExtraBytes) != 0;
+  const std::string vlr_hex = hex_bytes(a.extra_bytes_vlr);
+  if (old_extra && new_extra && (old_size != a.extra_bytes_size || old_vlr.value_or("") != vlr_hex)) {
+    return invalid_argument(path_ + ": the archive's extra bytes (" + std::to_string(old_size) +
+                            " per point) differ from the new scan's (" + std::to_string(a.extra_bytes_size) +
+                            "), or their Extra Bytes VLRs differ");
+  }
+  // Colour levels: 8-bit only while every LAS source with colours said so.
+  const bool old_rgb = (old_bits & kLasColorLow) != 0;
+  const bool new_rgb = (a.las_attributes & kLasColorLow) != 0;
+  const bool colors_8bit = old_rgb && new_rgb ? (old_8bit != 0 && a.las_colors_8bit)
+                                              : old_rgb ? old_8bit != 0 : a.las_colors_8bit;
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaLasAttributes, las_attribute_list(old_bits | a.las_attributes)));
+  RELIEF_RETURN_IF_ERROR(
+      put_meta(store::kMetaLasPointFormat, std::to_string(std::max<long long>(old_format, a.las_point_format))));
+  RELIEF_RETURN_IF_ERROR(
+      put_meta(store::kMetaLasVersionMinor, std::to_string(std::max<long long>(old_minor, a.las_version_minor))));
+  if (new_extra && !old_extra) {
+    RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaLasExtraBytesSize, std::to_string(a.extra_bytes_size)));
+    RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaLasExtraBytesVlr, vlr_hex));
+  }
+  return put_meta(store::kMetaLasColors8bit, colors_8bit ? "1" : "0");
+}
+
 Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>& sources,
                                                const ScanAttributes& attributes) {
   RELIEF_RETURN_IF_ERROR(require_writable("begin_scan"));
@@ -982,6 +1063,7 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
     insert->bind_text(5, source.crs);
     RELIEF_RETURN_IF_ERROR(insert->run());
   }
+  RELIEF_RETURN_IF_ERROR(merge_las_meta(attributes));
   RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
   RELIEF_RETURN_IF_ERROR(transaction.commit());
   return scan_id;
@@ -1303,6 +1385,39 @@ Result<ChunkRow> SqliteArchive::read_chunk(std::int64_t id) const {
   return row;
 }
 
+// The LAS keys of relief_meta (absent: no LAS attributes). A value that does
+// not parse is damage, named.
+Status SqliteArchive::read_las_meta(std::map<std::string, std::string>& meta, ArchiveInfo& info) const {
+  const auto number = [&](const char* key, long long lo, long long hi, long long fallback) -> Result<long long> {
+    const std::string& v = meta[key];
+    if (v.empty()) return fallback;
+    char* end = nullptr;
+    const long long n = std::strtoll(v.c_str(), &end, 10);
+    if (end == v.c_str() || *end != '\0' || n < lo || n > hi) {
+      return format_error(path_ + ": metadata " + key + " is not a number from " + std::to_string(lo) + " to " +
+                          std::to_string(hi) + ": '" + v + "'");
+    }
+    return n;
+  };
+  info.las_attributes = las_attributes_from_list(meta[store::kMetaLasAttributes]);
+  RELIEF_ASSIGN_OR_RETURN(const long long format, number(store::kMetaLasPointFormat, -1, 10, -1));
+  RELIEF_ASSIGN_OR_RETURN(const long long minor, number(store::kMetaLasVersionMinor, -1, 255, -1));
+  RELIEF_ASSIGN_OR_RETURN(const long long size, number(store::kMetaLasExtraBytesSize, 0, 65535, 0));
+  RELIEF_ASSIGN_OR_RETURN(const long long colors_8bit, number(store::kMetaLasColors8bit, 0, 1, 0));
+  info.las_point_format = static_cast<int>(format);
+  info.las_version_minor = static_cast<int>(minor);
+  info.extra_bytes_size = static_cast<std::uint32_t>(size);
+  info.las_colors_8bit = colors_8bit != 0;
+  const std::optional<std::string> vlr = bytes_from_hex(meta[store::kMetaLasExtraBytesVlr]);
+  if (!vlr) return format_error(path_ + ": metadata " + store::kMetaLasExtraBytesVlr + " is not hexadecimal");
+  info.extra_bytes_vlr = *vlr;
+  if ((info.las_attributes & kLasExtraBytes) != 0 && info.extra_bytes_size == 0) {
+    return format_error(path_ + ": metadata names extra bytes but " + store::kMetaLasExtraBytesSize + " is 0");
+  }
+  if ((info.las_attributes & kLasExtraBytes) == 0) info.extra_bytes_size = 0;
+  return Status::ok();
+}
+
 Result<ArchiveInfo> SqliteArchive::info() const {
   ArchiveInfo info;
   info.format_version = format_version_;
@@ -1336,6 +1451,7 @@ Result<ArchiveInfo> SqliteArchive::info() const {
       if (name == store::kAttributeIntensity) info.has_intensity = true;
       start = end + 1;
     }
+    RELIEF_RETURN_IF_ERROR(read_las_meta(meta, info));
   }
   {
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kTotals));

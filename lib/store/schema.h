@@ -91,6 +91,18 @@ inline constexpr char kMetaAttributes[] = "attributes";
 // section 2.1), as 8 upper-case hexadecimal digits.
 inline constexpr char kMetaChecksum[] = "meta_crc32";
 
+// LAS attributes (format-spec/archive.md 2.1): absent in archives written
+// before them, which carry none. las_attributes: comma-separated names
+// (kLasAttributeNames); las_point_format, las_version_minor,
+// las_extra_bytes_size: decimal; las_extra_bytes_vlr: the Extra Bytes VLR
+// payload in lower-case hexadecimal; las_colors_8bit: "1" or "0".
+inline constexpr char kMetaLasAttributes[] = "las_attributes";
+inline constexpr char kMetaLasPointFormat[] = "las_point_format";
+inline constexpr char kMetaLasVersionMinor[] = "las_version_minor";
+inline constexpr char kMetaLasExtraBytesVlr[] = "las_extra_bytes_vlr";
+inline constexpr char kMetaLasExtraBytesSize[] = "las_extra_bytes_size";
+inline constexpr char kMetaLasColors8bit[] = "las_colors_8bit";
+
 // Names in the comma-separated `attributes` value.
 inline constexpr char kAttributeRgb[] = "rgb";
 inline constexpr char kAttributeIntensity[] = "intensity";

@@ -384,7 +384,8 @@ TEST_CASE("info --json: attributes array, codec parameters object, CRS object, v
   CHECK(valid_utf8(r.output));
   CHECK(r.output.find("\xEF\xBF\xBD") != std::string::npos);  // the replacement character
   CHECK(r.output.find("\\\"q\\\"") != std::string::npos);
-  CHECK(r.output.find("\"attributes\": [\"intensity\"]") != std::string::npos);
+  // A LAS source: intensity, then its LAS attributes.
+  CHECK(r.output.find("\"attributes\": [\"intensity\", \"classification\", ") != std::string::npos);
   CHECK(r.output.find("\"codec_params\": {\"decomposition\": ") != std::string::npos);
   CHECK(r.output.find("\"step\": [") != std::string::npos);
   CHECK(r.output.find("\"crs\": {\"name\": \"NAD83 / UTM zone 10N\", \"epsg\": 26910, \"wkt\": \"PROJCRS[") !=

@@ -193,3 +193,70 @@ TEST_CASE("a temporary directory left by a killed ingest is removed by the next 
   std::sort(expected.begin(), expected.end());
   CHECK(tmp.entries() == expected);
 }
+
+TEST_CASE("bucket records carry every LAS attribute", "[ingest][buckets][las]") {
+  TempDir tmp;
+  ArchiveGrid grid;
+  grid.origin = {100.0, 200.0, 0.0};
+  grid.chunk_edge = 3.0;
+  const std::size_t n = 20000;
+  PointCloud pts = points_over_chunks(grid, n, 11);
+  std::mt19937 rng(5);
+  const auto u8 = [&] { return static_cast<std::uint8_t>(rng()); };
+  LasAttributes& a = pts.las;
+  for (std::size_t i = 0; i < n; ++i) {
+    a.classification.push_back(u8());
+    a.class_flags.push_back(u8() & 15);
+    a.return_number.push_back(u8() & 15);
+    a.number_of_returns.push_back(u8() & 15);
+    a.scan_flags.push_back(u8() & 15);
+    a.scan_angle.push_back(static_cast<std::int32_t>(rng() % 180001) - 90000);
+    a.user_data.push_back(u8());
+    a.point_source_id.push_back(static_cast<std::uint16_t>(rng()));
+    a.gps_time.push_back(1e8 + static_cast<double>(rng()) * 1e-6);
+    a.nir.push_back(static_cast<std::uint16_t>(rng()));
+    a.color_low.push_back({u8(), u8(), u8()});
+    for (int e = 0; e < 5; ++e) a.extra_bytes.push_back(u8());
+  }
+  a.extra_bytes_size = 5;
+  const std::uint32_t bits = a.carried();
+  std::vector<ChunkKey> keys(n);
+  grid.keys_of(pts.positions.data(), n, keys.data());
+  auto files = BucketFiles::create(tmp.path(), 3, grid, true, true, 3 * 8192, bits, 5);
+  REQUIRE(files.is_ok());
+  REQUIRE(files->append(pts, keys.data()).is_ok());
+  REQUIRE(files->finish_writing().is_ok());
+  std::size_t checked = 0;
+  PointCloud slice;
+  Grouping g;
+  AlignedBuffer buf;
+  for (std::uint32_t b = 0; b < files->bucket_count(); ++b) {
+    std::uint64_t offset = 0;
+    while (offset < files->bucket_bytes(b)) {
+      REQUIRE(files->read_slice(b, &offset, 5000, slice, g, buf).is_ok());
+      REQUIRE(slice.las.carried() == bits);
+      REQUIRE(slice.las.extra_bytes_size == 5);
+      for (std::size_t k = 0; k < slice.size(); ++k) {
+        const auto i = static_cast<std::size_t>(slice.intensities[k]);
+        REQUIRE(i < n);
+        const LasAttributes& s = slice.las;
+        REQUIRE(s.classification[k] == a.classification[i]);
+        REQUIRE(s.class_flags[k] == a.class_flags[i]);
+        REQUIRE(s.return_number[k] == a.return_number[i]);
+        REQUIRE(s.number_of_returns[k] == a.number_of_returns[i]);
+        REQUIRE(s.scan_flags[k] == a.scan_flags[i]);
+        REQUIRE(s.scan_angle[k] == a.scan_angle[i]);
+        REQUIRE(s.user_data[k] == a.user_data[i]);
+        REQUIRE(s.point_source_id[k] == a.point_source_id[i]);
+        REQUIRE(s.gps_time[k] == a.gps_time[i]);
+        REQUIRE(s.nir[k] == a.nir[i]);
+        REQUIRE(s.color_low[k] == a.color_low[i]);
+        REQUIRE(std::equal(s.extra_bytes.begin() + static_cast<std::ptrdiff_t>(5 * k),
+                           s.extra_bytes.begin() + static_cast<std::ptrdiff_t>(5 * k + 5),
+                           a.extra_bytes.begin() + static_cast<std::ptrdiff_t>(5 * i)));
+        ++checked;
+      }
+    }
+  }
+  CHECK(checked == n);
+}

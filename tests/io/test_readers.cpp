@@ -304,7 +304,13 @@ TEST_CASE("LAS every version and point format reads back", "[io]") {
   s.format = format;
   s.extra_bytes = extra;
   s.points = las_points(300, wide);
-  s.vlrs = {{"LASF_Spec", 4, std::string(192, 'e')}, wkt_record("PROJCS[\"test\"]")};
+  // An Extra Bytes VLR (checked against the record length since the reader
+  // keeps the extra bytes: `extra` undocumented bytes) or an unknown record.
+  std::string descriptor(192, 'e');
+  descriptor[2] = 0;
+  descriptor[3] = static_cast<char>(extra);
+  s.vlrs = {{"LASF_Spec", static_cast<std::uint16_t>(extra > 0 ? 4 : 7), descriptor},
+            wkt_record("PROJCS[\"test\"]")};
   s.padding = 3;
   TempDir dir;
   const std::string path = dir.file("points.las");

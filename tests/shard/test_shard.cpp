@@ -335,6 +335,16 @@ TEST_CASE("sharded build: stages and merge refuse what does not fit", "[shard]")
     REQUIRE_FALSE(r.is_ok());
     CHECK(r.status().code() == StatusCode::kInvalidArgument);
   }
+  SECTION("inputs with per-point LAS attributes are refused, not stripped") {
+    const std::string las = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las";
+    ShardPlanOptions po;
+    po.ingest = o;
+    auto r = plan_shards({las}, po);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kUnsupported);
+    CHECK(r.status().message().find("simple.las") != std::string::npos);
+    CHECK(r.status().message().find("LAS attributes") != std::string::npos);
+  }
 }
 
 TEST_CASE("sharded build: the CLI stages and merge, with their exit codes", "[shard][cli]") {

@@ -51,6 +51,14 @@ struct ScanAttributes {
   bool has_colors = false;
   bool has_intensity = false;
   std::string crs;  // of the scan's sources (WKT2, relief/crs.h); empty when none
+  // LAS attributes of the scan (LasAttributes; see ArchiveInfo::las_attributes).
+  // The archive's set becomes the union of every scan's.
+  std::uint32_t las_attributes = 0;
+  int las_point_format = -1;
+  int las_version_minor = -1;
+  std::string extra_bytes_vlr;
+  std::uint32_t extra_bytes_size = 0;
+  bool las_colors_8bit = false;
 };
 
 // A scan is what one compress, append or stream run adds.
@@ -73,6 +81,20 @@ struct ArchiveInfo {
   std::string crs_source;
   bool has_colors = false;
   bool has_intensity = false;
+  // Per-point LAS attributes the archive carries (LasAttributeBits; the union
+  // over its scans: points of a scan without one read it as 0), the widest
+  // source point format (0-10; a 1.4 format when any source had one) and
+  // the highest LAS minor version of its sources (-1 when no source was
+  // LAS), the Extra Bytes VLR payload describing las.extra_bytes
+  // (extra_bytes_size bytes per point), and whether the LAS sources stored
+  // 8-bit colour levels (WriterOptions::las_colors_8bit). Archives written
+  // before these existed carry none.
+  std::uint32_t las_attributes = 0;
+  int las_point_format = -1;
+  int las_version_minor = -1;
+  std::string extra_bytes_vlr;
+  std::uint32_t extra_bytes_size = 0;
+  bool las_colors_8bit = false;
   // Totals over all chunk rows (every scan, complete or not).
   std::uint64_t input_points = 0;
   std::uint64_t decoded_points = 0;

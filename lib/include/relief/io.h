@@ -61,6 +61,13 @@ struct PointStreamInfo {
   int las_version_minor = -1;
   std::uint32_t las_attributes = 0;
   std::string extra_bytes_vlr;
+  // Extra bytes per point record (LasAttributes::extra_bytes_size); 0 when none.
+  std::uint32_t extra_bytes_size = 0;
+  // LAS/LAZ with RGB: the file stores 8-bit levels (0..255) in its 16-bit
+  // colour fields (the colour rule kept them unshifted), so a LAS writer
+  // should write each level as it is rather than (colour << 8) | low.
+  // Known once read() has returned points (the rule samples them).
+  bool las_colors_8bit = false;
   // Coordinate precision the file stores (LAS scale factors), 0 when not known,
   // and the offset of that grid (LAS: x = X * scale + offset).
   Vec3d scale{0, 0, 0};
@@ -77,10 +84,11 @@ struct PointStreamInfo {
 
 struct ReaderOptions {
   // ASCII XYZ/CSV: the meaning of each column, comma separated, from x y z
-  // r g b i (intensity) and _ (skip). Unset: the names of a header line (the
-  // first line when it is not numeric, or a comment line such as
-  // "//X,Y,Z,R,G,B" naming x, y and z; names in any case, red/green/blue,
-  // intensity/reflectance and their initials), else "x,y,z". Columns may be
+  // r g b i (intensity) c (classification, 0..255, into las.classification)
+  // and _ (skip). Unset: the names of a header line (the first line when it
+  // is not numeric, or a comment line such as "//X,Y,Z,R,G,B" naming x, y
+  // and z; names in any case, red/green/blue, intensity/reflectance and their
+  // initials, classification/class), else "x,y,z". Columns may be
   // separated by commas, semicolons, tabs or spaces; lines starting with '#'
   // or '//' and a first line that is not numeric (a header) are skipped.
   // Colour levels are 0..255, or 0..65535 shifted to 8 bits by the 16-bit
@@ -106,6 +114,32 @@ class PointReader {
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
+// ---- LAS extra bytes
+
+// One field of a LAS Extra Bytes VLR (LASF_Spec record 4; ASPRS LAS 1.4 R15,
+// section 2.5): a 192-byte descriptor per field, the fields laid out in order
+// in the extra bytes of every point record.
+struct ExtraBytesField {
+  std::string name;         // up to 32 characters
+  std::string description;  // up to 32 characters
+  int data_type = 0;        // 0 = undocumented bytes (options = size), 1-10 scalars, 11-30 arrays (deprecated)
+  std::uint8_t options = 0; // bit 0 no_data, 1 min, 2 max, 3 scale, 4 offset are meaningful
+  std::size_t offset = 0;   // of the field within a point's extra bytes
+  std::size_t size = 0;     // bytes per point
+  // Type name ("uint8", "int16", "float64", "uint32[3]", "bytes[5]", ...).
+  std::string type_name;
+  // Scale and offset of the first component (1 and 0 when options say none).
+  double scale = 1;
+  double value_offset = 0;
+};
+
+// Parses an Extra Bytes VLR payload. kFormatError naming `what` when the
+// payload is not a whole number of 192-byte descriptors, a data type is
+// reserved (> 30), a size is 0, or the fields need more than `record_extra`
+// bytes per point (the bytes the point records have beyond their format).
+Result<std::vector<ExtraBytesField>> parse_extra_bytes_vlr(std::span<const std::uint8_t> payload,
+                                                           std::size_t record_extra, const std::string& what);
+
 // ---- Streaming writers: outputs larger than memory are written in batches.
 
 struct WriterOptions {
@@ -129,6 +163,21 @@ struct WriterOptions {
   std::optional<Vec3d> grid_scale;
   std::optional<Vec3d> grid_offset;
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
+  // LAS/LAZ: the per-point LAS attributes (LasAttributeBits) every batch
+  // carries and the file records; the source's point format and LAS minor
+  // version (-1: none, e.g. an archive made from PLY), from which the output
+  // format is chosen (see open_point_writer); the Extra Bytes VLR payload
+  // describing las.extra_bytes, extra_bytes_size bytes per point (written
+  // back as the file's Extra Bytes VLR; empty: the extra bytes are written
+  // undocumented). Other formats ignore these.
+  std::uint32_t las_attributes = 0;
+  int las_point_format = -1;
+  int las_version_minor = -1;
+  std::string extra_bytes_vlr;
+  std::uint32_t extra_bytes_size = 0;
+  // LAS/LAZ: write colour levels as the 8-bit values themselves (the source
+  // stored 8-bit levels in its 16-bit fields, PointStreamInfo::las_colors_8bit).
+  bool las_colors_8bit = false;
 };
 
 class PointWriter {
@@ -143,7 +192,12 @@ class PointWriter {
 };
 
 // Opens a writer by extension: .ply (binary little endian by default),
-// .las (LAS 1.2, point format 2/0, or 1.4 formats 7/6 when the CRS is WKT),
+// .las and .laz: the source's point format where it can (its legacy format
+// 0-3 in LAS 1.2, with GPS time and RGB as carried; wave packets are not
+// kept, so 4/5 become 1/3), LAS 1.4 with format 6, 7 or 8 where it must (the
+// source was 6-10, NIR is carried, a WKT CRS in a .las, or LAS attributes
+// without a source format); without LAS
+// attributes LAS 1.2 format 2/0, or 1.4 formats 7/6 when the CRS is WKT.
 // .xyz/.txt/.csv (text "x y z [r g b] [i]"). "-" writes XYZ text to stdout.
 // The file is written beside the destination and renamed by finish().
 Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options);

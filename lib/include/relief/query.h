@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "relief/archive.h"
+#include "relief/io.h"
 #include "relief/status.h"
 #include "relief/types.h"
 
@@ -29,6 +30,16 @@ struct QueryOptions {
   // on_warning and skipped.
   bool skip_corrupt = false;
   std::function<void(const std::string&)> on_warning;
+  // Filters on LAS attributes, combined (a point must pass every one set):
+  // classification in `classes` (when non-empty), return number 1
+  // (first_returns), return number == number of returns (last_returns). An
+  // archive that does not carry the attribute a filter needs is
+  // kInvalidArgument. With a filter, a level of detail above 1 decodes every
+  // point (the base layer of coarse levels has no LAS attributes) and keeps
+  // ~1/lod of the matching points.
+  std::vector<std::uint8_t> classes;
+  bool first_returns = false;
+  bool last_returns = false;
 };
 
 struct QueryStats {
@@ -40,6 +51,9 @@ struct QueryStats {
   double seconds = 0;
 };
 
+// Batches carry the archive's attributes (ArchiveInfo: colours, intensity,
+// and each LAS attribute, zero-filled for points of scans that lacked one
+// and for coarse levels of detail read from a chunk's base layer).
 // Receives the query's points batch by batch (one or more chunks at a time, in
 // chunk id order). Returning an error stops the query with that error.
 using PointSink = std::function<Status(const PointCloud& batch)>;
@@ -67,6 +81,12 @@ class ArchiveReader {
 // (README "relief info"). Always valid UTF-8: text from files that is not
 // becomes U+FFFD.
 std::string archive_info_json(const ArchiveInfo& info, const std::string& path);
+// The archive's attribute names: "rgb", "intensity", then the LAS ones
+// (kLasAttributeNames order), as info lists them.
+std::vector<std::string> archive_attribute_names(const ArchiveInfo& info);
+// The typed fields of the archive's Extra Bytes VLR (empty when it has none,
+// or when it does not parse, which the reader that stored it had checked).
+std::vector<ExtraBytesField> archive_extra_bytes_fields(const ArchiveInfo& info);
 
 // A box for "all heights" from a 2D box: z from -inf to +inf.
 Box3d box_2d(double xmin, double ymin, double xmax, double ymax);

@@ -57,6 +57,26 @@ enum LasAttributeBits : std::uint32_t {
   kLasExtraBytes = 1u << 11,
 };
 
+// Names of the LasAttributeBits, in bit order ("classification", "class_flags",
+// "return_number", "number_of_returns", "scan_flags", "scan_angle",
+// "user_data", "point_source_id", "gps_time", "nir", "color_low",
+// "extra_bytes"): the archive metadata and `relief info` use them.
+inline constexpr const char* kLasAttributeNames[] = {
+    "classification", "class_flags", "return_number", "number_of_returns", "scan_flags", "scan_angle",
+    "user_data",      "point_source_id", "gps_time",  "nir",               "color_low",  "extra_bytes"};
+inline constexpr std::uint32_t kLasAttributeCount = 12;
+// "classification,return_number,..." for `bits`, in bit order.
+std::string las_attribute_list(std::uint32_t bits);
+// The bits of a comma-separated list; unknown names are ignored.
+std::uint32_t las_attributes_from_list(const std::string& list);
+
+struct PointCloud;
+// Gives `cloud` exactly the LAS attributes `bits` (extra_bytes_size extra
+// bytes per point): one it lacks is zero-filled (colour low bytes: the colour
+// itself, so its 16-bit level reads v * 257; none without colours), one it
+// has beyond the set is dropped.
+void conform_las_attributes(PointCloud& cloud, std::uint32_t bits, std::uint32_t extra_bytes_size);
+
 // Per-point LAS attributes beyond XYZ, RGB and intensity (ASPRS LAS 1.4
 // names). Each vector is empty (the cloud does not carry that attribute) or
 // holds one value per point. Values are the LAS record's own integers, so a

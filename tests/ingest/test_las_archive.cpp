@@ -1,0 +1,326 @@
+// LAS attributes through the archive: LAS -> compress -> decompress/query ->
+// LAS keeps every field of every point (as multisets), the archive records
+// the attribute set, point format, version and Extra Bytes VLR, queries
+// filter on classification and returns.
+//
+// The codec keeps per-point LAS attributes once the chunk codec carries them
+// (error-bounded blobs); until then the tests tagged [needs-codec-attrs] find
+// that out with a probe and skip visibly.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "relief/archive.h"
+#include "relief/codec.h"
+#include "relief/ingest.h"
+#include "relief/io.h"
+#include "relief/query.h"
+#include "support/las_records.h"
+#include "support/run_cli.h"
+#include "support/skip.h"
+#include "support/temp_dir.h"
+
+namespace {
+
+using relief::test::LasRecord;
+using relief::test::read_las_records;
+using relief::test::TempDir;
+using relief::test::TestLasOptions;
+using relief::test::write_test_las;
+
+// Whether the chunk codec gives back a cloud's LAS classification.
+bool codec_keeps_las_attributes() {
+  relief::PointCloud c;
+  for (int i = 0; i < 200; ++i) {
+    c.positions.push_back({0.01 * (i % 20), 0.01 * (i / 20), 0.001 * (i % 7)});
+    c.las.classification.push_back(static_cast<std::uint8_t>(i % 9));
+  }
+  relief::EncodeParams p;
+  p.cell_size = 0.05;
+  p.bound = relief::ErrorBound{};
+  p.bound->step = {0.001, 0.001, 0.001};
+  auto blob = relief::encode_chunk(c, p);
+  if (!blob) return false;
+  auto back = relief::decode_chunk(*blob);
+  if (!back || back->size() != c.size()) return false;
+  std::vector<std::uint8_t> a = c.las.classification, b = back->las.classification;
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  return a == b;
+}
+
+// True, or false after marking the test case skipped (visible in ctest).
+bool need_codec_attributes() {
+  static const bool keeps = codec_keeps_las_attributes();
+  if (!keeps) {
+    WARN("skipped: the chunk codec does not yet keep per-point LAS attributes (probe: "
+         "decode_chunk(encode_chunk(cloud with classification)) loses it)");
+    relief::test::note_skipped();
+  }
+  return keeps;
+}
+
+std::vector<std::uint8_t> field_vlr() {
+  std::vector<std::uint8_t> v = relief::test::extra_bytes_descriptor(3, 0, "height_above_ground");
+  const std::vector<std::uint8_t> b = relief::test::extra_bytes_descriptor(1, 0, "confidence");
+  v.insert(v.end(), b.begin(), b.end());
+  return v;
+}
+
+std::string las_file(const TempDir& dir, const std::string& name, int format, std::uint32_t seed,
+                     bool extra = true, std::size_t points = 4000) {
+  TestLasOptions o;
+  o.format = format;
+  o.points = points;
+  o.seed = seed;
+  if (extra) {
+    o.extra = 3;
+    o.extra_bytes_vlr = field_vlr();
+  }
+  const std::string path = dir.file(name);
+  REQUIRE(write_test_las(path, o));
+  return path;
+}
+
+relief::ArchiveInfo archive_info(const std::string& path) {
+  auto a = relief::Archive::open(path, relief::Archive::Mode::kReadOnly);
+  REQUIRE(a.is_ok());
+  auto info = (*a)->info();
+  REQUIRE(info.is_ok());
+  return *info;
+}
+
+std::vector<LasRecord> sorted_records(const std::string& path) {
+  auto r = read_las_records(path);
+  REQUIRE(r);
+  std::vector<LasRecord> v = r->records;
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+std::string cli() { return RELIEF_CLI; }
+
+}  // namespace
+
+TEST_CASE("the archive records the LAS attributes, point format, version and Extra Bytes VLR", "[las][archive]") {
+  TempDir dir;
+  for (const int format : {1, 3, 6, 7, 8}) {
+    CAPTURE(format);
+    const std::string in = las_file(dir, "in" + std::to_string(format) + ".las", format, 10 + format);
+    const std::string archive = dir.file("a" + std::to_string(format) + ".relief");
+    REQUIRE(relief::compress_files({in}, archive, {}).is_ok());
+    auto reader = relief::open_point_reader(in);
+    REQUIRE(reader.is_ok());
+    const relief::ArchiveInfo info = archive_info(archive);
+    CHECK(info.las_attributes == (*reader)->info().las_attributes);
+    CHECK(info.las_point_format == format);
+    CHECK(info.las_version_minor == (format >= 6 ? 4 : 2));
+    CHECK(info.extra_bytes_size == 3);
+    const std::vector<std::uint8_t> vlr = field_vlr();
+    CHECK(info.extra_bytes_vlr == std::string(vlr.begin(), vlr.end()));
+    // An empty result still writes the source's format and Extra Bytes VLR.
+    const std::string empty = dir.file("empty" + std::to_string(format) + ".las");
+    const auto run = relief::test::run_cli(cli(), "query " + archive + " --box 0,0,0,1,1,1 -o " + empty + " --quiet");
+    REQUIRE(run.code == 0);
+    const auto out = read_las_records(empty);
+    REQUIRE(out);
+    CHECK(out->format == format);
+    CHECK(out->records.empty());
+    CHECK(out->extra_bytes_vlr == vlr);
+    // info lists them, by name, and the typed extra bytes fields.
+    const auto text = relief::test::run_cli(cli(), "info --json " + archive);
+    REQUIRE(text.code == 0);
+    CHECK(text.output.find("\"classification\"") != std::string::npos);
+    CHECK(text.output.find("\"height_above_ground\", \"type\": \"uint16\"") != std::string::npos);
+  }
+}
+
+TEST_CASE("an archive without LAS attributes reads as before", "[las][archive][compat]") {
+  TempDir dir;
+  relief::PointCloud c;
+  for (int i = 0; i < 3000; ++i) {
+    c.positions.push_back({0.1 * (i % 60), 0.1 * (i / 60), 0.01 * (i % 13)});
+    c.colors.push_back({static_cast<std::uint8_t>(i), 7, 9});
+  }
+  REQUIRE(relief::write_ply(dir.file("in.ply"), c).is_ok());
+  const std::string archive = dir.file("a.relief");
+  REQUIRE(relief::compress_files({dir.file("in.ply")}, archive, {}).is_ok());
+  const relief::ArchiveInfo info = archive_info(archive);
+  CHECK(info.las_attributes == 0);
+  CHECK(info.las_point_format == -1);
+  CHECK(info.extra_bytes_vlr.empty());
+  // LAS output: format 2 in LAS 1.2, every point return 1 of 1, class 0.
+  const std::string out = dir.file("out.las");
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+  const auto recs = read_las_records(out);
+  REQUIRE(recs);
+  CHECK(recs->format == 2);
+  CHECK(recs->version_minor == 2);
+  REQUIRE(recs->records.size() == c.size());
+  for (const LasRecord& p : recs->records) {
+    REQUIRE(p.return_number == 1);
+    REQUIRE(p.number_of_returns == 1);
+    REQUIRE(p.classification == 0);
+  }
+  // Filters need the attributes: a clear error.
+  relief::QueryOptions q;
+  q.classes = {2};
+  auto reader = relief::ArchiveReader::open(archive);
+  REQUIRE(reader.is_ok());
+  auto r = (*reader)->query_all(q, [](const relief::PointCloud&) { return relief::Status::ok(); });
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().code() == relief::StatusCode::kInvalidArgument);
+  CHECK(r.status().message().find("classification") != std::string::npos);
+  const auto run = relief::test::run_cli(cli(), "query " + archive + " --box 0,0,0,9,9,9 --last-returns -o " +
+                                                    dir.file("x.las"));
+  CHECK(run.code != 0);
+  CHECK(run.output.find("return numbers") != std::string::npos);
+}
+
+TEST_CASE("inputs with different Extra Bytes VLRs are refused, naming both", "[las][archive][reject]") {
+  TempDir dir;
+  const std::string a = las_file(dir, "a.las", 3, 1);
+  TestLasOptions o;
+  o.format = 3;
+  o.points = 4000;
+  o.extra = 3;
+  o.extra_bytes_vlr = relief::test::extra_bytes_descriptor(0, 3, "opaque");
+  const std::string b = dir.file("b.las");
+  REQUIRE(write_test_las(b, o));
+  auto r = relief::compress_files({a, b}, dir.file("x.relief"), {});
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().message().find(a) != std::string::npos);
+  CHECK(r.status().message().find(b) != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(dir.file("x.relief")));
+  // The same against an archive on append.
+  const std::string archive = dir.file("y.relief");
+  REQUIRE(relief::compress_files({a}, archive, {}).is_ok());
+  auto app = relief::append_files(archive, {b}, {});
+  REQUIRE_FALSE(app.is_ok());
+  CHECK(app.status().message().find(b) != std::string::npos);
+  CHECK(app.status().message().find(archive) != std::string::npos);
+}
+
+TEST_CASE("several inputs: the archive carries the union", "[las][archive]") {
+  TempDir dir;
+  const std::string a = las_file(dir, "a.las", 1, 3, false);  // GPS time, no colour
+  const std::string b = las_file(dir, "b.las", 8, 4, false);  // 1.4 with RGB and NIR
+  const std::string archive = dir.file("u.relief");
+  REQUIRE(relief::compress_files({a, b}, archive, {}).is_ok());
+  const relief::ArchiveInfo info = archive_info(archive);
+  // Colours only when every input has them; NIR from b.
+  CHECK((info.las_attributes & relief::kLasNir) != 0);
+  CHECK((info.las_attributes & relief::kLasGpsTime) != 0);
+  CHECK((info.las_attributes & relief::kLasColorLow) == 0);
+  CHECK(info.las_point_format == 8);
+  CHECK(info.las_version_minor == 4);
+}
+
+TEST_CASE("LAS -> archive -> LAS keeps every field of every point", "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  for (const int format : {1, 3, 6, 7, 8}) {
+    CAPTURE(format);
+    const std::string in = las_file(dir, "in" + std::to_string(format) + ".las", format, 40 + format);
+    const std::string archive = dir.file("a" + std::to_string(format) + ".relief");
+    const std::string out = dir.file("out" + std::to_string(format) + ".las");
+    REQUIRE(relief::test::run_cli(cli(), "compress " + in + " -o " + archive + " --quiet").code == 0);
+    REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+    const auto back = read_las_records(out);
+    REQUIRE(back);
+    CHECK(back->format == format);
+    REQUIRE(relief::test::first_difference(sorted_records(out), sorted_records(in)) == "");
+  }
+}
+
+TEST_CASE("query filters: --class, --first-returns, --last-returns", "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  const std::string in = las_file(dir, "in.las", 6, 77);
+  const std::string archive = dir.file("a.relief");
+  REQUIRE(relief::compress_files({in}, archive, {}).is_ok());
+  const std::vector<LasRecord> all = sorted_records(in);
+  struct Case {
+    std::string args;
+    bool (*keep)(const LasRecord&);
+  };
+  const std::vector<Case> cases = {
+      {"--class 2,6", [](const LasRecord& p) { return p.classification == 2 || p.classification == 6; }},
+      {"--first-returns", [](const LasRecord& p) { return p.return_number == 1; }},
+      {"--last-returns", [](const LasRecord& p) { return p.return_number == p.number_of_returns; }},
+      {"--first-returns --last-returns",
+       [](const LasRecord& p) { return p.return_number == 1 && p.number_of_returns == 1; }},
+      {"--class 1,2,3,4,5,6,7,8 --first-returns",
+       [](const LasRecord& p) { return p.classification >= 1 && p.classification <= 8 && p.return_number == 1; }},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.args);
+    const std::string out = dir.file("f.las");
+    std::filesystem::remove(out);
+    REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " " + c.args + " -o " + out + " --quiet").code == 0);
+    std::vector<LasRecord> want;
+    for (const LasRecord& p : all) {
+      if (c.keep(p)) want.push_back(p);
+    }
+    REQUIRE_FALSE(want.empty());
+    REQUIRE(relief::test::first_difference(sorted_records(out), want) == "");
+  }
+  // With a level of detail: only matching points, about 1/L of them.
+  const std::string out = dir.file("lod.las");
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " --class 2 --lod 4 -o " + out + " --quiet").code == 0);
+  const std::vector<LasRecord> lod = sorted_records(out);
+  std::size_t class2 = 0;
+  for (const LasRecord& p : all) class2 += p.classification == 2 ? 1 : 0;
+  CHECK(lod.size() >= class2 / 4);
+  CHECK(lod.size() <= class2 / 4 + 2);
+  for (const LasRecord& p : lod) REQUIRE(p.classification == 2);
+}
+
+TEST_CASE("an input without an attribute gets zeros", "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  const std::string a = las_file(dir, "a.las", 1, 5, false, 3000);
+  relief::PointCloud c;
+  for (int i = 0; i < 3000; ++i) c.positions.push_back({500000 + 0.03 * (i % 60), 4000000 + 0.03 * (i / 60), 1});
+  REQUIRE(relief::write_ply(dir.file("b.ply"), c).is_ok());
+  const std::string archive = dir.file("z.relief");
+  REQUIRE(relief::compress_files({a, dir.file("b.ply")}, archive, {}).is_ok());
+  auto reader = relief::ArchiveReader::open(archive);
+  REQUIRE(reader.is_ok());
+  std::size_t zero_class = 0, points = 0;
+  REQUIRE((*reader)
+              ->query_all({},
+                          [&](const relief::PointCloud& b) {
+                            REQUIRE(b.las.classification.size() == b.size());
+                            REQUIRE(b.las.gps_time.size() == b.size());
+                            for (std::size_t i = 0; i < b.size(); ++i) {
+                              zero_class += b.las.gps_time[i] == 0 && b.las.return_number[i] == 0 ? 1 : 0;
+                            }
+                            points += b.size();
+                            return relief::Status::ok();
+                          })
+              .is_ok());
+  CHECK(points == 6000);
+  CHECK(zero_class >= 3000);
+}
+
+TEST_CASE("a CSV classification column is a LAS attribute of the archive", "[las][archive]") {
+  TempDir dir;
+  const std::string csv = dir.file("c.csv");
+  {
+    std::ofstream f(csv);
+    f << "x,y,z,classification\n";
+    for (int i = 0; i < 3000; ++i) f << 0.1 * (i % 60) << "," << 0.1 * (i / 60) << ",1," << (i % 3 == 0 ? 65 : 2) << "\n";
+  }
+  const std::string archive = dir.file("c.relief");
+  REQUIRE(relief::compress_files({csv}, archive, {}).is_ok());
+  const relief::ArchiveInfo info = archive_info(archive);
+  CHECK(info.las_attributes == relief::kLasClassification);
+  // Classes above 31 need a LAS 1.4 format: the archive names 6.
+  CHECK(info.las_point_format == 6);
+}

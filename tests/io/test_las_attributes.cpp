@@ -1,0 +1,337 @@
+// Every LAS attribute through the LAS/LAZ reader and writer: synthetic files
+// of every point format with every field random, checked against the
+// independent reference decoder of tests/support/las_records.h.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "relief/io.h"
+#include "support/las_records.h"
+#include "support/shared_data.h"
+#include "support/temp_dir.h"
+
+namespace {
+
+using relief::test::LasRecord;
+using relief::test::read_las_records;
+using relief::test::TempDir;
+using relief::test::TestLasOptions;
+using relief::test::write_test_las;
+
+// Reads a whole point file with its stream info.
+struct ReadBack {
+  relief::PointStreamInfo info;
+  relief::PointCloud cloud;
+};
+
+ReadBack read_all(const std::string& path) {
+  auto reader = relief::open_point_reader(path);
+  REQUIRE(reader.is_ok());
+  ReadBack out;
+  out.info = (*reader)->info();
+  relief::PointCloud batch;
+  for (;;) {
+    // Small batches: the colour rule's sample and batch joins are exercised.
+    auto n = (*reader)->read(batch, 777);
+    REQUIRE(n.is_ok());
+    if (*n == 0) break;
+    for (std::size_t i = 0; i < *n; ++i) out.cloud.push_back_from(batch, i);
+  }
+  out.info = (*reader)->info();
+  return out;
+}
+
+// The records a PointCloud read from a file of `format` stands for.
+std::vector<LasRecord> to_records(const ReadBack& r) {
+  const relief::PointCloud& c = r.cloud;
+  const relief::LasAttributes& a = c.las;
+  const bool ext = r.info.las_point_format >= 6;
+  std::vector<LasRecord> out(c.size());
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    LasRecord& p = out[i];
+    p.x = static_cast<std::int32_t>(std::llround((c.positions[i].x - r.info.offset.x) / r.info.scale.x));
+    p.y = static_cast<std::int32_t>(std::llround((c.positions[i].y - r.info.offset.y) / r.info.scale.y));
+    p.z = static_cast<std::int32_t>(std::llround((c.positions[i].z - r.info.offset.z) / r.info.scale.z));
+    p.intensity = static_cast<std::uint16_t>(c.intensities[i]);
+    p.return_number = a.return_number[i];
+    p.number_of_returns = a.number_of_returns[i];
+    p.scan_direction = a.scan_flags[i] & 1;
+    p.edge = (a.scan_flags[i] >> 1) & 1;
+    p.channel = a.scan_flags[i] >> 2;
+    p.classification = a.classification[i];
+    p.synthetic = a.class_flags[i] & 1;
+    p.key_point = (a.class_flags[i] >> 1) & 1;
+    p.withheld = (a.class_flags[i] >> 2) & 1;
+    p.overlap = (a.class_flags[i] >> 3) & 1;
+    p.scan_angle = ext ? a.scan_angle[i] / 6 : a.scan_angle[i] / 1000;
+    p.user_data = a.user_data[i];
+    p.point_source_id = a.point_source_id[i];
+    if (!a.gps_time.empty()) p.gps_time = a.gps_time[i];
+    if (!c.colors.empty() && r.info.las_colors_8bit) {
+      p.red = c.colors[i].r;
+      p.green = c.colors[i].g;
+      p.blue = c.colors[i].b;
+    } else if (!c.colors.empty()) {
+      REQUIRE(a.color_low.size() == c.size());
+      p.red = static_cast<std::uint16_t>((c.colors[i].r << 8) | a.color_low[i].r);
+      p.green = static_cast<std::uint16_t>((c.colors[i].g << 8) | a.color_low[i].g);
+      p.blue = static_cast<std::uint16_t>((c.colors[i].b << 8) | a.color_low[i].b);
+    }
+    if (!a.nir.empty()) p.nir = a.nir[i];
+    const std::size_t w = a.extra_bytes_size;
+    if (w > 0) {
+      p.extra.assign(a.extra_bytes.begin() + static_cast<std::ptrdiff_t>(i * w),
+                     a.extra_bytes.begin() + static_cast<std::ptrdiff_t>((i + 1) * w));
+    }
+  }
+  return out;
+}
+
+// Wave packets are not part of LasRecord; the reference keeps the bytes after
+// the format's minimum as `extra`, which for 4/5/9/10 starts after them.
+std::vector<std::uint8_t> two_field_vlr() {
+  std::vector<std::uint8_t> v = relief::test::extra_bytes_descriptor(3, 0, "height_above_ground");  // uint16
+  const std::vector<std::uint8_t> b = relief::test::extra_bytes_descriptor(1, 8, "confidence", 0.5);  // uint8, scaled
+  v.insert(v.end(), b.begin(), b.end());
+  return v;
+}
+
+relief::WriterOptions options_from(const relief::PointStreamInfo& info, std::uint32_t extra_bytes_size) {
+  relief::WriterOptions w;
+  w.colors = info.has_colors;
+  w.intensity = info.has_intensity;
+  w.grid_scale = info.scale;
+  w.grid_offset = info.offset;
+  w.las_attributes = info.las_attributes;
+  w.las_point_format = info.las_point_format;
+  w.las_version_minor = info.las_version_minor;
+  w.extra_bytes_vlr = info.extra_bytes_vlr;
+  w.extra_bytes_size = extra_bytes_size;
+  w.las_colors_8bit = info.las_colors_8bit;
+  return w;
+}
+
+}  // namespace
+
+TEST_CASE("LAS reader decodes every field of every point format", "[las][attributes]") {
+  TempDir dir;
+  for (int format = 0; format <= 10; ++format) {
+    CAPTURE(format);
+    TestLasOptions o;
+    o.format = format;
+    o.points = 2500;
+    o.seed = static_cast<std::uint32_t>(100 + format);
+    o.extra = 3;
+    o.extra_bytes_vlr = two_field_vlr();
+    const std::string path = dir.file("f" + std::to_string(format) + ".las");
+    REQUIRE(write_test_las(path, o));
+    const auto ref = read_las_records(path);
+    REQUIRE(ref);
+    const ReadBack got = read_all(path);
+    CHECK(got.info.las_point_format == format);
+    CHECK(got.info.las_version_minor == (format >= 6 ? 4 : 2));
+    CHECK(got.info.extra_bytes_vlr == std::string(o.extra_bytes_vlr.begin(), o.extra_bytes_vlr.end()));
+    CHECK(got.cloud.las.carried() == got.info.las_attributes);
+    const bool wave = format == 4 || format == 5 || format == 9 || format == 10;
+    std::vector<LasRecord> want = ref->records;
+    if (wave) {
+      for (LasRecord& p : want) p.extra.erase(p.extra.begin(), p.extra.end() - 3);
+    }
+    REQUIRE(relief::test::first_difference(to_records(got), want) == "");
+  }
+}
+
+TEST_CASE("LAS writer gives back every field in the source's point format", "[las][attributes]") {
+  TempDir dir;
+  for (int format = 0; format <= 10; ++format) {
+    CAPTURE(format);
+    TestLasOptions o;
+    o.format = format;
+    o.seed = static_cast<std::uint32_t>(200 + format);
+    o.extra = 3;
+    o.extra_bytes_vlr = two_field_vlr();
+    const std::string in = dir.file("in" + std::to_string(format) + ".las");
+    const std::string out = dir.file("out" + std::to_string(format) + ".las");
+    REQUIRE(write_test_las(in, o));
+    const ReadBack got = read_all(in);
+    auto writer = relief::open_point_writer(out, options_from(got.info, got.cloud.las.extra_bytes_size));
+    REQUIRE(writer.status().to_string() == "ok");
+    REQUIRE((*writer)->write(got.cloud).to_string() == "ok");
+    REQUIRE((*writer)->finish().is_ok());
+    const auto a = read_las_records(in);
+    const auto b = read_las_records(out);
+    REQUIRE(a);
+    REQUIRE(b);
+    // Wave packets are not kept: 4 -> 1, 5 -> 3, 9 -> 6, 10 -> 8.
+    const int expect = format == 4 ? 1 : format == 5 ? 3 : format == 9 ? 6 : format == 10 ? 8 : format;
+    CHECK(b->format == expect);
+    CHECK(b->extra_bytes_vlr == o.extra_bytes_vlr);
+    std::vector<LasRecord> want = a->records;
+    for (LasRecord& p : want) p.extra.erase(p.extra.begin(), p.extra.end() - 3);
+    REQUIRE(relief::test::first_difference(b->records, want) == "");
+  }
+}
+
+TEST_CASE("LAS colours: 8-bit levels in 16-bit fields come back as they were", "[las][attributes]") {
+  TempDir dir;
+  TestLasOptions o;
+  o.format = 2;
+  o.wide_colors = false;
+  const std::string in = dir.file("c8.las");
+  REQUIRE(write_test_las(in, o));
+  const ReadBack got = read_all(in);
+  const auto ref = read_las_records(in);
+  REQUIRE(ref);
+  CHECK(got.info.las_colors_8bit);
+  for (std::size_t i = 0; i < got.cloud.size(); ++i) {
+    REQUIRE(got.cloud.colors[i].r == ref->records[i].red);  // narrowed: the level itself
+    REQUIRE(got.cloud.las.color_low[i].r == ref->records[i].red);  // (v << 8) | v = v * 257 without the flag
+  }
+  const std::string out = dir.file("c8-out.las");
+  auto writer = relief::open_point_writer(out, options_from(got.info, 0));
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(got.cloud).is_ok());
+  REQUIRE((*writer)->finish().is_ok());
+  const auto back = read_las_records(out);
+  REQUIRE(back);
+  REQUIRE(relief::test::first_difference(back->records, ref->records) == "");
+}
+
+TEST_CASE("LAS reader refuses lying extra bytes and short records", "[las][attributes][reject]") {
+  TempDir dir;
+  const std::string path = dir.file("bad.las");
+  TestLasOptions o;
+  o.format = 1;
+  o.points = 10;
+  SECTION("Extra Bytes VLR describes more bytes than the records have") {
+    o.extra = 1;
+    o.extra_bytes_vlr = two_field_vlr();  // 3 bytes
+    REQUIRE(write_test_las(path, o));
+    auto r = relief::open_point_reader(path);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().message().find("Extra Bytes") != std::string::npos);
+    CHECK(r.status().message().find(path) != std::string::npos);
+  }
+  SECTION("Extra Bytes VLR not a whole number of descriptors") {
+    o.extra = 3;
+    o.extra_bytes_vlr = two_field_vlr();
+    o.extra_bytes_vlr.pop_back();
+    REQUIRE(write_test_las(path, o));
+    auto r = relief::open_point_reader(path);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().message().find("192") != std::string::npos);
+  }
+  SECTION("reserved extra bytes data type") {
+    o.extra = 3;
+    o.extra_bytes_vlr = relief::test::extra_bytes_descriptor(31, 0, "x");
+    REQUIRE(write_test_las(path, o));
+    CHECK_FALSE(relief::open_point_reader(path).is_ok());
+  }
+  SECTION("record length smaller than the format needs") {
+    REQUIRE(write_test_las(path, o));
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(105);
+    const std::uint16_t len = 27;  // format 1 needs 28
+    f.write(reinterpret_cast<const char*>(&len), 2);
+    f.close();
+    auto r = relief::open_point_reader(path);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().message().find("record length 27") != std::string::npos);
+  }
+}
+
+TEST_CASE("parse_extra_bytes_vlr names, types, offsets and scales", "[las][attributes]") {
+  const std::vector<std::uint8_t> v = two_field_vlr();
+  auto fields = relief::parse_extra_bytes_vlr(v, 3, "t");
+  REQUIRE(fields.is_ok());
+  REQUIRE(fields->size() == 2);
+  CHECK((*fields)[0].name == "height_above_ground");
+  CHECK((*fields)[0].type_name == "uint16");
+  CHECK((*fields)[0].offset == 0);
+  CHECK((*fields)[1].name == "confidence");
+  CHECK((*fields)[1].offset == 2);
+  CHECK((*fields)[1].scale == 0.5);
+  CHECK_FALSE(relief::parse_extra_bytes_vlr(v, 2, "t").is_ok());
+}
+
+TEST_CASE("LAS writer refuses values a legacy format cannot hold", "[las][attributes][reject]") {
+  TempDir dir;
+  relief::PointCloud c;
+  c.positions = {{1, 2, 3}};
+  c.las.classification = {40};
+  relief::WriterOptions w;
+  w.las_attributes = relief::kLasClassification;
+  w.las_point_format = 1;
+  const std::string out = dir.file("o.las");
+  auto writer = relief::open_point_writer(out, w);
+  REQUIRE(writer.is_ok());
+  const relief::Status s = (*writer)->write(c);
+  REQUIRE_FALSE(s.is_ok());
+  CHECK(s.message().find("classification 40") != std::string::npos);
+}
+
+TEST_CASE("Shared LAS/LAZ twins: every field matches the reference decode", "[las][attributes][shared-data]") {
+  for (const char* name : {"simple", "autzen_trim", "1.2-with-color.copc", "laszip-generated_with2bytespadding"}) {
+    CAPTURE(name);
+    const auto las = relief::test::shared_file(std::string("laz/") + name + ".las");
+    const auto laz = relief::test::shared_file(std::string("laz/") + name + ".laz");
+    if (!las || !laz) continue;
+    const auto ref = read_las_records(*las);
+    REQUIRE(ref);
+    for (const std::string& path : {*las, *laz}) {
+      CAPTURE(path);
+      const ReadBack got = read_all(path);
+      REQUIRE(got.info.las_point_format == ref->format);
+      REQUIRE(relief::test::first_difference(to_records(got), ref->records) == "");
+    }
+  }
+}
+
+TEST_CASE("CSV classification column fills the LAS classification", "[xyz][attributes]") {
+  TempDir dir;
+  const std::string path = dir.file("c.csv");
+  {
+    std::ofstream f(path);
+    f << "X,Y,Z,Classification\n1,2,3,2\n4,5,6,65\n7,8,9,0\n";
+  }
+  const ReadBack got = read_all(path);
+  CHECK(got.info.las_attributes == relief::kLasClassification);
+  REQUIRE(got.cloud.las.classification == std::vector<std::uint8_t>{2, 65, 0});
+  relief::ReaderOptions o;
+  o.xyz_columns = "x,y,z,c";
+  const std::string bad = dir.file("bad.txt");
+  {
+    std::ofstream f(bad);
+    f << "1 2 3 2.5\n";
+  }
+  auto r = relief::open_point_reader(bad, o);
+  REQUIRE(r.is_ok());
+  relief::PointCloud batch;
+  auto n = (*r)->read(batch, 10);
+  REQUIRE_FALSE(n.is_ok());
+  CHECK(n.status().message().find("classification 2.5") != std::string::npos);
+}
+
+TEST_CASE("LAS attributes without a source format give LAS 1.4 format 6", "[las][attributes]") {
+  TempDir dir;
+  relief::PointCloud c;
+  c.positions = {{1, 2, 3}, {4, 5, 6}};
+  c.las.classification = {40, 200};
+  relief::WriterOptions w;
+  w.las_attributes = relief::kLasClassification;
+  const std::string out = dir.file("o.las");
+  auto writer = relief::open_point_writer(out, w);
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(c).is_ok());
+  REQUIRE((*writer)->finish().is_ok());
+  const auto back = read_las_records(out);
+  REQUIRE(back);
+  CHECK(back->format == 6);
+  CHECK(back->version_minor == 4);
+  REQUIRE(back->records.size() == 2);
+  CHECK(back->records[0].classification == 40);
+  CHECK(back->records[1].classification == 200);
+  CHECK(back->records[0].return_number == 1);  // not carried: "return 1 of 1"
+}
