@@ -173,8 +173,12 @@ def test_las_input(tmp_path):
     for k in ("x", "y", "z"):
         # LAS default tolerance: half the scale, so the integers come back.
         assert np.array_equal(np.sort(np.round(pts[k] / LAS_SCALE)), np.sort(np.round(s[k] / LAS_SCALE)))
-    assert np.array_equal(np.sort(pts["red"]), np.sort(s["red"]))
+    # The file stores 16-bit colours (level x 257): they come back exactly, as uint16.
+    assert pts["red"].dtype == np.uint16
+    assert np.array_equal(np.sort(pts["red"]), np.sort(s["red"].astype(np.uint16) * 257))
     assert np.array_equal(np.sort(pts["intensity"]), np.sort(s["intensity"]))
+    # And every LAS attribute the file has: the classification of each point.
+    assert np.array_equal(np.sort(pts["classification"]), np.sort(classification))
 
 
 def test_las_attributes_in_archive(tmp_path):
