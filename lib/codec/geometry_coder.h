@@ -25,7 +25,7 @@ struct OccupiedCells {
 enum class OctreeCoding {
   // Codec 6 (format 2): 8 context-coded bits per node.
   kBitwise,
-  // Codec 7 (format 3): a per-node flag "exactly one child"; a single child
+  // Codec 7 (format 5): a per-node flag "exactly one child"; a single child
   // is coded as its 3-bit index, other nodes as 8 bits (at least two set).
   // Smaller (sparse levels dominate fine grids) and fewer decisions.
   kSingleChild,

@@ -1,4 +1,4 @@
-// LAS per-point attributes of the error-bounded layer (chunk format 3,
+// LAS per-point attributes of the error-bounded layer (chunk formats 3 and 5,
 // format-spec/chunk.md §11.7): one arithmetic-coded section per carried
 // LasAttributes vector, lossless, in the canonical point order. Mirror pair in
 // one file (las_attribute_coder.cpp). Internal to the codec.

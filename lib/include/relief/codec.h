@@ -131,7 +131,7 @@ struct ChunkInfo {
   std::uint32_t base_points = 0;     // points of the base layer (occupied pixels)
   Vec3d quant_step;                  // coordinate step; the error bound is half of it
   int color_tolerance = 0;
-  // The LasAttributeBits a full decode returns (format 3: those of the
+  // The LasAttributeBits a full decode returns (formats 3 and 5: those of the
   // points; format 4: classification, from the map), and extra bytes per point.
   std::uint32_t las_attributes = 0;
   std::uint32_t extra_bytes_size = 0;
