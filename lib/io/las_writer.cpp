@@ -680,16 +680,9 @@ class LasStreamWriter final : public StreamPointWriter {
       std::span<std::uint8_t> room;
       RELIEF_RETURN_IF_ERROR(out_->room(record_length_, room));
       const std::size_t k = std::min(n - i, room.size() / record_length_);
-      std::size_t done = encode_(batch, i, k, q_, plan_, room.data(), bounds_);
-      if (options_.intensity && unit_intensity_) {
-        for (std::size_t j = 0; j < done; ++j) {
-          store_le(room.data() + j * record_length_ + kIntensityOffset,
-                   unit_intensity_level(batch.intensities[i + j]));
-        }
-      }
-      const std::size_t coded = done;
+      std::size_t coded = 0;
       std::string why;
-      done = encode_attributes(batch, i, coded, plan_, room.data(), by_return_, why);
+      const std::size_t done = encode_records(batch, i, k, room.data(), coded, why);
       out_->advance(done * record_length_);
       if (done < coded) return point_error(points_written() + i + done, why);
       if (done < k) return out_of_range(batch, i + done);
@@ -749,6 +742,22 @@ class LasStreamWriter final : public StreamPointWriter {
     return p;
   }
 
+  // Lays out points [i, i + k) of `batch` as records at `dest`: coordinates
+  // and the fixed fields, intensities in 0..1 on the 16-bit scale, then the
+  // LAS attributes. `coded` is set to how many points the coordinate encoder
+  // took (fewer: one out of range); the result is how many also took their
+  // attributes (fewer: `why` says what a point format could not hold).
+  std::size_t encode_records(const PointCloud& batch, std::size_t i, std::size_t k, std::uint8_t* dest,
+                             std::size_t& coded, std::string& why) {
+    coded = encode_(batch, i, k, q_, plan_, dest, bounds_);
+    if (options_.intensity && unit_intensity_) {
+      for (std::size_t j = 0; j < coded; ++j) {
+        store_le(dest + j * record_length_ + kIntensityOffset, unit_intensity_level(batch.intensities[i + j]));
+      }
+    }
+    return encode_attributes(batch, i, coded, plan_, dest, by_return_, why);
+  }
+
   // Records are laid out as for LAS in a staging buffer, then compressed;
   // finished chunks go to the file.
   Status write_compressed(const PointCloud& batch) {
@@ -757,16 +766,9 @@ class LasStreamWriter final : public StreamPointWriter {
     while (i < n) {
       const std::size_t k = std::min(n - i, kStagingRecords);
       staging_.resize(k * record_length_);
-      std::size_t done = encode_(batch, i, k, q_, plan_, staging_.data(), bounds_);
-      if (options_.intensity && unit_intensity_) {
-        for (std::size_t j = 0; j < done; ++j) {
-          store_le(staging_.data() + j * record_length_ + kIntensityOffset,
-                   unit_intensity_level(batch.intensities[i + j]));
-        }
-      }
-      const std::size_t coded = done;
+      std::size_t coded = 0;
       std::string why;
-      done = encode_attributes(batch, i, coded, plan_, staging_.data(), by_return_, why);
+      const std::size_t done = encode_records(batch, i, k, staging_.data(), coded, why);
       compressed_.clear();
       compressor_->add(staging_.data(), done, compressed_);
       RELIEF_RETURN_IF_ERROR(out_->append(compressed_.data(), compressed_.size()));
