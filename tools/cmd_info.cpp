@@ -106,6 +106,16 @@ int run_info(int argc, char** argv) {
   for (const ArchiveScan& s : i.scans) {
     std::printf("scan            %lld %s, %s\n", static_cast<long long>(s.id),
                 s.complete ? "complete" : "INCOMPLETE (interrupted)", s.created_at.c_str());
+    for (const ScanPyramid& p : i.pyramid) {
+      if (p.scan_id != s.id || p.levels.empty()) continue;
+      std::printf("pyramid         scan %lld:", static_cast<long long>(s.id));
+      for (const PyramidLevel& l : p.levels) {
+        std::printf(" L%d %llu pts/%llu nodes/%s%s", l.level, static_cast<unsigned long long>(l.points),
+                    static_cast<unsigned long long>(l.chunks), format_bytes(l.blob_bytes).c_str(),
+                    &l == &p.levels.back() ? "" : ",");
+      }
+      std::printf("\n");
+    }
   }
   return kExitOk;
 }

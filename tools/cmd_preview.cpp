@@ -26,6 +26,8 @@ namespace {
 constexpr const char* kCommand = "preview";
 // -o *.jpg: high enough that the scale bar's text and thin lines stay clean.
 constexpr int kPreviewJpegQuality = 90;
+// Default point budget of an archive with a pyramid, per output pixel.
+constexpr double kPreviewPointsPerPixel = 2;
 
 bool finite_box(const Box3d& b) {
   return std::isfinite(b.min.x) && std::isfinite(b.min.y) && std::isfinite(b.min.z) && std::isfinite(b.max.x) &&
@@ -68,7 +70,9 @@ int run_preview(int argc, char** argv) {
       "  --box B            region to show: 4 numbers = all heights, 6 = a 3D box (default: the\n"
       "                     archive's bounds). A box without points gives an all-background image\n"
       "                     (exit 0) and a warning; an archive without points is an error (11).\n"
-      "  --lod L            level of detail: about 1/L of the points (1..1024, default 16; 1 = all)\n"
+      "  --lod L            level of detail: about 1/L of the points (1..1024; 1 = all). Default: an\n"
+      "                     archive with a level-of-detail pyramid reads the finest level that gives\n"
+      "                     at most 2 points per pixel; one without, lod 16\n"
       "  --width W          image width in pixels, 16..8192 (default 1024); the height follows the\n"
       "                     aspect ratio, at most 8192\n"
       "  --view top|oblique top: straight down, north up, with a scale bar (default);\n"
@@ -98,6 +102,7 @@ int run_preview(int argc, char** argv) {
   }
 
   PreviewOptions popt;
+  const bool lod_given = args.has("--lod");
   const auto lod = static_cast<std::uint32_t>(args.get_int("--lod", 16, 1, kMaxLod));
   popt.width = static_cast<int>(args.get_int("--width", 1024, 16, kMaxPreviewSide));
   const auto threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
@@ -156,6 +161,17 @@ int run_preview(int argc, char** argv) {
   QueryOptions qopt;
   qopt.lod = lod;
   qopt.threads = threads;
+  bool pyramid = false;
+  for (const ScanPyramid& scan : info.pyramid) pyramid = pyramid || !scan.levels.empty();
+  if (!lod_given && pyramid) {
+    // A point budget instead of a fraction: the time then stays the same
+    // whatever the size of the archive (the pyramid's coarse levels).
+    const double dx = frame.max.x - frame.min.x, dy = frame.max.y - frame.min.y;
+    const double rows = popt.view == PreviewView::kTop && dx > 0 ? std::clamp(popt.width * dy / dx, 1.0, 8192.0)
+                                                                  : static_cast<double>(popt.width);
+    qopt.lod = 1;
+    qopt.max_points = static_cast<std::uint64_t>(kPreviewPointsPerPixel * popt.width * rows);
+  }
   std::mutex draw_mutex;  // the header promises batches in order, not on which thread
   const PointSink sink = [&](const PointCloud& batch) {
     const std::lock_guard<std::mutex> lock(draw_mutex);
@@ -185,8 +201,10 @@ int run_preview(int argc, char** argv) {
               << "; " << *out_path << " is all background\n";
   }
   if (!quiet) {
-    std::printf("%s: %d x %d px, %s view, lod %u, %.4g units/px\n", out_path->c_str(), image.width,
-                image.height, popt.view == PreviewView::kTop ? "top" : "oblique", lod, renderer->pixel_size());
+    const std::string detail = qopt.max_points > 0 ? "at most " + std::to_string(qopt.max_points) + " points"
+                                                  : "lod " + std::to_string(qopt.lod);
+    std::printf("%s: %d x %d px, %s view, %s, %.4g units/px\n", out_path->c_str(), image.width, image.height,
+                popt.view == PreviewView::kTop ? "top" : "oblique", detail.c_str(), renderer->pixel_size());
     std::printf("points drawn    %llu (of %llu delivered)", static_cast<unsigned long long>(renderer->points_drawn()),
                 static_cast<unsigned long long>(stats->points));
     if (renderer->detail_level() > 0) {
@@ -195,9 +213,10 @@ int run_preview(int argc, char** argv) {
                   lod > 1 ? " (a lower --lod is sharper)" : "");
     }
     std::printf("\n");
-    std::printf("chunks decoded  %llu (of %llu in the archive)\n",
-                static_cast<unsigned long long>(stats->chunks_decoded),
+    std::printf("chunks decoded  %llu (of %llu in the archive)", static_cast<unsigned long long>(stats->chunks_decoded),
                 static_cast<unsigned long long>(info.chunk_count));
+    if (stats->pyramid_level > 0) std::printf(", up to pyramid level %d", stats->pyramid_level);
+    std::printf(", %s of blobs read\n", format_bytes(stats->blob_bytes_read).c_str());
     std::printf("time            %.3f s (open, query and drawing %.3f s, shading %.3f s, %s %.3f s, %s)\n",
                 seconds_since(t0), query_s, shade_s, jpeg ? "JPEG" : "PNG", png_s,
                 format_bytes(png->size()).c_str());

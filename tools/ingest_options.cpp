@@ -11,6 +11,8 @@ const char* const kIngestOptionsHelp =
     "  --threads N            encoder threads (default: all cores)\n"
     "  --tmp DIR              directory for temporary bucket files (default: beside the archive)\n"
     "  --columns SPEC         XYZ/CSV columns, e.g. x,y,z,r,g,b,i,c (c = classification; default: header names, else x,y,z)\n"
+    "  --pyramid auto|on|off  the level-of-detail pyramid that makes previews and coarse queries of\n"
+    "                         large archives fast (default auto: for scans of 10 M points or more)\n"
     "  --verify               decode every blob back before committing it (about 10 % slower)\n"
     "  --quiet                no progress or summary\n";
 
@@ -50,6 +52,14 @@ void print_ingest_summary(const std::string& path, const IngestResult& r) {
               static_cast<unsigned long long>(r.points_decoded));
   std::printf("cell %.6g, chunk edge %.6g, %.2f s, %.2f M points/s\n", r.cell_size, r.chunk_edge, r.seconds,
               r.seconds > 0 ? n / r.seconds * 1e-6 : 0.0);
+  if (r.pyramid.levels > 0) {
+    std::printf("pyramid: %d levels, %llu nodes, %llu points, %s (%.2f %% of the blobs), %.2f s\n", r.pyramid.levels,
+                static_cast<unsigned long long>(r.pyramid.chunks), static_cast<unsigned long long>(r.pyramid.points),
+                format_bytes(r.pyramid.blob_bytes).c_str(),
+                r.blob_bytes > 0 ? 100.0 * static_cast<double>(r.pyramid.blob_bytes) / static_cast<double>(r.blob_bytes)
+                                 : 0.0,
+                r.pyramid.seconds);
+  }
 }
 
 }  // namespace relief::cli

@@ -13,6 +13,8 @@ namespace relief::cli {
 QueryOptions query_options_from(Args& args, const std::string& command) {
   QueryOptions q;
   q.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, kMaxLod));
+  q.max_points = static_cast<std::uint64_t>(args.get_int("--max-points", 0, 1, 1LL << 50));
+  if (args.has("--max-points") && args.has("--lod")) args.add_error("give --lod or --max-points, not both");
   q.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   q.skip_corrupt = args.has("--skip-corrupt");
   q.first_returns = args.has("--first-returns");

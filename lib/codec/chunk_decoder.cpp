@@ -252,7 +252,8 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
   if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
   RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, options.verify_checksum));
   const codec::ChunkHeader& h = parsed.header;
-  if (!codec::has_bounded_layer(h.version)) return decode_maps(parsed, 1, options.lod, options);
+  if (!codec::has_bounded_layer(h.version)) return decode_maps(parsed, 1, options.base_layer ? 1 : options.lod, options);
+  if (options.base_layer) return decode_maps(parsed, 1, 1, options);
   const std::uint64_t n = h.input_points;
   if (n > options.max_points) {
     return limit_exceeded("chunk blob: " + std::to_string(n) + " points exceed the decoder limit of " +

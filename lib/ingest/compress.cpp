@@ -442,15 +442,35 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     }
     RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
   }
+  // The pyramid before the scan is marked complete: a run killed while
+  // building it leaves an incomplete scan whose chunks read as usual.
+  RELIEF_ASSIGN_OR_RETURN(const PyramidResult pyramid,
+                          build_scan_pyramid(archive, scan_id, points_read, options, tmp_parent, progress));
   RELIEF_RETURN_IF_ERROR(finish_scan(archive, scan_id, in.colors, in.intensity, in.crs));
 
   IngestResult result =
       scan_result(pipeline->totals(), points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
+  result.pyramid = pyramid;
   result.warnings.insert(result.warnings.end(), in.warnings.begin(), in.warnings.end());
   for (const auto& reader : in.readers) {
     for (const std::string& w : reader->info().warnings) result.warnings.push_back(w);
   }
   return result;
+}
+
+Result<PyramidResult> build_scan_pyramid(Archive& archive, std::int64_t scan_id, std::uint64_t points,
+                                         const IngestOptions& options, const std::string& tmp_parent,
+                                         Progress& progress) {
+  const bool build = options.pyramid == PyramidMode::kOn ||
+                     (options.pyramid == PyramidMode::kAuto && points >= kPyramidAutoMinPoints);
+  if (!build) return PyramidResult{};
+  PyramidOptions p;
+  p.threads = options.threads;
+  p.memory_budget = options.memory_budget;
+  p.tmp_dir = tmp_parent;
+  p.cancel = options.cancel;
+  p.progress = [&](int, std::uint64_t nodes) { progress.update("pyramid", points, nodes, 0); };
+  return build_pyramid(archive, scan_id, p);
 }
 
 IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read,

@@ -226,6 +226,11 @@ class Progress {
 };
 
 // The result of a finished scan, reported to `progress` as done.
+// Builds the scan's pyramid when options.pyramid asks for it (kAuto: a scan
+// of at least kPyramidAutoMinPoints points); levels 0 when none was built.
+Result<PyramidResult> build_scan_pyramid(Archive& archive, std::int64_t scan_id, std::uint64_t points,
+                                         const IngestOptions& options, const std::string& tmp_parent,
+                                         Progress& progress);
 IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read,
                          std::chrono::steady_clock::time_point start, double cell_size, double chunk_edge,
                          std::int64_t scan_id, Progress& progress);

@@ -23,7 +23,7 @@ const std::vector<std::string> kEncodeNames = {
     "cell",    "decomposition", "max-points",        "resolution",  "codec",
     "quality", "color-quality", "intensity-quality", "height-bits", "fill"};
 const std::vector<std::string> kModeNames = {"mode", "tolerance", "color-tolerance"};
-const std::vector<std::string> kRunNames = {"memory", "threads", "tmp", "columns"};
+const std::vector<std::string> kRunNames = {"memory", "threads", "tmp", "columns", "pyramid"};
 const std::vector<std::string> kCompressOnlyNames = {"chunk-edge", "error-target"};
 
 std::string canonical(std::string_view name) {
@@ -189,6 +189,17 @@ Status apply_mode(const Given& g, IngestOptions& o) {
 }
 
 Status apply_run(const Given& g, IngestOptions& o) {
+  if (auto m = g.get("pyramid")) {
+    if (*m == "auto") {
+      o.pyramid = PyramidMode::kAuto;
+    } else if (*m == "on") {
+      o.pyramid = PyramidMode::kOn;
+    } else if (*m == "off") {
+      o.pyramid = PyramidMode::kOff;
+    } else {
+      return invalid_argument(g.show("pyramid") + " must be auto, on or off, got '" + *m + "'");
+    }
+  }
   if (auto m = g.get("memory")) {
     o.memory_budget = parse_byte_size(*m);
     if (o.memory_budget == 0) {

@@ -117,10 +117,16 @@ class StreamIngestImpl final : public StreamIngest {
     std::vector<ChunkKey> all;
     for (const auto& [key, p] : buffered_) all.push_back(key);
     RELIEF_RETURN_IF_ERROR(flush(all));
+    RELIEF_ASSIGN_OR_RETURN(const PyramidResult pyramid,
+                            ingest::build_scan_pyramid(*archive_, scan_id_, points_read_, options_.ingest,
+                                                       ingest::default_tmp_parent(path_, options_.ingest),
+                                                       progress_));
     RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, ""));
     finished_ = true;
-    return ingest::scan_result(pipeline_.totals(), points_read_, start_, params_.cell_size, grid_.chunk_edge,
-                               scan_id_, progress_);
+    IngestResult result = ingest::scan_result(pipeline_.totals(), points_read_, start_, params_.cell_size,
+                                              grid_.chunk_edge, scan_id_, progress_);
+    result.pyramid = pyramid;
+    return result;
   }
 
  private:

@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <set>
 #include <thread>
 
 #include "core/parallel.h"
@@ -137,24 +139,144 @@ class Reader final : public ArchiveReader {
   }
 
  private:
-  Result<QueryStats> run(const std::vector<ChunkRef>& refs, const Box3d& box, const QueryOptions& options,
+  // What a query reads: chunk and pyramid rows, each with the level of
+  // detail to decode it at, and a cut for a max_points query that even the
+  // top of the pyramid cannot meet.
+  struct Plan {
+    std::vector<ChunkRef> refs;
+    std::vector<std::uint32_t> lods;
+    std::uint64_t cap = 0;  // 0 = none
+    int level = 0;
+  };
+
+  // The pyramid rows of `level` in the box, of the scans whose pyramid
+  // reaches it, by scan (cached per level for one query).
+  Result<const std::vector<ChunkRef>*> level_refs(int level, const Box3d& box,
+                                                  std::map<int, std::vector<ChunkRef>>& cache) const {
+    auto it = cache.find(level);
+    if (it == cache.end()) {
+      RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, archive_->find_level_chunks(level, box));
+      it = cache.emplace(level, std::move(refs)).first;
+    }
+    return &it->second;
+  }
+
+  // For each scan, the level it reads: `choose(scan)` (0 = its chunks).
+  Result<Plan> gather(const std::vector<ChunkRef>& base, const Box3d& box,
+                      const std::function<int(const ScanPyramid&)>& choose,
+                      std::map<int, std::vector<ChunkRef>>& cache) const {
+    Plan plan;
+    std::map<std::int64_t, int> chosen;
+    for (const ScanPyramid& scan : info_.pyramid) {
+      const int level = scan.levels.empty() ? 0 : choose(scan);
+      if (level > 0) chosen[scan.scan_id] = level;
+      plan.level = std::max(plan.level, level);
+    }
+    for (const ChunkRef& ref : base) {
+      if (chosen.count(ref.scan_id) == 0) plan.refs.push_back(ref);
+    }
+    std::set<int> levels;
+    for (const auto& [scan, level] : chosen) levels.insert(level);
+    for (const int level : levels) {
+      RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef>* refs, level_refs(level, box, cache));
+      for (const ChunkRef& ref : *refs) {
+        const auto it = chosen.find(ref.scan_id);
+        if (it != chosen.end() && it->second == level) plan.refs.push_back(ref);
+      }
+    }
+    return plan;
+  }
+
+  Result<Plan> make_plan(const std::vector<ChunkRef>& base, const Box3d& box, const QueryOptions& options,
+                         bool filtered) const {
+    bool pyramid = false;
+    for (const ScanPyramid& scan : info_.pyramid) pyramid = pyramid || !scan.levels.empty();
+    std::map<int, std::vector<ChunkRef>> cache;
+    Plan plan;
+    if (options.max_points == 0) {
+      if (!pyramid || !options.use_pyramid || filtered || options.lod == 1) {
+        plan.refs = base;
+        plan.lods.assign(base.size(), options.lod);
+        return plan;
+      }
+      // The coarsest level with at least the points the level of detail
+      // asks for (base_points / lod), thinned to them.
+      const auto choose = [&](const ScanPyramid& scan) {
+        int best = 0;
+        for (const PyramidLevel& l : scan.levels) {
+          if (l.points * options.lod >= scan.base_points) best = l.level;
+        }
+        return best;
+      };
+      RELIEF_ASSIGN_OR_RETURN(plan, gather(base, box, choose, cache));
+      std::map<std::int64_t, std::uint32_t> scan_lod;
+      for (const ScanPyramid& scan : info_.pyramid) {
+        const int level = scan.levels.empty() ? 0 : choose(scan);
+        for (const PyramidLevel& l : scan.levels) {
+          if (l.level != level) continue;
+          scan_lod[scan.scan_id] = static_cast<std::uint32_t>(
+              std::max<std::uint64_t>(1, l.points * options.lod / std::max<std::uint64_t>(1, scan.base_points)));
+        }
+      }
+      for (const ChunkRef& ref : plan.refs) plan.lods.push_back(ref.level == 0 ? options.lod : scan_lod[ref.scan_id]);
+      return plan;
+    }
+    // max_points: the finest level g (each scan at its coarsest stored level
+    // up to g, or its chunks) whose rows in the box hold at most max_points.
+    std::set<int> candidates = {0};
+    if (options.use_pyramid && !filtered) {
+      for (const ScanPyramid& scan : info_.pyramid) {
+        for (const PyramidLevel& l : scan.levels) candidates.insert(l.level);
+      }
+    }
+    std::uint64_t estimate = 0;
+    for (const int g : candidates) {
+      const auto choose = [g](const ScanPyramid& scan) {
+        int best = 0;
+        for (const PyramidLevel& l : scan.levels) {
+          if (l.level <= g) best = l.level;
+        }
+        return best;
+      };
+      RELIEF_ASSIGN_OR_RETURN(plan, gather(base, box, choose, cache));
+      estimate = 0;
+      for (const ChunkRef& ref : plan.refs) estimate += ref.decoded_points;
+      if (estimate <= options.max_points) {
+        plan.lods.assign(plan.refs.size(), 1);
+        return plan;
+      }
+    }
+    // Even the top holds more: thin every row to about max_points, then cut.
+    const auto lod = static_cast<std::uint32_t>(
+        std::min<std::uint64_t>((estimate + options.max_points - 1) / options.max_points, 1u << 30));
+    plan.lods.assign(plan.refs.size(), lod);
+    plan.cap = options.max_points;
+    return plan;
+  }
+
+  Result<QueryStats> run(const std::vector<ChunkRef>& base, const Box3d& box, const QueryOptions& options,
                          const PointSink& sink) {
     if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
+    if (options.max_points > 0 && options.lod != 1) {
+      return invalid_argument("give a level of detail or a maximum number of points, not both");
+    }
     const auto t0 = std::chrono::steady_clock::now();
     const std::uint64_t bytes_before = archive_->blob_bytes_read();
     QueryStats stats;
-    stats.chunks_in_index = refs.size();
     const unsigned threads = resolve_threads(options.threads);
     const std::size_t wave = static_cast<std::size_t>(threads) * kChunksPerThreadPerWave;
     RELIEF_ASSIGN_OR_RETURN(const LasFilter filter, make_filter(options, info_, archive_->path()));
-    DecodeOptions dec;
+    RELIEF_ASSIGN_OR_RETURN(const Plan plan, make_plan(base, box, options, filter.any()));
+    const std::vector<ChunkRef>& refs = plan.refs;
+    stats.chunks_in_index = refs.size();
+    stats.pyramid_level = plan.level;
     // A filter needs every point's LAS attributes: the full layer, with the
     // level of detail applied to the matching points here.
-    dec.lod = filter.any() ? 1 : options.lod;
     const std::uint32_t every = filter.any() ? options.lod : 1;
 
     struct Slot {
       ChunkRef ref;
+      std::uint32_t lod = 1;
       std::vector<std::uint8_t> blob;
       PointCloud points;
       Status status;
@@ -167,7 +289,9 @@ class Reader final : public ArchiveReader {
       // failures surface here.
       for (std::size_t k = 0; k < count; ++k) {
         slots[k].ref = refs[first + k];
-        auto row = archive_->read_chunk(slots[k].ref.id);
+        slots[k].lod = filter.any() ? 1 : plan.lods[first + k];
+        auto row = slots[k].ref.level == 0 ? archive_->read_chunk(slots[k].ref.id)
+                                           : archive_->read_level_chunk(slots[k].ref.id);
         if (row) {
           slots[k].blob = std::move(row->blob);
         } else {
@@ -179,10 +303,13 @@ class Reader final : public ArchiveReader {
         for (std::size_t k = next.fetch_add(1); k < count; k = next.fetch_add(1)) {
           Slot& s = slots[k];
           if (!s.status) continue;
+          DecodeOptions dec;
+          dec.lod = s.lod;
           auto pts = decode_chunk(s.blob, dec);
           std::vector<std::uint8_t>().swap(s.blob);
           if (!pts) {
-            s.status = pts.status().with_context(archive_->path() + ": " + chunk_name(s.ref));
+            s.status = pts.status().with_context(archive_->path() + ": " + chunk_name(s.ref) +
+                                                 (s.ref.level > 0 ? " of pyramid level " + std::to_string(s.ref.level) : ""));
             continue;
           }
           s.points = std::move(pts).value();
@@ -210,11 +337,15 @@ class Reader final : public ArchiveReader {
           continue;
         }
         ++stats.chunks_decoded;
+        if (plan.cap > 0 && stats.points + s.points.size() > plan.cap) {
+          s.points.resize_points(static_cast<std::size_t>(plan.cap - stats.points));
+        }
         if (s.points.empty()) continue;
         stats.points += s.points.size();
         RELIEF_RETURN_IF_ERROR(sink(s.points));
         s.points = PointCloud();
       }
+      if (plan.cap > 0 && stats.points >= plan.cap) break;
     }
     stats.blob_bytes_read = archive_->blob_bytes_read() - bytes_before;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

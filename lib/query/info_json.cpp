@@ -263,8 +263,19 @@ std::string archive_info_json(const ArchiveInfo& i, const std::string& path) {
   appendf(out, "  \"scans\": [");
   for (std::size_t k = 0; k < i.scans.size(); ++k) {
     const ArchiveScan& s = i.scans[k];
-    appendf(out, "%s\n    {\"id\": %lld, \"complete\": %s, \"created_at\": %s}", k ? "," : "",
+    appendf(out, "%s\n    {\"id\": %lld, \"complete\": %s, \"created_at\": %s, \"pyramid\": [", k ? "," : "",
             static_cast<long long>(s.id), s.complete ? "true" : "false", json_string(s.created_at).c_str());
+    // The scan's finished pyramid, level by level (empty: none).
+    for (const ScanPyramid& p : i.pyramid) {
+      if (p.scan_id != s.id) continue;
+      for (std::size_t l = 0; l < p.levels.size(); ++l) {
+        const PyramidLevel& v = p.levels[l];
+        appendf(out, "%s{\"level\": %d, \"chunks\": %llu, \"points\": %llu, \"blob_bytes\": %llu}",
+                l ? ", " : "", v.level, static_cast<unsigned long long>(v.chunks),
+                static_cast<unsigned long long>(v.points), static_cast<unsigned long long>(v.blob_bytes));
+      }
+    }
+    appendf(out, "]}");
   }
   appendf(out, "%s]\n}\n", i.scans.empty() ? "" : "\n  ");
   return out;

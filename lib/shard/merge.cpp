@@ -59,7 +59,8 @@ std::string difference(const ArchiveInfo& a, const ArchiveInfo& b) {
 
 }  // namespace
 
-Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const std::string& out) {
+Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const std::string& out,
+                                   const MergeOptions& options) {
   using namespace ingest;
   if (shards.empty()) return invalid_argument("no shards to merge");
   struct stat st {};
@@ -172,6 +173,15 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
     i = j;
   }
   if (Status s = flush(); !s) return failed(s);
+  if (options.pyramid == PyramidMode::kOn ||
+      (options.pyramid == PyramidMode::kAuto && result.input_points >= kPyramidAutoMinPoints)) {
+    PyramidOptions p;
+    p.threads = options.threads;
+    p.memory_budget = options.memory_budget;
+    auto pyramid = build_pyramid(*archive, *scan_id, p);
+    if (!pyramid) return failed(pyramid.status());
+    result.pyramid = *pyramid;
+  }
   if (Status s = finish_scan(*archive, *scan_id, first.has_colors, first.has_intensity, first.crs); !s) {
     return failed(s);
   }

@@ -301,6 +301,16 @@ enum class Sql : std::size_t {
   kTotals,
   kSources,
   kScans,
+  kLevelNextSeq,
+  kLevelInsert,
+  kLevelDeleteOfScan,
+  kLevelScanDelete,
+  kLevelScanInsert,
+  kFindLevelChunks,
+  kReadLevelChunk,
+  kScanChunks,
+  kScanBaseTotals,
+  kPyramidTotals,
   kCount,
 };
 
@@ -444,6 +454,48 @@ SqlText sql_text(Sql id) {
               "SELECT path, format, point_count, crs, scan_id FROM relief_source ORDER BY id"};
     case Sql::kScans:
       return {"list scans", "SELECT id, complete, created_at FROM relief_scan ORDER BY id"};
+    case Sql::kLevelNextSeq:
+      return {"find next pyramid seq",
+              "SELECT COALESCE(MAX(seq) + 1, 0) FROM relief_level_chunk "
+              "WHERE level = ?1 AND ix = ?2 AND iy = ?3 AND iz = ?4"};
+    case Sql::kLevelInsert:
+      return {"insert pyramid node",
+              "INSERT INTO relief_level_chunk(level, ix, iy, iz, seq, scan_id, min_x, min_y, min_z, "
+              "max_x, max_y, max_z, input_points, decoded_points, codec, codec_params, crc32, blob) "
+              "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)"};
+    case Sql::kLevelDeleteOfScan:
+      return {"delete pyramid nodes", "DELETE FROM relief_level_chunk WHERE scan_id = ?1"};
+    case Sql::kLevelScanDelete:
+      return {"delete the pyramid record", "DELETE FROM relief_level_scan WHERE scan_id = ?1"};
+    case Sql::kLevelScanInsert:
+      return {"record the pyramid",
+              "INSERT OR REPLACE INTO relief_level_scan(scan_id, levels) VALUES(?1, ?2)"};
+    case Sql::kFindLevelChunks:
+      // Only nodes of scans whose pyramid is finished and that still exist
+      // (a writer that does not know the pyramid may have removed the scan).
+      return {"find pyramid nodes",
+              "SELECT " + ref_columns +
+                  " FROM relief_level_chunk INDEXED BY relief_level_chunk_bounds WHERE level = ?7 AND " +
+                  std::string(kOverlap) +
+                  " AND scan_id IN (SELECT l.scan_id FROM relief_level_scan AS l JOIN relief_scan AS s ON "
+                  "s.id = l.scan_id WHERE (l.levels >> ?7) & 1 = 1) ORDER BY id"};
+    case Sql::kReadLevelChunk:
+      return {"read pyramid node", "SELECT " + ref_columns +
+                                       ", codec, codec_params, crc32, blob FROM relief_level_chunk "
+                                       "WHERE id = ?1"};
+    case Sql::kScanChunks:
+      return {"list the chunks of a scan",
+              "SELECT " + ref_columns + " FROM relief_chunk WHERE scan_id = ?1 ORDER BY id"};
+    case Sql::kScanBaseTotals:
+      return {"sum chunks per scan",
+              "SELECT scan_id, COUNT(*), COALESCE(SUM(decoded_points), 0) FROM relief_chunk "
+              "GROUP BY scan_id ORDER BY scan_id"};
+    case Sql::kPyramidTotals:
+      return {"sum pyramid levels",
+              "SELECT c.scan_id, c.level, COUNT(*), COALESCE(SUM(c.decoded_points), 0), "
+              "COALESCE(SUM(length(c.blob)), 0), l.levels FROM relief_level_chunk AS c "
+              "JOIN relief_level_scan AS l ON l.scan_id = c.scan_id JOIN relief_scan AS s ON s.id = c.scan_id "
+              "WHERE (l.levels >> c.level) & 1 = 1 GROUP BY c.scan_id, c.level ORDER BY c.scan_id, c.level"};
     case Sql::kCount:
       break;
   }
@@ -742,6 +794,12 @@ class SqliteArchive final : public Archive {
   Result<std::vector<ChunkRef>> find_chunks(const Box3d& box) const override;
   Result<std::vector<ChunkRef>> all_chunks() const override;
   Result<ChunkRow> read_chunk(std::int64_t id) const override;
+  Status put_level_chunks(int level, std::vector<ChunkRow>& rows) override;
+  Status finish_pyramid(std::int64_t scan_id, std::uint64_t levels) override;
+  Status remove_pyramid(std::int64_t scan_id) override;
+  Result<std::vector<ChunkRef>> scan_chunks(std::int64_t scan_id) const override;
+  Result<std::vector<ChunkRef>> find_level_chunks(int level, const Box3d& box) const override;
+  Result<ChunkRow> read_level_chunk(std::int64_t id) const override;
   std::uint64_t blob_bytes_read() const override { return blob_bytes_read_.load(std::memory_order_relaxed); }
 
  private:
@@ -759,6 +817,15 @@ class SqliteArchive final : public Archive {
   Result<bool> scan_exists(std::int64_t scan_id);
   Status refresh_scan_summary();
   Result<std::vector<ChunkRef>> collect_refs(Statement& statement) const;
+  // Whether the optional pyramid tables exist (asked of the file each time:
+  // another writer may have created them since this handle opened).
+  Result<bool> pyramid_tables_exist() const;
+  // Checks rows for put_chunks / put_level_chunks and computes their CRC-32s.
+  Status check_rows(const std::vector<ChunkRow>& rows, const char* operation, std::vector<std::uint32_t>& checksums,
+                    std::set<std::int64_t>& scan_ids) const;
+  Status delete_pyramid_rows(std::int64_t scan_id);
+  Status read_pyramid(ArchiveInfo& info) const;
+  Result<ChunkRow> read_row(Sql sql, std::int64_t id, const char* what) const;
 
   std::string path_;
   // Declared before the statements so that it is destroyed after them: a
@@ -1084,19 +1151,14 @@ Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
                   megabytes(room) + " can still be written");
 }
 
-Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
-  RELIEF_RETURN_IF_ERROR(require_writable("put_chunks"));
-  if (rows.empty()) return Status::ok();
-
-  // Everything that can be checked without the file is checked before the
-  // write lock is taken, and so are the checksums (the slow part).
-  std::vector<std::uint32_t> checksums(rows.size());
-  std::set<std::int64_t> scan_ids;
+Status SqliteArchive::check_rows(const std::vector<ChunkRow>& rows, const char* operation,
+                                 std::vector<std::uint32_t>& checksums, std::set<std::int64_t>& scan_ids) const {
+  checksums.resize(rows.size());
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const ChunkRow& row = rows[i];
     const ChunkRef& ref = row.ref;
     const std::string which =
-        path_ + ": put_chunks: row " + std::to_string(i) + ", chunk " + key_text(ref.key) + ": ";
+        path_ + ": " + operation + ": row " + std::to_string(i) + ", chunk " + key_text(ref.key) + ": ";
     if (box_has_nan(ref.bounds)) return invalid_argument(which + "bounds contain NaN");
     if (ref.bounds.empty()) {
       if (ref.decoded_points != 0) {
@@ -1115,6 +1177,18 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
     checksums[i] = blob_crc32(row.blob);
     scan_ids.insert(ref.scan_id);
   }
+  return Status::ok();
+}
+
+Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
+  RELIEF_RETURN_IF_ERROR(require_writable("put_chunks"));
+  if (rows.empty()) return Status::ok();
+
+  // Everything that can be checked without the file is checked before the
+  // write lock is taken, and so are the checksums (the slow part).
+  std::vector<std::uint32_t> checksums;
+  std::set<std::int64_t> scan_ids;
+  RELIEF_RETURN_IF_ERROR(check_rows(rows, "put_chunks", checksums, scan_ids));
 
   Transaction transaction(db(), path_);
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
@@ -1236,6 +1310,7 @@ Status SqliteArchive::abort_scan(std::int64_t scan_id) {
   if (!exists) {
     return invalid_argument(path_ + ": abort_scan: no scan with id " + std::to_string(scan_id));
   }
+  RELIEF_RETURN_IF_ERROR(delete_pyramid_rows(scan_id));
   // Children before parents: the index entries are found through the chunk
   // rows, and the foreign keys want chunks and sources gone before the scan.
   for (const Sql id :
@@ -1247,6 +1322,249 @@ Status SqliteArchive::abort_scan(std::int64_t scan_id) {
   }
   RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
   return transaction.commit();
+}
+
+Result<bool> SqliteArchive::pyramid_tables_exist() const {
+  RELIEF_ASSIGN_OR_RETURN(
+      std::unique_ptr<Statement> table,
+      Statement::prepare(db(),
+                         "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name IN (?1, ?2)",
+                         path_, "read the schema"));
+  table->bind_text(1, store::kLevelChunkTable);
+  table->bind_text(2, store::kLevelScanTable);
+  RELIEF_ASSIGN_OR_RETURN(const bool row, table->step());
+  return row && table->column_int64(0) == 2;
+}
+
+Status SqliteArchive::put_level_chunks(int level, std::vector<ChunkRow>& rows) {
+  RELIEF_RETURN_IF_ERROR(require_writable("put_level_chunks"));
+  if (level < 1 || level > kMaxPyramidLevel) {
+    return invalid_argument(path_ + ": put_level_chunks: level " + std::to_string(level) + " is not 1.." +
+                            std::to_string(kMaxPyramidLevel));
+  }
+  if (rows.empty()) return Status::ok();
+  std::vector<std::uint32_t> checksums;
+  std::set<std::int64_t> scan_ids;
+  RELIEF_RETURN_IF_ERROR(check_rows(rows, "put_level_chunks", checksums, scan_ids));
+
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  RELIEF_RETURN_IF_ERROR(check_room(rows));
+  RELIEF_RETURN_IF_ERROR(store::exec(db(), store::kCreatePyramidSql, path_, "create the pyramid tables"));
+  for (const std::int64_t scan_id : scan_ids) {
+    RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
+    if (!exists) {
+      return invalid_argument(path_ + ": put_level_chunks: no scan with id " + std::to_string(scan_id));
+    }
+  }
+  RELIEF_ASSIGN_OR_RETURN(Statement * next_seq, statement(Sql::kLevelNextSeq));
+  RELIEF_ASSIGN_OR_RETURN(Statement * insert, statement(Sql::kLevelInsert));
+  std::vector<std::pair<std::int64_t, std::uint32_t>> assigned(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const ChunkRow& row = rows[i];
+    const ChunkRef& ref = row.ref;
+    std::int64_t seq = 0;
+    {
+      StatementScope scope(*next_seq);
+      next_seq->bind_int64(1, level);
+      next_seq->bind_int64(2, ref.key.ix);
+      next_seq->bind_int64(3, ref.key.iy);
+      next_seq->bind_int64(4, ref.key.iz);
+      RELIEF_ASSIGN_OR_RETURN(const bool found, next_seq->step());
+      if (found) seq = next_seq->column_int64(0);
+    }
+    if (seq < 0 || seq > kMaxUint32) {
+      return limit_exceeded(path_ + ": put_level_chunks: level " + std::to_string(level) + " node " +
+                            key_text(ref.key) + " already holds the most blobs a node can");
+    }
+    StatementScope scope(*insert);
+    insert->bind_int64(1, level);
+    insert->bind_int64(2, ref.key.ix);
+    insert->bind_int64(3, ref.key.iy);
+    insert->bind_int64(4, ref.key.iz);
+    insert->bind_int64(5, seq);
+    insert->bind_int64(6, ref.scan_id);
+    if (!ref.bounds.empty()) {
+      insert->bind_double(7, ref.bounds.min.x);
+      insert->bind_double(8, ref.bounds.min.y);
+      insert->bind_double(9, ref.bounds.min.z);
+      insert->bind_double(10, ref.bounds.max.x);
+      insert->bind_double(11, ref.bounds.max.y);
+      insert->bind_double(12, ref.bounds.max.z);
+    } else {
+      for (int column = 7; column <= 12; ++column) insert->bind_null(column);
+    }
+    insert->bind_int64(13, static_cast<std::int64_t>(ref.input_points));
+    insert->bind_int64(14, static_cast<std::int64_t>(ref.decoded_points));
+    insert->bind_int64(15, static_cast<std::int64_t>(row.codec));
+    insert->bind_text(16, row.codec_params);
+    insert->bind_int64(17, static_cast<std::int64_t>(checksums[i]));
+    insert->bind_blob(18, row.blob.data(), row.blob.size());
+    const Status status = insert->run();
+    if (!status.is_ok()) return append_detail(status, "(level " + std::to_string(level) + " node " + key_text(ref.key) + ")");
+    assigned[i] = {sqlite3_last_insert_rowid(db()), static_cast<std::uint32_t>(seq)};
+  }
+  RELIEF_RETURN_IF_ERROR(transaction.commit());
+  rows_written_ += rows.size();
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    rows[i].ref.id = assigned[i].first;
+    rows[i].ref.seq = assigned[i].second;
+    rows[i].ref.level = level;
+    rows[i].ref.blob_size = rows[i].blob.size();
+  }
+  return Status::ok();
+}
+
+Status SqliteArchive::finish_pyramid(std::int64_t scan_id, std::uint64_t levels) {
+  RELIEF_RETURN_IF_ERROR(require_writable("finish_pyramid"));
+  constexpr std::uint64_t kAllLevels = ((std::uint64_t{1} << kMaxPyramidLevel) - 1) << 1;
+  if (levels == 0 || (levels & ~kAllLevels) != 0) {
+    return invalid_argument(path_ + ": finish_pyramid: the level set " + std::to_string(levels) +
+                            " is empty or names a level outside 1.." + std::to_string(kMaxPyramidLevel));
+  }
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
+  if (!exists) return invalid_argument(path_ + ": finish_pyramid: no scan with id " + std::to_string(scan_id));
+  RELIEF_RETURN_IF_ERROR(store::exec(db(), store::kCreatePyramidSql, path_, "create the pyramid tables"));
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kLevelScanInsert));
+  StatementScope scope(*statement);
+  statement->bind_int64(1, scan_id);
+  statement->bind_int64(2, static_cast<std::int64_t>(levels));
+  RELIEF_RETURN_IF_ERROR(statement->run());
+  return transaction.commit();
+}
+
+Status SqliteArchive::delete_pyramid_rows(std::int64_t scan_id) {
+  RELIEF_ASSIGN_OR_RETURN(const bool tables, pyramid_tables_exist());
+  if (!tables) return Status::ok();
+  // The record first: a pyramid is never usable with rows missing.
+  for (const Sql id : {Sql::kLevelScanDelete, Sql::kLevelDeleteOfScan}) {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(id));
+    StatementScope scope(*statement);
+    statement->bind_int64(1, scan_id);
+    RELIEF_RETURN_IF_ERROR(statement->run());
+  }
+  return Status::ok();
+}
+
+Status SqliteArchive::remove_pyramid(std::int64_t scan_id) {
+  RELIEF_RETURN_IF_ERROR(require_writable("remove_pyramid"));
+  Transaction transaction(db(), path_);
+  RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
+  RELIEF_RETURN_IF_ERROR(delete_pyramid_rows(scan_id));
+  return transaction.commit();
+}
+
+Result<std::vector<ChunkRef>> SqliteArchive::scan_chunks(std::int64_t scan_id) const {
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanChunks));
+  StatementScope scope(*statement);
+  statement->bind_int64(1, scan_id);
+  return collect_refs(*statement);
+}
+
+Result<std::vector<ChunkRef>> SqliteArchive::find_level_chunks(int level, const Box3d& box) const {
+  if (box_has_nan(box)) return invalid_argument(path_ + ": find_level_chunks: the box contains NaN");
+  if (box.empty() || level < 1 || level > kMaxPyramidLevel) return std::vector<ChunkRef>();
+  RELIEF_ASSIGN_OR_RETURN(const bool tables, pyramid_tables_exist());
+  if (!tables) return std::vector<ChunkRef>();
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kFindLevelChunks));
+  StatementScope scope(*statement);
+  statement->bind_double(1, box.min.x);
+  statement->bind_double(2, box.min.y);
+  statement->bind_double(3, box.min.z);
+  statement->bind_double(4, box.max.x);
+  statement->bind_double(5, box.max.y);
+  statement->bind_double(6, box.max.z);
+  statement->bind_int64(7, level);
+  RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, collect_refs(*statement));
+  for (ChunkRef& ref : refs) ref.level = level;
+  return refs;
+}
+
+Result<ChunkRow> SqliteArchive::read_row(Sql sql, std::int64_t id, const char* what) const {
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(sql));
+  StatementScope scope(*statement);
+  statement->bind_int64(1, id);
+  RELIEF_ASSIGN_OR_RETURN(const bool found, statement->step());
+  if (!found) return invalid_argument(path_ + ": read " + what + ": none with id " + std::to_string(id));
+
+  ChunkRow row;
+  RELIEF_RETURN_IF_ERROR(read_ref(*statement, path_, row.ref));
+  RowReader reader(*statement, path_, std::string(what) + " id " + std::to_string(id));
+  row.codec = static_cast<std::uint32_t>(reader.integer(kColCodec, "codec", 0, kMaxUint32));
+  row.codec_params = reader.text(kColCodecParams, "codec_params");
+  const auto stored_crc = static_cast<std::uint32_t>(reader.integer(kColCrc32, "crc32", 0, kMaxUint32));
+  if (statement->column_type(kColBlob) != SQLITE_BLOB) reader.fail("blob", "is not a BLOB");
+  RELIEF_RETURN_IF_ERROR(reader.status());
+  RELIEF_RETURN_IF_ERROR(statement->column_bytes(kColBlob, row.blob));
+  blob_bytes_read_.fetch_add(row.blob.size(), std::memory_order_relaxed);
+
+  if (blob_crc32(row.blob) != stored_crc) {
+    return corrupt_data(path_ + ": " + what + " " + key_text(row.ref.key) + " seq " + std::to_string(row.ref.seq) +
+                        " (id " + std::to_string(id) + "): checksum mismatch, the blob is damaged");
+  }
+  return row;
+}
+
+Result<ChunkRow> SqliteArchive::read_level_chunk(std::int64_t id) const {
+  RELIEF_ASSIGN_OR_RETURN(const bool tables, pyramid_tables_exist());
+  if (!tables) return invalid_argument(path_ + ": read pyramid node: the archive has no pyramid");
+  RELIEF_ASSIGN_OR_RETURN(ChunkRow row, read_row(Sql::kReadLevelChunk, id, "pyramid node"));
+  return row;
+}
+
+// The per-scan totals of relief_chunk and, where the tables exist, of the
+// finished pyramids. A pyramid missing a level it records is not used.
+Status SqliteArchive::read_pyramid(ArchiveInfo& info) const {
+  {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanBaseTotals));
+    StatementScope scope(*statement);
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+      if (!row) break;
+      RowReader reader(*statement, path_, "chunk totals per scan");
+      ScanPyramid scan;
+      scan.scan_id = reader.integer(0, "scan_id", kMinInt64, kMaxInt64);
+      scan.base_chunks = static_cast<std::uint64_t>(reader.integer(1, "count", 0, kMaxInt64));
+      scan.base_points = static_cast<std::uint64_t>(reader.integer(2, "decoded_points", 0, kMaxInt64));
+      RELIEF_RETURN_IF_ERROR(reader.status());
+      info.pyramid.push_back(std::move(scan));
+    }
+  }
+  RELIEF_ASSIGN_OR_RETURN(const bool tables, pyramid_tables_exist());
+  if (!tables) return Status::ok();
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kPyramidTotals));
+  StatementScope scope(*statement);
+  std::map<std::int64_t, std::pair<std::uint64_t, std::vector<PyramidLevel>>> found;
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (!row) break;
+    RowReader reader(*statement, path_, "pyramid totals");
+    const std::int64_t scan_id = reader.integer(0, "scan_id", kMinInt64, kMaxInt64);
+    PyramidLevel level;
+    level.level = static_cast<int>(reader.integer(1, "level", 1, kMaxPyramidLevel));
+    level.chunks = static_cast<std::uint64_t>(reader.integer(2, "count", 0, kMaxInt64));
+    level.points = static_cast<std::uint64_t>(reader.integer(3, "decoded_points", 0, kMaxInt64));
+    level.blob_bytes = static_cast<std::uint64_t>(reader.integer(4, "blob", 0, kMaxInt64));
+    const auto levels = static_cast<std::uint64_t>(reader.integer(5, "levels", 0, kMaxInt64));
+    RELIEF_RETURN_IF_ERROR(reader.status());
+    auto& entry = found[scan_id];
+    entry.first = levels;
+    entry.second.push_back(level);
+  }
+  for (ScanPyramid& scan : info.pyramid) {
+    const auto it = found.find(scan.scan_id);
+    if (it == found.end()) continue;
+    const auto& [levels, rows] = it->second;
+    // Every level the record names has rows (the query selected only those).
+    std::uint64_t present = 0;
+    for (const PyramidLevel& l : rows) present |= std::uint64_t{1} << l.level;
+    if (present != levels) continue;
+    scan.levels = rows;
+    for (const PyramidLevel& l : rows) info.pyramid_bytes += l.blob_bytes;
+  }
+  return Status::ok();
 }
 
 Result<std::vector<ChunkRef>> SqliteArchive::collect_refs(Statement& statement) const {
@@ -1361,28 +1679,7 @@ Result<std::vector<ChunkRef>> SqliteArchive::all_chunks() const {
 }
 
 Result<ChunkRow> SqliteArchive::read_chunk(std::int64_t id) const {
-  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kReadChunk));
-  StatementScope scope(*statement);
-  statement->bind_int64(1, id);
-  RELIEF_ASSIGN_OR_RETURN(const bool found, statement->step());
-  if (!found) return invalid_argument(path_ + ": read_chunk: no chunk with id " + std::to_string(id));
-
-  ChunkRow row;
-  RELIEF_RETURN_IF_ERROR(read_ref(*statement, path_, row.ref));
-  RowReader reader(*statement, path_, "chunk id " + std::to_string(id));
-  row.codec = static_cast<std::uint32_t>(reader.integer(kColCodec, "codec", 0, kMaxUint32));
-  row.codec_params = reader.text(kColCodecParams, "codec_params");
-  const auto stored_crc = static_cast<std::uint32_t>(reader.integer(kColCrc32, "crc32", 0, kMaxUint32));
-  if (statement->column_type(kColBlob) != SQLITE_BLOB) reader.fail("blob", "is not a BLOB");
-  RELIEF_RETURN_IF_ERROR(reader.status());
-  RELIEF_RETURN_IF_ERROR(statement->column_bytes(kColBlob, row.blob));
-  blob_bytes_read_.fetch_add(row.blob.size(), std::memory_order_relaxed);
-
-  if (blob_crc32(row.blob) != stored_crc) {
-    return corrupt_data(path_ + ": chunk " + key_text(row.ref.key) + " seq " + std::to_string(row.ref.seq) +
-                        " (id " + std::to_string(id) + "): checksum mismatch, the blob is damaged");
-  }
-  return row;
+  return read_row(Sql::kReadChunk, id, "chunk");
 }
 
 // The LAS keys of relief_meta (absent: no LAS attributes). A value that does
@@ -1507,6 +1804,7 @@ Result<ArchiveInfo> SqliteArchive::info() const {
       info.scans.push_back(std::move(scan));
     }
   }
+  RELIEF_RETURN_IF_ERROR(read_pyramid(info));
   RELIEF_RETURN_IF_ERROR(transaction.commit());
 
   // What the archive costs on disk right now: the file plus the WAL that a
@@ -1676,6 +1974,31 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
     if (!row) report.problem(row.status().message());
   }
   report.checked(std::to_string(refs.size()) + " chunk blobs against their CRC-32");
+  RELIEF_ASSIGN_OR_RETURN(const bool pyramid, pyramid_tables_exist());
+  if (pyramid) {
+    // Every pyramid row, finished or not: each level's nodes by a box query
+    // over everything, each blob against its CRC-32.
+    const double inf = std::numeric_limits<double>::infinity();
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> ids,
+                            Statement::prepare(db(), "SELECT id FROM relief_level_chunk ORDER BY id", path_,
+                                               "list pyramid nodes"));
+    std::uint64_t nodes = 0;
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, ids->step());
+      if (!row) break;
+      ++nodes;
+      const Result<ChunkRow> node = read_level_chunk(ids->column_int64(0));
+      if (!node) report.problem(node.status().message());
+    }
+    std::uint64_t reachable = 0;
+    const Box3d everything{{-inf, -inf, -inf}, {inf, inf, inf}};
+    for (int level = 1; level <= kMaxPyramidLevel; ++level) {
+      RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> found, find_level_chunks(level, everything));
+      reachable += found.size();
+    }
+    report.checked(std::to_string(nodes) + " pyramid node blobs against their CRC-32 (" + std::to_string(reachable) +
+                   " in finished pyramids)");
+  }
 
   // Chunk rows -> index: one entry per chunk with bounds, matching them, and
   // reachable by a box query (a damaged node hides entries only from those).

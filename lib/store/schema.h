@@ -73,6 +73,46 @@ inline constexpr char kBoundsIndex[] = "relief_chunk_bounds";
 inline constexpr char kCreateBoundsIndexSql[] =
     "CREATE INDEX IF NOT EXISTS relief_chunk_bounds ON relief_chunk(min_x, max_x, min_y, max_y, min_z, max_z)";
 
+// The level-of-detail pyramid (format-spec/archive.md §9). Optional tables,
+// created by the first writer that stores a pyramid: readers that do not know
+// them read the archive's full-resolution chunks as before, so the format
+// version does not change. A pyramid level row is used only once its scan has
+// a relief_level_scan row (written last, in the same transaction as nothing
+// else) and that scan still exists.
+inline constexpr char kLevelChunkTable[] = "relief_level_chunk";
+inline constexpr char kLevelScanTable[] = "relief_level_scan";
+inline constexpr char kCreatePyramidSql[] = R"sql(
+CREATE TABLE IF NOT EXISTS relief_level_chunk (
+  id             INTEGER PRIMARY KEY AUTOINCREMENT,
+  level          INTEGER NOT NULL CHECK (level BETWEEN 1 AND 40),
+  ix             INTEGER NOT NULL,
+  iy             INTEGER NOT NULL,
+  iz             INTEGER NOT NULL,
+  seq            INTEGER NOT NULL CHECK (seq BETWEEN 0 AND 4294967295),
+  scan_id        INTEGER NOT NULL REFERENCES relief_scan(id),
+  min_x          REAL,
+  min_y          REAL,
+  min_z          REAL,
+  max_x          REAL,
+  max_y          REAL,
+  max_z          REAL,
+  input_points   INTEGER NOT NULL CHECK (input_points >= 0),
+  decoded_points INTEGER NOT NULL CHECK (decoded_points >= 0),
+  codec          INTEGER NOT NULL,
+  codec_params   TEXT NOT NULL DEFAULT '',
+  crc32          INTEGER NOT NULL CHECK (crc32 BETWEEN 0 AND 4294967295),
+  blob           BLOB NOT NULL,
+  UNIQUE (level, ix, iy, iz, seq)
+);
+CREATE INDEX IF NOT EXISTS relief_level_chunk_bounds
+  ON relief_level_chunk(level, min_x, max_x, min_y, max_y, min_z, max_z, scan_id);
+CREATE INDEX IF NOT EXISTS relief_level_chunk_scan ON relief_level_chunk(scan_id);
+CREATE TABLE IF NOT EXISTS relief_level_scan (
+  scan_id INTEGER PRIMARY KEY REFERENCES relief_scan(id),
+  levels  INTEGER NOT NULL CHECK (levels BETWEEN 2 AND 2199023255550)
+);
+)sql";
+
 // relief_meta keys.
 inline constexpr char kMetaFormatVersion[] = "format_version";
 inline constexpr char kMetaOriginX[] = "grid_origin_x";

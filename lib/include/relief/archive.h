@@ -20,6 +20,10 @@ inline constexpr std::int32_t kArchiveApplicationId = 0x524C4946;
 // bounds index (format-spec/archive.md, version log).
 inline constexpr int kArchiveFormatVersion = 2;
 
+// Pyramid levels are 1..kMaxPyramidLevel (a node of level L spans 2^L chunks
+// per axis; 40 levels cover any grid a 64-bit key can address in practice).
+inline constexpr int kMaxPyramidLevel = 40;
+
 struct ChunkKey {
   std::int64_t ix = 0, iy = 0, iz = 0;
   friend bool operator==(const ChunkKey&, const ChunkKey&) = default;
@@ -68,6 +72,25 @@ struct ArchiveScan {
   std::string created_at;  // UTC, ISO 8601
 };
 
+// One level of a scan's level-of-detail pyramid (format-spec/archive.md §9).
+struct PyramidLevel {
+  int level = 0;  // 1, 2, ...: nodes of chunk_edge * 2^level
+  std::uint64_t chunks = 0;
+  std::uint64_t points = 0;  // decoded points of the level's nodes
+  std::uint64_t blob_bytes = 0;
+};
+
+// What a scan holds at full resolution and in its pyramid.
+struct ScanPyramid {
+  std::int64_t scan_id = 0;
+  std::uint64_t base_points = 0;  // decoded points of the scan's chunks (level 0)
+  std::uint64_t base_chunks = 0;
+  // Its finished pyramid, the stored levels in order (not every level number
+  // is stored: see Archive::finish_pyramid); empty when the scan has none
+  // (archives and scans written without one: queries read its chunks).
+  std::vector<PyramidLevel> levels;
+};
+
 struct ArchiveInfo {
   int format_version = 0;
   ArchiveGrid grid;
@@ -104,6 +127,9 @@ struct ArchiveInfo {
   std::uint64_t file_bytes = 0;  // size of the SQLite file (+ WAL) on disk
   std::vector<ArchiveSource> sources;
   std::vector<ArchiveScan> scans;
+  // Per scan with chunks, in scan id order: its points and its pyramid.
+  std::vector<ScanPyramid> pyramid;
+  std::uint64_t pyramid_bytes = 0;  // blob bytes of every usable pyramid level row
 };
 
 // Index entry of a stored chunk (no blob).
@@ -116,6 +142,10 @@ struct ChunkRef {
   std::uint64_t input_points = 0;
   std::uint64_t decoded_points = 0;
   std::uint64_t blob_size = 0;
+  // 0: a chunk of the full-resolution data (relief_chunk); 1, 2, ...: a node
+  // of that level of detail of the pyramid (relief_level_chunk), whose key is
+  // on the grid of chunk edge chunk_edge * 2^level.
+  int level = 0;
 };
 
 // A chunk to write (ingest) or a chunk read back (query).
@@ -164,11 +194,31 @@ class Archive {
   // Removes every chunk and source of the scan in one transaction (a failed append).
   virtual Status abort_scan(std::int64_t scan_id) = 0;
 
+  // ---- The level-of-detail pyramid (format-spec/archive.md §9).
+  // Stores pyramid nodes of `level` (>= 1) in one transaction, like
+  // put_chunks (each row's ref.key on that level's grid, ref.scan_id an
+  // existing scan); creates the pyramid tables on first use.
+  virtual Status put_level_chunks(int level, std::vector<ChunkRow>& rows) = 0;
+  // Records that the scan's pyramid is complete with the levels whose bits
+  // are set in `levels` (bit L: level L; a level that would hold nearly as
+  // many points as the one below is not stored): from then on readers use
+  // it. Until then its level rows are ignored.
+  virtual Status finish_pyramid(std::int64_t scan_id, std::uint64_t levels) = 0;
+  // Removes the scan's pyramid (rows and record), e.g. before a rebuild.
+  virtual Status remove_pyramid(std::int64_t scan_id) = 0;
+
   // ---- Reading.
   // Chunks whose decoded-point bounds intersect `box` (closed boxes), through
   // the spatial index, ordered by id.
   virtual Result<std::vector<ChunkRef>> find_chunks(const Box3d& box) const = 0;
   virtual Result<std::vector<ChunkRef>> all_chunks() const = 0;
+  // The scan's chunks (level 0), ordered by id.
+  virtual Result<std::vector<ChunkRef>> scan_chunks(std::int64_t scan_id) const = 0;
+  // Pyramid nodes of `level` whose bounds intersect `box`, of scans with a
+  // finished pyramid, ordered by id (refs have `level` set).
+  virtual Result<std::vector<ChunkRef>> find_level_chunks(int level, const Box3d& box) const = 0;
+  // Reads one pyramid node's blob, checked like read_chunk.
+  virtual Result<ChunkRow> read_level_chunk(std::int64_t id) const = 0;
   // Reads one blob and verifies its CRC-32: a mismatch is kCorruptData naming
   // the chunk (key, seq, id) and the archive file.
   virtual Result<ChunkRow> read_chunk(std::int64_t id) const = 0;

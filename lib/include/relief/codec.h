@@ -98,6 +98,10 @@ struct DecodeOptions {
   // from maps carry no LAS attribute but a classification (the majority of
   // their pixel) when the blob has a classification map.
   std::uint32_t lod = 1;
+  // Every point of the map layer and nothing else, whatever `lod`: an
+  // error-bounded blob's base layer (one point per occupied pixel), a
+  // resampling blob's whole content. A level-of-detail pyramid is built from it.
+  bool base_layer = false;
   // Verify the blob's CRC-32 first (turn off only to exercise the inner decoders).
   bool verify_checksum = true;
   // Refuse blobs that claim more decoded points than this (bounds memory).

@@ -9,6 +9,7 @@
 #include <string_view>
 #include <vector>
 
+#include "relief/archive.h"
 #include "relief/codec.h"
 #include "relief/io.h"
 #include "relief/status.h"
@@ -29,6 +30,13 @@ struct IngestProgress {
 // format 2, the default), or the paper's resampling maps alone (format 1:
 // one point per occupied map pixel, the smallest previews).
 enum class IngestMode { kBounded, kResample };
+
+// Whether an ingest builds the scan's level-of-detail pyramid (build_pyramid).
+enum class PyramidMode { kAuto, kOn, kOff };
+// kAuto builds a pyramid for scans of at least this many points: below, a
+// whole-scan preview decodes in about a second from the chunks themselves.
+inline constexpr std::uint64_t kPyramidAutoMinPoints = 10'000'000;
+
 
 // Tolerance when none is given and no input is LAS: half a millimetre in
 // metre units (the 1 mm grid of a typical LAS scale of 0.001).
@@ -103,6 +111,9 @@ struct IngestOptions {
   // check, keeps what is committed, removes its temporary files and returns
   // a kIoError-coded "interrupted" status.
   const std::atomic<bool>* cancel = nullptr;
+  // The level-of-detail pyramid (build_pyramid) of the scan: kAuto builds it
+  // when the scan holds at least kPyramidAutoMinPoints points.
+  PyramidMode pyramid = PyramidMode::kAuto;
   std::string creator = "relief";
 };
 
@@ -122,6 +133,39 @@ inline constexpr double kMaxCoordinateMagnitude = 1125899906842624.0;  // 2^50
 // the point and the value); 0 for a non-positive cell or edge.
 double max_coordinate_magnitude(double cell_size, double chunk_edge);
 
+// ---- The level-of-detail pyramid (format-spec/archive.md §9): coarse copies
+// of a scan's points at levels 1, 2, ... (nodes of chunk_edge * 2^L, one
+// point per cube of a pitch that doubles per level: about a quarter of the
+// points of the level below on surfaces), as ordinary chunk blobs in the
+// resampling codec, so a preview or a coarse query of any size reads a few
+// nodes. A level that would keep more than a third of the points of the last
+// stored one is not stored (its thinned points still feed the next level).
+
+struct PyramidOptions {
+  unsigned threads = 0;  // 0 = all cores
+  std::uint64_t memory_budget = std::uint64_t{1} << 30;
+  std::string tmp_dir;  // temporary files; empty = beside the archive
+  const std::atomic<bool>* cancel = nullptr;
+  // Called now and then with nodes written so far (from the calling thread).
+  std::function<void(int level, std::uint64_t nodes)> progress;
+};
+
+struct PyramidResult {
+  int levels = 0;     // levels stored; 0: no pyramid (a scan without decoded points)
+  int top_level = 0;  // the coarsest stored level
+  std::uint64_t chunks = 0;
+  std::uint64_t points = 0;
+  std::uint64_t blob_bytes = 0;
+  double seconds = 0;
+};
+
+// Builds the pyramid of one scan from its stored chunks (the map layer of each
+// blob: DecodeOptions::base_layer) and records it complete; a pyramid the scan
+// already had is replaced. Deterministic: the same chunks give the same level
+// blobs, whatever the threads, budget or how the chunks were made (one run,
+// appends, a merge of shards). On error the scan's pyramid rows are removed.
+Result<PyramidResult> build_pyramid(Archive& archive, std::int64_t scan_id, const PyramidOptions& options);
+
 struct IngestResult {
   std::uint64_t points_read = 0;
   std::uint64_t points_decoded = 0;  // points a full decode of the new chunks returns
@@ -131,6 +175,7 @@ struct IngestResult {
   double cell_size = 0;
   double chunk_edge = 0;
   std::int64_t scan_id = 0;
+  PyramidResult pyramid;  // levels 0: none built
   // What the input readers noticed but did not refuse (PointStreamInfo::warnings),
   // e.g. a PLY holding more vertices than its header declares.
   std::vector<std::string> warnings;

@@ -40,6 +40,16 @@ struct QueryOptions {
   std::vector<std::uint8_t> classes;
   bool first_returns = false;
   bool last_returns = false;
+  // At most this many points (0 = no limit; then `lod` must be 1): the
+  // finest level of the pyramid (or the chunks themselves) whose nodes in the
+  // box hold at most this many, so the answer is a spatially uniform subset;
+  // when even the top level holds more, its nodes are thinned further and the
+  // answer is cut at the limit.
+  std::uint64_t max_points = 0;
+  // Read a coarse level of detail from the archive's pyramid (archive.md §9)
+  // where one fits: a level with at least as many points as the level of
+  // detail asks for, thinned to it. false: always decode the chunks.
+  bool use_pyramid = true;
 };
 
 struct QueryStats {
@@ -49,6 +59,7 @@ struct QueryStats {
   std::uint64_t blob_bytes_read = 0;
   std::uint64_t points = 0;           // points delivered
   double seconds = 0;
+  int pyramid_level = 0;              // coarsest pyramid level read (0: chunks only)
 };
 
 // Batches carry the archive's attributes (ArchiveInfo: colours, intensity,

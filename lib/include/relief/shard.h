@@ -117,6 +117,15 @@ struct MergeResult {
   std::uint64_t chunks = 0;
   std::uint64_t input_points = 0;
   std::uint64_t blob_bytes = 0;
+  PyramidResult pyramid;  // levels 0: none built
+};
+
+struct MergeOptions {
+  // The merged scan's level-of-detail pyramid, built from the merged chunks
+  // (so it is the one a one-box compress of the same inputs builds).
+  PyramidMode pyramid = PyramidMode::kAuto;
+  unsigned threads = 0;  // 0 = all cores
+  std::uint64_t memory_budget = std::uint64_t{1} << 30;
 };
 
 // Joins shard archives into a new archive at `out` (never overwritten; written
@@ -125,6 +134,7 @@ struct MergeResult {
 // and sources, each hold one complete scan, and hold disjoint chunk keys;
 // otherwise kInvalidArgument naming the shard. The rows are copied as they
 // are (blobs, bounds, counts) in key order, the blobs of one voxel by content.
-Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const std::string& out);
+Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const std::string& out,
+                                   const MergeOptions& options = {});
 
 }  // namespace relief

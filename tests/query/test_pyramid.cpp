@@ -1,0 +1,320 @@
+// The level-of-detail pyramid (format-spec/archive.md §9): built by ingest,
+// append and build_pyramid, read by coarse queries and max_points queries,
+// deterministic, removed with its scan, ignored until finished.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "relief/archive.h"
+#include "relief/ingest.h"
+#include "relief/io.h"
+#include "relief/query.h"
+#include "support/synthetic.h"
+#include "support/temp_dir.h"
+
+using namespace relief;
+using relief::test::TempDir;
+
+namespace {
+
+constexpr double kSize = 32.0;
+
+PointCloud terrain(std::uint64_t seed, std::size_t points, Vec3d offset = {0, 0, 0}) {
+  test::SceneOptions o;
+  o.seed = seed;
+  o.points = points;
+  o.colors = true;
+  o.intensity = true;
+  o.offset = offset;
+  return test::make_terrain(o, kSize, 0.5);
+}
+
+IngestOptions options(PyramidMode pyramid) {
+  IngestOptions o;
+  o.codec.cell_size = 0.25;
+  o.chunk_edge = 2.0;
+  o.pyramid = pyramid;
+  return o;
+}
+
+// A 32 x 32 m terrain in 2 m chunks: 256 chunks, so levels 1, 2, 3 (4, 8,
+// 16 m nodes; the last has at most 8).
+std::string build(const TempDir& tmp, const std::string& name, const PointCloud& cloud,
+                  IngestOptions o = options(PyramidMode::kOn)) {
+  REQUIRE(write_ply(tmp.file(name + ".ply"), cloud).is_ok());
+  auto r = compress_files({tmp.file(name + ".ply")}, tmp.file(name + ".relief"), o);
+  REQUIRE(r.is_ok());
+  return tmp.file(name + ".relief");
+}
+
+PointCloud run_query(ArchiveReader& r, const Box3d* box, QueryStats* stats, const QueryOptions& o) {
+  PointCloud all;
+  const PointSink sink = [&](const PointCloud& b) {
+    REQUIRE(b.colors.size() == b.size());
+    REQUIRE(b.intensities.size() == b.size());
+    all.positions.insert(all.positions.end(), b.positions.begin(), b.positions.end());
+    return Status::ok();
+  };
+  auto s = box ? r.query(*box, o, sink) : r.query_all(o, sink);
+  REQUIRE(s.is_ok());
+  if (stats) *stats = *s;
+  return all;
+}
+
+bool inside(const Vec3d& p, const Box3d& b) {
+  return p.x >= b.min.x && p.x <= b.max.x && p.y >= b.min.y && p.y <= b.max.y && p.z >= b.min.z && p.z <= b.max.z;
+}
+
+// Level blobs by (level, key): what a pyramid holds.
+std::map<std::tuple<int, std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> level_blobs(
+    const std::string& path) {
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  const double inf = std::numeric_limits<double>::infinity();
+  std::map<std::tuple<int, std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> out;
+  for (int level = 1; level <= 8; ++level) {
+    auto refs = (*archive)->find_level_chunks(level, Box3d{{-inf, -inf, -inf}, {inf, inf, inf}});
+    REQUIRE(refs.is_ok());
+    for (const ChunkRef& ref : *refs) {
+      auto row = (*archive)->read_level_chunk(ref.id);
+      REQUIRE(row.is_ok());
+      out[{level, ref.key.ix, ref.key.iy, ref.key.iz}] = row->blob;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("the pyramid's levels hold about a quarter of the points of the level below", "[pyramid]") {
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "a", terrain(1, 300000)));
+  REQUIRE(reader.is_ok());
+  const ArchiveInfo& info = (*reader)->info();
+  REQUIRE(info.pyramid.size() == 1);
+  const ScanPyramid& p = info.pyramid[0];
+  CHECK(p.base_points == 300000);
+  CHECK(p.base_chunks == info.chunk_count);
+  REQUIRE(p.levels.size() >= 2);
+  std::uint64_t below = p.base_points, bytes = 0;
+  int previous = 0;
+  for (const PyramidLevel& l : p.levels) {
+    INFO("level " << l.level << ": " << l.points << " points in " << l.chunks << " nodes");
+    // A level is stored only when it keeps at most a third of the points
+    // below; levels are numbered by node size (chunk edge * 2^level).
+    CHECK(l.points * 3 <= below);
+    CHECK(l.points > 0);
+    CHECK(l.level > previous);
+    below = l.points;
+    previous = l.level;
+    bytes += l.blob_bytes;
+  }
+  CHECK(p.levels.back().chunks <= 8);
+  CHECK(p.levels.back().points <= 8192);
+  CHECK(info.pyramid_bytes == bytes);
+  CHECK(bytes * 10 < info.blob_bytes);
+
+  TempDir tmp2;
+  auto plain = ArchiveReader::open(build(tmp2, "b", terrain(1, 30000), options(PyramidMode::kAuto)));
+  REQUIRE(plain.is_ok());
+  REQUIRE((*plain)->info().pyramid.size() == 1);
+  CHECK((*plain)->info().pyramid[0].levels.empty());  // auto: far below kPyramidAutoMinPoints
+  CHECK((*plain)->info().pyramid_bytes == 0);
+}
+
+TEST_CASE("a coarse query reads the pyramid: far fewer bytes, about 1/L of the points, near the data", "[pyramid]") {
+  TempDir tmp;
+  const PointCloud cloud = terrain(2, 300000);
+  auto reader = ArchiveReader::open(build(tmp, "a", cloud));
+  REQUIRE(reader.is_ok());
+  const Box3d box{{5.3, 7.1, -10}, {21.7, 19.9, 10}};
+  std::size_t in_box = 0;
+  for (const Vec3d& q : cloud.positions) in_box += inside(q, box) ? 1 : 0;
+
+  QueryOptions full;
+  QueryStats full_stats;
+  run_query(**reader, &box, &full_stats, full);
+  for (const std::uint32_t lod : {16u, 64u, 256u}) {
+    QueryOptions o;
+    o.lod = lod;
+    QueryStats stats;
+    const PointCloud got = run_query(**reader, &box, &stats, o);
+    INFO("lod " << lod << ": " << got.size() << " points of " << in_box << ", level " << stats.pyramid_level
+                << ", " << stats.blob_bytes_read << " of " << full_stats.blob_bytes_read << " bytes");
+    CHECK(stats.pyramid_level >= 1);
+    CHECK(stats.blob_bytes_read * 10 < full_stats.blob_bytes_read);
+    const double want = static_cast<double>(in_box) / lod;
+    CHECK(static_cast<double>(got.size()) > 0.4 * want);
+    CHECK(static_cast<double>(got.size()) < 2.5 * want);
+    // Every point inside the box and near the terrain: a resampled copy, a
+    // plane per cell of 2-8 m here (levels 4-6), so on average within a few
+    // centimetres, at worst within the terrain's slab.
+    double sum = 0;
+    for (const Vec3d& p : got.positions) {
+      REQUIRE(inside(p, box));
+      const double error = std::fabs(p.z - 0.5 * std::sin(p.x * 0.7) * std::cos(p.y * 0.5));
+      REQUIRE(error < 0.6);  // within the terrain's slab (amplitude 0.5)
+      sum += error;
+    }
+    CHECK(sum / static_cast<double>(got.size()) < 0.1);
+    // Without the pyramid: the chunks' own levels of detail, every byte read.
+    o.use_pyramid = false;
+    QueryStats direct;
+    run_query(**reader, &box, &direct, o);
+    CHECK(direct.pyramid_level == 0);
+    CHECK(direct.blob_bytes_read == full_stats.blob_bytes_read);
+  }
+  // lod 1 never reads the pyramid.
+  CHECK(full_stats.pyramid_level == 0);
+}
+
+TEST_CASE("max_points picks the finest level that fits and never exceeds the limit", "[pyramid]") {
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "a", terrain(3, 300000)));
+  REQUIRE(reader.is_ok());
+  const ScanPyramid& p = (*reader)->info().pyramid.at(0);
+  REQUIRE(p.levels.size() >= 2);
+  const auto count = [&](std::uint64_t max_points, QueryStats& stats) {
+    QueryOptions o;
+    o.max_points = max_points;
+    return run_query(**reader, nullptr, &stats, o).size();
+  };
+  QueryStats stats;
+  // Everything fits: every point, from the chunks.
+  CHECK(count(1'000'000, stats) == 300000);
+  CHECK(stats.pyramid_level == 0);
+  // Exactly a level fits, then one point less: the next level.
+  for (std::size_t i = 0; i + 1 < p.levels.size(); ++i) {
+    CHECK(count(p.levels[i].points, stats) == p.levels[i].points);
+    CHECK(stats.pyramid_level == p.levels[i].level);
+    CHECK(count(p.levels[i].points - 1, stats) == p.levels[i + 1].points);
+    CHECK(stats.pyramid_level == p.levels[i + 1].level);
+  }
+  // Below the top level: thinned, then cut at the limit.
+  for (const std::uint64_t limit : {std::uint64_t{1}, std::uint64_t{100}, p.levels.back().points - 1}) {
+    const std::size_t got = count(limit, stats);
+    CHECK(got <= limit);
+    CHECK(got * 4 >= limit);
+    CHECK(stats.pyramid_level == p.levels.back().level);
+  }
+  QueryOptions both;
+  both.max_points = 10;
+  both.lod = 4;
+  const auto r = (*reader)->query_all(both, [](const PointCloud&) { return Status::ok(); });
+  CHECK(r.status().code() == StatusCode::kInvalidArgument);
+}
+
+TEST_CASE("the pyramid's blobs depend only on the points, not their order, threads or budget", "[pyramid]") {
+  TempDir tmp;
+  PointCloud cloud = terrain(4, 120000);
+  const std::string a = build(tmp, "a", cloud);
+  // Reversed order, one thread, the smallest budget.
+  std::vector<std::uint32_t> order(cloud.size());
+  for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::uint32_t>(order.size() - 1 - i);
+  IngestOptions o = options(PyramidMode::kOn);
+  o.threads = 1;
+  o.memory_budget = std::uint64_t{64} << 20;
+  const std::string b = build(tmp, "b", cloud.gathered(order), o);
+  const auto blobs_a = level_blobs(a);
+  const auto blobs_b = level_blobs(b);
+  CHECK(blobs_a.size() >= 3);
+  CHECK(blobs_a == blobs_b);
+
+  // Rebuilt from the stored chunks: the same blobs again.
+  auto archive = Archive::open(b, Archive::Mode::kReadWrite);
+  REQUIRE(archive.is_ok());
+  auto rebuilt = build_pyramid(**archive, 1, PyramidOptions{});
+  REQUIRE(rebuilt.is_ok());
+  CHECK(rebuilt->levels >= 2);
+  archive->reset();
+  CHECK(level_blobs(b) == blobs_a);
+}
+
+TEST_CASE("an append brings its own pyramid; removing the scan removes it", "[pyramid]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "a", terrain(5, 100000));
+  REQUIRE(write_ply(tmp.file("more.ply"), terrain(6, 100000, {kSize, 0, 0})).is_ok());
+  IngestOptions o = options(PyramidMode::kOn);
+  auto appended = append_files(path, {tmp.file("more.ply")}, o);
+  REQUIRE(appended.is_ok());
+  CHECK(appended->pyramid.levels >= 2);
+  {
+    auto reader = ArchiveReader::open(path);
+    REQUIRE(reader.is_ok());
+    const ArchiveInfo& info = (*reader)->info();
+    REQUIRE(info.pyramid.size() == 2);
+    CHECK_FALSE(info.pyramid[0].levels.empty());
+    CHECK_FALSE(info.pyramid[1].levels.empty());
+    // A coarse query of both scans' area returns points of both.
+    QueryOptions q;
+    q.lod = 32;
+    QueryStats stats;
+    const PointCloud got = run_query(**reader, nullptr, &stats, q);
+    CHECK(stats.pyramid_level >= 1);
+    std::size_t left = 0, right = 0;
+    for (const Vec3d& p : got.positions) (p.x < kSize ? left : right) += 1;
+    CHECK(left > 1000);
+    CHECK(right > 1000);
+  }
+  {
+    auto archive = Archive::open(path, Archive::Mode::kReadWrite);
+    REQUIRE(archive.is_ok());
+    REQUIRE((*archive)->abort_scan(appended->scan_id).is_ok());
+  }
+  auto reader = ArchiveReader::open(path);
+  REQUIRE(reader.is_ok());
+  REQUIRE((*reader)->info().pyramid.size() == 1);
+  QueryOptions q;
+  q.lod = 32;
+  QueryStats stats;
+  for (const Vec3d& p : run_query(**reader, nullptr, &stats, q).positions) REQUIRE(p.x <= kSize);
+  CHECK(stats.pyramid_level >= 1);
+}
+
+TEST_CASE("pyramid rows are ignored until the scan's pyramid is recorded finished", "[pyramid]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "a", terrain(7, 60000), options(PyramidMode::kOff));
+  ChunkRow node;
+  {
+    auto archive = Archive::open(path, Archive::Mode::kReadWrite);
+    REQUIRE(archive.is_ok());
+    auto rows = (*archive)->scan_chunks(1);
+    REQUIRE(rows.is_ok());
+    REQUIRE_FALSE(rows->empty());
+    auto first = (*archive)->read_chunk(rows->front().id);
+    REQUIRE(first.is_ok());
+    node = *first;
+    node.ref.key = ChunkKey{0, 0, 0};
+    std::vector<ChunkRow> batch = {node};
+    REQUIRE((*archive)->put_level_chunks(1, batch).is_ok());
+    std::vector<ChunkRow> bad = {node};
+    CHECK((*archive)->put_level_chunks(0, bad).code() == StatusCode::kInvalidArgument);
+    CHECK((*archive)->finish_pyramid(99, 0b10).code() == StatusCode::kInvalidArgument);
+    CHECK((*archive)->finish_pyramid(1, 1).code() == StatusCode::kInvalidArgument);  // level 0 is the chunks
+  }
+  {
+    auto reader = ArchiveReader::open(path);
+    REQUIRE(reader.is_ok());
+    CHECK((*reader)->info().pyramid.at(0).levels.empty());
+    QueryOptions q;
+    q.lod = 64;
+    QueryStats stats;
+    run_query(**reader, nullptr, &stats, q);
+    CHECK(stats.pyramid_level == 0);
+  }
+  {
+    auto archive = Archive::open(path, Archive::Mode::kReadWrite);
+    REQUIRE(archive.is_ok());
+    // Recorded with a level it lacks: still not used.
+    REQUIRE((*archive)->finish_pyramid(1, 0b110).is_ok());
+  }
+  auto reader = ArchiveReader::open(path);
+  REQUIRE(reader.is_ok());
+  CHECK((*reader)->info().pyramid.at(0).levels.empty());
+  auto check = check_archive(path);
+  REQUIRE(check.is_ok());
+  CHECK(check->problems.empty());
+}
