@@ -1,11 +1,13 @@
-// Item coders of LASzip: version 1 (LASzip 1.x, pointwise; decoding only),
-// version 2 (pointwise, one arithmetic stream per chunk) and version 3 (layered: each attribute has its own stream, and
-// POINT14 keeps separate contexts per scanner channel that the other items
-// follow). Each class holds one item's models and predictor state and both
-// directions: read() (items_v2.cpp, items_v3.cpp) matches LASzip's reader
-// bit for bit, write() (items_v2_write.cpp, items_v3_write.cpp) LASzip's
-// writer byte for byte, and the two use the same state so that every model
-// is initialised and updated in one place. Internal to lib/laz.
+// Item coders of LASzip: version 1 (LASzip 1.x, pointwise), version 2
+// (pointwise, one arithmetic stream per chunk) and version 3 (layered: each
+// attribute has its own stream, and POINT14 keeps separate contexts per
+// scanner channel that the other items follow). Each class holds one item's
+// models and predictor state: read() (items_v1.cpp, items_v2.cpp,
+// items_v3.cpp) matches LASzip's reader bit for bit; versions 2 and 3 also
+// write() (items_v2_write.cpp, items_v3_write.cpp) LASzip's writer byte for
+// byte, with the same state, so that every model is initialised and updated
+// in one place (version 1 is read only: Relief writes the current versions).
+// Internal to lib/laz.
 #pragma once
 
 #include <array>

@@ -238,6 +238,39 @@ TEST_CASE("LAZ v1: version-1 items, alone and mixed with version 2, come back ex
   }
 }
 
+TEST_CASE("LAZ v1: a read error in the middle of an unchunked stream is reported as such", "[laz][v1][reject]") {
+  const auto items = pointwise_items(1, 0, 0x3);
+  auto params = laz::parse_vlr(pointwise_vlr(1, 0, items), 1, 28, "v1");
+  REQUIRE(params.is_ok());
+  const auto records = varied_records(1, 0, 20000, 9);
+  const auto stream = encode_pointwise(records, 28, items);
+  REQUIRE(stream.size() > 3000);
+  auto whole = laz::unchunked_stream(*params, 0, stream.size(), 20000, "v1");
+  REQUIRE(whole.is_ok());
+  auto reader = laz::ChunkReader::create(*params, {*whole}, 4, "v1", laz::kMaxParallelChunkBytes, 1000);
+  REQUIRE(reader.is_ok());
+  // The third piece cannot be read.
+  const laz::ChunkReader::Fetch fetch = [&](std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out) {
+    if (offset >= 2000) return io_error("v1: the disk failed at byte " + std::to_string(offset));
+    out.assign(stream.begin() + static_cast<std::ptrdiff_t>(offset),
+               stream.begin() + static_cast<std::ptrdiff_t>(offset + bytes));
+    return Status::ok();
+  };
+  std::size_t got = 0;
+  Status status;
+  for (;;) {
+    std::span<const std::uint8_t> out;
+    status = (*reader)->next(fetch, out);
+    if (!status.is_ok() || out.empty()) break;
+    CHECK(std::memcmp(out.data(), records.data() + got * 28, out.size()) == 0);
+    got += out.size() / 28;
+  }
+  REQUIRE_FALSE(status.is_ok());
+  CHECK(status.code() == StatusCode::kIoError);
+  CHECK(status.message().find("the disk failed at byte 2000") != std::string::npos);
+  CHECK(got < 20000);
+}
+
 TEST_CASE("LAZ v1: one point, and a stream of repeats, decode", "[laz][v1]") {
   const auto items = pointwise_items(3, 2, 0xF);
   auto params = laz::parse_vlr(pointwise_vlr(1, 0, items), 3, 36, "v1");
