@@ -696,6 +696,18 @@ Status LasPointReader::start_laz(const ProjectionRecords& records) {
   }
   RELIEF_ASSIGN_OR_RETURN(laz::Params params,
                           laz::parse_vlr(*records.laszip, header_.format, header_.record_length, name()));
+  if (params.unchunked()) {
+    // LASzip 1.x without chunks: no table offset and no table; the points
+    // are one stream to the extended VLRs (when they follow) or the end.
+    std::uint64_t end = *size;
+    if (header_.evlr_count > 0 && header_.evlr_start >= header_.point_offset) end = std::min(end, header_.evlr_start);
+    RELIEF_ASSIGN_OR_RETURN(laz::Chunk whole, laz::unchunked_stream(params, header_.point_offset, end,
+                                                                    header_.point_count, name()));
+    RELIEF_ASSIGN_OR_RETURN(laz_reader_, laz::ChunkReader::create(params, {whole}, 1, name()));
+    laz_ = true;
+    backed_ = true;  // the stream is long enough for every declared point
+    return Status::ok();
+  }
   std::span<const std::uint8_t> view;
   RELIEF_RETURN_IF_ERROR(src_.fill(kChunkTableOffsetSize, view));
   if (view.size() < kChunkTableOffsetSize) {

@@ -21,6 +21,19 @@
 
 namespace relief::laz {
 
+// The rest of a stream that arrives in pieces.
+class ByteFeed {
+ public:
+  // Sets [begin, end) to the next piece (non-empty); false at the end of the
+  // stream or on a read error (which the feed keeps for its owner).
+  virtual bool more(const std::uint8_t*& begin, const std::uint8_t*& end) = 0;
+  // Bytes of the stream not handed out yet.
+  virtual std::uint64_t remaining() const = 0;
+
+ protected:
+  ~ByteFeed() = default;
+};
+
 // Renormalise when the range falls below 2^24 (one byte of headroom).
 inline constexpr std::uint32_t kMinLength = 0x01000000u;
 inline constexpr std::uint32_t kMaxLength = 0xFFFFFFFFu;
@@ -125,7 +138,9 @@ class SymbolModel {
 class ArithmeticDecoder {
  public:
   // Starts decoding `data`. False when the stream cannot be a LASzip stream.
-  bool init(std::span<const std::uint8_t> data) {
+  // With `feed`, `data` is the stream's first piece and the feed has the rest.
+  bool init(std::span<const std::uint8_t> data, ByteFeed* feed = nullptr) {
+    feed_ = feed;
     p_ = data.data();
     end_ = p_ + data.size();
     overrun_ = 0;
@@ -138,8 +153,10 @@ class ArithmeticDecoder {
   }
   // Bytes read past the end of the input (as zeros).
   std::size_t overrun() const { return overrun_; }
-  // Input bytes not read yet.
-  std::size_t unread() const { return static_cast<std::size_t>(end_ - p_); }
+  // Input bytes not read yet (the feed's included).
+  std::uint64_t unread() const {
+    return static_cast<std::uint64_t>(end_ - p_) + (feed_ != nullptr ? feed_->remaining() : 0);
+  }
 
   std::uint32_t decode_bit(BitModel& m) {
     const std::uint32_t x = m.bit_0_prob_ * (length_ >> kBitLengthShift);
@@ -226,6 +243,7 @@ class ArithmeticDecoder {
  private:
   std::uint32_t byte() {
     if (p_ < end_) return *p_++;
+    if (feed_ != nullptr && feed_->more(p_, end_)) return *p_++;
     ++overrun_;
     return 0;
   }
@@ -235,6 +253,7 @@ class ArithmeticDecoder {
     } while ((length_ <<= 8) < kMinLength);
   }
 
+  ByteFeed* feed_ = nullptr;
   const std::uint8_t* p_ = nullptr;
   const std::uint8_t* end_ = nullptr;
   std::size_t overrun_ = 0;

@@ -1,11 +1,13 @@
-// Item coders of LASzip: version 2 (pointwise, one arithmetic stream per
-// chunk) and version 3 (layered: each attribute has its own stream, and
-// POINT14 keeps separate contexts per scanner channel that the other items
-// follow). Each class holds one item's models and predictor state and both
-// directions: read() (items_v2.cpp, items_v3.cpp) matches LASzip's reader
-// bit for bit, write() (items_v2_write.cpp, items_v3_write.cpp) LASzip's
-// writer byte for byte, and the two use the same state so that every model
-// is initialised and updated in one place. Internal to lib/laz.
+// Item coders of LASzip: version 1 (LASzip 1.x, pointwise), version 2
+// (pointwise, one arithmetic stream per chunk) and version 3 (layered: each
+// attribute has its own stream, and POINT14 keeps separate contexts per
+// scanner channel that the other items follow). Each class holds one item's
+// models and predictor state: read() (items_v1.cpp, items_v2.cpp,
+// items_v3.cpp) matches LASzip's reader bit for bit; versions 2 and 3 also
+// write() (items_v2_write.cpp, items_v3_write.cpp) LASzip's writer byte for
+// byte, with the same state, so that every model is initialised and updated
+// in one place (version 1 is read only: Relief writes the current versions).
+// Internal to lib/laz.
 #pragma once
 
 #include <array>
@@ -139,6 +141,77 @@ inline constexpr GpsCodes kGpsCodesV2{true, 0, 1, 2, kGpsMulti - kGpsMultiMinus 
 inline constexpr GpsCodes kGpsCodesV3{false, 0, 0, 1, 0, kGpsMulti - kGpsMultiMinus + 1};
 // Codes time `t` (the double's bits) as LASzip's writer does.
 void gps_encode(ArithmeticEncoder& enc, GpsTimeState& s, std::uint64_t t, const GpsCodes& codes);
+
+// ---------------------------------------------------------------- version 1
+//
+// LASzip 1.x's items (items_v1.cpp): other models than version 2 (integer
+// coders where version 2 has symbol tables, a median of three differences,
+// no return-number contexts), read only. Files may mix versions 1 and 2
+// item by item, as LASzip's reader allows.
+
+class Point10V1 {
+ public:
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  SymbolModel changed_values_{64};
+  IntegerCoder ic_dx_{32, 1};
+  IntegerCoder ic_dy_{32, 20};
+  IntegerCoder ic_z_{32, 20};
+  IntegerCoder ic_intensity_{16, 1};
+  IntegerCoder ic_scan_angle_{8, 2};
+  IntegerCoder ic_point_source_{16, 1};
+  std::array<std::unique_ptr<SymbolModel>, 256> bit_byte_, classification_, user_data_;
+  std::array<std::uint8_t, kPoint10Size> last_{};
+  // The last three x and y differences, written round robin at next_.
+  std::array<std::int32_t, 3> last_dx_{}, last_dy_{};
+  int next_ = 0;
+};
+
+class GpsTime11V1 {
+ public:
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+  // Symbols of the multiplier model (512 of them): 0 .. kMultiMax - 3 are
+  // multipliers of the last difference, then a full 64-bit time, then
+  // "unchanged". The zero-difference model (3 symbols) codes unchanged,
+  // a 32-bit difference, a full time.
+  static constexpr std::uint32_t kMultiMax = 512;
+  static constexpr std::uint32_t kMultiFull = kMultiMax - 2;
+  static constexpr std::uint32_t kMultiUnchanged = kMultiMax - 1;
+
+ private:
+  SymbolModel multi_{kMultiMax};
+  SymbolModel zero_diff_{3};
+  IntegerCoder ic_{32, 6};
+  std::uint64_t last_ = 0;
+  std::int32_t last_diff_ = 0;
+  int extreme_ = 0;
+};
+
+class Rgb12V1 {
+ public:
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  SymbolModel byte_used_{64};
+  IntegerCoder ic_{8, 6};
+  std::array<std::uint16_t, 3> last_{};
+};
+
+class ByteV1 {
+ public:
+  explicit ByteV1(std::size_t n) : ic_(8, static_cast<std::uint32_t>(n)), last_(n) {}
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  IntegerCoder ic_;  // one context per byte
+  std::vector<std::uint8_t> last_;
+};
 
 // ---------------------------------------------------------------- version 2
 

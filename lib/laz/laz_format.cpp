@@ -30,6 +30,11 @@ constexpr std::size_t kChunkTableHeader = 8;
 // LASzip's encoder ends each stream with the bytes its decoder will read,
 // so a decoder needing more than the stream holds means it was cut short.
 constexpr std::size_t kOverrunSlack = 0;
+// LASzip's encoder ends a stream with two or three zero bytes so that its
+// decoder reads exactly to the end; an unchunked stream of LASzip 1.x (whose
+// encoder we could not check for them) is allowed to lack them: the decoder
+// then reads as many zeros past the end of the point data.
+constexpr std::size_t kUnchunkedOverrunSlack = 3;
 // Compressed points can be tiny (a point equal to its predecessor costs a
 // few thousandths of a bit), but not free: a chunk claiming more points than
 // this per compressed byte is refused, which bounds the work any file can
@@ -115,11 +120,8 @@ Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format
   if (coder != kCoderArithmetic) {
     return unsupported(what + ": coder " + std::to_string(coder) + " is not LASzip's arithmetic coder (0)");
   }
-  if (p.compressor == kCompressorPointwise) {
-    return unsupported(name + ": LAZ written by LASzip 1.x without chunks (compressor 1) is not supported; "
-                              "recompress it with a current laszip");
-  }
-  if (p.compressor != kCompressorPointwiseChunked && p.compressor != kCompressorLayeredChunked) {
+  if (p.compressor != kCompressorPointwise && p.compressor != kCompressorPointwiseChunked &&
+      p.compressor != kCompressorLayeredChunked) {
     return format_error(what + ": unknown compressor " + std::to_string(p.compressor));
   }
   const FormatItems need = items_for_format(point_format);
@@ -128,11 +130,15 @@ Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format
                        " is not supported (0-3 and 6-8 are; waveform formats are not)");
   }
   const bool layered = point_format >= 6;
+  // LASzip 1.x's unchunked compressor (1) knew the pointwise items only.
   if (layered != (p.compressor == kCompressorLayeredChunked)) {
     return format_error(what + ": compressor " + std::to_string(p.compressor) + " does not fit point format " +
                         std::to_string(point_format));
   }
+  // Pointwise items may be version 1 (LASzip 1.x) or 2, each on its own, as
+  // LASzip's reader takes them, with either pointwise compressor.
   const std::uint16_t want_version = layered ? 3 : 2;
+  const std::uint16_t min_version = layered ? 3 : 1;
   const std::uint16_t byte_type = layered ? kItemByte14 : kItemByte;
   const std::size_t extra = record_length >= need.size ? record_length - need.size : 0;
   const std::size_t want_items = need.types.size() + (extra > 0 ? 1 : 0);
@@ -150,13 +156,36 @@ Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format
       return format_error(what + ": items (" + listed + ") do not describe point format " +
                           std::to_string(point_format) + " with " + std::to_string(extra) + " extra bytes");
     }
-    if (it.version != want_version) {
+    if (it.version < min_version || it.version > want_version) {
       return unsupported(name + ": LASzip item " + item_name(it.type) + " version " + std::to_string(it.version) +
-                         " is not supported (version " + std::to_string(want_version) + " is)");
+                         " is not supported (" +
+                         (layered ? std::string("version 3 is") : std::string("versions 1 and 2 are")) + ")");
     }
   }
-  if (p.chunk_size == 0) return format_error(what + ": chunk size is 0");
+  // Without chunks the chunk size means nothing.
+  if (p.chunk_size == 0 && p.compressor != kCompressorPointwise) return format_error(what + ": chunk size is 0");
   return p;
+}
+
+Result<Chunk> unchunked_stream(const Params& params, std::uint64_t first, std::uint64_t end,
+                               std::uint64_t point_count, const std::string& name) {
+  const std::string what = name + ": the LAZ point data (one unchunked stream, compressor 1) from byte " +
+                           std::to_string(first);
+  if (end < first) return format_error(what + " starts past its end at byte " + std::to_string(end));
+  Chunk c{first, end - first, point_count};
+  if (c.points == 0 && c.bytes > 0) {
+    return format_error(what + " holds " + std::to_string(c.bytes) + " bytes but the header declares no points");
+  }
+  // As for a chunk: the first point raw, and not more points than bytes allow.
+  if (c.points > 0 && c.bytes < params.record_length) {
+    return format_error(what + " has " + std::to_string(c.bytes) + " bytes, fewer than its first point's " +
+                        std::to_string(params.record_length));
+  }
+  if (c.points > kMaxPointsPerByte * c.bytes) {
+    return format_error(what + " cannot hold the header's " + std::to_string(c.points) + " points in " +
+                        std::to_string(c.bytes) + " bytes");
+  }
+  return c;
 }
 
 Result<std::vector<Chunk>> parse_chunk_table(std::span<const std::uint8_t> table, const Params& params,
@@ -262,6 +291,7 @@ class ChunkDecoderBase : public ChunkDecoder {
     return Status::ok();
   }
   Status corrupt(const std::string& what) const {
+    if (unchunked_) return corrupt_data(name_ + ": LAZ point data (one unchunked stream, compressor 1): " + what);
     return corrupt_data(name_ + ": LAZ chunk " + std::to_string(index_ + 1) + ": " + what);
   }
   // The encoder's stream ends exactly where its decoder stops reading, so
@@ -271,11 +301,13 @@ class ChunkDecoderBase : public ChunkDecoder {
                    " points (a wrong point count or chunk size)");
   }
   Status cut_short() const {
-    return corrupt("the compressed data ends before point " + std::to_string(decoded_) + " of the chunk");
+    return corrupt("the compressed data ends before point " + std::to_string(decoded_) +
+                   (unchunked_ ? std::string() : std::string(" of the chunk")));
   }
 
   std::size_t rl_;
   std::string name_;
+  bool unchunked_ = false;
   std::uint64_t index_ = 0;
   std::uint64_t left_ = 0;
   std::uint64_t decoded_ = 0;
@@ -283,17 +315,32 @@ class ChunkDecoderBase : public ChunkDecoder {
   std::vector<std::uint8_t> first_;
 };
 
+// Both pointwise compressors: the chunked one (2) gives each chunk its own
+// stream; the unchunked one (1) has a single "chunk", the whole point data,
+// which comes through begin_fed() in pieces.
 class PointwiseDecoder final : public ChunkDecoderBase {
  public:
-  PointwiseDecoder(const Params& params, std::string name) : ChunkDecoderBase(params, std::move(name)) {
+  PointwiseDecoder(const Params& params, std::string name)
+      : ChunkDecoderBase(params, std::move(name)),
+        slack_(params.compressor == kCompressorPointwise ? kUnchunkedOverrunSlack : kOverrunSlack) {
+    unchunked_ = params.compressor == kCompressorPointwise;
     std::size_t offset = 0;
     for (const Item& it : params.items) {
       std::unique_ptr<PointwiseItem> item;
+      const bool v1 = it.version == 1;
       switch (it.type) {
-        case kItemPoint10: item = std::make_unique<PointwiseItemOf<Point10V2>>(); break;
-        case kItemGpsTime11: item = std::make_unique<PointwiseItemOf<GpsTime11V2>>(); break;
-        case kItemRgb12: item = std::make_unique<PointwiseItemOf<Rgb12V2>>(); break;
-        default: item = std::make_unique<PointwiseItemOf<ByteV2>>(std::size_t{it.size}); break;
+        case kItemPoint10:
+          item = v1 ? make_item<Point10V1>() : make_item<Point10V2>();
+          break;
+        case kItemGpsTime11:
+          item = v1 ? make_item<GpsTime11V1>() : make_item<GpsTime11V2>();
+          break;
+        case kItemRgb12:
+          item = v1 ? make_item<Rgb12V1>() : make_item<Rgb12V2>();
+          break;
+        default:
+          item = v1 ? make_item<ByteV1>(std::size_t{it.size}) : make_item<ByteV2>(std::size_t{it.size});
+          break;
       }
       item->offset = offset;
       offset += it.size;
@@ -302,11 +349,10 @@ class PointwiseDecoder final : public ChunkDecoderBase {
   }
 
   Status begin(std::span<const std::uint8_t> bytes, std::uint64_t points, std::uint64_t index) override {
-    RELIEF_RETURN_IF_ERROR(start(bytes, points, index));
-    if (points == 0) return Status::ok();
-    for (auto& item : items_) item->init(first_.data() + item->offset);
-    if (!dec_.init(bytes.subspan(rl_))) return corrupt("the compressed stream is invalid");
-    return Status::ok();
+    return begin_with(bytes, nullptr, points, index);
+  }
+  Status begin_fed(std::span<const std::uint8_t> first, ByteFeed& feed, std::uint64_t points) override {
+    return begin_with(first, &feed, points, 0);
   }
 
   Status decode(std::size_t n, std::uint8_t* out) override {
@@ -321,12 +367,27 @@ class PointwiseDecoder final : public ChunkDecoderBase {
       ++decoded_;
     }
     left_ -= n;
-    if (dec_.overrun() > kOverrunSlack) return cut_short();
-    if (left_ == 0 && dec_.unread() > 0) return trailing(dec_.unread());
+    if (dec_.overrun() > slack_) return cut_short();
+    if (left_ == 0 && dec_.unread() > 0) return trailing(static_cast<std::size_t>(dec_.unread()));
     return Status::ok();
   }
 
  private:
+  template <typename T, typename... A>
+  static std::unique_ptr<PointwiseItem> make_item(A... a) {
+    return std::make_unique<PointwiseItemOf<T>>(a...);
+  }
+
+  Status begin_with(std::span<const std::uint8_t> bytes, ByteFeed* feed, std::uint64_t points,
+                    std::uint64_t index) {
+    RELIEF_RETURN_IF_ERROR(start(bytes, points, index));
+    if (points == 0) return Status::ok();
+    for (auto& item : items_) item->init(first_.data() + item->offset);
+    if (!dec_.init(bytes.subspan(rl_), feed)) return corrupt("the compressed stream is invalid");
+    return Status::ok();
+  }
+
+  std::size_t slack_;
   std::vector<std::unique_ptr<PointwiseItem>> items_;
   ArithmeticDecoder dec_;
 };
@@ -438,11 +499,15 @@ class LayeredDecoder final : public ChunkDecoderBase {
 
 }  // namespace
 
+Status ChunkDecoder::begin_fed(std::span<const std::uint8_t>, ByteFeed&, std::uint64_t) {
+  return unsupported("only the pointwise LAZ compressors decode a stream given in pieces");
+}
+
 Result<std::unique_ptr<ChunkDecoder>> ChunkDecoder::create(const Params& params, const std::string& name) {
   if (params.compressor == kCompressorLayeredChunked) {
     return std::unique_ptr<ChunkDecoder>(std::make_unique<LayeredDecoder>(params, name));
   }
-  if (params.compressor == kCompressorPointwiseChunked) {
+  if (params.compressor == kCompressorPointwiseChunked || params.compressor == kCompressorPointwise) {
     return std::unique_ptr<ChunkDecoder>(std::make_unique<PointwiseDecoder>(params, name));
   }
   return unsupported(name + ": LASzip compressor " + std::to_string(params.compressor) + " is not supported");

@@ -9,10 +9,14 @@
 // compressor (LASzip 2.x; point formats 0-3, items POINT10, GPSTIME11, RGB12
 // and BYTE in version 2) and the layered chunked compressor (LASzip 3.x;
 // formats 6-8, items POINT14, RGB14, RGBNIR14 and BYTE14 in version 3), extra
-// bytes, fixed or variable chunk sizes. Not supported: waveform formats 4, 5,
-// 9 and 10, LASzip 1.x's unchunked compressor, item versions 1 and 4.
+// bytes, fixed or variable chunk sizes. Read only: LASzip 1.x's unchunked
+// pointwise compressor (1: no chunk table and no table offset, the whole
+// point data is one stream) and the pointwise items in version 1, with either
+// pointwise compressor and mixed with version-2 items as LASzip allows. Not
+// supported: waveform formats 4, 5, 9 and 10, item version 4.
 // Decoding and encoding go chunk by chunk, so memory is bounded by one
-// chunk's compressed bytes whatever the file size.
+// chunk's compressed bytes whatever the file size (an unchunked stream is
+// read in pieces of bounded size).
 //
 // Every function checks what it reads against the bytes present; errors name
 // `name` (the file) and the problem.
@@ -41,10 +45,12 @@ struct Item {
 };
 
 struct Params {
-  std::uint16_t compressor = 0;  // 2 = pointwise chunked, 3 = layered chunked
+  std::uint16_t compressor = 0;  // 1 = pointwise, 2 = pointwise chunked, 3 = layered chunked
   std::uint32_t chunk_size = 0;  // points per chunk; kVariableChunks when the table says
   std::vector<Item> items;
   std::size_t record_length = 0;
+  // LASzip 1.x's compressor 1: no chunk table, one stream (see unchunked_stream()).
+  bool unchunked() const { return compressor == 1; }
 };
 inline constexpr std::uint32_t kVariableChunks = 0xFFFFFFFFu;
 
@@ -68,6 +74,15 @@ Result<std::vector<Chunk>> parse_chunk_table(std::span<const std::uint8_t> table
                                              std::uint64_t first_chunk, std::uint64_t table_offset,
                                              std::uint64_t point_count, const std::string& name);
 
+// For an unchunked file (params.unchunked()): the single "chunk" that is the
+// whole point data, from `first` (the point-data offset: there is no table
+// offset) to `end` (the extended VLRs or the end of the file), holding the
+// header's `point_count` points. Refuses a region that cannot hold them.
+Result<Chunk> unchunked_stream(const Params& params, std::uint64_t first, std::uint64_t end,
+                               std::uint64_t point_count, const std::string& name);
+
+class ByteFeed;  // lib/laz internal: the rest of a stream given in pieces
+
 // Decompresses chunks into uncompressed LAS point records.
 class ChunkDecoder {
  public:
@@ -77,17 +92,25 @@ class ChunkDecoder {
   // Starts the chunk `index` whose compressed bytes are `bytes` (which must
   // stay alive until the chunk is done) and which holds `points` points.
   virtual Status begin(std::span<const std::uint8_t> bytes, std::uint64_t points, std::uint64_t index) = 0;
+  // As begin() for a stream too long to hold (compressor 1): `first` is its
+  // first piece (at least one record), `feed` gives the rest as the decoder
+  // needs it. Pointwise decoders only.
+  virtual Status begin_fed(std::span<const std::uint8_t> first, ByteFeed& feed, std::uint64_t points);
   // Writes the next `n` records (n * record_length bytes) of the chunk to
   // `out`; n must not exceed the points left in the chunk.
   virtual Status decode(std::size_t n, std::uint8_t* out) = 0;
 };
 
 inline constexpr std::size_t kMaxParallelChunkBytes = std::size_t{16} << 20;
+inline constexpr std::size_t kStreamPieceBytes = std::size_t{1} << 20;
 
 // Streams the decoded records of a file's chunks in order, decoding up to
 // `threads` chunks at once (one per thread). Memory: per thread one chunk's
 // compressed bytes and decoded records; a chunk whose records would exceed
 // kMaxParallelChunkBytes is decoded in small batches on the calling thread.
+// An unchunked file (compressor 1) is one stream that cannot be split: it is
+// fetched in pieces of kStreamPieceBytes and decoded in small batches on the
+// calling thread, never in parallel.
 class ChunkReader {
  public:
   // Copies `bytes` bytes at file offset `offset` (never before the end of the
@@ -95,10 +118,11 @@ class ChunkReader {
   using Fetch = std::function<Status(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out)>;
 
   // `max_whole_chunk` (bytes of decoded records) is kMaxParallelChunkBytes
-  // but for tests of the piecewise path.
+  // and `stream_piece` kStreamPieceBytes but for tests of the piecewise paths.
   static Result<std::unique_ptr<ChunkReader>> create(const Params& params, std::vector<Chunk> chunks,
                                                      unsigned threads, const std::string& name,
-                                                     std::size_t max_whole_chunk = kMaxParallelChunkBytes);
+                                                     std::size_t max_whole_chunk = kMaxParallelChunkBytes,
+                                                     std::size_t stream_piece = kStreamPieceBytes);
   ~ChunkReader();
 
   // Sets `records` to the next decoded records (a whole number of them;
@@ -107,6 +131,7 @@ class ChunkReader {
 
  private:
   struct Slot;
+  struct Stream;
   ChunkReader() = default;
   Status fill_batch(const Fetch& fetch);
 
@@ -120,6 +145,7 @@ class ChunkReader {
   std::size_t serving_ = 0;     // slot whose records are handed out next
   bool streaming_ = false;      // slot 0 decodes an oversized chunk piecewise
   std::uint64_t stream_left_ = 0;
+  std::unique_ptr<Stream> stream_;  // compressor 1: the point data's pieces
 };
 
 // Compresses LAS point records as LASzip does, so LASzip-compatible readers
