@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -213,6 +214,45 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress", "[shard
       for (const std::string& name : TempDir::list(work)) CHECK(name.find(".tmp-") == std::string::npos);
     }
   }
+}
+
+TEST_CASE("sharded build: the merged archive's pyramid equals a one-box compress's", "[shard][pyramid]") {
+  const Scene s{61, 120000, 3, true, true, {0, 0, 0}, 0, 1.5, 3000};
+  TempDir dir;
+  const std::vector<std::string> inputs = write_inputs(dir, s);
+  IngestOptions o = options_for(s);
+  o.pyramid = PyramidMode::kOn;
+  REQUIRE(compress_files(inputs, dir.file("one.relief"), o).is_ok());
+  const auto levels_of = [](const std::string& path) {
+    auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+    REQUIRE(archive.is_ok());
+    const double inf = std::numeric_limits<double>::infinity();
+    std::vector<std::pair<std::string, std::vector<std::uint8_t>>> out;
+    for (int level = 1; level <= kMaxPyramidLevel; ++level) {
+      auto refs = (*archive)->find_level_chunks(level, Box3d{{-inf, -inf, -inf}, {inf, inf, inf}});
+      REQUIRE(refs.is_ok());
+      for (const ChunkRef& ref : *refs) {
+        auto row = (*archive)->read_level_chunk(ref.id);
+        REQUIRE(row.is_ok());
+        out.emplace_back(std::to_string(level) + ":" + std::to_string(ref.key.ix) + "," + std::to_string(ref.key.iy) +
+                             "," + std::to_string(ref.key.iz),
+                         row->blob);
+      }
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  const auto want = levels_of(dir.file("one.relief"));
+  REQUIRE(want.size() >= 2);
+  const std::vector<std::string> shards = build_shards(inputs, o, 3, dir.file("work"), nullptr);
+  MergeOptions mo;
+  mo.pyramid = PyramidMode::kOn;
+  auto merged = merge_archives(shards, dir.file("merged.relief"), mo);
+  REQUIRE(merged.is_ok());
+  CHECK(merged->pyramid.levels >= 1);
+  CHECK(levels_of(dir.file("merged.relief")) == want);
+  // The shards themselves carry no pyramid: the merge builds the one pyramid.
+  CHECK(levels_of(shards[0]).empty());
 }
 
 TEST_CASE("sharded build: a stage run again writes the same files", "[shard]") {
