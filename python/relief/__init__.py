@@ -163,7 +163,7 @@ def append(archive, inputs, *, progress=None, **options):
     return _ingest("append", inputs, archive, options, progress)
 
 
-_QUERY_OPTIONS = ("threads", "skip_corrupt")
+_QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points")
 
 
 def _box_values(box):
@@ -223,7 +223,9 @@ class Archive:
         at most a few batches in memory at a time; close it (or let it go)
         to stop the query early. ``options``: ``threads`` (decoder threads, 0
         = all cores), ``skip_corrupt`` (skip damaged chunks with a
-        RuntimeWarning instead of raising CorruptDataError).
+        RuntimeWarning instead of raising CorruptDataError), ``max_points``
+        (instead of ``lod``: at most that many points, from the finest level
+        of the archive's level-of-detail pyramid that fits).
         """
         for name in options:
             if name not in _QUERY_OPTIONS:
@@ -232,10 +234,11 @@ class Archive:
                 )
         threads = options.get("threads", 0)
         skip_corrupt = bool(options.get("skip_corrupt", False))
+        max_points = options.get("max_points") or 0
         values = _box_values(box)
         if batches:
-            return self._batches(self._reader.batches(values, lod, threads, skip_corrupt))
-        array, messages = self._reader.query(values, lod, threads, skip_corrupt)
+            return self._batches(self._reader.batches(values, lod, threads, skip_corrupt, max_points))
+        array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points)
         _warn_all(messages)
         return array
 

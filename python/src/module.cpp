@@ -67,6 +67,14 @@ py::dict result_dict(const IngestResult& r) {
   d["cell_size"] = r.cell_size;
   d["chunk_edge"] = r.chunk_edge;
   d["scan_id"] = r.scan_id;
+  py::dict pyramid;
+  pyramid["levels"] = r.pyramid.levels;
+  pyramid["top_level"] = r.pyramid.top_level;
+  pyramid["chunks"] = r.pyramid.chunks;
+  pyramid["points"] = r.pyramid.points;
+  pyramid["blob_bytes"] = r.pyramid.blob_bytes;
+  pyramid["seconds"] = r.pyramid.seconds;
+  d["pyramid"] = pyramid;
   d["warnings"] = r.warnings;
   return d;
 }
@@ -120,15 +128,17 @@ std::vector<std::string> option_names(const std::string& command, bool flags) {
   return flags ? ingest_flag_names(set) : ingest_option_names(set);
 }
 
-QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrupt) {
+QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrupt, std::uint64_t max_points) {
   if (lod < 1 || lod > kMaxQueryLod) {
     raise_status(invalid_argument("lod must be a whole number from 1 to " + std::to_string(kMaxQueryLod) +
                                   ", got " + std::to_string(lod)));
   }
   QueryOptions q;
+  if (max_points > 0 && lod != 1) raise_status(invalid_argument("give lod or max_points, not both"));
   q.lod = lod;
   q.threads = threads;
   q.skip_corrupt = skip_corrupt;
+  q.max_points = max_points;
   return q;
 }
 
@@ -225,11 +235,11 @@ class Reader {
 
   // The whole answer as one array, plus the warnings of skipped chunks.
   py::tuple query(const std::optional<std::vector<double>>& box_values, std::uint32_t lod, unsigned threads,
-                  bool skip_corrupt) {
+                  bool skip_corrupt, std::uint64_t max_points) {
     const std::optional<Box3d> box = to_box(box_values);
     std::vector<PointCloud> batches;
     std::vector<std::string> warnings;
-    QueryOptions q = query_options(lod, threads, skip_corrupt);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points);
     q.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
     FieldSet fields;
     Result<QueryStats> r = Status(internal_error("query did not run"));
@@ -251,9 +261,10 @@ class Reader {
   }
 
   std::unique_ptr<BatchIterator> batches(const std::optional<std::vector<double>>& box_values,
-                                         std::uint32_t lod, unsigned threads, bool skip_corrupt) {
+                                         std::uint32_t lod, unsigned threads, bool skip_corrupt,
+                                         std::uint64_t max_points) {
     const std::optional<Box3d> box = to_box(box_values);
-    QueryOptions q = query_options(lod, threads, skip_corrupt);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points);
     reader();  // refuses a closed archive
     Result<std::unique_ptr<ArchiveReader>> own = [&] {
       py::gil_scoped_release release;
@@ -347,9 +358,9 @@ PYBIND11_MODULE(_relief, m) {
       .def(py::init<const std::string&>(), py::arg("path"))
       .def("info_json", &Reader::info_json)
       .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"))
+           py::arg("skip_corrupt"), py::arg("max_points"))
       .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"))
+           py::arg("skip_corrupt"), py::arg("max_points"))
       .def("close", &Reader::close)
       .def_property_readonly("closed", &Reader::closed)
       .def_property_readonly("path", &Reader::path);

@@ -353,3 +353,25 @@ def test_progress_exception_stops_the_ingest(tmp_path, scene):
 
     with pytest.raises(Stop):
         relief.compress([src], tmp_path / "p.relief", columns="x,y,z,r,g,b,i", progress=progress)
+
+
+def test_pyramid_and_max_points(tmp_path, scene):
+    """pyramid="on" builds the level-of-detail pyramid; max_points reads the
+    finest level that fits and never returns more."""
+    src = tmp_path / "scene.xyz"
+    write_xyz(src, scene)
+    out = tmp_path / "p.relief"
+    result = relief.compress([src], out, columns="x,y,z,r,g,b,i", chunk_edge=4, threads=2, pyramid="on")
+    assert result["pyramid"]["levels"] >= 1
+    with relief.open(out) as a:
+        levels = a.info["scans"][0]["pyramid"]
+        assert levels and all(l["points"] > 0 for l in levels)
+        n = len(a.query())
+        for limit in (10, levels[0]["points"], n):
+            pts = a.query(max_points=limit)
+            assert 0 < len(pts) <= limit
+        assert len(a.query(max_points=levels[0]["points"])) == levels[0]["points"]
+        with pytest.raises(relief.InvalidArgumentError, match="max_points"):
+            a.query(lod=4, max_points=10)
+    with pytest.raises(relief.InvalidArgumentError, match="pyramid"):
+        relief.compress([src], tmp_path / "q.relief", pyramid="sometimes")
