@@ -199,12 +199,14 @@ class Reader final : public ArchiveReader {
         plan.lods.assign(base.size(), options.lod);
         return plan;
       }
-      // The coarsest level with at least the points the level of detail
-      // asks for (base_points / lod), thinned to them.
+      // The coarsest level that can supply at least half the points the
+      // level of detail asks for (base_points / lod), thinned to them: the
+      // rule by which a chunk's coarse level of detail is read from its base
+      // layer (decode_chunk).
       const auto choose = [&](const ScanPyramid& scan) {
         int best = 0;
         for (const PyramidLevel& l : scan.levels) {
-          if (l.points * options.lod >= scan.base_points) best = l.level;
+          if (2 * l.points * options.lod >= scan.base_points) best = l.level;
         }
         return best;
       };
