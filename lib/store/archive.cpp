@@ -1151,6 +1151,33 @@ Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
                   megabytes(room) + " can still be written");
 }
 
+// Binds a chunk row's columns, ix .. blob in the order of relief_chunk (and
+// of relief_level_chunk after its level), from parameter `first` on.
+void bind_row_columns(Statement& insert, int first, const ChunkRow& row, std::int64_t seq, std::uint32_t crc) {
+  const ChunkRef& ref = row.ref;
+  int c = first;
+  insert.bind_int64(c++, ref.key.ix);
+  insert.bind_int64(c++, ref.key.iy);
+  insert.bind_int64(c++, ref.key.iz);
+  insert.bind_int64(c++, seq);
+  insert.bind_int64(c++, ref.scan_id);
+  const bool has_bounds = !ref.bounds.empty();
+  for (const double v : {ref.bounds.min.x, ref.bounds.min.y, ref.bounds.min.z, ref.bounds.max.x, ref.bounds.max.y,
+                         ref.bounds.max.z}) {
+    if (has_bounds) {
+      insert.bind_double(c++, v);
+    } else {
+      insert.bind_null(c++);
+    }
+  }
+  insert.bind_int64(c++, static_cast<std::int64_t>(ref.input_points));
+  insert.bind_int64(c++, static_cast<std::int64_t>(ref.decoded_points));
+  insert.bind_int64(c++, static_cast<std::int64_t>(row.codec));
+  insert.bind_text(c++, row.codec_params);
+  insert.bind_int64(c++, static_cast<std::int64_t>(crc));
+  insert.bind_blob(c, row.blob.data(), row.blob.size());
+}
+
 Status SqliteArchive::check_rows(const std::vector<ChunkRow>& rows, const char* operation,
                                  std::vector<std::uint32_t>& checksums, std::set<std::int64_t>& scan_ids) const {
   checksums.resize(rows.size());
@@ -1228,27 +1255,7 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
     const bool has_bounds = !ref.bounds.empty();
     {
       StatementScope scope(*insert);
-      insert->bind_int64(1, ref.key.ix);
-      insert->bind_int64(2, ref.key.iy);
-      insert->bind_int64(3, ref.key.iz);
-      insert->bind_int64(4, seq);
-      insert->bind_int64(5, ref.scan_id);
-      if (has_bounds) {
-        insert->bind_double(6, ref.bounds.min.x);
-        insert->bind_double(7, ref.bounds.min.y);
-        insert->bind_double(8, ref.bounds.min.z);
-        insert->bind_double(9, ref.bounds.max.x);
-        insert->bind_double(10, ref.bounds.max.y);
-        insert->bind_double(11, ref.bounds.max.z);
-      } else {
-        for (int column = 6; column <= 11; ++column) insert->bind_null(column);
-      }
-      insert->bind_int64(12, static_cast<std::int64_t>(ref.input_points));
-      insert->bind_int64(13, static_cast<std::int64_t>(ref.decoded_points));
-      insert->bind_int64(14, static_cast<std::int64_t>(row.codec));
-      insert->bind_text(15, row.codec_params);
-      insert->bind_int64(16, static_cast<std::int64_t>(checksums[i]));
-      insert->bind_blob(17, row.blob.data(), row.blob.size());
+      bind_row_columns(*insert, 1, row, seq, checksums[i]);
       const Status status = insert->run();
       if (!status.is_ok()) return append_detail(status, which);
     }
@@ -1379,27 +1386,7 @@ Status SqliteArchive::put_level_chunks(int level, std::vector<ChunkRow>& rows) {
     }
     StatementScope scope(*insert);
     insert->bind_int64(1, level);
-    insert->bind_int64(2, ref.key.ix);
-    insert->bind_int64(3, ref.key.iy);
-    insert->bind_int64(4, ref.key.iz);
-    insert->bind_int64(5, seq);
-    insert->bind_int64(6, ref.scan_id);
-    if (!ref.bounds.empty()) {
-      insert->bind_double(7, ref.bounds.min.x);
-      insert->bind_double(8, ref.bounds.min.y);
-      insert->bind_double(9, ref.bounds.min.z);
-      insert->bind_double(10, ref.bounds.max.x);
-      insert->bind_double(11, ref.bounds.max.y);
-      insert->bind_double(12, ref.bounds.max.z);
-    } else {
-      for (int column = 7; column <= 12; ++column) insert->bind_null(column);
-    }
-    insert->bind_int64(13, static_cast<std::int64_t>(ref.input_points));
-    insert->bind_int64(14, static_cast<std::int64_t>(ref.decoded_points));
-    insert->bind_int64(15, static_cast<std::int64_t>(row.codec));
-    insert->bind_text(16, row.codec_params);
-    insert->bind_int64(17, static_cast<std::int64_t>(checksums[i]));
-    insert->bind_blob(18, row.blob.data(), row.blob.size());
+    bind_row_columns(*insert, 2, row, seq, checksums[i]);
     const Status status = insert->run();
     if (!status.is_ok()) return append_detail(status, "(level " + std::to_string(level) + " node " + key_text(ref.key) + ")");
     assigned[i] = {sqlite3_last_insert_rowid(db()), static_cast<std::uint32_t>(seq)};
@@ -1877,10 +1864,10 @@ Result<std::unique_ptr<SqliteArchive>> open_sqlite(const std::string& path, Arch
   // "malformed"; when opening fails as malformed, say it is truncated if its
   // header shows so. (Checked only then: while a writer checkpoints, page 1
   // may briefly announce pages not yet written.)
-  const auto explain = [&path](Status status) {
-    if (status.code() != StatusCode::kFormatError) return status;
+  const auto explain = [&path](Status failed) {
+    if (failed.code() != StatusCode::kFormatError) return failed;
     Status truncated = store::check_not_truncated(path);
-    return truncated ? status : truncated;
+    return truncated ? failed : truncated;
   };
   const int flags = mode == Mode::kReadOnly ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
   Result<store::Connection> opened = store::open_connection(path, flags, path, "cannot open");
