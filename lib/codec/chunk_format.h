@@ -124,12 +124,12 @@ struct ChunkHeader {
   std::uint32_t extra_bytes_size = 0;
 };
 
-// Versions 2, 3 and 5 hold the error-bounded layer; 1 and 4 the maps alone
+// Versions 2, 3, 5 and 6 hold the error-bounded layer; 1 and 4 the maps alone
 // (4: with a classification map).
-inline bool has_bounded_layer(std::uint16_t version) { return version == 2 || version == 3 || version == 5; }
-// Versions 3 and 5 have the LAS attribute fields (header bytes 168..175).
-inline bool has_las_fields(std::uint16_t version) { return version == 3 || version == 5; }
-// Header size of a format version (1..5).
+inline bool has_bounded_layer(std::uint16_t version) { return version == 2 || version == 3 || version >= 5; }
+// Versions 3, 5 and 6 have the LAS attribute fields (header bytes 168..175).
+inline bool has_las_fields(std::uint16_t version) { return version == 3 || version >= 5; }
+// Header size of a format version (1..6).
 inline std::uint16_t header_size_for(std::uint16_t version) {
   return has_las_fields(version) ? kHeaderSizeV3 : (version == 2 ? kHeaderSizeV2 : kHeaderSizeV1);
 }

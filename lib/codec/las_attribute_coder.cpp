@@ -20,6 +20,7 @@
 #include <string>
 
 #include "codec/attribute_coder.h"
+#include "codec/octree.h"
 #include "codec/range_coder.h"
 
 namespace relief::codec {
@@ -30,6 +31,7 @@ namespace {
 // gets it back, the decoder ignores what it is given and returns what it read.
 class EncCoder {
  public:
+  static constexpr bool kEncoding = true;
   explicit EncCoder(RangeEncoder& e) : e_(e) {}
   int bit(BitModel& m, int b) {
     e_.encode(m, b);
@@ -51,6 +53,7 @@ class EncCoder {
 
 class DecCoder {
  public:
+  static constexpr bool kEncoding = false;
   explicit DecCoder(RangeDecoder& d) : d_(d) {}
   int bit(BitModel& m, int) { return d_.decode(m); }
   bool sint(SIntModel& m, std::int64_t& v) { return decode_sint(d_, m, v); }
@@ -212,6 +215,192 @@ bool code_gps(C& c, std::vector<double>& v) {
   return true;
 }
 
+// GPS times in time order (format 6, format-spec/chunk.md §11.7.1). The
+// points are visited in increasing order of their times' bit patterns (ties
+// by cell index): for each, the time as a difference from the previous one
+// (a pulse's returns share a time, a scanner's pulse spacing repeats), then
+// which point it is, as its rank among the unused points near a position
+// predicted from the previous ones (the next pulse lies one step further
+// along the scan line; a pulse's next return lies below its last).
+constexpr int kRankBits = 5;
+constexpr std::uint32_t kRankEscape = (1u << kRankBits) - 1;
+constexpr std::size_t kMaxCandidates = 64;
+constexpr std::size_t kBucketsPerPoint = 4;
+constexpr std::uint32_t kNoPoint = ~std::uint32_t{0};
+constexpr int kTimeSymbols = 4;  // 0: same time, 1: last step, 2: the step before, 3: another
+constexpr int kRankContexts = 6;
+
+// The bucket shift the encoder picks: the smallest with at most 4 n buckets
+// over the points' x-y bounding box. Smaller buckets leave fewer candidates
+// (fewer escapes for dense vegetation, faster); measured on the shared aerial
+// files against n / 4 and n buckets: the aerial tile's times cost 2.65 bits a
+// point against 7.7 and 4.7, the Autzen tile's 6.1 against 6.4 and 5.9.
+int pick_bucket_shift(std::span<const CellXyz> cells) {
+  std::uint32_t mx = 0, my = 0;
+  for (const CellXyz& p : cells) {
+    mx = std::max(mx, p[0]);
+    my = std::max(my, p[1]);
+  }
+  for (int b = 0; b < kMaxBucketShift; ++b) {
+    const std::uint64_t buckets = (std::uint64_t{mx >> b} + 1) * (std::uint64_t{my >> b} + 1);
+    if (buckets <= kBucketsPerPoint * cells.size()) return b;
+  }
+  return kMaxBucketShift;
+}
+
+// `order[k]` is the cell index of the k-th point in time order (encoder:
+// given; decoder: filled); `bits` the times' bit patterns by cell index.
+template <typename C>
+bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std::uint32_t>& order,
+                         std::span<const CellXyz> cells, int shift_in) {
+  const std::size_t n = bits.size();
+  if (cells.size() != n || order.size() != n) return false;
+  struct Models {
+    UIntModel shift, first_index;
+    BitModel symbol[kTimeSymbols][kTimeSymbols];
+    SIntModel step[kDeltaClasses];
+    BitModel rank[kRankContexts][std::size_t{1} << kRankBits];
+    SIntModel jump[2];
+  };
+  auto m = std::make_unique<Models>();
+  std::uint64_t shift = static_cast<std::uint64_t>(shift_in);
+  if (!c.uint(m->shift, shift) || shift > kMaxBucketShift) return false;
+  const int b = static_cast<int>(shift);
+  std::uint32_t mx = 0, my = 0;
+  for (const CellXyz& p : cells) {
+    mx = std::max(mx, p[0]);
+    my = std::max(my, p[1]);
+  }
+  const std::uint64_t gx = std::uint64_t{mx >> b} + 1, gy = std::uint64_t{my >> b} + 1;
+  if (gx * gy > kBucketsPerPoint * std::uint64_t{n} + 16) return false;
+  // Each bucket's unused points, in cell order, as a doubly linked list
+  // (built from the back, each point pushed at the front).
+  std::vector<std::uint32_t> head(gx * gy, kNoPoint), next(n, kNoPoint), prev(n, kNoPoint);
+  const auto bucket = [&](std::size_t i) { return std::size_t{cells[i][1] >> b} * gx + (cells[i][0] >> b); };
+  for (std::size_t i = n; i-- > 0;) {
+    const std::size_t k = bucket(i);
+    const auto u = static_cast<std::uint32_t>(i);
+    if (head[k] != kNoPoint) prev[head[k]] = u;
+    next[u] = head[k];
+    head[k] = u;
+  }
+  std::vector<std::uint8_t> used(n, 0);
+  struct Candidate {
+    std::uint64_t dist;
+    std::uint32_t index;
+    bool operator<(const Candidate& o) const { return dist != o.dist ? dist < o.dist : index < o.index; }
+  };
+  std::array<Candidate, kMaxCandidates> cand{};
+  std::uint64_t last = 0, step1 = 0, step2 = 0;
+  int prev_symbol = 0, step_cls = 0, prev_rank = 0;
+  std::array<std::int64_t, 3> pulse{}, pulse_before{};  // first points of the last two pulses
+  for (std::size_t k = 0; k < n; ++k) {
+    // ---- The time.
+    std::uint64_t d = C::kEncoding ? bits[order[k]] - last : 0;
+    int symbol = d == 0 ? 0 : d == step1 ? 1 : d == step2 ? 2 : 3;
+    unsigned node = 1;
+    for (int i = 1; i >= 0; --i) node = 2 * node + static_cast<unsigned>(c.bit(m->symbol[prev_symbol][node], (symbol >> i) & 1));
+    symbol = static_cast<int>(node - kTimeSymbols);
+    if (symbol == 0) {
+      d = 0;
+    } else if (symbol == 1) {
+      d = step1;
+    } else if (symbol == 2) {
+      d = step2;
+    } else {
+      auto r = static_cast<std::int64_t>(d - step1);
+      if (!c.sint(m->step[step_cls], r)) return false;
+      d = step1 + static_cast<std::uint64_t>(r);
+      step_cls = delta_class(r);
+    }
+    const std::uint64_t time = last + d;
+    if (time < last || !std::isfinite(std::bit_cast<double>(time))) return false;
+    if (d != 0 && d != step1) {
+      step2 = step1;
+      step1 = d;
+    }
+    prev_symbol = symbol;
+    // ---- The point.
+    std::uint64_t index = order[k];
+    if (k == 0) {
+      if (!c.uint(m->first_index, index) || index >= n) return false;
+    } else {
+      const bool same = d == 0;
+      const CellXyz& at = cells[order[k - 1]];
+      std::int64_t pr[3];
+      for (int a = 0; a < 3; ++a) {
+        const auto i = static_cast<std::size_t>(a);
+        pr[a] = same ? std::int64_t{at[i]} : 2 * pulse[i] - pulse_before[i];
+      }
+      // The buckets within one bucket edge of the prediction (2 or 3 a side).
+      const std::int64_t reach = std::int64_t{1} << b;
+      const auto span_of = [&](std::int64_t v, std::uint32_t hi) {
+        return std::pair<std::size_t, std::size_t>{static_cast<std::size_t>(std::clamp<std::int64_t>(v - reach, 0, hi) >> b),
+                                                   static_cast<std::size_t>(std::clamp<std::int64_t>(v + reach, 0, hi) >> b)};
+      };
+      const auto [x0, x1] = span_of(pr[0], mx);
+      const auto [y0, y1] = span_of(pr[1], my);
+      std::size_t count = 0;
+      for (std::size_t y = y0; y <= y1 && count < kMaxCandidates; ++y) {
+        for (std::size_t x = x0; x <= x1 && count < kMaxCandidates; ++x) {
+          for (std::uint32_t q = head[y * gx + x];
+               q != kNoPoint && count < kMaxCandidates; q = next[q]) {
+            std::uint64_t dist = 0;
+            for (int a = 0; a < 3; ++a) {
+              const std::int64_t e = std::int64_t{cells[q][static_cast<std::size_t>(a)]} - pr[a];
+              dist += static_cast<std::uint64_t>(e * e);
+            }
+            cand[count++] = {dist, q};
+          }
+        }
+      }
+      // The encoder's rank: how many candidates come before the point.
+      std::uint32_t rank = kRankEscape;
+      for (std::size_t j = 0; C::kEncoding && j < count; ++j) {
+        if (cand[j].index != index) continue;
+        std::uint32_t before = 0;
+        for (std::size_t i = 0; i < count; ++i) before += cand[i] < cand[j] ? 1 : 0;
+        rank = std::min(before, kRankEscape);
+        break;
+      }
+      const int ctx = (same ? 3 : 0) + std::min(prev_rank, 2);
+      node = 1;
+      for (int i = kRankBits - 1; i >= 0; --i) {
+        node = 2 * node + static_cast<unsigned>(c.bit(m->rank[ctx][node], static_cast<int>(rank >> i) & 1));
+      }
+      rank = node - (1u << kRankBits);
+      prev_rank = static_cast<int>(rank);
+      if (rank == kRankEscape) {
+        auto r = static_cast<std::int64_t>(index - order[k - 1]);
+        if (!c.sint(m->jump[same ? 1 : 0], r)) return false;
+        index = order[k - 1] + static_cast<std::uint64_t>(r);
+        if (index >= n || used[index]) return false;
+      } else {
+        if (rank >= count) return false;
+        std::nth_element(cand.begin(), cand.begin() + rank, cand.begin() + static_cast<std::ptrdiff_t>(count));
+        index = cand[rank].index;
+      }
+    }
+    if (!c.ok()) return false;
+    const auto u = static_cast<std::uint32_t>(index);
+    used[u] = 1;
+    const std::size_t bk = bucket(u);
+    (prev[u] == kNoPoint ? head[bk] : next[prev[u]]) = next[u];
+    if (next[u] != kNoPoint) prev[next[u]] = prev[u];
+    order[k] = u;
+    bits[u] = time;
+    last = time;
+    if (k == 0 || d != 0) {
+      for (int a = 0; a < 3; ++a) {
+        const auto i = static_cast<std::size_t>(a);
+        pulse_before[i] = k == 0 ? std::int64_t{cells[u][i]} : pulse[i];
+        pulse[i] = cells[u][i];
+      }
+    }
+  }
+  return true;
+}
+
 // Point source IDs: a move-to-front list of the last kSourceSlots distinct
 // IDs (flight lines overlap, so cell order alternates between a few); the
 // symbol is the slot of the ID (0..3) or kSourceSlots for a new one, coded
@@ -362,7 +551,8 @@ bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, 
 
 // The fewest binary decisions one point of attribute `bit` can take: a
 // stream must be long enough for n points before anything is allocated.
-std::uint64_t min_decisions_per_point(std::uint32_t bit, std::uint32_t extra_bytes_size) {
+std::uint64_t min_decisions_per_point(std::uint32_t bit, std::uint32_t extra_bytes_size, int version) {
+  if (bit == kLasGpsTime && version >= 6) return 3;  // a time symbol and a rank or an index
   switch (bit) {
     case kLasScanAngle:
     case kLasNir: return 1;  // a zero difference
@@ -465,7 +655,8 @@ const char* las_attribute_name(std::uint32_t bit) {
   return b < kLasAttributeCount ? kNames[b] : "unknown LAS attribute";
 }
 
-std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n) {
+std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n,
+                                               int version, std::span<const CellXyz> cells) {
   // The shared routine writes back what it codes (the decoder's side of the
   // interface); the encoder's values come back unchanged, but it needs a
   // mutable copy of the one vector it codes.
@@ -496,6 +687,19 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
   BitModel constant_flag;
   const bool constant = n > 0 && all_equal(bit, work);
   if (n > 0) c.bit(constant_flag, constant ? 1 : 0);
+  if (bit == kLasGpsTime && version >= 6 && n > 0 && !constant) {
+    std::vector<std::uint64_t> bits(n);
+    std::vector<KeyedIndex> keyed(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      bits[i] = double_bits(work.gps_time[i]);
+      keyed[i] = {bits[i], static_cast<std::uint32_t>(i)};
+    }
+    radix_sort(keyed, 64);  // stable: equal times stay in cell order
+    std::vector<std::uint32_t> order(n);
+    for (std::size_t k = 0; k < n; ++k) order[k] = keyed[k].index;
+    code_gps_time_order(c, bits, order, cells, pick_bucket_shift(cells));
+    return enc.finish();
+  }
   std::size_t coded = n;
   if (constant) {
     coded = 1;
@@ -510,7 +714,8 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
   return enc.finish();
 }
 
-Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las) {
+Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
+                            int version, std::span<const CellXyz> cells) {
   if (bit != kLasColorLow && n > 0) {
     RangeDecoder dec(data);
     DecCoder c(dec);
@@ -526,7 +731,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
       return Status::ok();
     }
   }
-  const std::uint64_t need = min_decisions_per_point(bit, las.extra_bytes_size);
+  const std::uint64_t need = min_decisions_per_point(bit, las.extra_bytes_size, version);
   if (n > 0 && need > 0 && n > max_decisions(data.size()) / need) {
     return corrupt_data(std::string(las_attribute_name(bit)) + " section: " +
                         std::to_string(data.size()) + " bytes cannot hold " + std::to_string(n) + " points");
@@ -535,6 +740,20 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
     auto colors = decode_colors(data, n, 0);
     if (!colors) return colors.status().with_context("colour low byte section");
     las.color_low = std::move(colors).value();
+    return Status::ok();
+  }
+  if (bit == kLasGpsTime && version >= 6) {
+    RangeDecoder dec(data);
+    DecCoder c(dec);
+    BitModel constant_flag;
+    if (n > 0) c.bit(constant_flag, 0);  // 0: read above
+    std::vector<std::uint64_t> bits(n);
+    std::vector<std::uint32_t> order(n);
+    if (!code_gps_time_order(c, bits, order, cells, 0) || dec.overrun() > 0) {
+      return corrupt_data("GPS time section: invalid or truncated stream");
+    }
+    las.gps_time.resize(n);
+    for (std::size_t i = 0; i < n; ++i) las.gps_time[i] = std::bit_cast<double>(bits[i]);
     return Status::ok();
   }
   size_attribute(bit, las, n);
