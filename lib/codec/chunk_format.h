@@ -117,7 +117,7 @@ struct ChunkHeader {
   std::uint8_t geometry_depth = 0;  // local coordinates < 2^geometry_depth
   std::uint8_t color_tolerance = 0;
   IntensityCoding intensity_coding = IntensityCoding::kNone;
-  // Versions 3 and 5: the LasAttributeBits the layer carries (non-zero in
+  // Versions 3, 5 and 6: the LasAttributeBits the layer carries (non-zero in
   // version 3) and the extra bytes per point (non-zero exactly when
   // kLasExtraBytes is set).
   std::uint32_t las_attributes = 0;

@@ -7,7 +7,8 @@
 // categorical values (classification, returns, flags, user data) are coded
 // with adaptive models whose context is the previous point's value; numeric
 // ones (scan angle, GPS time, NIR) as differences from the previous point
-// with models chosen by the size of the previous difference.
+// with models chosen by the size of the previous difference. Format 6 codes
+// GPS times in time order instead (code_gps_time_order).
 #include "codec/las_attribute_coder.h"
 
 #include <algorithm>
