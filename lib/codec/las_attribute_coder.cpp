@@ -228,7 +228,12 @@ constexpr std::uint32_t kRankEscape = (1u << kRankBits) - 1;
 constexpr std::size_t kMaxCandidates = 64;
 constexpr std::size_t kBucketsPerPoint = 4;
 constexpr std::uint32_t kNoPoint = ~std::uint32_t{0};
-constexpr int kTimeSymbols = 4;  // 0: same time, 1: last step, 2: the step before, 3: another
+// A time's step is 0 (another return of the pulse), one of the last kSteps
+// distinct steps (a move-to-front list: scanners alternate between a few
+// spacings, one unit of the last place apart), or another.
+constexpr std::size_t kSteps = 6;
+constexpr int kTimeSymbolBits = 3;
+constexpr int kTimeSymbols = static_cast<int>(kSteps) + 2;
 constexpr int kRankContexts = 6;
 
 // The bucket shift the encoder picks: the smallest with at most 4 n buckets
@@ -258,7 +263,7 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
   if (cells.size() != n || order.size() != n) return false;
   struct Models {
     UIntModel shift, first_index;
-    BitModel symbol[kTimeSymbols][kTimeSymbols];
+    BitModel symbol[kTimeSymbols][std::size_t{1} << kTimeSymbolBits];
     SIntModel step[kDeltaClasses];
     BitModel rank[kRankContexts][std::size_t{1} << kRankBits];
     SIntModel jump[2];
@@ -292,33 +297,47 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
     bool operator<(const Candidate& o) const { return dist != o.dist ? dist < o.dist : index < o.index; }
   };
   std::array<Candidate, kMaxCandidates> cand{};
-  std::uint64_t last = 0, step1 = 0, step2 = 0;
+  std::uint64_t last = 0;
+  std::array<std::uint64_t, kSteps> steps{};
   int prev_symbol = 0, step_cls = 0, prev_rank = 0;
   std::array<std::int64_t, 3> pulse{}, pulse_before{};  // first points of the last two pulses
   for (std::size_t k = 0; k < n; ++k) {
     // ---- The time.
     std::uint64_t d = C::kEncoding ? bits[order[k]] - last : 0;
-    int symbol = d == 0 ? 0 : d == step1 ? 1 : d == step2 ? 2 : 3;
+    int symbol = kTimeSymbols - 1;
+    if (d == 0) {
+      symbol = 0;
+    } else {
+      for (std::size_t j = 0; j < kSteps; ++j) {
+        if (steps[j] == d) {
+          symbol = static_cast<int>(j) + 1;
+          break;
+        }
+      }
+    }
     unsigned node = 1;
-    for (int i = 1; i >= 0; --i) node = 2 * node + static_cast<unsigned>(c.bit(m->symbol[prev_symbol][node], (symbol >> i) & 1));
-    symbol = static_cast<int>(node - kTimeSymbols);
+    for (int i = kTimeSymbolBits - 1; i >= 0; --i) {
+      node = 2 * node + static_cast<unsigned>(c.bit(m->symbol[prev_symbol][node], (symbol >> i) & 1));
+    }
+    symbol = static_cast<int>(node - (1u << kTimeSymbolBits));
+    if (symbol >= kTimeSymbols) return false;
+    std::size_t slot = kSteps - 1;  // where the step was: it moves to the front
     if (symbol == 0) {
       d = 0;
-    } else if (symbol == 1) {
-      d = step1;
-    } else if (symbol == 2) {
-      d = step2;
+    } else if (symbol < kTimeSymbols - 1) {
+      slot = static_cast<std::size_t>(symbol - 1);
+      d = steps[slot];
     } else {
-      auto r = static_cast<std::int64_t>(d - step1);
+      auto r = static_cast<std::int64_t>(d - steps[0]);
       if (!c.sint(m->step[step_cls], r)) return false;
-      d = step1 + static_cast<std::uint64_t>(r);
+      d = steps[0] + static_cast<std::uint64_t>(r);
       step_cls = delta_class(r);
     }
     const std::uint64_t time = last + d;
     if (time < last || !std::isfinite(std::bit_cast<double>(time))) return false;
-    if (d != 0 && d != step1) {
-      step2 = step1;
-      step1 = d;
+    if (d != 0) {
+      for (std::size_t j = slot; j > 0; --j) steps[j] = steps[j - 1];
+      steps[0] = d;
     }
     prev_symbol = symbol;
     // ---- The point.
@@ -691,10 +710,14 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
   if (bit == kLasGpsTime && version >= 6 && n > 0 && !constant) {
     std::vector<std::uint64_t> bits(n);
     std::vector<KeyedIndex> keyed(n);
+    std::uint64_t lowest = ~std::uint64_t{0};
     for (std::size_t i = 0; i < n; ++i) {
       bits[i] = double_bits(work.gps_time[i]);
-      keyed[i] = {bits[i], static_cast<std::uint32_t>(i)};
+      lowest = std::min(lowest, bits[i]);
     }
+    // Keys above the lowest: a chunk's times share their high bytes, whose
+    // passes the sort then skips.
+    for (std::size_t i = 0; i < n; ++i) keyed[i] = {bits[i] - lowest, static_cast<std::uint32_t>(i)};
     radix_sort(keyed, 64);  // stable: equal times stay in cell order
     std::vector<std::uint32_t> order(n);
     for (std::size_t k = 0; k < n; ++k) order[k] = keyed[k].index;
