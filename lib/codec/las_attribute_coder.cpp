@@ -234,7 +234,7 @@ constexpr std::uint32_t kNoPoint = ~std::uint32_t{0};
 constexpr std::size_t kSteps = 6;
 constexpr int kTimeSymbolBits = 3;
 constexpr int kTimeSymbols = static_cast<int>(kSteps) + 2;
-constexpr int kRankContexts = 6;
+constexpr int kRankContexts = 9;
 
 // The bucket shift the encoder picks: the smallest with at most 4 n buckets
 // over the points' x-y bounding box. Smaller buckets leave fewer candidates
@@ -383,7 +383,7 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
         rank = std::min(before, kRankEscape);
         break;
       }
-      const int ctx = (same ? 3 : 0) + std::min(prev_rank, 2);
+      const int ctx = (same ? 3 : symbol == kTimeSymbols - 1 ? 6 : 0) + std::min(prev_rank, 2);
       node = 1;
       for (int i = kRankBits - 1; i >= 0; --i) {
         node = 2 * node + static_cast<unsigned>(c.bit(m->rank[ctx][node], static_cast<int>(rank >> i) & 1));
