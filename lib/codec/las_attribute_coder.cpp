@@ -360,29 +360,37 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
       };
       const auto [x0, x1] = span_of(pr[0], mx);
       const auto [y0, y1] = span_of(pr[1], my);
+      const auto dist_to = [&](std::uint32_t q) {
+        std::uint64_t dist = 0;
+        for (int a = 0; a < 3; ++a) {
+          const std::int64_t e = std::int64_t{cells[q][static_cast<std::size_t>(a)]} - pr[a];
+          dist += static_cast<std::uint64_t>(e * e);
+        }
+        return dist;
+      };
+      // The encoder counts the candidates before the point (its rank) as it
+      // visits them; the decoder keeps them to pick the rank it reads.
+      const Candidate point{C::kEncoding ? dist_to(static_cast<std::uint32_t>(index)) : 0,
+                            static_cast<std::uint32_t>(index)};
+      std::uint32_t before = 0;
+      bool found = false;
       std::size_t count = 0;
       for (std::size_t y = y0; y <= y1 && count < kMaxCandidates; ++y) {
         for (std::size_t x = x0; x <= x1 && count < kMaxCandidates; ++x) {
           for (std::uint32_t q = head[y * gx + x];
                q != kNoPoint && count < kMaxCandidates; q = next[q]) {
-            std::uint64_t dist = 0;
-            for (int a = 0; a < 3; ++a) {
-              const std::int64_t e = std::int64_t{cells[q][static_cast<std::size_t>(a)]} - pr[a];
-              dist += static_cast<std::uint64_t>(e * e);
+            const Candidate here{dist_to(q), q};
+            if constexpr (C::kEncoding) {
+              found = found || q == index;
+              before += here < point ? 1 : 0;
+            } else {
+              cand[count] = here;
             }
-            cand[count++] = {dist, q};
+            ++count;
           }
         }
       }
-      // The encoder's rank: how many candidates come before the point.
-      std::uint32_t rank = kRankEscape;
-      for (std::size_t j = 0; C::kEncoding && j < count; ++j) {
-        if (cand[j].index != index) continue;
-        std::uint32_t before = 0;
-        for (std::size_t i = 0; i < count; ++i) before += cand[i] < cand[j] ? 1 : 0;
-        rank = std::min(before, kRankEscape);
-        break;
-      }
+      std::uint32_t rank = found ? std::min(before, kRankEscape) : kRankEscape;
       const int ctx = (same ? 3 : symbol == kTimeSymbols - 1 ? 6 : 0) + std::min(prev_rank, 2);
       node = 1;
       for (int i = kRankBits - 1; i >= 0; --i) {
@@ -397,8 +405,15 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
         if (index >= n || used[index]) return false;
       } else {
         if (rank >= count) return false;
-        std::nth_element(cand.begin(), cand.begin() + rank, cand.begin() + static_cast<std::ptrdiff_t>(count));
-        index = cand[rank].index;
+        if (!C::kEncoding) {
+          const auto end = cand.begin() + static_cast<std::ptrdiff_t>(count);
+          if (rank == 0) {
+            index = std::min_element(cand.begin(), end)->index;
+          } else {
+            std::nth_element(cand.begin(), cand.begin() + rank, end);
+            index = cand[rank].index;
+          }
+        }
       }
     }
     if (!c.ok()) return false;
