@@ -68,11 +68,21 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   }
   // LAS attribute sections, in table (= bit) order: a section may use the
   // attributes of lower bits as context.
+  // Format 6 codes GPS times in time order, which needs every point's cell.
   out.las.extra_bytes_size = h.extra_bytes_size;
+  std::vector<CellXyz> point_cells;
+  if (h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0) {
+    point_cells.reserve(n);
+    for (std::size_t c = 0; c < cells->keys.size(); ++c) {
+      const std::uint64_t key = cells->keys[c];
+      const CellXyz xyz{compact_bits3(key), compact_bits3(key >> 1), compact_bits3(key >> 2)};
+      for (std::uint32_t j = 0; j < cells->counts[c]; ++j) point_cells.push_back(xyz);
+    }
+  }
   for (const SectionEntry& s : blob.sections) {
     if (!is_las_section(s.id)) continue;
-    RELIEF_RETURN_IF_ERROR(
-        decode_las_attribute(las_section_bit(s.id), s.payload, n, out.las).with_context("chunk blob"));
+    RELIEF_RETURN_IF_ERROR(decode_las_attribute(las_section_bit(s.id), s.payload, n, out.las, h.version, point_cells)
+                               .with_context("chunk blob"));
   }
   return out;
 }

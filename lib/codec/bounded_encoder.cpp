@@ -56,7 +56,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = 5;  // geometry codec 7 (single-child coding), LAS fields (possibly none)
+  h.version = kChunkFormatVersion;  // 6: geometry codec 7, LAS fields (possibly none), GPS time in time order
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -192,10 +192,20 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     only_las.positions.resize(cloud.size());  // gathered() keys the point count on positions
     only_las.las = cloud.las;
     const LasAttributes ordered = only_las.gathered(perm).las;
+    std::vector<CellXyz> point_cells;
+    if (las_bits & kLasGpsTime) {
+      point_cells.resize(n);
+      for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t i = order[k].index;
+        for (int a = 0; a < 3; ++a) {
+          point_cells[k][static_cast<std::size_t>(a)] = static_cast<std::uint32_t>(q[3 * i + a] - lo[a]);
+        }
+      }
+    }
     for (int b = 0; b < kLasAttributeCount; ++b) {
       const std::uint32_t bit = 1u << b;
       if ((las_bits & bit) == 0) continue;
-      payloads.push_back(encode_las_attribute(bit, ordered, n));
+      payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, point_cells));
       refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
                          static_cast<std::uint32_t>(n), 0, {}});
     }

@@ -117,19 +117,19 @@ struct ChunkHeader {
   std::uint8_t geometry_depth = 0;  // local coordinates < 2^geometry_depth
   std::uint8_t color_tolerance = 0;
   IntensityCoding intensity_coding = IntensityCoding::kNone;
-  // Versions 3 and 5: the LasAttributeBits the layer carries (non-zero in
+  // Versions 3, 5 and 6: the LasAttributeBits the layer carries (non-zero in
   // version 3) and the extra bytes per point (non-zero exactly when
   // kLasExtraBytes is set).
   std::uint32_t las_attributes = 0;
   std::uint32_t extra_bytes_size = 0;
 };
 
-// Versions 2, 3 and 5 hold the error-bounded layer; 1 and 4 the maps alone
+// Versions 2, 3, 5 and 6 hold the error-bounded layer; 1 and 4 the maps alone
 // (4: with a classification map).
-inline bool has_bounded_layer(std::uint16_t version) { return version == 2 || version == 3 || version == 5; }
-// Versions 3 and 5 have the LAS attribute fields (header bytes 168..175).
-inline bool has_las_fields(std::uint16_t version) { return version == 3 || version == 5; }
-// Header size of a format version (1..5).
+inline bool has_bounded_layer(std::uint16_t version) { return version == 2 || version == 3 || version >= 5; }
+// Versions 3, 5 and 6 have the LAS attribute fields (header bytes 168..175).
+inline bool has_las_fields(std::uint16_t version) { return version == 3 || version >= 5; }
+// Header size of a format version (1..6).
 inline std::uint16_t header_size_for(std::uint16_t version) {
   return has_las_fields(version) ? kHeaderSizeV3 : (version == 2 ? kHeaderSizeV2 : kHeaderSizeV1);
 }

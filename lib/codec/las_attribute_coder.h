@@ -1,9 +1,11 @@
-// LAS per-point attributes of the error-bounded layer (chunk formats 3 and 5,
-// format-spec/chunk.md §11.7): one arithmetic-coded section per carried
-// LasAttributes vector, lossless, in the canonical point order. Mirror pair in
-// one file (las_attribute_coder.cpp). Internal to the codec.
+// LAS per-point attributes of the error-bounded layer (chunk formats 3, 5 and
+// 6, format-spec/chunk.md §11.7): one arithmetic-coded section per carried
+// LasAttributes vector, lossless, in the canonical point order (format 6: GPS
+// times in time order, §11.7.1). Mirror pair in one file
+// (las_attribute_coder.cpp). Internal to the codec.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -22,16 +24,27 @@ const char* las_attribute_name(std::uint32_t bit);
 // LAS point records are at most 65535 bytes, so are their extra bytes.
 inline constexpr std::uint32_t kMaxExtraBytesSize = 65535;
 
+// A point's local cell coordinates (x, y, z) in the error-bounded layer.
+using CellXyz = std::array<std::uint32_t, 3>;
+// Format 6 GPS time: the largest bucket shift (buckets of 2^21 cells hold a
+// whole chunk, whose local coordinates are < 2^21).
+inline constexpr int kMaxBucketShift = 21;
+
 // Codes attribute `bit` (one LasAttributeBits value) of the n points of `las`,
 // which are in canonical order. Attributes with a lower bit may serve as
-// context, so sections are coded and decoded in increasing bit order.
-std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n);
+// context, so sections are coded and decoded in increasing bit order. In
+// chunk format 6 (`version` >= 6) GPS times are coded in time order, which
+// needs the points' cells (`cells`, n of them); other formats and
+// attributes ignore `cells`.
+std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n,
+                                               int version = 5, std::span<const CellXyz> cells = {});
 
 // Decodes attribute `bit` of n points into `las` (resizing its vector; for
 // extra bytes las.extra_bytes_size must be set). Attributes with a lower bit
 // must already be decoded. A stream too short to hold n points is refused
-// before anything is allocated.
-Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las);
+// before anything is allocated. `version` and `cells` as for the encoder.
+Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
+                            int version = 5, std::span<const CellXyz> cells = {});
 
 // Orders two points of `las` by every carried attribute, in bit order
 // (gps_time by bit pattern, extra bytes as unsigned byte strings): the

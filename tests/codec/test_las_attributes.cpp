@@ -1,4 +1,4 @@
-// LAS attributes through the error-bounded codec (chunk format 3): every
+// LAS attributes through the error-bounded codec (chunk formats 3, 5, 6): every
 // LasAttributes vector comes back exactly, per point, for every combination
 // of carried attributes; blobs depend only on the multiset of points; lying
 // or truncated attribute sections are refused.
@@ -187,6 +187,112 @@ TEST_CASE("LAS attributes: the blob depends only on the multiset of points", "[c
     REQUIRE(b.is_ok());
     CHECK(*a == *b);
   }
+}
+
+namespace {
+
+// An aerial-like scan: pulses in zigzag lines 0.1 apart, 0.1 apart along a
+// line, 1-3 returns each (the later ones lower, sharing the pulse's time), a
+// pulse every 1e-5 s from 3e5 s.
+PointCloud scan(std::uint64_t seed, int lines, int pulses) {
+  test::Rng rng(seed);
+  PointCloud c;
+  std::size_t pulse = 0;
+  for (int l = 0; l < lines; ++l) {
+    for (int p = 0; p < pulses; ++p, ++pulse) {
+      const double x = 0.1 * (l % 2 == 0 ? p : pulses - 1 - p) + 0.003 * static_cast<double>(rng.next() % 7);
+      const double y = 0.1 * l + 0.003 * static_cast<double>(rng.next() % 7);
+      const double ground = 0.2 * std::sin(x) + 0.1 * std::cos(y);
+      const double t = 3.0e5 + 1e-5 * static_cast<double>(pulse);
+      const int returns = 1 + static_cast<int>(rng.next() % 3);
+      for (int r = 0; r < returns; ++r) {
+        c.positions.push_back({x, y, ground + 1.5 * (returns - 1 - r) + 0.01 * static_cast<double>(rng.next() % 5)});
+        c.las.gps_time.push_back(t);
+      }
+    }
+  }
+  return c;
+}
+
+// Where section `id` of a blob starts (format-spec/chunk.md §1, §3).
+std::size_t section_offset(const std::vector<std::uint8_t>& blob, const ChunkInfo& info, int id) {
+  std::size_t at = 176 + 12 * info.sections.size();
+  for (const ChunkSectionInfo& s : info.sections) {
+    if (s.id == id) return at;
+    at += s.coded_size;
+  }
+  return blob.size();
+}
+
+}  // namespace
+
+TEST_CASE("LAS attributes: GPS times in time order (format 6) are exact and cheap for a scan", "[codec][las]") {
+  const PointCloud in = scan(5, 40, 120);
+  const EncodeParams p = params_for(0.005, 1.0);
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  auto info = inspect_chunk(*blob);
+  REQUIRE(info.is_ok());
+  CHECK(info->format_version == 6);
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == expected_records(in, *p.bound));
+  // Time order makes a scan's times cheap: a step that repeats, a pulse's
+  // later returns at no step, and the next pulse next along the line.
+  std::uint32_t gps_bytes = 0;
+  for (const ChunkSectionInfo& s : info->sections) {
+    if (s.id == 18) gps_bytes = s.coded_size;
+  }
+  const double bits = 8.0 * gps_bytes / static_cast<double>(in.size());
+  INFO("GPS time bits per point: " << bits);
+  CHECK(bits > 0);
+  CHECK(bits < 3.0);
+  // Any order of the input gives the same blob.
+  test::Rng rng(9);
+  std::vector<std::uint32_t> perm(in.size());
+  for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+  auto shuffled = encode_chunk(in.gathered(perm), p);
+  REQUIRE(shuffled.is_ok());
+  CHECK(*shuffled == *blob);
+}
+
+TEST_CASE("LAS attributes: a hostile format-6 GPS time section is refused or decodes, in bounded time", "[codec][las][reject]") {
+  const PointCloud in = scan(6, 12, 40);
+  auto blob = encode_chunk(in, params_for(0.005, 1.0));
+  REQUIRE(blob.is_ok());
+  auto info = inspect_chunk(*blob);
+  REQUIRE(info.is_ok());
+  const std::size_t at = section_offset(*blob, *info, 18);
+  std::uint32_t size = 0;
+  for (const ChunkSectionInfo& s : info->sections) {
+    if (s.id == 18) size = s.coded_size;
+  }
+  REQUIRE(size > 8);
+  REQUIRE(at + size + 4 <= blob->size());
+  DecodeOptions nocrc;
+  nocrc.verify_checksum = false;
+  test::Rng rng(21);
+  int refused = 0;
+  for (int t = 0; t < 300; ++t) {
+    std::vector<std::uint8_t> bad = *blob;
+    if (t % 3 == 0) {
+      // Random bytes: any bucket shift, ranks and escapes.
+      for (std::size_t k = 0; k < size; ++k) bad[at + k] = static_cast<std::uint8_t>(rng.next());
+    } else {
+      const std::size_t k = at + rng.next() % size;
+      bad[k] = static_cast<std::uint8_t>(bad[k] ^ (1u + rng.next() % 255));
+    }
+    auto r = decode_chunk(bad, nocrc);
+    if (!r.is_ok()) {
+      ++refused;
+      CHECK(r.status().code() == StatusCode::kCorruptData);
+    } else {
+      CHECK(r->size() == in.size());
+      for (const double g : r->las.gps_time) CHECK(std::isfinite(g));
+    }
+  }
+  CHECK(refused > 0);
 }
 
 TEST_CASE("LAS attributes: subsets, and levels of detail from the point layer", "[codec][las]") {

@@ -36,9 +36,10 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // attribute survives resampling; the base layer of a version-3 blob has the
 // same map). Version 5: the error-bounded layer as in versions 2 and 3 (the
 // version-3 header, its attribute set possibly empty) with the geometry coded
-// by codec 7 (single-child octree coding); the bounded encoder writes it for
-// every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 5;
+// by codec 7 (single-child octree coding). Version 6: version 5 with GPS
+// times coded in time order (the points' order by time, then the times as
+// steps); the bounded encoder writes it for every cloud.
+inline constexpr std::uint16_t kChunkFormatVersion = 6;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
@@ -135,7 +136,7 @@ struct ChunkInfo {
   std::uint32_t base_points = 0;     // points of the base layer (occupied pixels)
   Vec3d quant_step;                  // coordinate step; the error bound is half of it
   int color_tolerance = 0;
-  // The LasAttributeBits a full decode returns (formats 3 and 5: those of the
+  // The LasAttributeBits a full decode returns (formats 3, 5 and 6: those of the
   // points; format 4: classification, from the map), and extra bytes per point.
   std::uint32_t las_attributes = 0;
   std::uint32_t extra_bytes_size = 0;
