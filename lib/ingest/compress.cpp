@@ -256,7 +256,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   // bucket slices (one encoding, the next loading), 1/3 for the encoders; the rest is headroom (SQLite
   // cache, allocator slack).
   // The LAS attributes travel with every point (up to 25 bytes, plus extra
-  // bytes; 20 for an aerial scan with GPS time) beside the constants' x y z,
+  // bytes; 23 for LAS 1.2 format 3) beside the constants' x y z,
   // colour and intensity: left out, slices of LAS input overran their share.
   const std::uint64_t las_bytes = las_record_bytes(in.las_attributes, in.extra_bytes_size);
   const std::uint64_t group_bytes = kGroupBytesPerPoint + las_bytes;
