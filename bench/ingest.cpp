@@ -4,6 +4,12 @@
 //   build/bench/ingest [--sizes 1,10,100] [--threads 1,2] [--repeat 3] [--data DIR]
 //                      [--tmp DIR] [--no-shared] [--no-chunk-sweep]
 //   build/bench/ingest --laz-vs-las [--threads 2] [--repeat 3] [--data DIR]
+//   build/bench/ingest --billion [--sizes 10M,100M[,1G]] [--repeat 3] [--tmp DIR]
+//
+// --billion feeds `relief compress` a generated aerial survey (bench/scene.h)
+// through a named pipe, at a fixed density so the extent grows with the
+// count, and prints seconds, points/s, cost per point, peak RSS, archive and
+// peak disk bytes per size (bench/billion.h); 1 G is opt-in.
 //
 // --laz-vs-las times `relief compress` on each shared LAZ file against its LAS
 // twin (the same points), the two runs interleaved so that both see the same
@@ -24,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "billion.h"
 #include "run_child.h"
 #include "relief/archive.h"
 #include "relief/io.h"
@@ -45,6 +52,9 @@ struct Options {
   bool chunk_sweep = true;
   bool error_targets = true;
   bool laz_vs_las = false;
+  bool billion = false;
+  std::string sizes_text;  // --sizes as given (--billion reads it with suffixes)
+  bool repeat_given = false;
 };
 
 using relief::bench::run_child;
@@ -243,11 +253,13 @@ int main(int argc, char** argv) {
     const std::string a = argv[i];
     const auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : ""; };
     if (a == "--sizes") {
-      o.sizes_m = parse_list(value());
+      o.sizes_text = value();
+      o.sizes_m = parse_list(o.sizes_text.c_str());
     } else if (a == "--threads") {
       o.threads = parse_list(value());
     } else if (a == "--repeat") {
       o.repeat = std::max(1, std::atoi(value()));
+      o.repeat_given = true;
     } else if (a == "--data") {
       o.data_dir = value();
     } else if (a == "--tmp") {
@@ -260,17 +272,35 @@ int main(int argc, char** argv) {
       o.error_targets = false;
     } else if (a == "--laz-vs-las") {
       o.laz_vs_las = true;
+    } else if (a == "--billion") {
+      o.billion = true;
     } else {
       std::fprintf(stderr,
                    "usage: ingest [--sizes 1,10,100] [--threads 1,2] [--repeat N] [--data DIR] [--tmp DIR]\n"
                    "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n"
-                   "       ingest --laz-vs-las [--threads 2] [--repeat N] [--data DIR] [--tmp DIR]\n");
+                   "       ingest --laz-vs-las [--threads 2] [--repeat N] [--data DIR] [--tmp DIR]\n"
+                   "       ingest --billion [--sizes 10M,100M[,1G]] [--repeat N] [--tmp DIR]\n");
       return a == "--help" ? 0 : 2;
     }
   }
   if (o.laz_vs_las) {
     measure_laz_vs_las(o);
     return 0;
+  }
+  if (o.billion) {
+    relief::bench::BillionOptions b;
+    if (!o.sizes_text.empty()) {
+      b.sizes = relief::bench::parse_point_counts(o.sizes_text);
+      if (b.sizes.empty()) {
+        std::fprintf(stderr, "error: --sizes expects counts such as 10M,100M,1G (at most 4294967295), got '%s'\n",
+                     o.sizes_text.c_str());
+        return 2;
+      }
+    }
+    if (o.repeat_given) b.repeat = o.repeat;
+    b.tmp = o.tmp;
+    b.cli = o.cli;
+    return relief::bench::run_billion(b);
   }
   std::printf("kind,input,points,threads,seconds,mpts_s,peak_rss_mib,chunks,archive_bytes,bpp\n");
   for (int m : o.sizes_m) {

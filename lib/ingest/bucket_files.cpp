@@ -325,7 +325,29 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
     }
     if (las_ != 0) put_las_record(r + off, points.las, i, las_);
   }
+  // A block larger than a bucket's staging share (a batch falling into few
+  // chunks, as scan-ordered inputs do) grew that bucket's buffer: write it out
+  // now and give the memory back. Otherwise every bucket would keep the
+  // largest block it ever received, and the staging memory would grow with
+  // the input (872 buckets x ~9 MB on a 1 G-point aerial scan) instead of
+  // staying at its share of the budget plus one batch.
+  for (std::size_t i = 0; i < chunks; ++i) {
+    const std::uint32_t bucket = by_bucket[i].first;
+    if (i > 0 && by_bucket[i - 1].first == bucket) continue;
+    if (staging_[bucket].capacity() <= staging_target_) continue;
+    RELIEF_RETURN_IF_ERROR(flush(bucket, false));
+    AlignedBuffer fresh;
+    fresh.reserve(staging_target_, 0);
+    std::memcpy(fresh.data(), staging_[bucket].data(), staged_[bucket]);  // under one page
+    staging_[bucket] = std::move(fresh);
+  }
   return Status::ok();
+}
+
+std::size_t BucketFiles::staging_capacity() const {
+  std::size_t n = 0;
+  for (const AlignedBuffer& b : staging_) n += b.capacity();
+  return n;
 }
 
 Status BucketFiles::flush(std::uint32_t bucket, bool all) {
@@ -389,6 +411,7 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
   // double the vectors past the slice's share of the memory budget.
   const auto cap = static_cast<std::size_t>(std::min(max_points, counts_[bucket]));
   out.reserve(cap, colors_, intensity_);
+  if (las_ != 0) reserve_las(out.las, cap, las_, extra_size_);
   g.ids.reserve(cap);
   const std::string& path = paths_[bucket];
   const auto damaged = [&](const std::string& what) {

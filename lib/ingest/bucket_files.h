@@ -91,6 +91,9 @@ class BucketFiles {
   void discard(std::uint32_t bucket);
 
   const std::string& directory() const { return dir_; }
+  // Bytes held by the staging buffers: about staging_bytes between appends,
+  // however large the blocks of a batch were.
+  std::size_t staging_capacity() const;
 
  private:
   BucketFiles() = default;

@@ -255,15 +255,20 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   // files, the whole input in half the budget). While encoding: 1/3 for two
   // bucket slices (one encoding, the next loading), 1/3 for the encoders; the rest is headroom (SQLite
   // cache, allocator slack).
-  const std::uint64_t slice_points = std::max<std::uint64_t>(1, (budget / 6) / kGroupBytesPerPoint);
+  // The LAS attributes travel with every point (up to 25 bytes, plus extra
+  // bytes; 23 for LAS 1.2 format 3) beside the constants' x y z,
+  // colour and intensity: left out, slices of LAS input overran their share.
+  const std::uint64_t las_bytes = las_record_bytes(in.las_attributes, in.extra_bytes_size);
+  const std::uint64_t group_bytes = kGroupBytesPerPoint + las_bytes;
+  const std::uint64_t slice_points = std::max<std::uint64_t>(1, (budget / 6) / group_bytes);
   const std::uint64_t part_points = std::max<std::uint64_t>(1024, (budget / 3) / (threads * kEncodeBytesPerPoint));
   // Error-bounded archives must not depend on the budget: chunks are encoded
   // whole (bucket slices hold whole buckets) and split by a fixed rule.
   const bool bounded = params.bound.has_value();
   const ArchiveGrid* split_grid = bounded ? &grid : nullptr;
   const std::uint64_t task_points = bounded ? std::max<std::uint64_t>(1, options.split_points) : part_points;
-  const std::uint64_t read_batch =
-      std::max<std::uint64_t>(1024, std::min<std::uint64_t>(kReadBatch, (budget / 16) / kBatchBytesPerPoint));
+  const std::uint64_t read_batch = std::max<std::uint64_t>(
+      1024, std::min<std::uint64_t>(kReadBatch, (budget / 16) / (kBatchBytesPerPoint + las_bytes)));
   // Enough buckets that a bucket usually fits one slice (x2 for skew; x4 when
   // buckets are read whole).
   const std::uint64_t want = ((bounded ? 4 : 2) * std::max<std::uint64_t>(1, in.estimated_points)) / slice_points + 1;
@@ -338,7 +343,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   Grouping grouping;
   // Without bucket files their buffers' share is free: the whole input may
   // take half the budget, the encoders keep their third.
-  const std::uint64_t in_memory_points = (budget / 2) / kGroupBytesPerPoint;
+  const std::uint64_t in_memory_points = (budget / 2) / group_bytes;
   if (in.all_counts_known && in.known_total <= in_memory_points) {
     // The whole input fits in memory: no temporary files.
     const auto total = static_cast<std::size_t>(in.known_total);

@@ -119,6 +119,60 @@ TEST_CASE("bucket files return every point to its chunk within the fixed-point s
   CHECK(once == n);
 }
 
+TEST_CASE("bucket staging and slices stay at their share when batches fall into few chunks",
+          "[ingest][buckets][las]") {
+  // Scan-ordered input: each batch lies in one chunk, so a bucket's block is
+  // far larger than its staging share. The buffers grown for such a block
+  // must be given back, or the staging memory grows with the input; and a
+  // slice of several blocks must be sized once, LAS attributes included, not
+  // grown block by block (capacity doubling past the slice's share).
+  TempDir tmp;
+  ArchiveGrid grid;
+  grid.origin = {0, 0, 0};
+  grid.chunk_edge = 10;
+  constexpr std::uint32_t kBuckets = 8;
+  constexpr std::size_t kStaging = kBuckets * 8192;
+  auto files = BucketFiles::create(tmp.path(), kBuckets, grid, true, true, kStaging, kLasGpsTime);
+  REQUIRE(files.is_ok());
+  const std::size_t batch_points = 20000;  // ~540 KB of records, against 8 KiB per bucket
+  std::uint64_t total = 0;
+  for (int b = 0; b < 40; ++b) {
+    PointCloud batch;
+    for (std::size_t i = 0; i < batch_points; ++i) {
+      // A strip along x: batch b covers x in [5 b, 5 b + 5), half a chunk.
+      const double x = 5.0 * b + 5.0 * static_cast<double>(i) / batch_points;
+      batch.positions.push_back({x, 0.25 * static_cast<double>(i % 37), 1.0});
+      batch.colors.push_back({1, 2, 3});
+      batch.intensities.push_back(static_cast<float>(i));
+      batch.las.gps_time.push_back(static_cast<double>(total + i));
+    }
+    std::vector<ChunkKey> keys(batch_points);
+    grid.keys_of(batch.positions.data(), batch_points, keys.data());
+    REQUIRE(files->append(batch, keys.data()).is_ok());
+    total += batch_points;
+    CHECK(files->staging_capacity() <= kStaging);
+  }
+  REQUIRE(files->finish_writing().is_ok());
+  std::uint64_t read = 0;
+  std::uint64_t largest = 0;
+  PointCloud slice;
+  Grouping g;
+  AlignedBuffer buf;
+  for (std::uint32_t b = 0; b < files->bucket_count(); ++b) {
+    std::uint64_t offset = 0;
+    largest = std::max(largest, files->bucket_points(b));
+    while (offset < files->bucket_bytes(b)) {
+      // Whole buckets, as the bounded mode reads them.
+      REQUIRE(files->read_slice(b, &offset, ~std::uint64_t{0}, slice, g, buf).is_ok());
+      read += slice.size();
+      REQUIRE(slice.las.gps_time.size() == slice.size());
+      CHECK(slice.las.gps_time.capacity() <= largest);
+      CHECK(slice.positions.capacity() <= largest);
+    }
+  }
+  CHECK(read == total);
+}
+
 TEST_CASE("a damaged bucket file is reported, not decoded", "[ingest][buckets]") {
   TempDir tmp;
   ArchiveGrid grid;
