@@ -121,15 +121,24 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
   PointCloud first;
   OrderFreeSample sample;
   RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, o, in, first, &sample));
+  ScanAttributes scan = scan_attributes(in);
   // Whether a LAS input stored 8-bit colour levels is known once it has
   // returned points (its reader samples the file's first points, whatever
-  // the batch size): input 0 has, the others return one point here.
-  for (std::size_t i = 1; i < in.readers.size(); ++i) {
-    if ((in.readers[i]->info().las_attributes & kLasColorLow) == 0) continue;
-    PointCloud one;
-    RELIEF_RETURN_IF_ERROR(in.readers[i]->read(one, 1).status());
+  // the batch size): the sample pass read every input, so its readers know.
+  // The rule of scan_attributes: 8-bit only when every LAS input with
+  // colours stored them so.
+  if (sample.las_colors_8bit.size() != in.readers.size()) {
+    return internal_error("shard plan: the sample pass saw " + std::to_string(sample.las_colors_8bit.size()) +
+                          " of " + std::to_string(in.readers.size()) + " inputs");
   }
-  const ScanAttributes scan = scan_attributes(in);
+  bool any_rgb = false;
+  bool all_8bit = true;
+  for (std::size_t i = 0; i < in.readers.size(); ++i) {
+    if ((in.readers[i]->info().las_attributes & kLasColorLow) == 0) continue;
+    any_rgb = true;
+    all_8bit = all_8bit && sample.las_colors_8bit[i];
+  }
+  scan.las_colors_8bit = any_rgb && all_8bit;
   ShardPlan plan;
   plan.creator = o.creator;
   plan.archive_params = encode_params_to_string(built.params);
