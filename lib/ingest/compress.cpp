@@ -708,6 +708,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
         std::erase_if(kept, [&](const auto& e) { return e.first >= threshold; });
       }
     }
+    if (extra != nullptr) extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
   }
   if (extra != nullptr) extra->points = total;
   if (kept.empty()) return OrderFreeCells{};  // no points at all: the caller picks the empty-input cell

@@ -145,6 +145,9 @@ struct OrderFreeSample {
   // Of every point's intensity (widen_intensity_range): the scan's range.
   float intensity_lo = std::numeric_limits<float>::infinity();
   float intensity_hi = -std::numeric_limits<float>::infinity();
+  // Per input, PointStreamInfo::las_colors_8bit once the input was read
+  // (a LAS reader decides it on its first points).
+  std::vector<bool> las_colors_8bit;
 };
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                                         int map_resolution, Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr);

@@ -10,6 +10,7 @@
 #include "core/parallel.h"
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
+#include "ingest/las_columns.h"
 #include "relief/codec.h"
 #include "relief/shard.h"
 #include "shard/partition_file.h"
@@ -29,6 +30,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   EncodeParams chunk_params = params;
   if (plan.has_intensity_range) chunk_params.intensity_range = std::make_pair(plan.intensity_lo, plan.intensity_hi);
   const std::uint64_t plan_id = shard_plan_id(plan);
+  const shard::PartitionLayout layout = shard::PartitionLayout::of(plan);
   const std::string base = dir.empty() ? std::string(".") : dir;
   // Every input's manifest (its point count) and the size of its range file,
   // all checked before any point is read or memory reserved.
@@ -42,7 +44,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     warnings.insert(warnings.end(), m.warnings.begin(), m.warnings.end());
     RELIEF_ASSIGN_OR_RETURN(const std::uint64_t n,
                             shard::partition_file_points(base + "/" + partition_file_name(i, range), plan_id, i, range,
-                                                         plan.colors, plan.intensity));
+                                                         layout));
     if (n > m.points) {
       return corrupt_data(base + "/" + partition_file_name(i, range) + ": more points than its input's manifest says");
     }
@@ -57,9 +59,10 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   // In input order, each file in read order: the order compress_files sees.
   PointCloud points;
   points.reserve(static_cast<std::size_t>(total), plan.colors, plan.intensity);
+  reserve_las(points.las, static_cast<std::size_t>(total), layout.las, layout.extra_size);
   for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
     RELIEF_RETURN_IF_ERROR(shard::read_partition_file(base + "/" + partition_file_name(i, range), plan_id, i, range,
-                                                      plan.colors, plan.intensity, points)
+                                                      layout, points)
                                .status());
   }
   const std::string where = base + "/" + "range " + std::to_string(range);
@@ -86,7 +89,8 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     remove_archive_files(tmp);
     return s;
   };
-  auto scan_id = begin_scan(*archive, sources, plan.colors, plan.intensity, plan.crs);
+  // The scan's attributes as compress records them, LAS metadata included.
+  auto scan_id = archive->begin_scan(sources, plan.scan_attributes());
   if (!scan_id) return failed(scan_id.status());
   PipelineTotals totals;
   {

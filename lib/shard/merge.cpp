@@ -53,6 +53,13 @@ std::string difference(const ArchiveInfo& a, const ArchiveInfo& b) {
   if (a.creator != b.creator) return "creator";
   if (a.crs != b.crs) return "CRS";
   if (a.has_colors != b.has_colors || a.has_intensity != b.has_intensity) return "attributes";
+  if (a.las_attributes != b.las_attributes || a.las_point_format != b.las_point_format ||
+      a.las_version_minor != b.las_version_minor || a.las_colors_8bit != b.las_colors_8bit) {
+    return "LAS attributes (set, point format, version or colour levels)";
+  }
+  if (a.extra_bytes_size != b.extra_bytes_size || a.extra_bytes_vlr != b.extra_bytes_vlr) {
+    return "extra bytes (size or Extra Bytes VLR)";
+  }
   if (!same_sources(a.sources, b.sources)) return "sources (paths, formats or point counts)";
   return "";
 }
@@ -128,7 +135,18 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
     remove_archive_files(tmp);
     return s;
   };
-  auto scan_id = begin_scan(*archive, first.sources, first.has_colors, first.has_intensity, first.crs);
+  // The shards' scan attributes, LAS metadata included (what the plan gave them).
+  ScanAttributes attributes;
+  attributes.has_colors = first.has_colors;
+  attributes.has_intensity = first.has_intensity;
+  attributes.crs = first.crs;
+  attributes.las_attributes = first.las_attributes;
+  attributes.las_point_format = first.las_point_format;
+  attributes.las_version_minor = first.las_version_minor;
+  attributes.extra_bytes_vlr = first.extra_bytes_vlr;
+  attributes.extra_bytes_size = first.extra_bytes_size;
+  attributes.las_colors_8bit = first.las_colors_8bit;
+  auto scan_id = archive->begin_scan(first.sources, attributes);
   if (!scan_id) return failed(scan_id.status());
   MergeResult result;
   result.shards = opened.size();

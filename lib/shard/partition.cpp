@@ -8,9 +8,11 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <type_traits>
 
 #include "core/byte_io.h"
 #include "ingest/ingest_common.h"
+#include "ingest/las_columns.h"
 #include "relief/codec.h"
 #include "relief/io.h"
 #include "relief/shard.h"
@@ -52,15 +54,64 @@ Status read_all(int fd, std::uint8_t* data, std::size_t n, const std::string& pa
   return Status::ok();
 }
 
-void header_bytes(ByteWriter& w, std::uint64_t plan_id, std::uint32_t input, std::uint32_t range, bool colors,
-                  bool intensity, std::uint64_t count) {
+void header_bytes(ByteWriter& w, std::uint64_t plan_id, std::uint32_t input, std::uint32_t range,
+                  const shard::PartitionLayout& layout, std::uint64_t count) {
   w.bytes(shard::kPartitionMagic, sizeof shard::kPartitionMagic);
   w.u32(kPartitionFormatVersion);
   w.u64(plan_id);
   w.u32(input);
   w.u32(range);
-  w.u32((colors ? shard::kFlagRgb : 0) | (intensity ? shard::kFlagIntensity : 0));
+  w.u32(layout.flags());
+  w.u32(layout.las);
+  w.u32(layout.extra_size);
   w.u64(count);
+}
+
+// One LAS value in its partition-file width, little-endian.
+template <typename T>
+void put_value(ByteWriter& w, const T& v) {
+  if constexpr (std::is_same_v<T, Rgb8>) {
+    w.u8(v.r);
+    w.u8(v.g);
+    w.u8(v.b);
+  } else if constexpr (std::is_same_v<T, double>) {
+    w.f64(v);
+  } else if constexpr (std::is_same_v<T, std::int32_t>) {
+    w.u32(static_cast<std::uint32_t>(v));
+  } else if constexpr (std::is_same_v<T, std::uint16_t>) {
+    w.u16(v);
+  } else {
+    static_assert(std::is_same_v<T, std::uint8_t>);
+    w.u8(v);
+  }
+}
+
+std::uint64_t get_le(const std::uint8_t*& p, int n) {
+  std::uint64_t v = 0;
+  for (int b = 0; b < n; ++b) v |= static_cast<std::uint64_t>(p[b]) << (8 * b);
+  p += n;
+  return v;
+}
+
+template <typename T>
+T get_value(const std::uint8_t*& p) {
+  if constexpr (std::is_same_v<T, Rgb8>) {
+    const Rgb8 c{p[0], p[1], p[2]};
+    p += 3;
+    return c;
+  } else if constexpr (std::is_same_v<T, double>) {
+    const std::uint64_t bits = get_le(p, 8);
+    double v = 0;
+    std::memcpy(&v, &bits, sizeof v);
+    return v;
+  } else if constexpr (std::is_same_v<T, std::int32_t>) {
+    return static_cast<std::int32_t>(static_cast<std::uint32_t>(get_le(p, 4)));
+  } else if constexpr (std::is_same_v<T, std::uint16_t>) {
+    return static_cast<std::uint16_t>(get_le(p, 2));
+  } else {
+    static_assert(std::is_same_v<T, std::uint8_t>);
+    return *p++;
+  }
 }
 
 // The temporary files of one partition task; removed unless committed.
@@ -80,8 +131,8 @@ struct TempFiles {
 // Opens a partition file and checks its header; returns the fd (caller
 // closes) and the point count, checked against the file size.
 Result<std::pair<int, std::uint64_t>> open_partition(const std::string& path, std::uint64_t plan_id,
-                                                     std::uint32_t input, std::uint32_t range, bool colors,
-                                                     bool intensity) {
+                                                     std::uint32_t input, std::uint32_t range,
+                                                     const shard::PartitionLayout& layout) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     if (errno == ENOENT) {
@@ -96,25 +147,35 @@ Result<std::pair<int, std::uint64_t>> open_partition(const std::string& path, st
   struct stat st {};
   if (::fstat(fd, &st) != 0) return fail(io_error(path + ": cannot stat: " + std::strerror(errno)));
   const auto size = static_cast<std::uint64_t>(st.st_size);
-  if (size < shard::kPartitionHeaderBytes) return fail(corrupt_data(path + ": shorter than a partition header"));
-  std::uint8_t header[shard::kPartitionHeaderBytes];
-  if (Status s = read_all(fd, header, sizeof header, path); !s) return fail(s);
+  // The magic and version first: they say how long the header is.
+  constexpr std::size_t kLead = sizeof shard::kPartitionMagic + 4;
+  if (size < shard::kPartitionHeaderBytesV1) return fail(corrupt_data(path + ": shorter than a partition header"));
+  std::uint8_t header[shard::kPartitionHeaderBytes] = {};
+  if (Status s = read_all(fd, header, kLead, path); !s) return fail(s);
   if (std::memcmp(header, shard::kPartitionMagic, sizeof shard::kPartitionMagic) != 0) {
     return fail(format_error(path + ": not a Relief partition file"));
   }
-  ByteReader r(std::span<const std::uint8_t>(header + sizeof shard::kPartitionMagic,
-                                             sizeof header - sizeof shard::kPartitionMagic),
-               path);
-  std::uint32_t version = 0, file_input = 0, file_range = 0, flags = 0;
-  std::uint64_t file_plan = 0, count = 0;
-  if (Status s = r.u32(version, "version"); !s) return fail(s);
-  if (version != static_cast<std::uint32_t>(kPartitionFormatVersion)) {
-    return fail(unsupported(path + ": partition format version " + std::to_string(version)));
+  const std::uint32_t version = static_cast<std::uint32_t>(header[8]) | (static_cast<std::uint32_t>(header[9]) << 8) |
+                                (static_cast<std::uint32_t>(header[10]) << 16) |
+                                (static_cast<std::uint32_t>(header[11]) << 24);
+  if (version != 1 && version != static_cast<std::uint32_t>(kPartitionFormatVersion)) {
+    return fail(unsupported(path + ": partition format version " + std::to_string(version) +
+                            " (this build reads versions 1 and " + std::to_string(kPartitionFormatVersion) + ")"));
   }
+  const std::size_t header_bytes = version == 1 ? shard::kPartitionHeaderBytesV1 : shard::kPartitionHeaderBytes;
+  if (size < header_bytes) return fail(corrupt_data(path + ": shorter than a partition header"));
+  if (Status s = read_all(fd, header + kLead, header_bytes - kLead, path); !s) return fail(s);
+  ByteReader r(std::span<const std::uint8_t>(header + kLead, header_bytes - kLead), path);
+  std::uint32_t file_input = 0, file_range = 0, flags = 0, las = 0, extra_size = 0;
+  std::uint64_t file_plan = 0, count = 0;
   if (Status s = r.u64(file_plan, "plan id"); !s) return fail(s);
   if (Status s = r.u32(file_input, "input"); !s) return fail(s);
   if (Status s = r.u32(file_range, "range"); !s) return fail(s);
   if (Status s = r.u32(flags, "flags"); !s) return fail(s);
+  if (version != 1) {
+    if (Status s = r.u32(las, "LAS attributes"); !s) return fail(s);
+    if (Status s = r.u32(extra_size, "extra bytes size"); !s) return fail(s);
+  }
   if (Status s = r.u64(count, "point count"); !s) return fail(s);
   if (file_plan != plan_id) {
     return fail(invalid_argument(path + ": written for another plan (" + shard::hex64(file_plan) + ", not " +
@@ -125,10 +186,18 @@ Result<std::pair<int, std::uint64_t>> open_partition(const std::string& path, st
                              std::to_string(file_range) + " under the name of input " + std::to_string(input) +
                              ", range " + std::to_string(range)));
   }
-  const std::uint32_t want = (colors ? shard::kFlagRgb : 0) | (intensity ? shard::kFlagIntensity : 0);
-  if (flags != want) return fail(corrupt_data(path + ": attribute flags differ from the plan's"));
-  const std::uint64_t record = shard::partition_record_bytes(colors, intensity);
-  const std::uint64_t body = size - shard::kPartitionHeaderBytes;
+  if (flags != layout.flags()) return fail(corrupt_data(path + ": attribute flags differ from the plan's"));
+  if (las != layout.las || extra_size != layout.extra_size) {
+    if (version == 1) {
+      return fail(invalid_argument(path + ": a version 1 partition file, which cannot hold the plan's LAS "
+                                          "attributes; clear the partition directory"));
+    }
+    return fail(corrupt_data(path + ": LAS attributes (" + las_attribute_list(las) + "; " +
+                             std::to_string(extra_size) + " extra bytes) differ from the plan's (" +
+                             las_attribute_list(layout.las) + "; " + std::to_string(layout.extra_size) + ")"));
+  }
+  const std::uint64_t record = layout.record_bytes();
+  const std::uint64_t body = size - header_bytes;
   if (body % record != 0 || body / record != count) {
     return fail(corrupt_data(path + ": " + std::to_string(size) + " bytes, but its header says " +
                              std::to_string(count) + " points (truncated or damaged)"));
@@ -140,23 +209,36 @@ Result<std::pair<int, std::uint64_t>> open_partition(const std::string& path, st
 
 namespace shard {
 
-std::size_t partition_record_bytes(bool colors, bool intensity) {
-  return 24 + (colors ? 3 : 0) + (intensity ? 4 : 0);
+PartitionLayout PartitionLayout::of(const ShardPlan& plan) {
+  PartitionLayout l;
+  l.colors = plan.colors;
+  l.intensity = plan.intensity;
+  l.las = plan.las_attributes;
+  l.extra_size = (plan.las_attributes & kLasExtraBytes) != 0 ? plan.extra_bytes_size : 0;
+  return l;
+}
+
+std::uint32_t PartitionLayout::flags() const { return (colors ? kFlagRgb : 0) | (intensity ? kFlagIntensity : 0); }
+
+std::size_t PartitionLayout::record_bytes() const {
+  return 24 + (colors ? 3 : 0) + (intensity ? 4 : 0) + ingest::las_record_bytes(las, extra_size);
 }
 
 Result<std::uint64_t> partition_file_points(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
-                                            std::uint32_t range, bool colors, bool intensity) {
-  RELIEF_ASSIGN_OR_RETURN(const auto opened, open_partition(path, plan_id, input, range, colors, intensity));
+                                            std::uint32_t range, const PartitionLayout& layout) {
+  RELIEF_ASSIGN_OR_RETURN(const auto opened, open_partition(path, plan_id, input, range, layout));
   ::close(opened.first);
   return opened.second;
 }
 
 Result<std::uint64_t> read_partition_file(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
-                                          std::uint32_t range, bool colors, bool intensity, PointCloud& out) {
-  RELIEF_ASSIGN_OR_RETURN(const auto opened, open_partition(path, plan_id, input, range, colors, intensity));
+                                          std::uint32_t range, const PartitionLayout& layout, PointCloud& out) {
+  RELIEF_ASSIGN_OR_RETURN(const auto opened, open_partition(path, plan_id, input, range, layout));
   const int fd = opened.first;
   const std::uint64_t count = opened.second;
-  const std::size_t record = partition_record_bytes(colors, intensity);
+  const std::size_t record = layout.record_bytes();
+  const bool extra = (layout.las & kLasExtraBytes) != 0;
+  if (extra) out.las.extra_bytes_size = layout.extra_size;
   std::vector<std::uint8_t> block;
   std::uint64_t done = 0;
   while (done < count) {
@@ -168,25 +250,23 @@ Result<std::uint64_t> read_partition_file(const std::string& path, std::uint64_t
     }
     const std::uint8_t* p = block.data();
     for (std::size_t i = 0; i < n; ++i) {
-      double xyz[3];
-      for (double& c : xyz) {
-        std::uint64_t bits = 0;
-        for (int b = 0; b < 8; ++b) bits |= static_cast<std::uint64_t>(p[b]) << (8 * b);
-        std::memcpy(&c, &bits, sizeof c);
-        p += 8;
-      }
-      out.positions.push_back(Vec3d{xyz[0], xyz[1], xyz[2]});
-      if (colors) {
-        out.colors.push_back(Rgb8{p[0], p[1], p[2]});
-        p += 3;
-      }
-      if (intensity) {
-        std::uint32_t bits = 0;
-        for (int b = 0; b < 4; ++b) bits |= static_cast<std::uint32_t>(p[b]) << (8 * b);
+      const double x = get_value<double>(p);
+      const double y = get_value<double>(p);
+      const double z = get_value<double>(p);
+      out.positions.push_back(Vec3d{x, y, z});
+      if (layout.colors) out.colors.push_back(get_value<Rgb8>(p));
+      if (layout.intensity) {
+        const auto bits = static_cast<std::uint32_t>(get_le(p, 4));
         float v = 0;
         std::memcpy(&v, &bits, sizeof v);
         out.intensities.push_back(v);
-        p += 4;
+      }
+      ingest::for_each_las_column(out.las, [&](auto& v, std::uint32_t bit) {
+        if ((layout.las & bit) != 0) v.push_back(get_value<typename std::decay_t<decltype(v)>::value_type>(p));
+      });
+      if (extra) {
+        out.las.extra_bytes.insert(out.las.extra_bytes.end(), p, p + layout.extra_size);
+        p += layout.extra_size;
       }
     }
     done += n;
@@ -208,9 +288,10 @@ Result<Manifest> read_manifest(const std::string& path, std::uint64_t plan_id, s
   Manifest m;
   bool ended = false, have_points = false;
   const auto bad = [&path](const std::string& what) { return format_error(path + ": " + what); };
+  // Versions 1 and 2 of the manifest are the same lines.
   if (lines.empty() || lines[0].key != kManifestMagic || lines[0].fields.size() != 1 ||
-      lines[0].fields[0] != std::to_string(kPartitionFormatVersion)) {
-    return bad("not a Relief partition manifest of version " + std::to_string(kPartitionFormatVersion));
+      (lines[0].fields[0] != "1" && lines[0].fields[0] != std::to_string(kPartitionFormatVersion))) {
+    return bad("not a Relief partition manifest of version 1 or " + std::to_string(kPartitionFormatVersion));
   }
   for (std::size_t i = 1; i < lines.size(); ++i) {
     const TextLine& l = lines[i];
@@ -265,10 +346,17 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
   const std::string& path = plan.sources[input].path;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, plan.reader_options()));
   const PointStreamInfo& info = reader->info();
+  // The plan's LAS set is the union of the inputs' (colour low bytes only
+  // with colours), with one Extra Bytes layout.
+  const std::uint32_t las_outside =
+      info.las_attributes & ~plan.las_attributes & ~(plan.colors ? 0u : std::uint32_t{kLasColorLow});
+  const bool other_extra = (info.las_attributes & kLasExtraBytes) != 0 &&
+                           (info.extra_bytes_size != plan.extra_bytes_size || info.extra_bytes_vlr != plan.extra_bytes_vlr);
   if ((plan.colors && !info.has_colors) || (plan.intensity && !info.has_intensity) ||
-      info.format != plan.sources[input].format) {
+      info.format != plan.sources[input].format || las_outside != 0 || other_extra) {
     return invalid_argument(path + ": is not the file the plan was made from (format or attributes differ)");
   }
+  const shard::PartitionLayout layout = shard::PartitionLayout::of(plan);
   const std::uint64_t plan_id = shard_plan_id(plan);
   const std::uint32_t ranges = plan.range_count();
   const std::string base = dir.empty() ? std::string(".") : dir;
@@ -286,7 +374,7 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
     }
     files.fds.push_back(fd);
     // The header's count is written last, over this placeholder.
-    header_bytes(staged[r], plan_id, input, r, plan.colors, plan.intensity, 0);
+    header_bytes(staged[r], plan_id, input, r, layout, 0);
   }
   const double limit = max_coordinate_magnitude(params.cell_size, plan.grid.chunk_edge);
   PointCloud batch;
@@ -296,6 +384,8 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
     RELIEF_ASSIGN_OR_RETURN(const std::size_t got, reader->read(batch, kReadBatch));
     if (got == 0) break;
     RELIEF_RETURN_IF_ERROR(stage_points(batch, limit, path, read, plan.colors, plan.intensity, params));
+    // The plan's LAS attributes, those this input lacks as 0 (as compress).
+    conform_las(batch, plan.las_attributes, layout.extra_size);
     read += got;
     keys.resize(batch.size());
     plan.grid.keys_of(batch.positions.data(), batch.size(), keys.data());
@@ -319,6 +409,12 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
         w.u8(batch.colors[i].b);
       }
       if (plan.intensity) w.f32(batch.intensities[i]);
+      if (layout.las != 0) {
+        for_each_las_column(batch.las, [&](const auto& v, std::uint32_t bit) {
+          if ((layout.las & bit) != 0) put_value(w, v[i]);
+        });
+        if (layout.extra_size != 0) w.bytes(batch.las.extra_bytes.data() + i * layout.extra_size, layout.extra_size);
+      }
       ++counts[last_range];
       if (w.size() >= kFlushBytes) {
         RELIEF_RETURN_IF_ERROR(write_all(files.fds[last_range], w.buffer().data(), w.size(), finals[last_range]));
@@ -331,7 +427,7 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
     RELIEF_RETURN_IF_ERROR(write_all(files.fds[r], w.buffer().data(), w.size(), finals[r]));
     w.buffer().clear();
     ByteWriter header;
-    header_bytes(header, plan_id, input, r, plan.colors, plan.intensity, counts[r]);
+    header_bytes(header, plan_id, input, r, layout, counts[r]);
     if (::pwrite(files.fds[r], header.buffer().data(), header.size(), 0) != static_cast<ssize_t>(header.size())) {
       return io_error(finals[r] + ": write failed: " + std::strerror(errno));
     }

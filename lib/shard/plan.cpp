@@ -35,7 +35,62 @@ std::string number(float v) {
   return buf;
 }
 
+// The Extra Bytes VLR payload in a plan line: lower-case hexadecimal.
+std::string hex_text(const std::string& bytes) {
+  static const char kDigits[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(2 * bytes.size());
+  for (const char c : bytes) {
+    const auto b = static_cast<unsigned char>(c);
+    out += kDigits[b >> 4];
+    out += kDigits[b & 15];
+  }
+  return out;
+}
+
+// hex_text's inverse; false on an odd length or a character that is not a
+// lower-case hexadecimal digit.
+bool from_hex_text(const std::string& text, std::string& out) {
+  if (text.size() % 2 != 0) return false;
+  const auto digit = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    return -1;
+  };
+  out.clear();
+  out.reserve(text.size() / 2);
+  for (std::size_t i = 0; i < text.size(); i += 2) {
+    const int hi = digit(text[i]);
+    const int lo = digit(text[i + 1]);
+    if (hi < 0 || lo < 0) return false;
+    out += static_cast<char>((hi << 4) | lo);
+  }
+  return true;
+}
+
+// Bounds of the LAS fields (LAS 1.4 R15): point formats 0-10, a u8 minor
+// version, and extra bytes that fit a record (u16 length) described by a VLR
+// (u16 payload length).
+constexpr int kMaxLasPointFormat = 10;
+constexpr int kMaxLasVersionMinor = 255;
+constexpr std::int64_t kMaxExtraBytesSize = 65535;
+constexpr std::size_t kMaxExtraBytesVlrBytes = 65535;
+
 }  // namespace
+
+ScanAttributes ShardPlan::scan_attributes() const {
+  ScanAttributes a;
+  a.has_colors = colors;
+  a.has_intensity = intensity;
+  a.crs = crs;
+  a.las_attributes = las_attributes;
+  a.las_point_format = las_point_format;
+  a.las_version_minor = las_version_minor;
+  a.extra_bytes_vlr = extra_bytes_vlr;
+  a.extra_bytes_size = extra_bytes_size;
+  a.las_colors_8bit = las_colors_8bit;
+  return a;
+}
 
 std::uint32_t ShardPlan::range_of(const ChunkKey& key) const {
   const auto it = std::upper_bound(range_starts.begin() + 1, range_starts.end(), key);
@@ -59,21 +114,31 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
     return invalid_argument("at most " + std::to_string(kMaxShardRanges) + " key ranges");
   }
   RELIEF_RETURN_IF_ERROR(validate_build_options(o));
+  // open_inputs makes the LAS decisions of compress (the union of the
+  // attribute sets, one Extra Bytes layout: different VLRs are refused there,
+  // naming both inputs).
   RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, o.reader, o.assume_crs));
-  // Partition files (format-spec/shard.md, version 1) hold positions, colours
-  // and intensities only: refuse rather than drop a survey's LAS attributes.
-  if (in.las_attributes != 0) {
-    for (const auto& reader : in.readers) {
-      if (reader->info().las_attributes != 0) {
-        return unsupported(reader->info().path +
-                           ": carries per-point LAS attributes (classification, returns, GPS time...), which a "
-                           "sharded build does not carry yet; use relief compress");
-      }
-    }
-  }
   PointCloud first;
   OrderFreeSample sample;
   RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, o, in, first, &sample));
+  ScanAttributes scan = scan_attributes(in);
+  // Whether a LAS input stored 8-bit colour levels is known once it has
+  // returned points (its reader samples the file's first points, whatever
+  // the batch size): the sample pass read every input, so its readers know.
+  // The rule of scan_attributes: 8-bit only when every LAS input with
+  // colours stored them so.
+  if (sample.las_colors_8bit.size() != in.readers.size()) {
+    return internal_error("shard plan: the sample pass saw " + std::to_string(sample.las_colors_8bit.size()) +
+                          " of " + std::to_string(in.readers.size()) + " inputs");
+  }
+  bool any_rgb = false;
+  bool all_8bit = true;
+  for (std::size_t i = 0; i < in.readers.size(); ++i) {
+    if ((in.readers[i]->info().las_attributes & kLasColorLow) == 0) continue;
+    any_rgb = true;
+    all_8bit = all_8bit && sample.las_colors_8bit[i];
+  }
+  scan.las_colors_8bit = any_rgb && all_8bit;
   ShardPlan plan;
   plan.creator = o.creator;
   plan.archive_params = encode_params_to_string(built.params);
@@ -81,6 +146,12 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
   plan.colors = in.colors;
   plan.intensity = in.intensity;
   plan.crs = in.crs;
+  plan.las_attributes = scan.las_attributes;
+  plan.las_point_format = scan.las_point_format;
+  plan.las_version_minor = scan.las_version_minor;
+  plan.extra_bytes_vlr = scan.extra_bytes_vlr;
+  plan.extra_bytes_size = scan.extra_bytes_size;
+  plan.las_colors_8bit = scan.las_colors_8bit;
   // compress_files' with_intensity_range over the same points.
   const EncodeParams chunk_params =
       with_intensity_range(built.params, in.intensity, sample.intensity_lo, sample.intensity_hi);
@@ -142,13 +213,22 @@ std::string shard_plan_text(const ShardPlan& plan) {
     }
     t += "\n";
   };
-  line(kPlanMagic, {std::to_string(kShardPlanVersion)});
+  // Version 1 when there is nothing of version 2 to say: the bytes (and the
+  // plan id) of a plan without LAS attributes are those earlier builds wrote.
+  line(kPlanMagic, {plan.has_las() ? std::to_string(kShardPlanVersion) : "1"});
   line("creator", {plan.creator});
   line("archive_params", {plan.archive_params});
   if (plan.has_intensity_range) line("intensity_range", {number(plan.intensity_lo), number(plan.intensity_hi)});
   line("grid", {number(plan.grid.origin.x), number(plan.grid.origin.y), number(plan.grid.origin.z),
                 number(plan.grid.chunk_edge)});
   line("attributes", {plan.colors ? "1" : "0", plan.intensity ? "1" : "0"});
+  if (plan.has_las()) {
+    line("las", {las_attribute_list(plan.las_attributes), std::to_string(plan.las_point_format),
+                 std::to_string(plan.las_version_minor), plan.las_colors_8bit ? "1" : "0"});
+    if ((plan.las_attributes & kLasExtraBytes) != 0) {
+      line("extra_bytes", {std::to_string(plan.extra_bytes_size), hex_text(plan.extra_bytes_vlr)});
+    }
+  }
   line("crs", {plan.crs});
   line("split_points", {std::to_string(plan.split_points)});
   if (plan.has_xyz_columns) line("xyz_columns", {plan.xyz_columns});
@@ -179,15 +259,18 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
   if (lines.empty() || lines[0].key != kPlanMagic || lines[0].fields.size() != 1) {
     return format_error(path + ": not a Relief shard plan (no '" + kPlanMagic + "' line)");
   }
-  if (lines[0].fields[0] != std::to_string(kShardPlanVersion)) {
-    return unsupported(path + ": shard plan version " + lines[0].fields[0] + " (this build reads version " +
+  const std::string& version = lines[0].fields[0];
+  if (version != "1" && version != std::to_string(kShardPlanVersion)) {
+    return unsupported(path + ": shard plan version " + version + " (this build reads versions 1 to " +
                        std::to_string(kShardPlanVersion) + ")");
   }
+  const bool v2 = version != "1";
   ShardPlan plan;
   constexpr std::int64_t kLowest = std::numeric_limits<std::int64_t>::min();
   plan.range_starts.push_back(ChunkKey{kLowest, kLowest, kLowest});
   std::uint64_t declared_ranges = 0;
-  bool ended = false, have_grid = false, have_params = false, have_ranges = false;
+  bool ended = false, have_grid = false, have_params = false, have_ranges = false, have_las = false,
+       have_extra = false;
   for (std::size_t i = 1; i < lines.size(); ++i) {
     const TextLine& l = lines[i];
     const std::size_t n = i + 1;
@@ -252,6 +335,36 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       RELIEF_RETURN_IF_ERROR(want(2));
       RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[0], plan.colors));
       RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[1], plan.intensity));
+    } else if (l.key == "las") {
+      if (!v2) return bad(n, "a version 1 plan has no 'las' line");
+      if (have_las) return bad(n, "a second 'las' line");
+      RELIEF_RETURN_IF_ERROR(want(4));
+      plan.las_attributes = las_attributes_from_list(l.fields[0]);
+      // Strict: every name known, in bit order, each once.
+      if (las_attribute_list(plan.las_attributes) != l.fields[0]) {
+        return bad(n, "not a list of LAS attribute names: " + l.fields[0]);
+      }
+      std::int64_t format = 0, minor = 0;
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[1], format));
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[2], minor));
+      if (format < -1 || format > kMaxLasPointFormat) return bad(n, "LAS point format out of range");
+      if (minor < -1 || minor > kMaxLasVersionMinor) return bad(n, "LAS minor version out of range");
+      plan.las_point_format = static_cast<int>(format);
+      plan.las_version_minor = static_cast<int>(minor);
+      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[3], plan.las_colors_8bit));
+      have_las = true;
+    } else if (l.key == "extra_bytes") {
+      if (!have_las) return bad(n, "'extra_bytes' before (or without) the 'las' line");
+      if (have_extra) return bad(n, "a second 'extra_bytes' line");
+      RELIEF_RETURN_IF_ERROR(want(2));
+      std::int64_t size = 0;
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[0], size));
+      if (size < 1 || size > kMaxExtraBytesSize) return bad(n, "extra bytes per point out of range (1..65535)");
+      plan.extra_bytes_size = static_cast<std::uint32_t>(size);
+      if (l.fields[1].size() > 2 * kMaxExtraBytesVlrBytes || !from_hex_text(l.fields[1], plan.extra_bytes_vlr)) {
+        return bad(n, "the Extra Bytes VLR is not lower-case hexadecimal of at most 65535 bytes");
+      }
+      have_extra = true;
     } else if (l.key == "crs") {
       RELIEF_RETURN_IF_ERROR(want(1));
       plan.crs = l.fields[0];
@@ -304,6 +417,16 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
   if (!ended) return format_error(path + ": truncated shard plan (no 'end' line)");
   if (!have_grid || !have_params || !have_ranges || plan.sources.empty()) {
     return format_error(path + ": shard plan lacks its grid, codec parameters, ranges or inputs");
+  }
+  if (v2 && !have_las) return format_error(path + ": a version 2 shard plan without its 'las' line");
+  if (have_las && !plan.has_las()) {
+    return format_error(path + ": a 'las' line without LAS metadata (such a plan is written as version 1)");
+  }
+  if (((plan.las_attributes & kLasExtraBytes) != 0) != have_extra) {
+    return format_error(path + ": the 'las' line and the 'extra_bytes' line disagree on extra bytes");
+  }
+  if ((plan.las_attributes & kLasColorLow) != 0 && !plan.colors) {
+    return format_error(path + ": LAS colour low bytes without colours");
   }
   if (declared_ranges != plan.range_starts.size()) {
     return format_error(path + ": shard plan declares " + std::to_string(declared_ranges) + " ranges but lists " +

@@ -8,6 +8,7 @@ dask/distributed as a skip.)"""
 
 import os
 import sqlite3
+import struct
 import subprocess
 
 import numpy as np
@@ -46,6 +47,54 @@ def write_scene(directory, seed, points, files):
             f.write(part.tobytes())
         paths.append(path)
     return paths
+
+
+LAS3_EXTRA_DTYPE = np.dtype([("X", "<i4"), ("Y", "<i4"), ("Z", "<i4"), ("intensity", "<u2"), ("returns", "u1"),
+                             ("classification", "u1"), ("scan_angle", "i1"), ("user_data", "u1"),
+                             ("point_source_id", "<u2"), ("gps_time", "<f8"), ("red", "<u2"), ("green", "<u2"),
+                             ("blue", "<u2"), ("extra", "u1", (3,))])
+
+
+def write_las(path, seed, points):
+    """A LAS 1.2 point format 3 file (GPS time, 16-bit RGB) of a seeded terrain
+    with every LAS field random and 3 extra bytes per point, described by an
+    Extra Bytes VLR (one descriptor of 3 undocumented bytes)."""
+    rng = np.random.default_rng(seed)
+    scale = 0.001
+    offset = (500000.0, 4000000.0, 0.0)
+    x = rng.uniform(0, 60, points)
+    y = rng.uniform(0, 40, points)
+    z = 2.0 * np.sin(x / 5.0) * np.cos(y / 7.0) + 5.0
+    rec = np.zeros(points, LAS3_EXTRA_DTYPE)
+    rec["X"] = np.round(x / scale)
+    rec["Y"] = np.round(y / scale)
+    rec["Z"] = np.round(z / scale)
+    rec["intensity"] = rng.integers(0, 65536, points)
+    rec["returns"] = rng.integers(0, 256, points)
+    rec["classification"] = rng.integers(0, 256, points)
+    rec["scan_angle"] = rng.integers(-90, 91, points)
+    rec["user_data"] = rng.integers(0, 256, points)
+    rec["point_source_id"] = rng.integers(0, 65536, points)
+    rec["gps_time"] = 1e8 + rng.integers(0, 1 << 30, points) * 1e-6
+    for c in ("red", "green", "blue"):
+        rec[c] = rng.integers(0, 65536, points)
+    rec["extra"] = rng.integers(0, 256, (points, 3))
+    descriptor = bytearray(192)
+    descriptor[2] = 0  # undocumented bytes ...
+    descriptor[3] = 3  # ... three of them
+    descriptor[4:4 + 6] = b"opaque"
+    vlr = struct.pack("<H16sHH32s", 0, b"LASF_Spec", 4, len(descriptor), b"") + bytes(descriptor)
+    header_size = 227
+    lo = [rec[a].min() * scale + o for a, o in zip("XYZ", offset)]
+    hi = [rec[a].max() * scale + o for a, o in zip("XYZ", offset)]
+    header = struct.pack("<4sHH16sBB32s32sHHHIIBHI5I3d3d6d", b"LASF", 0, 0, b"", 1, 2, b"", b"test", 1, 2026,
+                         header_size, header_size + len(vlr), 1, 3, LAS3_EXTRA_DTYPE.itemsize, points,
+                         points, 0, 0, 0, 0, scale, scale, scale, *offset,
+                         hi[0], lo[0], hi[1], lo[1], hi[2], lo[2])
+    assert len(header) == header_size
+    with open(path, "wb") as f:
+        f.write(header + vlr + rec.tobytes())
+    return path
 
 
 def archive_content(path):
@@ -111,6 +160,24 @@ def test_worker_killed_mid_build(cluster, scene, tmp_path):
     rd.compress(inputs, out, client=cluster, ranges=4, _test_kill_once=kill, **OPTIONS)
     assert sorted(os.listdir(markers)) == ["killed-encode-1", "killed-partition-2"]
     assert archive_content(out) == archive_content(one)
+
+
+def test_las_same_archive_as_one_box(cluster, tmp_path):
+    # LAS inputs with every LAS field and extra bytes: the sharded build keeps
+    # them all, so the archive (blobs and relief_meta's las_* keys) is the
+    # one-box one.
+    inputs = [write_las(str(tmp_path / ("in%d.las" % k)), 50 + k, 40000) for k in range(3)]
+    one = str(tmp_path / "one.relief")
+    subprocess.run([rd.find_cli(), "compress"] + inputs + ["-o", one, "--quiet"] + rd.plan_options(OPTIONS),
+                   check=True)
+    want = archive_content(one)
+    assert "extra_bytes" in want[1]["las_attributes"]
+    assert "gps_time" in want[1]["las_attributes"]
+    assert len(want[0]) >= 12
+    out = str(tmp_path / "dask.relief")
+    result = rd.compress(inputs, out, client=cluster, ranges=3, **OPTIONS)
+    assert result["ranges"] == 3
+    assert archive_content(out) == want
 
 
 def test_failed_stage_names_the_problem(cluster, tmp_path):

@@ -15,6 +15,7 @@
 #include "relief/ingest.h"
 #include "relief/io.h"
 #include "relief/shard.h"
+#include "support/las_records.h"
 #include "support/run_cli.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
@@ -113,6 +114,12 @@ ArchiveInfo info_of(const std::string& path) {
 
 void check_same_metadata(const ArchiveInfo& a, const ArchiveInfo& b) {
   CHECK(a.format_version == b.format_version);
+  CHECK(a.las_attributes == b.las_attributes);
+  CHECK(a.las_point_format == b.las_point_format);
+  CHECK(a.las_version_minor == b.las_version_minor);
+  CHECK(a.extra_bytes_vlr == b.extra_bytes_vlr);
+  CHECK(a.extra_bytes_size == b.extra_bytes_size);
+  CHECK(a.las_colors_8bit == b.las_colors_8bit);
   CHECK(a.grid.origin == b.grid.origin);
   CHECK(a.grid.chunk_edge == b.grid.chunk_edge);
   CHECK(a.codec_params == b.codec_params);
@@ -142,6 +149,33 @@ void check_same_metadata(const ArchiveInfo& a, const ArchiveInfo& b) {
 std::vector<std::uint8_t> file_bytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+// Two Extra Bytes descriptors (3 bytes per point: a u16 and a u8 field).
+std::vector<std::uint8_t> extra_vlr() {
+  std::vector<std::uint8_t> v = test::extra_bytes_descriptor(3, 0, "height_above_ground");
+  const std::vector<std::uint8_t> b = test::extra_bytes_descriptor(1, 0, "confidence");
+  v.insert(v.end(), b.begin(), b.end());
+  return v;
+}
+
+// A LAS file of random records (tests/support/las_records.h) over a 24 m
+// square, with 3 extra bytes per point when `extra`.
+std::string las_input(const TempDir& dir, const std::string& name, int format, std::uint32_t seed, bool extra,
+                      bool wide_colors = true, std::size_t points = 12000) {
+  test::TestLasOptions o;
+  o.format = format;
+  o.points = points;
+  o.seed = seed;
+  o.extent = 24;
+  o.wide_colors = wide_colors;
+  if (extra) {
+    o.extra = 3;
+    o.extra_bytes_vlr = extra_vlr();
+  }
+  const std::string path = dir.file(name);
+  REQUIRE(test::write_test_las(path, o));
+  return path;
 }
 
 // Stages 0-2 in `work` (partition files in work/parts); returns the shards.
@@ -212,6 +246,79 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress", "[shard
       CHECK(check->problems.empty());
       // Nothing but the finished files is left behind.
       for (const std::string& name : TempDir::list(work)) CHECK(name.find(".tmp-") == std::string::npos);
+    }
+  }
+}
+
+TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attributes included", "[shard][las]") {
+  struct LasScene {
+    const char* what;
+    std::vector<std::string> (*inputs)(const TempDir&);
+    std::uint32_t must_carry;  // LasAttributeBits the archive must show
+    bool colors_8bit;          // what the archive must say of the colour levels
+  };
+  const LasScene scenes[] = {
+      // Three point formats: 1.2 format 3 and 1.4 format 8 with the same extra
+      // bytes, 1.4 format 7 without (its points carry zero extra bytes and NIR);
+      // 16-bit colours, so the colour low bytes travel too.
+      {"formats 3, 8, 7 with extra bytes",
+       [](const TempDir& d) {
+         return std::vector<std::string>{las_input(d, "a.las", 3, 1, true), las_input(d, "b.las", 8, 2, true),
+                                         las_input(d, "c.las", 7, 3, false)};
+       },
+       kLasClassification | kLasReturnNumber | kLasGpsTime | kLasNir | kLasColorLow | kLasExtraBytes |
+           kLasScanAngle | kLasPointSourceId,
+       false},
+      // 8-bit colour levels in 16-bit fields (the archive says so) and a
+      // format without colours: colours and their low bytes are dropped.
+      {"8-bit colours, then a format without colours",
+       [](const TempDir& d) {
+         return std::vector<std::string>{las_input(d, "a.las", 2, 4, true, false),
+                                         las_input(d, "b.las", 3, 5, true, false),
+                                         las_input(d, "c.las", 1, 6, true)};
+       },
+       kLasClassification | kLasGpsTime | kLasExtraBytes, true},
+      // LAZ and its LAS twin (tests/data: LASzip point format 3).
+      {"LAZ and LAS",
+       [](const TempDir&) {
+         const std::string data = std::string(RELIEF_SOURCE_DIR) + "/tests/data/";
+         return std::vector<std::string>{data + "simple.laz", data + "simple.las"};
+       },
+       kLasClassification | kLasGpsTime | kLasColorLow, true},
+  };
+  for (const LasScene& s : scenes) {
+    INFO(s.what);
+    TempDir dir;
+    const std::vector<std::string> inputs = s.inputs(dir);
+    IngestOptions o;
+    o.chunk_edge = 6;
+    o.split_points = 2500;
+    o.threads = 2;
+    o.allow_sparse = true;
+    auto one = compress_files(inputs, dir.file("one.relief"), o);
+    REQUIRE(one.is_ok());
+    const std::vector<Row> want = rows_of(dir.file("one.relief"));
+    const ArchiveInfo want_info = info_of(dir.file("one.relief"));
+    CHECK((want_info.las_attributes & s.must_carry) == s.must_carry);
+    CHECK(want_info.las_colors_8bit == s.colors_8bit);
+    CHECK(want.size() >= 4);
+    for (const std::uint32_t ranges : {1u, 3u}) {
+      INFO(ranges << " ranges");
+      const std::string work = dir.file("work" + std::to_string(ranges));
+      ShardPlan plan;
+      const std::vector<std::string> shards = build_shards(inputs, o, ranges, work, &plan);
+      CHECK(plan.las_attributes == want_info.las_attributes);
+      if (want.size() >= 8) CHECK(plan.range_count() == ranges);
+      CHECK(shard_plan_text(plan).rfind("relief-shard-plan\t2\n", 0) == 0);
+      auto merged = merge_archives(shards, work + "/merged.relief");
+      REQUIRE(merged.is_ok());
+      CHECK(merged->chunks == want.size());
+      CHECK(rows_of(work + "/merged.relief") == want);
+      const ArchiveInfo got = info_of(work + "/merged.relief");
+      check_same_metadata(got, want_info);
+      auto check = check_archive(work + "/merged.relief");
+      REQUIRE(check.is_ok());
+      CHECK(check->problems.empty());
     }
   }
 }
@@ -375,15 +482,158 @@ TEST_CASE("sharded build: stages and merge refuse what does not fit", "[shard]")
     REQUIRE_FALSE(r.is_ok());
     CHECK(r.status().code() == StatusCode::kInvalidArgument);
   }
-  SECTION("inputs with per-point LAS attributes are refused, not stripped") {
-    const std::string las = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las";
+  SECTION("a plan without LAS attributes is version 1, its partition files of version 1 still read") {
+    CHECK(shard_plan_text(plan).rfind("relief-shard-plan\t1\n", 0) == 0);
+    CHECK(shard_plan_text(plan).find("\nlas\t") == std::string::npos);
+    // Every file of range 0 rewritten as version 1 (the 40-byte header
+    // without the LAS fields): the shard is the same.
+    const std::string parts = dir.file("a/parts");
+    const std::vector<Row> before = rows_of(shards[0]);
+    for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
+      const std::string file = parts + "/" + partition_file_name(i, 0);
+      std::vector<std::uint8_t> bytes = file_bytes(file);
+      REQUIRE(bytes.size() >= 48);
+      REQUIRE(bytes[8] == 2);
+      for (std::size_t k = 32; k < 40; ++k) REQUIRE(bytes[k] == 0);  // no LAS attributes, no extra bytes
+      bytes.erase(bytes.begin() + 32, bytes.begin() + 40);
+      bytes[8] = 1;
+      std::ofstream(file, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                                  static_cast<std::streamsize>(bytes.size()));
+    }
+    REQUIRE(encode_shard(plan, 0, parts, dir.file("v1.relief")).is_ok());
+    CHECK(rows_of(dir.file("v1.relief")) == before);
+  }
+}
+
+TEST_CASE("sharded build: LAS inputs, refused and damaged as compress and the spec say", "[shard][las]") {
+  TempDir dir;
+  const std::string a = las_input(dir, "a.las", 3, 11, true);
+  const std::string b = las_input(dir, "b.las", 6, 12, true);
+  IngestOptions o;
+  o.chunk_edge = 6;
+  o.threads = 2;
+  o.allow_sparse = true;
+
+  SECTION("different Extra Bytes VLRs: the error compress gives") {
+    test::TestLasOptions lo;
+    lo.format = 3;
+    lo.points = 2000;
+    lo.extra = 3;
+    lo.extra_bytes_vlr = test::extra_bytes_descriptor(0, 3, "opaque");
+    const std::string c = dir.file("c.las");
+    REQUIRE(test::write_test_las(c, lo));
+    auto one = compress_files({a, c}, dir.file("x.relief"), o);
+    REQUIRE_FALSE(one.is_ok());
     ShardPlanOptions po;
     po.ingest = o;
-    auto r = plan_shards({las}, po);
+    auto planned = plan_shards({a, c}, po);
+    REQUIRE_FALSE(planned.is_ok());
+    CHECK(planned.status().code() == one.status().code());
+    CHECK(planned.status().message() == one.status().message());
+    CHECK(planned.status().message().find(c) != std::string::npos);
+  }
+  SECTION("damaged and foreign version 2 partition files") {
+    ShardPlan plan;
+    const std::vector<std::string> shards = build_shards({a, b}, o, 2, dir.file("w"), &plan);
+    REQUIRE(plan.range_count() == 2);
+    REQUIRE(plan.extra_bytes_size == 3);
+    const std::string parts = dir.file("w/parts");
+    const std::string file = parts + "/" + partition_file_name(1, 1);
+    const std::vector<std::uint8_t> good = file_bytes(file);
+    REQUIRE(good.size() > 48);
+    const auto put = [&](const std::vector<std::uint8_t>& bytes) {
+      std::ofstream(file, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                                  static_cast<std::streamsize>(bytes.size()));
+    };
+    const auto refused = [&](const char* what) {
+      INFO(what);
+      auto r = encode_shard(plan, 1, parts, dir.file("x.relief"));
+      REQUIRE_FALSE(r.is_ok());
+      CHECK(r.status().message().find(file) != std::string::npos);
+      CHECK_FALSE(std::filesystem::exists(dir.file("x.relief")));
+      return r.status();
+    };
+    std::vector<std::uint8_t> bytes = good;
+    bytes[33] ^= static_cast<std::uint8_t>(kLasGpsTime >> 8);  // a LAS attribute less than the plan's
+    put(bytes);
+    CHECK(refused("LAS bits").message().find("LAS attributes") != std::string::npos);
+    bytes = good;
+    bytes[36] = 200;  // 200 extra bytes per point
+    put(bytes);
+    CHECK(refused("extra size").code() == StatusCode::kCorruptData);
+    bytes = good;
+    for (int k = 0; k < 8; ++k) bytes[40 + k] = 0xff;  // a point count far beyond the bytes present
+    put(bytes);
+    CHECK(refused("count").message().find("truncated or damaged") != std::string::npos);
+    bytes = good;
+    bytes.resize(bytes.size() - 1);
+    put(bytes);
+    CHECK(refused("truncated").code() == StatusCode::kCorruptData);
+    bytes = good;
+    bytes[8] = 3;
+    put(bytes);
+    CHECK(refused("version").code() == StatusCode::kUnsupported);
+    // A version 1 file cannot hold the plan's attributes.
+    bytes = good;
+    bytes.erase(bytes.begin() + 32, bytes.begin() + 40);
+    bytes[8] = 1;
+    put(bytes);
+    CHECK(refused("version 1").message().find("version 1") != std::string::npos);
+    put(good);
+    const std::vector<Row> want = rows_of(shards[1]);
+    REQUIRE(encode_shard(plan, 1, parts, dir.file("x.relief")).is_ok());
+    CHECK(rows_of(dir.file("x.relief")) == want);
+  }
+  SECTION("an input whose LAS attributes changed since the plan") {
+    ShardPlan plan;
+    build_shards({a, b}, o, 1, dir.file("w"), &plan);
+    // b rewritten with other extra bytes: stage 1 names it.
+    test::TestLasOptions lo;
+    lo.format = 6;
+    lo.points = 2000;
+    lo.extra = 5;
+    lo.extra_bytes_vlr = test::extra_bytes_descriptor(0, 5, "opaque");
+    REQUIRE(test::write_test_las(b, lo));
+    auto r = partition_input(plan, 1, dir.file("w/parts"));
     REQUIRE_FALSE(r.is_ok());
-    CHECK(r.status().code() == StatusCode::kUnsupported);
-    CHECK(r.status().message().find("simple.las") != std::string::npos);
-    CHECK(r.status().message().find("LAS attributes") != std::string::npos);
+    CHECK(r.status().message().find(b) != std::string::npos);
+    CHECK(r.status().message().find("not the file the plan was made from") != std::string::npos);
+  }
+  SECTION("damaged LAS lines of a plan") {
+    ShardPlanOptions po;
+    po.ingest = o;
+    auto plan = plan_shards({a, b}, po);
+    REQUIRE(plan.is_ok());
+    const std::string text = shard_plan_text(*plan);
+    REQUIRE(text.find("\nlas\t") != std::string::npos);
+    REQUIRE(text.find("\nextra_bytes\t3\t") != std::string::npos);
+    const auto replaced = [&](const std::string& from, const std::string& to) {
+      std::string t = text;
+      const std::size_t at = t.find(from);
+      REQUIRE(at != std::string::npos);
+      t.replace(at, from.size(), to);
+      return t;
+    };
+    const std::string bad[] = {
+        replaced("relief-shard-plan\t2", "relief-shard-plan\t1"),    // LAS lines in a version 1 plan
+        replaced("\nlas\tclassification", "\nlas\tclassificatio"), // an unknown name
+        replaced("\nextra_bytes\t3\t", "\nextra_bytes\t0\t"),      // no extra bytes per point
+        replaced("\nextra_bytes\t3\t", "\nextra_bytes\t3\tz"),     // not hexadecimal
+        replaced("\nextra_bytes\t3\t", "\nextra_bytes\t3\t0"),     // odd length
+        replaced("\nextra_bytes\t", "\nxtra_bytes\t"),               // an unknown key
+    };
+    for (const std::string& t : bad) {
+      { std::ofstream(dir.file("p.txt"), std::ios::binary) << t; }
+      auto r = read_shard_plan(dir.file("p.txt"));
+      REQUIRE_FALSE(r.is_ok());
+      CHECK(r.status().message().find(dir.file("p.txt")) != std::string::npos);
+    }
+    { std::ofstream(dir.file("p.txt"), std::ios::binary) << text; }
+    auto r = read_shard_plan(dir.file("p.txt"));
+    REQUIRE(r.is_ok());
+    CHECK(shard_plan_text(*r) == text);
+    const std::vector<std::uint8_t> vlr = extra_vlr();
+    CHECK(r->extra_bytes_vlr == std::string(vlr.begin(), vlr.end()));
   }
 }
 

@@ -25,10 +25,13 @@
 
 namespace relief {
 
-// First line of a plan file: "relief-shard-plan <version>".
-inline constexpr int kShardPlanVersion = 1;
-// Partition files (".rpart") and their per-input manifests (".done").
-inline constexpr int kPartitionFormatVersion = 1;
+// First line of a plan file: "relief-shard-plan <version>". Version 2 adds
+// the LAS attributes; a plan without them is written as version 1 (the same
+// bytes as before, so earlier plans and their partition files stay valid).
+inline constexpr int kShardPlanVersion = 2;
+// Partition files (".rpart") and their per-input manifests (".done") this
+// build writes; it reads versions 1 (no LAS attributes) and 2.
+inline constexpr int kPartitionFormatVersion = 2;
 // Key ranges of a plan: a stage-1 task keeps one file open per range.
 inline constexpr std::uint32_t kMaxShardRanges = 512;
 // Automatic number of ranges: about this many points each (stage 2 holds a
@@ -46,6 +49,17 @@ struct ShardPlan {
   bool colors = false;
   bool intensity = false;
   std::string crs;  // WKT2, empty when none
+  // The LAS attributes of the scan, as a one-box compress records them
+  // (ScanAttributes): the union of the inputs' sets (a point of an input
+  // without one carries 0), the widest point format, the highest minor
+  // version, the one Extra Bytes layout (raw VLR payload and bytes per
+  // point) and whether the LAS sources stored 8-bit colour levels.
+  std::uint32_t las_attributes = 0;
+  int las_point_format = -1;
+  int las_version_minor = -1;
+  std::string extra_bytes_vlr;
+  std::uint32_t extra_bytes_size = 0;
+  bool las_colors_8bit = false;
   std::uint64_t split_points = kMaxBoundedChunkPoints;
   bool has_xyz_columns = false;
   std::string xyz_columns;
@@ -64,6 +78,10 @@ struct ShardPlan {
   std::uint32_t range_of(const ChunkKey& key) const;
   // The reader options every stage opens the inputs with.
   ReaderOptions reader_options() const;
+  // What the shard's scan records (Archive::begin_scan).
+  ScanAttributes scan_attributes() const;
+  // Whether the plan records LAS metadata (then it is a version 2 plan).
+  bool has_las() const { return las_attributes != 0 || las_point_format >= 0 || las_version_minor >= 0; }
 };
 
 struct ShardPlanOptions {
@@ -131,7 +149,7 @@ struct MergeOptions {
 // Joins shard archives into a new archive at `out` (never overwritten; written
 // to a temporary name beside it and moved into place only when complete).
 // The shards must agree on grid, codec parameters, creator, CRS, attributes
-// and sources, each hold one complete scan, and hold disjoint chunk keys;
+// (LAS metadata included) and sources, each hold one complete scan, and hold disjoint chunk keys;
 // otherwise kInvalidArgument naming the shard. The rows are copied as they
 // are (blobs, bounds, counts) in key order, the blobs of one voxel by content.
 Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const std::string& out,
