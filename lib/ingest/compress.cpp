@@ -201,7 +201,11 @@ EncodeParams with_intensity_range(const EncodeParams& params, bool intensity, fl
 
 Result<std::int64_t> begin_scan(Archive& archive, const std::vector<ArchiveSource>& sources, bool colors,
                                 bool intensity, const std::string& crs) {
-  return archive.begin_scan(sources, {colors, intensity, crs});
+  ScanAttributes attributes;
+  attributes.has_colors = colors;
+  attributes.has_intensity = intensity;
+  attributes.crs = crs;
+  return archive.begin_scan(sources, attributes);
 }
 
 Status finish_scan(Archive& archive, std::int64_t scan_id, bool colors, bool intensity, const std::string& crs) {

@@ -137,7 +137,7 @@ void conform(PointCloud& cloud, const Carried& carried) {
   if (carried.colors && cloud.colors.size() != n) cloud.colors.assign(n, Rgb8{});
   if (!carried.intensity) cloud.intensities.clear();
   if (carried.intensity && cloud.intensities.size() != n) cloud.intensities.assign(n, 0.0f);
-  conform_las_attributes(cloud, carried.classification ? kLasClassification : 0, 0);
+  conform_las_attributes(cloud, carried.classification ? std::uint32_t{kLasClassification} : 0u, 0);
 }
 
 // Runs fn(i) for i in [0, n) on `threads` threads (this one included).
@@ -239,7 +239,7 @@ class Builder {
         std::clamp<std::uint64_t>((points * kBucketBytesPerPoint + per_bucket - 1) / per_bucket, 1, kMaxBuckets);
     return BucketFiles::create(tmp_parent_, static_cast<std::uint32_t>(buckets), level.grid, carried_.colors,
                                carried_.intensity, static_cast<std::size_t>(budget_ / 16),
-                               carried_.classification ? kLasClassification : 0, 0);
+                               carried_.classification ? std::uint32_t{kLasClassification} : 0u, 0);
   }
 
   // Level 1's points: the map layer of every chunk, thinned to the level's
