@@ -635,18 +635,23 @@ bool code_time_ordered(C& c, std::uint32_t bit, LasAttributes& las, std::size_t 
       constexpr std::uint64_t kMaxUnit = std::uint64_t{1} << 31;
       if (!code_unit(c, unit, kMaxUnit)) return false;
       const auto u = static_cast<std::int64_t>(unit);
-      auto models = std::make_unique<SIntModel[]>(2 * kDeltaClasses);
+      auto models = std::make_unique<SIntModel[]>(2 * kDeltaClasses * 3 * 2);
       std::uint64_t prev = 0;
-      int cls = 0;
+      int cls = 0, cls2 = 0, down = 0;
       for (std::size_t k = 0; k < n; ++k) {
         auto r = static_cast<std::int64_t>(
             static_cast<std::uint64_t>(static_cast<std::int64_t>(las.scan_angle[k]) / u) - prev);
-        if (!c.sint(models[same[k] * kDeltaClasses + static_cast<std::size_t>(cls)], r) || !c.ok()) return false;
+        const std::size_t ctx = ((same[k] * kDeltaClasses + static_cast<std::size_t>(cls)) * 3 + static_cast<std::size_t>(std::min(cls2, 2))) * 2 + static_cast<std::size_t>(down);
+        if (!c.sint(models[ctx], r) || !c.ok()) return false;
         prev += static_cast<std::uint64_t>(r);
         const auto q = static_cast<std::int64_t>(prev);
         if (q < INT32_MIN / u || q > INT32_MAX / u) return false;
         las.scan_angle[k] = static_cast<std::int32_t>(q * u);
-        if (same[k] == 0) cls = delta_class(r);
+        if (same[k] == 0) {
+          cls2 = cls;
+          cls = delta_class(r);
+          if (r != 0) down = r < 0 ? 1 : 0;
+        }
       }
       return true;
     }
