@@ -8,7 +8,8 @@
 // with adaptive models whose context is the previous point's value; numeric
 // ones (scan angle, GPS time, NIR) as differences from the previous point
 // with models chosen by the size of the previous difference. Format 6 codes
-// GPS times in time order instead (code_gps_time_order).
+// GPS times in time order instead (code_gps_time_order), and with them the
+// attributes that follow acquisition order (code_time_ordered).
 #include "codec/las_attribute_coder.h"
 
 #include <algorithm>
