@@ -9,6 +9,7 @@
 // half the scale: lossless); the coded bytes of every section are summed over
 // the chunks. For layered LAZ (point formats 6-10) the LAZ bytes of each layer
 // are read from the chunk headers, so the two columns compare like for like.
+// Every blob is decoded back and its points' LAS attributes checked exact.
 // Options: --chunk N (points per chunk, default 131072), --data DIR (the
 // shared data folder, default ../shared/data beside the checkout).
 // Prints CSV: file, points, part, relief bytes, relief bits/point, LAZ bytes,
@@ -43,6 +44,32 @@ T get(const std::vector<std::uint8_t>& d, std::size_t at) {
   T v{};
   if (at + sizeof(T) <= d.size()) std::memcpy(&v, d.data() + at, sizeof(T));
   return v;
+}
+
+// Each point's LAS attributes as one byte string, sorted: the decoder returns
+// the points in its own order, so the check compares the multisets.
+std::vector<std::string> las_records(const LasAttributes& a, std::size_t n) {
+  std::vector<std::string> out(n);
+  const auto add = [&](const auto& v, std::size_t width) {
+    if (v.empty()) return;
+    for (std::size_t i = 0; i < n; ++i) {
+      out[i].append(reinterpret_cast<const char*>(v.data()) + i * width * sizeof(v[0]), width * sizeof(v[0]));
+    }
+  };
+  add(a.classification, 1);
+  add(a.class_flags, 1);
+  add(a.return_number, 1);
+  add(a.number_of_returns, 1);
+  add(a.scan_flags, 1);
+  add(a.scan_angle, 1);
+  add(a.user_data, 1);
+  add(a.point_source_id, 1);
+  add(a.gps_time, 1);
+  add(a.nir, 1);
+  add(a.color_low, 1);
+  add(a.extra_bytes, a.extra_bytes_size);
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 struct LasFile {
@@ -275,7 +302,8 @@ int main(int argc, char** argv) {
       const auto t1 = std::chrono::steady_clock::now();
       auto check = decode_chunk(*blob);
       decode_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-      if (!check || check->size() != part.size() || check->las.carried() != part.las.carried()) {
+      if (!check || check->size() != part.size() || check->las.carried() != part.las.carried() ||
+          las_records(check->las, check->size()) != las_records(part.las, part.size())) {
         std::fprintf(stderr, "attributes: %s: the blob does not decode back\n", laz.c_str());
         return 1;
       }
