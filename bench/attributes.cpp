@@ -17,7 +17,6 @@
 // LAZ bits/point.
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>

@@ -1,7 +1,8 @@
 // LAS per-point attributes of the error-bounded layer (chunk formats 3, 5 and
 // 6, format-spec/chunk.md §11.7): one arithmetic-coded section per carried
 // LasAttributes vector, lossless, in the canonical point order (format 6: GPS
-// times in time order, §11.7.1). Mirror pair in one file
+// times in time order, §11.7.1, and with them the attributes that follow
+// acquisition order, §11.7.2). Mirror pair in one file
 // (las_attribute_coder.cpp). Internal to the codec.
 #pragma once
 
