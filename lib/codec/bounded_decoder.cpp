@@ -67,8 +67,9 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     }
   }
   // LAS attribute sections, in table (= bit) order: a section may use the
-  // attributes of lower bits as context.
-  // Format 6 codes GPS times in time order, which needs every point's cell.
+  // attributes of lower bits as context. Format 6 codes GPS times in time
+  // order, which needs every point's cell, and decodes them first: the
+  // attributes that follow acquisition order are then coded in time order.
   out.las.extra_bytes_size = h.extra_bytes_size;
   std::vector<CellXyz> point_cells;
   if (h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0) {
@@ -79,10 +80,21 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
       for (std::uint32_t j = 0; j < cells->counts[c]; ++j) point_cells.push_back(xyz);
     }
   }
+  std::vector<std::uint32_t> time_order;
+  if (h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0) {
+    for (const SectionEntry& s : blob.sections) {
+      if (!is_las_section(s.id) || las_section_bit(s.id) != kLasGpsTime) continue;
+      RELIEF_RETURN_IF_ERROR(
+          decode_las_attribute(kLasGpsTime, s.payload, n, out.las, h.version, point_cells).with_context("chunk blob"));
+      time_order = las_time_order(out.las.gps_time);
+    }
+  }
   for (const SectionEntry& s : blob.sections) {
     if (!is_las_section(s.id)) continue;
-    RELIEF_RETURN_IF_ERROR(decode_las_attribute(las_section_bit(s.id), s.payload, n, out.las, h.version, point_cells)
-                               .with_context("chunk blob"));
+    const std::uint32_t bit = las_section_bit(s.id);
+    if (bit == kLasGpsTime && !time_order.empty()) continue;  // decoded above
+    RELIEF_RETURN_IF_ERROR(
+        decode_las_attribute(bit, s.payload, n, out.las, h.version, point_cells, time_order).with_context("chunk blob"));
   }
   return out;
 }

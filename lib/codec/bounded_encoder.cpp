@@ -202,10 +202,14 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         }
       }
     }
+    // Format 6: with GPS times, the attributes that follow acquisition
+    // order are coded in time order (§11.7.2).
+    std::vector<std::uint32_t> time_order;
+    if (h.version >= 6 && (las_bits & kLasGpsTime)) time_order = las_time_order(ordered.gps_time);
     for (int b = 0; b < kLasAttributeCount; ++b) {
       const std::uint32_t bit = 1u << b;
       if ((las_bits & bit) == 0) continue;
-      payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, point_cells));
+      payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, point_cells, time_order));
       refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
                          static_cast<std::uint32_t>(n), 0, {}});
     }

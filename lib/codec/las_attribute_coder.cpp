@@ -8,7 +8,8 @@
 // with adaptive models whose context is the previous point's value; numeric
 // ones (scan angle, GPS time, NIR) as differences from the previous point
 // with models chosen by the size of the previous difference. Format 6 codes
-// GPS times in time order instead (code_gps_time_order).
+// GPS times in time order instead (code_gps_time_order), and with them the
+// attributes that follow acquisition order (code_time_ordered).
 #include "codec/las_attribute_coder.h"
 
 #include <algorithm>
@@ -19,6 +20,7 @@
 #include <memory>
 #include <numeric>
 #include <string>
+#include <type_traits>
 
 #include "codec/attribute_coder.h"
 #include "codec/octree.h"
@@ -442,16 +444,20 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
 // with the previous symbol as context, a new ID then as two bytes.
 constexpr int kSourceSlots = 4;
 constexpr int kSourceSymbolBits = 3;
+// In time order (format 6, `kind` non-null: pulse_kinds) the trees are also
+// chosen by whether the point is another return of the previous point's pulse.
 template <typename C>
-bool code_point_source(C& c, std::vector<std::uint16_t>& v) {
+bool code_point_source(C& c, std::vector<std::uint16_t>& v, const std::vector<std::uint8_t>* kind = nullptr) {
   struct Models {
-    BitModel symbol[kSourceSlots + 1][1 << kSourceSymbolBits];
+    BitModel symbol[2][kSourceSlots + 1][1 << kSourceSymbolBits];
     ByteModel high, low;
   };
   auto m = std::make_unique<Models>();
   std::array<std::uint16_t, kSourceSlots> slots{};
   int prev_sym = 0;
-  for (std::uint16_t& x : v) {
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    std::uint16_t& x = v[k];
+    const std::size_t pulse = kind != nullptr && (*kind)[k] == 1 ? 1 : 0;  // kPulseSame
     int sym = kSourceSlots;
     for (int s = 0; s < kSourceSlots; ++s) {
       if (slots[static_cast<std::size_t>(s)] == x) {
@@ -461,7 +467,7 @@ bool code_point_source(C& c, std::vector<std::uint16_t>& v) {
     }
     unsigned node = 1;
     for (int i = kSourceSymbolBits - 1; i >= 0; --i) {
-      node = 2 * node + static_cast<unsigned>(c.bit(m->symbol[prev_sym][node], (sym >> i) & 1));
+      node = 2 * node + static_cast<unsigned>(c.bit(m->symbol[pulse][prev_sym][node], (sym >> i) & 1));
     }
     sym = static_cast<int>(node - (1u << kSourceSymbolBits));
     if (sym > kSourceSlots) return false;
@@ -584,6 +590,126 @@ bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, 
   }
 }
 
+// Format 6, a chunk with GPS times (format-spec/chunk.md §11.7.2): where a
+// point stands in the sequence of pulses, from its time and the previous
+// point's in time order. A pulse's returns share a time; a step in time much
+// longer than the last (kPulseGap) means pulses outside the chunk in between,
+// often the next scan line re-entering it.
+constexpr std::uint8_t kPulseNext = 0;  // the next pulse
+constexpr std::uint8_t kPulseSame = 1;  // another return of the previous point's pulse
+constexpr std::uint8_t kPulseGap = 2;   // a later pulse: floor(step / 2) > the last non-zero step
+constexpr std::size_t kPulseKinds = 3;
+
+// The kinds of the points in time order: `order` lists indices into `gps`.
+std::vector<std::uint8_t> pulse_kinds(const std::vector<double>& gps, std::span<const std::uint32_t> order) {
+  std::vector<std::uint8_t> kind(order.size(), kPulseNext);
+  std::uint64_t last_step = 0;
+  for (std::size_t k = 1; k < order.size(); ++k) {
+    const std::uint64_t d = double_bits(gps[order[k]]) - double_bits(gps[order[k - 1]]);
+    kind[k] = d == 0 ? kPulseSame : (last_step != 0 && d / 2 > last_step) ? kPulseGap : kPulseNext;
+    if (d != 0) last_step = d;
+  }
+  return kind;
+}
+
+// An attribute of kLasTimeOrdered with its points in time order (las's
+// vectors hold them so), where consecutive points are consecutive returns
+// and pulses as LAZ codes them; `kind` from pulse_kinds. A pulse's returns
+// share their scan angle, flags and source and count their return numbers
+// up; the scan angle moves slowly along a line.
+template <typename C>
+bool code_time_ordered(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, std::uint64_t unit,
+                       const std::vector<std::uint8_t>& kind) {
+  if (kind.size() < n) return false;
+  switch (bit) {
+    case kLasReturnNumber:
+    case kLasScanFlags:
+    case kLasUserData: {
+      std::vector<std::uint8_t>& v =
+          bit == kLasReturnNumber ? las.return_number : bit == kLasScanFlags ? las.scan_flags : las.user_data;
+      ByteContexts models(kPulseKinds * kByteContexts);
+      std::uint8_t prev = 0;
+      for (std::size_t k = 0; k < n; ++k) {
+        code_byte(c, models[kind[k] * kByteContexts + prev], v[k]);
+        prev = v[k];
+        if (!c.ok()) return false;
+      }
+      return true;
+    }
+    case kLasNumberOfReturns: {
+      // (Three kinds measured 2-5 % dearer than two here.)
+      constexpr std::size_t kSide = kMaxReturnContext + 1;
+      ByteContexts models(2 * kSide * kSide);
+      const bool has_rn = !las.return_number.empty();
+      std::uint8_t prev = 0;
+      for (std::size_t k = 0; k < n; ++k) {
+        const int rn = has_rn ? std::min<int>(las.return_number[k], kMaxReturnContext) : 0;
+        const std::size_t ctx = ((kind[k] == kPulseSame ? kSide : 0) + static_cast<std::size_t>(rn)) * kSide +
+                                static_cast<std::size_t>(std::min<int>(prev, kMaxReturnContext));
+        code_byte(c, models[ctx], las.number_of_returns[k]);
+        prev = las.number_of_returns[k];
+        if (!c.ok()) return false;
+      }
+      return true;
+    }
+    case kLasScanAngle: {
+      // Differences from the previous point, with model sets by the kind
+      // and, from the differences of the last two points that began a pulse,
+      // their classes (the sweep's speed) and the sign of the last non-zero
+      // one (its direction). A second-order prediction (the last pulse's
+      // difference again) measured 50 % dearer on the aerial tile.
+      constexpr std::uint64_t kMaxUnit = std::uint64_t{1} << 31;
+      if (!code_unit(c, unit, kMaxUnit)) return false;
+      const auto u = static_cast<std::int64_t>(unit);
+      constexpr std::size_t kBefore = 3;
+      auto models = std::make_unique<SIntModel[]>(kPulseKinds * kDeltaClasses * kBefore * 2);
+      std::uint64_t prev = 0;
+      std::size_t cls = 0, cls_before = 0, down = 0;
+      for (std::size_t k = 0; k < n; ++k) {
+        auto r = static_cast<std::int64_t>(
+            static_cast<std::uint64_t>(static_cast<std::int64_t>(las.scan_angle[k]) / u) - prev);
+        const std::size_t ctx =
+            ((kind[k] * kDeltaClasses + cls) * kBefore + std::min(cls_before, kBefore - 1)) * 2 + down;
+        if (!c.sint(models[ctx], r) || !c.ok()) return false;
+        prev += static_cast<std::uint64_t>(r);
+        const auto q = static_cast<std::int64_t>(prev);
+        if (q < INT32_MIN / u || q > INT32_MAX / u) return false;
+        las.scan_angle[k] = static_cast<std::int32_t>(q * u);
+        if (kind[k] != kPulseSame) {
+          cls_before = cls;
+          cls = static_cast<std::size_t>(delta_class(r));
+          if (r != 0) down = r < 0 ? 1 : 0;
+        }
+      }
+      return true;
+    }
+    case kLasPointSourceId: return code_point_source(c, las.point_source_id, &kind);
+    default: return false;
+  }
+}
+
+// Copies the vector(s) attribute `bit` is coded from, src's point order[k]
+// to dst's point k (number of returns: return numbers too, its context).
+void gather_time_ordered(std::uint32_t bit, const LasAttributes& src, LasAttributes& dst,
+                         std::span<const std::uint32_t> order) {
+  const auto gather = [&](const auto& from, auto& to) {
+    to.resize(order.size());
+    for (std::size_t k = 0; k < order.size(); ++k) to[k] = from[order[k]];
+  };
+  switch (bit) {
+    case kLasReturnNumber: gather(src.return_number, dst.return_number); break;
+    case kLasNumberOfReturns:
+      gather(src.number_of_returns, dst.number_of_returns);
+      if (!src.return_number.empty()) gather(src.return_number, dst.return_number);
+      break;
+    case kLasScanFlags: gather(src.scan_flags, dst.scan_flags); break;
+    case kLasScanAngle: gather(src.scan_angle, dst.scan_angle); break;
+    case kLasUserData: gather(src.user_data, dst.user_data); break;
+    case kLasPointSourceId: gather(src.point_source_id, dst.point_source_id); break;
+    default: break;
+  }
+}
+
 // The fewest binary decisions one point of attribute `bit` can take: a
 // stream must be long enough for n points before anything is allocated.
 std::uint64_t min_decisions_per_point(std::uint32_t bit, std::uint32_t extra_bytes_size, int version) {
@@ -690,8 +816,23 @@ const char* las_attribute_name(std::uint32_t bit) {
   return b < kLasAttributeCount ? kNames[b] : "unknown LAS attribute";
 }
 
+std::vector<std::uint32_t> las_time_order(const std::vector<double>& gps_time) {
+  const std::size_t n = gps_time.size();
+  std::vector<KeyedIndex> keyed(n);
+  std::uint64_t lowest = ~std::uint64_t{0};
+  for (const double t : gps_time) lowest = std::min(lowest, double_bits(t));
+  // Keys above the lowest: a chunk's times share their high bytes, whose
+  // passes the sort then skips.
+  for (std::size_t i = 0; i < n; ++i) keyed[i] = {double_bits(gps_time[i]) - lowest, static_cast<std::uint32_t>(i)};
+  radix_sort(keyed, 64);  // stable: equal times stay in index order
+  std::vector<std::uint32_t> order(n);
+  for (std::size_t k = 0; k < n; ++k) order[k] = keyed[k].index;
+  return order;
+}
+
 std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n,
-                                               int version, std::span<const CellXyz> cells) {
+                                               int version, std::span<const CellXyz> cells,
+                                               std::span<const std::uint32_t> time_order) {
   // The shared routine writes back what it codes (the decoder's side of the
   // interface); the encoder's values come back unchanged, but it needs a
   // mutable copy of the one vector it codes.
@@ -724,19 +865,18 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
   if (n > 0) c.bit(constant_flag, constant ? 1 : 0);
   if (bit == kLasGpsTime && version >= 6 && n > 0 && !constant) {
     std::vector<std::uint64_t> bits(n);
-    std::vector<KeyedIndex> keyed(n);
-    std::uint64_t lowest = ~std::uint64_t{0};
-    for (std::size_t i = 0; i < n; ++i) {
-      bits[i] = double_bits(work.gps_time[i]);
-      lowest = std::min(lowest, bits[i]);
-    }
-    // Keys above the lowest: a chunk's times share their high bytes, whose
-    // passes the sort then skips.
-    for (std::size_t i = 0; i < n; ++i) keyed[i] = {bits[i] - lowest, static_cast<std::uint32_t>(i)};
-    radix_sort(keyed, 64);  // stable: equal times stay in cell order
-    std::vector<std::uint32_t> order(n);
-    for (std::size_t k = 0; k < n; ++k) order[k] = keyed[k].index;
+    for (std::size_t i = 0; i < n; ++i) bits[i] = double_bits(work.gps_time[i]);
+    std::vector<std::uint32_t> order = time_order.size() == n ? std::vector<std::uint32_t>(time_order.begin(), time_order.end())
+                                                              : las_time_order(work.gps_time);
     code_gps_time_order(c, bits, order, cells, pick_bucket_shift(cells));
+    return enc.finish();
+  }
+  if ((bit & kLasTimeOrdered) != 0 && version >= 6 && n > 0 && !constant && time_order.size() == n &&
+      las.gps_time.size() == n) {
+    LasAttributes ordered;
+    gather_time_ordered(bit, las, ordered, time_order);
+    std::uint64_t unit = bit == kLasScanAngle ? common_unit(ordered.scan_angle) : 1;
+    code_time_ordered(c, bit, ordered, n, unit, pulse_kinds(las.gps_time, time_order));
     return enc.finish();
   }
   std::size_t coded = n;
@@ -754,7 +894,7 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
 }
 
 Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
-                            int version, std::span<const CellXyz> cells) {
+                            int version, std::span<const CellXyz> cells, std::span<const std::uint32_t> time_order) {
   if (bit != kLasColorLow && n > 0) {
     RangeDecoder dec(data);
     DecCoder c(dec);
@@ -793,6 +933,33 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
     }
     las.gps_time.resize(n);
     for (std::size_t i = 0; i < n; ++i) las.gps_time[i] = std::bit_cast<double>(bits[i]);
+    return Status::ok();
+  }
+  if ((bit & kLasTimeOrdered) != 0 && version >= 6 && n > 0 && !time_order.empty()) {
+    if (time_order.size() != n || las.gps_time.size() != n) {
+      return corrupt_data(std::string(las_attribute_name(bit)) + " section: time order does not cover the points");
+    }
+    LasAttributes ordered;
+    if (bit == kLasNumberOfReturns && las.return_number.size() == n) {
+      gather_time_ordered(kLasReturnNumber, las, ordered, time_order);
+    }
+    size_attribute(bit, ordered, n);
+    RangeDecoder dec(data);
+    DecCoder c(dec);
+    BitModel constant_flag;
+    c.bit(constant_flag, 0);  // 0: read above
+    if (!code_time_ordered(c, bit, ordered, n, 1, pulse_kinds(las.gps_time, time_order)) || dec.overrun() > 0) {
+      return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
+    }
+    size_attribute(bit, las, n);
+    const auto scatter = [&](const auto& from, auto& to) {
+      for (std::size_t k = 0; k < n; ++k) to[time_order[k]] = from[k];
+    };
+    with_column(bit, las, [&](auto& to) {
+      with_column(bit, ordered, [&](const auto& from) {
+        if constexpr (std::is_same_v<std::decay_t<decltype(from)>, std::decay_t<decltype(to)>>) scatter(from, to);
+      });
+    });
     return Status::ok();
   }
   size_attribute(bit, las, n);

@@ -1,7 +1,8 @@
 // LAS per-point attributes of the error-bounded layer (chunk formats 3, 5 and
 // 6, format-spec/chunk.md §11.7): one arithmetic-coded section per carried
 // LasAttributes vector, lossless, in the canonical point order (format 6: GPS
-// times in time order, §11.7.1). Mirror pair in one file
+// times in time order, §11.7.1, and with them the attributes that follow
+// acquisition order, §11.7.2). Mirror pair in one file
 // (las_attribute_coder.cpp). Internal to the codec.
 #pragma once
 
@@ -30,21 +31,37 @@ using CellXyz = std::array<std::uint32_t, 3>;
 // whole chunk, whose local coordinates are < 2^21).
 inline constexpr int kMaxBucketShift = 21;
 
+// Format 6: the attributes that follow acquisition order (return number,
+// number of returns, scan flags, scan angle, user data, point source ID) are
+// coded in time order when the chunk carries GPS times (§11.7.2).
+inline constexpr std::uint32_t kLasTimeOrdered = kLasReturnNumber | kLasNumberOfReturns | kLasScanFlags |
+                                                 kLasScanAngle | kLasUserData | kLasPointSourceId;
+
+// The points' time order: indices into `gps_time` by increasing bit pattern
+// of the time as a u64, equal times in index order.
+std::vector<std::uint32_t> las_time_order(const std::vector<double>& gps_time);
+
 // Codes attribute `bit` (one LasAttributeBits value) of the n points of `las`,
 // which are in canonical order. Attributes with a lower bit may serve as
-// context, so sections are coded and decoded in increasing bit order. In
-// chunk format 6 (`version` >= 6) GPS times are coded in time order, which
-// needs the points' cells (`cells`, n of them); other formats and
-// attributes ignore `cells`.
+// context, so sections are coded and decoded in increasing bit order (format
+// 6 with GPS times: GPS time first). In chunk format 6 (`version` >= 6) GPS
+// times are coded in time order, which needs the points' cells (`cells`, n of
+// them); other formats and attributes ignore `cells`. `time_order` (format 6,
+// the chunk carries GPS times: las_time_order of its times, n entries; else
+// empty) makes the attributes of kLasTimeOrdered code in that order, with
+// las.gps_time as context.
 std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n,
-                                               int version = 5, std::span<const CellXyz> cells = {});
+                                               int version = 5, std::span<const CellXyz> cells = {},
+                                               std::span<const std::uint32_t> time_order = {});
 
 // Decodes attribute `bit` of n points into `las` (resizing its vector; for
 // extra bytes las.extra_bytes_size must be set). Attributes with a lower bit
-// must already be decoded. A stream too short to hold n points is refused
-// before anything is allocated. `version` and `cells` as for the encoder.
+// (and, given a time order, GPS time) must already be decoded. A stream too
+// short to hold n points is refused before anything is allocated. `version`,
+// `cells` and `time_order` as for the encoder.
 Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
-                            int version = 5, std::span<const CellXyz> cells = {});
+                            int version = 5, std::span<const CellXyz> cells = {},
+                            std::span<const std::uint32_t> time_order = {});
 
 // Orders two points of `las` by every carried attribute, in bit order
 // (gps_time by bit pattern, extra bytes as unsigned byte strings): the

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "codec/las_attribute_coder.h"
 #include "relief/codec.h"
 #include "support/las_attributes.h"
 #include "support/synthetic.h"
@@ -290,6 +291,162 @@ TEST_CASE("LAS attributes: a hostile format-6 GPS time section is refused or dec
     } else {
       CHECK(r->size() == in.size());
       for (const double g : r->las.gps_time) CHECK(std::isfinite(g));
+    }
+  }
+  CHECK(refused > 0);
+}
+
+namespace {
+
+// The scan with the attributes that follow acquisition order: return number
+// and count per pulse, scan direction (bit 6) and edge of line (bit 7), an
+// angle that sweeps along each line in 0.006-degree steps (LasAttributes
+// units: x 6), user data per line, a source ID per 10 lines.
+PointCloud scan_with_pulses(std::uint64_t seed, int lines, int pulses) {
+  PointCloud c = scan(seed, lines, pulses);
+  const std::size_t n = c.size();
+  LasAttributes& a = c.las;
+  a.return_number.resize(n);
+  a.number_of_returns.resize(n);
+  a.scan_flags.resize(n);
+  a.scan_angle.resize(n);
+  a.user_data.resize(n);
+  a.point_source_id.resize(n);
+  std::size_t i = 0;
+  const auto per_line = static_cast<std::size_t>(pulses);
+  while (i < n) {
+    std::size_t j = i;
+    while (j < n && a.gps_time[j] == a.gps_time[i]) ++j;
+    const auto pulse = static_cast<std::size_t>(std::llround((a.gps_time[i] - 3.0e5) / 1e-5));
+    const std::size_t line = pulse / per_line, along = pulse % per_line;
+    for (std::size_t k = i; k < j; ++k) {
+      a.return_number[k] = static_cast<std::uint8_t>(k - i + 1);
+      a.number_of_returns[k] = static_cast<std::uint8_t>(j - i);
+      a.scan_flags[k] = static_cast<std::uint8_t>((line % 2) << 6 | (along == 0 || along + 1 == per_line ? 0x80 : 0));
+      const auto sweep = static_cast<std::int32_t>(along * 3000 / per_line) - 1500;
+      a.scan_angle[k] = 6 * (line % 2 == 0 ? sweep : -sweep);
+      a.user_data[k] = static_cast<std::uint8_t>(line % 3);
+      a.point_source_id[k] = static_cast<std::uint16_t>(100 + line / 10);
+    }
+    i = j;
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("LAS attributes: acquisition-order attributes (format 6) are coded in time order, exactly and cheaper",
+          "[codec][las]") {
+  const PointCloud in = scan_with_pulses(12, 30, 150);
+  const std::size_t n = in.size();
+  // Through the chunk codec: exact, and any input order gives the same blob.
+  const EncodeParams p = params_for(0.005, 1.0);
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == expected_records(in, *p.bound));
+  test::Rng rng(31);
+  std::vector<std::uint32_t> perm(n);
+  for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+  auto shuffled = encode_chunk(in.gathered(perm), p);
+  REQUIRE(shuffled.is_ok());
+  CHECK(*shuffled == *blob);
+  // Section by section, the points in a spatial order (rows of 0.5 across
+  // the lines, as cells cut them): time order against cell order.
+  std::vector<std::uint32_t> spatial(n);
+  for (std::uint32_t i = 0; i < n; ++i) spatial[i] = i;
+  std::stable_sort(spatial.begin(), spatial.end(), [&](std::uint32_t a, std::uint32_t b) {
+    const auto ra = std::floor(in.positions[a].x / 0.5), rb = std::floor(in.positions[b].x / 0.5);
+    return ra != rb ? ra < rb : in.positions[a].y < in.positions[b].y;
+  });
+  const PointCloud cells = in.gathered(spatial);
+  const std::vector<std::uint32_t> order = codec::las_time_order(cells.las.gps_time);
+  REQUIRE(order.size() == n);
+  for (int b = 0; b < codec::kLasAttributeCount; ++b) {
+    const std::uint32_t bit = 1u << b;
+    if ((bit & codec::kLasTimeOrdered) == 0) continue;
+    INFO(codec::las_attribute_name(bit));
+    const std::vector<std::uint8_t> timed = codec::encode_las_attribute(bit, cells.las, n, 6, {}, order);
+    const std::vector<std::uint8_t> plain = codec::encode_las_attribute(bit, cells.las, n, 6);
+    INFO("time order " << timed.size() << " bytes, cell order " << plain.size());
+    if (bit != kLasPointSourceId) CHECK(timed.size() < plain.size());
+    CHECK(timed.size() <= plain.size() + 2);
+    LasAttributes back;
+    back.gps_time = cells.las.gps_time;
+    if (bit == kLasNumberOfReturns) back.return_number = cells.las.return_number;
+    REQUIRE(codec::decode_las_attribute(bit, timed, n, back, 6, {}, order).is_ok());
+    const bool rn = bit == kLasReturnNumber || bit == kLasNumberOfReturns;
+    CHECK(back.return_number == (rn ? cells.las.return_number : std::vector<std::uint8_t>{}));
+    CHECK(back.number_of_returns == (bit == kLasNumberOfReturns ? cells.las.number_of_returns : std::vector<std::uint8_t>{}));
+    CHECK(back.scan_flags == (bit == kLasScanFlags ? cells.las.scan_flags : std::vector<std::uint8_t>{}));
+    CHECK(back.scan_angle == (bit == kLasScanAngle ? cells.las.scan_angle : std::vector<std::int32_t>{}));
+    CHECK(back.user_data == (bit == kLasUserData ? cells.las.user_data : std::vector<std::uint8_t>{}));
+    CHECK(back.point_source_id ==
+          (bit == kLasPointSourceId ? cells.las.point_source_id : std::vector<std::uint16_t>{}));
+    // A time order that does not cover the points is refused.
+    LasAttributes short_order;
+    short_order.gps_time = cells.las.gps_time;
+    CHECK(codec::decode_las_attribute(bit, timed, n, short_order, 6, {}, std::span(order).first(n - 1)).code() ==
+          StatusCode::kCorruptData);
+  }
+}
+
+TEST_CASE("LAS attributes: time-ordered attributes with one time for all, and shared times, are exact", "[codec][las]") {
+  PointCloud in = scene(14, 3000, false);
+  test::add_las_attributes(in, 0xFFF, 3, 15, false);
+  const EncodeParams p = params_for(0.002, 1.0);
+  SECTION("one GPS time: time order is cell order") {
+    for (double& t : in.las.gps_time) t = 123.25;
+  }
+  SECTION("few GPS times: many ties, broken by cell order") {
+    for (std::size_t i = 0; i < in.size(); ++i) in.las.gps_time[i] = static_cast<double>(i % 7);
+  }
+  SECTION("negative and positive times") {
+    for (std::size_t i = 0; i < in.size(); ++i) in.las.gps_time[i] = static_cast<double>(i % 11) - 5.5;
+  }
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == expected_records(in, *p.bound));
+}
+
+TEST_CASE("LAS attributes: hostile time-ordered sections are refused or decode, in bounded time", "[codec][las][reject]") {
+  const PointCloud in = scan_with_pulses(16, 10, 40);
+  auto blob = encode_chunk(in, params_for(0.005, 1.0));
+  REQUIRE(blob.is_ok());
+  auto info = inspect_chunk(*blob);
+  REQUIRE(info.is_ok());
+  DecodeOptions nocrc;
+  nocrc.verify_checksum = false;
+  test::Rng rng(23);
+  int refused = 0;
+  for (const int id : {12, 13, 14, 15, 16, 17, 18}) {
+    const std::size_t at = section_offset(*blob, *info, id);
+    std::uint32_t size = 0;
+    for (const ChunkSectionInfo& s : info->sections) {
+      if (s.id == id) size = s.coded_size;
+    }
+    REQUIRE(size > 0);
+    REQUIRE(at + size <= blob->size());
+    for (int t = 0; t < 60; ++t) {
+      std::vector<std::uint8_t> bad = *blob;
+      if (t % 3 == 0) {
+        for (std::size_t k = 0; k < size; ++k) bad[at + k] = static_cast<std::uint8_t>(rng.next());
+      } else {
+        const std::size_t k = at + rng.next() % size;
+        bad[k] = static_cast<std::uint8_t>(bad[k] ^ (1u + rng.next() % 255));
+      }
+      auto r = decode_chunk(bad, nocrc);
+      if (!r.is_ok()) {
+        ++refused;
+        CHECK(r.status().code() == StatusCode::kCorruptData);
+      } else {
+        CHECK(r->size() == in.size());
+        CHECK(r->las.scan_angle.size() == in.size());
+      }
     }
   }
   CHECK(refused > 0);
