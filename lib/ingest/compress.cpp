@@ -15,6 +15,10 @@
 #include <cstring>
 #include <unordered_map>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include "core/memory.h"
 #include "core/parallel.h"
 #include "ingest/bucket_files.h"
@@ -83,6 +87,11 @@ class SlicePool {
       std::lock_guard<std::mutex> lock(mu_);
       free_.emplace_back(p);
     });
+  }
+  // Frees the slices not in use.
+  void clear() {
+    std::lock_guard<std::mutex> lock(mu_);
+    free_.clear();
   }
 
  private:
@@ -451,14 +460,21 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     }
     RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
   }
+  // The encoders' threads and the recycled slices go before the pyramid is
+  // built, so its memory does not stack on theirs.
+  const PipelineTotals totals = pipeline->totals();
+  pipeline.reset();
+  slices.clear();
+#ifdef __GLIBC__
+  malloc_trim(0);  // the encoder threads' arenas keep what they freed otherwise
+#endif
   // The pyramid before the scan is marked complete: a run killed while
   // building it leaves an incomplete scan whose chunks read as usual.
   RELIEF_ASSIGN_OR_RETURN(const PyramidResult pyramid,
                           build_scan_pyramid(archive, scan_id, points_read, options, tmp_parent, progress));
   RELIEF_RETURN_IF_ERROR(finish_scan(archive, scan_id, in.colors, in.intensity, in.crs));
 
-  IngestResult result =
-      scan_result(pipeline->totals(), points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
+  IngestResult result = scan_result(totals, points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
   result.pyramid = pyramid;
   result.warnings.insert(result.warnings.end(), in.warnings.begin(), in.warnings.end());
   for (const auto& reader : in.readers) {
