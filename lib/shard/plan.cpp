@@ -9,7 +9,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <optional>
 
+#include "core/hex.h"
 #include "ingest/ingest_common.h"
 #include "relief/codec.h"
 #include "relief/shard.h"
@@ -18,6 +20,14 @@
 namespace relief {
 
 namespace {
+
+// The Extra Bytes VLR payload in a plan line: lower-case hexadecimal only.
+bool decode_vlr_hex(const std::string& text, std::string& out) {
+  std::optional<std::string> bytes = bytes_from_hex(text, false);
+  if (!bytes) return false;
+  out = std::move(*bytes);
+  return true;
+}
 
 constexpr char kPlanMagic[] = "relief-shard-plan";
 // A plan is a few lines per input; anything larger is not a plan.
@@ -35,38 +45,6 @@ std::string number(float v) {
   return buf;
 }
 
-// The Extra Bytes VLR payload in a plan line: lower-case hexadecimal.
-std::string hex_text(const std::string& bytes) {
-  static const char kDigits[] = "0123456789abcdef";
-  std::string out;
-  out.reserve(2 * bytes.size());
-  for (const char c : bytes) {
-    const auto b = static_cast<unsigned char>(c);
-    out += kDigits[b >> 4];
-    out += kDigits[b & 15];
-  }
-  return out;
-}
-
-// hex_text's inverse; false on an odd length or a character that is not a
-// lower-case hexadecimal digit.
-bool from_hex_text(const std::string& text, std::string& out) {
-  if (text.size() % 2 != 0) return false;
-  const auto digit = [](char c) -> int {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    return -1;
-  };
-  out.clear();
-  out.reserve(text.size() / 2);
-  for (std::size_t i = 0; i < text.size(); i += 2) {
-    const int hi = digit(text[i]);
-    const int lo = digit(text[i + 1]);
-    if (hi < 0 || lo < 0) return false;
-    out += static_cast<char>((hi << 4) | lo);
-  }
-  return true;
-}
 
 // Bounds of the LAS fields (LAS 1.4 R15): point formats 0-10, a u8 minor
 // version, and extra bytes that fit a record (u16 length) described by a VLR
@@ -226,7 +204,7 @@ std::string shard_plan_text(const ShardPlan& plan) {
     line("las", {las_attribute_list(plan.las_attributes), std::to_string(plan.las_point_format),
                  std::to_string(plan.las_version_minor), plan.las_colors_8bit ? "1" : "0"});
     if ((plan.las_attributes & kLasExtraBytes) != 0) {
-      line("extra_bytes", {std::to_string(plan.extra_bytes_size), hex_text(plan.extra_bytes_vlr)});
+      line("extra_bytes", {std::to_string(plan.extra_bytes_size), hex_lower(plan.extra_bytes_vlr)});
     }
   }
   line("crs", {plan.crs});
@@ -361,7 +339,7 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       RELIEF_RETURN_IF_ERROR(parse_int(l.fields[0], size));
       if (size < 1 || size > kMaxExtraBytesSize) return bad(n, "extra bytes per point out of range (1..65535)");
       plan.extra_bytes_size = static_cast<std::uint32_t>(size);
-      if (l.fields[1].size() > 2 * kMaxExtraBytesVlrBytes || !from_hex_text(l.fields[1], plan.extra_bytes_vlr)) {
+      if (l.fields[1].size() > 2 * kMaxExtraBytesVlrBytes || !decode_vlr_hex(l.fields[1], plan.extra_bytes_vlr)) {
         return bad(n, "the Extra Bytes VLR is not lower-case hexadecimal of at most 65535 bytes");
       }
       have_extra = true;

@@ -27,6 +27,7 @@
 #include <system_error>
 #include <utility>
 
+#include "core/hex.h"
 #include "store/schema.h"
 #include "store/sqlite_util.h"
 
@@ -86,37 +87,6 @@ std::string key_text(const ChunkKey& key) {
   return text;
 }
 
-// Bytes as lower-case hexadecimal (binary metadata values) and back.
-std::string hex_bytes(const std::string& bytes) {
-  static constexpr char kDigits[] = "0123456789abcdef";
-  std::string out;
-  out.reserve(2 * bytes.size());
-  for (const char c : bytes) {
-    const auto b = static_cast<unsigned char>(c);
-    out += kDigits[b >> 4];
-    out += kDigits[b & 15];
-  }
-  return out;
-}
-
-std::optional<std::string> bytes_from_hex(const std::string& hex) {
-  if (hex.size() % 2 != 0) return std::nullopt;
-  const auto digit = [](char c) -> int {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-  };
-  std::string out;
-  out.reserve(hex.size() / 2);
-  for (std::size_t i = 0; i < hex.size(); i += 2) {
-    const int hi = digit(hex[i]);
-    const int lo = digit(hex[i + 1]);
-    if (hi < 0 || lo < 0) return std::nullopt;
-    out += static_cast<char>((hi << 4) | lo);
-  }
-  return out;
-}
 
 std::string hex32(std::uint32_t value) {
   std::array<char, 16> buffer{};
@@ -1075,7 +1045,7 @@ Status SqliteArchive::merge_las_meta(const ScanAttributes& a) {
   RELIEF_ASSIGN_OR_RETURN(std::optional<std::string> old_vlr, meta_value(store::kMetaLasExtraBytesVlr));
   const bool old_extra = (old_bits & kLasExtraBytes) != 0;
   const bool new_extra = (a.las_attributes & kLasExtraBytes) != 0;
-  const std::string vlr_hex = hex_bytes(a.extra_bytes_vlr);
+  const std::string vlr_hex = hex_lower(a.extra_bytes_vlr);
   if (old_extra && new_extra && (old_size != a.extra_bytes_size || old_vlr.value_or("") != vlr_hex)) {
     return invalid_argument(path_ + ": the archive's extra bytes (" + std::to_string(old_size) +
                             " per point) differ from the new scan's (" + std::to_string(a.extra_bytes_size) +
@@ -1692,7 +1662,7 @@ Status SqliteArchive::read_las_meta(std::map<std::string, std::string>& meta, Ar
   info.las_version_minor = static_cast<int>(minor);
   info.extra_bytes_size = static_cast<std::uint32_t>(size);
   info.las_colors_8bit = colors_8bit != 0;
-  const std::optional<std::string> vlr = bytes_from_hex(meta[store::kMetaLasExtraBytesVlr]);
+  const std::optional<std::string> vlr = bytes_from_hex(meta[store::kMetaLasExtraBytesVlr], true);
   if (!vlr) return format_error(path_ + ": metadata " + store::kMetaLasExtraBytesVlr + " is not hexadecimal");
   info.extra_bytes_vlr = *vlr;
   if ((info.las_attributes & kLasExtraBytes) != 0 && info.extra_bytes_size == 0) {
