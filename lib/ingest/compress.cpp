@@ -476,6 +476,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
 
   IngestResult result = scan_result(totals, points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
   result.pyramid = pyramid;
+  if (!pyramid.skipped.empty()) result.warnings.push_back(pyramid.skipped);
   result.warnings.insert(result.warnings.end(), in.warnings.begin(), in.warnings.end());
   for (const auto& reader : in.readers) {
     for (const std::string& w : reader->info().warnings) result.warnings.push_back(w);
@@ -495,7 +496,15 @@ Result<PyramidResult> build_scan_pyramid(Archive& archive, std::int64_t scan_id,
   p.tmp_dir = tmp_parent;
   p.cancel = options.cancel;
   p.progress = [&](int, std::uint64_t nodes) { progress.update("pyramid", points, nodes, 0); };
-  return build_pyramid(archive, scan_id, p);
+  Result<PyramidResult> built = build_pyramid(archive, scan_id, p);
+  const bool cancelled = options.cancel != nullptr && options.cancel->load();
+  if (built || options.pyramid != PyramidMode::kAuto || cancelled || built.status().code() == StatusCode::kIoError) {
+    return built;
+  }
+  // An automatic pyramid is a convenience: the scan is complete without it.
+  PyramidResult none;
+  none.skipped = "no level-of-detail pyramid: " + built.status().message();
+  return none;
 }
 
 IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read,

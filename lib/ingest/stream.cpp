@@ -126,6 +126,7 @@ class StreamIngestImpl final : public StreamIngest {
     IngestResult result = ingest::scan_result(pipeline_.totals(), points_read_, start_, params_.cell_size,
                                               grid_.chunk_edge, scan_id_, progress_);
     result.pyramid = pyramid;
+    if (!pyramid.skipped.empty()) result.warnings.push_back(pyramid.skipped);
     return result;
   }
 

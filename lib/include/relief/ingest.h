@@ -153,6 +153,10 @@ struct PyramidOptions {
 struct PyramidResult {
   int levels = 0;     // levels stored; 0: no pyramid (a scan without decoded points)
   int top_level = 0;  // the coarsest stored level
+  // Set when PyramidMode::kAuto could not build one (not for I/O errors or
+  // interruption, which fail the ingest): why, and the scan reads from its
+  // chunks. The ingest reports it as a warning.
+  std::string skipped;
   std::uint64_t chunks = 0;
   std::uint64_t points = 0;
   std::uint64_t blob_bytes = 0;
