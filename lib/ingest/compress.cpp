@@ -556,6 +556,19 @@ void Grouping::add_keys(const ChunkKey* point_keys, std::size_t n) {
   }
 }
 
+std::vector<std::uint32_t> Grouping::sort_by_key(std::vector<std::uint64_t>& start) {
+  start.assign(keys.size() + 1, 0);
+  for (const std::uint32_t id : ids) ++start[id + 1];
+  for (std::size_t k = 0; k < keys.size(); ++k) start[k + 1] += start[k];
+  order.resize(ids.size());
+  std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
+  for (std::size_t i = 0; i < ids.size(); ++i) order[fill[ids[i]]++] = static_cast<std::uint32_t>(i);
+  std::vector<std::uint32_t> by_key(keys.size());
+  for (std::uint32_t k = 0; k < by_key.size(); ++k) by_key[k] = k;
+  std::sort(by_key.begin(), by_key.end(), [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+  return by_key;
+}
+
 void Grouping::add_run(const ChunkKey& key, std::size_t count) {
   auto [it, inserted] = lookup.try_emplace(key, static_cast<std::uint32_t>(keys.size()));
   if (inserted) keys.push_back(key);
@@ -611,18 +624,9 @@ void split_octants(const PointCloud& cloud, std::uint32_t* idx, std::size_t n, c
 
 std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g,
                                   const ArchiveGrid* split_grid) {
-  const std::size_t n = cloud.size();
-  // Counting sort of point indices by chunk id.
-  std::vector<std::uint64_t> start(g.keys.size() + 1, 0);
-  for (std::uint32_t id : g.ids) ++start[id + 1];
-  for (std::size_t k = 0; k < g.keys.size(); ++k) start[k + 1] += start[k];
-  g.order.resize(n);
-  std::vector<std::uint64_t> fill(start.begin(), start.end() - 1);
-  for (std::size_t i = 0; i < n; ++i) g.order[fill[g.ids[i]]++] = static_cast<std::uint32_t>(i);
   // Tasks in key order (deterministic archives), cut into parts.
-  std::vector<std::uint32_t> by_key(g.keys.size());
-  for (std::uint32_t k = 0; k < by_key.size(); ++k) by_key[k] = k;
-  std::sort(by_key.begin(), by_key.end(), [&](std::uint32_t a, std::uint32_t b) { return g.keys[a] < g.keys[b]; });
+  std::vector<std::uint64_t> start;
+  const std::vector<std::uint32_t> by_key = g.sort_by_key(start);
   std::vector<ChunkTask> tasks;
   std::vector<std::uint32_t> scratch;
   for (std::uint32_t k : by_key) {

@@ -107,6 +107,10 @@ struct Grouping {
   void add_keys(const ChunkKey* point_keys, std::size_t n);
   // Appends `count` points of chunk `key`.
   void add_run(const ChunkKey& key, std::size_t count);
+  // Fills `order` with the point indices grouped by chunk id (a counting
+  // sort): chunk k's points are order[start[k] .. start[k + 1]). Returns the
+  // chunk ids in key order (deterministic archives).
+  std::vector<std::uint32_t> sort_by_key(std::vector<std::uint64_t>& start);
 };
 
 // Groups the points of `cloud` (whose ids `g` holds, one per point) by chunk

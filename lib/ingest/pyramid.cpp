@@ -302,22 +302,16 @@ class Builder {
       while (offset < files.bucket_bytes(b)) {
         RELIEF_RETURN_IF_ERROR(cancelled());
         RELIEF_RETURN_IF_ERROR(files.read_slice(b, &offset, ~std::uint64_t{0}, slice, grouping, buffer));
-        std::vector<std::uint32_t> start(grouping.keys.size() + 1, 0);
-        for (const std::uint32_t id : grouping.ids) ++start[id + 1];
-        for (std::size_t k = 0; k < grouping.keys.size(); ++k) start[k + 1] += start[k];
-        std::vector<std::uint32_t> order(slice.size());
-        std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-        for (std::size_t i = 0; i < slice.size(); ++i) order[fill[grouping.ids[i]]++] = static_cast<std::uint32_t>(i);
-        std::vector<std::uint32_t> by_key(grouping.keys.size());
-        for (std::uint32_t k = 0; k < by_key.size(); ++k) by_key[k] = k;
-        std::sort(by_key.begin(), by_key.end(),
-                  [&](std::uint32_t x, std::uint32_t y) { return grouping.keys[x] < grouping.keys[y]; });
+        std::vector<std::uint64_t> start;
+        const std::vector<std::uint32_t> by_key = grouping.sort_by_key(start);
+        const std::vector<std::uint32_t>& order = grouping.order;
         std::vector<ChunkKey> keys(by_key.size());
         std::vector<PointCloud> nodes(by_key.size());
         for_each_parallel(by_key.size(), threads_, [&](std::size_t n) {
           const std::uint32_t k = by_key[n];
           keys[n] = grouping.keys[k];
-          const std::vector<std::uint32_t> idx(order.begin() + start[k], order.begin() + start[k + 1]);
+          const std::vector<std::uint32_t> idx(order.begin() + static_cast<std::ptrdiff_t>(start[k]),
+                                               order.begin() + static_cast<std::ptrdiff_t>(start[k + 1]));
           nodes[n] = thin(slice.gathered(idx), grid_.origin, level.pitch);
         });
         RELIEF_RETURN_IF_ERROR(fn(keys, nodes));
