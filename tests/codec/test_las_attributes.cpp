@@ -548,26 +548,54 @@ TEST_CASE("LAS attributes: truncated and lying attribute sections are refused", 
   }
 }
 
-// Not run by default: writes the chunk fuzz target's seed with LAS attributes,
+// Not run by default: writes the chunk fuzz target's seeds with LAS attributes,
 //   RELIEF_FUZZ_SEED_DIR=tests/fuzz/corpus/chunk ./test_codec "[.seed]"
-TEST_CASE("LAS attributes: write the fuzz seed", "[.seed]") {
+// The encoder writes the current format (6) for the error-bounded layer and
+// format 4 for resampling with a classification; the format-3 seed in the
+// corpus (seed-v3-las-attributes.rlfc) was written by this test before
+// format 5 and is kept as it is. Seeds stay under the fuzz target's max_len
+// (4096, scripts/fuzz.sh), else libFuzzer cuts them.
+TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
   const char* dir = std::getenv("RELIEF_FUZZ_SEED_DIR");
   if (dir == nullptr) return;
+  const auto write = [&](const std::string& name, const std::vector<std::uint8_t>& blob, std::uint16_t version) {
+    auto info = inspect_chunk(blob);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == version);
+    CHECK(blob.size() <= 4096);
+    std::ofstream(std::string(dir) + "/" + name, std::ios::binary)
+        .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
+  };
+  // Format 6, a scan: GPS times in time order, pulses with their returns,
+  // scan flags, angles, user data and point source IDs in acquisition order,
+  // plus a classification (and so the classification map) and intensities.
+  PointCloud timed = scan_with_pulses(14, 6, 30);
+  test::Rng rng(15);
+  for (std::size_t i = 0; i < timed.size(); ++i) {
+    timed.las.classification.push_back(static_cast<std::uint8_t>(timed.las.return_number[i] == 1 ? 2 : 5));
+    timed.intensities.push_back(static_cast<float>(rng.next() % 4096));
+  }
+  auto v6 = encode_chunk(timed, params_for(0.005, 1.0));
+  REQUIRE(v6.is_ok());
+  CHECK(inspect_chunk(*v6)->las_attributes ==
+        (kLasClassification | kLasReturnNumber | kLasNumberOfReturns | kLasScanFlags | kLasScanAngle | kLasUserData |
+         kLasPointSourceId | kLasGpsTime));
+  write("seed-v6-las-scan-gps-time.rlfc", *v6, 6);
+  // Format 6 with every attribute (NIR, colour low bytes, extra bytes too).
   PointCloud in = scene(12, 120, true);
   test::add_las_attributes(in, 0xFFF, 3, 12, false);
   EncodeParams p = params_for(0.005, 2.0);
   p.map_resolution = 8;
-  auto blob = encode_chunk(in, p);
-  REQUIRE(blob.is_ok());
-  std::ofstream(std::string(dir) + "/seed-v3-las-attributes.rlfc", std::ios::binary)
-      .write(reinterpret_cast<const char*>(blob->data()), static_cast<std::streamsize>(blob->size()));
+  auto all = encode_chunk(in, p);
+  REQUIRE(all.is_ok());
+  CHECK(inspect_chunk(*all)->las_attributes == 0xFFF);
+  write("seed-v6-las-attributes.rlfc", *all, 6);
   EncodeParams resample;
   resample.cell_size = 0.5;
   resample.map_resolution = 8;
   auto v4 = encode_chunk(in, resample);
   REQUIRE(v4.is_ok());
-  std::ofstream(std::string(dir) + "/seed-v4-class-map.rlfc", std::ios::binary)
-      .write(reinterpret_cast<const char*>(v4->data()), static_cast<std::streamsize>(v4->size()));
+  write("seed-v4-class-map.rlfc", *v4, 4);
 }
 
 TEST_CASE("classification map: resampled points get their pixel's majority class", "[codec][las][classmap]") {

@@ -1,8 +1,9 @@
 // libFuzzer target: opening an archive read-only and querying it. SQLite
 // reads a file, so each input is written to one temporary file per process
 // (rewritten for each input, removed after it) and the archive is either opened,
-// listed, queried through the spatial index and its chunks read and decoded, or
-// queried through ArchiveReader::query (the input's size picks which). SQLite's side files (-wal, -shm,
+// listed, queried through the spatial index and its chunks and pyramid nodes
+// read and decoded, or queried through ArchiveReader::query, and again at a
+// coarse level of detail when it lists a pyramid (the input's size picks which). SQLite's side files (-wal, -shm,
 // -journal) are removed after every input so one input cannot affect the next.
 #include <fcntl.h>
 #include <unistd.h>
@@ -74,6 +75,21 @@ void exercise_archive(const std::string& path) {
     if (!row.is_ok()) continue;
     (void)relief::decode_chunk(row->blob, options);
   }
+  // The pyramid's nodes (archive.md §9), of the levels the info lists.
+  if (!info.is_ok()) return;
+  read = 0;
+  for (const relief::ScanPyramid& scan : info->pyramid) {
+    for (const relief::PyramidLevel& level : scan.levels) {
+      auto nodes = (*archive)->find_level_chunks(level.level, box);
+      if (!nodes.is_ok()) continue;
+      for (const relief::ChunkRef& ref : *nodes) {
+        if (read++ == kMaxChunksRead) return;
+        auto row = (*archive)->read_level_chunk(ref.id);
+        if (!row.is_ok()) continue;
+        (void)relief::decode_chunk(row->blob, options);
+      }
+    }
+  }
 }
 
 void exercise_query(const std::string& path, bool skip_corrupt) {
@@ -89,7 +105,18 @@ void exercise_query(const std::string& path, bool skip_corrupt) {
     box.min = {-1e6, -1e6, -1e6};
     box.max = {1e6, 1e6, 1e6};
   }
-  (void)(*reader)->query(box, options, [](const relief::PointCloud&) { return relief::Status::ok(); });
+  const auto ignore = [](const relief::PointCloud&) { return relief::Status::ok(); };
+  (void)(*reader)->query(box, options, ignore);
+  // With a pyramid listed: a coarse level of detail and a point limit, which
+  // read its nodes.
+  bool pyramid = false;
+  for (const relief::ScanPyramid& scan : (*reader)->info().pyramid) pyramid = pyramid || !scan.levels.empty();
+  if (!pyramid) return;
+  options.lod = 16;
+  (void)(*reader)->query(box, options, ignore);
+  options.lod = 1;
+  options.max_points = 64;
+  (void)(*reader)->query(box, options, ignore);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@ and archive seeds); OUT_DIR/<target>/ receives the files. Real data comes from
 tests/data and, when present, ../shared/data. The committed corpora are these
 seeds plus what the fuzzers found, minimised with -merge=1.
 """
+import math
 import os
 import sqlite3
 import struct
@@ -146,6 +147,55 @@ def las_seeds(out):
         put(out, "las", os.path.basename(name), las_cut(data, 16))
 
 
+def self_contained(arc):
+    """Folds the WAL back in and packs the archive into 512-byte pages, so the
+    seed is one small file; returns the first three chunk blobs."""
+    con = sqlite3.connect(arc)
+    con.execute("PRAGMA journal_mode = DELETE")
+    con.execute("PRAGMA page_size = 512")
+    con.execute("VACUUM")
+    blobs = con.execute("SELECT blob FROM relief_chunk ORDER BY id LIMIT 3").fetchall()
+    con.close()
+    return blobs
+
+
+def pyramid_seeds(out, relief, tmp):
+    """An error-bounded archive with a level-of-detail pyramid (format-spec/archive.md
+    §9) of a synthetic 12 x 12 terrain with intensity and classification, and the same
+    archive with its pyramid record removed (rows no reader uses, as a run killed while
+    building its pyramid leaves them). About 21 kB each, under the archive target's
+    max_len (32768): SQLite's schema alone takes most of it."""
+    src = os.path.join(tmp, "terrain.xyz")
+    with open(src, "w") as f:
+        for i in range(12):
+            for j in range(12):
+                x, y = 0.35 * i, 0.35 * j
+                z = math.sin(0.5 * x) + math.cos(0.4 * y)
+                f.write("%g %g %g %d %d\n" % (x, y, z, (7 * i + 3 * j) % 250, 2 if z < 1.2 else 5))
+    arc = os.path.join(tmp, "pyramid.relief")
+    subprocess.run([relief, "compress", src, "-o", arc, "--quiet", "--threads", "1", "--columns", "x,y,z,i,c",
+                    "--chunk-edge", "2", "--resolution", "8", "--pyramid", "on"], check=True)
+    self_contained(arc)
+    con = sqlite3.connect(arc)
+    if con.execute("SELECT COUNT(*) FROM relief_level_scan").fetchone()[0] == 0:
+        sys.exit("make_seeds: the pyramid seed has no pyramid")
+    con.close()
+    with open(arc, "rb") as f:
+        data = f.read()
+    put(out, "archive", "seed_pyramid.relief", data)
+    # The fuzz target picks its entry path by the input's size modulo 3
+    # (fuzz_archive.cpp): bytes past the last page, which SQLite ignores, make
+    # a copy that takes the ArchiveReader::query path (size % 3 == 1).
+    put(out, "archive", "seed_pyramid_query.relief", data + bytes((1 - len(data) % 3) % 3))
+    con = sqlite3.connect(arc)
+    con.execute("DELETE FROM relief_level_scan")
+    con.commit()
+    con.execute("VACUUM")
+    con.close()
+    with open(arc, "rb") as f:
+        put(out, "archive", "seed_pyramid_unfinished.relief", f.read())
+
+
 def chunk_and_archive_seeds(out, build, pts):
     relief = os.path.join(build, "tools", "relief")
     variants = {
@@ -175,17 +225,12 @@ def chunk_and_archive_seeds(out, build, pts):
             arc = os.path.join(tmp, name + ".relief")
             subprocess.run([relief, "compress"] + inputs + ["-o", arc, "--quiet", "--threads", "1"] + opts,
                            check=True)
-            # One file: fold the WAL back in so the seed is self-contained.
-            con = sqlite3.connect(arc)
-            con.execute("PRAGMA journal_mode = DELETE")
-            con.execute("PRAGMA page_size = 512")
-            con.execute("VACUUM")
-            blobs = con.execute("SELECT blob FROM relief_chunk ORDER BY id LIMIT 3").fetchall()
-            con.close()
+            blobs = self_contained(arc)
             with open(arc, "rb") as f:
                 put(out, "archive", name + ".relief", f.read())
             for i, (b,) in enumerate(blobs):
                 put(out, "chunk", "%s_%d.rlfc" % (name, i), bytes(b))
+        pyramid_seeds(out, relief, tmp)
     for name in os.listdir(os.path.join(ROOT, "format-spec", "vectors")):
         if name.endswith(".rlfc"):
             with open(os.path.join(ROOT, "format-spec", "vectors", name), "rb") as f:
