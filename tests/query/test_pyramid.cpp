@@ -1,7 +1,9 @@
 // The level-of-detail pyramid (format-spec/archive.md §9): built by ingest,
 // append and build_pyramid, read by coarse queries and max_points queries,
-// deterministic, removed with its scan, ignored until finished.
+// deterministic, removed with its scan, ignored until finished, and its
+// unused rows removed by a rebuild or by the next writer that opens alone.
 #include <catch2/catch.hpp>
+#include <sqlite3.h>
 
 #include <algorithm>
 #include <cmath>
@@ -85,6 +87,39 @@ std::map<std::tuple<int, std::int64_t, std::int64_t, std::int64_t>, std::vector<
     }
   }
   return out;
+}
+
+// Rows of relief_level_chunk per scan, used or not, read behind the
+// archive's back (its API returns only the rows readers use).
+std::map<std::int64_t, std::int64_t> level_rows(const std::string& path) {
+  sqlite3* db = nullptr;
+  REQUIRE(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  REQUIRE(sqlite3_prepare_v2(db, "SELECT scan_id, COUNT(*) FROM relief_level_chunk GROUP BY scan_id", -1, &stmt,
+                             nullptr) == SQLITE_OK);
+  std::map<std::int64_t, std::int64_t> out;
+  while (sqlite3_step(stmt) == SQLITE_ROW) out[sqlite3_column_int64(stmt, 0)] = sqlite3_column_int64(stmt, 1);
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+  return out;
+}
+
+// Stores a copy of the scan's first chunk as a node of `level` at `key`
+// without recording the pyramid: what a build killed after it leaves.
+void put_stray_node(Archive& archive, std::int64_t scan_id, int level, ChunkKey key) {
+  auto refs = archive.scan_chunks(scan_id);
+  REQUIRE(refs.is_ok());
+  REQUIRE_FALSE(refs->empty());
+  auto row = archive.read_chunk(refs->front().id);
+  REQUIRE(row.is_ok());
+  row->ref.key = key;
+  std::vector<ChunkRow> batch = {*row};
+  REQUIRE(archive.put_level_chunks(level, batch).is_ok());
+}
+
+bool mentions_unused_rows(const ArchiveCheck& check) {
+  return std::any_of(check.checked.begin(), check.checked.end(),
+                     [](const std::string& line) { return line.find("no reader uses") != std::string::npos; });
 }
 
 }  // namespace
@@ -317,4 +352,94 @@ TEST_CASE("pyramid rows are ignored until the scan's pyramid is recorded finishe
   auto check = check_archive(path);
   REQUIRE(check.is_ok());
   CHECK(check->problems.empty());
+}
+
+TEST_CASE("rebuilding a scan's pyramid first removes the rows an unfinished build left", "[pyramid]") {
+  TempDir tmp;
+  const PointCloud cloud = terrain(10, 60000);
+  const std::string path = build(tmp, "a", cloud, options(PyramidMode::kOff));
+  auto writer = Archive::open(path, Archive::Mode::kReadWrite);
+  REQUIRE(writer.is_ok());
+  // Left by a build killed mid-way: a node far from the data at level 1
+  // (a level the rebuild stores) and one at level 7 (a level it does not).
+  put_stray_node(**writer, 1, 1, ChunkKey{99, 99, 99});
+  put_stray_node(**writer, 1, 7, ChunkKey{0, 0, 0});
+  REQUIRE(level_rows(path).at(1) == 2);
+  PyramidOptions p;
+  p.threads = 1;
+  auto built = build_pyramid(**writer, 1, p);
+  REQUIRE(built.is_ok());
+  REQUIRE(built->levels >= 2);
+  // The same rows as a pyramid built by compress, read while this writer is
+  // still open (so not removed by any later open).
+  const std::string fresh = build(tmp, "b", cloud);
+  CHECK(level_rows(path) == level_rows(fresh));
+  CHECK(level_blobs(path) == level_blobs(fresh));
+}
+
+TEST_CASE("pyramid rows no reader uses are removed by the next writer that opens the archive alone", "[pyramid]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "a", terrain(8, 60000));
+  REQUIRE(write_ply(tmp.file("more.ply"), terrain(9, 60000, {kSize, 0, 0})).is_ok());
+  auto appended = append_files(path, {tmp.file("more.ply")}, options(PyramidMode::kOff));
+  REQUIRE(appended.is_ok());
+  const std::int64_t second = appended->scan_id;
+  const auto finished = level_blobs(path);
+  const auto rows = level_rows(path);
+  REQUIRE(rows.size() == 1);
+  REQUIRE(rows.at(1) > 0);
+  {
+    auto writer = Archive::open(path, Archive::Mode::kReadWrite);
+    REQUIRE(writer.is_ok());
+    // The second scan's pyramid, never finished (a run killed while building
+    // it), and a node of the first scan at a level its record does not name.
+    put_stray_node(**writer, second, 1, ChunkKey{8, 0, 0});
+    put_stray_node(**writer, second, 2, ChunkKey{4, 0, 0});
+    put_stray_node(**writer, 1, 12, ChunkKey{0, 0, 0});
+    // Another writer opening meanwhile removes nothing: this one may be
+    // building that pyramid.
+    {
+      auto other = Archive::open(path, Archive::Mode::kReadWrite);
+      REQUIRE(other.is_ok());
+    }
+    const auto during = level_rows(path);
+    CHECK(during.at(second) == 2);
+    CHECK(during.at(1) == rows.at(1) + 1);
+  }
+  // Readers ignore the rows; check counts them but finds no damage.
+  CHECK(level_blobs(path) == finished);
+  auto listed = check_archive(path);
+  REQUIRE(listed.is_ok());
+  CHECK(listed->problems.empty());
+  CHECK(mentions_unused_rows(*listed));
+  {
+    auto writer = Archive::open(path, Archive::Mode::kReadWrite);
+    REQUIRE(writer.is_ok());
+  }
+  CHECK(level_rows(path) == rows);
+  CHECK(level_blobs(path) == finished);
+  auto clean = check_archive(path);
+  REQUIRE(clean.is_ok());
+  CHECK(clean->problems.empty());
+  CHECK_FALSE(mentions_unused_rows(*clean));
+  // A record and rows of a scan that is gone (removed by a writer that does
+  // not know the pyramid) go too, whoever else is connected.
+  {
+    sqlite3* db = nullptr;
+    REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
+    REQUIRE(sqlite3_exec(db,
+                         "PRAGMA foreign_keys = OFF; INSERT INTO relief_level_scan(scan_id, levels) VALUES(77, 2); "
+                         "INSERT INTO relief_level_chunk(level, ix, iy, iz, seq, scan_id, input_points, "
+                         "decoded_points, codec, crc32, blob) VALUES(1, 50, 50, 50, 0, 77, 0, 0, 1, 0, x'00')",
+                         nullptr, nullptr, nullptr) == SQLITE_OK);
+    sqlite3_close(db);
+  }
+  REQUIRE(level_rows(path).at(77) == 1);
+  auto reader = ArchiveReader::open(path);  // another connection stays open
+  REQUIRE(reader.is_ok());
+  {
+    auto writer = Archive::open(path, Archive::Mode::kReadWrite);
+    REQUIRE(writer.is_ok());
+  }
+  CHECK(level_rows(path) == rows);
 }

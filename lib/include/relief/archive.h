@@ -168,6 +168,9 @@ class Archive {
   // Opens an existing archive. Not a SQLite file, not a Relief archive (wrong
   // application_id) -> kFormatError naming the file; a newer format version ->
   // kUnsupported. Read-only handles may be opened while a writer appends (WAL).
+  // Opening for writing removes pyramid rows no reader uses: always those of
+  // scans that are gone, and, when no other connection has the file open,
+  // those of unfinished pyramids (format-spec/archive.md §9).
   static Result<std::unique_ptr<Archive>> open(const std::string& path, Mode mode);
 
   virtual ~Archive() = default;
@@ -204,7 +207,8 @@ class Archive {
   // many points as the one below is not stored): from then on readers use
   // it. Until then its level rows are ignored.
   virtual Status finish_pyramid(std::int64_t scan_id, std::uint64_t levels) = 0;
-  // Removes the scan's pyramid (rows and record), e.g. before a rebuild.
+  // Removes the scan's pyramid (rows and record, finished or not), e.g.
+  // before a rebuild (build_pyramid starts with it).
   virtual Status remove_pyramid(std::int64_t scan_id) = 0;
 
   // ---- Reading.
