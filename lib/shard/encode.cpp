@@ -58,7 +58,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   }
   // In input order, each file in read order: the order compress_files sees.
   PointCloud points;
-  points.reserve(static_cast<std::size_t>(total), plan.colors, plan.intensity);
+  points.reserve(static_cast<std::size_t>(total), layout.colors, layout.intensity);
   reserve_las(points.las, static_cast<std::size_t>(total), layout.las, layout.extra_size);
   for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
     RELIEF_RETURN_IF_ERROR(shard::read_partition_file(base + "/" + partition_file_name(i, range), plan_id, i, range,
@@ -90,7 +90,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     return s;
   };
   // The scan's attributes as compress records them, LAS metadata included.
-  auto scan_id = archive->begin_scan(sources, plan.scan_attributes());
+  auto scan_id = archive->begin_scan(sources, plan.attributes);
   if (!scan_id) return failed(scan_id.status());
   PipelineTotals totals;
   {
@@ -99,7 +99,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     if (Status s = pipeline.run(std::move(tasks), nullptr); !s) return failed(s);
     totals = pipeline.totals();
   }
-  if (Status s = finish_scan(*archive, *scan_id, plan.colors, plan.intensity, plan.crs); !s) return failed(s);
+  if (Status s = finish_scan(*archive, *scan_id, plan.attributes.has_colors, plan.attributes.has_intensity, plan.attributes.crs); !s) return failed(s);
   archive.reset();  // closed: SQLite folds its WAL into the file
   // No journal of an earlier file of that name may be replayed into this one.
   for (const char* suffix : {"-wal", "-journal"}) ::unlink((out + suffix).c_str());

@@ -211,10 +211,11 @@ namespace shard {
 
 PartitionLayout PartitionLayout::of(const ShardPlan& plan) {
   PartitionLayout l;
-  l.colors = plan.colors;
-  l.intensity = plan.intensity;
-  l.las = plan.las_attributes;
-  l.extra_size = (plan.las_attributes & kLasExtraBytes) != 0 ? plan.extra_bytes_size : 0;
+  const ScanAttributes& a = plan.attributes;
+  l.colors = a.has_colors;
+  l.intensity = a.has_intensity;
+  l.las = a.las_attributes;
+  l.extra_size = (a.las_attributes & kLasExtraBytes) != 0 ? a.extra_bytes_size : 0;
   return l;
 }
 
@@ -346,13 +347,14 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
   const std::string& path = plan.sources[input].path;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, plan.reader_options()));
   const PointStreamInfo& info = reader->info();
+  const ScanAttributes& a = plan.attributes;
   // The plan's LAS set is the union of the inputs' (colour low bytes only
   // with colours), with one Extra Bytes layout.
   const std::uint32_t las_outside =
-      info.las_attributes & ~plan.las_attributes & ~(plan.colors ? 0u : std::uint32_t{kLasColorLow});
+      info.las_attributes & ~a.las_attributes & ~(a.has_colors ? 0u : std::uint32_t{kLasColorLow});
   const bool other_extra = (info.las_attributes & kLasExtraBytes) != 0 &&
-                           (info.extra_bytes_size != plan.extra_bytes_size || info.extra_bytes_vlr != plan.extra_bytes_vlr);
-  if ((plan.colors && !info.has_colors) || (plan.intensity && !info.has_intensity) ||
+                           (info.extra_bytes_size != a.extra_bytes_size || info.extra_bytes_vlr != a.extra_bytes_vlr);
+  if ((a.has_colors && !info.has_colors) || (a.has_intensity && !info.has_intensity) ||
       info.format != plan.sources[input].format || las_outside != 0 || other_extra) {
     return invalid_argument(path + ": is not the file the plan was made from (format or attributes differ)");
   }
@@ -383,9 +385,9 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
   for (;;) {
     RELIEF_ASSIGN_OR_RETURN(const std::size_t got, reader->read(batch, kReadBatch));
     if (got == 0) break;
-    RELIEF_RETURN_IF_ERROR(stage_points(batch, limit, path, read, plan.colors, plan.intensity, params));
+    RELIEF_RETURN_IF_ERROR(stage_points(batch, limit, path, read, a.has_colors, a.has_intensity, params));
     // The plan's LAS attributes, those this input lacks as 0 (as compress).
-    conform_las(batch, plan.las_attributes, layout.extra_size);
+    conform_las(batch, a.las_attributes, layout.extra_size);
     read += got;
     keys.resize(batch.size());
     plan.grid.keys_of(batch.positions.data(), batch.size(), keys.data());
@@ -403,12 +405,12 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
       w.f64(p.x);
       w.f64(p.y);
       w.f64(p.z);
-      if (plan.colors) {
+      if (a.has_colors) {
         w.u8(batch.colors[i].r);
         w.u8(batch.colors[i].g);
         w.u8(batch.colors[i].b);
       }
-      if (plan.intensity) w.f32(batch.intensities[i]);
+      if (a.has_intensity) w.f32(batch.intensities[i]);
       if (layout.las != 0) {
         for_each_las_column(batch.las, [&](const auto& v, std::uint32_t bit) {
           if ((layout.las & bit) != 0) put_value(w, v[i]);

@@ -56,20 +56,6 @@ constexpr std::size_t kMaxExtraBytesVlrBytes = 65535;
 
 }  // namespace
 
-ScanAttributes ShardPlan::scan_attributes() const {
-  ScanAttributes a;
-  a.has_colors = colors;
-  a.has_intensity = intensity;
-  a.crs = crs;
-  a.las_attributes = las_attributes;
-  a.las_point_format = las_point_format;
-  a.las_version_minor = las_version_minor;
-  a.extra_bytes_vlr = extra_bytes_vlr;
-  a.extra_bytes_size = extra_bytes_size;
-  a.las_colors_8bit = las_colors_8bit;
-  return a;
-}
-
 std::uint32_t ShardPlan::range_of(const ChunkKey& key) const {
   const auto it = std::upper_bound(range_starts.begin() + 1, range_starts.end(), key);
   return static_cast<std::uint32_t>(it - range_starts.begin() - 1);
@@ -99,7 +85,8 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
   PointCloud first;
   OrderFreeSample sample;
   RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, o, in, first, &sample));
-  ScanAttributes scan = scan_attributes(in);
+  ShardPlan plan;
+  plan.attributes = scan_attributes(in);
   // Whether a LAS input stored 8-bit colour levels is known once it has
   // returned points (its reader samples the file's first points, whatever
   // the batch size): the sample pass read every input, so its readers know.
@@ -116,20 +103,10 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
     any_rgb = true;
     all_8bit = all_8bit && sample.las_colors_8bit[i];
   }
-  scan.las_colors_8bit = any_rgb && all_8bit;
-  ShardPlan plan;
+  plan.attributes.las_colors_8bit = any_rgb && all_8bit;
   plan.creator = o.creator;
   plan.archive_params = encode_params_to_string(built.params);
   plan.grid = built.grid;
-  plan.colors = in.colors;
-  plan.intensity = in.intensity;
-  plan.crs = in.crs;
-  plan.las_attributes = scan.las_attributes;
-  plan.las_point_format = scan.las_point_format;
-  plan.las_version_minor = scan.las_version_minor;
-  plan.extra_bytes_vlr = scan.extra_bytes_vlr;
-  plan.extra_bytes_size = scan.extra_bytes_size;
-  plan.las_colors_8bit = scan.las_colors_8bit;
   // compress_files' with_intensity_range over the same points.
   const EncodeParams chunk_params =
       with_intensity_range(built.params, in.intensity, sample.intensity_lo, sample.intensity_hi);
@@ -199,15 +176,16 @@ std::string shard_plan_text(const ShardPlan& plan) {
   if (plan.has_intensity_range) line("intensity_range", {number(plan.intensity_lo), number(plan.intensity_hi)});
   line("grid", {number(plan.grid.origin.x), number(plan.grid.origin.y), number(plan.grid.origin.z),
                 number(plan.grid.chunk_edge)});
-  line("attributes", {plan.colors ? "1" : "0", plan.intensity ? "1" : "0"});
+  const ScanAttributes& a = plan.attributes;
+  line("attributes", {a.has_colors ? "1" : "0", a.has_intensity ? "1" : "0"});
   if (plan.has_las()) {
-    line("las", {las_attribute_list(plan.las_attributes), std::to_string(plan.las_point_format),
-                 std::to_string(plan.las_version_minor), plan.las_colors_8bit ? "1" : "0"});
-    if ((plan.las_attributes & kLasExtraBytes) != 0) {
-      line("extra_bytes", {std::to_string(plan.extra_bytes_size), hex_lower(plan.extra_bytes_vlr)});
+    line("las", {las_attribute_list(a.las_attributes), std::to_string(a.las_point_format),
+                 std::to_string(a.las_version_minor), a.las_colors_8bit ? "1" : "0"});
+    if ((a.las_attributes & kLasExtraBytes) != 0) {
+      line("extra_bytes", {std::to_string(a.extra_bytes_size), hex_lower(a.extra_bytes_vlr)});
     }
   }
-  line("crs", {plan.crs});
+  line("crs", {a.crs});
   line("split_points", {std::to_string(plan.split_points)});
   if (plan.has_xyz_columns) line("xyz_columns", {plan.xyz_columns});
   line("points", {std::to_string(plan.points)});
@@ -244,6 +222,7 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
   }
   const bool v2 = version != "1";
   ShardPlan plan;
+  ScanAttributes& a = plan.attributes;
   constexpr std::int64_t kLowest = std::numeric_limits<std::int64_t>::min();
   plan.range_starts.push_back(ChunkKey{kLowest, kLowest, kLowest});
   std::uint64_t declared_ranges = 0;
@@ -311,15 +290,15 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       have_grid = true;
     } else if (l.key == "attributes") {
       RELIEF_RETURN_IF_ERROR(want(2));
-      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[0], plan.colors));
-      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[1], plan.intensity));
+      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[0], a.has_colors));
+      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[1], a.has_intensity));
     } else if (l.key == "las") {
       if (!v2) return bad(n, "a version 1 plan has no 'las' line");
       if (have_las) return bad(n, "a second 'las' line");
       RELIEF_RETURN_IF_ERROR(want(4));
-      plan.las_attributes = las_attributes_from_list(l.fields[0]);
+      a.las_attributes = las_attributes_from_list(l.fields[0]);
       // Strict: every name known, in bit order, each once.
-      if (las_attribute_list(plan.las_attributes) != l.fields[0]) {
+      if (las_attribute_list(a.las_attributes) != l.fields[0]) {
         return bad(n, "not a list of LAS attribute names: " + l.fields[0]);
       }
       std::int64_t format = 0, minor = 0;
@@ -327,9 +306,9 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       RELIEF_RETURN_IF_ERROR(parse_int(l.fields[2], minor));
       if (format < -1 || format > kMaxLasPointFormat) return bad(n, "LAS point format out of range");
       if (minor < -1 || minor > kMaxLasVersionMinor) return bad(n, "LAS minor version out of range");
-      plan.las_point_format = static_cast<int>(format);
-      plan.las_version_minor = static_cast<int>(minor);
-      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[3], plan.las_colors_8bit));
+      a.las_point_format = static_cast<int>(format);
+      a.las_version_minor = static_cast<int>(minor);
+      RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[3], a.las_colors_8bit));
       have_las = true;
     } else if (l.key == "extra_bytes") {
       if (!have_las) return bad(n, "'extra_bytes' before (or without) the 'las' line");
@@ -338,14 +317,14 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       std::int64_t size = 0;
       RELIEF_RETURN_IF_ERROR(parse_int(l.fields[0], size));
       if (size < 1 || size > kMaxExtraBytesSize) return bad(n, "extra bytes per point out of range (1..65535)");
-      plan.extra_bytes_size = static_cast<std::uint32_t>(size);
-      if (l.fields[1].size() > 2 * kMaxExtraBytesVlrBytes || !decode_vlr_hex(l.fields[1], plan.extra_bytes_vlr)) {
+      a.extra_bytes_size = static_cast<std::uint32_t>(size);
+      if (l.fields[1].size() > 2 * kMaxExtraBytesVlrBytes || !decode_vlr_hex(l.fields[1], a.extra_bytes_vlr)) {
         return bad(n, "the Extra Bytes VLR is not lower-case hexadecimal of at most 65535 bytes");
       }
       have_extra = true;
     } else if (l.key == "crs") {
       RELIEF_RETURN_IF_ERROR(want(1));
-      plan.crs = l.fields[0];
+      a.crs = l.fields[0];
     } else if (l.key == "split_points") {
       RELIEF_RETURN_IF_ERROR(want(1));
       std::int64_t v = 0;
@@ -400,10 +379,10 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
   if (have_las && !plan.has_las()) {
     return format_error(path + ": a 'las' line without LAS metadata (such a plan is written as version 1)");
   }
-  if (((plan.las_attributes & kLasExtraBytes) != 0) != have_extra) {
+  if (((a.las_attributes & kLasExtraBytes) != 0) != have_extra) {
     return format_error(path + ": the 'las' line and the 'extra_bytes' line disagree on extra bytes");
   }
-  if ((plan.las_attributes & kLasColorLow) != 0 && !plan.colors) {
+  if ((a.las_attributes & kLasColorLow) != 0 && !a.has_colors) {
     return format_error(path + ": LAS colour low bytes without colours");
   }
   if (declared_ranges != plan.range_starts.size()) {

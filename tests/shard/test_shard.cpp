@@ -307,7 +307,7 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attr
       const std::string work = dir.file("work" + std::to_string(ranges));
       ShardPlan plan;
       const std::vector<std::string> shards = build_shards(inputs, o, ranges, work, &plan);
-      CHECK(plan.las_attributes == want_info.las_attributes);
+      CHECK(plan.attributes.las_attributes == want_info.las_attributes);
       if (want.size() >= 8) CHECK(plan.range_count() == ranges);
       CHECK(shard_plan_text(plan).rfind("relief-shard-plan\t2\n", 0) == 0);
       auto merged = merge_archives(shards, work + "/merged.relief");
@@ -536,7 +536,7 @@ TEST_CASE("sharded build: LAS inputs, refused and damaged as compress and the sp
     ShardPlan plan;
     const std::vector<std::string> shards = build_shards({a, b}, o, 2, dir.file("w"), &plan);
     REQUIRE(plan.range_count() == 2);
-    REQUIRE(plan.extra_bytes_size == 3);
+    REQUIRE(plan.attributes.extra_bytes_size == 3);
     const std::string parts = dir.file("w/parts");
     const std::string file = parts + "/" + partition_file_name(1, 1);
     const std::vector<std::uint8_t> good = file_bytes(file);
@@ -633,7 +633,7 @@ TEST_CASE("sharded build: LAS inputs, refused and damaged as compress and the sp
     REQUIRE(r.is_ok());
     CHECK(shard_plan_text(*r) == text);
     const std::vector<std::uint8_t> vlr = extra_vlr();
-    CHECK(r->extra_bytes_vlr == std::string(vlr.begin(), vlr.end()));
+    CHECK(r->attributes.extra_bytes_vlr == std::string(vlr.begin(), vlr.end()));
   }
 }
 

@@ -46,20 +46,13 @@ struct ShardPlan {
   bool has_intensity_range = false;
   float intensity_lo = 0, intensity_hi = 0;
   ArchiveGrid grid;
-  bool colors = false;
-  bool intensity = false;
-  std::string crs;  // WKT2, empty when none
-  // The LAS attributes of the scan, as a one-box compress records them
-  // (ScanAttributes): the union of the inputs' sets (a point of an input
-  // without one carries 0), the widest point format, the highest minor
-  // version, the one Extra Bytes layout (raw VLR payload and bytes per
+  // What the shard's scan records (Archive::begin_scan), as a one-box
+  // compress records it: colours, intensity, the CRS (WKT2, empty when none)
+  // and the LAS metadata: the union of the inputs' attribute sets (a point of
+  // an input without one carries 0), the widest point format, the highest
+  // minor version, the one Extra Bytes layout (raw VLR payload and bytes per
   // point) and whether the LAS sources stored 8-bit colour levels.
-  std::uint32_t las_attributes = 0;
-  int las_point_format = -1;
-  int las_version_minor = -1;
-  std::string extra_bytes_vlr;
-  std::uint32_t extra_bytes_size = 0;
-  bool las_colors_8bit = false;
+  ScanAttributes attributes;
   std::uint64_t split_points = kMaxBoundedChunkPoints;
   bool has_xyz_columns = false;
   std::string xyz_columns;
@@ -78,10 +71,10 @@ struct ShardPlan {
   std::uint32_t range_of(const ChunkKey& key) const;
   // The reader options every stage opens the inputs with.
   ReaderOptions reader_options() const;
-  // What the shard's scan records (Archive::begin_scan).
-  ScanAttributes scan_attributes() const;
   // Whether the plan records LAS metadata (then it is a version 2 plan).
-  bool has_las() const { return las_attributes != 0 || las_point_format >= 0 || las_version_minor >= 0; }
+  bool has_las() const {
+    return attributes.las_attributes != 0 || attributes.las_point_format >= 0 || attributes.las_version_minor >= 0;
+  }
 };
 
 struct ShardPlanOptions {
