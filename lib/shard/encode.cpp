@@ -99,7 +99,11 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     if (Status s = pipeline.run(std::move(tasks), nullptr); !s) return failed(s);
     totals = pipeline.totals();
   }
-  if (Status s = finish_scan(*archive, *scan_id, plan.attributes.has_colors, plan.attributes.has_intensity, plan.attributes.crs); !s) return failed(s);
+  const ScanAttributes& attributes = plan.attributes;
+  if (Status s = finish_scan(*archive, *scan_id, attributes.has_colors, attributes.has_intensity, attributes.crs);
+      !s) {
+    return failed(s);
+  }
   archive.reset();  // closed: SQLite folds its WAL into the file
   // No journal of an earlier file of that name may be replayed into this one.
   for (const char* suffix : {"-wal", "-journal"}) ::unlink((out + suffix).c_str());

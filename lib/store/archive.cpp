@@ -1020,22 +1020,24 @@ Result<bool> SqliteArchive::only_connection() {
 // finished (its record is there).
 Status SqliteArchive::remove_unused_level_rows(std::int64_t unused_up_to) {
   const std::string unused_rows =
-      " FROM relief_level_chunk AS c WHERE NOT EXISTS (SELECT 1 FROM relief_scan AS s WHERE s.id = c.scan_id) OR "
-      "(c.id <= " + std::to_string(unused_up_to) +
+      " FROM relief_level_chunk AS c WHERE NOT EXISTS (SELECT 1 FROM relief_scan AS s WHERE s.id = "
+      "c.scan_id) OR (c.id <= " + std::to_string(unused_up_to) +
       " AND NOT EXISTS (SELECT 1 FROM relief_level_scan AS l WHERE l.scan_id = c.scan_id AND "
       "(l.levels >> c.level) & 1 = 1))";
   const std::string stale_records =
       " FROM relief_level_scan AS l WHERE NOT EXISTS (SELECT 1 FROM relief_scan AS s WHERE s.id = l.scan_id)";
   // Most opens find nothing: look before taking the write lock.
   for (const std::string& where : {unused_rows, stale_records}) {
-    RELIEF_ASSIGN_OR_RETURN(const std::int64_t count, pragma_integer(db(), ("SELECT COUNT(*)" + where).c_str(), path_));
+    const std::string count_sql = "SELECT COUNT(*)" + where;
+    RELIEF_ASSIGN_OR_RETURN(const std::int64_t count, pragma_integer(db(), count_sql.c_str(), path_));
     if (count == 0) continue;
     Transaction transaction(db(), path_);
     RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
     // Records first, as everywhere (§9).
-    RELIEF_RETURN_IF_ERROR(store::exec(db(), ("DELETE" + stale_records).c_str(), path_, "remove unused pyramid records"));
-    RELIEF_RETURN_IF_ERROR(store::exec(db(), ("DELETE FROM relief_level_chunk WHERE id IN (SELECT c.id" + unused_rows + ")").c_str(),
-                                       path_, "remove unused pyramid rows"));
+    const std::string records_sql = "DELETE" + stale_records;
+    const std::string rows_sql = "DELETE FROM relief_level_chunk WHERE id IN (SELECT c.id" + unused_rows + ")";
+    RELIEF_RETURN_IF_ERROR(store::exec(db(), records_sql.c_str(), path_, "remove unused pyramid records"));
+    RELIEF_RETURN_IF_ERROR(store::exec(db(), rows_sql.c_str(), path_, "remove unused pyramid rows"));
     return transaction.commit();
   }
   return Status::ok();

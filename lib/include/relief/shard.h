@@ -73,7 +73,8 @@ struct ShardPlan {
   ReaderOptions reader_options() const;
   // Whether the plan records LAS metadata (then it is a version 2 plan).
   bool has_las() const {
-    return attributes.las_attributes != 0 || attributes.las_point_format >= 0 || attributes.las_version_minor >= 0;
+    return attributes.las_attributes != 0 || attributes.las_point_format >= 0 ||
+           attributes.las_version_minor >= 0;
   }
 };
 
