@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <memory>
 #include <string>
 
@@ -89,20 +90,19 @@ class PlaneMemory {
   // +1 only in the upper half, 0 no (near) memory or both halves.
   int predict(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v) const {
     const Entry& e = table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)];
-    if (e.generation != generation_ || e.halves == 0 || e.plane != plane) return 0;
+    if (e.generation != generation_ || e.plane != plane) return 0;
     const std::uint32_t du = e.u > u ? e.u - u : u - e.u;
     const std::uint32_t dv = e.v > v ? e.v - v : v - e.v;
-    if (du + dv > kReach) return 0;
-    return e.halves == 1 ? -1 : (e.halves == 2 ? 1 : 0);
+    return du + dv > kReach ? 0 : e.prediction;
   }
-  void remember(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v, std::uint8_t halves) {
-    table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)] = {plane, u, v, halves, generation_};
-  }
+  // `byte`: the node's child byte (never 0).
+  void remember(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v, std::uint8_t byte);
 
  private:
   struct Entry {
     std::uint32_t plane = 0, u = 0, v = 0;
-    std::uint8_t halves = 0;  // bit 0: lower half occupied, bit 1: upper
+    // What the node predicts along the axis (-1, 0, +1, as predict()).
+    std::int8_t prediction = 0;
     std::uint8_t generation = 0;
   };
   std::array<std::array<Entry, kSize>, 3> table_{};
@@ -111,6 +111,25 @@ class PlaneMemory {
 
 // Child bits with c along `axis` set, for the halves test.
 constexpr std::uint8_t kUpperHalf[3] = {0xAA, 0xCC, 0xF0};
+
+// A child byte's plane prediction along each axis: -1 with children only in
+// the lower half, +1 only in the upper half, 0 in both (or none).
+constexpr auto kHalvesPrediction = [] {
+  std::array<std::array<std::int8_t, 256>, 3> t{};
+  for (int a = 0; a < 3; ++a) {
+    for (int byte = 0; byte < 256; ++byte) {
+      const bool lower = (byte & ~kUpperHalf[a] & 0xFF) != 0, upper = (byte & kUpperHalf[a]) != 0;
+      t[static_cast<std::size_t>(a)][static_cast<std::size_t>(byte)] =
+          static_cast<std::int8_t>(lower && !upper ? -1 : (upper && !lower ? 1 : 0));
+    }
+  }
+  return t;
+}();
+
+void PlaneMemory::remember(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v, std::uint8_t byte) {
+  table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)] = {
+      plane, u, v, kHalvesPrediction[static_cast<std::size_t>(axis)][byte], generation_};
+}
 
 // The pieces of a child bit's context (format-spec/chunk.md), as tables so a
 // node computes them once for its 8 children. Each "spread" word holds one
@@ -194,6 +213,9 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
   std::vector<std::uint8_t> lone, next_lone;
   std::vector<std::uint32_t> first;
   std::vector<std::uint64_t> next;
+  // Per node of the current level: its cell coordinates at the level (a
+  // child's are its parent's doubled plus its bit along each axis).
+  std::vector<std::array<std::uint32_t, 3>> xyz_of(1, {0, 0, 0}), next_xyz;
   auto planes = std::make_unique<PlaneMemory>();
   lone.assign(1, 0);
   for (int d = 0; d < depth; ++d) {
@@ -216,8 +238,7 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
       // Bit q: face neighbour q exists.
       unsigned faces_mask = 0;
       for (int q = 0; q < 6; ++q) faces_mask |= (n6[q] != kMissing ? 1u : 0u) << q;
-      const std::uint64_t key = nodes[i];
-      const std::uint32_t xyz[3] = {compact_bits3(key), compact_bits3(key >> 1), compact_bits3(key >> 2)};
+      const std::array<std::uint32_t, 3> xyz = xyz_of[i];
       int plane_pred[3];
       for (int a = 0; a < 3; ++a) plane_pred[a] = planes->predict(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3]);
       const std::uint8_t truth = true_byte(d, i);
@@ -272,35 +293,38 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
       if (byte == 0) return false;
       occ[i] = byte;
       if (single_mode) next_lone.insert(next_lone.end(), kBitCount[byte], kBitCount[byte] == 1 ? 1 : 0);
-      for (int a = 0; a < 3; ++a) {
-        const std::uint8_t halves = static_cast<std::uint8_t>(((byte & ~kUpperHalf[a] & 0xFF) ? 1 : 0) |
-                                                              ((byte & kUpperHalf[a]) ? 2 : 0));
-        planes->remember(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3], halves);
-      }
+      for (int a = 0; a < 3; ++a) planes->remember(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3], byte);
       if (!grow(next_count)) return false;
     }
-    // Neighbours of the next level.
     next.resize(next_count);
-    next_nb.assign(6 * next_count, kMissing);
-    for (std::size_t i = 0; i < count; ++i) {
-      const std::uint8_t byte = occ[i];
-      const std::uint32_t* n6 = &nb[6 * i];
-      for (int k = 0; k < 8; ++k) {
-        const std::uint32_t ci = child_index(byte, first[i], k);
-        if (ci == kMissing) continue;
-        std::uint32_t* out = &next_nb[6 * static_cast<std::size_t>(ci)];
-        for (int a = 0; a < 3; ++a) {
-          const int c = (k >> a) & 1;
-          const int sibling = k ^ (1 << a);
-          // Towards the sibling's side: inside this node.
-          out[2 * a + (1 - c)] = child_index(byte, first[i], sibling);
-          // Away from it: a child of the neighbour on that side.
-          const std::uint32_t m = n6[2 * a + c];
-          out[2 * a + c] = m != kMissing ? child_index(occ[m], first[m], sibling) : kMissing;
+    // Neighbours and coordinates of the next level (none after the last).
+    if (d + 1 < depth) {
+      next_nb.assign(6 * next_count, kMissing);
+      next_xyz.resize(next_count);
+      for (std::size_t i = 0; i < count; ++i) {
+        const std::uint8_t byte = occ[i];
+        const std::uint32_t* n6 = &nb[6 * i];
+        const std::array<std::uint32_t, 3> xyz = xyz_of[i];
+        std::uint32_t ci = first[i];  // the children, in k order
+        for (unsigned bits = byte; bits != 0; bits &= bits - 1, ++ci) {
+          const int k = std::countr_zero(bits);
+          std::uint32_t* out = &next_nb[6 * static_cast<std::size_t>(ci)];
+          for (int a = 0; a < 3; ++a) {
+            const int c = (k >> a) & 1;
+            const int sibling = k ^ (1 << a);
+            // Towards the sibling's side: inside this node.
+            out[2 * a + (1 - c)] = child_index(byte, first[i], sibling);
+            // Away from it: a child of the neighbour on that side.
+            const std::uint32_t m = n6[2 * a + c];
+            out[2 * a + c] = m != kMissing ? child_index(occ[m], first[m], sibling) : kMissing;
+          }
+          next_xyz[ci] = {2 * xyz[0] + static_cast<std::uint32_t>(k & 1), 2 * xyz[1] + static_cast<std::uint32_t>((k >> 1) & 1),
+                          2 * xyz[2] + static_cast<std::uint32_t>(k >> 2)};
         }
       }
     }
     nb.swap(next_nb);
+    xyz_of.swap(next_xyz);
     nodes.swap(next);
     lone.swap(next_lone);
   }
