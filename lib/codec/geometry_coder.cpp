@@ -256,11 +256,13 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
       if (single) {
         // The child's index, z bit first: node t of the binary tree (1, then 2t + bit).
         const int truth_k = kBitCount[truth] == 1 ? kBitCount[static_cast<std::uint8_t>(truth - 1)] : 0;
+        // ctx = ((((t * 3 + pred + 1) * 4 + faces) * 2 + minus) << 2) | to_leaves,
+        // of which all but t is the axis's.
         int t = 1;
         for (int a = 2; a >= 0; --a) {
           const int faces_a = static_cast<int>((faces_mask >> (2 * a)) & 3);
-          const int ctx = ((((t * 3 + plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2) |
-                          to_leaves;
+          const int axis_part = (((plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2;
+          const int ctx = ((t * 24) << 2) + axis_part + to_leaves;
           t = 2 * t + code(models.single_index[ctx], (truth_k >> a) & 1);
         }
         const int k = t - 8;

@@ -50,9 +50,12 @@ struct BitModel {
   std::uint16_t slow = kProbOne / 2;
   std::uint8_t seen = 0;
 
+  // Clamped to [kProbMin, kProbMax]. Only the upper bound can bind: from the
+  // initial state no sequence of bits takes `fast` below 15 or `slow` below
+  // 127 (test_range_coder.cpp explores every reachable state), so p >= 71.
   std::uint32_t p0() const {
     const std::uint32_t p = (static_cast<std::uint32_t>(fast) + slow) >> 1;
-    return p < kProbMin ? kProbMin : (p > kProbMax ? kProbMax : p);
+    return p > kProbMax ? kProbMax : p;
   }
   // Without branches (the bit is what the coder cannot predict): a 1 moves
   // each estimate down by p >> shift, a 0 up by (2^16 - 1 - p) >> shift.

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <memory>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "codec/range_coder.h"
@@ -81,6 +82,39 @@ TEST_CASE("BitModel adapts as the format states, for every state and bit", "[cod
       }
     }
   }
+}
+
+TEST_CASE("no sequence of bits takes a BitModel's probability below kProbMin", "[coders][range]") {
+  // p0() clamps only from above; this is why it may. Each estimate adapts on
+  // its own, so explore the states (value, seen) each can reach from the
+  // initial one and take the smallest values.
+  const auto smallest_reachable = [](int limit) {
+    std::vector<std::uint8_t> seen_state(std::size_t{relief::codec::kProbOne} * (relief::codec::kSlowShift + 1), 0);
+    std::vector<std::pair<std::uint16_t, int>> stack = {{relief::codec::kProbOne / 2, 0}};
+    std::uint32_t smallest = relief::codec::kProbOne;
+    while (!stack.empty()) {
+      const auto [p, seen] = stack.back();
+      stack.pop_back();
+      std::uint8_t& mark = seen_state[static_cast<std::size_t>(seen) * relief::codec::kProbOne + p];
+      if (mark != 0) continue;
+      mark = 1;
+      smallest = std::min<std::uint32_t>(smallest, p);
+      for (const int bit : {0, 1}) {
+        stack.emplace_back(spec_update(p, seen, limit, bit), std::min(seen + 1, relief::codec::kSlowShift));
+      }
+    }
+    return smallest;
+  };
+  const std::uint32_t fast = smallest_reachable(relief::codec::kFastShift);
+  const std::uint32_t slow = smallest_reachable(relief::codec::kSlowShift);
+  INFO("smallest fast " << fast << ", smallest slow " << slow);
+  CHECK((fast + slow) / 2 >= relief::codec::kProbMin);
+  // And the model agrees: p0() of the lowest state is the unclamped mean.
+  BitModel m;
+  for (int i = 0; i < 4000; ++i) m.update(1);
+  CHECK(m.fast == fast);
+  CHECK(m.slow == slow);
+  CHECK(m.p0() == (fast + slow) / 2);
 }
 
 TEST_CASE("encode_uint writes the format's Exp-Golomb code and decode_uint reads it back", "[coders][range]") {
