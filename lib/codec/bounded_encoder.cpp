@@ -196,10 +196,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (las_bits != 0) {
     std::vector<std::uint32_t> perm(n);
     for (std::size_t k = 0; k < n; ++k) perm[k] = order[k].index;
-    PointCloud only_las;
-    only_las.positions.resize(cloud.size());  // gathered() keys the point count on positions
-    only_las.las = cloud.las;
-    const LasAttributes ordered = only_las.gathered(perm).las;
+    // (Gathering the whole cloud costs less than copying its LAS attributes
+    // out first: positions, colours and intensities are a few bytes a point.)
+    const LasAttributes ordered = cloud.gathered(perm).las;
     std::vector<CellXyz> point_cells;
     if (las_bits & kLasGpsTime) {
       point_cells.resize(n);

@@ -42,11 +42,10 @@ void encode_uint(RangeEncoder& enc, UIntModel& m, std::uint64_t v) {
 }
 
 bool decode_uint(RangeDecoder& dec, UIntModel& m, std::uint64_t& v) {
+  // Exhaustion only grows, so one check after the (at most 128) decisions
+  // gives the answer checks after each would.
   int n = 0;
-  while (n < kMaxPrefix && dec.decode(m.prefix[n])) {
-    ++n;
-    if (dec.exhausted()) return false;
-  }
+  while (n < kMaxPrefix && dec.decode(m.prefix[n])) ++n;
   // The n bits below the leading one.
   std::uint64_t low = 0;
   const int modelled = n < kModelledSuffixBits ? n : kModelledSuffixBits;
