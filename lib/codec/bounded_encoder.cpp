@@ -39,6 +39,14 @@ Status check_bound(const ErrorBound& b) {
   return Status::ok();
 }
 
+// std::llround(t) for |t| < kMaxQuantIndex, without the library call: the
+// fraction t - trunc(t) is exact in double arithmetic.
+std::int64_t round_half_away(double t) {
+  const auto i = static_cast<std::int64_t>(t);
+  const double frac = t - static_cast<double>(i);
+  return i + (frac >= 0.5 ? 1 : 0) - (frac <= -0.5 ? 1 : 0);
+}
+
 std::uint32_t float_bits(float v) {
   std::uint32_t u = 0;
   std::memcpy(&u, &v, sizeof u);
@@ -97,7 +105,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         return invalid_argument("chunk: point " + std::to_string(i) + " lies " + std::to_string(c[a]) +
                                 " from the quantisation origin, more than 4e18 steps of " + std::to_string(steps[a]));
       }
-      const std::int64_t v = std::llround(t);
+      const std::int64_t v = round_half_away(t);
       q[3 * i + a] = v;
       lo[a] = std::min(lo[a], v);
       hi[a] = std::max(hi[a], v);
@@ -188,10 +196,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (las_bits != 0) {
     std::vector<std::uint32_t> perm(n);
     for (std::size_t k = 0; k < n; ++k) perm[k] = order[k].index;
-    PointCloud only_las;
-    only_las.positions.resize(cloud.size());  // gathered() keys the point count on positions
-    only_las.las = cloud.las;
-    const LasAttributes ordered = only_las.gathered(perm).las;
+    // (Gathering the whole cloud costs less than copying its LAS attributes
+    // out first: positions, colours and intensities are a few bytes a point.)
+    const LasAttributes ordered = cloud.gathered(perm).las;
     std::vector<CellXyz> point_cells;
     if (las_bits & kLasGpsTime) {
       point_cells.resize(n);

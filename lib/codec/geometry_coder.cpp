@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <memory>
 #include <string>
 
@@ -76,33 +77,125 @@ class PlaneMemory {
   // Closer than this (Manhattan, in node units) a remembered node predicts.
   static constexpr std::uint32_t kReach = 32;
 
+  // Forgets everything. Entries are stamped with the generation that wrote
+  // them, so a reset is a new generation rather than a pass over the tables
+  // (which start zeroed, generation 0, before the first reset).
   void reset() {
-    for (auto& t : table_) t.fill(Entry{});
+    if (++generation_ == 0) {
+      for (auto& t : table_) t.fill(Entry{});
+      generation_ = 1;
+    }
   }
   // -1: the remembered node had children only in the lower half along `axis`,
   // +1 only in the upper half, 0 no (near) memory or both halves.
   int predict(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v) const {
     const Entry& e = table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)];
-    if (e.halves == 0 || e.plane != plane) return 0;
+    if (e.generation != generation_ || e.plane != plane) return 0;
     const std::uint32_t du = e.u > u ? e.u - u : u - e.u;
     const std::uint32_t dv = e.v > v ? e.v - v : v - e.v;
-    if (du + dv > kReach) return 0;
-    return e.halves == 1 ? -1 : (e.halves == 2 ? 1 : 0);
+    return du + dv > kReach ? 0 : e.prediction;
   }
-  void remember(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v, std::uint8_t halves) {
-    table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)] = {plane, u, v, halves};
-  }
+  // `byte`: the node's child byte (never 0).
+  void remember(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v, std::uint8_t byte);
 
  private:
   struct Entry {
     std::uint32_t plane = 0, u = 0, v = 0;
-    std::uint8_t halves = 0;  // bit 0: lower half occupied, bit 1: upper
+    // What the node predicts along the axis (-1, 0, +1, as predict()).
+    std::int8_t prediction = 0;
+    std::uint8_t generation = 0;
   };
-  std::array<std::array<Entry, kSize>, 3> table_;
+  std::array<std::array<Entry, kSize>, 3> table_{};
+  std::uint8_t generation_ = 0;
 };
 
 // Child bits with c along `axis` set, for the halves test.
 constexpr std::uint8_t kUpperHalf[3] = {0xAA, 0xCC, 0xF0};
+
+// A child byte's plane prediction along each axis: -1 with children only in
+// the lower half, +1 only in the upper half, 0 in both (or none).
+constexpr auto kHalvesPrediction = [] {
+  std::array<std::array<std::int8_t, 256>, 3> t{};
+  for (int a = 0; a < 3; ++a) {
+    for (int byte = 0; byte < 256; ++byte) {
+      const bool lower = (byte & ~kUpperHalf[a] & 0xFF) != 0, upper = (byte & kUpperHalf[a]) != 0;
+      t[static_cast<std::size_t>(a)][static_cast<std::size_t>(byte)] =
+          static_cast<std::int8_t>(lower && !upper ? -1 : (upper && !lower ? 1 : 0));
+    }
+  }
+  return t;
+}();
+
+void PlaneMemory::remember(int axis, std::uint32_t plane, std::uint32_t u, std::uint32_t v, std::uint8_t byte) {
+  table_[static_cast<std::size_t>(axis)][plane & (kSize - 1)] = {
+      plane, u, v, kHalvesPrediction[static_cast<std::size_t>(axis)][byte], generation_};
+}
+
+// The pieces of a child bit's context (format-spec/chunk.md), as tables so a
+// node computes them once for its 8 children. Each "spread" word holds one
+// byte per child k (byte k).
+//
+// Bits 0-2 (near): axis a's bit is set when the face neighbour on child k's
+// side along a exists; by the node's neighbour mask (bit q: n6[q] present).
+constexpr auto kNearSpread = [] {
+  std::array<std::uint64_t, 64> t{};
+  for (unsigned mask = 0; mask < 64; ++mask) {
+    for (unsigned k = 0; k < 8; ++k) {
+      unsigned near = 0;
+      for (unsigned a = 0; a < 3; ++a) near |= ((mask >> (2 * a + ((k >> a) & 1))) & 1) << a;
+      t[mask] |= std::uint64_t{near} << (8 * k);
+    }
+  }
+  return t;
+}();
+// Bits 3-5 (child_nb), axes where child k is in the lower half: the -a
+// neighbour's child across the face is occupied; by axis and that
+// neighbour's child byte, already in place (<< 3).
+constexpr auto kMinusSpread = [] {
+  std::array<std::array<std::uint64_t, 256>, 3> t{};
+  for (unsigned a = 0; a < 3; ++a) {
+    for (unsigned occ = 0; occ < 256; ++occ) {
+      for (unsigned k = 0; k < 8; ++k) {
+        if ((k >> a) & 1) continue;
+        const unsigned below = (occ >> (k | (1u << a))) & 1;
+        t[a][occ] |= std::uint64_t{below << (3 + a)} << (8 * k);
+      }
+    }
+  }
+  return t;
+}();
+// Bits 3-5, axes where child k is in the upper half: its sibling below is
+// occupied; by k and the bits of the node's byte coded so far (<< 3).
+constexpr auto kPlusNb = [] {
+  std::array<std::array<std::uint8_t, 256>, 8> t{};
+  for (unsigned k = 0; k < 8; ++k) {
+    for (unsigned byte = 0; byte < 256; ++byte) {
+      unsigned nb = 0;
+      for (unsigned a = 0; a < 3; ++a) {
+        if ((k >> a) & 1) nb |= ((byte >> (k ^ (1u << a))) & 1) << a;
+      }
+      t[k][byte] = static_cast<std::uint8_t>(nb << 3);
+    }
+  }
+  return t;
+}();
+// Bits 11-13: score + 3, where score counts +1 per axis whose plane memory
+// puts child k's half occupied and -1 per axis that puts it empty; by the
+// three predictions (each -1, 0, 1) as 9 (p2 + 1) + 3 (p1 + 1) + (p0 + 1).
+constexpr auto kScoreSpread = [] {
+  std::array<std::uint64_t, 27> t{};
+  for (int i = 0; i < 27; ++i) {
+    const int pred[3] = {i % 3 - 1, i / 3 % 3 - 1, i / 9 - 1};
+    for (int k = 0; k < 8; ++k) {
+      int score = 0;
+      for (int a = 0; a < 3; ++a) {
+        if (pred[a] != 0) score += (pred[a] > 0) == (((k >> a) & 1) != 0) ? 1 : -1;
+      }
+      t[static_cast<std::size_t>(i)] |= static_cast<std::uint64_t>(score + 3) << (8 * k);
+    }
+  }
+  return t;
+}();
 
 template <typename Code, typename TrueByte, typename Grow>
 bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
@@ -120,6 +213,9 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
   std::vector<std::uint8_t> lone, next_lone;
   std::vector<std::uint32_t> first;
   std::vector<std::uint64_t> next;
+  // Per node of the current level: its cell coordinates at the level (a
+  // child's are its parent's doubled plus its bit along each axis).
+  std::vector<std::array<std::uint32_t, 3>> xyz_of(1, {0, 0, 0}), next_xyz;
   auto planes = std::make_unique<PlaneMemory>();
   lone.assign(1, 0);
   for (int d = 0; d < depth; ++d) {
@@ -129,105 +225,108 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
     const std::size_t count = nodes.size();
     occ.assign(count, 0);
     first.assign(count, 0);
-    next.clear();
+    // The next level's keys: next[0, next_count), with room for 8 more
+    // kept before each node (a child key is stored before it is known to be
+    // occupied).
+    std::size_t next_count = 0;
     for (std::size_t i = 0; i < count; ++i) {
       const std::uint32_t* n6 = &nb[6 * i];
       // Child bytes of the minus-side neighbours (visited already: lowering
       // one coordinate lowers the Morton key).
       std::uint8_t minus_occ[3];
       for (int a = 0; a < 3; ++a) minus_occ[a] = n6[2 * a] != kMissing ? occ[n6[2 * a]] : 0;
-      const std::uint64_t key = nodes[i];
-      const std::uint32_t xyz[3] = {compact_bits3(key), compact_bits3(key >> 1), compact_bits3(key >> 2)};
+      // Bit q: face neighbour q exists.
+      unsigned faces_mask = 0;
+      for (int q = 0; q < 6; ++q) faces_mask |= (n6[q] != kMissing ? 1u : 0u) << q;
+      const std::array<std::uint32_t, 3> xyz = xyz_of[i];
       int plane_pred[3];
       for (int a = 0; a < 3; ++a) plane_pred[a] = planes->predict(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3]);
       const std::uint8_t truth = true_byte(d, i);
       std::uint8_t byte = 0;
       int siblings = 0;
-      first[i] = static_cast<std::uint32_t>(next.size());
+      if (next.size() < next_count + 8) next.resize(std::max(2 * next.size(), next_count + 8));
+      std::uint64_t* const next_keys = next.data();
+      first[i] = static_cast<std::uint32_t>(next_count);
       bool single = false;
       if (single_mode) {
-        int faces = 0;
-        for (int q = 0; q < 6; ++q) faces += n6[q] != kMissing ? 1 : 0;
+        const int faces = kBitCount[faces_mask];
         const int flag_ctx = (std::min(faces, 3) << 3) | (lone[i] << 2) | to_leaves;
         single = code(models.single_flag[flag_ctx], kBitCount[truth] == 1 ? 1 : 0) != 0;
       }
       if (single) {
         // The child's index, z bit first: node t of the binary tree (1, then 2t + bit).
         const int truth_k = kBitCount[truth] == 1 ? kBitCount[static_cast<std::uint8_t>(truth - 1)] : 0;
+        // ctx = ((((t * 3 + pred + 1) * 4 + faces) * 2 + minus) << 2) | to_leaves,
+        // of which all but t is the axis's.
         int t = 1;
         for (int a = 2; a >= 0; --a) {
-          const int faces_a = (n6[2 * a] != kMissing ? 1 : 0) | (n6[2 * a + 1] != kMissing ? 2 : 0);
-          const int ctx = ((((t * 3 + plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2) |
-                          to_leaves;
+          const int faces_a = static_cast<int>((faces_mask >> (2 * a)) & 3);
+          const int axis_part = (((plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2;
+          const int ctx = ((t * 24) << 2) + axis_part + to_leaves;
           t = 2 * t + code(models.single_index[ctx], (truth_k >> a) & 1);
         }
         const int k = t - 8;
         byte = static_cast<std::uint8_t>(1u << k);
         siblings = 1;
-        next.push_back((nodes[i] << 3) | static_cast<std::uint64_t>(k));
+        next_keys[next_count++] = (nodes[i] << 3) | static_cast<std::uint64_t>(k);
       }
-      for (int k = 0; k < 8 && !single; ++k) {
-        int near = 0, child_nb = 0;
-        for (int a = 0; a < 3; ++a) {
-          const int c = (k >> a) & 1;
-          near |= (n6[2 * a + c] != kMissing ? 1 : 0) << a;
-          int below;  // the child's minus-side neighbour at the child level
-          if (c == 1) {
-            below = (byte >> (k ^ (1 << a))) & 1;
-          } else {
-            below = (minus_occ[a] >> (k | (1 << a))) & 1;
-          }
-          child_nb |= below << a;
-        }
-        // +1 per axis whose plane memory puts this child's half occupied,
-        // -1 per axis that puts it empty.
-        int score = 0;
-        for (int a = 0; a < 3; ++a) {
-          if (plane_pred[a] != 0) score += (plane_pred[a] > 0) == (((k >> a) & 1) != 0) ? 1 : -1;
-        }
-        const int ctx = near | (child_nb << 3) | (k << 6) | (std::min(siblings, 3) << 9) | ((score + 3) << 11);
-        // With single-child coding a coded byte has at least two bits set:
-        // when the bits left are exactly the ones still needed they are 1.
-        const bool forced = single_mode && 8 - k <= 2 - siblings;
-        const int bit = forced ? 1 : code(models.occupancy[ctx], (truth >> k) & 1);
-        if (bit) {
-          byte = static_cast<std::uint8_t>(byte | (1u << k));
-          ++siblings;
-          next.push_back((nodes[i] << 3) | static_cast<std::uint64_t>(k));
+      if (!single) {
+        const std::uint64_t low = kNearSpread[faces_mask] | kMinusSpread[0][minus_occ[0]] | kMinusSpread[1][minus_occ[1]] |
+                                  kMinusSpread[2][minus_occ[2]];
+        const std::uint64_t score =
+            kScoreSpread[static_cast<std::size_t>(9 * (plane_pred[2] + 1) + 3 * (plane_pred[1] + 1) + (plane_pred[0] + 1))];
+        for (int k = 0; k < 8; ++k) {
+          const int sh = 8 * k;
+          const int ctx = static_cast<int>((low >> sh) & 0xFF) | kPlusNb[static_cast<std::size_t>(k)][byte] | (k << 6) |
+                          (std::min(siblings, 3) << 9) | (static_cast<int>((score >> sh) & 0xFF) << 11);
+          // With single-child coding a coded byte has at least two bits set:
+          // when the bits left are exactly the ones still needed they are 1.
+          const bool forced = single_mode && 8 - k <= 2 - siblings;
+          const int bit = forced ? 1 : code(models.occupancy[ctx], (truth >> k) & 1);
+          // Written in any case, kept when the bit is set (the branch would
+          // be as unpredictable as the bit).
+          next_keys[next_count] = (nodes[i] << 3) | static_cast<std::uint64_t>(k);
+          next_count += static_cast<std::size_t>(bit);
+          byte = static_cast<std::uint8_t>(byte | (bit << k));
+          siblings += bit;
         }
       }
       // An occupied node has at least one occupied child.
       if (byte == 0) return false;
       occ[i] = byte;
       if (single_mode) next_lone.insert(next_lone.end(), kBitCount[byte], kBitCount[byte] == 1 ? 1 : 0);
-      for (int a = 0; a < 3; ++a) {
-        const std::uint8_t halves = static_cast<std::uint8_t>(((byte & ~kUpperHalf[a] & 0xFF) ? 1 : 0) |
-                                                              ((byte & kUpperHalf[a]) ? 2 : 0));
-        planes->remember(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3], halves);
-      }
-      if (!grow(next.size())) return false;
+      for (int a = 0; a < 3; ++a) planes->remember(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3], byte);
+      if (!grow(next_count)) return false;
     }
-    // Neighbours of the next level.
-    next_nb.assign(6 * next.size(), kMissing);
-    for (std::size_t i = 0; i < count; ++i) {
-      const std::uint8_t byte = occ[i];
-      const std::uint32_t* n6 = &nb[6 * i];
-      for (int k = 0; k < 8; ++k) {
-        const std::uint32_t ci = child_index(byte, first[i], k);
-        if (ci == kMissing) continue;
-        std::uint32_t* out = &next_nb[6 * static_cast<std::size_t>(ci)];
-        for (int a = 0; a < 3; ++a) {
-          const int c = (k >> a) & 1;
-          const int sibling = k ^ (1 << a);
-          // Towards the sibling's side: inside this node.
-          out[2 * a + (1 - c)] = child_index(byte, first[i], sibling);
-          // Away from it: a child of the neighbour on that side.
-          const std::uint32_t m = n6[2 * a + c];
-          out[2 * a + c] = m != kMissing ? child_index(occ[m], first[m], sibling) : kMissing;
+    next.resize(next_count);
+    // Neighbours and coordinates of the next level (none after the last).
+    if (d + 1 < depth) {
+      next_nb.assign(6 * next_count, kMissing);
+      next_xyz.resize(next_count);
+      for (std::size_t i = 0; i < count; ++i) {
+        const std::uint8_t byte = occ[i];
+        const std::uint32_t* n6 = &nb[6 * i];
+        const std::array<std::uint32_t, 3> xyz = xyz_of[i];
+        std::uint32_t ci = first[i];  // the children, in k order
+        for (unsigned bits = byte; bits != 0; bits &= bits - 1, ++ci) {
+          const int k = std::countr_zero(bits);
+          std::uint32_t* out = &next_nb[6 * static_cast<std::size_t>(ci)];
+          for (int a = 0; a < 3; ++a) {
+            const int c = (k >> a) & 1;
+            const int sibling = k ^ (1 << a);
+            // Towards the sibling's side: inside this node.
+            out[2 * a + (1 - c)] = child_index(byte, first[i], sibling);
+            // Away from it: a child of the neighbour on that side.
+            const std::uint32_t m = n6[2 * a + c];
+            out[2 * a + c] = m != kMissing ? child_index(occ[m], first[m], sibling) : kMissing;
+          }
+          next_xyz[ci] = {2 * xyz[0] + static_cast<std::uint32_t>(k & 1), 2 * xyz[1] + static_cast<std::uint32_t>((k >> 1) & 1),
+                          2 * xyz[2] + static_cast<std::uint32_t>(k >> 2)};
         }
       }
     }
     nb.swap(next_nb);
+    xyz_of.swap(next_xyz);
     nodes.swap(next);
     lone.swap(next_lone);
   }

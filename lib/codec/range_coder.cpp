@@ -1,34 +1,18 @@
 #include "codec/range_coder.h"
 
+#include <bit>
+
 namespace relief::codec {
 
-namespace {
 
-__extension__ typedef unsigned __int128 u128;
-
-int bit_width128(u128 w) {
-  int n = 0;
-  while (w != 0) {
-    ++n;
-    w >>= 1;
-  }
-  return n;
-}
-
-}  // namespace
-
-void RangeEncoder::shift_low() {
-  if (low_ < 0xFF000000ull || low_ >= (1ull << 32)) {
-    const auto carry = static_cast<std::uint8_t>(low_ >> 32);
-    std::uint8_t temp = cache_;
-    do {
-      out_.push_back(static_cast<std::uint8_t>(temp + carry));
-      temp = 0xFF;
-    } while (--cache_size_ != 0);
-    cache_ = static_cast<std::uint8_t>(low_ >> 24);
-  }
-  ++cache_size_;
-  low_ = (low_ & 0x00FFFFFFull) << 8;
+void RangeEncoder::flush_cache() {
+  const auto carry = static_cast<std::uint8_t>(low_ >> 32);
+  std::uint8_t temp = cache_;
+  do {
+    out_.push_back(static_cast<std::uint8_t>(temp + carry));
+    temp = 0xFF;
+  } while (--cache_size_ != 0);
+  cache_ = static_cast<std::uint8_t>(low_ >> 24);
 }
 
 std::vector<std::uint8_t> RangeEncoder::finish() {
@@ -45,36 +29,36 @@ RangeDecoder::RangeDecoder(std::span<const std::uint8_t> data)
 }
 
 void encode_uint(RangeEncoder& enc, UIntModel& m, std::uint64_t v) {
-  const u128 w = static_cast<u128>(v) + 1;
-  const int n = bit_width128(w) - 1;  // 0..64 bits below the leading one
+  // w = v + 1 has n + 1 bits (n = 0..64); the leading one is implicit. For
+  // v = 2^64 - 1, w = 2^64: n = 64 and every bit below the leading one is 0.
+  const bool top = v == ~std::uint64_t{0};
+  const std::uint64_t w = top ? 0 : v + 1;  // the bits below the leading one
+  const int n = top ? kMaxPrefix : static_cast<int>(std::bit_width(w)) - 1;
   for (int i = 0; i < n; ++i) enc.encode(m.prefix[i], 1);
   if (n < kMaxPrefix) enc.encode(m.prefix[n], 0);
-  for (int b = n - 1; b >= 0; --b) {
-    const int bit = static_cast<int>((w >> b) & 1);
-    const int pos = n - 1 - b;
-    if (pos < kModelledSuffixBits) {
-      enc.encode(m.suffix[n][pos], bit);
-    } else {
-      enc.encode_raw(bit);
-    }
-  }
+  const int modelled = n < kModelledSuffixBits ? n : kModelledSuffixBits;
+  for (int pos = 0; pos < modelled; ++pos) enc.encode(m.suffix[n][pos], static_cast<int>((w >> (n - 1 - pos)) & 1));
+  for (int b = n - 1 - modelled; b >= 0; --b) enc.encode_raw(static_cast<int>((w >> b) & 1));
 }
 
 bool decode_uint(RangeDecoder& dec, UIntModel& m, std::uint64_t& v) {
+  // Exhaustion only grows, so one check after the (at most 128) decisions
+  // gives the answer checks after each would.
   int n = 0;
-  while (n < kMaxPrefix && dec.decode(m.prefix[n])) {
-    ++n;
-    if (dec.exhausted()) return false;
-  }
-  u128 w = 1;
-  for (int pos = 0; pos < n; ++pos) {
-    const int bit = pos < kModelledSuffixBits ? dec.decode(m.suffix[n][pos]) : dec.decode_raw();
-    w = (w << 1) | static_cast<u128>(bit);
-  }
+  while (n < kMaxPrefix && dec.decode(m.prefix[n])) ++n;
+  // The n bits below the leading one.
+  std::uint64_t low = 0;
+  const int modelled = n < kModelledSuffixBits ? n : kModelledSuffixBits;
+  for (int pos = 0; pos < modelled; ++pos) low = (low << 1) | static_cast<std::uint64_t>(dec.decode(m.suffix[n][pos]));
+  for (int pos = modelled; pos < n; ++pos) low = (low << 1) | static_cast<std::uint64_t>(dec.decode_raw());
   if (dec.exhausted()) return false;
-  const u128 value = w - 1;
-  if (value > static_cast<u128>(~std::uint64_t{0})) return false;
-  v = static_cast<std::uint64_t>(value);
+  if (n == kMaxPrefix) {
+    // w = 2^64 + low: only low = 0 (v = 2^64 - 1) fits 64 bits.
+    if (low != 0) return false;
+    v = ~std::uint64_t{0};
+    return true;
+  }
+  v = ((std::uint64_t{1} << n) | low) - 1;
   return true;
 }
 

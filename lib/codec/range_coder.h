@@ -36,6 +36,12 @@ inline constexpr std::uint64_t max_decisions(std::size_t bytes) {
 }
 inline constexpr int kSlowShift = 7;
 
+// The adaptation shifts of a model seen `seen` times (0..kSlowShift): the
+// rate starts at 1/2 and falls by half per bit seen down to the floor.
+inline constexpr std::uint8_t kFastShiftBySeen[kSlowShift + 1] = {1, 2, 3, 4, 4, 4, 4, 4};
+inline constexpr std::uint8_t kSlowShiftBySeen[kSlowShift + 1] = {1, 2, 3, 4, 5, 6, 7, 7};
+static_assert(kFastShiftBySeen[kSlowShift] == kFastShift && kSlowShiftBySeen[kSlowShift] == kSlowShift);
+
 struct BitModel {
   // Two estimates of P(0): `fast` adapts with a rate that starts at 1/2 and
   // falls to 2^-kFastShift as the context is seen (a young context learns
@@ -44,21 +50,24 @@ struct BitModel {
   std::uint16_t slow = kProbOne / 2;
   std::uint8_t seen = 0;
 
+  // Clamped to [kProbMin, kProbMax]. Only the upper bound can bind: from the
+  // initial state no sequence of bits takes `fast` below 15 or `slow` below
+  // 127 (test_range_coder.cpp explores every reachable state), so p >= 71.
   std::uint32_t p0() const {
     const std::uint32_t p = (static_cast<std::uint32_t>(fast) + slow) >> 1;
-    return p < kProbMin ? kProbMin : (p > kProbMax ? kProbMax : p);
+    return p > kProbMax ? kProbMax : p;
   }
+  // Without branches (the bit is what the coder cannot predict): a 1 moves
+  // each estimate down by p >> shift, a 0 up by (2^16 - 1 - p) >> shift.
   void update(int bit) {
-    const int fs = seen < kFastShift ? seen + 1 : kFastShift;
-    const int ss = seen < kSlowShift ? seen + 1 : kSlowShift;
-    if (seen < kSlowShift) ++seen;
-    if (bit) {
-      fast = static_cast<std::uint16_t>(fast - (fast >> fs));
-      slow = static_cast<std::uint16_t>(slow - (slow >> ss));
-    } else {
-      fast = static_cast<std::uint16_t>(fast + ((kProbOne - 1 - fast) >> fs));
-      slow = static_cast<std::uint16_t>(slow + ((kProbOne - 1 - slow) >> ss));
-    }
+    const int fs = kFastShiftBySeen[seen];
+    const int ss = kSlowShiftBySeen[seen];
+    seen = static_cast<std::uint8_t>(seen + (seen < kSlowShift ? 1 : 0));
+    const std::uint32_t f = fast, s = slow;
+    const std::uint32_t df = (bit ? f : kProbOne - 1 - f) >> fs;
+    const std::uint32_t ds = (bit ? s : kProbOne - 1 - s) >> ss;
+    fast = static_cast<std::uint16_t>(bit ? f - df : f + df);
+    slow = static_cast<std::uint16_t>(bit ? s - ds : s + ds);
   }
 };
 
@@ -66,12 +75,8 @@ class RangeEncoder {
  public:
   void encode(BitModel& m, int bit) {
     const std::uint32_t bound = (range_ >> kProbBits) * m.p0();
-    if (bit == 0) {
-      range_ = bound;
-    } else {
-      low_ += bound;
-      range_ -= bound;
-    }
+    low_ += bit ? bound : 0;
+    range_ = bit ? range_ - bound : bound;
     m.update(bit);
     while (range_ < kTop) {
       range_ <<= 8;
@@ -81,7 +86,7 @@ class RangeEncoder {
   // A bit with probability 1/2, no model.
   void encode_raw(int bit) {
     range_ >>= 1;
-    if (bit) low_ += range_;
+    low_ += bit ? range_ : 0;
     while (range_ < kTop) {
       range_ <<= 8;
       shift_low();
@@ -92,7 +97,17 @@ class RangeEncoder {
 
  private:
   static constexpr std::uint32_t kTop = 1u << 24;
-  void shift_low();
+  // Moves the top byte of low_ out: into the cache, and the cache (plus any
+  // run of 0xFF bytes waiting for a carry) into the stream once the carry
+  // into it is settled.
+  void shift_low() {
+    if (low_ < 0xFF000000ull || low_ >= (1ull << 32)) {
+      flush_cache();
+    }
+    ++cache_size_;
+    low_ = (low_ & 0x00FFFFFFull) << 8;
+  }
+  void flush_cache();
 
   std::uint64_t low_ = 0;
   std::uint32_t range_ = 0xFFFFFFFFu;
@@ -108,15 +123,9 @@ class RangeDecoder {
   int decode(BitModel& m) {
     ++decisions_;
     const std::uint32_t bound = (range_ >> kProbBits) * m.p0();
-    int bit;
-    if (code_ < bound) {
-      range_ = bound;
-      bit = 0;
-    } else {
-      code_ -= bound;
-      range_ -= bound;
-      bit = 1;
-    }
+    const int bit = code_ >= bound ? 1 : 0;
+    code_ -= bit ? bound : 0;
+    range_ = bit ? range_ - bound : bound;
     m.update(bit);
     while (range_ < kTop) {
       range_ <<= 8;
@@ -127,11 +136,8 @@ class RangeDecoder {
   int decode_raw() {
     ++decisions_;
     range_ >>= 1;
-    int bit = 0;
-    if (code_ >= range_) {
-      code_ -= range_;
-      bit = 1;
-    }
+    const int bit = code_ >= range_ ? 1 : 0;
+    code_ -= bit ? range_ : 0;
     while (range_ < kTop) {
       range_ <<= 8;
       code_ = (code_ << 8) | next_byte();
