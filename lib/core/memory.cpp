@@ -1,9 +1,15 @@
 #include "core/memory.h"
 
 #include <cstdint>
+#include <cstdio>
+
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 #if defined(__linux__)
 #include <sys/mman.h>
+#include <unistd.h>
 #endif
 
 namespace relief::core {
@@ -19,6 +25,26 @@ void advise_huge_pages(void* p, std::size_t bytes) {
 #else
   (void)p;
   (void)bytes;
+#endif
+}
+
+std::uint64_t resident_bytes() {
+#if defined(__linux__)
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (f == nullptr) return 0;
+  unsigned long long size = 0, resident = 0;
+  const bool ok = std::fscanf(f, "%llu %llu", &size, &resident) == 2;
+  std::fclose(f);
+  const long page = ::sysconf(_SC_PAGESIZE);
+  return ok && page > 0 ? resident * static_cast<std::uint64_t>(page) : 0;
+#else
+  return 0;
+#endif
+}
+
+void release_free_memory() {
+#ifdef __GLIBC__
+  (void)::malloc_trim(0);
 #endif
 }
 

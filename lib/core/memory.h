@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 namespace relief::core {
@@ -18,5 +19,14 @@ template <typename T>
 void advise_huge_pages(std::vector<T>& v) {
   advise_huge_pages(v.data(), v.capacity() * sizeof(T));
 }
+
+// The process's resident set in bytes (Linux: /proc/self/statm), or 0 where
+// it cannot be read.
+std::uint64_t resident_bytes();
+
+// Gives memory the allocator holds free back to the system (glibc:
+// malloc_trim, which also covers the arenas of other threads, where freed
+// blocks otherwise stay resident); a no-op elsewhere.
+void release_free_memory();
 
 }  // namespace relief::core

@@ -15,10 +15,6 @@
 #include <cstring>
 #include <unordered_map>
 
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
-
 #include "core/memory.h"
 #include "core/parallel.h"
 #include "ingest/bucket_files.h"
@@ -26,6 +22,7 @@
 #include "ingest/ingest_common.h"
 #include "ingest/las_columns.h"
 #include "ingest/prefetch.h"
+#include "ingest/slice_pool.h"
 #include "relief/archive.h"
 #include "relief/crs.h"
 #include "relief/ingest.h"
@@ -53,6 +50,10 @@ constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 4;
 // the cell size: the points (31) and suggest_cell_size's keys and radix
 // scratch (32).
 constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
+// Resident memory (in thirds of the budget: the slices' and the encoders'
+// shares) above which the allocator's free memory is given back between
+// slices.
+constexpr std::uint64_t kTrimAboveThirds = 2;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
 // Cell when the inputs hold no point to measure a density from (1 unit,
@@ -61,43 +62,6 @@ constexpr std::size_t kReadBatch = 1u << 20;
 constexpr double kEmptyInputCellSize = 1.0;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
 constexpr std::uint64_t kUnknownBytesPerPoint = 12;
-
-// A bucket slice being encoded, and a pool that recycles them: a slice's
-// buffers are reused by the next one instead of being freshly faulted in.
-struct Slice {
-  PointCloud points;
-  Grouping grouping;
-};
-
-class SlicePool {
- public:
-  // A slice that returns to the pool when the last reference goes (from any
-  // thread). The pool must outlive every slice it hands out.
-  std::shared_ptr<Slice> acquire() {
-    std::unique_ptr<Slice> s;
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      if (!free_.empty()) {
-        s = std::move(free_.back());
-        free_.pop_back();
-      }
-    }
-    if (!s) s = std::make_unique<Slice>();
-    return std::shared_ptr<Slice>(s.release(), [this](Slice* p) {
-      std::lock_guard<std::mutex> lock(mu_);
-      free_.emplace_back(p);
-    });
-  }
-  // Frees the slices not in use.
-  void clear() {
-    std::lock_guard<std::mutex> lock(mu_);
-    free_.clear();
-  }
-
- private:
-  std::mutex mu_;
-  std::vector<std::unique_ptr<Slice>> free_;
-};
 
 std::uint64_t file_size_or_zero(const std::string& path) {
   std::error_code ec;
@@ -266,8 +230,9 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
 
   // Budget while reading: 1/8 for bucket staging buffers, 3/16 for batches in flight (plus, without bucket
   // files, the whole input in half the budget). While encoding: 1/3 for two
-  // bucket slices (one encoding, the next loading), 1/3 for the encoders; the rest is headroom (SQLite
-  // cache, allocator slack).
+  // bucket slices (one encoding, the next loading; the bounded mode reads a bucket whole, and one
+  // larger than that loads alone and its slice is freed, not recycled), 1/3 for the encoders; the
+  // rest is headroom (SQLite cache, allocator slack, which is given back above 2/3).
   // The LAS attributes travel with every point (up to 25 bytes, plus extra
   // bytes; 23 for LAS 1.2 format 3) beside the constants' x y z,
   // colour and intensity: left out, slices of LAS input overran their share.
@@ -347,7 +312,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const auto with_ranges = [&] { return with_intensity_range(params, in.intensity, intensity_lo, intensity_hi); };
   std::int64_t scan_id = 0;
   // Declared before the pipeline: its workers return slices here.
-  SlicePool slices;
+  SlicePool slices(slice_points);
   std::unique_ptr<ChunkPipeline> pipeline;
   // Progress while encoding (called between commits, once the pipeline exists).
   const auto tick = [&] {
@@ -442,19 +407,37 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);
     // The next slice loads while the workers encode the current one; each
-    // slice goes back to the pool as soon as its last chunk is encoded.
+    // slice goes back to the pool (or, larger than its share, is freed) as
+    // soon as its last chunk is encoded.
     AlignedBuffer read_buffer;  // only this thread reads the bucket files
+    std::uint64_t encoding_points = 0;  // points of the slice still encoding
     for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
+      if (bounded && encoding_points + files.bucket_points(b) > 2 * slice_points) {
+        // A bucket larger than its share of the two slices' third of the
+        // budget (the bounded mode reads buckets whole): the slice still
+        // encoding finishes first, and the pool's idle slices go, so it
+        // loads alone.
+        RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
+        encoding_points = 0;
+        slices.clear();
+      }
       std::uint64_t offset = 0;
       while (offset < files.bucket_bytes(b)) {
         std::shared_ptr<Slice> slice = slices.acquire();
         RELIEF_RETURN_IF_ERROR(files.read_slice(b, &offset, bounded ? ~std::uint64_t{0} : slice_points, slice->points,
                                                 slice->grouping, read_buffer));
         std::vector<ChunkTask> tasks = make_tasks(slice->points, task_points, slice->grouping, split_grid);
+        encoding_points = slice->points.size();
         pipeline->submit(std::move(tasks), slice);
         slice.reset();
         // At most this slice still encoding while the next one loads.
         RELIEF_RETURN_IF_ERROR(pipeline->wait(1, tick));
+        // The encoders' scratch follows the chunks' sizes, and the threads'
+        // malloc arenas keep what they freed: resident memory would climb to
+        // the largest chunks' high-water mark and stay there. Given back
+        // whenever the process holds more than the slices' and encoders'
+        // shares (so it costs nothing while memory is plentiful).
+        if (core::resident_bytes() > kTrimAboveThirds * (budget / 3)) core::release_free_memory();
       }
       files.discard(b);
     }
@@ -465,9 +448,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const PipelineTotals totals = pipeline->totals();
   pipeline.reset();
   slices.clear();
-#ifdef __GLIBC__
-  malloc_trim(0);  // the encoder threads' arenas keep what they freed otherwise
-#endif
+  core::release_free_memory();  // the encoder threads' arenas keep what they freed otherwise
   // The pyramid before the scan is marked complete: a run killed while
   // building it leaves an incomplete scan whose chunks read as usual.
   RELIEF_ASSIGN_OR_RETURN(const PyramidResult pyramid,
