@@ -1007,10 +1007,20 @@ class LasStreamWriter final : public StreamPointWriter {
     return h;
   }
 
-  // Global encoding bit 0: LAS 1.4 requires it with formats 6-10; legacy
-  // formats with GPS time say what the source's times counted.
+  // Global encoding bit 0 says what the source's GPS times counted, as
+  // LAStools and PDAL forward it; when no source said, it is set with
+  // formats 6-10, as LAS 1.4 asks of new files.
   bool standard_gps_time() const {
-    return format_ >= 6 || (plan_.gps != 0 && options_.las_gps_time_type == GpsTimeType::kStandard);
+    if (plan_.gps == 0) return false;
+    switch (options_.las_gps_time_type) {
+      case GpsTimeType::kStandard:
+        return true;
+      case GpsTimeType::kWeek:
+        return false;
+      case GpsTimeType::kUnknown:
+        break;
+    }
+    return format_ >= 6;
   }
 
   CrsPlan crs_;

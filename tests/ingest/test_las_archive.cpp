@@ -353,7 +353,7 @@ std::string las_with_time(const TempDir& dir, const std::string& name, int forma
 TEST_CASE("what the GPS times count (global encoding bit 0) is recorded and written back", "[las][archive]") {
   TempDir dir;
   for (const std::uint16_t bit : {std::uint16_t{0}, std::uint16_t{1}}) {
-    for (const int format : {1, 3}) {
+    for (const int format : {1, 3, 7}) {
       CAPTURE(bit, format);
       const std::string tag = std::to_string(bit) + "_" + std::to_string(format);
       const std::string in = las_with_time(dir, "t" + tag + ".las", format, bit, 7);

@@ -181,9 +181,9 @@ struct WriterOptions {
   // LAS/LAZ: write colour levels as the 8-bit values themselves (the source
   // stored 8-bit levels in its 16-bit fields, PointStreamInfo::las_colors_8bit).
   bool las_colors_8bit = false;
-  // LAS/LAZ with GPS time: kStandard sets the header's global encoding bit 0
-  // (adjusted standard GPS time). LAS 1.4 formats 6-10 always set it, as the
-  // specification requires; kWeek and kUnknown leave it clear otherwise.
+  // LAS/LAZ with GPS time: the header's global encoding bit 0 is set for
+  // kStandard (adjusted standard GPS time) and clear for kWeek, as the source
+  // said; kUnknown sets it with formats 6-10 only (LAS 1.4 asks it of new files).
   GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
 };
 
