@@ -160,6 +160,18 @@ Run run_once(const BillionOptions& o, const std::string& work, std::uint64_t poi
   }
   run.archive_bytes = fs::file_size(out);
   peak = std::max(peak, disk_bytes(work));
+  if (!o.keep.empty()) {
+    // Renamed within a file system, copied across (then the original goes).
+    const std::string kept = o.keep + "/scene-" + count_label(points) + ".relief";
+    std::error_code ec;
+    remove_archive(kept);
+    fs::rename(out, kept, ec);
+    if (ec) {
+      ec.clear();
+      fs::copy_file(out, kept, fs::copy_options::overwrite_existing, ec);
+    }
+    if (ec) std::fprintf(stderr, "warning: cannot keep %s as %s: %s\n", out.c_str(), kept.c_str(), ec.message().c_str());
+  }
   remove_archive(out);
   run.ok = true;
   run.seconds = r.seconds;

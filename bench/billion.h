@@ -14,6 +14,9 @@ struct BillionOptions {
   std::string tmp = "/tmp";  // the pipe, the archive and relief's bucket files
   std::string cli;           // the relief binary
   std::uint64_t seed = 1;
+  // When set, each size's last archive is moved here (as scene-10M.relief,
+  // ...) instead of being removed, e.g. for bench/pyramid.
+  std::string keep;
 };
 
 // "10M,100M,1G" (K, M, G = 10^3, 10^6, 10^9; plain numbers are points);

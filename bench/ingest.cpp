@@ -4,7 +4,7 @@
 //   build/bench/ingest [--sizes 1,10,100] [--threads 1,2] [--repeat 3] [--data DIR]
 //                      [--tmp DIR] [--no-shared] [--no-chunk-sweep]
 //   build/bench/ingest --laz-vs-las [--threads 2] [--repeat 3] [--data DIR]
-//   build/bench/ingest --billion [--sizes 10M,100M[,1G]] [--repeat 3] [--tmp DIR]
+//   build/bench/ingest --billion [--sizes 10M,100M[,1G]] [--repeat 3] [--tmp DIR] [--keep DIR]
 //
 // --billion feeds `relief compress` a generated aerial survey (bench/scene.h)
 // through a named pipe, at a fixed density so the extent grows with the
@@ -53,6 +53,7 @@ struct Options {
   bool error_targets = true;
   bool laz_vs_las = false;
   bool billion = false;
+  std::string keep;  // --billion --keep DIR: keep each size's archive there
   std::string sizes_text;  // --sizes as given (--billion reads it with suffixes)
   bool repeat_given = false;
 };
@@ -274,12 +275,14 @@ int main(int argc, char** argv) {
       o.laz_vs_las = true;
     } else if (a == "--billion") {
       o.billion = true;
+    } else if (a == "--keep") {
+      o.keep = value();
     } else {
       std::fprintf(stderr,
                    "usage: ingest [--sizes 1,10,100] [--threads 1,2] [--repeat N] [--data DIR] [--tmp DIR]\n"
                    "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n"
                    "       ingest --laz-vs-las [--threads 2] [--repeat N] [--data DIR] [--tmp DIR]\n"
-                   "       ingest --billion [--sizes 10M,100M[,1G]] [--repeat N] [--tmp DIR]\n");
+                   "       ingest --billion [--sizes 10M,100M[,1G]] [--repeat N] [--tmp DIR] [--keep DIR]\n");
       return a == "--help" ? 0 : 2;
     }
   }
@@ -300,6 +303,7 @@ int main(int argc, char** argv) {
     if (o.repeat_given) b.repeat = o.repeat;
     b.tmp = o.tmp;
     b.cli = o.cli;
+    b.keep = o.keep;
     return relief::bench::run_billion(b);
   }
   std::printf("kind,input,points,threads,seconds,mpts_s,peak_rss_mib,chunks,archive_bytes,bpp\n");

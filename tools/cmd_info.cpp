@@ -40,6 +40,9 @@ std::string attributes(const ArchiveInfo& i) {
 std::string las_text(const ArchiveInfo& i) {
   std::string out = "point format " + std::to_string(i.las_point_format) + ", LAS 1." +
                     std::to_string(i.las_version_minor);
+  if (i.las_gps_time_type != GpsTimeType::kUnknown) {
+    out += std::string(", GPS ") + gps_time_type_name(i.las_gps_time_type) + " time";
+  }
   if (i.extra_bytes_size > 0) {
     out += ", " + std::to_string(i.extra_bytes_size) + " extra bytes";
     const std::vector<ExtraBytesField> fields = archive_extra_bytes_fields(i);

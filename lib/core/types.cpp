@@ -5,6 +5,24 @@
 
 namespace relief {
 
+const char* gps_time_type_name(GpsTimeType t) {
+  switch (t) {
+    case GpsTimeType::kWeek:
+      return "week";
+    case GpsTimeType::kStandard:
+      return "standard";
+    case GpsTimeType::kUnknown:
+      break;
+  }
+  return "";
+}
+
+GpsTimeType parse_gps_time_type(const std::string& text) {
+  if (text == "week") return GpsTimeType::kWeek;
+  if (text == "standard") return GpsTimeType::kStandard;
+  return GpsTimeType::kUnknown;
+}
+
 std::string las_attribute_list(std::uint32_t bits) {
   std::string out;
   for (std::uint32_t i = 0; i < kLasAttributeCount; ++i) {

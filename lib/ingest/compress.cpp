@@ -63,6 +63,16 @@ constexpr double kEmptyInputCellSize = 1.0;
 // Bytes per point assumed for inputs whose header gives no count (ASCII).
 constexpr std::uint64_t kUnknownBytesPerPoint = 12;
 
+std::string gps_time_kind(GpsTimeType t) {
+  return t == GpsTimeType::kStandard ? "adjusted standard GPS time" : "GPS week time";
+}
+
+// Refusal text for two sources whose GPS times count differently.
+std::string gps_time_clash(const std::string& path, GpsTimeType type, const std::string& other, GpsTimeType other_type) {
+  return path + " has " + gps_time_kind(type) + " but " + other + " has " + gps_time_kind(other_type) +
+         " (LAS global encoding bit 0); one archive holds one kind of GPS time";
+}
+
 std::uint64_t file_size_or_zero(const std::string& path) {
   std::error_code ec;
   const auto s = std::filesystem::file_size(path, ec);
@@ -127,6 +137,15 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
                                 " extra bytes per point described by a different Extra Bytes VLR than " +
                                 set.extra_bytes_from + " (" + std::to_string(set.extra_bytes_size) +
                                 " bytes); one archive holds one extra bytes layout");
+      }
+    }
+    if (info.las_gps_time_type != GpsTimeType::kUnknown) {
+      if (set.gps_time_from.empty()) {
+        set.las_gps_time_type = info.las_gps_time_type;
+        set.gps_time_from = path;
+      } else if (set.las_gps_time_type != info.las_gps_time_type) {
+        return invalid_argument(gps_time_clash(path, info.las_gps_time_type, set.gps_time_from,
+                                               set.las_gps_time_type));
       }
     }
     ArchiveSource src;
@@ -210,6 +229,7 @@ ScanAttributes scan_attributes(const InputSet& in) {
     all = all && info.las_colors_8bit;
   }
   a.las_colors_8bit = any && all;
+  a.las_gps_time_type = in.las_gps_time_type;
   return a;
 }
 
@@ -937,6 +957,17 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
                             " extra bytes per point described by a different Extra Bytes VLR than " + archive_path +
                             " (" + std::to_string(info.extra_bytes_size) +
                             " bytes); one archive holds one extra bytes layout");
+  }
+  if (info.las_gps_time_type != GpsTimeType::kUnknown && in.las_gps_time_type != GpsTimeType::kUnknown &&
+      info.las_gps_time_type != in.las_gps_time_type) {
+    return invalid_argument(gps_time_clash(in.gps_time_from, in.las_gps_time_type, archive_path,
+                                           info.las_gps_time_type));
+  }
+  if (info.las_gps_time_type != GpsTimeType::kUnknown) {
+    in.las_gps_time_type = info.las_gps_time_type;
+  } else if ((info.las_attributes & kLasGpsTime) != 0 && in.las_gps_time_type != GpsTimeType::kUnknown) {
+    in.warnings.push_back(archive_path + " holds GPS times of an unrecorded kind (made before Relief kept it); the " +
+                          "archive now records " + gps_time_kind(in.las_gps_time_type) + " of " + in.gps_time_from);
   }
   if ((info.las_attributes & kLasExtraBytes) != 0) {
     in.extra_bytes_vlr = info.extra_bytes_vlr;

@@ -35,6 +35,10 @@ struct InputSet {
   std::string extra_bytes_vlr;
   std::uint32_t extra_bytes_size = 0;
   std::string extra_bytes_from;
+  // What the GPS times count (every LAS input with GPS time must agree);
+  // gps_time_from names the first input that said.
+  GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
+  std::string gps_time_from;
   std::string crs;  // WKT2 of the first input that has one
   std::string crs_from;  // that input's path
   // CRS decisions the user should hear of (inputs without a CRS among ones

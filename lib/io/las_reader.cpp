@@ -61,6 +61,9 @@ constexpr std::uint16_t kGeoAsciiRecordId = 34737;
 constexpr std::string_view kProjectionUserId = "LASF_Projection";
 constexpr std::string_view kSpecUserId = "LASF_Spec";
 constexpr std::uint16_t kExtraBytesRecordId = 4;
+// Global encoding bit 0: the GPS times are adjusted standard GPS time, not
+// seconds of the GPS week.
+constexpr std::uint16_t kStandardGpsTimeBit = 1u << 0;
 // Extra Bytes descriptors are 192 bytes each; more than this many bytes of
 // them (a record holds at most 65535 extra bytes) is refused.
 constexpr std::uint64_t kMaxExtraBytesRecord = std::uint64_t{192} * 65535;
@@ -126,6 +129,7 @@ std::uint32_t format_attributes(int format) {
 
 struct LasHeader {
   int version_minor = 0;
+  std::uint16_t global_encoding = 0;
   std::uint16_t header_size = 0;
   std::uint32_t point_offset = 0;
   std::uint32_t vlr_count = 0;
@@ -166,6 +170,7 @@ Result<LasHeader> parse_header(std::span<const std::uint8_t> h, const std::strin
   }
   LasHeader out;
   out.version_minor = minor;
+  out.global_encoding = load_le<std::uint16_t>(h.data() + 6);
   out.header_size = load_le<std::uint16_t>(h.data() + 94);
   const std::size_t need = header_size_for(minor);
   if (out.header_size < need) {
@@ -537,6 +542,10 @@ Status LasPointReader::start() {
   info_.las_point_format = header_.format;
   info_.las_version_minor = header_.version_minor;
   info_.las_attributes = format_attributes(header_.format) | (layout_.extra_size != 0 ? kLasExtraBytes : 0u);
+  if ((info_.las_attributes & kLasGpsTime) != 0) {
+    info_.las_gps_time_type =
+        (header_.global_encoding & kStandardGpsTimeBit) != 0 ? GpsTimeType::kStandard : GpsTimeType::kWeek;
+  }
   color_low_ = has_rgb_;
 
   info_.path = name();

@@ -958,7 +958,7 @@ class LasStreamWriter final : public StreamPointWriter {
     std::memcpy(p, "LASF", 4);
     // 4: file source id 0; 8-23: GUID all zero.
     store_le(p + 6, static_cast<std::uint16_t>((crs_.wkt ? kWktGlobalEncodingBit : 0) |
-                                               (format_ >= 6 ? kStandardGpsTimeBit : 0)));
+                                               (standard_gps_time() ? kStandardGpsTimeBit : 0)));
     p[24] = 1;
     p[25] = minor_;
     put_field(p + 26, kSystemIdentifier, 32);
@@ -1005,6 +1005,22 @@ class LasStreamWriter final : public StreamPointWriter {
       }
     }
     return h;
+  }
+
+  // Global encoding bit 0 says what the source's GPS times counted, as
+  // LAStools and PDAL forward it; when no source said, it is set with
+  // formats 6-10, as LAS 1.4 asks of new files.
+  bool standard_gps_time() const {
+    if (plan_.gps == 0) return false;
+    switch (options_.las_gps_time_type) {
+      case GpsTimeType::kStandard:
+        return true;
+      case GpsTimeType::kWeek:
+        return false;
+      case GpsTimeType::kUnknown:
+        break;
+    }
+    return format_ >= 6;
   }
 
   CrsPlan crs_;

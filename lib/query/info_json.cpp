@@ -188,6 +188,9 @@ std::string json_las(const ArchiveInfo& i) {
   if (i.las_point_format < 0) return "null";
   std::string out = "{\"point_format\": " + std::to_string(i.las_point_format) +
                     ", \"version\": " + json_string("1." + std::to_string(i.las_version_minor)) +
+                    ", \"gps_time_type\": " +
+                    (i.las_gps_time_type == GpsTimeType::kUnknown ? std::string("null")
+                                                                   : json_string(gps_time_type_name(i.las_gps_time_type))) +
                     ", \"extra_bytes_per_point\": " + std::to_string(i.extra_bytes_size) + ", \"extra_bytes\": [";
   bool first = true;
   for (const ExtraBytesField& f : archive_extra_bytes_fields(i)) {

@@ -54,8 +54,9 @@ std::string difference(const ArchiveInfo& a, const ArchiveInfo& b) {
   if (a.crs != b.crs) return "CRS";
   if (a.has_colors != b.has_colors || a.has_intensity != b.has_intensity) return "attributes";
   if (a.las_attributes != b.las_attributes || a.las_point_format != b.las_point_format ||
-      a.las_version_minor != b.las_version_minor || a.las_colors_8bit != b.las_colors_8bit) {
-    return "LAS attributes (set, point format, version or colour levels)";
+      a.las_version_minor != b.las_version_minor || a.las_colors_8bit != b.las_colors_8bit ||
+      a.las_gps_time_type != b.las_gps_time_type) {
+    return "LAS attributes (set, point format, version, colour levels or GPS time type)";
   }
   if (a.extra_bytes_size != b.extra_bytes_size || a.extra_bytes_vlr != b.extra_bytes_vlr) {
     return "extra bytes (size or Extra Bytes VLR)";
@@ -146,6 +147,7 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
   attributes.extra_bytes_vlr = first.extra_bytes_vlr;
   attributes.extra_bytes_size = first.extra_bytes_size;
   attributes.las_colors_8bit = first.las_colors_8bit;
+  attributes.las_gps_time_type = first.las_gps_time_type;
   auto scan_id = archive->begin_scan(first.sources, attributes);
   if (!scan_id) return failed(scan_id.status());
   MergeResult result;

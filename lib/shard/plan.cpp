@@ -181,6 +181,9 @@ std::string shard_plan_text(const ShardPlan& plan) {
   if (plan.has_las()) {
     line("las", {las_attribute_list(a.las_attributes), std::to_string(a.las_point_format),
                  std::to_string(a.las_version_minor), a.las_colors_8bit ? "1" : "0"});
+    if (a.las_gps_time_type != GpsTimeType::kUnknown) {
+      line("gps_time_type", {gps_time_type_name(a.las_gps_time_type)});
+    }
     if ((a.las_attributes & kLasExtraBytes) != 0) {
       line("extra_bytes", {std::to_string(a.extra_bytes_size), hex_lower(a.extra_bytes_vlr)});
     }
@@ -310,6 +313,12 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       a.las_version_minor = static_cast<int>(minor);
       RELIEF_RETURN_IF_ERROR(parse_flag(l.fields[3], a.las_colors_8bit));
       have_las = true;
+    } else if (l.key == "gps_time_type") {
+      if (!have_las) return bad(n, "'gps_time_type' before (or without) the 'las' line");
+      if (a.las_gps_time_type != GpsTimeType::kUnknown) return bad(n, "a second 'gps_time_type' line");
+      RELIEF_RETURN_IF_ERROR(want(1));
+      a.las_gps_time_type = parse_gps_time_type(l.fields[0]);
+      if (a.las_gps_time_type == GpsTimeType::kUnknown) return bad(n, "GPS time type is not 'week' or 'standard'");
     } else if (l.key == "extra_bytes") {
       if (!have_las) return bad(n, "'extra_bytes' before (or without) the 'las' line");
       if (have_extra) return bad(n, "a second 'extra_bytes' line");

@@ -1107,6 +1107,14 @@ Status SqliteArchive::merge_las_meta(const ScanAttributes& a) {
   RELIEF_ASSIGN_OR_RETURN(const long long old_size, number(store::kMetaLasExtraBytesSize, 0));
   RELIEF_ASSIGN_OR_RETURN(const long long old_8bit, number(store::kMetaLasColors8bit, 0));
   RELIEF_ASSIGN_OR_RETURN(std::optional<std::string> old_vlr, meta_value(store::kMetaLasExtraBytesVlr));
+  RELIEF_ASSIGN_OR_RETURN(std::optional<std::string> old_time, meta_value(store::kMetaLasGpsTimeType));
+  const GpsTimeType old_time_type = parse_gps_time_type(old_time.value_or(""));
+  if (old_time_type != GpsTimeType::kUnknown && a.las_gps_time_type != GpsTimeType::kUnknown &&
+      old_time_type != a.las_gps_time_type) {
+    return invalid_argument(path_ + ": the archive's GPS times are " + gps_time_type_name(old_time_type) +
+                            " time but the new scan's are " + gps_time_type_name(a.las_gps_time_type) +
+                            " time; one archive holds one kind");
+  }
   const bool old_extra = (old_bits & kLasExtraBytes) != 0;
   const bool new_extra = (a.las_attributes & kLasExtraBytes) != 0;
   const std::string vlr_hex = hex_lower(a.extra_bytes_vlr);
@@ -1128,6 +1136,9 @@ Status SqliteArchive::merge_las_meta(const ScanAttributes& a) {
   if (new_extra && !old_extra) {
     RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaLasExtraBytesSize, std::to_string(a.extra_bytes_size)));
     RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaLasExtraBytesVlr, vlr_hex));
+  }
+  if (old_time_type == GpsTimeType::kUnknown && a.las_gps_time_type != GpsTimeType::kUnknown) {
+    RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaLasGpsTimeType, gps_time_type_name(a.las_gps_time_type)));
   }
   return put_meta(store::kMetaLasColors8bit, colors_8bit ? "1" : "0");
 }
@@ -1726,6 +1737,12 @@ Status SqliteArchive::read_las_meta(std::map<std::string, std::string>& meta, Ar
   info.las_version_minor = static_cast<int>(minor);
   info.extra_bytes_size = static_cast<std::uint32_t>(size);
   info.las_colors_8bit = colors_8bit != 0;
+  const std::string& time_type = meta[store::kMetaLasGpsTimeType];
+  info.las_gps_time_type = parse_gps_time_type(time_type);
+  if (!time_type.empty() && info.las_gps_time_type == GpsTimeType::kUnknown) {
+    return format_error(path_ + ": metadata " + store::kMetaLasGpsTimeType + " is not 'week' or 'standard': '" +
+                        time_type + "'");
+  }
   const std::optional<std::string> vlr = bytes_from_hex(meta[store::kMetaLasExtraBytesVlr], true);
   if (!vlr) return format_error(path_ + ": metadata " + store::kMetaLasExtraBytesVlr + " is not hexadecimal");
   info.extra_bytes_vlr = *vlr;

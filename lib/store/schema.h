@@ -135,13 +135,15 @@ inline constexpr char kMetaChecksum[] = "meta_crc32";
 // before them, which carry none. las_attributes: comma-separated names
 // (kLasAttributeNames); las_point_format, las_version_minor,
 // las_extra_bytes_size: decimal; las_extra_bytes_vlr: the Extra Bytes VLR
-// payload in lower-case hexadecimal; las_colors_8bit: "1" or "0".
+// payload in lower-case hexadecimal; las_colors_8bit: "1" or "0";
+// las_gps_time_type: "week" or "standard" (absent: not known).
 inline constexpr char kMetaLasAttributes[] = "las_attributes";
 inline constexpr char kMetaLasPointFormat[] = "las_point_format";
 inline constexpr char kMetaLasVersionMinor[] = "las_version_minor";
 inline constexpr char kMetaLasExtraBytesVlr[] = "las_extra_bytes_vlr";
 inline constexpr char kMetaLasExtraBytesSize[] = "las_extra_bytes_size";
 inline constexpr char kMetaLasColors8bit[] = "las_colors_8bit";
+inline constexpr char kMetaLasGpsTimeType[] = "las_gps_time_type";
 
 // Names in the comma-separated `attributes` value.
 inline constexpr char kAttributeRgb[] = "rgb";

@@ -324,3 +324,91 @@ TEST_CASE("a CSV classification column is a LAS attribute of the archive", "[las
   // Classes above 31 need a LAS 1.4 format: the archive names 6.
   CHECK(info.las_point_format == 6);
 }
+
+namespace {
+
+// The global encoding field (header bytes 6-7) of a LAS file.
+std::uint16_t global_encoding_of(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  char b[8] = {};
+  f.read(b, sizeof b);
+  REQUIRE(f.gcount() == 8);
+  return static_cast<std::uint16_t>(static_cast<std::uint8_t>(b[6]) | (static_cast<std::uint8_t>(b[7]) << 8));
+}
+
+std::string las_with_time(const TempDir& dir, const std::string& name, int format, std::uint16_t global_encoding,
+                          std::uint32_t seed) {
+  TestLasOptions o;
+  o.format = format;
+  o.points = 2000;
+  o.seed = seed;
+  o.global_encoding = global_encoding;
+  const std::string path = dir.file(name);
+  REQUIRE(write_test_las(path, o));
+  return path;
+}
+
+}  // namespace
+
+TEST_CASE("what the GPS times count (global encoding bit 0) is recorded and written back", "[las][archive]") {
+  TempDir dir;
+  for (const std::uint16_t bit : {std::uint16_t{0}, std::uint16_t{1}}) {
+    for (const int format : {1, 3, 7}) {
+      CAPTURE(bit, format);
+      const std::string tag = std::to_string(bit) + "_" + std::to_string(format);
+      const std::string in = las_with_time(dir, "t" + tag + ".las", format, bit, 7);
+      const std::string archive = dir.file("t" + tag + ".relief");
+      REQUIRE(relief::compress_files({in}, archive, {}).is_ok());
+      const relief::ArchiveInfo info = archive_info(archive);
+      CHECK(info.las_gps_time_type == (bit ? relief::GpsTimeType::kStandard : relief::GpsTimeType::kWeek));
+      for (const char* ext : {".las", ".laz"}) {
+        const std::string out = dir.file("t" + tag + ext);
+        REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+        CHECK((global_encoding_of(out) & 1) == bit);
+      }
+      const auto json = relief::test::run_cli(cli(), "info " + archive + " --json");
+      REQUIRE(json.code == 0);
+      CHECK(json.output.find(std::string("\"gps_time_type\": \"") + (bit ? "standard" : "week") + "\"") !=
+            std::string::npos);
+    }
+  }
+  // No GPS time in the format: nothing is recorded and bit 0 stays clear.
+  const std::string plain = las_with_time(dir, "f0.las", 0, 1, 8);
+  const std::string archive = dir.file("f0.relief");
+  REQUIRE(relief::compress_files({plain}, archive, {}).is_ok());
+  CHECK(archive_info(archive).las_gps_time_type == relief::GpsTimeType::kUnknown);
+  const std::string out = dir.file("f0_out.las");
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+  CHECK((global_encoding_of(out) & 1) == 0);
+}
+
+TEST_CASE("inputs whose GPS times count differently are refused, naming both", "[las][archive][reject]") {
+  TempDir dir;
+  const std::string week = las_with_time(dir, "week.las", 1, 0, 1);
+  const std::string standard = las_with_time(dir, "standard.las", 3, 1, 2);
+  const std::string no_time = las_with_time(dir, "no_time.las", 2, 0, 3);
+  auto r = relief::compress_files({week, standard}, dir.file("x.relief"), {});
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().code() == relief::StatusCode::kInvalidArgument);
+  CHECK(r.status().message().find(week) != std::string::npos);
+  CHECK(r.status().message().find(standard) != std::string::npos);
+  CHECK(r.status().message().find("GPS") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(dir.file("x.relief")));
+  // A file without GPS time joins either kind.
+  REQUIRE(relief::compress_files({standard, no_time}, dir.file("ok.relief"), {}).is_ok());
+  CHECK(archive_info(dir.file("ok.relief")).las_gps_time_type == relief::GpsTimeType::kStandard);
+  // An append of the other kind is refused and leaves the archive as it was.
+  const std::string archive = dir.file("y.relief");
+  REQUIRE(relief::compress_files({week}, archive, {}).is_ok());
+  const relief::ArchiveInfo before = archive_info(archive);
+  auto app = relief::append_files(archive, {standard}, {});
+  REQUIRE_FALSE(app.is_ok());
+  CHECK(app.status().message().find(standard) != std::string::npos);
+  CHECK(app.status().message().find(archive) != std::string::npos);
+  const relief::ArchiveInfo after = archive_info(archive);
+  CHECK(after.chunk_count == before.chunk_count);
+  CHECK(after.las_gps_time_type == relief::GpsTimeType::kWeek);
+  // The same kind appends.
+  REQUIRE(relief::append_files(archive, {las_with_time(dir, "week2.las", 3, 0, 4)}, {}).is_ok());
+  CHECK(archive_info(archive).las_gps_time_type == relief::GpsTimeType::kWeek);
+}

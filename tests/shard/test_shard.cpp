@@ -120,6 +120,7 @@ void check_same_metadata(const ArchiveInfo& a, const ArchiveInfo& b) {
   CHECK(a.extra_bytes_vlr == b.extra_bytes_vlr);
   CHECK(a.extra_bytes_size == b.extra_bytes_size);
   CHECK(a.las_colors_8bit == b.las_colors_8bit);
+  CHECK(a.las_gps_time_type == b.las_gps_time_type);
   CHECK(a.grid.origin == b.grid.origin);
   CHECK(a.grid.chunk_edge == b.grid.chunk_edge);
   CHECK(a.codec_params == b.codec_params);

@@ -209,6 +209,7 @@ struct TestLasOptions {
   bool wide_colors = true;                     // 16-bit colour levels (else 0..255)
   double extent = 100;                         // metres in x and y
   double scale = 0.01;
+  std::uint16_t global_encoding = 0;           // header bytes 6-7 (bit 0: standard GPS time)
 };
 
 // Writes a LAS file (1.2 for formats 0-5, 1.4 for 6-10) with every field random.
@@ -221,6 +222,7 @@ inline bool write_test_las(const std::string& path, const TestLasOptions& o) {
   const std::size_t stride = fm.length + o.extra;
   std::vector<std::uint8_t> b(header + vlr + o.points * stride, 0);
   std::memcpy(b.data(), "LASF", 4);
+  put<std::uint16_t>(b, 6, o.global_encoding);
   b[24] = 1;
   b[25] = ext ? 4 : 2;
   put<std::uint16_t>(b, 94, static_cast<std::uint16_t>(header));

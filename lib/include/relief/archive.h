@@ -63,6 +63,7 @@ struct ScanAttributes {
   std::string extra_bytes_vlr;
   std::uint32_t extra_bytes_size = 0;
   bool las_colors_8bit = false;
+  GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
 };
 
 // A scan is what one compress, append or stream run adds.
@@ -110,14 +111,16 @@ struct ArchiveInfo {
   // the highest LAS minor version of its sources (-1 when no source was
   // LAS), the Extra Bytes VLR payload describing las.extra_bytes
   // (extra_bytes_size bytes per point), and whether the LAS sources stored
-  // 8-bit colour levels (WriterOptions::las_colors_8bit). Archives written
-  // before these existed carry none.
+  // 8-bit colour levels (WriterOptions::las_colors_8bit), and what the GPS
+  // times count (kUnknown: no source said, or the archive predates the key).
+  // Archives written before these existed carry none.
   std::uint32_t las_attributes = 0;
   int las_point_format = -1;
   int las_version_minor = -1;
   std::string extra_bytes_vlr;
   std::uint32_t extra_bytes_size = 0;
   bool las_colors_8bit = false;
+  GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
   // Totals over all chunk rows (every scan, complete or not).
   std::uint64_t input_points = 0;
   std::uint64_t decoded_points = 0;

@@ -68,6 +68,9 @@ struct PointStreamInfo {
   // should write each level as it is rather than (colour << 8) | low.
   // Known once read() has returned points (the rule samples them).
   bool las_colors_8bit = false;
+  // LAS/LAZ whose points carry GPS time: what the times count (the header's
+  // global encoding bit 0); kUnknown otherwise.
+  GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
   // Coordinate precision the file stores (LAS scale factors), 0 when not known,
   // and the offset of that grid (LAS: x = X * scale + offset).
   Vec3d scale{0, 0, 0};
@@ -178,6 +181,10 @@ struct WriterOptions {
   // LAS/LAZ: write colour levels as the 8-bit values themselves (the source
   // stored 8-bit levels in its 16-bit fields, PointStreamInfo::las_colors_8bit).
   bool las_colors_8bit = false;
+  // LAS/LAZ with GPS time: the header's global encoding bit 0 is set for
+  // kStandard (adjusted standard GPS time) and clear for kWeek, as the source
+  // said; kUnknown sets it with formats 6-10 only (LAS 1.4 asks it of new files).
+  GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
 };
 
 class PointWriter {

@@ -57,6 +57,17 @@ enum LasAttributeBits : std::uint32_t {
   kLasExtraBytes = 1u << 11,
 };
 
+// What a LAS source's GPS times count (its header's global encoding bit 0):
+// seconds of the GPS week, or adjusted standard GPS time (GPS seconds since
+// 1980-01-06 minus 10^9). The values are incomparable, so one archive holds
+// one kind; kUnknown where no source said (no GPS time, or an archive made
+// before Relief recorded it).
+enum class GpsTimeType : int { kUnknown = -1, kWeek = 0, kStandard = 1 };
+// "week", "standard" or "" (kUnknown); parse_gps_time_type is the inverse
+// ("" and unknown text give kUnknown).
+const char* gps_time_type_name(GpsTimeType t);
+GpsTimeType parse_gps_time_type(const std::string& text);
+
 // Names of the LasAttributeBits, in bit order ("classification", "class_flags",
 // "return_number", "number_of_returns", "scan_flags", "scan_angle",
 // "user_data", "point_source_id", "gps_time", "nir", "color_low",
