@@ -1277,8 +1277,12 @@ TEST_CASE("create takes the page size it is given and writes the schema compactl
                       "OR instr(sql, ' (') OR instr(sql, '( '))") == 0);
     CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name = 'relief_chunk' AND "
                       "sql LIKE 'CREATE TABLE relief_chunk(id INTEGER PRIMARY KEY AUTOINCREMENT,ix INTEGER NOT NULL,%'") == 1);
+    // One b-tree for the metadata, none for relief_source's scan_id.
+    CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name IN ('sqlite_autoindex_relief_meta_1', "
+                      "'relief_source_scan')") == 0);
     auto reader = open_ok(path, Archive::Mode::kReadOnly);
     CHECK(read_ok(*reader, 1).blob.size() == 20000);
+    CHECK(info_ok(*reader).grid.chunk_edge == 25);
     const ArchiveCheck check = check_ok(path);
     INFO(joined(check.problems));
     CHECK(check.problems.empty());
