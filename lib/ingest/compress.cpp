@@ -866,9 +866,10 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     // A small, compact input is one chunk: each chunk costs a blob header,
     // its maps' fixed cost and a row (KITTI's 115 k points made 2 chunks, one
     // of 40 points, 1.5 KB more). The edge doubles (the base cells' ladder
-    // edge / 2^D stays the same), at most kMaxSmallChunkGrowth times, until
-    // the inputs' box, snapped, fits from the grid origin; scattered inputs
-    // keep the default edge. The depth limit below may still halve it.
+    // edge / 2^D stays the same) until the inputs' box, snapped, fits from
+    // the grid origin, when that takes at most kMaxSmallChunkGrowth times the
+    // default edge; scattered inputs keep the default. The depth limit below
+    // may still halve it.
     const ErrorBound& b = *params.bound;
     const double widest = std::max({all_bounds.max.x - grid.origin.x + b.step.x,
                                     all_bounds.max.y - grid.origin.y + b.step.y,

@@ -628,7 +628,8 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
   // Small pages keep the fixed cost of a small archive small: a dozen tables
   // and indexes take a page each, and every blob's last overflow page is on
   // average half empty (4 KiB pages: ~60 KB for an 8-chunk archive of a
-  // 35 k-point scan). Blobs are read whole, so larger pages buy little.
+  // 35 k-point scan). Blobs are read whole, so larger pages buy little. The
+  // caller chooses (kArchivePageSize, or kSmallArchivePageSize for a small input).
   const std::string page_size_sql = "PRAGMA page_size = " + std::to_string(page_size);
   RELIEF_RETURN_IF_ERROR(store::exec(db, page_size_sql.c_str(), path, "set the page size"));
   {

@@ -66,9 +66,10 @@ inline constexpr std::uint64_t kMaxBoundedChunkPoints = std::uint64_t{1} << 22;
 // otherwise. The count is the inputs' header counts (a header without one:
 // file bytes / 12), so the choice depends on the input files alone, never on
 // the order of their points, --memory or --threads; an archive keeps its page
-// size when appended to. Around a million points the fixed pages an archive
-// saves with small pages (~6 KB) are worth what the longer overflow chains
-// cost (0.4 % of the blob bytes). In the bounded mode with the automatic
+// size when appended to. Streams and sharded builds take kArchivePageSize.
+// Around a million points the fixed pages an archive saves with small pages
+// (~6 KB) are worth what the longer overflow chains cost (0.4 % of the blob
+// bytes). In the bounded mode with the automatic
 // cell and chunk edge, inputs of at most kSmallArchiveMaxPoints points
 // (counted exactly by the order-free pass) whose box fits in a chunk of
 // kMaxSmallChunkGrowth times the default edge are also one chunk: the edge
