@@ -185,7 +185,7 @@ TEST_CASE("compress: small inputs get small pages, and every chunk's base layer 
     auto info = inspect_chunk(row->blob);
     REQUIRE(info.is_ok());
     CHECK(2 * info->base_points >= (ref.input_points + kBaseLayerLod - 1) / kBaseLayerLod);
-    // Not much more either: about 1/24 of the points per map pixel is the aim
+    // Not much more either: about 24 points per map pixel is the aim
     // (the cell snaps to the chunk's power-of-two grid, so within a factor 4).
     CHECK(info->base_points * 4 <= ref.input_points);
   }
