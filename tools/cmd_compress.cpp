@@ -19,7 +19,8 @@ int run_compress(int argc, char** argv) {
   static const std::string usage = std::string(
       "usage: relief compress IN... -o OUT.relief [--chunk-edge METRES] [options]\n"
       "Compresses point files (PLY, LAS 1.0-1.4, XYZ/CSV, PCD) of any size into a new archive.\n"
-      "  --chunk-edge M         edge of the archive's chunks (default 32 cells)\n"
+      "  --chunk-edge M         edge of the archive's chunks (default 32 cells; bounded mode: an\n"
+      "                         input of at most 2^20 points that fits in 4 x that is one chunk)\n"
       "  --error-target M       resample mode: choose the cell size for this RMSE_SNN (by trial\n"
       "                         encodes of the first points; overrides --cell; implies --mode resample)\n"
       "  --allow-sparse         go ahead although the cell or chunk edge puts on average fewer than\n"

@@ -242,6 +242,24 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   EncodeStats base_stats;
   auto base_blob = encode_chunk(base, base_params, {}, &base_stats);
   if (!base_blob) return base_blob.status().with_context("chunk: base layer");
+  // The archive's base cell comes from a sample of all points; a chunk whose
+  // maps hold too few pixels for kBaseLayerLod (sparser or more line-like
+  // than the sample) gets them again with half the cell, about 4 times the
+  // pixels on a surface. A finer cell the encoder refuses (depth or atlas
+  // limit) keeps the coarser maps, which stay valid.
+  const std::uint64_t wanted = (static_cast<std::uint64_t>(n) + kBaseLayerLod - 1) / kBaseLayerLod;
+  for (int k = 0; k < kMaxBaseRefinements && base_params.cell_size > 0 &&
+                  2 * static_cast<std::uint64_t>(base_stats.decoded_points) < wanted;
+       ++k) {
+    EncodeParams finer = base_params;
+    finer.cell_size = base_params.cell_size / 2;
+    EncodeStats finer_stats;
+    auto finer_blob = encode_chunk(base, finer, {}, &finer_stats);
+    if (!finer_blob) break;
+    base_params = finer;
+    base_blob = std::move(finer_blob);
+    base_stats = finer_stats;
+  }
   RELIEF_ASSIGN_OR_RETURN(ParsedBlob parsed, parse_blob(*base_blob, false));
   const ChunkHeader& bh = parsed.header;
   h.decomposition = bh.decomposition;

@@ -754,6 +754,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
   if (extra != nullptr) extra->positions = sample.positions;
   const double fraction = static_cast<double>(sample.size()) / static_cast<double>(total);
   OrderFreeCells cells;
+  cells.points = total;
   cells.density_cell = cell_size_for_density(sample, static_cast<double>(map_resolution) * map_resolution * fraction);
   // The base layer's pixels should hold about kBasePointsPerPixel points
   // whatever the shape of the data (surfaces fill a cell's r x r pixels,
@@ -820,6 +821,7 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   // Bounded mode: chunks are kDefaultCellsPerChunk density cells across,
   // whatever the base layer's cell.
   double density_cell = 0;
+  std::uint64_t input_points = 0;  // counted by the order-free pass
   if (bounded && params.cell_size == 0) {
     // The base layer's cells: from a sample that depends only on the set of
     // input points (not their order, not the memory budget).
@@ -829,6 +831,7 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     // documented default grid, so scripted pipelines need no special case.
     params.cell_size = cells.density_cell > 0 ? cells.base_cell : kBaseCellFactor * kEmptyInputCellSize;
     density_cell = cells.density_cell;
+    input_points = cells.points;
   } else if (sample != nullptr) {
     // The caller wants the pass anyway (a shard plan): the sample, not the
     // cells, and no bounds, so the grid is the one this branch would get.
@@ -859,6 +862,23 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   grid.chunk_edge = options.chunk_edge > 0    ? options.chunk_edge
                     : density_cell > 0        ? density_cell * kDefaultCellsPerChunk
                                               : params.cell_size * cells_per_chunk;
+  if (bounded && options.chunk_edge == 0 && density_cell > 0 && input_points <= kSmallArchiveMaxPoints) {
+    // A small, compact input is one chunk: each chunk costs a blob header,
+    // its maps' fixed cost and a row (KITTI's 115 k points made 2 chunks, one
+    // of 40 points, 1.5 KB more). The edge doubles (the base cells' ladder
+    // edge / 2^D stays the same) until the inputs' box, snapped, fits from
+    // the grid origin, when that takes at most kMaxSmallChunkGrowth times the
+    // default edge; scattered inputs keep the default. The depth limit below
+    // may still halve it.
+    const ErrorBound& b = *params.bound;
+    const double widest = std::max({all_bounds.max.x - grid.origin.x + b.step.x,
+                                    all_bounds.max.y - grid.origin.y + b.step.y,
+                                    all_bounds.max.z - grid.origin.z + b.step.z});
+    const double grown = grid.chunk_edge * kMaxSmallChunkGrowth;
+    if (widest < grown && grown <= kMaxCoordinateMagnitude) {
+      while (grid.chunk_edge <= widest) grid.chunk_edge *= 2;
+    }
+  }
   if (bounded && options.chunk_edge == 0) {
     // A chunk spans at most 2^21 grid steps (the octree's depth limit), with
     // room for points snapped half a step beyond its faces.
@@ -883,6 +903,10 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
 
 }  // namespace ingest
 
+std::uint32_t ingest_page_size(std::uint64_t input_points) {
+  return input_points <= kSmallArchiveMaxPoints ? kSmallArchivePageSize : kArchivePageSize;
+}
+
 Result<IngestResult> compress_files(const std::vector<std::string>& inputs, const std::string& archive_path,
                                     const IngestOptions& options) {
   using namespace ingest;
@@ -903,7 +927,8 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   const EncodeParams& params = built.params;
   const ArchiveGrid& grid = built.grid;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
-                          Archive::create(archive_path, grid, encode_params_to_string(params), options.creator));
+                          Archive::create(archive_path, grid, encode_params_to_string(params), options.creator,
+                                          ingest_page_size(in.estimated_points)));
   auto result = run_ingest(*archive, grid, params, in, std::move(first), options,
                            default_tmp_parent(archive_path, options));
   if (!result) {

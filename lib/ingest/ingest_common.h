@@ -145,6 +145,7 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& bound);
 struct OrderFreeCells {
   double density_cell = 0;  // suggest_cell_size of all the points
   double base_cell = 0;     // the bounded mode's base-layer cell
+  std::uint64_t points = 0; // points read
 };
 // With `extra`, also what a shard plan needs from the same pass (below).
 struct OrderFreeSample {

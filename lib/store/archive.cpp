@@ -618,11 +618,9 @@ void sync_directory_of(const std::string& path) {
   ::close(fd);
 }
 
-constexpr const char* kPageSizeSql = "PRAGMA page_size = 1024";
-
 // Writes a complete, empty archive to `temp` and closes it.
 Status write_new_archive(const std::string& temp, const std::string& path, const ArchiveGrid& grid,
-                         const std::string& codec_params, const std::string& creator) {
+                         const std::string& codec_params, const std::string& creator, std::uint32_t page_size) {
   RELIEF_ASSIGN_OR_RETURN(store::Connection connection,
                           store::open_connection(temp, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, path,
                                                  "cannot create the archive (temporary file " + temp + ")"));
@@ -630,8 +628,10 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
   // Small pages keep the fixed cost of a small archive small: a dozen tables
   // and indexes take a page each, and every blob's last overflow page is on
   // average half empty (4 KiB pages: ~60 KB for an 8-chunk archive of a
-  // 35 k-point scan). Blobs are read whole, so larger pages buy little.
-  RELIEF_RETURN_IF_ERROR(store::exec(db, kPageSizeSql, path, "set the page size"));
+  // 35 k-point scan). Blobs are read whole, so larger pages buy little. The
+  // caller chooses (kArchivePageSize, or kSmallArchivePageSize for a small input).
+  const std::string page_size_sql = "PRAGMA page_size = " + std::to_string(page_size);
+  RELIEF_RETURN_IF_ERROR(store::exec(db, page_size_sql.c_str(), path, "set the page size"));
   {
     // The whole schema in one transaction in rollback-journal mode (the
     // default for a new file, synchronous = FULL): COMMIT leaves it on disk.
@@ -640,8 +640,11 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
     const std::string header = "PRAGMA application_id = " + std::to_string(kArchiveApplicationId) +
                                "; PRAGMA user_version = " + std::to_string(kArchiveFormatVersion) + ";";
     RELIEF_RETURN_IF_ERROR(store::exec(db, header.c_str(), path, "write the file header"));
-    RELIEF_RETURN_IF_ERROR(store::exec(db, store::kCreateSchemaSql, path, "create the schema"));
-    RELIEF_RETURN_IF_ERROR(store::exec(db, store::kCreateBoundsIndexSql, path, "create the schema"));
+    // Compact text: SQLite keeps every CREATE statement in the file as given.
+    const std::string schema = store::compact_sql(store::kCreateSchemaSql);
+    RELIEF_RETURN_IF_ERROR(store::exec(db, schema.c_str(), path, "create the schema"));
+    const std::string bounds_index = store::compact_sql(store::kCreateBoundsIndexSql);
+    RELIEF_RETURN_IF_ERROR(store::exec(db, bounds_index.c_str(), path, "create the schema"));
 
     const std::array<std::pair<const char*, std::string>, 11> meta = {{
         {store::kMetaFormatVersion, std::to_string(kArchiveFormatVersion)},
@@ -1402,7 +1405,8 @@ Status SqliteArchive::put_level_chunks(int level, std::vector<ChunkRow>& rows) {
   Transaction transaction(db(), path_);
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
   RELIEF_RETURN_IF_ERROR(check_room(rows));
-  RELIEF_RETURN_IF_ERROR(store::exec(db(), store::kCreatePyramidSql, path_, "create the pyramid tables"));
+  RELIEF_RETURN_IF_ERROR(
+      store::exec(db(), store::compact_sql(store::kCreatePyramidSql).c_str(), path_, "create the pyramid tables"));
   for (const std::int64_t scan_id : scan_ids) {
     RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
     if (!exists) {
@@ -1458,7 +1462,8 @@ Status SqliteArchive::finish_pyramid(std::int64_t scan_id, std::uint64_t levels)
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
   RELIEF_ASSIGN_OR_RETURN(const bool exists, scan_exists(scan_id));
   if (!exists) return invalid_argument(path_ + ": finish_pyramid: no scan with id " + std::to_string(scan_id));
-  RELIEF_RETURN_IF_ERROR(store::exec(db(), store::kCreatePyramidSql, path_, "create the pyramid tables"));
+  RELIEF_RETURN_IF_ERROR(
+      store::exec(db(), store::compact_sql(store::kCreatePyramidSql).c_str(), path_, "create the pyramid tables"));
   RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kLevelScanInsert));
   StatementScope scope(*statement);
   statement->bind_int64(1, scan_id);
@@ -1864,7 +1869,11 @@ Result<std::unique_ptr<SqliteArchive>> open_sqlite(const std::string& path, Arch
 
 Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const ArchiveGrid& grid,
                                                  const std::string& codec_params,
-                                                 const std::string& creator) {
+                                                 const std::string& creator, std::uint32_t page_size) {
+  if (page_size < 512 || page_size > 65536 || (page_size & (page_size - 1)) != 0) {
+    return invalid_argument(path + ": page size " + std::to_string(page_size) +
+                            " is not a power of two from 512 to 65536");
+  }
   std::error_code ec;
   if (fs::exists(fs::symlink_status(path, ec))) {
     return io_error(path + ": already exists (an archive is never overwritten)");
@@ -1876,7 +1885,7 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
   // archive under the real name.
   const std::string temp = path + ".tmp-" + std::to_string(::getpid());
   remove_database_files(temp);  // left by a crashed process that had our pid
-  Status status = write_new_archive(temp, path, grid, codec_params, creator);
+  Status status = write_new_archive(temp, path, grid, codec_params, creator, page_size);
   if (status.is_ok()) status = move_into_place(temp, path);
   if (!status.is_ok()) {
     remove_database_files(temp);

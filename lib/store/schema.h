@@ -15,6 +15,10 @@ inline constexpr std::array<std::string_view, 5> kRequiredTables = {
 //
 // AUTOINCREMENT on scans and chunks: ids are never reused after abort_scan, so
 // an id a reader saw can never name a different chunk later.
+// relief_meta is keyed by its key alone (WITHOUT ROWID: no second b-tree
+// for the key's uniqueness), and relief_source, a row per input file, has no
+// index on scan_id (archives before 2026-11-27 have one, relief_source_scan):
+// each of those took a page of every archive.
 // The blob is the last column of relief_chunk: SQLite stores a row's columns
 // in order and a large blob spills to overflow pages, so index scans and
 // length(blob) read the other columns without touching the blob's pages.
@@ -22,7 +26,7 @@ inline constexpr char kCreateSchemaSql[] = R"sql(
 CREATE TABLE relief_meta (
   key   TEXT PRIMARY KEY NOT NULL,
   value TEXT NOT NULL
-);
+) WITHOUT ROWID;
 CREATE TABLE relief_scan (
   id            INTEGER PRIMARY KEY AUTOINCREMENT,
   created_at    TEXT NOT NULL,
@@ -39,7 +43,6 @@ CREATE TABLE relief_source (
   point_count INTEGER NOT NULL CHECK (point_count >= 0),
   crs         TEXT NOT NULL DEFAULT ''
 );
-CREATE INDEX relief_source_scan ON relief_source(scan_id);
 CREATE TABLE relief_chunk (
   id             INTEGER PRIMARY KEY AUTOINCREMENT,
   ix             INTEGER NOT NULL,

@@ -117,6 +117,31 @@ Status close_connection(Connection connection, const std::string& path) {
   return Status::ok();
 }
 
+std::string compact_sql(std::string_view sql) {
+  const auto is_space = [](char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; };
+  const auto tight = [](char c) { return c == '(' || c == ')' || c == ',' || c == ';'; };
+  std::string out;
+  out.reserve(sql.size());
+  char quote = 0;  // the open quote character, 0 outside quotes
+  bool pending_space = false;
+  for (const char c : sql) {
+    if (quote != 0) {
+      out.push_back(c);
+      if (c == quote) quote = 0;  // a doubled quote closes and reopens: same text
+      continue;
+    }
+    if (is_space(c)) {
+      pending_space = true;
+      continue;
+    }
+    if (pending_space && !out.empty() && !tight(out.back()) && !tight(c)) out.push_back(' ');
+    pending_space = false;
+    if (c == '\'' || c == '"' || c == '`') quote = c;
+    out.push_back(c);
+  }
+  return out;
+}
+
 Status exec(sqlite3* db, const char* sql, const std::string& path, std::string_view what) {
   const int rc = sqlite3_exec(db, sql, nullptr, nullptr, nullptr);
   if (rc != SQLITE_OK) return sqlite_error(db, rc, path, what);

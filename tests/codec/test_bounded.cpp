@@ -269,6 +269,42 @@ TEST_CASE("bounded: coarse levels of detail come from the base layer", "[codec][
   }
 }
 
+TEST_CASE("bounded: the base layer serves kBaseLayerLod even when the cell is too coarse for it", "[codec][bounded]") {
+  test::SceneOptions o;
+  o.seed = 23;
+  o.points = 60000;
+  const PointCloud in = test::make_terrain(o, 20.0, 1.0);
+  // Cells as wide as the terrain: one patch, one r x r map (256 pixels), far
+  // fewer than n / 32; the encoder halves the cell until the maps hold enough.
+  for (const double cell : {20.0, 40.0, 5.0}) {
+    INFO("cell " << cell);
+    auto blob = encode_chunk(in, bounded_params(0.002, cell));
+    REQUIRE(blob.is_ok());
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    const std::uint64_t wanted = (in.size() + kBaseLayerLod - 1) / kBaseLayerLod;
+    CHECK(2 * info->base_points >= wanted);
+    DecodeOptions d;
+    d.lod = kBaseLayerLod;
+    auto out = decode_chunk(*blob, d);
+    REQUIRE(out.is_ok());
+    // From the maps alone: about min(wanted, base points), not every 16th point.
+    const auto w = static_cast<double>(std::min<std::uint64_t>(wanted, info->base_points));
+    CHECK(std::fabs(static_cast<double>(out->size()) - w) <= w * 0.02 + 2);
+    auto all = decode_chunk(*blob);
+    REQUIRE(all.is_ok());
+    CHECK(all->size() == in.size());
+  }
+  // A cell already fine enough is kept: the maps hold more than n / 16 / 2.
+  auto fine = encode_chunk(in, bounded_params(0.002, 2.0));
+  REQUIRE(fine.is_ok());
+  auto fine_info = inspect_chunk(*fine);
+  REQUIRE(fine_info.is_ok());
+  auto coarse = encode_chunk(in, bounded_params(0.002, 20.0));
+  REQUIRE(coarse.is_ok());
+  CHECK(inspect_chunk(*coarse)->base_points <= fine_info->base_points);
+}
+
 TEST_CASE("bounded: truncated and corrupted blobs are rejected without crashing", "[codec][bounded][reject]") {
   test::SceneOptions o;
   o.seed = 4;

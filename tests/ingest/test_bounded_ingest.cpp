@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <tuple>
 
@@ -155,6 +156,75 @@ TEST_CASE("bounded compress: the same blobs whatever --memory, --threads and poi
   auto refs = (*archive)->all_chunks();
   REQUIRE(refs.is_ok());
   for (const ChunkRef& ref : *refs) CHECK(ref.input_points <= 20000);
+}
+
+TEST_CASE("compress: small inputs get small pages, and every chunk's base layer serves lod 16", "[ingest][bounded]") {
+  CHECK(ingest_page_size(0) == kSmallArchivePageSize);
+  CHECK(ingest_page_size(kSmallArchiveMaxPoints) == kSmallArchivePageSize);
+  CHECK(ingest_page_size(kSmallArchiveMaxPoints + 1) == kArchivePageSize);
+  TempDir dir;
+  const PointCloud in = scene(5, 40000);
+  REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
+  IngestOptions o;
+  o.tolerance = 0.002;
+  o.threads = 1;
+  REQUIRE(compress_files({dir.file("in.ply")}, dir.file("a.relief"), o).is_ok());
+  // The SQLite header: the page size, big-endian, at offset 16.
+  std::ifstream f(dir.file("a.relief"), std::ios::binary);
+  std::array<unsigned char, 18> header{};
+  REQUIRE(f.read(reinterpret_cast<char*>(header.data()), header.size()));
+  CHECK(((header[16] << 8) | header[17]) == static_cast<int>(kSmallArchivePageSize));
+  auto archive = Archive::open(dir.file("a.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  REQUIRE(!refs->empty());
+  for (const ChunkRef& ref : *refs) {
+    auto row = (*archive)->read_chunk(ref.id);
+    REQUIRE(row.is_ok());
+    auto info = inspect_chunk(row->blob);
+    REQUIRE(info.is_ok());
+    CHECK(2 * info->base_points >= (ref.input_points + kBaseLayerLod - 1) / kBaseLayerLod);
+    // Not much more either: about 24 points per map pixel is the aim
+    // (the cell snaps to the chunk's power-of-two grid, so within a factor 4).
+    CHECK(info->base_points * 4 <= ref.input_points);
+  }
+}
+
+TEST_CASE("compress: a small compact input is one chunk, a scattered one keeps the default edge", "[ingest][bounded]") {
+  TempDir dir;
+  // A long strip (24 x 1.5 m): the default edge (32 density cells) is shorter.
+  test::SceneOptions so;
+  so.seed = 9;
+  so.points = 5000;
+  PointCloud strip = test::make_terrain(so, 1.5, 0.2);
+  for (int k = 1; k < 16; ++k) {
+    so.seed = 9 + static_cast<std::uint64_t>(k);
+    const PointCloud tile = test::make_terrain(so, 1.5, 0.2);
+    for (const Vec3d& p : tile.positions) strip.positions.push_back({p.x + 1.5 * k, p.y, p.z});
+  }
+  REQUIRE(write_ply(dir.file("strip.ply"), strip).is_ok());
+  IngestOptions o;
+  o.tolerance = 0.002;
+  o.threads = 1;
+  auto one = compress_files({dir.file("strip.ply")}, dir.file("one.relief"), o);
+  REQUIRE(one.is_ok());
+  CHECK(one->chunks_written == 1);
+  // The same strip given a chunk edge of a quarter of that: several chunks,
+  // so the automatic edge did grow.
+  IngestOptions quarter = o;
+  quarter.chunk_edge = one->chunk_edge / 4;
+  auto several = compress_files({dir.file("strip.ply")}, dir.file("several.relief"), quarter);
+  REQUIRE(several.is_ok());
+  CHECK(several->chunks_written > 1);
+  // Two copies far apart (100 strips' length): scattered, not one chunk.
+  PointCloud apart = strip;
+  for (const Vec3d& p : strip.positions) apart.positions.push_back({p.x + 2400, p.y, p.z});
+  REQUIRE(write_ply(dir.file("apart.ply"), apart).is_ok());
+  auto two = compress_files({dir.file("apart.ply")}, dir.file("apart.relief"), o);
+  REQUIRE(two.is_ok());
+  CHECK(two->chunks_written > 1);
+  CHECK(two->chunk_edge < one->chunk_edge);
 }
 
 TEST_CASE("bounded compress: LAS input comes back as the same LAS integers", "[ingest][bounded]") {

@@ -1252,6 +1252,48 @@ TEST_CASE("version-1 archives still read, check without a checksum, and are upgr
   CHECK(check_ok(path).problems.empty());
 }
 
+TEST_CASE("create takes the page size it is given and writes the schema compactly", "[store]") {
+  TempDir dir;
+  for (const std::uint32_t page_size : {kSmallArchivePageSize, kArchivePageSize, std::uint32_t{4096}}) {
+    const std::string path = dir.file("p" + std::to_string(page_size) + ".relief");
+    {
+      Result<std::unique_ptr<Archive>> archive = Archive::create(path, grid_25m(), "", "", page_size);
+      INFO(archive.status().to_string());
+      REQUIRE(archive.is_ok());
+      const std::int64_t scan = begin_ok(**archive, {{"a.ply", "ply", 100, "", 0}});
+      // Blobs that span several overflow pages at every page size.
+      std::vector<ChunkRow> rows = {make_row({0, 0, 0}, scan, cube(1, 2), 40, 20000, 1),
+                                    make_row({1, 0, 0}, scan, cube(26, 27), 50, 3, 2)};
+      put_ok(**archive, rows);
+      REQUIRE((*archive)->finish_scan(scan, true, false, "").is_ok());
+      CHECK(read_ok(**archive, rows[0].ref.id).blob == rows[0].blob);
+    }
+    RawDb raw(path);
+    CHECK(raw.integer("PRAGMA page_size") == page_size);
+    // No line breaks, runs of spaces or spaces beside punctuation in the
+    // CREATE text Relief wrote (SQLite's own R*Tree tables are its business).
+    CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name LIKE 'relief%' AND name NOT LIKE "
+                      "'relief_chunk_index_%' AND (instr(sql, char(10)) OR instr(sql, '  ') OR instr(sql, ', ') "
+                      "OR instr(sql, ' (') OR instr(sql, '( '))") == 0);
+    CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name = 'relief_chunk' AND "
+                      "sql LIKE 'CREATE TABLE relief_chunk(id INTEGER PRIMARY KEY AUTOINCREMENT,ix INTEGER NOT NULL,%'") == 1);
+    // One b-tree for the metadata, none for relief_source's scan_id.
+    CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name IN ('sqlite_autoindex_relief_meta_1', "
+                      "'relief_source_scan')") == 0);
+    auto reader = open_ok(path, Archive::Mode::kReadOnly);
+    CHECK(read_ok(*reader, 1).blob.size() == 20000);
+    CHECK(info_ok(*reader).grid.chunk_edge == 25);
+    const ArchiveCheck check = check_ok(path);
+    INFO(joined(check.problems));
+    CHECK(check.problems.empty());
+  }
+  for (const std::uint32_t bad : {0u, 256u, 1000u, 131072u}) {
+    const std::string path = dir.file("bad.relief");
+    CHECK(Archive::create(path, grid_25m(), "", "", bad).status().code() == StatusCode::kInvalidArgument);
+    CHECK_FALSE(fs::exists(path));
+  }
+}
+
 }  // namespace
 }  // namespace relief
 

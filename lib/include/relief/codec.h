@@ -89,6 +89,13 @@ struct EncodeParams {
 // images stay within a few hundred MB to decode.
 inline constexpr std::uint64_t kMaxAtlasPixels = std::uint64_t{1} << 26;
 
+// The coarsest level of detail every error-bounded blob's base layer serves
+// alone (format-spec/chunk.md §11.6: 2 x decoded_points >= ceil(input_points /
+// L)), what previews and coarse queries ask for. The encoder makes a chunk's
+// maps finer (half the cell, up to kMaxBaseRefinements times) until they do.
+inline constexpr std::uint32_t kBaseLayerLod = 16;
+inline constexpr int kMaxBaseRefinements = 3;
+
 struct DecodeOptions {
   // Level of detail: 1 = every point; L = a spatially uniform ~1/L subset
   // (the quota is spread over the patches by error diffusion, so small patches

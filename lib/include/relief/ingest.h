@@ -43,13 +43,15 @@ inline constexpr std::uint64_t kPyramidAutoMinPoints = 10'000'000;
 inline constexpr double kDefaultTolerance = 0.0005;
 // In the bounded mode the maps are a coarse base layer for previews and
 // levels of detail: cells whose map pixels hold about kBasePointsPerPixel
-// points each (so a level of detail up to ~1/24 is read from the base layer
-// alone), measured on the order-free sample while it holds at least
+// points each, measured on the order-free sample while it holds at least
 // kMinSamplePointsPerPixel points per such pixel; else (very large inputs),
-// kBaseCellFactor times the density-derived cell (~1/16 on a surface).
+// kBaseCellFactor times the density-derived cell (~1/16 on a surface). Just
+// enough for level of detail kBaseLayerLod (which needs 1/32): the encoder
+// snaps the cell down to chunk edge / 2^D (1/17 to 1/31 of the points on the
+// shared files) and refines the maps of a chunk that would hold too few.
 // Chunks are kDefaultCellsPerChunk density-derived cells across (the same
 // chunk edge as the resampling mode).
-inline constexpr double kBasePointsPerPixel = 12;
+inline constexpr double kBasePointsPerPixel = 24;
 inline constexpr double kMinSamplePointsPerPixel = 1.5;
 inline constexpr double kBaseCellFactor = 4;
 // Points of the order-independent density sample (bottom of a hash order).
@@ -58,6 +60,23 @@ inline constexpr std::size_t kOrderFreeSamplePoints = 1u << 18;
 // before encoding, each its own blob of the same voxel: a rule on the points
 // alone, so archives do not depend on --memory.
 inline constexpr std::uint64_t kMaxBoundedChunkPoints = std::uint64_t{1} << 22;
+
+// A new archive's SQLite page size (relief/archive.h): kSmallArchivePageSize
+// when its inputs hold at most kSmallArchiveMaxPoints points, kArchivePageSize
+// otherwise. The count is the inputs' header counts (a header without one:
+// file bytes / 12), so the choice depends on the input files alone, never on
+// the order of their points, --memory or --threads; an archive keeps its page
+// size when appended to. Streams and sharded builds take kArchivePageSize.
+// Around a million points the fixed pages an archive saves with small pages
+// (~6 KB) are worth what the longer overflow chains cost (0.4 % of the blob
+// bytes). In the bounded mode with the automatic
+// cell and chunk edge, inputs of at most kSmallArchiveMaxPoints points
+// (counted exactly by the order-free pass) whose box fits in a chunk of
+// kMaxSmallChunkGrowth times the default edge are also one chunk: the edge
+// doubles until the box fits.
+inline constexpr std::uint64_t kSmallArchiveMaxPoints = std::uint64_t{1} << 20;
+inline constexpr double kMaxSmallChunkGrowth = 4;
+std::uint32_t ingest_page_size(std::uint64_t input_points);
 
 // The smallest working-memory budget ingest works in: buffers and encoder
 // scratch need this much whatever the input. A smaller
