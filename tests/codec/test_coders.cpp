@@ -922,6 +922,29 @@ TEST_CASE("mixed coding (codec 8) is smaller than single-child coding on sparse 
   }
 }
 
+TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][geometry]") {
+  // Random bytes claiming a deep tree and many points: every coding must stop
+  // (an error, or a set of cells that holds exactly the declared points) after
+  // work bounded by the stream's size, whatever the mixer's weights do.
+  using relief::codec::OctreeCoding;
+  std::mt19937_64 rng(81);
+  for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed}) {
+    for (int trial = 0; trial < 60; ++trial) {
+      std::vector<std::uint8_t> stream(1 + rng() % 300);
+      for (auto& b : stream) b = static_cast<std::uint8_t>(trial % 3 == 0 ? 0xFF : (trial % 3 == 1 ? 0x00 : rng()));
+      const std::uint64_t n = 1 + rng() % 1000000;
+      INFO("coding " << static_cast<int>(coding) << " trial " << trial << " bytes " << stream.size() << " n " << n);
+      auto r = relief::codec::decode_geometry(stream, 21, n, coding);
+      if (r.is_ok()) {
+        CHECK(total_points(*r) == n);
+        CHECK(r->keys.size() <= n);
+      } else {
+        CHECK(r.status().code() == relief::StatusCode::kCorruptData);
+      }
+    }
+  }
+}
+
 TEST_CASE("octree geometry streams of the other coding, truncated or flipped fail cleanly", "[coders][geometry]") {
   using relief::codec::OctreeCoding;
   for (const auto [coding, wrong] : {std::pair{OctreeCoding::kSingleChild, OctreeCoding::kBitwise},
