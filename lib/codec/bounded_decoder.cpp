@@ -29,8 +29,9 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   if (n == 0) return out;
   const SectionEntry* geometry = find_section(blob, SectionId::kGeometry);
   if (geometry == nullptr) return corrupt_data("chunk blob: no geometry section");  // parse_blob guarantees it
-  const OctreeCoding coding =
-      geometry->codec == SectionCodec::kOctreeSingleChild ? OctreeCoding::kSingleChild : OctreeCoding::kBitwise;
+  const OctreeCoding coding = geometry->codec == SectionCodec::kOctreeMixed         ? OctreeCoding::kMixed
+                              : geometry->codec == SectionCodec::kOctreeSingleChild ? OctreeCoding::kSingleChild
+                                                                                    : OctreeCoding::kBitwise;
   auto cells = decode_geometry(geometry->payload, h.geometry_depth, n, coding);
   if (!cells) return cells.status().with_context("chunk blob: geometry section");
   out.positions.resize(n);

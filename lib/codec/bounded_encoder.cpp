@@ -64,7 +64,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = kChunkFormatVersion;  // 6: geometry codec 7, LAS fields (possibly none), GPS time in time order
+  h.version = kChunkFormatVersion;  // 7: geometry codec 8, LAS fields (possibly none), GPS time in time order
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -155,8 +155,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
 
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;
-  payloads.push_back(encode_geometry(cells, depth, OctreeCoding::kSingleChild));
-  refined.push_back({SectionId::kGeometry, SectionCodec::kOctreeSingleChild, static_cast<std::uint32_t>(n), 0, {}});
+  payloads.push_back(encode_geometry(cells, depth, OctreeCoding::kMixed));
+  refined.push_back({SectionId::kGeometry, SectionCodec::kOctreeMixed, static_cast<std::uint32_t>(n), 0, {}});
 
   // ---- The base layer is built from what the decoder will return.
   PointCloud base;

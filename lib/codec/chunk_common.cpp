@@ -60,8 +60,11 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec, std::ui
       if (image_codec == ImageCodec::kJpeg) return c == SectionCodec::kJpeg || c == SectionCodec::kJpegAbbreviated;
       return c == SectionCodec::kJpeg2000;
     case SectionId::kGeometry:
-      // One coding per version: codec 6 in versions 2 and 3, codec 7 in 5.
-      return c == (version >= 5 ? SectionCodec::kOctreeSingleChild : SectionCodec::kArithmetic);
+      // One coding per version: codec 6 in versions 2 and 3, codec 7 in 5
+      // and 6, codec 8 in 7.
+      return c == (version >= 7   ? SectionCodec::kOctreeMixed
+                   : version >= 5 ? SectionCodec::kOctreeSingleChild
+                                  : SectionCodec::kArithmetic);
     case SectionId::kPointColor:
     case SectionId::kPointIntensity:
     case SectionId::kClassMap:

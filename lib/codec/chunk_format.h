@@ -64,6 +64,9 @@ enum class SectionCodec : std::uint8_t {
   // Geometry only (version 5): the range-coded octree with single-child
   // nodes coded as a flag and a 3-bit index (format-spec/chunk.md §11.3).
   kOctreeSingleChild = 7,
+  // Geometry only (version 7): codec 7's octree with each bit's probability
+  // mixed from two context models (format-spec/chunk.md §11.3.2).
+  kOctreeMixed = 8,
 };
 
 // How the error-bounded layer codes intensity (header byte 162).

@@ -7,6 +7,9 @@
 // neighbours (and all their children) are already known to the decoder; its
 // +x, +y, +z neighbours are known to exist or not (the whole level is known
 // before its children are coded) but not their children.
+//
+// Codec 8 (chunk format 7) makes codec 7's decisions with probabilities
+// mixed from two context models (mix_code below).
 #include "codec/geometry_coder.h"
 
 #include <algorithm>
@@ -34,8 +37,98 @@ constexpr int kCountContexts = 2;
 constexpr int kSingleFlagContexts = 4 * 2 * 4;
 constexpr int kSingleIndexContexts = 8 * 3 * 4 * 2 * 4;
 
+// ---- Mixing (codec 8). Each bit of codec 7's three kinds (single-child
+// flag, single-child index, child bit of a multi-child node) is coded with a
+// probability mixed in the logistic domain from codec 7's model for it (its
+// fast and slow estimates) and a second model with a different context,
+// weighted by a small online-trained mixer. Integer arithmetic only, so
+// encoder and decoder agree on every platform (format-spec/chunk.md §11.3.2).
+//
+// Logit domain: st = 256 ln(p / (1 - p)), within +-2047.
+// squash(x) = 2^16 / (1 + e^(-x/256)), by linear interpolation between 33
+// knots at x = 128 (i - 16), the formula rounded to integers.
+constexpr std::int32_t kSquashKnots[33] = {22,    36,    60,    98,    162,   267,   439,   720,   1179,
+                                           1921,  3108,  4971,  7812,  11955, 17625, 24743, 32768, 40793,
+                                           47911, 53581, 57724, 60565, 62428, 63615, 64357, 64816, 65097,
+                                           65269, 65374, 65438, 65476, 65500, 65514};
+constexpr std::int32_t squash(std::int32_t x) {
+  if (x > 2047) x = 2047;
+  if (x < -2047) x = -2047;
+  const std::int32_t w = x & 127;  // two's complement: x = 128 (i - 16) + w
+  const std::int32_t i = (x >> 7) + 16;
+  return (kSquashKnots[i] * (128 - w) + kSquashKnots[i + 1] * w + 64) >> 7;
+}
+// stretch of a probability by its top 12 bits j = p >> 4: the smallest x in
+// [-2047, 2047] with squash(x) >> 4 >= j, 2047 when there is none (so
+// stretch inverts squash).
+constexpr auto kStretch = [] {
+  std::array<std::int16_t, 4096> t{};
+  std::int32_t j = 0;
+  for (std::int32_t x = -2047; x <= 2047; ++x) {
+    for (const std::int32_t v = squash(x) >> 4; j <= v; ++j) t[static_cast<std::size_t>(j)] = static_cast<std::int16_t>(x);
+  }
+  for (; j < 4096; ++j) t[static_cast<std::size_t>(j)] = 2047;
+  return t;
+}();
+inline std::int32_t stretch(std::uint32_t p16) { return kStretch[p16 >> 4]; }
+
+// Second models' contexts: child bits by the node's six face neighbours and
+// the child byte so far (1 then the k bits below child k: 1..255); single-child
+// flags by the face neighbours, the minus neighbours' child counts (3^3) and
+// the levels to the leaves; index bits by the tree position, the minus
+// neighbours' halves along the axis (5^3) and the levels to the leaves.
+constexpr int kChildBContexts = 64 * 256;
+constexpr int kFlagBContexts = 64 * 27 * 4;
+constexpr int kIndexBContexts = 8 * 125 * 4;
+// Inputs: the first model's fast and slow estimates, the second's mean, a bias.
+constexpr int kMixInputs = 4;
+constexpr std::int32_t kMixBias = 256;
+constexpr std::int32_t kMixInitWeight = 1 << 15;  // 0.5 in 16.16 fixed point
+constexpr int kMixShift = 16;
+// |weight| <= 64.0: a hostile stream cannot overflow the arithmetic.
+constexpr std::int32_t kMixMaxWeight = 1 << 22;
+
+template <int Sets>
+struct Mixer {
+  std::int32_t w[Sets][kMixInputs];
+  Mixer() {
+    for (auto& set : w) set[0] = set[1] = set[2] = kMixInitWeight, set[3] = 0;
+  }
+};
+
+// Codes one bit with the mix of models `a` and `b` under weight set `w`, then
+// updates the weights and both models.
+// (Inlined: a call per decision costs a fifth of the decoder's time.)
+template <typename CodeProb>
+[[gnu::always_inline]] inline int mix_code(BitModel& a, BitModel& b, std::int32_t* w, CodeProb& code_prob, int truth_bit) {
+  const std::int32_t st[kMixInputs] = {stretch(a.fast), stretch(a.slow), stretch(b.p0()), kMixBias};
+  std::int64_t dot = 0;
+  for (int j = 0; j < kMixInputs; ++j) dot += static_cast<std::int64_t>(w[j]) * st[j];
+  // |dot| < 4 * 2^22 * 2^11, so dot >> 16 fits an int32 (squash clamps it).
+  const std::int32_t p = squash(static_cast<std::int32_t>(dot >> 16));
+  const std::uint32_t p0 = std::clamp<std::uint32_t>(static_cast<std::uint32_t>(p), kProbMin, kProbMax);
+  const int bit = code_prob(p0, truth_bit);
+  const std::int32_t err = (bit ? 0 : 65536) - p;
+  for (int j = 0; j < kMixInputs; ++j) {
+    const std::int32_t v = w[j] + static_cast<std::int32_t>((static_cast<std::int64_t>(st[j]) * err) >> kMixShift);
+    w[j] = std::clamp(v, -kMixMaxWeight, kMixMaxWeight);
+  }
+  a.update(bit);
+  b.update(bit);
+  return bit;
+}
+
 struct GeometryModels {
   BitModel occupancy[kOccupancyContexts];
+  // Codec 8's second models and mixers (weight sets: child bits by k and
+  // the levels to the leaves, flags by lone and the levels to the leaves,
+  // index bits by axis and the levels to the leaves).
+  BitModel child_b[kChildBContexts];
+  BitModel flag_b[kFlagBContexts];
+  BitModel index_b[kIndexBContexts];
+  Mixer<32> child_mixer;
+  Mixer<8> flag_mixer;
+  Mixer<12> index_mixer;
   BitModel single_flag[kSingleFlagContexts];
   BitModel single_index[kSingleIndexContexts];
   BitModel duplicate[kCountContexts];
@@ -111,6 +204,27 @@ class PlaneMemory {
 
 // Child bits with c along `axis` set, for the halves test.
 constexpr std::uint8_t kUpperHalf[3] = {0xAA, 0xCC, 0xF0};
+
+// Codec 8's index bits: by tree position t (1..7; it fixes the axis a and
+// the bits decoded above it) and a minus neighbour's child byte, the
+// neighbour's halves along a among its children that agree with those bits:
+// 0 no neighbour, 1 none, 2 lower only, 3 upper only, 4 both.
+constexpr auto kIndexHalves = [] {
+  std::array<std::array<std::uint8_t, 256>, 8> table{};
+  for (int t = 1; t < 8; ++t) {
+    const int a = t == 1 ? 2 : (t < 4 ? 1 : 0);
+    std::uint8_t keep = 0xFF;
+    for (int b = 2; b > a; --b) {
+      keep &= ((t >> (b - a - 1)) & 1) ? kUpperHalf[b] : static_cast<std::uint8_t>(~kUpperHalf[b]);
+    }
+    for (int occ = 1; occ < 256; ++occ) {
+      const int sub = occ & keep;
+      table[static_cast<std::size_t>(t)][static_cast<std::size_t>(occ)] =
+          static_cast<std::uint8_t>(1 + ((sub & ~kUpperHalf[a] & 0xFF) ? 1 : 0) + ((sub & kUpperHalf[a]) ? 2 : 0));
+    }
+  }
+  return table;
+}();
 
 // A child byte's plane prediction along each axis: -1 with children only in
 // the lower half, +1 only in the upper half, 0 in both (or none).
@@ -197,10 +311,11 @@ constexpr auto kScoreSpread = [] {
   return t;
 }();
 
-template <typename Code, typename TrueByte, typename Grow>
-bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
-                 Code&& code, TrueByte&& true_byte, Grow&& grow) {
-  const bool single_mode = coding == OctreeCoding::kSingleChild;
+template <bool kMixedCoding, typename Code, typename CodeProb, typename TrueByte, typename Grow>
+bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
+                      Code& code, CodeProb& code_prob, TrueByte& true_byte, Grow& grow) {
+  constexpr bool mixed = kMixedCoding;
+  const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
   nodes.assign(1, 0);  // the root
   // Per node of the current level: its six face neighbours' indices in the
   // level (-x, +x, -y, +y, -z, +z; kMissing when empty), its child byte and
@@ -251,7 +366,17 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
       if (single_mode) {
         const int faces = kBitCount[faces_mask];
         const int flag_ctx = (std::min(faces, 3) << 3) | (lone[i] << 2) | to_leaves;
-        single = code(models.single_flag[flag_ctx], kBitCount[truth] == 1 ? 1 : 0) != 0;
+        const int truth_single = kBitCount[truth] == 1 ? 1 : 0;
+        if constexpr (!mixed) {
+          single = code(models.single_flag[flag_ctx], truth_single) != 0;
+        } else {
+          // The minus neighbours' child counts (0 missing, 1 one child, 2 more).
+          int nbc = 0;
+          for (int a = 0; a < 3; ++a) nbc = 3 * nbc + std::min<int>(kBitCount[minus_occ[a]], 2);
+          BitModel& mb = models.flag_b[((faces_mask * 27 + static_cast<unsigned>(nbc)) << 2) | static_cast<unsigned>(to_leaves)];
+          single = mix_code(models.single_flag[flag_ctx], mb, models.flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
+                            truth_single) != 0;
+        }
       }
       if (single) {
         // The child's index, z bit first: node t of the binary tree (1, then 2t + bit).
@@ -263,7 +388,17 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
           const int faces_a = static_cast<int>((faces_mask >> (2 * a)) & 3);
           const int axis_part = (((plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2;
           const int ctx = ((t * 24) << 2) + axis_part + to_leaves;
-          t = 2 * t + code(models.single_index[ctx], (truth_k >> a) & 1);
+          if constexpr (!mixed) {
+            t = 2 * t + code(models.single_index[ctx], (truth_k >> a) & 1);
+          } else {
+            // The minus neighbours' halves along a among their children that
+            // agree with the bits decoded so far (kIndexHalves).
+            const std::uint8_t* const halves = kIndexHalves[static_cast<std::size_t>(t)].data();
+            const int hv = 25 * halves[minus_occ[0]] + 5 * halves[minus_occ[1]] + halves[minus_occ[2]];
+            BitModel& mb = models.index_b[((t * 125 + hv) << 2) | to_leaves];
+            t = 2 * t + mix_code(models.single_index[ctx], mb, models.index_mixer.w[a * 4 + to_leaves], code_prob,
+                                 (truth_k >> a) & 1);
+          }
         }
         const int k = t - 8;
         byte = static_cast<std::uint8_t>(1u << k);
@@ -282,7 +417,16 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
           // With single-child coding a coded byte has at least two bits set:
           // when the bits left are exactly the ones still needed they are 1.
           const bool forced = single_mode && 8 - k <= 2 - siblings;
-          const int bit = forced ? 1 : code(models.occupancy[ctx], (truth >> k) & 1);
+          int bit;
+          if (forced) {
+            bit = 1;
+          } else if constexpr (!mixed) {
+            bit = code(models.occupancy[ctx], (truth >> k) & 1);
+          } else {
+            BitModel& mb = models.child_b[(faces_mask << 8) | (1u << k) | (byte & ((1u << k) - 1))];
+            bit = mix_code(models.occupancy[ctx], mb, models.child_mixer.w[(k << 2) | to_leaves], code_prob,
+                           (truth >> k) & 1);
+          }
           // Written in any case, kept when the bit is set (the branch would
           // be as unpredictable as the bit).
           next_keys[next_count] = (nodes[i] << 3) | static_cast<std::uint64_t>(k);
@@ -333,6 +477,17 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
   return true;
 }
 
+// The traversal, instantiated apart for codec 8 (its extra work stays out of
+// the older codecs' loop).
+template <typename Code, typename CodeProb, typename TrueByte, typename Grow>
+bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
+                 Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, Grow&& grow) {
+  if (coding == OctreeCoding::kMixed) {
+    return code_octree_impl<true>(depth, coding, models, nodes, code, code_prob, true_byte, grow);
+  }
+  return code_octree_impl<false>(depth, coding, models, nodes, code, code_prob, true_byte, grow);
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth, OctreeCoding coding) {
@@ -363,6 +518,10 @@ std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
         enc.encode(m, bit);
         return bit;
       },
+      [&](std::uint32_t p0, int bit) {
+        enc.encode_prob(p0, bit);
+        return bit;
+      },
       [&](int d, std::size_t i) { return bytes[static_cast<std::size_t>(d)][i]; },
       [](std::size_t) { return true; });
   int prev_dup = 0;
@@ -385,6 +544,7 @@ Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int de
   bool over = false;
   const bool ok = code_octree(
       depth, coding, *models, cells.keys, [&](BitModel& m, int) { return dec.decode(m); },
+      [&](std::uint32_t p0, int) { return dec.decode_prob(p0); },
       [](int, std::size_t) { return std::uint8_t{0}; },
       [&](std::size_t n) {
         // Every node holds a point; a stream read past its end stops here.

@@ -29,11 +29,14 @@ enum class OctreeCoding {
   // is coded as its 3-bit index, other nodes as 8 bits (at least two set).
   // Smaller (sparse levels dominate fine grids) and fewer decisions.
   kSingleChild,
+  // Codec 8 (format 7): as codec 7, the bits of multi-child nodes coded by
+  // mixing three context models' predictions.
+  kMixed,
 };
 
 // `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.
 std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
-                                          OctreeCoding coding = OctreeCoding::kSingleChild);
+                                          OctreeCoding coding = OctreeCoding::kMixed);
 
 // Decodes a stream made by encode_geometry with the same coding. The stream
 // must describe exactly `point_count` points; the work done is bounded by the

@@ -83,6 +83,17 @@ class RangeEncoder {
       shift_low();
     }
   }
+  // A bit with the given P(0) in [kProbMin, kProbMax], no model (the caller
+  // computed the probability and updates its own state).
+  void encode_prob(std::uint32_t p0, int bit) {
+    const std::uint32_t bound = (range_ >> kProbBits) * p0;
+    low_ += bit ? bound : 0;
+    range_ = bit ? range_ - bound : bound;
+    while (range_ < kTop) {
+      range_ <<= 8;
+      shift_low();
+    }
+  }
   // A bit with probability 1/2, no model.
   void encode_raw(int bit) {
     range_ >>= 1;
@@ -127,6 +138,19 @@ class RangeDecoder {
     code_ -= bit ? bound : 0;
     range_ = bit ? range_ - bound : bound;
     m.update(bit);
+    while (range_ < kTop) {
+      range_ <<= 8;
+      code_ = (code_ << 8) | next_byte();
+    }
+    return bit;
+  }
+  // The mirror of RangeEncoder::encode_prob.
+  int decode_prob(std::uint32_t p0) {
+    ++decisions_;
+    const std::uint32_t bound = (range_ >> kProbBits) * p0;
+    const int bit = code_ >= bound ? 1 : 0;
+    code_ -= bit ? bound : 0;
+    range_ = bit ? range_ - bound : bound;
     while (range_ < kTop) {
       range_ <<= 8;
       code_ = (code_ << 8) | next_byte();

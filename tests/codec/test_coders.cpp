@@ -878,9 +878,10 @@ std::uint64_t total_points(const relief::codec::OccupiedCells& c) {
 
 }  // namespace
 
-TEST_CASE("octree geometry round trips with both codings", "[coders][geometry]") {
+TEST_CASE("octree geometry round trips with every coding", "[coders][geometry]") {
   std::mt19937_64 rng(77);
-  for (const relief::codec::OctreeCoding coding : {relief::codec::OctreeCoding::kBitwise, relief::codec::OctreeCoding::kSingleChild}) {
+  for (const relief::codec::OctreeCoding coding : {relief::codec::OctreeCoding::kBitwise, relief::codec::OctreeCoding::kSingleChild,
+                                                   relief::codec::OctreeCoding::kMixed}) {
     for (const int depth : {0, 1, 2, 5, 12, 21}) {
       for (const bool clustered : {false, true}) {
         for (const std::size_t n : {std::size_t{1}, std::size_t{7}, std::size_t{3000}}) {
@@ -909,29 +910,69 @@ TEST_CASE("single-child coding is smaller on sparse and on surface-like octrees"
   }
 }
 
-TEST_CASE("octree geometry streams of the other coding, truncated or flipped fail cleanly", "[coders][geometry]") {
-  std::mt19937_64 rng(79);
-  const relief::codec::OccupiedCells cells = random_cells(rng, 14, 2000, true);
-  const std::uint64_t n = total_points(cells);
-  const auto stream = relief::codec::encode_geometry(cells, 14, relief::codec::OctreeCoding::kSingleChild);
-  // Read with the wrong coding: an error or a different set, never a crash.
-  auto other = relief::codec::decode_geometry(stream, 14, n, relief::codec::OctreeCoding::kBitwise);
-  CHECK((!other.is_ok() || other->keys != cells.keys));
-  for (std::size_t cut = 0; cut < stream.size(); cut += std::max<std::size_t>(1, stream.size() / 23)) {
-    const std::vector<std::uint8_t> part(stream.begin(), stream.begin() + static_cast<std::ptrdiff_t>(cut));
-    auto r = relief::codec::decode_geometry(part, 14, n, relief::codec::OctreeCoding::kSingleChild);
-    CHECK((!r.is_ok() || r->keys != cells.keys || cut == stream.size()));
+TEST_CASE("mixed coding (codec 8) is smaller than single-child coding on sparse and surface-like octrees",
+          "[coders][geometry]") {
+  std::mt19937_64 rng(80);
+  for (const bool clustered : {false, true}) {
+    const relief::codec::OccupiedCells cells = random_cells(rng, 16, 20000, clustered);
+    const auto single = relief::codec::encode_geometry(cells, 16, relief::codec::OctreeCoding::kSingleChild);
+    const auto mixed = relief::codec::encode_geometry(cells, 16, relief::codec::OctreeCoding::kMixed);
+    INFO("clustered " << clustered << ": single-child " << single.size() << " bytes, mixed " << mixed.size());
+    CHECK(mixed.size() < single.size());
   }
-  std::uniform_int_distribution<std::size_t> pos(0, stream.size() - 1);
-  for (int i = 0; i < 200; ++i) {
-    std::vector<std::uint8_t> bad = stream;
-    bad[pos(rng)] ^= static_cast<std::uint8_t>(1u << (i % 8));
-    auto r = relief::codec::decode_geometry(bad, 14, n, relief::codec::OctreeCoding::kSingleChild);
-    if (r.is_ok()) {  // a flip the coder absorbs must still describe n points in valid cells
-      std::uint64_t t = 0;
-      for (const std::uint32_t c : r->counts) t += c;
-      CHECK(t == n);
-      CHECK(std::is_sorted(r->keys.begin(), r->keys.end()));
+}
+
+TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][geometry]") {
+  // Random bytes claiming a deep tree and many points: every coding must stop
+  // (an error, or a set of cells that holds exactly the declared points) after
+  // work bounded by the stream's size, whatever the mixer's weights do.
+  using relief::codec::OctreeCoding;
+  std::mt19937_64 rng(81);
+  for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed}) {
+    for (int trial = 0; trial < 60; ++trial) {
+      std::vector<std::uint8_t> stream(1 + rng() % 300);
+      for (auto& b : stream) b = static_cast<std::uint8_t>(trial % 3 == 0 ? 0xFF : (trial % 3 == 1 ? 0x00 : rng()));
+      const std::uint64_t n = 1 + rng() % 1000000;
+      INFO("coding " << static_cast<int>(coding) << " trial " << trial << " bytes " << stream.size() << " n " << n);
+      auto r = relief::codec::decode_geometry(stream, 21, n, coding);
+      if (r.is_ok()) {
+        CHECK(total_points(*r) == n);
+        CHECK(r->keys.size() <= n);
+      } else {
+        CHECK(r.status().code() == relief::StatusCode::kCorruptData);
+      }
+    }
+  }
+}
+
+TEST_CASE("octree geometry streams of the other coding, truncated or flipped fail cleanly", "[coders][geometry]") {
+  using relief::codec::OctreeCoding;
+  for (const auto [coding, wrong] : {std::pair{OctreeCoding::kSingleChild, OctreeCoding::kBitwise},
+                                     std::pair{OctreeCoding::kMixed, OctreeCoding::kSingleChild}}) {
+    INFO("coding " << static_cast<int>(coding));
+    std::mt19937_64 rng(79);
+    const relief::codec::OccupiedCells cells = random_cells(rng, 14, 2000, true);
+    const std::uint64_t n = total_points(cells);
+    const auto stream = relief::codec::encode_geometry(cells, 14, coding);
+    // Read with the wrong coding: an error or a different set, never a crash.
+    auto other = relief::codec::decode_geometry(stream, 14, n, wrong);
+    CHECK((!other.is_ok() || other->keys != cells.keys));
+    for (std::size_t cut = 0; cut < stream.size(); cut += std::max<std::size_t>(1, stream.size() / 23)) {
+      const std::vector<std::uint8_t> part(stream.begin(), stream.begin() + static_cast<std::ptrdiff_t>(cut));
+      auto r = relief::codec::decode_geometry(part, 14, n, coding);
+      CHECK((!r.is_ok() || r->keys != cells.keys || cut == stream.size()));
+    }
+    std::uniform_int_distribution<std::size_t> pos(0, stream.size() - 1);
+    for (int i = 0; i < 200; ++i) {
+      std::vector<std::uint8_t> bad = stream;
+      bad[pos(rng)] ^= static_cast<std::uint8_t>(1u << (i % 8));
+      auto r = relief::codec::decode_geometry(bad, 14, n, coding);
+      if (r.is_ok()) {  // a flip the coder absorbs must still describe n points in valid cells
+        std::uint64_t t = 0;
+        for (const std::uint32_t c : r->counts) t += c;
+        CHECK(t == n);
+        CHECK(std::is_sorted(r->keys.begin(), r->keys.end()));
+      }
     }
   }
 }

@@ -1,4 +1,4 @@
-// Golden vectors for chunk format versions 1 to 6 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 7 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -88,10 +88,15 @@ std::vector<Vector> vectors() {
           {"bounded_geometry_octree_v5", bounded_geometry, octree_scene, 5, true},
           {"bounded_las_attributes_v5", bounded, las_scene, 5, true},
           // Format 6: GPS times in time order.
-          {"bounded_rgb_intensity_v6", bounded, voxel_scene, 6},
-          {"bounded_rgb_tolerance6_v6", bounded_lossy, voxel_scene, 6},
-          {"bounded_geometry_octree_v6", bounded_geometry, octree_scene, 6},
-          {"bounded_las_attributes_v6", bounded, las_scene, 6}};
+          {"bounded_rgb_intensity_v6", bounded, voxel_scene, 6, true},
+          {"bounded_rgb_tolerance6_v6", bounded_lossy, voxel_scene, 6, true},
+          {"bounded_geometry_octree_v6", bounded_geometry, octree_scene, 6, true},
+          {"bounded_las_attributes_v6", bounded, las_scene, 6, true},
+          // Format 7: mixed octree coding (geometry codec 8).
+          {"bounded_rgb_intensity_v7", bounded, voxel_scene, 7},
+          {"bounded_rgb_tolerance6_v7", bounded_lossy, voxel_scene, 7},
+          {"bounded_geometry_octree_v7", bounded_geometry, octree_scene, 7},
+          {"bounded_las_attributes_v7", bounded, las_scene, 7}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -134,7 +139,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 6 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 7 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {

@@ -38,8 +38,10 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // version-3 header, its attribute set possibly empty) with the geometry coded
 // by codec 7 (single-child octree coding). Version 6: version 5 with GPS
 // times coded in time order (the points' order by time, then the times as
-// steps); the bounded encoder writes it for every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 6;
+// steps). Version 7: version 6 with the geometry coded by codec 8 (codec 7's
+// octree with every bit's probability mixed from two context models); the
+// bounded encoder writes it for every cloud.
+inline constexpr std::uint16_t kChunkFormatVersion = 7;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
