@@ -61,7 +61,8 @@ Status exec(sqlite3* db, const char* sql, const std::string& path, std::string_v
 // `sql` with every run of white space outside quotes made one space, and
 // none kept next to ( ) , ; or at either end. SQLite stores each CREATE
 // statement's text in the file as given: the compact form of the schema
-// takes about 500 bytes less, a page or so of a small archive.
+// takes about 500 bytes less, a page or so of a small archive. The SQL must
+// hold no "--" comment: joined into one line, it would swallow what follows.
 std::string compact_sql(std::string_view sql);
 
 // The name SQLite should open for a file system path. SQLite on Debian is
