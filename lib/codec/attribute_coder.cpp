@@ -81,8 +81,7 @@ int value_class(std::int64_t r) {
 
 }  // namespace
 
-std::vector<std::uint8_t> encode_colors(std::span<const Rgb8> colors, int tolerance, std::vector<Rgb8>* reconstructed) {
-  RangeEncoder enc;
+void encode_colors_into(RangeEncoder& enc, std::span<const Rgb8> colors, int tolerance, std::vector<Rgb8>* reconstructed) {
   std::vector<Rgb8> rec;
   code_colors(
       colors.size(), tolerance,
@@ -92,15 +91,12 @@ std::vector<std::uint8_t> encode_colors(std::span<const Rgb8> colors, int tolera
       },
       [&](std::size_t i) { return colors[i]; }, rec);
   if (reconstructed != nullptr) *reconstructed = std::move(rec);
-  return enc.finish();
 }
 
-Result<std::vector<Rgb8>> decode_colors(std::span<const std::uint8_t> data, std::size_t count, int tolerance) {
-  RangeDecoder dec(data);
-  std::vector<Rgb8> out;
+bool decode_colors_from(RangeDecoder& dec, std::size_t count, int tolerance, std::vector<Rgb8>& out) {
   // The decoder's truth is never read: with it, each quantise() sees 0 and
   // the decoded symbol then replaces q.
-  const bool ok = code_colors(
+  return code_colors(
       count, tolerance,
       [&](SIntModel& m, int& q) {
         std::int64_t v = 0;
@@ -109,7 +105,20 @@ Result<std::vector<Rgb8>> decode_colors(std::span<const std::uint8_t> data, std:
         return true;
       },
       [](std::size_t) { return Rgb8{}; }, out);
-  if (!ok || dec.overrun() > 0) return corrupt_data("colour section: invalid or truncated stream");
+}
+
+std::vector<std::uint8_t> encode_colors(std::span<const Rgb8> colors, int tolerance, std::vector<Rgb8>* reconstructed) {
+  RangeEncoder enc;
+  encode_colors_into(enc, colors, tolerance, reconstructed);
+  return enc.finish();
+}
+
+Result<std::vector<Rgb8>> decode_colors(std::span<const std::uint8_t> data, std::size_t count, int tolerance) {
+  RangeDecoder dec(data);
+  std::vector<Rgb8> out;
+  if (!decode_colors_from(dec, count, tolerance, out) || dec.overrun() > 0) {
+    return corrupt_data("colour section: invalid or truncated stream");
+  }
   return out;
 }
 

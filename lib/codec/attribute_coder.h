@@ -20,6 +20,14 @@ namespace relief::codec {
 std::vector<std::uint8_t> encode_colors(std::span<const Rgb8> colors, int tolerance,
                                         std::vector<Rgb8>* reconstructed = nullptr);
 Result<std::vector<Rgb8>> decode_colors(std::span<const std::uint8_t> data, std::size_t count, int tolerance);
+// The same coding inside a stream another section has begun (fresh models):
+// colour low bytes of chunk format 7 follow their "equal to the colours"
+// decision. decode_colors_from returns false on a bad symbol.
+class RangeEncoder;
+class RangeDecoder;
+void encode_colors_into(RangeEncoder& enc, std::span<const Rgb8> colors, int tolerance,
+                        std::vector<Rgb8>* reconstructed = nullptr);
+bool decode_colors_from(RangeDecoder& dec, std::size_t count, int tolerance, std::vector<Rgb8>& out);
 
 // Exact integer values (e.g. 16-bit intensities, or 32-bit float patterns).
 std::vector<std::uint8_t> encode_values(std::span<const std::int64_t> values);

@@ -95,7 +95,8 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     const std::uint32_t bit = las_section_bit(s.id);
     if (bit == kLasGpsTime && !time_order.empty()) continue;  // decoded above
     RELIEF_RETURN_IF_ERROR(
-        decode_las_attribute(bit, s.payload, n, out.las, h.version, point_cells, time_order).with_context("chunk blob"));
+        decode_las_attribute(bit, s.payload, n, out.las, h.version, point_cells, time_order, out.colors)
+            .with_context("chunk blob"));
   }
   return out;
 }

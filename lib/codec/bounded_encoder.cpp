@@ -216,7 +216,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     for (int b = 0; b < kLasAttributeCount; ++b) {
       const std::uint32_t bit = 1u << b;
       if ((las_bits & bit) == 0) continue;
-      payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, point_cells, time_order));
+      payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, point_cells, time_order, base.colors));
       refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
                          static_cast<std::uint32_t>(n), 0, {}});
     }

@@ -19,6 +19,7 @@
 #include <cstring>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <string>
 #include <type_traits>
 
@@ -832,7 +833,8 @@ std::vector<std::uint32_t> las_time_order(const std::vector<double>& gps_time) {
 
 std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n,
                                                int version, std::span<const CellXyz> cells,
-                                               std::span<const std::uint32_t> time_order) {
+                                               std::span<const std::uint32_t> time_order,
+                                               std::span<const Rgb8> colors) {
   // The shared routine writes back what it codes (the decoder's side of the
   // interface); the encoder's values come back unchanged, but it needs a
   // mutable copy of the one vector it codes.
@@ -855,7 +857,19 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     case kLasExtraBytes: work.extra_bytes = las.extra_bytes; break;
     default: break;
   }
-  if (bit == kLasColorLow) return encode_colors(las.color_low, 0);
+  if (bit == kLasColorLow) {
+    if (version < 7) return encode_colors(las.color_low, 0);
+    // Format 7: one decision, 1 = every low triplet equals the point's
+    // decoded colour (8-bit levels, or v * 257: the low bytes carry nothing).
+    RangeEncoder enc;
+    BitModel equal_flag;
+    const bool equal = n > 0 && colors.size() == n && las.color_low.size() == n &&
+                       std::equal(colors.begin(), colors.end(), las.color_low.begin(),
+                                  [](const Rgb8& a, const Rgb8& b) { return a.r == b.r && a.g == b.g && a.b == b.b; });
+    if (n > 0) enc.encode(equal_flag, equal ? 1 : 0);
+    if (!equal) encode_colors_into(enc, std::span(las.color_low).first(n), 0);
+    return enc.finish();
+  }
   // A constant attribute (user data 0, one flight line, no flags) is one
   // value: a flag, then the attribute coded for point 0 alone.
   RangeEncoder enc;
@@ -894,7 +908,19 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
 }
 
 Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
-                            int version, std::span<const CellXyz> cells, std::span<const std::uint32_t> time_order) {
+                            int version, std::span<const CellXyz> cells, std::span<const std::uint32_t> time_order,
+                            std::span<const Rgb8> colors) {
+  std::optional<RangeDecoder> low_dec;  // format 7 colour low bytes: the stream after its first decision
+  if (bit == kLasColorLow && version >= 7 && n > 0) {
+    low_dec.emplace(data);
+    BitModel equal_flag;
+    if (low_dec->decode(equal_flag) == 1) {
+      if (low_dec->overrun() > 0) return corrupt_data("colour low byte section: truncated stream");
+      if (colors.size() != n) return corrupt_data("colour low byte section: equal to colours the blob does not hold");
+      las.color_low.assign(colors.begin(), colors.end());
+      return Status::ok();
+    }
+  }
   if (bit != kLasColorLow && n > 0) {
     RangeDecoder dec(data);
     DecCoder c(dec);
@@ -915,10 +941,16 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
     return corrupt_data(std::string(las_attribute_name(bit)) + " section: " +
                         std::to_string(data.size()) + " bytes cannot hold " + std::to_string(n) + " points");
   }
+  if (bit == kLasColorLow && low_dec) {
+    if (!decode_colors_from(*low_dec, n, 0, las.color_low) || low_dec->overrun() > 0) {
+      return corrupt_data("colour low byte section: invalid or truncated stream");
+    }
+    return Status::ok();
+  }
   if (bit == kLasColorLow) {
-    auto colors = decode_colors(data, n, 0);
-    if (!colors) return colors.status().with_context("colour low byte section");
-    las.color_low = std::move(colors).value();
+    auto low = decode_colors(data, n, 0);
+    if (!low) return low.status().with_context("colour low byte section");
+    las.color_low = std::move(low).value();
     return Status::ok();
   }
   if (bit == kLasGpsTime && version >= 6 && n > 0) {

@@ -49,19 +49,24 @@ std::vector<std::uint32_t> las_time_order(const std::vector<double>& gps_time);
 // them); other formats and attributes ignore `cells`. `time_order` (format 6,
 // the chunk carries GPS times: las_time_order of its times, n entries; else
 // empty) makes the attributes of kLasTimeOrdered code in that order, with
-// las.gps_time as context.
+// las.gps_time as context. `colors`: in chunk format 7 the colour low bytes
+// start with a decision "every triplet equals the point's colour" (sources
+// that store 8-bit levels, or levels v * 257), so the colours the point
+// colour section decodes to (n of them; empty: not equal).
 std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttributes& las, std::size_t n,
                                                int version = 5, std::span<const CellXyz> cells = {},
-                                               std::span<const std::uint32_t> time_order = {});
+                                               std::span<const std::uint32_t> time_order = {},
+                                               std::span<const Rgb8> colors = {});
 
 // Decodes attribute `bit` of n points into `las` (resizing its vector; for
 // extra bytes las.extra_bytes_size must be set). Attributes with a lower bit
 // (and, given a time order, GPS time) must already be decoded. A stream too
 // short to hold n points is refused before anything is allocated. `version`,
-// `cells` and `time_order` as for the encoder.
+// `cells`, `time_order` and `colors` (the decoded point colours) as for the
+// encoder.
 Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
                             int version = 5, std::span<const CellXyz> cells = {},
-                            std::span<const std::uint32_t> time_order = {});
+                            std::span<const std::uint32_t> time_order = {}, std::span<const Rgb8> colors = {});
 
 // Orders two points of `las` by every carried attribute, in bit order
 // (gps_time by bit pattern, extra bytes as unsigned byte strings): the

@@ -46,6 +46,14 @@ PointCloud las_scene() {
   return c;
 }
 
+// The same, as a source that stores 8-bit colour levels (or v * 257) in the
+// LAS colour fields: each point's low bytes equal its colour.
+PointCloud las_scene_8bit() {
+  PointCloud c = las_scene();
+  c.las.color_low = c.colors;
+  return c;
+}
+
 PointCloud octree_scene() {
   test::SceneOptions o;
   o.seed = 2025;
@@ -96,7 +104,9 @@ std::vector<Vector> vectors() {
           {"bounded_rgb_intensity_v7", bounded, voxel_scene, 7},
           {"bounded_rgb_tolerance6_v7", bounded_lossy, voxel_scene, 7},
           {"bounded_geometry_octree_v7", bounded_geometry, octree_scene, 7},
-          {"bounded_las_attributes_v7", bounded, las_scene, 7}};
+          {"bounded_las_attributes_v7", bounded, las_scene, 7},
+          // Format 7 also codes colour low bytes equal to the colours in one decision.
+          {"bounded_las_colors8_v7", bounded, las_scene_8bit, 7}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -155,7 +165,7 @@ TEST_CASE("golden chunk blobs of format versions 1 to 7 decode (and the current 
       auto decoded = decode_chunk(*blob);
       REQUIRE(decoded.is_ok());
       REQUIRE(write_ply(ply_path, *decoded, {PlyEncoding::kAscii, PlyCoordinateType::kFloat64}).is_ok());
-      if (v.make == las_scene) {
+      if (v.make == las_scene || v.make == las_scene_8bit) {
         std::ofstream(vector_path(v.name, ".decoded.las.txt"), std::ios::binary) << las_text(*decoded);
       }
     }
@@ -182,11 +192,12 @@ TEST_CASE("golden chunk blobs of format versions 1 to 7 decode (and the current 
     CHECK(worst < 1e-9);
     if (decoded->has_colors()) CHECK(decoded->colors == expected->colors);
     if (decoded->has_intensity()) CHECK(decoded->intensities == expected->intensities);
-    if (v.make == las_scene) {
+    if (v.make == las_scene || v.make == las_scene_8bit) {
       // Bounded blobs keep every LAS attribute; resampled ones the classification.
       REQUIRE(decoded->las.carried() == (v.params.bound ? 0xFFFu : kLasClassification));
       const std::vector<std::uint8_t> text = slurp(vector_path(v.name, ".decoded.las.txt"));
       CHECK(las_text(*decoded) == std::string(text.begin(), text.end()));
+      if (v.make == las_scene_8bit) CHECK(decoded->las.color_low == decoded->colors);
     } else {
       CHECK(decoded->las.empty());
     }

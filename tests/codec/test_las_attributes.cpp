@@ -712,3 +712,50 @@ TEST_CASE("classification map: coarse levels from the base layer keep the classe
     if (std::fabs(out->positions[i].x) > 1.0) CHECK(out->las.classification[i] == (out->positions[i].x < 0 ? 2 : 5));
   }
 }
+
+TEST_CASE("format 7: colour low bytes equal to the colours cost one decision, others code as before",
+          "[codec][las]") {
+  test::SceneOptions o;
+  o.seed = 77;
+  o.points = 3000;
+  o.colors = true;
+  const PointCloud scene = test::make_terrain(o, 4.0, 0.3);
+  const std::size_t n = scene.size();
+  std::vector<Rgb8> low(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    low[i] = Rgb8{static_cast<std::uint8_t>(i * 7), static_cast<std::uint8_t>(i * 13), static_cast<std::uint8_t>(i >> 3)};
+  }
+  SECTION("equal: one decision, and the decoder takes the colours it is given") {
+    LasAttributes las;
+    las.color_low = scene.colors;
+    const auto coded = codec::encode_las_attribute(kLasColorLow, las, n, 7, {}, {}, scene.colors);
+    CHECK(coded.size() <= 4);
+    LasAttributes back;
+    REQUIRE(codec::decode_las_attribute(kLasColorLow, coded, n, back, 7, {}, {}, scene.colors).is_ok());
+    CHECK(back.color_low == scene.colors);
+    // The same stream without the colours is corrupt, not a crash or a guess.
+    LasAttributes none;
+    CHECK(codec::decode_las_attribute(kLasColorLow, coded, n, none, 7).code() == StatusCode::kCorruptData);
+    // Format 6 has no such decision: the triplets are coded whatever they are.
+    CHECK(codec::encode_las_attribute(kLasColorLow, las, n, 6, {}, {}, scene.colors).size() > 100);
+  }
+  SECTION("different: the triplets follow the decision, exactly") {
+    LasAttributes las;
+    las.color_low = low;
+    const auto v7 = codec::encode_las_attribute(kLasColorLow, las, n, 7, {}, {}, scene.colors);
+    const auto v6 = codec::encode_las_attribute(kLasColorLow, las, n, 6, {}, {}, scene.colors);
+    CHECK(v7.size() <= v6.size() + 1);
+    LasAttributes back;
+    REQUIRE(codec::decode_las_attribute(kLasColorLow, v7, n, back, 7, {}, {}, scene.colors).is_ok());
+    CHECK(back.color_low == low);
+    LasAttributes back6;
+    REQUIRE(codec::decode_las_attribute(kLasColorLow, v6, n, back6, 6).is_ok());
+    CHECK(back6.color_low == low);
+    // Every truncation of the stream is refused.
+    for (std::size_t cut = 0; cut + 1 < v7.size(); cut += std::max<std::size_t>(1, v7.size() / 64)) {
+      LasAttributes t;
+      CHECK(codec::decode_las_attribute(kLasColorLow, std::span(v7).first(cut), n, t, 7, {}, {}, scene.colors).code() ==
+            StatusCode::kCorruptData);
+    }
+  }
+}
