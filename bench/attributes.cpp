@@ -162,18 +162,17 @@ bool parse_las(const fs::path& path, LasFile& out, std::string& error) {
                          d.begin() + static_cast<std::ptrdiff_t>(extra_at + extra));
   }
   if (has_rgb) {
-    // 8-bit sources scale by 256 or 257: then the high byte alone is the colour.
-    bool implied = true;
+    // The readers' rule (io/stream_support.h): levels all at most 255 are
+    // 8-bit levels kept as they are, colour and low byte both the level;
+    // otherwise the colour is the high byte and the low byte the rest.
+    std::uint16_t max_level = 0;
+    for (const auto& v : rgb16) max_level = std::max({max_level, v[0], v[1], v[2]});
+    const int shift = max_level > 255 ? 8 : 0;
     for (const auto& v : rgb16) {
-      for (const std::uint16_t ch : v) implied = implied && ((ch & 0xFF) == 0 || (ch & 0xFF) == (ch >> 8));
-    }
-    for (const auto& v : rgb16) {
-      c.colors.push_back({static_cast<std::uint8_t>(v[0] >> 8), static_cast<std::uint8_t>(v[1] >> 8),
-                          static_cast<std::uint8_t>(v[2] >> 8)});
-      if (!implied) {
-        a.color_low.push_back({static_cast<std::uint8_t>(v[0]), static_cast<std::uint8_t>(v[1]),
-                               static_cast<std::uint8_t>(v[2])});
-      }
+      c.colors.push_back({static_cast<std::uint8_t>(v[0] >> shift), static_cast<std::uint8_t>(v[1] >> shift),
+                          static_cast<std::uint8_t>(v[2] >> shift)});
+      a.color_low.push_back({static_cast<std::uint8_t>(v[0]), static_cast<std::uint8_t>(v[1]),
+                             static_cast<std::uint8_t>(v[2])});
     }
   }
   if (extra == 0) a.extra_bytes_size = 0;
