@@ -70,7 +70,20 @@ constexpr auto kStretch = [] {
   for (; j < 4096; ++j) t[static_cast<std::size_t>(j)] = 2047;
   return t;
 }();
-inline std::int32_t stretch(std::uint32_t p16) { return kStretch[p16 >> 4]; }
+// The same functions as tables for the coding loop (byte-for-byte the values
+// above): squash over its whole clamped domain by x + 2047, and stretch of a
+// model's clamped mean p0() by (fast + slow) >> 5 (kProbMax >> 4 = 4094).
+constexpr auto kSquashTable = [] {
+  std::array<std::uint16_t, 4095> t{};
+  for (std::int32_t x = -2047; x <= 2047; ++x) t[static_cast<std::size_t>(x + 2047)] = static_cast<std::uint16_t>(squash(x));
+  return t;
+}();
+static_assert(kProbMax >> 4 == 4094 && (kProbMax & 15) == 0);
+constexpr auto kStretchMean = [] {
+  std::array<std::int16_t, 4096> t{};
+  for (std::size_t j = 0; j < 4096; ++j) t[j] = kStretch[std::min<std::size_t>(j, kProbMax >> 4)];
+  return t;
+}();
 
 // Second models' contexts: child bits by the node's six face neighbours and
 // the child byte so far (1 then the k bits below child k: 1..255); single-child
@@ -101,17 +114,35 @@ struct Mixer {
 // (Inlined: a call per decision costs a fifth of the decoder's time.)
 template <typename CodeProb>
 [[gnu::always_inline]] inline int mix_code(BitModel& a, BitModel& b, std::int32_t* w, CodeProb& code_prob, int truth_bit) {
-  const std::int32_t st[kMixInputs] = {stretch(a.fast), stretch(a.slow), stretch(b.p0()), kMixBias};
-  std::int64_t dot = 0;
-  for (int j = 0; j < kMixInputs; ++j) dot += static_cast<std::int64_t>(w[j]) * st[j];
-  // |dot| < 4 * 2^22 * 2^11, so dot >> 16 fits an int32 (squash clamps it).
-  const std::int32_t p = squash(static_cast<std::int32_t>(dot >> 16));
+  // stretch(a.fast), stretch(a.slow), stretch(b.p0()); the bias input is kMixBias.
+  const std::int32_t s0 = kStretch[a.fast >> 4];
+  const std::int32_t s1 = kStretch[a.slow >> 4];
+  const std::int32_t s2 = kStretchMean[(static_cast<std::uint32_t>(b.fast) + b.slow) >> 5];
+  const std::int64_t dot = static_cast<std::int64_t>(w[0]) * s0 + static_cast<std::int64_t>(w[1]) * s1 +
+                           static_cast<std::int64_t>(w[2]) * s2 + static_cast<std::int64_t>(w[3]) * kMixBias;
+  // |dot| < 4 * 2^22 * 2^11, so dot >> 16 fits an int32; squash clamps it.
+  const std::int32_t x = std::clamp(static_cast<std::int32_t>(dot >> 16), -2047, 2047);
+  const std::int32_t p = kSquashTable[static_cast<std::size_t>(x + 2047)];
   const std::uint32_t p0 = std::clamp<std::uint32_t>(static_cast<std::uint32_t>(p), kProbMin, kProbMax);
   const int bit = code_prob(p0, truth_bit);
   const std::int32_t err = (bit ? 0 : 65536) - p;
-  for (int j = 0; j < kMixInputs; ++j) {
-    const std::int32_t v = w[j] + static_cast<std::int32_t>((static_cast<std::int64_t>(st[j]) * err) >> kMixShift);
-    w[j] = std::clamp(v, -kMixMaxWeight, kMixMaxWeight);
+  // |st * err| < 2^11 * 2^16: the products fit an int32 (and >> floors as
+  // the int64 of the specification does).
+  const std::int32_t v0 = w[0] + ((s0 * err) >> kMixShift);
+  const std::int32_t v1 = w[1] + ((s1 * err) >> kMixShift);
+  const std::int32_t v2 = w[2] + ((s2 * err) >> kMixShift);
+  const std::int32_t v3 = w[3] + ((kMixBias * err) >> kMixShift);
+  // All within [-kMixMaxWeight, kMixMaxWeight) in one test (v + max < 2^23);
+  // otherwise clamp each.
+  static_assert(kMixMaxWeight == 1 << 22);
+  const auto off = [](std::int32_t v) { return static_cast<std::uint32_t>(v + kMixMaxWeight); };
+  if (((off(v0) | off(v1) | off(v2) | off(v3)) >> 23) == 0) {
+    w[0] = v0, w[1] = v1, w[2] = v2, w[3] = v3;
+  } else {
+    w[0] = std::clamp(v0, -kMixMaxWeight, kMixMaxWeight);
+    w[1] = std::clamp(v1, -kMixMaxWeight, kMixMaxWeight);
+    w[2] = std::clamp(v2, -kMixMaxWeight, kMixMaxWeight);
+    w[3] = std::clamp(v3, -kMixMaxWeight, kMixMaxWeight);
   }
   a.update(bit);
   b.update(bit);
