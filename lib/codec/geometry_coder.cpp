@@ -73,9 +73,14 @@ constexpr auto kStretch = [] {
 // The same functions as tables for the coding loop (byte-for-byte the values
 // above): squash over its whole clamped domain by x + 2047, and stretch of a
 // model's clamped mean p0() by (fast + slow) >> 5 (kProbMax >> 4 = 4094).
+// Each squash entry holds p = squash(x) in its low 16 bits and p clamped to
+// [kProbMin, kProbMax] (what is coded with) in its high 16.
 constexpr auto kSquashTable = [] {
-  std::array<std::uint16_t, 4095> t{};
-  for (std::int32_t x = -2047; x <= 2047; ++x) t[static_cast<std::size_t>(x + 2047)] = static_cast<std::uint16_t>(squash(x));
+  std::array<std::uint32_t, 4095> t{};
+  for (std::int32_t x = -2047; x <= 2047; ++x) {
+    const auto p = static_cast<std::uint32_t>(squash(x));
+    t[static_cast<std::size_t>(x + 2047)] = p | (std::clamp(p, kProbMin, kProbMax) << 16);
+  }
   return t;
 }();
 static_assert(kProbMax >> 4 == 4094 && (kProbMax & 15) == 0);
@@ -122,9 +127,9 @@ template <typename CodeProb>
                            static_cast<std::int64_t>(w[2]) * s2 + static_cast<std::int64_t>(w[3]) * kMixBias;
   // |dot| < 4 * 2^22 * 2^11, so dot >> 16 fits an int32; squash clamps it.
   const std::int32_t x = std::clamp(static_cast<std::int32_t>(dot >> 16), -2047, 2047);
-  const std::int32_t p = kSquashTable[static_cast<std::size_t>(x + 2047)];
-  const std::uint32_t p0 = std::clamp<std::uint32_t>(static_cast<std::uint32_t>(p), kProbMin, kProbMax);
-  const int bit = code_prob(p0, truth_bit);
+  const std::uint32_t sq = kSquashTable[static_cast<std::size_t>(x + 2047)];
+  const auto p = static_cast<std::int32_t>(sq & 0xFFFF);
+  const int bit = code_prob(sq >> 16, truth_bit);
   const std::int32_t err = (bit ? 0 : 65536) - p;
   // |st * err| < 2^11 * 2^16: the products fit an int32 (and >> floors as
   // the int64 of the specification does).
@@ -149,21 +154,25 @@ template <typename CodeProb>
   return bit;
 }
 
-struct GeometryModels {
-  BitModel occupancy[kOccupancyContexts];
-  // Codec 8's second models and mixers (weight sets: child bits by k and
-  // the levels to the leaves, flags by lone and the levels to the leaves,
-  // index bits by axis and the levels to the leaves).
+// Codec 8's second models and mixers (weight sets: child bits by k and the
+// levels to the leaves, flags by lone and the levels to the leaves, index
+// bits by axis and the levels to the leaves), allocated for codec 8 only.
+struct MixedModels {
   BitModel child_b[kChildBContexts];
   BitModel flag_b[kFlagBContexts];
   BitModel index_b[kIndexBContexts];
   Mixer<32> child_mixer;
   Mixer<8> flag_mixer;
   Mixer<12> index_mixer;
+};
+
+struct GeometryModels {
+  BitModel occupancy[kOccupancyContexts];
   BitModel single_flag[kSingleFlagContexts];
   BitModel single_index[kSingleIndexContexts];
   BitModel duplicate[kCountContexts];
   UIntModel extra;
+  std::unique_ptr<MixedModels> mixed;  // codec 8
 };
 
 // Visits every node of levels 0..depth-1 and codes its 8 child bits through
@@ -346,6 +355,7 @@ template <bool kMixedCoding, typename Code, typename CodeProb, typename TrueByte
 bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                       Code& code, CodeProb& code_prob, TrueByte& true_byte, Grow& grow) {
   constexpr bool mixed = kMixedCoding;
+  MixedModels* const mm = models.mixed.get();  // codec 8's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
   nodes.assign(1, 0);  // the root
   // Per node of the current level: its six face neighbours' indices in the
@@ -404,8 +414,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           // The minus neighbours' child counts (0 missing, 1 one child, 2 more).
           int nbc = 0;
           for (int a = 0; a < 3; ++a) nbc = 3 * nbc + std::min<int>(kBitCount[minus_occ[a]], 2);
-          BitModel& mb = models.flag_b[((faces_mask * 27 + static_cast<unsigned>(nbc)) << 2) | static_cast<unsigned>(to_leaves)];
-          single = mix_code(models.single_flag[flag_ctx], mb, models.flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
+          BitModel& mb = mm->flag_b[((faces_mask * 27 + static_cast<unsigned>(nbc)) << 2) | static_cast<unsigned>(to_leaves)];
+          single = mix_code(models.single_flag[flag_ctx], mb, mm->flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
                             truth_single) != 0;
         }
       }
@@ -426,8 +436,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             // agree with the bits decoded so far (kIndexHalves).
             const std::uint8_t* const halves = kIndexHalves[static_cast<std::size_t>(t)].data();
             const int hv = 25 * halves[minus_occ[0]] + 5 * halves[minus_occ[1]] + halves[minus_occ[2]];
-            BitModel& mb = models.index_b[((t * 125 + hv) << 2) | to_leaves];
-            t = 2 * t + mix_code(models.single_index[ctx], mb, models.index_mixer.w[a * 4 + to_leaves], code_prob,
+            BitModel& mb = mm->index_b[((t * 125 + hv) << 2) | to_leaves];
+            t = 2 * t + mix_code(models.single_index[ctx], mb, mm->index_mixer.w[a * 4 + to_leaves], code_prob,
                                  (truth_k >> a) & 1);
           }
         }
@@ -454,8 +464,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           } else if constexpr (!mixed) {
             bit = code(models.occupancy[ctx], (truth >> k) & 1);
           } else {
-            BitModel& mb = models.child_b[(faces_mask << 8) | (1u << k) | (byte & ((1u << k) - 1))];
-            bit = mix_code(models.occupancy[ctx], mb, models.child_mixer.w[(k << 2) | to_leaves], code_prob,
+            BitModel& mb = mm->child_b[(faces_mask << 8) | (1u << k) | (byte & ((1u << k) - 1))];
+            bit = mix_code(models.occupancy[ctx], mb, mm->child_mixer.w[(k << 2) | to_leaves], code_prob,
                            (truth >> k) & 1);
           }
           // Written in any case, kept when the bit is set (the branch would
@@ -514,6 +524,7 @@ template <typename Code, typename CodeProb, typename TrueByte, typename Grow>
 bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                  Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, Grow&& grow) {
   if (coding == OctreeCoding::kMixed) {
+    models.mixed = std::make_unique<MixedModels>();
     return code_octree_impl<true>(depth, coding, models, nodes, code, code_prob, true_byte, grow);
   }
   return code_octree_impl<false>(depth, coding, models, nodes, code, code_prob, true_byte, grow);
