@@ -130,6 +130,9 @@ template <typename CodeProb>
   const std::uint32_t sq = kSquashTable[static_cast<std::size_t>(x + 2047)];
   const auto p = static_cast<std::int32_t>(sq & 0xFFFF);
   const int bit = code_prob(sq >> 16, truth_bit);
+  // The models first (fewer values live across the weights' update).
+  a.update(bit);
+  b.update(bit);
   const std::int32_t err = (bit ? 0 : 65536) - p;
   // |st * err| < 2^11 * 2^16: the products fit an int32 (and >> floors as
   // the int64 of the specification does).
@@ -149,8 +152,6 @@ template <typename CodeProb>
     w[2] = std::clamp(v2, -kMixMaxWeight, kMixMaxWeight);
     w[3] = std::clamp(v3, -kMixMaxWeight, kMixMaxWeight);
   }
-  a.update(bit);
-  b.update(bit);
   return bit;
 }
 
@@ -451,6 +452,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
                                   kMinusSpread[2][minus_occ[2]];
         const std::uint64_t score =
             kScoreSpread[static_cast<std::size_t>(9 * (plane_pred[2] + 1) + 3 * (plane_pred[1] + 1) + (plane_pred[0] + 1))];
+        // Codec 8's second model by the child byte so far: the contexts of
+        // the specification ((1 << k) | the k bits below child k), numbered
+        // as the node of a binary tree instead (1, then 2 tree + bit), one
+        // slot per (k, bits below) all the same.
+        BitModel* const child_b = mixed ? &mm->child_b[faces_mask << 8] : nullptr;
+        unsigned tree = 1;
         for (int k = 0; k < 8; ++k) {
           const int sh = 8 * k;
           const int ctx = static_cast<int>((low >> sh) & 0xFF) | kPlusNb[static_cast<std::size_t>(k)][byte] | (k << 6) |
@@ -464,7 +471,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           } else if constexpr (!mixed) {
             bit = code(models.occupancy[ctx], (truth >> k) & 1);
           } else {
-            BitModel& mb = mm->child_b[(faces_mask << 8) | (1u << k) | (byte & ((1u << k) - 1))];
+            BitModel& mb = child_b[tree];
             bit = mix_code(models.occupancy[ctx], mb, mm->child_mixer.w[(k << 2) | to_leaves], code_prob,
                            (truth >> k) & 1);
           }
@@ -474,6 +481,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           next_count += static_cast<std::size_t>(bit);
           byte = static_cast<std::uint8_t>(byte | (bit << k));
           siblings += bit;
+          if constexpr (mixed) tree = 2 * tree + static_cast<unsigned>(bit);
         }
       }
       // An occupied node has at least one occupied child.
