@@ -127,7 +127,7 @@ template <typename CodeProb>
                            static_cast<std::int64_t>(w[2]) * s2 + static_cast<std::int64_t>(w[3]) * kMixBias;
   // |dot| < 4 * 2^22 * 2^11, so dot >> 16 fits an int32; squash clamps it.
   const std::int32_t x = std::clamp(static_cast<std::int32_t>(dot >> 16), -2047, 2047);
-  const std::uint32_t sq = kSquashTable[static_cast<std::size_t>(x + 2047)];
+  const std::uint32_t sq = kSquashTable.data()[2047 + x];
   const auto p = static_cast<std::int32_t>(sq & 0xFFFF);
   const int bit = code_prob(sq >> 16, truth_bit);
   // The models first (fewer values live across the weights' update).
@@ -197,6 +197,14 @@ inline std::uint32_t child_index(std::uint8_t byte, std::uint32_t first, int k) 
   if (((byte >> k) & 1) == 0) return kMissing;
   return first + kBitCount[byte & ((1u << k) - 1)];
 }
+
+// A child byte's count class for codec 8's flag contexts: 0 (none), 1 (one
+// child), 2 (more).
+constexpr auto kCountClass = [] {
+  std::array<std::uint8_t, 256> t{};
+  for (std::size_t v = 0; v < 256; ++v) t[v] = static_cast<std::uint8_t>(std::min<int>(kBitCount[v], 2));
+  return t;
+}();
 
 // Plane memory (after G-PCC's planar mode): for each axis, per plane
 // coordinate along it (hashed into a small table), the last node visited in
@@ -413,8 +421,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           single = code(models.single_flag[flag_ctx], truth_single) != 0;
         } else {
           // The minus neighbours' child counts (0 missing, 1 one child, 2 more).
-          int nbc = 0;
-          for (int a = 0; a < 3; ++a) nbc = 3 * nbc + std::min<int>(kBitCount[minus_occ[a]], 2);
+          const int nbc = 9 * kCountClass[minus_occ[0]] + 3 * kCountClass[minus_occ[1]] + kCountClass[minus_occ[2]];
           BitModel& mb = mm->flag_b[((faces_mask * 27 + static_cast<unsigned>(nbc)) << 2) | static_cast<unsigned>(to_leaves)];
           single = mix_code(models.single_flag[flag_ctx], mb, mm->flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
                             truth_single) != 0;
