@@ -70,7 +70,25 @@ constexpr auto kStretch = [] {
   for (; j < 4096; ++j) t[static_cast<std::size_t>(j)] = 2047;
   return t;
 }();
-inline std::int32_t stretch(std::uint32_t p16) { return kStretch[p16 >> 4]; }
+// The same functions as tables for the coding loop (byte-for-byte the values
+// above): squash over its whole clamped domain by x + 2047, and stretch of a
+// model's clamped mean p0() by (fast + slow) >> 5 (kProbMax >> 4 = 4094).
+// Each squash entry holds p = squash(x) in its low 16 bits and p clamped to
+// [kProbMin, kProbMax] (what is coded with) in its high 16.
+constexpr auto kSquashTable = [] {
+  std::array<std::uint32_t, 4095> t{};
+  for (std::int32_t x = -2047; x <= 2047; ++x) {
+    const auto p = static_cast<std::uint32_t>(squash(x));
+    t[static_cast<std::size_t>(x + 2047)] = p | (std::clamp(p, kProbMin, kProbMax) << 16);
+  }
+  return t;
+}();
+static_assert(kProbMax >> 4 == 4094 && (kProbMax & 15) == 0);
+constexpr auto kStretchMean = [] {
+  std::array<std::int16_t, 4096> t{};
+  for (std::size_t j = 0; j < 4096; ++j) t[j] = kStretch[std::min<std::size_t>(j, kProbMax >> 4)];
+  return t;
+}();
 
 // Second models' contexts: child bits by the node's six face neighbours and
 // the child byte so far (1 then the k bits below child k: 1..255); single-child
@@ -101,38 +119,61 @@ struct Mixer {
 // (Inlined: a call per decision costs a fifth of the decoder's time.)
 template <typename CodeProb>
 [[gnu::always_inline]] inline int mix_code(BitModel& a, BitModel& b, std::int32_t* w, CodeProb& code_prob, int truth_bit) {
-  const std::int32_t st[kMixInputs] = {stretch(a.fast), stretch(a.slow), stretch(b.p0()), kMixBias};
-  std::int64_t dot = 0;
-  for (int j = 0; j < kMixInputs; ++j) dot += static_cast<std::int64_t>(w[j]) * st[j];
-  // |dot| < 4 * 2^22 * 2^11, so dot >> 16 fits an int32 (squash clamps it).
-  const std::int32_t p = squash(static_cast<std::int32_t>(dot >> 16));
-  const std::uint32_t p0 = std::clamp<std::uint32_t>(static_cast<std::uint32_t>(p), kProbMin, kProbMax);
-  const int bit = code_prob(p0, truth_bit);
-  const std::int32_t err = (bit ? 0 : 65536) - p;
-  for (int j = 0; j < kMixInputs; ++j) {
-    const std::int32_t v = w[j] + static_cast<std::int32_t>((static_cast<std::int64_t>(st[j]) * err) >> kMixShift);
-    w[j] = std::clamp(v, -kMixMaxWeight, kMixMaxWeight);
-  }
+  // stretch(a.fast), stretch(a.slow), stretch(b.p0()); the bias input is kMixBias.
+  const std::int32_t s0 = kStretch[a.fast >> 4];
+  const std::int32_t s1 = kStretch[a.slow >> 4];
+  const std::int32_t s2 = kStretchMean[(static_cast<std::uint32_t>(b.fast) + b.slow) >> 5];
+  const std::int64_t dot = static_cast<std::int64_t>(w[0]) * s0 + static_cast<std::int64_t>(w[1]) * s1 +
+                           static_cast<std::int64_t>(w[2]) * s2 + static_cast<std::int64_t>(w[3]) * kMixBias;
+  // |dot| < 4 * 2^22 * 2^11, so dot >> 16 fits an int32; squash clamps it.
+  const std::int32_t x = std::clamp(static_cast<std::int32_t>(dot >> 16), -2047, 2047);
+  const std::uint32_t sq = kSquashTable.data()[2047 + x];
+  const auto p = static_cast<std::int32_t>(sq & 0xFFFF);
+  const int bit = code_prob(sq >> 16, truth_bit);
+  // The models first (fewer values live across the weights' update).
   a.update(bit);
   b.update(bit);
+  const std::int32_t err = (bit ? 0 : 65536) - p;
+  // |st * err| < 2^11 * 2^16: the products fit an int32 (and >> floors as
+  // the int64 of the specification does).
+  const std::int32_t v0 = w[0] + ((s0 * err) >> kMixShift);
+  const std::int32_t v1 = w[1] + ((s1 * err) >> kMixShift);
+  const std::int32_t v2 = w[2] + ((s2 * err) >> kMixShift);
+  const std::int32_t v3 = w[3] + ((kMixBias * err) >> kMixShift);
+  // All within [-kMixMaxWeight, kMixMaxWeight) in one test (v + max < 2^23);
+  // otherwise clamp each.
+  static_assert(kMixMaxWeight == 1 << 22);
+  const auto off = [](std::int32_t v) { return static_cast<std::uint32_t>(v + kMixMaxWeight); };
+  if (((off(v0) | off(v1) | off(v2) | off(v3)) >> 23) == 0) {
+    w[0] = v0, w[1] = v1, w[2] = v2, w[3] = v3;
+  } else {
+    w[0] = std::clamp(v0, -kMixMaxWeight, kMixMaxWeight);
+    w[1] = std::clamp(v1, -kMixMaxWeight, kMixMaxWeight);
+    w[2] = std::clamp(v2, -kMixMaxWeight, kMixMaxWeight);
+    w[3] = std::clamp(v3, -kMixMaxWeight, kMixMaxWeight);
+  }
   return bit;
 }
 
-struct GeometryModels {
-  BitModel occupancy[kOccupancyContexts];
-  // Codec 8's second models and mixers (weight sets: child bits by k and
-  // the levels to the leaves, flags by lone and the levels to the leaves,
-  // index bits by axis and the levels to the leaves).
+// Codec 8's second models and mixers (weight sets: child bits by k and the
+// levels to the leaves, flags by lone and the levels to the leaves, index
+// bits by axis and the levels to the leaves), allocated for codec 8 only.
+struct MixedModels {
   BitModel child_b[kChildBContexts];
   BitModel flag_b[kFlagBContexts];
   BitModel index_b[kIndexBContexts];
   Mixer<32> child_mixer;
   Mixer<8> flag_mixer;
   Mixer<12> index_mixer;
+};
+
+struct GeometryModels {
+  BitModel occupancy[kOccupancyContexts];
   BitModel single_flag[kSingleFlagContexts];
   BitModel single_index[kSingleIndexContexts];
   BitModel duplicate[kCountContexts];
   UIntModel extra;
+  std::unique_ptr<MixedModels> mixed;  // codec 8
 };
 
 // Visits every node of levels 0..depth-1 and codes its 8 child bits through
@@ -156,6 +197,14 @@ inline std::uint32_t child_index(std::uint8_t byte, std::uint32_t first, int k) 
   if (((byte >> k) & 1) == 0) return kMissing;
   return first + kBitCount[byte & ((1u << k) - 1)];
 }
+
+// A child byte's count class for codec 8's flag contexts: 0 (none), 1 (one
+// child), 2 (more).
+constexpr auto kCountClass = [] {
+  std::array<std::uint8_t, 256> t{};
+  for (std::size_t v = 0; v < 256; ++v) t[v] = static_cast<std::uint8_t>(std::min<int>(kBitCount[v], 2));
+  return t;
+}();
 
 // Plane memory (after G-PCC's planar mode): for each axis, per plane
 // coordinate along it (hashed into a small table), the last node visited in
@@ -315,6 +364,7 @@ template <bool kMixedCoding, typename Code, typename CodeProb, typename TrueByte
 bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                       Code& code, CodeProb& code_prob, TrueByte& true_byte, Grow& grow) {
   constexpr bool mixed = kMixedCoding;
+  MixedModels* const mm = models.mixed.get();  // codec 8's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
   nodes.assign(1, 0);  // the root
   // Per node of the current level: its six face neighbours' indices in the
@@ -371,10 +421,9 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           single = code(models.single_flag[flag_ctx], truth_single) != 0;
         } else {
           // The minus neighbours' child counts (0 missing, 1 one child, 2 more).
-          int nbc = 0;
-          for (int a = 0; a < 3; ++a) nbc = 3 * nbc + std::min<int>(kBitCount[minus_occ[a]], 2);
-          BitModel& mb = models.flag_b[((faces_mask * 27 + static_cast<unsigned>(nbc)) << 2) | static_cast<unsigned>(to_leaves)];
-          single = mix_code(models.single_flag[flag_ctx], mb, models.flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
+          const int nbc = 9 * kCountClass[minus_occ[0]] + 3 * kCountClass[minus_occ[1]] + kCountClass[minus_occ[2]];
+          BitModel& mb = mm->flag_b[((faces_mask * 27 + static_cast<unsigned>(nbc)) << 2) | static_cast<unsigned>(to_leaves)];
+          single = mix_code(models.single_flag[flag_ctx], mb, mm->flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
                             truth_single) != 0;
         }
       }
@@ -395,8 +444,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             // agree with the bits decoded so far (kIndexHalves).
             const std::uint8_t* const halves = kIndexHalves[static_cast<std::size_t>(t)].data();
             const int hv = 25 * halves[minus_occ[0]] + 5 * halves[minus_occ[1]] + halves[minus_occ[2]];
-            BitModel& mb = models.index_b[((t * 125 + hv) << 2) | to_leaves];
-            t = 2 * t + mix_code(models.single_index[ctx], mb, models.index_mixer.w[a * 4 + to_leaves], code_prob,
+            BitModel& mb = mm->index_b[((t * 125 + hv) << 2) | to_leaves];
+            t = 2 * t + mix_code(models.single_index[ctx], mb, mm->index_mixer.w[a * 4 + to_leaves], code_prob,
                                  (truth_k >> a) & 1);
           }
         }
@@ -410,6 +459,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
                                   kMinusSpread[2][minus_occ[2]];
         const std::uint64_t score =
             kScoreSpread[static_cast<std::size_t>(9 * (plane_pred[2] + 1) + 3 * (plane_pred[1] + 1) + (plane_pred[0] + 1))];
+        // Codec 8's second model by the child byte so far: the contexts of
+        // the specification ((1 << k) | the k bits below child k), numbered
+        // as the node of a binary tree instead (1, then 2 tree + bit), one
+        // slot per (k, bits below) all the same.
+        BitModel* const child_b = mixed ? &mm->child_b[faces_mask << 8] : nullptr;
+        unsigned tree = 1;
         for (int k = 0; k < 8; ++k) {
           const int sh = 8 * k;
           const int ctx = static_cast<int>((low >> sh) & 0xFF) | kPlusNb[static_cast<std::size_t>(k)][byte] | (k << 6) |
@@ -423,8 +478,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           } else if constexpr (!mixed) {
             bit = code(models.occupancy[ctx], (truth >> k) & 1);
           } else {
-            BitModel& mb = models.child_b[(faces_mask << 8) | (1u << k) | (byte & ((1u << k) - 1))];
-            bit = mix_code(models.occupancy[ctx], mb, models.child_mixer.w[(k << 2) | to_leaves], code_prob,
+            BitModel& mb = child_b[tree];
+            bit = mix_code(models.occupancy[ctx], mb, mm->child_mixer.w[(k << 2) | to_leaves], code_prob,
                            (truth >> k) & 1);
           }
           // Written in any case, kept when the bit is set (the branch would
@@ -433,6 +488,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           next_count += static_cast<std::size_t>(bit);
           byte = static_cast<std::uint8_t>(byte | (bit << k));
           siblings += bit;
+          if constexpr (mixed) tree = 2 * tree + static_cast<unsigned>(bit);
         }
       }
       // An occupied node has at least one occupied child.
@@ -483,6 +539,7 @@ template <typename Code, typename CodeProb, typename TrueByte, typename Grow>
 bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                  Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, Grow&& grow) {
   if (coding == OctreeCoding::kMixed) {
+    models.mixed = std::make_unique<MixedModels>();
     return code_octree_impl<true>(depth, coding, models, nodes, code, code_prob, true_byte, grow);
   }
   return code_octree_impl<false>(depth, coding, models, nodes, code, code_prob, true_byte, grow);

@@ -60,6 +60,14 @@ struct BitModel {
   // Without branches (the bit is what the coder cannot predict): a 1 moves
   // each estimate down by p >> shift, a 0 up by (2^16 - 1 - p) >> shift.
   void update(int bit) {
+    if (seen == kSlowShift) {  // a mature model (most decisions): constant shifts
+      const std::uint32_t f = fast, s = slow;
+      const std::uint32_t df = (bit ? f : kProbOne - 1 - f) >> kFastShift;
+      const std::uint32_t ds = (bit ? s : kProbOne - 1 - s) >> kSlowShift;
+      fast = static_cast<std::uint16_t>(bit ? f - df : f + df);
+      slow = static_cast<std::uint16_t>(bit ? s - ds : s + ds);
+      return;
+    }
     const int fs = kFastShiftBySeen[seen];
     const int ss = kSlowShiftBySeen[seen];
     seen = static_cast<std::uint8_t>(seen + (seen < kSlowShift ? 1 : 0));
