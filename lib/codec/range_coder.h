@@ -57,20 +57,19 @@ struct BitModel {
     const std::uint32_t p = (static_cast<std::uint32_t>(fast) + slow) >> 1;
     return p > kProbMax ? kProbMax : p;
   }
-  // Without branches (the bit is what the coder cannot predict): a 1 moves
-  // each estimate down by p >> shift, a 0 up by (2^16 - 1 - p) >> shift.
+  // A 1 moves each estimate down by p >> shift, a 0 up by (2^16 - 1 - p) >>
+  // shift (without branching on the bit, which the coder cannot predict).
+  // A mature model (most decisions) takes the constant shifts.
   void update(int bit) {
-    if (seen == kSlowShift) {  // a mature model (most decisions): constant shifts
-      const std::uint32_t f = fast, s = slow;
-      const std::uint32_t df = (bit ? f : kProbOne - 1 - f) >> kFastShift;
-      const std::uint32_t ds = (bit ? s : kProbOne - 1 - s) >> kSlowShift;
-      fast = static_cast<std::uint16_t>(bit ? f - df : f + df);
-      slow = static_cast<std::uint16_t>(bit ? s - ds : s + ds);
-      return;
-    }
+    if (seen == kSlowShift) return move(bit, kFastShift, kSlowShift);
     const int fs = kFastShiftBySeen[seen];
     const int ss = kSlowShiftBySeen[seen];
-    seen = static_cast<std::uint8_t>(seen + (seen < kSlowShift ? 1 : 0));
+    ++seen;
+    move(bit, fs, ss);
+  }
+
+ private:
+  void move(int bit, int fs, int ss) {
     const std::uint32_t f = fast, s = slow;
     const std::uint32_t df = (bit ? f : kProbOne - 1 - f) >> fs;
     const std::uint32_t ds = (bit ? s : kProbOne - 1 - s) >> ss;
