@@ -19,7 +19,6 @@
 #include <cstring>
 #include <memory>
 #include <numeric>
-#include <optional>
 #include <string>
 #include <type_traits>
 
@@ -858,16 +857,19 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     default: break;
   }
   if (bit == kLasColorLow) {
-    if (version < 7) return encode_colors(las.color_low, 0);
-    // Format 7: one decision, 1 = every low triplet equals the point's
-    // decoded colour (8-bit levels, or v * 257: the low bytes carry nothing).
+    // Format 7 first codes one decision, 1 = every low triplet equals the
+    // point's decoded colour (8-bit levels, or v * 257: the low bytes carry
+    // nothing); else, and before format 7, the triplets follow.
     RangeEncoder enc;
-    BitModel equal_flag;
-    const bool equal = n > 0 && colors.size() == n && las.color_low.size() == n &&
-                       std::equal(colors.begin(), colors.end(), las.color_low.begin(),
-                                  [](const Rgb8& a, const Rgb8& b) { return a.r == b.r && a.g == b.g && a.b == b.b; });
-    if (n > 0) enc.encode(equal_flag, equal ? 1 : 0);
-    if (!equal) encode_colors_into(enc, std::span(las.color_low).first(n), 0);
+    bool equal = false;
+    if (version >= 7 && n > 0) {
+      equal = colors.size() == n && las.color_low.size() == n &&
+              std::equal(colors.begin(), colors.end(), las.color_low.begin(),
+                         [](const Rgb8& a, const Rgb8& b) { return a.r == b.r && a.g == b.g && a.b == b.b; });
+      BitModel equal_flag;
+      enc.encode(equal_flag, equal ? 1 : 0);
+    }
+    if (!equal) encode_colors_into(enc, las.color_low, 0);
     return enc.finish();
   }
   // A constant attribute (user data 0, one flight line, no flags) is one
@@ -907,21 +909,40 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
   return enc.finish();
 }
 
-Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
-                            int version, std::span<const CellXyz> cells, std::span<const std::uint32_t> time_order,
-                            std::span<const Rgb8> colors) {
-  std::optional<RangeDecoder> low_dec;  // format 7 colour low bytes: the stream after its first decision
-  if (bit == kLasColorLow && version >= 7 && n > 0) {
-    low_dec.emplace(data);
+namespace {
+
+// Colour low bytes (section 20): the triplets as point colours with t = 0;
+// in format 7 after one decision, 1 = every triplet is the point's decoded
+// colour (`colors`, n of them).
+Status decode_color_low(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las, int version,
+                        std::span<const Rgb8> colors) {
+  RangeDecoder dec(data);
+  if (version >= 7 && n > 0) {
     BitModel equal_flag;
-    if (low_dec->decode(equal_flag) == 1) {
-      if (low_dec->overrun() > 0) return corrupt_data("colour low byte section: truncated stream");
+    if (dec.decode(equal_flag) == 1) {
+      if (dec.overrun() > 0) return corrupt_data("colour low byte section: truncated stream");
       if (colors.size() != n) return corrupt_data("colour low byte section: equal to colours the blob does not hold");
       las.color_low.assign(colors.begin(), colors.end());
       return Status::ok();
     }
   }
-  if (bit != kLasColorLow && n > 0) {
+  if (n > max_decisions(data.size()) / min_decisions_per_point(kLasColorLow, 0, version)) {
+    return corrupt_data("colour low byte section: " + std::to_string(data.size()) + " bytes cannot hold " +
+                        std::to_string(n) + " points");
+  }
+  if (!decode_colors_from(dec, n, 0, las.color_low) || dec.overrun() > 0) {
+    return corrupt_data("colour low byte section: invalid or truncated stream");
+  }
+  return Status::ok();
+}
+
+}  // namespace
+
+Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
+                            int version, std::span<const CellXyz> cells, std::span<const std::uint32_t> time_order,
+                            std::span<const Rgb8> colors) {
+  if (bit == kLasColorLow) return decode_color_low(data, n, las, version, colors);
+  if (n > 0) {
     RangeDecoder dec(data);
     DecCoder c(dec);
     BitModel constant_flag;
@@ -940,18 +961,6 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
   if (n > 0 && need > 0 && n > max_decisions(data.size()) / need) {
     return corrupt_data(std::string(las_attribute_name(bit)) + " section: " +
                         std::to_string(data.size()) + " bytes cannot hold " + std::to_string(n) + " points");
-  }
-  if (bit == kLasColorLow && low_dec) {
-    if (!decode_colors_from(*low_dec, n, 0, las.color_low) || low_dec->overrun() > 0) {
-      return corrupt_data("colour low byte section: invalid or truncated stream");
-    }
-    return Status::ok();
-  }
-  if (bit == kLasColorLow) {
-    auto low = decode_colors(data, n, 0);
-    if (!low) return low.status().with_context("colour low byte section");
-    las.color_low = std::move(low).value();
-    return Status::ok();
   }
   if (bit == kLasGpsTime && version >= 6 && n > 0) {
     RangeDecoder dec(data);
