@@ -15,6 +15,7 @@
 #include "codec/geometry_coder.h"
 #include "codec/las_attribute_coder.h"
 #include "codec/octree.h"
+#include "codec/scan_geometry_coder.h"
 
 namespace relief::codec {
 
@@ -53,6 +54,90 @@ std::uint32_t float_bits(float v) {
   return u;
 }
 
+std::vector<std::uint32_t> order_indices(const std::vector<KeyedIndex>& order) {
+  std::vector<std::uint32_t> perm(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) perm[k] = order[k].index;
+  return perm;
+}
+
+CellXyz cell_of(const std::vector<std::int64_t>& q, const std::int64_t lo[3], std::size_t i) {
+  return {static_cast<std::uint32_t>(q[3 * i] - lo[0]), static_cast<std::uint32_t>(q[3 * i + 1] - lo[1]),
+          static_cast<std::uint32_t>(q[3 * i + 2] - lo[2])};
+}
+
+std::vector<CellXyz> cells_in_order(const std::vector<std::int64_t>& q, const std::int64_t lo[3],
+                                    const std::vector<KeyedIndex>& order) {
+  std::vector<CellXyz> cells(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) cells[k] = cell_of(q, lo, order[k].index);
+  return cells;
+}
+
+// The layer coded in time order (format 8, §11.3.3): the geometry and the
+// GPS times in time order, and the layer's order that follows from it.
+struct ScanCoding {
+  std::vector<std::uint8_t> geometry, gps;
+  // Cells in Morton order, a cell's points in time order (key: Morton code,
+  // index: the input point).
+  std::vector<KeyedIndex> order;
+  // The layer index of each time-order position.
+  std::vector<std::uint32_t> time_order;
+};
+
+// The time order: GPS time (bit pattern), return number, cell, then
+// `attr_less` (the attributes, as within a cell), so that it depends only on
+// the multiset of points.
+template <typename Less>
+ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::int64_t>& q, const std::int64_t lo[3],
+                                int depth, const Less& attr_less) {
+  const std::size_t n = cloud.size();
+  const LasAttributes& las = cloud.las;
+  const bool has_rn = !las.return_number.empty(), has_nr = !las.number_of_returns.empty();
+  std::vector<KeyedIndex> t(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const CellXyz c = cell_of(q, lo, i);
+    t[i] = {morton_encode(c[0], c[1], c[2]), static_cast<std::uint32_t>(i)};
+  }
+  std::sort(t.begin(), t.end(), [&](const KeyedIndex& a, const KeyedIndex& b) {
+    const auto ga = std::bit_cast<std::uint64_t>(las.gps_time[a.index]);
+    const auto gb = std::bit_cast<std::uint64_t>(las.gps_time[b.index]);
+    if (ga != gb) return ga < gb;
+    if (has_rn && las.return_number[a.index] != las.return_number[b.index]) {
+      return las.return_number[a.index] < las.return_number[b.index];
+    }
+    if (a.key != b.key) return a.key < b.key;
+    return attr_less(a, b);
+  });
+  std::vector<CellXyz> cells(n);
+  std::vector<double> times(n);
+  std::vector<std::uint8_t> rn(has_rn ? n : 0), nr(has_nr ? n : 0);
+  std::vector<std::uint32_t> identity(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = t[k].index;
+    cells[k] = cell_of(q, lo, i);
+    times[k] = las.gps_time[i];
+    if (has_rn) rn[k] = las.return_number[i];
+    if (has_nr) nr[k] = las.number_of_returns[i];
+    identity[k] = static_cast<std::uint32_t>(k);
+  }
+  const std::vector<std::uint8_t> kinds = las_pulse_kinds(times, identity);
+  ScanCoding out;
+  out.geometry = encode_scan_geometry(cells, depth, ScanContext{kinds, rn, nr});
+  out.gps = encode_gps_in_order(times);
+  // The layer: cells in Morton order; the sort is stable, so a cell's
+  // points stay in time order.
+  std::vector<KeyedIndex> by_cell(n);
+  for (std::size_t k = 0; k < n; ++k) by_cell[k] = {t[k].key, static_cast<std::uint32_t>(k)};
+  radix_sort(by_cell, 3 * depth);
+  out.order.resize(n);
+  out.time_order.resize(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    const std::size_t k = by_cell[j].index;
+    out.order[j] = t[k];
+    out.time_order[k] = static_cast<std::uint32_t>(j);
+  }
+  return out;
+}
+
 }  // namespace
 
 Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
@@ -64,7 +149,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = kChunkFormatVersion;  // 7: geometry codec 8, LAS fields (possibly none), GPS time in time order
+  h.version = kChunkFormatVersion;  // 8: geometry codec 8 or 9 (time order), LAS fields (possibly none)
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -153,10 +238,40 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     i = j;
   }
 
+  // Format 8: with GPS times, the geometry may instead be coded in time
+  // order (§11.3.3), the times then without ranks; the encoder keeps the
+  // smaller of the two codings of geometry and times.
+  std::vector<std::uint8_t> geometry = encode_geometry(cells, depth, OctreeCoding::kMixed);
+  SectionCodec geometry_codec = SectionCodec::kOctreeMixed;
+  std::vector<std::uint32_t> time_order;  // layer index of each time-order position
+  std::vector<std::uint8_t> gps_payload;
+  if ((las_bits & kLasGpsTime) != 0 && n > 1) {
+    LasAttributes cell_las;  // the times in cell order
+    cell_las.gps_time.resize(n);
+    for (std::size_t k = 0; k < n; ++k) cell_las.gps_time[k] = cloud.las.gps_time[order[k].index];
+    const auto first = std::bit_cast<std::uint64_t>(cell_las.gps_time[0]);
+    if (!std::all_of(cell_las.gps_time.begin(), cell_las.gps_time.end(),
+                     [&](double t) { return std::bit_cast<std::uint64_t>(t) == first; })) {
+      ScanCoding scan = encode_in_time_order(cloud, q, lo, depth, attr_less);
+      std::vector<CellXyz> point_cells = cells_in_order(q, lo, order);
+      time_order = las_time_order(cell_las.gps_time);
+      const std::vector<std::uint8_t> gps_ranked =
+          encode_las_attribute(kLasGpsTime, cell_las, n, h.version, point_cells, time_order);
+      if (scan.geometry.size() + scan.gps.size() < geometry.size() + gps_ranked.size()) {
+        geometry = std::move(scan.geometry);
+        geometry_codec = SectionCodec::kScanOrder;
+        order = std::move(scan.order);
+        time_order = std::move(scan.time_order);
+        gps_payload = std::move(scan.gps);
+      } else {
+        gps_payload = gps_ranked;
+      }
+    }
+  }
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;
-  payloads.push_back(encode_geometry(cells, depth, OctreeCoding::kMixed));
-  refined.push_back({SectionId::kGeometry, SectionCodec::kOctreeMixed, static_cast<std::uint32_t>(n), 0, {}});
+  payloads.push_back(std::move(geometry));
+  refined.push_back({SectionId::kGeometry, geometry_codec, static_cast<std::uint32_t>(n), 0, {}});
 
   // ---- The base layer is built from what the decoder will return.
   PointCloud base;
@@ -194,29 +309,21 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
   }
   if (las_bits != 0) {
-    std::vector<std::uint32_t> perm(n);
-    for (std::size_t k = 0; k < n; ++k) perm[k] = order[k].index;
     // (Gathering the whole cloud costs less than copying its LAS attributes
     // out first: positions, colours and intensities are a few bytes a point.)
-    const LasAttributes ordered = cloud.gathered(perm).las;
-    std::vector<CellXyz> point_cells;
-    if (las_bits & kLasGpsTime) {
-      point_cells.resize(n);
-      for (std::size_t k = 0; k < n; ++k) {
-        const std::size_t i = order[k].index;
-        for (int a = 0; a < 3; ++a) {
-          point_cells[k][static_cast<std::size_t>(a)] = static_cast<std::uint32_t>(q[3 * i + a] - lo[a]);
-        }
-      }
-    }
-    // Format 6: with GPS times, the attributes that follow acquisition
-    // order are coded in time order (§11.7.2).
-    std::vector<std::uint32_t> time_order;
-    if (h.version >= 6 && (las_bits & kLasGpsTime)) time_order = las_time_order(ordered.gps_time);
+    const LasAttributes ordered = cloud.gathered(order_indices(order)).las;
+    // With GPS times, the attributes that follow acquisition order are coded
+    // in time order (§11.7.2): the geometry's order (§11.3.3) or the times'
+    // (§11.7.1), whose section gps_payload already holds.
+    if ((las_bits & kLasGpsTime) && time_order.empty()) time_order = las_time_order(ordered.gps_time);
     for (int b = 0; b < kLasAttributeCount; ++b) {
       const std::uint32_t bit = 1u << b;
       if ((las_bits & bit) == 0) continue;
-      payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, point_cells, time_order, base.colors));
+      if (bit == kLasGpsTime && !gps_payload.empty()) {
+        payloads.push_back(std::move(gps_payload));
+      } else {
+        payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors));
+      }
       refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
                          static_cast<std::uint32_t>(n), 0, {}});
     }

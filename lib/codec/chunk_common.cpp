@@ -61,7 +61,8 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec, std::ui
       return c == SectionCodec::kJpeg2000;
     case SectionId::kGeometry:
       // One coding per version: codec 6 in versions 2 and 3, codec 7 in 5
-      // and 6, codec 8 in 7.
+      // and 6, codec 8 in 7; version 8 adds codec 9 (time order).
+      if (version >= 8 && c == SectionCodec::kScanOrder) return true;
       return c == (version >= 7   ? SectionCodec::kOctreeMixed
                    : version >= 5 ? SectionCodec::kOctreeSingleChild
                                   : SectionCodec::kArithmetic);

@@ -67,6 +67,9 @@ enum class SectionCodec : std::uint8_t {
   // Geometry only (version 7): codec 7's octree with each bit's probability
   // mixed from two context models (format-spec/chunk.md §11.3.2).
   kOctreeMixed = 8,
+  // Geometry only (version 8, blobs with GPS times): the points' cells in
+  // time order, as predicted differences (format-spec/chunk.md §11.3.3).
+  kScanOrder = 9,
 };
 
 // How the error-bounded layer codes intensity (header byte 162).

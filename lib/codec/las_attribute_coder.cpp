@@ -23,49 +23,13 @@
 #include <type_traits>
 
 #include "codec/attribute_coder.h"
+#include "codec/bit_coders.h"
 #include "codec/octree.h"
 #include "codec/range_coder.h"
 
 namespace relief::codec {
 
 namespace {
-
-// ---- Bit coders with one interface: the encoder passes the true value and
-// gets it back, the decoder ignores what it is given and returns what it read.
-class EncCoder {
- public:
-  static constexpr bool kEncoding = true;
-  explicit EncCoder(RangeEncoder& e) : e_(e) {}
-  int bit(BitModel& m, int b) {
-    e_.encode(m, b);
-    return b;
-  }
-  bool sint(SIntModel& m, std::int64_t& v) {
-    encode_sint(e_, m, v);
-    return true;
-  }
-  bool uint(UIntModel& m, std::uint64_t& v) {
-    encode_uint(e_, m, v);
-    return true;
-  }
-  bool ok() const { return true; }
-
- private:
-  RangeEncoder& e_;
-};
-
-class DecCoder {
- public:
-  static constexpr bool kEncoding = false;
-  explicit DecCoder(RangeDecoder& d) : d_(d) {}
-  int bit(BitModel& m, int) { return d_.decode(m); }
-  bool sint(SIntModel& m, std::int64_t& v) { return decode_sint(d_, m, v); }
-  bool uint(UIntModel& m, std::uint64_t& v) { return decode_uint(d_, m, v); }
-  bool ok() const { return !d_.exhausted(); }
-
- private:
-  RangeDecoder& d_;
-};
 
 // A byte as 8 binary decisions down a tree (node 1 is the root, node k's
 // children are 2k and 2k + 1), most significant bit first.
@@ -258,11 +222,14 @@ int pick_bucket_shift(std::span<const CellXyz> cells) {
 
 // `order[k]` is the cell index of the k-th point in time order (encoder:
 // given; decoder: filled); `bits` the times' bit patterns by cell index.
+// Without `ranks` (format 8, geometry in time order, §11.3.3) the section
+// holds the times alone: the geometry has fixed the order, `cells` is unused
+// and the decoder fills bits[k] with the k-th time (order[k] = k).
 template <typename C>
 bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std::uint32_t>& order,
-                         std::span<const CellXyz> cells, int shift_in) {
+                         std::span<const CellXyz> cells, int shift_in, bool ranks = true) {
   const std::size_t n = bits.size();
-  if (cells.size() != n || order.size() != n) return false;
+  if ((ranks && cells.size() != n) || order.size() != n) return false;
   struct Models {
     UIntModel shift, first_index;
     BitModel symbol[kTimeSymbols][std::size_t{1} << kTimeSymbolBits];
@@ -272,7 +239,8 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
   };
   auto m = std::make_unique<Models>();
   std::uint64_t shift = static_cast<std::uint64_t>(shift_in);
-  if (!c.uint(m->shift, shift) || shift > kMaxBucketShift) return false;
+  if (ranks && (!c.uint(m->shift, shift) || shift > kMaxBucketShift)) return false;
+  if (!ranks) shift = kMaxBucketShift;
   const int b = static_cast<int>(shift);
   std::uint32_t mx = 0, my = 0;
   for (const CellXyz& p : cells) {
@@ -283,16 +251,17 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
   if (gx * gy > kBucketsPerPoint * std::uint64_t{n} + 16) return false;
   // Each bucket's unused points, in cell order, as a doubly linked list
   // (built from the back, each point pushed at the front).
-  std::vector<std::uint32_t> head(gx * gy, kNoPoint), next(n, kNoPoint), prev(n, kNoPoint);
+  std::vector<std::uint32_t> head(ranks ? gx * gy : 0, kNoPoint), next(ranks ? n : 0, kNoPoint),
+      prev(ranks ? n : 0, kNoPoint);
   const auto bucket = [&](std::size_t i) { return std::size_t{cells[i][1] >> b} * gx + (cells[i][0] >> b); };
-  for (std::size_t i = n; i-- > 0;) {
+  for (std::size_t i = ranks ? n : 0; i-- > 0;) {
     const std::size_t k = bucket(i);
     const auto u = static_cast<std::uint32_t>(i);
     if (head[k] != kNoPoint) prev[head[k]] = u;
     next[u] = head[k];
     head[k] = u;
   }
-  std::vector<std::uint8_t> used(n, 0);
+  std::vector<std::uint8_t> used(ranks ? n : 0, 0);
   struct Candidate {
     std::uint64_t dist;
     std::uint32_t index;
@@ -343,7 +312,14 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
     }
     prev_symbol = symbol;
     // ---- The point.
-    std::uint64_t index = order[k];
+    std::uint64_t index = C::kEncoding || ranks ? order[k] : k;
+    if (!ranks) {
+      if (!c.ok()) return false;
+      bits[index] = time;
+      order[k] = static_cast<std::uint32_t>(index);
+      last = time;
+      continue;
+    }
     if (k == 0) {
       if (!c.uint(m->first_index, index) || index >= n) return false;
     } else {
@@ -1011,6 +987,55 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
   if (!code_attribute(c, bit, las, n, 1) || dec.overrun() > 0) {
     return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
   }
+  return Status::ok();
+}
+
+std::vector<std::uint8_t> las_pulse_kinds(const std::vector<double>& gps, std::span<const std::uint32_t> order) {
+  return pulse_kinds(gps, order);
+}
+
+std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times) {
+  const std::size_t n = times.size();
+  LasAttributes las;
+  las.gps_time.assign(times.begin(), times.end());
+  // A constant section is the same in every format 6+ blob.
+  if (n == 0 || all_equal(kLasGpsTime, las)) return encode_las_attribute(kLasGpsTime, las, n, 8);
+  RangeEncoder enc;
+  EncCoder c(enc);
+  BitModel constant_flag;
+  c.bit(constant_flag, 0);
+  std::vector<std::uint64_t> bits(n);
+  std::vector<std::uint32_t> order(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    bits[k] = double_bits(times[k]);
+    order[k] = static_cast<std::uint32_t>(k);
+  }
+  code_gps_time_order(c, bits, order, {}, 0, false);
+  return enc.finish();
+}
+
+Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las) {
+  if (n == 0) return decode_las_attribute(kLasGpsTime, data, n, las, 8);
+  {
+    RangeDecoder peek(data);
+    BitModel constant_flag;
+    if (peek.decode(constant_flag) == 1) return decode_las_attribute(kLasGpsTime, data, n, las, 8);
+  }
+  if (n > max_decisions(data.size()) / kTimeSymbolBits) {
+    return corrupt_data("GPS time section: " + std::to_string(data.size()) + " bytes cannot hold " +
+                        std::to_string(n) + " points");
+  }
+  RangeDecoder dec(data);
+  DecCoder c(dec);
+  BitModel constant_flag;
+  c.bit(constant_flag, 0);  // 0: read above
+  std::vector<std::uint64_t> bits(n);
+  std::vector<std::uint32_t> order(n);
+  if (!code_gps_time_order(c, bits, order, {}, 0, false) || dec.overrun() > 0) {
+    return corrupt_data("GPS time section: invalid or truncated stream");
+  }
+  las.gps_time.resize(n);
+  for (std::size_t k = 0; k < n; ++k) las.gps_time[k] = std::bit_cast<double>(bits[k]);
   return Status::ok();
 }
 

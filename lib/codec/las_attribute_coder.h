@@ -68,6 +68,18 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
                             int version = 5, std::span<const CellXyz> cells = {},
                             std::span<const std::uint32_t> time_order = {}, std::span<const Rgb8> colors = {});
 
+// The pulse kind of each position k of a time order (`order` lists indices
+// into `gps`; §11.7.2): 0 the next pulse, 1 another return of the previous
+// point's pulse (the same time), 2 a gap (more than twice the last step).
+std::vector<std::uint8_t> las_pulse_kinds(const std::vector<double>& gps, std::span<const std::uint32_t> order);
+
+// Format 8 blobs whose geometry is in time order (§11.3.3): the GPS time
+// section holds the times alone, in that order (§11.7.1 without the ranks).
+// `times` are the points' times in the geometry's order, non-decreasing by
+// bit pattern. The decoder fills las.gps_time in the same order.
+std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times);
+Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las);
+
 // Orders two points of `las` by every carried attribute, in bit order
 // (gps_time by bit pattern, extra bytes as unsigned byte strings): the
 // tie-break that makes a cell's point order independent of the input order.

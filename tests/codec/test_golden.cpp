@@ -54,6 +54,19 @@ PointCloud las_scene_8bit() {
   return c;
 }
 
+// An airborne scan in acquisition order with every LAS attribute: the
+// geometry codes in time order (codec 9, format 8).
+PointCloud las_scan_scene() {
+  test::SceneOptions o;
+  o.seed = 2027;
+  o.points = 1500;
+  o.colors = true;
+  o.intensity = true;
+  return test::make_scan_with_las(o, 40.0, 0xFFF, 5);
+}
+
+bool has_las(PointCloud (*make)()) { return make == las_scene || make == las_scene_8bit || make == las_scan_scene; }
+
 PointCloud octree_scene() {
   test::SceneOptions o;
   o.seed = 2025;
@@ -101,12 +114,20 @@ std::vector<Vector> vectors() {
           {"bounded_geometry_octree_v6", bounded_geometry, octree_scene, 6, true},
           {"bounded_las_attributes_v6", bounded, las_scene, 6, true},
           // Format 7: mixed octree coding (geometry codec 8).
-          {"bounded_rgb_intensity_v7", bounded, voxel_scene, 7},
-          {"bounded_rgb_tolerance6_v7", bounded_lossy, voxel_scene, 7},
-          {"bounded_geometry_octree_v7", bounded_geometry, octree_scene, 7},
-          {"bounded_las_attributes_v7", bounded, las_scene, 7},
+          {"bounded_rgb_intensity_v7", bounded, voxel_scene, 7, true},
+          {"bounded_rgb_tolerance6_v7", bounded_lossy, voxel_scene, 7, true},
+          {"bounded_geometry_octree_v7", bounded_geometry, octree_scene, 7, true},
+          {"bounded_las_attributes_v7", bounded, las_scene, 7, true},
           // Format 7 also codes colour low bytes equal to the colours in one decision.
-          {"bounded_las_colors8_v7", bounded, las_scene_8bit, 7}};
+          {"bounded_las_colors8_v7", bounded, las_scene_8bit, 7, true},
+          // Format 8: with GPS times, the geometry in time order when smaller
+          // (codec 9: only the scan scene; the others as in format 7).
+          {"bounded_rgb_intensity_v8", bounded, voxel_scene, 8},
+          {"bounded_rgb_tolerance6_v8", bounded_lossy, voxel_scene, 8},
+          {"bounded_geometry_octree_v8", bounded_geometry, octree_scene, 8},
+          {"bounded_las_attributes_v8", bounded, las_scene, 8},
+          {"bounded_las_colors8_v8", bounded, las_scene_8bit, 8},
+          {"bounded_las_scan_v8", bounded, las_scan_scene, 8}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -149,7 +170,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 7 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 8 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
@@ -165,7 +186,7 @@ TEST_CASE("golden chunk blobs of format versions 1 to 7 decode (and the current 
       auto decoded = decode_chunk(*blob);
       REQUIRE(decoded.is_ok());
       REQUIRE(write_ply(ply_path, *decoded, {PlyEncoding::kAscii, PlyCoordinateType::kFloat64}).is_ok());
-      if (v.make == las_scene || v.make == las_scene_8bit) {
+      if (has_las(v.make)) {
         std::ofstream(vector_path(v.name, ".decoded.las.txt"), std::ios::binary) << las_text(*decoded);
       }
     }
@@ -174,6 +195,10 @@ TEST_CASE("golden chunk blobs of format versions 1 to 7 decode (and the current 
     auto info = inspect_chunk(golden);
     REQUIRE(info.is_ok());
     CHECK(info->format_version == v.version);
+    // The geometry's codec: 9 (time order) for the scan, the octree for the others.
+    for (const ChunkSectionInfo& s : info->sections) {
+      if (s.id == 7 && v.version >= 8) CHECK(s.codec == (v.make == las_scan_scene ? 9 : 8));
+    }
     // Encoder stability: the same input and parameters give the same bytes.
     if (!v.frozen) CHECK(*blob == golden);
     // Decoder stability: the golden blob means the same points as when it was made.
@@ -192,7 +217,7 @@ TEST_CASE("golden chunk blobs of format versions 1 to 7 decode (and the current 
     CHECK(worst < 1e-9);
     if (decoded->has_colors()) CHECK(decoded->colors == expected->colors);
     if (decoded->has_intensity()) CHECK(decoded->intensities == expected->intensities);
-    if (v.make == las_scene || v.make == las_scene_8bit) {
+    if (has_las(v.make)) {
       // Bounded blobs keep every LAS attribute; resampled ones the classification.
       REQUIRE(decoded->las.carried() == (v.params.bound ? 0xFFFu : kLasClassification));
       const std::vector<std::uint8_t> text = slurp(vector_path(v.name, ".decoded.las.txt"));

@@ -566,22 +566,26 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
     std::ofstream(std::string(dir) + "/" + name, std::ios::binary)
         .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
   };
-  // Format 7, a scan: GPS times in time order, pulses with their returns,
-  // scan flags, angles, user data and point source IDs in acquisition order,
-  // plus a classification (and so the classification map) and intensities.
+  // Format 8, a scan: the geometry and GPS times in time order (codec 9),
+  // pulses with their returns, scan flags, angles, user data and point
+  // source IDs in acquisition order, plus a classification (and so the
+  // classification map) and intensities.
   PointCloud timed = scan_with_pulses(14, 6, 30);
   test::Rng rng(15);
   for (std::size_t i = 0; i < timed.size(); ++i) {
     timed.las.classification.push_back(static_cast<std::uint8_t>(timed.las.return_number[i] == 1 ? 2 : 5));
     timed.intensities.push_back(static_cast<float>(rng.next() % 4096));
   }
-  auto v7 = encode_chunk(timed, params_for(0.005, 1.0));
-  REQUIRE(v7.is_ok());
-  CHECK(inspect_chunk(*v7)->las_attributes ==
+  auto v8 = encode_chunk(timed, params_for(0.005, 1.0));
+  REQUIRE(v8.is_ok());
+  CHECK(inspect_chunk(*v8)->las_attributes ==
         (kLasClassification | kLasReturnNumber | kLasNumberOfReturns | kLasScanFlags | kLasScanAngle | kLasUserData |
          kLasPointSourceId | kLasGpsTime));
-  write("seed-v7-las-scan-gps-time.rlfc", *v7, 7);
-  // Format 7 with every attribute (NIR, colour low bytes, extra bytes too).
+  for (const ChunkSectionInfo& s : inspect_chunk(*v8)->sections) {
+    if (s.id == 7) CHECK(s.codec == 9);  // the geometry in time order
+  }
+  write("seed-v8-las-scan-time-order.rlfc", *v8, 8);
+  // Format 8 with every attribute (NIR, colour low bytes, extra bytes too).
   PointCloud in = scene(12, 120, true);
   test::add_las_attributes(in, 0xFFF, 3, 12, false);
   EncodeParams p = params_for(0.005, 2.0);
@@ -589,7 +593,7 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
   auto all = encode_chunk(in, p);
   REQUIRE(all.is_ok());
   CHECK(inspect_chunk(*all)->las_attributes == 0xFFF);
-  write("seed-v7-las-attributes.rlfc", *all, 7);
+  write("seed-v8-las-attributes.rlfc", *all, 8);
   EncodeParams resample;
   resample.cell_size = 0.5;
   resample.map_resolution = 8;

@@ -105,6 +105,20 @@ inline void add_las_attributes(PointCloud& c, std::uint32_t bits, std::uint32_t 
   }
 }
 
+// make_airborne_scan with the LAS attributes `bits` names: its returns and
+// GPS times where asked for, the others survey-like as add_las_attributes
+// makes them.
+inline PointCloud make_scan_with_las(const SceneOptions& o, double size, std::uint32_t bits,
+                                     std::uint32_t extra_bytes_size) {
+  PointCloud c = make_airborne_scan(o, size);
+  const LasAttributes scanned = c.las;
+  add_las_attributes(c, bits, extra_bytes_size, o.seed, false);
+  if (bits & kLasReturnNumber) c.las.return_number = scanned.return_number;
+  if (bits & kLasNumberOfReturns) c.las.number_of_returns = scanned.number_of_returns;
+  if (bits & kLasGpsTime) c.las.gps_time = scanned.gps_time;
+  return c;
+}
+
 // One point's every field as bytes: records compare as multisets this way.
 inline std::string point_record(const PointCloud& c, std::size_t i) {
   std::string r;

@@ -91,6 +91,32 @@ PointCloud make_terrain(const SceneOptions& o, double size, double amplitude) {
   return c;
 }
 
+PointCloud make_airborne_scan(const SceneOptions& o, double size) {
+  Rng rng(o.seed);
+  PointCloud c;
+  c.reserve(o.points, o.colors, o.intensity);
+  const double pulse = 0.25, line = 0.5;
+  const auto per_line = static_cast<std::size_t>(size / pulse);
+  double t = 2.0e8 + static_cast<double>(o.seed % 97);
+  LasAttributes& a = c.las;
+  for (std::size_t p = 0; c.size() < o.points; ++p) {
+    const std::size_t l = p / per_line, j = p % per_line;
+    const double x = pulse * static_cast<double>(l % 2 == 0 ? j : per_line - 1 - j) + 0.02 * rng.normal();
+    const double y = line * static_cast<double>(l) + 0.05 * std::sin(static_cast<double>(j) * 0.1);
+    const double ground = 2.0 * std::sin(x * 0.11) * std::cos(y * 0.07) + 0.03 * rng.normal();
+    t += (j == 0 ? 0.5 : 1.0e-5) + (rng.next() % 2 == 0 ? 0.0 : 1.0e-9);
+    const std::uint8_t returns = rng.next() % 5 == 0 ? static_cast<std::uint8_t>(2 + rng.next() % 2) : 1;
+    for (std::uint8_t r = 1; r <= returns && c.size() < o.points; ++r) {
+      const double z = r == returns ? ground : ground + rng.uniform(2.0, 9.0) / r;
+      add_point(c, o, {x + 0.01 * (r - 1), y, z});
+      a.return_number.push_back(r);
+      a.number_of_returns.push_back(returns);
+      a.gps_time.push_back(t);
+    }
+  }
+  return c;
+}
+
 PointCloud make_room(const SceneOptions& o, double size) {
   Rng rng(o.seed);
   PointCloud c;

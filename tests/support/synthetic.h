@@ -38,5 +38,13 @@ PointCloud make_sphere(const SceneOptions& o, double radius);
 PointCloud make_terrain(const SceneOptions& o, double size, double amplitude);
 // A room-like scene: floor, walls and a box, size metres across.
 PointCloud make_room(const SceneOptions& o, double size);
+// An airborne scan of a wavy terrain with trees, size metres square: scan
+// lines across x, flown back and forth, one pulse every 25 cm along a line
+// and 50 cm between lines, in the order a scanner records them. A pulse that
+// hits a tree (about one in five) has 2 or 3 returns with the same time,
+// canopy first. Fills positions (o.points in all, o.noise ignored), the
+// colours and intensities o asks for, and las.return_number,
+// number_of_returns and gps_time.
+PointCloud make_airborne_scan(const SceneOptions& o, double size);
 
 }  // namespace relief::test

@@ -39,9 +39,12 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // by codec 7 (single-child octree coding). Version 6: version 5 with GPS
 // times coded in time order (the points' order by time, then the times as
 // steps). Version 7: version 6 with the geometry coded by codec 8 (codec 7's
-// octree with every bit's probability mixed from two context models); the
-// bounded encoder writes it for every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 7;
+// octree with every bit's probability mixed from two context models).
+// Version 8: version 7 where a blob with GPS times may code its geometry in
+// time order instead (codec 9: each point's cell predicted from the previous
+// points of the scan, the times then without ranks); the bounded encoder
+// writes it for every cloud, in time order when that is smaller.
+inline constexpr std::uint16_t kChunkFormatVersion = 8;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the

@@ -1,0 +1,167 @@
+// Mirror pair in one file: the encoder and the decoder run code_scan (a
+// template over the bit coder, bit_coders.h). format-spec/chunk.md §11.3.3 is
+// the normative description.
+//
+// An airborne or mobile scanner records pulse after pulse along a scan line:
+// in time order consecutive points are a pulse spacing apart in x and y, and
+// the step repeats (LAZ predicts it by the median of the last five); a
+// pulse's later returns lie below its first; a point's height is close to
+// that of the previous point of the same return level. The octree of §11.3
+// sees none of this: at the LAS scale it spends most of its decisions on
+// single-child levels whose bits look random in cell order.
+#include "codec/scan_geometry_coder.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <memory>
+#include <string>
+
+#include "codec/bit_coders.h"
+#include "codec/range_coder.h"
+
+namespace relief::codec {
+
+namespace {
+
+// Return structure: min(number of returns, 3) x 4 + min(return number, 3),
+// then x 3 pulse kinds.
+constexpr std::size_t kReturnClasses = 16;
+constexpr std::size_t kPulseKinds = 3;
+constexpr std::size_t kContexts = kReturnClasses * kPulseKinds;
+// Magnitude classes of a residual: its bit length, at most 15.
+constexpr std::size_t kMagnitudes = 16;
+// Levels of the last heights: number of returns - return number, at most 7.
+constexpr std::size_t kLevels = 8;
+constexpr std::size_t kMedianSpan = 5;
+
+int magnitude(std::int64_t r) {
+  const std::uint64_t m = r < 0 ? std::uint64_t{0} - static_cast<std::uint64_t>(r) : static_cast<std::uint64_t>(r);
+  return std::min(static_cast<int>(std::bit_width(m)), static_cast<int>(kMagnitudes) - 1);
+}
+
+// Signed-integer model sets made when first used: a chunk touches few of the
+// 1,600 contexts, and each costs 1.6 KB.
+class LazySInts {
+ public:
+  explicit LazySInts(std::size_t count) : models_(count) {}
+  SIntModel& operator[](std::size_t i) {
+    std::unique_ptr<SIntModel>& p = models_[i];
+    if (!p) p = std::make_unique<SIntModel>();
+    return *p;
+  }
+
+ private:
+  std::vector<std::unique_ptr<SIntModel>> models_;
+};
+
+// The last kMedianSpan steps of one return class, oldest first; the median
+// predicts the next.
+struct StepHistory {
+  std::array<std::int64_t, kMedianSpan> steps{};
+  std::int64_t median() const {
+    std::array<std::int64_t, kMedianSpan> s = steps;
+    std::nth_element(s.begin(), s.begin() + kMedianSpan / 2, s.end());
+    return s[kMedianSpan / 2];
+  }
+  void push(std::int64_t d) {
+    std::copy(steps.begin() + 1, steps.end(), steps.begin());
+    steps.back() = d;
+  }
+};
+
+std::uint8_t at(std::span<const std::uint8_t> v, std::size_t k) { return v.empty() ? 0 : v[k]; }
+
+template <typename C>
+bool code_scan(C& c, std::vector<CellXyz>& cells, int depth, const ScanContext& ctx) {
+  const std::size_t n = cells.size();
+  if (n == 0) return true;
+  const std::uint64_t limit = std::uint64_t{1} << depth;
+  struct Fixed {
+    UIntModel first[3];
+    std::array<StepHistory, kReturnClasses> x, y;
+    std::array<std::int64_t, kLevels> height{};
+  };
+  auto f = std::make_unique<Fixed>();
+  LazySInts rx(kContexts), ry(kContexts * kMagnitudes), rz(kContexts * kMagnitudes);
+  for (int a = 0; a < 3; ++a) {
+    std::uint64_t v = cells[0][static_cast<std::size_t>(a)];
+    if (!c.uint(f->first[a], v) || v >= limit) return false;
+    cells[0][static_cast<std::size_t>(a)] = static_cast<std::uint32_t>(v);
+  }
+  const bool returns = !ctx.return_number.empty() || !ctx.number_of_returns.empty();
+  const auto level_of = [&](std::size_t k) -> std::size_t {
+    const std::uint8_t rn = at(ctx.return_number, k), nr = at(ctx.number_of_returns, k);
+    return returns ? std::min<std::size_t>(nr > rn ? nr - rn : 0, kLevels - 1) : 0;
+  };
+  f->height[level_of(0)] = cells[0][2];
+  for (std::size_t k = 1; k < n; ++k) {
+    const std::uint8_t rn = at(ctx.return_number, k), nr = at(ctx.number_of_returns, k);
+    const std::size_t level = level_of(k);
+    const std::size_t cls = std::size_t{std::min<std::uint8_t>(nr, 3)} * 4 + std::min<std::uint8_t>(rn, 3);
+    const std::size_t m = cls * kPulseKinds + std::min<std::uint8_t>(at(ctx.pulse_kind, k), kPulseKinds - 1);
+    const CellXyz& prev = cells[k - 1];
+    CellXyz& cur = cells[k];
+    // x and y: the step from the previous point, less the median of the
+    // class's last steps.
+    std::int64_t r[2];
+    std::uint64_t v[2];
+    for (int a = 0; a < 2; ++a) {
+      const auto i = static_cast<std::size_t>(a);
+      StepHistory& hist = a == 0 ? f->x[cls] : f->y[cls];
+      const std::int64_t predicted = hist.median();
+      r[a] = static_cast<std::int64_t>(std::uint64_t{cur[i]} - prev[i] - static_cast<std::uint64_t>(predicted));
+      SIntModel& model = a == 0 ? rx[m] : ry[m * kMagnitudes + static_cast<std::size_t>(magnitude(r[0]))];
+      if (!c.sint(model, r[a])) return false;
+      v[a] = std::uint64_t{prev[i]} + static_cast<std::uint64_t>(predicted) + static_cast<std::uint64_t>(r[a]);
+      if (v[a] >= limit) return false;
+      hist.push(static_cast<std::int64_t>(v[a]) - static_cast<std::int64_t>(prev[i]));
+    }
+    // z: from the last height of the point's return level.
+    const std::int64_t base = f->height[level];
+    auto rzv = static_cast<std::int64_t>(std::uint64_t{cur[2]} - static_cast<std::uint64_t>(base));
+    const std::size_t mz = static_cast<std::size_t>((magnitude(r[0]) + magnitude(r[1]) + 1) / 2);
+    if (!c.sint(rz[m * kMagnitudes + mz], rzv)) return false;
+    const std::uint64_t z = static_cast<std::uint64_t>(base) + static_cast<std::uint64_t>(rzv);
+    if (z >= limit || !c.ok()) return false;
+    cur = {static_cast<std::uint32_t>(v[0]), static_cast<std::uint32_t>(v[1]), static_cast<std::uint32_t>(z)};
+    f->height[level] = static_cast<std::int64_t>(z);
+  }
+  return c.ok();
+}
+
+bool context_fits(const ScanContext& ctx, std::size_t n) {
+  const auto fits = [&](std::span<const std::uint8_t> v) { return v.empty() || v.size() == n; };
+  return fits(ctx.pulse_kind) && fits(ctx.return_number) && fits(ctx.number_of_returns);
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_scan_geometry(std::span<const CellXyz> cells, int depth, const ScanContext& context) {
+  RangeEncoder enc;
+  EncCoder c(enc);
+  std::vector<CellXyz> work(cells.begin(), cells.end());
+  if (context_fits(context, work.size())) code_scan(c, work, depth, context);
+  return enc.finish();
+}
+
+Result<std::vector<CellXyz>> decode_scan_geometry(std::span<const std::uint8_t> data, int depth, std::size_t n,
+                                                  const ScanContext& context) {
+  if (depth < 0 || depth > 21) return corrupt_data("scan-order geometry: depth " + std::to_string(depth) + " > 21");
+  if (!context_fits(context, n)) return corrupt_data("scan-order geometry: context does not cover the points");
+  // Every point after the first takes at least three decisions (three zero
+  // flags), the first at least three prefix decisions.
+  if (n > max_decisions(data.size()) / 3) {
+    return corrupt_data("scan-order geometry: " + std::to_string(data.size()) + " bytes cannot hold " +
+                        std::to_string(n) + " points");
+  }
+  std::vector<CellXyz> cells(n);
+  RangeDecoder dec(data);
+  DecCoder c(dec);
+  if (!code_scan(c, cells, depth, context) || dec.overrun() > 0) {
+    return corrupt_data("scan-order geometry: invalid or truncated stream");
+  }
+  return cells;
+}
+
+}  // namespace relief::codec

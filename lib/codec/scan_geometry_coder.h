@@ -1,0 +1,39 @@
+// The error-bounded layer's geometry in acquisition order (section codec 9,
+// chunk format 8, format-spec/chunk.md §11.3.3): each point's cell, in the
+// order of its GPS time, as differences from the previous point predicted
+// the way a scanner moves (the median of recent steps along the scan line,
+// the height of the last return of the same level), with context from the
+// return numbers and from whether the point is another return of the
+// previous pulse. Internal to the codec.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "codec/las_attribute_coder.h"  // CellXyz
+#include "relief/status.h"
+
+namespace relief::codec {
+
+// What the decoder knows of each position k of the time order before the
+// geometry (decoded from sections 18, 12 and 13): the pulse kind (0 next
+// pulse, 1 same pulse, 2 gap; pulse_kinds) and, when the blob carries them,
+// the return number and number of returns (empty spans: not carried).
+struct ScanContext {
+  std::span<const std::uint8_t> pulse_kind;
+  std::span<const std::uint8_t> return_number;
+  std::span<const std::uint8_t> number_of_returns;
+};
+
+// `cells` (local cell coordinates, each below 2^depth) in time order; the
+// context spans have cells.size() entries or are empty (pulse_kind too: then
+// every kind is 0).
+std::vector<std::uint8_t> encode_scan_geometry(std::span<const CellXyz> cells, int depth, const ScanContext& context);
+
+// Decodes n cells. Refuses, before allocating, a stream too short to hold n
+// points; every decoded coordinate must lie below 2^depth.
+Result<std::vector<CellXyz>> decode_scan_geometry(std::span<const std::uint8_t> data, int depth, std::size_t n,
+                                                  const ScanContext& context);
+
+}  // namespace relief::codec

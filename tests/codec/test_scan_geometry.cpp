@@ -1,0 +1,243 @@
+// The error-bounded layer in time order (chunk format 8, geometry codec 9,
+// format-spec/chunk.md §11.3.3): the coder alone (every cell back, hostile
+// streams refused in bounded work) and through blobs (the encoder picks it
+// for scans, every point and attribute comes back, the blob depends only on
+// the multiset of points, older blobs still decode).
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "codec/scan_geometry_coder.h"
+#include "relief/codec.h"
+#include "support/las_attributes.h"
+#include "support/synthetic.h"
+
+using namespace relief;
+using codec::CellXyz;
+using codec::ScanContext;
+
+namespace {
+
+// Cells of a zigzag scan with some jumps, and per-point contexts.
+struct ScanCells {
+  std::vector<CellXyz> cells;
+  std::vector<std::uint8_t> kind, rn, nr;
+};
+
+ScanCells scan_cells(std::uint64_t seed, std::size_t n, int depth) {
+  test::Rng rng(seed);
+  ScanCells s;
+  const std::uint32_t top = (1u << depth) - 1;
+  std::int64_t x = 0, y = 0, z = top / 2;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t r = rng.next();
+    if (r % 97 == 0) {  // a jump anywhere
+      x = static_cast<std::int64_t>(rng.next() % (top + 1u));
+      y = static_cast<std::int64_t>(rng.next() % (top + 1u));
+    } else {
+      x += 25 + static_cast<std::int64_t>(r % 5) - 2;
+      y += static_cast<std::int64_t>((r >> 8) % 3) - 1;
+    }
+    z += static_cast<std::int64_t>((r >> 16) % 9) - 4;
+    const auto clampv = [&](std::int64_t v) { return static_cast<std::uint32_t>(std::clamp<std::int64_t>(v, 0, top)); };
+    s.cells.push_back({clampv(x), clampv(y), clampv(z)});
+    x = s.cells.back()[0];
+    y = s.cells.back()[1];
+    z = s.cells.back()[2];
+    s.kind.push_back(static_cast<std::uint8_t>((r >> 24) % 3));
+    s.rn.push_back(static_cast<std::uint8_t>(1 + (r >> 28) % 3));
+    s.nr.push_back(static_cast<std::uint8_t>(3));
+  }
+  return s;
+}
+
+EncodeParams las_scale(double scale, double cell) {
+  EncodeParams p;
+  p.cell_size = cell;
+  p.bound = ErrorBound{};
+  p.bound->step = {scale, scale, scale};
+  return p;
+}
+
+int geometry_codec(const std::vector<std::uint8_t>& blob) {
+  auto info = inspect_chunk(blob);
+  REQUIRE(info.is_ok());
+  for (const ChunkSectionInfo& s : info->sections) {
+    if (s.id == 7) return s.codec;
+  }
+  return -1;
+}
+
+std::vector<std::string> snapped_records(PointCloud c, double step) {
+  for (Vec3d& p : c.positions) {
+    p = {std::llround(p.x / step) * step, std::llround(p.y / step) * step, std::llround(p.z / step) * step};
+  }
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::string> records(const PointCloud& c) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+PointCloud scan_scene(std::uint64_t seed, std::size_t points, std::uint32_t bits) {
+  test::SceneOptions o;
+  o.seed = seed;
+  o.points = points;
+  o.colors = true;
+  o.intensity = true;
+  return test::make_scan_with_las(o, 60.0, bits, 2);
+}
+
+}  // namespace
+
+TEST_CASE("scan-order geometry: every cell comes back, with and without contexts", "[codec][scan]") {
+  for (const int depth : {0, 1, 12, 21}) {
+    const ScanCells s = scan_cells(static_cast<std::uint64_t>(depth) + 3, 3000, depth);
+    for (int with_returns = 0; with_returns < 2; ++with_returns) {
+      INFO("depth " << depth << ", returns " << with_returns);
+      const ScanContext ctx{s.kind, with_returns ? std::span<const std::uint8_t>(s.rn) : std::span<const std::uint8_t>(),
+                            with_returns ? std::span<const std::uint8_t>(s.nr) : std::span<const std::uint8_t>()};
+      const auto stream = codec::encode_scan_geometry(s.cells, depth, ctx);
+      auto back = codec::decode_scan_geometry(stream, depth, s.cells.size(), ctx);
+      REQUIRE(back.is_ok());
+      CHECK(*back == s.cells);
+    }
+  }
+  // One point, and none.
+  const std::vector<CellXyz> one{{5, 6, 7}};
+  auto back = codec::decode_scan_geometry(codec::encode_scan_geometry(one, 3, {}), 3, 1, {});
+  REQUIRE(back.is_ok());
+  CHECK(*back == one);
+  auto none = codec::decode_scan_geometry(codec::encode_scan_geometry({}, 3, {}), 3, 0, {});
+  REQUIRE(none.is_ok());
+  CHECK(none->empty());
+}
+
+TEST_CASE("scan-order geometry: a scan costs far fewer bits than random cells", "[codec][scan]") {
+  const ScanCells s = scan_cells(9, 20000, 16);
+  const auto stream = codec::encode_scan_geometry(s.cells, 16, ScanContext{s.kind, s.rn, s.nr});
+  test::Rng rng(10);
+  std::vector<CellXyz> noise(s.cells.size());
+  for (CellXyz& c : noise) c = {static_cast<std::uint32_t>(rng.next() % 65536), static_cast<std::uint32_t>(rng.next() % 65536),
+                                static_cast<std::uint32_t>(rng.next() % 65536)};
+  const auto random = codec::encode_scan_geometry(noise, 16, ScanContext{s.kind, s.rn, s.nr});
+  const double scan_bpp = 8.0 * static_cast<double>(stream.size()) / static_cast<double>(s.cells.size());
+  const double random_bpp = 8.0 * static_cast<double>(random.size()) / static_cast<double>(noise.size());
+  INFO(scan_bpp << " vs " << random_bpp << " bits a point");
+  CHECK(scan_bpp < 14.0);     // steps of ±2 in x, ±1 in y, ±4 in z, a jump in 97
+  CHECK(random_bpp > 46.0);   // 48 random bits, little to gain
+}
+
+TEST_CASE("scan-order geometry: hostile streams are refused in bounded work", "[codec][scan][reject]") {
+  const ScanCells s = scan_cells(4, 2000, 14);
+  const ScanContext ctx{s.kind, s.rn, s.nr};
+  const auto stream = codec::encode_scan_geometry(s.cells, 14, ctx);
+  // Truncated anywhere: refused, never a crash.
+  for (std::size_t cut = 0; cut + 1 < stream.size(); cut += std::max<std::size_t>(1, stream.size() / 97)) {
+    auto r = codec::decode_scan_geometry(std::span(stream).first(cut), 14, s.cells.size(), ctx);
+    CHECK(r.status().code() == StatusCode::kCorruptData);
+  }
+  // A count the bytes cannot hold is refused before anything is allocated.
+  auto huge = codec::decode_scan_geometry(stream, 14, std::size_t{1} << 40, {});
+  CHECK(huge.status().code() == StatusCode::kCorruptData);
+  // Coordinates above the grid the header names are refused.
+  auto small = codec::decode_scan_geometry(stream, 6, s.cells.size(), ctx);
+  CHECK(small.status().code() == StatusCode::kCorruptData);
+  auto deep = codec::decode_scan_geometry(stream, 22, s.cells.size(), ctx);
+  CHECK(deep.status().code() == StatusCode::kCorruptData);
+  // Contexts that do not cover the points.
+  const ScanContext short_ctx{std::span(s.kind).first(10), {}, {}};
+  CHECK(codec::decode_scan_geometry(stream, 14, s.cells.size(), short_ctx).status().code() == StatusCode::kCorruptData);
+  // Random bytes: refused or decoded within the grid.
+  test::Rng rng(5);
+  for (int t = 0; t < 200; ++t) {
+    std::vector<std::uint8_t> junk(1 + rng.next() % 300);
+    for (auto& b : junk) b = static_cast<std::uint8_t>(rng.next());
+    auto r = codec::decode_scan_geometry(junk, 10, 50, {});
+    if (r.is_ok()) {
+      for (const CellXyz& c : *r) CHECK(std::max({c[0], c[1], c[2]}) < 1024u);
+    }
+  }
+}
+
+TEST_CASE("format 8: a scan with GPS times codes its geometry in time order, every point and attribute exact",
+          "[codec][scan][las]") {
+  for (const std::uint32_t bits : {0xFFFu, static_cast<std::uint32_t>(kLasGpsTime),
+                                   static_cast<std::uint32_t>(kLasGpsTime | kLasReturnNumber),
+                                   static_cast<std::uint32_t>(kLasGpsTime | kLasNumberOfReturns | kLasClassification)}) {
+    INFO("attributes " << bits);
+    const PointCloud in = scan_scene(21, 6000, bits);
+    const EncodeParams p = las_scale(0.01, 4.0);
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    CHECK(inspect_chunk(*blob)->format_version == 8);
+    CHECK(geometry_codec(*blob) == 9);
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    REQUIRE(out->size() == in.size());
+    CHECK(records(*out) == snapped_records(in, 0.01));
+    // Smaller than the octree would be: the same points with their times
+    // shuffled among them code as an octree.
+    PointCloud shuffled = in;
+    test::Rng rng(3);
+    for (std::size_t i = shuffled.size() - 1; i > 0; --i) {
+      std::swap(shuffled.las.gps_time[i], shuffled.las.gps_time[rng.next() % (i + 1)]);
+    }
+    auto octree = encode_chunk(shuffled, p);
+    REQUIRE(octree.is_ok());
+    CHECK(geometry_codec(*octree) == 8);
+    auto back = decode_chunk(*octree);
+    REQUIRE(back.is_ok());
+    CHECK(records(*back) == snapped_records(shuffled, 0.01));
+  }
+}
+
+TEST_CASE("format 8: the time-ordered blob depends only on the multiset of points", "[codec][scan][las]") {
+  PointCloud in = scan_scene(22, 4000, 0xFFF);
+  // Duplicates: same cell, same time and return, differing only in attributes.
+  for (std::size_t i = 0; i < 50; ++i) {
+    in.push_back_from(PointCloud(in), i * 7);
+    in.las.extra_bytes[(in.size() - 1) * 2] = static_cast<std::uint8_t>(i);
+  }
+  const EncodeParams p = las_scale(0.01, 4.0);
+  auto a = encode_chunk(in, p);
+  REQUIRE(a.is_ok());
+  CHECK(geometry_codec(*a) == 9);
+  test::Rng rng(78);
+  for (int t = 0; t < 3; ++t) {
+    std::vector<std::uint32_t> perm(in.size());
+    for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
+    for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+    auto b = encode_chunk(in.gathered(perm), p);
+    REQUIRE(b.is_ok());
+    CHECK(*a == *b);
+  }
+  auto out = decode_chunk(*a);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == snapped_records(in, 0.01));
+}
+
+TEST_CASE("format 8: levels of detail and subsets of a time-ordered blob", "[codec][scan][las]") {
+  const PointCloud in = scan_scene(23, 5000, 0xFFF);
+  auto blob = encode_chunk(in, las_scale(0.01, 2.0));
+  REQUIRE(blob.is_ok());
+  REQUIRE(geometry_codec(*blob) == 9);
+  DecodeOptions lod;
+  lod.lod = 4;
+  auto coarse = decode_chunk(*blob, lod);
+  REQUIRE(coarse.is_ok());
+  CHECK(coarse->size() > 0);
+  CHECK(coarse->size() <= (in.size() + 3) / 4 + 1);
+  auto full = decode_chunk(*blob);
+  REQUIRE(full.is_ok());
+  CHECK(full->size() == in.size());
+}
