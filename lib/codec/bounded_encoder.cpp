@@ -240,8 +240,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
 
   // Format 8: with GPS times, the geometry may instead be coded in time
   // order (§11.3.3), the times then without ranks; the encoder keeps the
-  // smaller of the two codings of geometry and times.
-  std::vector<std::uint8_t> geometry = encode_geometry(cells, depth, OctreeCoding::kMixed);
+  // smaller of the two codings of geometry and times (the octree when they
+  // tie), and stops coding the octree once it is sure to lose.
+  std::vector<std::uint8_t> geometry;
   SectionCodec geometry_codec = SectionCodec::kOctreeMixed;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
@@ -257,16 +258,25 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       time_order = las_time_order(cell_las.gps_time);
       const std::vector<std::uint8_t> gps_ranked =
           encode_las_attribute(kLasGpsTime, cell_las, n, h.version, point_cells, time_order);
-      if (scan.geometry.size() + scan.gps.size() < geometry.size() + gps_ranked.size()) {
+      const std::size_t scan_bytes = scan.geometry.size() + scan.gps.size();
+      std::optional<std::vector<std::uint8_t>> octree;
+      if (gps_ranked.size() <= scan_bytes) {
+        octree = encode_geometry_within(cells, depth, OctreeCoding::kMixed, scan_bytes - gps_ranked.size());
+      }
+      if (octree) {
+        geometry = std::move(*octree);
+      } else {
         geometry = std::move(scan.geometry);
         geometry_codec = SectionCodec::kScanOrder;
         order = std::move(scan.order);
         time_order = std::move(scan.time_order);
         gps_payload = std::move(scan.gps);
-      } else {
-        gps_payload = gps_ranked;
       }
+      if (geometry_codec == SectionCodec::kOctreeMixed) gps_payload = gps_ranked;
     }
+  }
+  if (geometry_codec == SectionCodec::kOctreeMixed && geometry.empty()) {
+    geometry = encode_geometry(cells, depth, OctreeCoding::kMixed);
   }
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;

@@ -548,6 +548,12 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
 }  // namespace
 
 std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth, OctreeCoding coding) {
+  return *encode_geometry_within(cells, depth, coding, SIZE_MAX);
+}
+
+std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCells& cells, int depth,
+                                                                OctreeCoding coding, std::size_t max_bytes) {
+  // The finished stream is longer than any enc.bytes() on the way.
   RangeEncoder enc;
   auto models = std::make_unique<GeometryModels>();
   // Child occupancy bytes of every level, from the leaves up.
@@ -569,7 +575,7 @@ std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
     }
   }
   std::vector<std::uint64_t> nodes;
-  code_octree(
+  const bool whole = code_octree(
       depth, coding, *models, nodes,
       [&](BitModel& m, int bit) {
         enc.encode(m, bit);
@@ -580,7 +586,8 @@ std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
         return bit;
       },
       [&](int d, std::size_t i) { return bytes[static_cast<std::size_t>(d)][i]; },
-      [](std::size_t) { return true; });
+      [&](std::size_t) { return enc.bytes() <= max_bytes; });
+  if (!whole) return std::nullopt;
   int prev_dup = 0;
   for (const std::uint32_t c : cells.counts) {
     const int dup = c > 1 ? 1 : 0;
@@ -588,7 +595,9 @@ std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
     if (dup) encode_uint(enc, models->extra, c - 2);
     prev_dup = dup;
   }
-  return enc.finish();
+  std::vector<std::uint8_t> out = enc.finish();
+  if (out.size() > max_bytes) return std::nullopt;
+  return out;
 }
 
 Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count,

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -37,6 +38,12 @@ enum class OctreeCoding {
 // `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.
 std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
                                           OctreeCoding coding = OctreeCoding::kMixed);
+
+// As encode_geometry, but gives up (nullopt) as soon as the stream is sure to
+// exceed `max_bytes`: the encoder's way of trying the octree against a
+// smaller alternative without paying for all of it.
+std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCells& cells, int depth,
+                                                                OctreeCoding coding, std::size_t max_bytes);
 
 // Decodes a stream made by encode_geometry with the same coding. The stream
 // must describe exactly `point_count` points; the work done is bounded by the

@@ -112,6 +112,10 @@ class RangeEncoder {
   }
   // Flushes and returns the stream.
   std::vector<std::uint8_t> finish();
+  // Bytes the stream holds so far, pending ones included. It grows by one
+  // per byte shifted out, and finish() shifts five more and drops the
+  // first, so the finished stream is always longer than any value seen.
+  std::size_t bytes() const { return out_.size() + static_cast<std::size_t>(cache_size_); }
 
  private:
   static constexpr std::uint32_t kTop = 1u << 24;
