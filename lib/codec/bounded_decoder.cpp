@@ -44,9 +44,10 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::v
     }
   }
   const std::vector<std::uint8_t> kinds = las_pulse_kinds(timed.gps_time, identity);
+  const std::vector<std::uint8_t> multiples = scan_pulse_multiples(timed.gps_time);
   const SectionEntry* geometry = find_section(blob, SectionId::kGeometry);
   auto cells = decode_scan_geometry(geometry->payload, h.geometry_depth, n,
-                                    ScanContext{kinds, timed.return_number, timed.number_of_returns});
+                                    ScanContext{kinds, multiples, timed.return_number, timed.number_of_returns});
   if (!cells) return cells.status().with_context("chunk blob: geometry section");
   std::vector<KeyedIndex> by_cell(n);
   for (std::size_t k = 0; k < n; ++k) {

@@ -120,8 +120,9 @@ ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::
     identity[k] = static_cast<std::uint32_t>(k);
   }
   const std::vector<std::uint8_t> kinds = las_pulse_kinds(times, identity);
+  const std::vector<std::uint8_t> multiples = scan_pulse_multiples(times);
   ScanCoding out;
-  out.geometry = encode_scan_geometry(cells, depth, ScanContext{kinds, rn, nr});
+  out.geometry = encode_scan_geometry(cells, depth, ScanContext{kinds, multiples, rn, nr});
   out.gps = encode_gps_in_order(times);
   // The layer: cells in Morton order; the sort is stable, so a cell's
   // points stay in time order.

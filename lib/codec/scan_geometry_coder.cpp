@@ -70,7 +70,14 @@ struct StepHistory {
   }
 };
 
-std::uint8_t at(std::span<const std::uint8_t> v, std::size_t k) { return v.empty() ? 0 : v[k]; }
+std::uint8_t at(std::span<const std::uint8_t> v, std::size_t k, std::uint8_t otherwise = 0) {
+  return v.empty() ? otherwise : v[k];
+}
+
+// floor(a / b) for b > 0.
+std::int64_t floor_div(std::int64_t a, std::int64_t b) { return a / b - ((a % b) < 0 ? 1 : 0); }
+
+constexpr std::uint64_t kMaxMultiple = 64;
 
 template <typename C>
 bool code_scan(C& c, std::vector<CellXyz>& cells, int depth, const ScanContext& ctx) {
@@ -83,6 +90,9 @@ bool code_scan(C& c, std::vector<CellXyz>& cells, int depth, const ScanContext& 
     std::array<std::int64_t, kLevels> height{};
   };
   auto f = std::make_unique<Fixed>();
+  // The last step between two returns of one pulse with a height change:
+  // the beam's direction, along which a pulse's next return lies.
+  std::int64_t beam[3] = {0, 0, 1};
   LazySInts rx(kContexts), ry(kContexts * kMagnitudes), rz(kContexts * kMagnitudes);
   for (int a = 0; a < 3; ++a) {
     std::uint64_t v = cells[0][static_cast<std::size_t>(a)];
@@ -102,28 +112,60 @@ bool code_scan(C& c, std::vector<CellXyz>& cells, int depth, const ScanContext& 
     const std::size_t m = cls * kPulseKinds + std::min<std::uint8_t>(at(ctx.pulse_kind, k), kPulseKinds - 1);
     const CellXyz& prev = cells[k - 1];
     CellXyz& cur = cells[k];
-    // x and y: the step from the previous point, less the median of the
-    // class's last steps.
+    const bool same_pulse = at(ctx.pulse_kind, k) == 1;
     std::int64_t r[2];
-    std::uint64_t v[2];
-    for (int a = 0; a < 2; ++a) {
-      const auto i = static_cast<std::size_t>(a);
-      StepHistory& hist = a == 0 ? f->x[cls] : f->y[cls];
-      const std::int64_t predicted = hist.median();
-      r[a] = static_cast<std::int64_t>(std::uint64_t{cur[i]} - prev[i] - static_cast<std::uint64_t>(predicted));
-      SIntModel& model = a == 0 ? rx[m] : ry[m * kMagnitudes + static_cast<std::size_t>(magnitude(r[0]))];
-      if (!c.sint(model, r[a])) return false;
-      v[a] = std::uint64_t{prev[i]} + static_cast<std::uint64_t>(predicted) + static_cast<std::uint64_t>(r[a]);
-      if (v[a] >= limit) return false;
-      hist.push(static_cast<std::int64_t>(v[a]) - static_cast<std::int64_t>(prev[i]));
+    std::uint64_t v[2], z;
+    if (same_pulse) {
+      // Another return of the previous point's pulse: its height first,
+      // then x and y along the beam from the previous return.
+      const std::int64_t base = f->height[level];
+      auto rzv = static_cast<std::int64_t>(std::uint64_t{cur[2]} - static_cast<std::uint64_t>(base));
+      if (!c.sint(rz[m * kMagnitudes], rzv)) return false;
+      z = static_cast<std::uint64_t>(base) + static_cast<std::uint64_t>(rzv);
+      if (z >= limit) return false;
+      const std::int64_t dz = static_cast<std::int64_t>(z) - static_cast<std::int64_t>(prev[2]);
+      for (int a = 0; a < 2; ++a) {
+        const auto i = static_cast<std::size_t>(a);
+        const std::int64_t predicted = floor_div(dz * beam[a], beam[2]);
+        r[a] = static_cast<std::int64_t>(std::uint64_t{cur[i]} - prev[i] - static_cast<std::uint64_t>(predicted));
+        SIntModel& model = a == 0 ? rx[m] : ry[m * kMagnitudes + static_cast<std::size_t>(magnitude(r[0]))];
+        if (!c.sint(model, r[a])) return false;
+        v[a] = std::uint64_t{prev[i]} + static_cast<std::uint64_t>(predicted) + static_cast<std::uint64_t>(r[a]);
+        if (v[a] >= limit) return false;
+      }
+      if (dz != 0) {
+        beam[0] = static_cast<std::int64_t>(v[0]) - static_cast<std::int64_t>(prev[0]);
+        beam[1] = static_cast<std::int64_t>(v[1]) - static_cast<std::int64_t>(prev[1]);
+        beam[2] = dz < 0 ? -dz : dz;
+        if (dz < 0) {
+          beam[0] = -beam[0];
+          beam[1] = -beam[1];
+        }
+      }
+    } else {
+      // A new pulse: the step from the previous point is the median of the
+      // class's last steps per pulse spacing, times the spacings elapsed.
+      const auto mult = static_cast<std::int64_t>(std::clamp<std::uint64_t>(at(ctx.pulse_multiple, k, 1), 1, kMaxMultiple));
+      for (int a = 0; a < 2; ++a) {
+        const auto i = static_cast<std::size_t>(a);
+        StepHistory& hist = a == 0 ? f->x[cls] : f->y[cls];
+        const std::int64_t predicted = hist.median() * mult;
+        r[a] = static_cast<std::int64_t>(std::uint64_t{cur[i]} - prev[i] - static_cast<std::uint64_t>(predicted));
+        SIntModel& model = a == 0 ? rx[m] : ry[m * kMagnitudes + static_cast<std::size_t>(magnitude(r[0]))];
+        if (!c.sint(model, r[a])) return false;
+        v[a] = std::uint64_t{prev[i]} + static_cast<std::uint64_t>(predicted) + static_cast<std::uint64_t>(r[a]);
+        if (v[a] >= limit) return false;
+        hist.push(floor_div(static_cast<std::int64_t>(v[a]) - static_cast<std::int64_t>(prev[i]), mult));
+      }
+      // z: from the last height of the point's return level.
+      const std::int64_t base = f->height[level];
+      auto rzv = static_cast<std::int64_t>(std::uint64_t{cur[2]} - static_cast<std::uint64_t>(base));
+      const std::size_t mz = static_cast<std::size_t>((magnitude(r[0]) + magnitude(r[1]) + 1) / 2);
+      if (!c.sint(rz[m * kMagnitudes + mz], rzv)) return false;
+      z = static_cast<std::uint64_t>(base) + static_cast<std::uint64_t>(rzv);
+      if (z >= limit) return false;
     }
-    // z: from the last height of the point's return level.
-    const std::int64_t base = f->height[level];
-    auto rzv = static_cast<std::int64_t>(std::uint64_t{cur[2]} - static_cast<std::uint64_t>(base));
-    const std::size_t mz = static_cast<std::size_t>((magnitude(r[0]) + magnitude(r[1]) + 1) / 2);
-    if (!c.sint(rz[m * kMagnitudes + mz], rzv)) return false;
-    const std::uint64_t z = static_cast<std::uint64_t>(base) + static_cast<std::uint64_t>(rzv);
-    if (z >= limit || !c.ok()) return false;
+    if (!c.ok()) return false;
     cur = {static_cast<std::uint32_t>(v[0]), static_cast<std::uint32_t>(v[1]), static_cast<std::uint32_t>(z)};
     f->height[level] = static_cast<std::int64_t>(z);
   }
@@ -132,10 +174,25 @@ bool code_scan(C& c, std::vector<CellXyz>& cells, int depth, const ScanContext& 
 
 bool context_fits(const ScanContext& ctx, std::size_t n) {
   const auto fits = [&](std::span<const std::uint8_t> v) { return v.empty() || v.size() == n; };
-  return fits(ctx.pulse_kind) && fits(ctx.return_number) && fits(ctx.number_of_returns);
+  return fits(ctx.pulse_kind) && fits(ctx.pulse_multiple) && fits(ctx.return_number) && fits(ctx.number_of_returns);
 }
 
 }  // namespace
+
+std::vector<std::uint8_t> scan_pulse_multiples(std::span<const double> times) {
+  std::vector<std::uint8_t> out(times.size(), 1);
+  std::uint64_t last_step = 0;
+  for (std::size_t k = 1; k < times.size(); ++k) {
+    const std::uint64_t d = std::bit_cast<std::uint64_t>(times[k]) - std::bit_cast<std::uint64_t>(times[k - 1]);
+    if (d == 0) continue;
+    if (last_step != 0 && d / kMaxMultiple <= last_step) {
+      const std::uint64_t rounded = d / last_step + ((d % last_step) >= last_step - last_step / 2 ? 1 : 0);
+      out[k] = static_cast<std::uint8_t>(std::clamp<std::uint64_t>(rounded, 1, kMaxMultiple));
+    }
+    last_step = d;
+  }
+  return out;
+}
 
 std::vector<std::uint8_t> encode_scan_geometry(std::span<const CellXyz> cells, int depth, const ScanContext& context) {
   RangeEncoder enc;

@@ -18,13 +18,21 @@ namespace relief::codec {
 
 // What the decoder knows of each position k of the time order before the
 // geometry (decoded from sections 18, 12 and 13): the pulse kind (0 next
-// pulse, 1 same pulse, 2 gap; pulse_kinds) and, when the blob carries them,
-// the return number and number of returns (empty spans: not carried).
+// pulse, 1 same pulse, 2 gap; las_pulse_kinds), the pulse multiple
+// (scan_pulse_multiples) and, when the blob carries them, the return number
+// and number of returns (empty spans: not carried).
 struct ScanContext {
   std::span<const std::uint8_t> pulse_kind;
+  std::span<const std::uint8_t> pulse_multiple;
   std::span<const std::uint8_t> return_number;
   std::span<const std::uint8_t> number_of_returns;
 };
+
+// How many pulse spacings each time step is (§11.3.3), from the times in
+// time order: round(step / the last non-zero step) as bit patterns, 1 to 64
+// (1 for the first point, a zero step, no step yet, or a step of more than
+// 64 spacings: a new line rather than missed pulses).
+std::vector<std::uint8_t> scan_pulse_multiples(std::span<const double> times);
 
 // `cells` (local cell coordinates, each below 2^depth) in time order; the
 // context spans have cells.size() entries or are empty (pulse_kind too: then

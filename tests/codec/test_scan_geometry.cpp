@@ -24,7 +24,7 @@ namespace {
 // Cells of a zigzag scan with some jumps, and per-point contexts.
 struct ScanCells {
   std::vector<CellXyz> cells;
-  std::vector<std::uint8_t> kind, rn, nr;
+  std::vector<std::uint8_t> kind, mult, rn, nr;
 };
 
 ScanCells scan_cells(std::uint64_t seed, std::size_t n, int depth) {
@@ -48,6 +48,7 @@ ScanCells scan_cells(std::uint64_t seed, std::size_t n, int depth) {
     y = s.cells.back()[1];
     z = s.cells.back()[2];
     s.kind.push_back(static_cast<std::uint8_t>((r >> 24) % 3));
+    s.mult.push_back(static_cast<std::uint8_t>((r >> 32) % 8 == 0 ? (r >> 40) % 70 : 1));  // 0 and > 64 too
     s.rn.push_back(static_cast<std::uint8_t>(1 + (r >> 28) % 3));
     s.nr.push_back(static_cast<std::uint8_t>(3));
   }
@@ -104,7 +105,7 @@ TEST_CASE("scan-order geometry: every cell comes back, with and without contexts
     const ScanCells s = scan_cells(static_cast<std::uint64_t>(depth) + 3, 3000, depth);
     for (int with_returns = 0; with_returns < 2; ++with_returns) {
       INFO("depth " << depth << ", returns " << with_returns);
-      const ScanContext ctx{s.kind, with_returns ? std::span<const std::uint8_t>(s.rn) : std::span<const std::uint8_t>(),
+      const ScanContext ctx{s.kind, s.mult, with_returns ? std::span<const std::uint8_t>(s.rn) : std::span<const std::uint8_t>(),
                             with_returns ? std::span<const std::uint8_t>(s.nr) : std::span<const std::uint8_t>()};
       const auto stream = codec::encode_scan_geometry(s.cells, depth, ctx);
       auto back = codec::decode_scan_geometry(stream, depth, s.cells.size(), ctx);
@@ -122,14 +123,26 @@ TEST_CASE("scan-order geometry: every cell comes back, with and without contexts
   CHECK(none->empty());
 }
 
+TEST_CASE("scan-order geometry: pulse multiples count the spacings a time step spans", "[codec][scan]") {
+  const double t0 = 3.0e5, s = 1.0e-5;
+  const std::vector<double> times{t0, t0 + s, t0 + 2 * s, t0 + 2 * s, t0 + 5 * s, t0 + 6 * s, t0 + 6.4 * s,
+                                  t0 + 7.6 * s, t0 + 300 * s};
+  const std::vector<std::uint8_t> u = codec::scan_pulse_multiples(times);
+  // 1 first; 1, 1 steps of one spacing; 1 for a shared time; 3 spacings; 1;
+  // 0.4 of a spacing rounds to 1; 1.2 / 0.4 = 3 spacings of the last step; a
+  // jump of > 64 spacings is a new line, not missed pulses.
+  CHECK(u == std::vector<std::uint8_t>{1, 1, 1, 1, 3, 1, 1, 3, 1});
+  CHECK(codec::scan_pulse_multiples({}).empty());
+}
+
 TEST_CASE("scan-order geometry: a scan costs far fewer bits than random cells", "[codec][scan]") {
   const ScanCells s = scan_cells(9, 20000, 16);
-  const auto stream = codec::encode_scan_geometry(s.cells, 16, ScanContext{s.kind, s.rn, s.nr});
+  const auto stream = codec::encode_scan_geometry(s.cells, 16, ScanContext{s.kind, s.mult, s.rn, s.nr});
   test::Rng rng(10);
   std::vector<CellXyz> noise(s.cells.size());
   for (CellXyz& c : noise) c = {static_cast<std::uint32_t>(rng.next() % 65536), static_cast<std::uint32_t>(rng.next() % 65536),
                                 static_cast<std::uint32_t>(rng.next() % 65536)};
-  const auto random = codec::encode_scan_geometry(noise, 16, ScanContext{s.kind, s.rn, s.nr});
+  const auto random = codec::encode_scan_geometry(noise, 16, ScanContext{s.kind, s.mult, s.rn, s.nr});
   const double scan_bpp = 8.0 * static_cast<double>(stream.size()) / static_cast<double>(s.cells.size());
   const double random_bpp = 8.0 * static_cast<double>(random.size()) / static_cast<double>(noise.size());
   INFO(scan_bpp << " vs " << random_bpp << " bits a point");
@@ -139,7 +152,7 @@ TEST_CASE("scan-order geometry: a scan costs far fewer bits than random cells", 
 
 TEST_CASE("scan-order geometry: hostile streams are refused in bounded work", "[codec][scan][reject]") {
   const ScanCells s = scan_cells(4, 2000, 14);
-  const ScanContext ctx{s.kind, s.rn, s.nr};
+  const ScanContext ctx{s.kind, s.mult, s.rn, s.nr};
   const auto stream = codec::encode_scan_geometry(s.cells, 14, ctx);
   // Truncated anywhere: refused, never a crash.
   for (std::size_t cut = 0; cut + 1 < stream.size(); cut += std::max<std::size_t>(1, stream.size() / 97)) {
@@ -155,7 +168,7 @@ TEST_CASE("scan-order geometry: hostile streams are refused in bounded work", "[
   auto deep = codec::decode_scan_geometry(stream, 22, s.cells.size(), ctx);
   CHECK(deep.status().code() == StatusCode::kCorruptData);
   // Contexts that do not cover the points.
-  const ScanContext short_ctx{std::span(s.kind).first(10), {}, {}};
+  const ScanContext short_ctx{std::span(s.kind).first(10), {}, {}, {}};
   CHECK(codec::decode_scan_geometry(stream, 14, s.cells.size(), short_ctx).status().code() == StatusCode::kCorruptData);
   // Random bytes: refused or decoded within the grid.
   test::Rng rng(5);
