@@ -92,21 +92,28 @@ ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::
   const std::size_t n = cloud.size();
   const LasAttributes& las = cloud.las;
   const bool has_rn = !las.return_number.empty(), has_nr = !las.number_of_returns.empty();
+  // By time first (a radix sort on the bit patterns), then each run of
+  // equal times (a pulse's returns) by the rest.
+  const std::vector<std::uint32_t> by_time = las_time_order(las.gps_time);
   std::vector<KeyedIndex> t(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const CellXyz c = cell_of(q, lo, i);
-    t[i] = {morton_encode(c[0], c[1], c[2]), static_cast<std::uint32_t>(i)};
+  for (std::size_t k = 0; k < n; ++k) {
+    const CellXyz c = cell_of(q, lo, by_time[k]);
+    t[k] = {morton_encode(c[0], c[1], c[2]), by_time[k]};
   }
-  std::sort(t.begin(), t.end(), [&](const KeyedIndex& a, const KeyedIndex& b) {
-    const auto ga = std::bit_cast<std::uint64_t>(las.gps_time[a.index]);
-    const auto gb = std::bit_cast<std::uint64_t>(las.gps_time[b.index]);
-    if (ga != gb) return ga < gb;
+  const auto rest_less = [&](const KeyedIndex& a, const KeyedIndex& b) {
     if (has_rn && las.return_number[a.index] != las.return_number[b.index]) {
       return las.return_number[a.index] < las.return_number[b.index];
     }
     if (a.key != b.key) return a.key < b.key;
     return attr_less(a, b);
-  });
+  };
+  const auto time_of = [&](const KeyedIndex& e) { return std::bit_cast<std::uint64_t>(las.gps_time[e.index]); };
+  for (std::size_t i = 0; i < n;) {
+    std::size_t j = i + 1;
+    while (j < n && time_of(t[j]) == time_of(t[i])) ++j;
+    if (j - i > 1) std::sort(t.begin() + static_cast<std::ptrdiff_t>(i), t.begin() + static_cast<std::ptrdiff_t>(j), rest_less);
+    i = j;
+  }
   std::vector<CellXyz> cells(n);
   std::vector<double> times(n);
   std::vector<std::uint8_t> rn(has_rn ? n : 0), nr(has_nr ? n : 0);
