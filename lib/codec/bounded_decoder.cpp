@@ -1,5 +1,4 @@
 // Error-bounded chunk decoder (format 2). Mirror: bounded_encoder.cpp.
-#include <bit>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -24,21 +23,20 @@ const SectionEntry* find_section(const ParsedBlob& blob, SectionId id) {
 
 // The sections of a format-8 blob whose geometry is in time order (§11.3.3):
 // the GPS times (18), return numbers (12) and numbers of returns (13), which
-// the geometry uses as context, decoded in time order, then the geometry;
-// `out` gets the positions and those attributes in the layer's order (cells
-// in Morton order, a cell's points in time order), `time_order` the layer
-// index of each time-order position.
+// the geometry uses as context, then the geometry. The layer is in time
+// order: `out` gets the positions and those attributes, `time_order` the
+// identity.
 Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::vector<std::uint32_t>& time_order) {
   const ChunkHeader& h = blob.header;
   const std::size_t n = h.input_points;
-  const SectionEntry* gps = find_section(blob, static_cast<SectionId>(kFirstLasSection + std::countr_zero(static_cast<std::uint32_t>(kLasGpsTime))));
+  const SectionEntry* gps = find_section(blob, las_section_id(kLasGpsTime));
   if (gps == nullptr) return corrupt_data("chunk blob: geometry in time order without a GPS time section");
   LasAttributes timed;
   RELIEF_RETURN_IF_ERROR(decode_gps_in_order(gps->payload, n, timed).with_context("chunk blob"));
   std::vector<std::uint32_t> identity(n);
   for (std::size_t k = 0; k < n; ++k) identity[k] = static_cast<std::uint32_t>(k);
   for (const std::uint32_t bit : {kLasReturnNumber, kLasNumberOfReturns}) {
-    if (const SectionEntry* s = find_section(blob, static_cast<SectionId>(kFirstLasSection + std::countr_zero(static_cast<std::uint32_t>(bit))))) {
+    if (const SectionEntry* s = find_section(blob, las_section_id(bit))) {
       RELIEF_RETURN_IF_ERROR(
           decode_las_attribute(bit, s->payload, n, timed, h.version, {}, identity).with_context("chunk blob"));
     }
@@ -49,30 +47,18 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::v
   auto cells = decode_scan_geometry(geometry->payload, h.geometry_depth, n,
                                     ScanContext{kinds, multiples, timed.return_number, timed.number_of_returns});
   if (!cells) return cells.status().with_context("chunk blob: geometry section");
-  std::vector<KeyedIndex> by_cell(n);
+  // The layer is in time order.
+  out.positions.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
     const CellXyz& c = (*cells)[k];
-    by_cell[k] = {morton_encode(c[0], c[1], c[2]), static_cast<std::uint32_t>(k)};
-  }
-  radix_sort(by_cell, 3 * h.geometry_depth);  // stable: a cell's points stay in time order
-  out.positions.resize(n);
-  time_order.resize(n);
-  for (std::size_t j = 0; j < n; ++j) {
-    const std::size_t k = by_cell[j].index;
-    const CellXyz& c = (*cells)[k];
-    out.positions[j] = {dequantise(h.quant_origin.x, h.quant_base[0], c[0], h.quant_step.x),
+    out.positions[k] = {dequantise(h.quant_origin.x, h.quant_base[0], c[0], h.quant_step.x),
                         dequantise(h.quant_origin.y, h.quant_base[1], c[1], h.quant_step.y),
                         dequantise(h.quant_origin.z, h.quant_base[2], c[2], h.quant_step.z)};
-    time_order[k] = static_cast<std::uint32_t>(j);
   }
-  const auto scatter = [&](const auto& from, auto& to) {
-    if (from.empty()) return;
-    to.resize(n);
-    for (std::size_t k = 0; k < n; ++k) to[time_order[k]] = from[k];
-  };
-  scatter(timed.gps_time, out.las.gps_time);
-  scatter(timed.return_number, out.las.return_number);
-  scatter(timed.number_of_returns, out.las.number_of_returns);
+  time_order = std::move(identity);
+  out.las.gps_time = std::move(timed.gps_time);
+  out.las.return_number = std::move(timed.return_number);
+  out.las.number_of_returns = std::move(timed.number_of_returns);
   return Status::ok();
 }
 

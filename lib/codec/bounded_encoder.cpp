@@ -72,14 +72,13 @@ std::vector<CellXyz> cells_in_order(const std::vector<std::int64_t>& q, const st
   return cells;
 }
 
-// The layer coded in time order (format 8, §11.3.3): the geometry and the
-// GPS times in time order, and the layer's order that follows from it.
+// The layer in time order (format 8, §11.3.3): its geometry and GPS time
+// sections, and the order (every section's).
 struct ScanCoding {
   std::vector<std::uint8_t> geometry, gps;
-  // Cells in Morton order, a cell's points in time order (key: Morton code,
-  // index: the input point).
+  // The points in time order (key: the cell's Morton code, index: the input point).
   std::vector<KeyedIndex> order;
-  // The layer index of each time-order position.
+  // The identity: the time-ordered sections (§11.7.2) follow the layer.
   std::vector<std::uint32_t> time_order;
 };
 
@@ -131,18 +130,9 @@ ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::
   ScanCoding out;
   out.geometry = encode_scan_geometry(cells, depth, ScanContext{kinds, multiples, rn, nr});
   out.gps = encode_gps_in_order(times);
-  // The layer: cells in Morton order; the sort is stable, so a cell's
-  // points stay in time order.
-  std::vector<KeyedIndex> by_cell(n);
-  for (std::size_t k = 0; k < n; ++k) by_cell[k] = {t[k].key, static_cast<std::uint32_t>(k)};
-  radix_sort(by_cell, 3 * depth);
-  out.order.resize(n);
-  out.time_order.resize(n);
-  for (std::size_t j = 0; j < n; ++j) {
-    const std::size_t k = by_cell[j].index;
-    out.order[j] = t[k];
-    out.time_order[k] = static_cast<std::uint32_t>(j);
-  }
+  // The layer is in time order too.
+  out.order = std::move(t);
+  out.time_order = std::move(identity);
   return out;
 }
 

@@ -2,6 +2,7 @@
 // decoder. format-spec/chunk.md is the normative description; keep them equal.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -146,6 +147,10 @@ inline bool is_las_section(SectionId id) {
 // The LasAttributeBits value of a LAS section id.
 inline std::uint32_t las_section_bit(SectionId id) {
   return 1u << (static_cast<std::uint8_t>(id) - kFirstLasSection);
+}
+// The section of LAS attribute `bit` (one LasAttributeBits value).
+inline SectionId las_section_id(std::uint32_t bit) {
+  return static_cast<SectionId>(kFirstLasSection + std::countr_zero(bit));
 }
 
 struct ParsedBlob {
