@@ -2,6 +2,7 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <type_traits>
 
 #include "codec/attribute_coder.h"
 #include "codec/bounded.h"
@@ -26,7 +27,10 @@ const SectionEntry* find_section(const ParsedBlob& blob, SectionId id) {
 // the geometry uses as context, then the geometry. The layer is in time
 // order: `out` gets the positions and those attributes, `time_order` the
 // identity.
-Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::vector<std::uint32_t>& time_order) {
+// `cell_pos` gets, when the order mask sets a bit, the layer position of
+// each point in cell order (else it stays empty), `mask` the mask.
+Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::vector<std::uint32_t>& time_order,
+                                 std::uint8_t& mask, std::vector<std::uint32_t>& cell_pos) {
   const ChunkHeader& h = blob.header;
   const std::size_t n = h.input_points;
   const SectionEntry* gps = find_section(blob, las_section_id(kLasGpsTime));
@@ -44,9 +48,22 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::v
   const std::vector<std::uint8_t> kinds = las_pulse_kinds(timed.gps_time, identity);
   const std::vector<std::uint8_t> multiples = scan_pulse_multiples(timed.gps_time);
   const SectionEntry* geometry = find_section(blob, SectionId::kGeometry);
-  auto cells = decode_scan_geometry(geometry->payload, h.geometry_depth, n,
+  if (geometry->payload.empty()) return corrupt_data("chunk blob: geometry section: no order mask");
+  mask = geometry->payload[0];
+  if ((mask & ~kKnownOrderMask) != 0) return corrupt_data("chunk blob: geometry section: reserved order mask bit set");
+  auto cells = decode_scan_geometry(geometry->payload.subspan(1), h.geometry_depth, n,
                                     ScanContext{kinds, multiples, timed.return_number, timed.number_of_returns});
   if (!cells) return cells.status().with_context("chunk blob: geometry section");
+  if (mask != 0) {
+    std::vector<KeyedIndex> by_cell(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const CellXyz& c = (*cells)[k];
+      by_cell[k] = {morton_encode(c[0], c[1], c[2]), static_cast<std::uint32_t>(k)};
+    }
+    radix_sort(by_cell, 3 * h.geometry_depth);  // stable: a cell's points stay in time order
+    cell_pos.resize(n);
+    for (std::size_t j = 0; j < n; ++j) cell_pos[j] = by_cell[j].index;
+  }
   // The layer is in time order.
   out.positions.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
@@ -76,8 +93,10 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   const bool time_ordered_layer = geometry->codec == SectionCodec::kScanOrder;
   std::vector<std::uint32_t> time_order;
   OccupiedCells cells;
+  std::uint8_t order_mask = 0;
+  std::vector<std::uint32_t> cell_pos;  // layer position of each point in cell order
   if (time_ordered_layer) {
-    RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, out, time_order));
+    RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, out, time_order, order_mask, cell_pos));
   } else {
     const OctreeCoding coding = geometry->codec == SectionCodec::kOctreeMixed         ? OctreeCoding::kMixed
                                 : geometry->codec == SectionCodec::kOctreeSingleChild ? OctreeCoding::kSingleChild
@@ -95,14 +114,23 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
       for (std::uint32_t j = 0; j < cells.counts[c]; ++j) out.positions[k++] = p;
     }
   }
+  // Sections the order mask puts in cell order are moved to the layer's.
+  const auto in_cells = [&](int slot) { return slot >= 0 && (order_mask & (1u << slot)) != 0; };
+  const auto to_layer = [&](auto& v) {
+    std::remove_reference_t<decltype(v)> moved(v.size());
+    for (std::size_t j = 0; j < v.size(); ++j) moved[cell_pos[j]] = v[j];
+    v = std::move(moved);
+  };
   if (const SectionEntry* s = find_section(blob, SectionId::kPointColor)) {
     auto colors = decode_colors(s->payload, n, h.color_tolerance);
     if (!colors) return colors.status().with_context("chunk blob: point colour section");
     out.colors = std::move(colors).value();
+    if (in_cells(kOrderSlotColors)) to_layer(out.colors);
   }
   if (const SectionEntry* s = find_section(blob, SectionId::kPointIntensity)) {
     auto values = decode_values(s->payload, n);
     if (!values) return values.status().with_context("chunk blob: point intensity section");
+    if (in_cells(kOrderSlotIntensity)) to_layer(*values);
     out.intensities.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const std::int64_t v = (*values)[i];
@@ -146,6 +174,16 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     const std::uint32_t bit = las_section_bit(s.id);
     if (bit == kLasGpsTime && !time_order.empty()) continue;  // decoded above
     if (time_ordered_layer && (bit == kLasReturnNumber || bit == kLasNumberOfReturns)) continue;  // likewise
+    if (in_cells(order_slot(bit))) {
+      LasAttributes by_cell;
+      by_cell.extra_bytes_size = h.extra_bytes_size;
+      std::vector<Rgb8> colors(out.colors.size());
+      for (std::size_t j = 0; j < colors.size(); ++j) colors[j] = out.colors[cell_pos[j]];
+      RELIEF_RETURN_IF_ERROR(
+          decode_las_attribute(bit, s.payload, n, by_cell, h.version, {}, {}, colors).with_context("chunk blob"));
+      scatter_las_attribute(bit, by_cell, out.las, cell_pos);
+      continue;
+    }
     RELIEF_RETURN_IF_ERROR(
         decode_las_attribute(bit, s.payload, n, out.las, h.version, point_cells, time_order, out.colors)
             .with_context("chunk blob"));

@@ -256,7 +256,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       time_order = las_time_order(cell_las.gps_time);
       const std::vector<std::uint8_t> gps_ranked =
           encode_las_attribute(kLasGpsTime, cell_las, n, h.version, point_cells, time_order);
-      const std::size_t scan_bytes = scan.geometry.size() + scan.gps.size();
+      // (+ 1: the order mask, §11.3.3)
+      const std::size_t scan_bytes = scan.geometry.size() + 1 + scan.gps.size();
       std::optional<std::vector<std::uint8_t>> octree;
       if (gps_ranked.size() <= scan_bytes) {
         octree = encode_geometry_within(cells, depth, OctreeCoding::kMixed, scan_bytes - gps_ranked.size());
@@ -280,6 +281,32 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   std::vector<std::vector<std::uint8_t>> payloads;
   payloads.push_back(std::move(geometry));
   refined.push_back({SectionId::kGeometry, geometry_codec, static_cast<std::uint32_t>(n), 0, {}});
+  // A time-ordered layer (§11.3.3) codes each attribute section that does
+  // not follow acquisition order in time order or in cell order, whichever
+  // is smaller, and says which in the order mask that starts the geometry.
+  // cell_pos[j]: the layer position of the j-th point in cell order.
+  std::vector<std::uint32_t> cell_pos, cell_idx;
+  std::uint8_t order_mask = 0;
+  if (geometry_codec == SectionCodec::kScanOrder) {
+    std::vector<KeyedIndex> by_cell(n);
+    for (std::size_t k = 0; k < n; ++k) by_cell[k] = {order[k].key, static_cast<std::uint32_t>(k)};
+    radix_sort(by_cell, 3 * depth);  // stable: a cell's points stay in time order
+    cell_pos.resize(n);
+    cell_idx.resize(n);
+    for (std::size_t j = 0; j < n; ++j) {
+      cell_pos[j] = by_cell[j].index;
+      cell_idx[j] = order[cell_pos[j]].index;
+    }
+  }
+  // Keeps the smaller of a section coded in the layer's order and in cell
+  // order (slot: its bit in the mask).
+  const auto keep_smaller = [&](int slot, std::vector<std::uint8_t> in_layer, std::vector<std::uint8_t> in_cells) {
+    if (!cell_pos.empty() && in_cells.size() < in_layer.size()) {
+      order_mask = static_cast<std::uint8_t>(order_mask | (1u << slot));
+      return in_cells;
+    }
+    return in_layer;
+  };
 
   // ---- The base layer is built from what the decoder will return.
   PointCloud base;
@@ -297,7 +324,17 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (has_rgb) {
     std::vector<Rgb8> ordered(n);
     for (std::size_t k = 0; k < n; ++k) ordered[k] = cloud.colors[order[k].index];
-    payloads.push_back(encode_colors(ordered, h.color_tolerance, &base.colors));
+    std::vector<std::uint8_t> coded = encode_colors(ordered, h.color_tolerance, &base.colors);
+    if (!cell_pos.empty()) {
+      // With a colour tolerance the decoded colours depend on the order.
+      std::vector<Rgb8> by_cell(n), decoded;
+      for (std::size_t j = 0; j < n; ++j) by_cell[j] = cloud.colors[cell_idx[j]];
+      coded = keep_smaller(kOrderSlotColors, std::move(coded), encode_colors(by_cell, h.color_tolerance, &decoded));
+      if (order_mask & (1u << kOrderSlotColors)) {
+        for (std::size_t j = 0; j < n; ++j) base.colors[cell_pos[j]] = decoded[j];
+      }
+    }
+    payloads.push_back(std::move(coded));
     refined.push_back({SectionId::kPointColor, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
   }
   if (has_i) {
@@ -313,7 +350,13 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       values[k] = integral ? static_cast<std::int64_t>(v) : static_cast<std::int64_t>(float_bits(v));
       base.intensities[k] = v;
     }
-    payloads.push_back(encode_values(values));
+    std::vector<std::uint8_t> coded = encode_values(values);
+    if (!cell_pos.empty()) {
+      std::vector<std::int64_t> by_cell(n);
+      for (std::size_t j = 0; j < n; ++j) by_cell[j] = values[cell_pos[j]];
+      coded = keep_smaller(kOrderSlotIntensity, std::move(coded), encode_values(by_cell));
+    }
+    payloads.push_back(std::move(coded));
     refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
   }
   if (las_bits != 0) {
@@ -324,18 +367,32 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     // in time order (§11.7.2): the geometry's order (§11.3.3) or the times'
     // (§11.7.1), whose section gps_payload already holds.
     if ((las_bits & kLasGpsTime) && time_order.empty()) time_order = las_time_order(ordered.gps_time);
+    LasAttributes by_cell;
+    std::vector<Rgb8> colors_by_cell;
+    if (!cell_pos.empty()) {
+      by_cell = cloud.gathered(cell_idx).las;
+      colors_by_cell.resize(base.colors.size());
+      for (std::size_t j = 0; j < colors_by_cell.size(); ++j) colors_by_cell[j] = base.colors[cell_pos[j]];
+    }
     for (int b = 0; b < kLasAttributeCount; ++b) {
       const std::uint32_t bit = 1u << b;
       if ((las_bits & bit) == 0) continue;
       if (bit == kLasGpsTime && !gps_payload.empty()) {
         payloads.push_back(std::move(gps_payload));
       } else {
-        payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors));
+        std::vector<std::uint8_t> coded = encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors);
+        const int slot = order_slot(bit);
+        if (!cell_pos.empty() && slot >= 0) {
+          coded = keep_smaller(slot, std::move(coded),
+                               encode_las_attribute(bit, by_cell, n, h.version, {}, {}, colors_by_cell));
+        }
+        payloads.push_back(std::move(coded));
       }
       refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
                          static_cast<std::uint32_t>(n), 0, {}});
     }
   }
+  if (geometry_codec == SectionCodec::kScanOrder) payloads[0].insert(payloads[0].begin(), order_mask);
   if (las_bits & kLasClassification) {
     // The base layer's classification map: the majority class per pixel.
     base.las.classification.resize(n);

@@ -722,8 +722,8 @@ void size_attribute(std::uint32_t bit, LasAttributes& las, std::size_t n) {
 
 // Calls f(vector) with the vector of attribute `bit` (not extra bytes or
 // colour low bytes, which have their own handling below).
-template <typename F>
-void with_column(std::uint32_t bit, LasAttributes& las, F&& f) {
+template <typename L, typename F>  // L: LasAttributes, const or not
+void with_column(std::uint32_t bit, L& las, F&& f) {
   switch (bit) {
     case kLasClassification: f(las.classification); break;
     case kLasClassFlags: f(las.class_flags); break;
@@ -1037,6 +1037,32 @@ Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, La
   las.gps_time.resize(n);
   for (std::size_t k = 0; k < n; ++k) las.gps_time[k] = std::bit_cast<double>(bits[k]);
   return Status::ok();
+}
+
+void scatter_las_attribute(std::uint32_t bit, const LasAttributes& from, LasAttributes& to,
+                           std::span<const std::uint32_t> positions) {
+  const std::size_t n = positions.size();
+  if (bit == kLasExtraBytes) {
+    const std::size_t w = from.extra_bytes_size;
+    to.extra_bytes_size = from.extra_bytes_size;
+    to.extra_bytes.assign(n * w, 0);
+    for (std::size_t j = 0; j < n; ++j) {
+      std::copy_n(from.extra_bytes.begin() + static_cast<std::ptrdiff_t>(j * w), w,
+                  to.extra_bytes.begin() + static_cast<std::ptrdiff_t>(positions[j] * w));
+    }
+    return;
+  }
+  const auto scatter = [&](const auto& src, auto& dst) {
+    dst.resize(n);
+    for (std::size_t j = 0; j < n; ++j) dst[positions[j]] = src[j];
+  };
+  if (bit == kLasGpsTime) return scatter(from.gps_time, to.gps_time);
+  if (bit == kLasColorLow) return scatter(from.color_low, to.color_low);
+  with_column(bit, from, [&](const auto& src) {
+    with_column(bit, to, [&](auto& dst) {
+      if constexpr (std::is_same_v<std::decay_t<decltype(src)>, std::decay_t<decltype(dst)>>) scatter(src, dst);
+    });
+  });
 }
 
 int compare_las_points(const LasAttributes& las, std::size_t a, std::size_t b) {

@@ -179,6 +179,17 @@ bool context_fits(const ScanContext& ctx, std::size_t n) {
 
 }  // namespace
 
+int order_slot(std::uint32_t bit) {
+  switch (bit) {
+    case kLasClassification: return 2;
+    case kLasClassFlags: return 3;
+    case kLasNir: return 4;
+    case kLasColorLow: return 5;
+    case kLasExtraBytes: return 6;
+    default: return -1;
+  }
+}
+
 std::vector<std::uint8_t> scan_pulse_multiples(std::span<const double> times) {
   std::vector<std::uint8_t> out(times.size(), 1);
   std::uint64_t last_step = 0;

@@ -28,6 +28,19 @@ struct ScanContext {
   std::span<const std::uint8_t> number_of_returns;
 };
 
+// The order mask, the geometry section's first byte (§11.3.3): bit s set =
+// the section of slot s holds its points in cell order (the points sorted by
+// the Morton code of their cells, stable), else in the layer's time order.
+// Slots: 0 point colours (section 8), 1 point intensities (9), then the LAS
+// attributes that do not follow acquisition order: 2 classification (10),
+// 3 classification flags (11), 4 NIR (19), 5 colour low bytes (20), 6 extra
+// bytes (21). Bit 7 is reserved, 0.
+inline constexpr int kOrderSlotColors = 0;
+inline constexpr int kOrderSlotIntensity = 1;
+inline constexpr std::uint8_t kKnownOrderMask = 0x7F;
+// The slot of LAS attribute `bit`, or -1 for one coded in time order (12-18).
+int order_slot(std::uint32_t bit);
+
 // How many pulse spacings each time step is (§11.3.3), from the times in
 // time order: round(step / the last non-zero step) as bit patterns, 1 to 64
 // (1 for the first point, a zero step, no step yet, or a step of more than

@@ -254,3 +254,58 @@ TEST_CASE("format 8: levels of detail and subsets of a time-ordered blob", "[cod
   REQUIRE(full.is_ok());
   CHECK(full->size() == in.size());
 }
+
+namespace {
+
+// Where section `id` of a blob starts (format-spec/chunk.md §1, §3).
+std::size_t section_at(const std::vector<std::uint8_t>& blob, int id) {
+  auto info = inspect_chunk(blob);
+  REQUIRE(info.is_ok());
+  std::size_t at = 176 + 12 * info->sections.size();
+  for (const ChunkSectionInfo& s : info->sections) {
+    if (s.id == id) return at;
+    at += s.coded_size;
+  }
+  FAIL("no section " << id);
+  return 0;
+}
+
+}  // namespace
+
+TEST_CASE("format 8: each attribute section of a time-ordered layer takes the smaller order", "[codec][scan][las]") {
+  // Colours that follow the height (canopy and ground returns alternate in
+  // time: cell order wins) and intensities constant along each scan line
+  // (lines run along x at one y: time order wins).
+  PointCloud in = scan_scene(24, 6000, 0xFFF);
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Vec3d p = in.positions[i];
+    const auto level = static_cast<std::uint8_t>(std::clamp(128.0 + 40.0 * std::sin(p.x * 0.3) + 30.0 * p.z, 0.0, 255.0));
+    in.colors[i] = {level, static_cast<std::uint8_t>(255 - level), 90};
+    in.intensities[i] = static_cast<float>(std::floor(1000.0 + 200.0 * std::cos(p.y * 0.2)));
+    in.las.classification[i] = static_cast<std::uint8_t>(in.las.return_number[i] == in.las.number_of_returns[i] ? 2 : 5);
+  }
+  auto blob = encode_chunk(in, las_scale(0.01, 4.0));
+  REQUIRE(blob.is_ok());
+  REQUIRE(geometry_codec(*blob) == 9);
+  const std::size_t at = section_at(*blob, 7);
+  const std::uint8_t mask = (*blob)[at];
+  INFO("order mask " << int{mask});
+  CHECK((mask & 0x80) == 0);
+  CHECK((mask & 0x01) != 0);  // colours in cell order
+  CHECK((mask & 0x02) == 0);  // intensities in time order
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == snapped_records(in, 0.01));
+  // A reserved mask bit is refused; another mask decodes other orders, or
+  // fails, but never crashes or returns another count.
+  DecodeOptions unchecked;
+  unchecked.verify_checksum = false;
+  std::vector<std::uint8_t> bad = *blob;
+  bad[at] = static_cast<std::uint8_t>(mask | 0x80);
+  CHECK(decode_chunk(bad, unchecked).status().code() == StatusCode::kCorruptData);
+  for (int bit = 0; bit < 7; ++bit) {
+    bad[at] = static_cast<std::uint8_t>(mask ^ (1u << bit));
+    auto r = decode_chunk(bad, unchecked);
+    if (r.is_ok()) CHECK(r->size() == in.size());
+  }
+}
