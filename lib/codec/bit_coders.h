@@ -5,6 +5,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <vector>
 
 #include "codec/range_coder.h"
 
@@ -43,6 +45,22 @@ class DecCoder {
 
  private:
   RangeDecoder& d_;
+};
+
+// Model sets of type M per context, each made when its context is first
+// used: a small chunk touches few of them, and none costs its size until then.
+template <typename M>
+class LazyModels {
+ public:
+  explicit LazyModels(std::size_t count) : models_(count) {}
+  M& operator[](std::size_t i) {
+    std::unique_ptr<M>& p = models_[i];
+    if (!p) p = std::make_unique<M>();
+    return *p;
+  }
+
+ private:
+  std::vector<std::unique_ptr<M>> models_;
 };
 
 }  // namespace relief::codec

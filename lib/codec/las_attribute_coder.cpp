@@ -44,20 +44,8 @@ void code_byte(C& c, ByteModel& m, std::uint8_t& v) {
   v = static_cast<std::uint8_t>(node - 256);
 }
 
-// Byte models per context, made when a context is first used: a small chunk
-// touches a few of them, and none costs its 1.5 KB until then.
-class ByteContexts {
- public:
-  explicit ByteContexts(std::size_t count) : models_(count) {}
-  ByteModel& operator[](std::size_t i) {
-    std::unique_ptr<ByteModel>& p = models_[i];
-    if (!p) p = std::make_unique<ByteModel>();
-    return *p;
-  }
-
- private:
-  std::vector<std::unique_ptr<ByteModel>> models_;
-};
+// Byte models per context, made when a context is first used (1.5 KB each).
+using ByteContexts = LazyModels<ByteModel>;
 
 constexpr std::size_t kByteContexts = 256;
 

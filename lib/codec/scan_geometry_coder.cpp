@@ -42,18 +42,7 @@ int magnitude(std::int64_t r) {
 
 // Signed-integer model sets made when first used: a chunk touches few of the
 // 1,600 contexts, and each costs 1.6 KB.
-class LazySInts {
- public:
-  explicit LazySInts(std::size_t count) : models_(count) {}
-  SIntModel& operator[](std::size_t i) {
-    std::unique_ptr<SIntModel>& p = models_[i];
-    if (!p) p = std::make_unique<SIntModel>();
-    return *p;
-  }
-
- private:
-  std::vector<std::unique_ptr<SIntModel>> models_;
-};
+using LazySInts = LazyModels<SIntModel>;
 
 // The last kMedianSpan steps of one return class, oldest first; the median
 // predicts the next.

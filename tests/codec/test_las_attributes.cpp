@@ -37,18 +37,10 @@ EncodeParams params_for(double tolerance, double cell) {
 // other field as given.
 std::vector<std::string> expected_records(PointCloud c, const ErrorBound& b) {
   for (Vec3d& p : c.positions) p = {snap(p.x, b.origin.x, b.step.x), snap(p.y, b.origin.y, b.step.y), snap(p.z, b.origin.z, b.step.z)};
-  std::vector<std::string> out;
-  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
-  std::sort(out.begin(), out.end());
-  return out;
+  return test::sorted_records(c);
 }
 
-std::vector<std::string> records(const PointCloud& c) {
-  std::vector<std::string> out;
-  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
-  std::sort(out.begin(), out.end());
-  return out;
-}
+std::vector<std::string> records(const PointCloud& c) { return test::sorted_records(c); }
 
 PointCloud scene(std::uint64_t seed, std::size_t points, bool colors) {
   test::SceneOptions o;
@@ -181,9 +173,7 @@ TEST_CASE("LAS attributes: the blob depends only on the multiset of points", "[c
   REQUIRE(a.is_ok());
   test::Rng rng(77);
   for (int t = 0; t < 3; ++t) {
-    std::vector<std::uint32_t> perm(in.size());
-    for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-    for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+    const std::vector<std::uint32_t> perm = rng.permutation(in.size());
     auto b = encode_chunk(in.gathered(perm), p);
     REQUIRE(b.is_ok());
     CHECK(*a == *b);
@@ -250,9 +240,7 @@ TEST_CASE("LAS attributes: GPS times in time order (formats 6 and 7) are exact a
   CHECK(bits < 3.0);
   // Any order of the input gives the same blob.
   test::Rng rng(9);
-  std::vector<std::uint32_t> perm(in.size());
-  for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+  const std::vector<std::uint32_t> perm = rng.permutation(in.size());
   auto shuffled = encode_chunk(in.gathered(perm), p);
   REQUIRE(shuffled.is_ok());
   CHECK(*shuffled == *blob);
@@ -347,9 +335,7 @@ TEST_CASE("LAS attributes: acquisition-order attributes (format 6) are coded in 
   REQUIRE(out.is_ok());
   CHECK(records(*out) == expected_records(in, *p.bound));
   test::Rng rng(31);
-  std::vector<std::uint32_t> perm(n);
-  for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+  const std::vector<std::uint32_t> perm = rng.permutation(n);
   auto shuffled = encode_chunk(in.gathered(perm), p);
   REQUIRE(shuffled.is_ok());
   CHECK(*shuffled == *blob);

@@ -76,18 +76,10 @@ std::vector<std::string> snapped_records(PointCloud c, double step) {
   for (Vec3d& p : c.positions) {
     p = {std::llround(p.x / step) * step, std::llround(p.y / step) * step, std::llround(p.z / step) * step};
   }
-  std::vector<std::string> out;
-  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
-  std::sort(out.begin(), out.end());
-  return out;
+  return test::sorted_records(c);
 }
 
-std::vector<std::string> records(const PointCloud& c) {
-  std::vector<std::string> out;
-  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(test::point_record(c, i));
-  std::sort(out.begin(), out.end());
-  return out;
-}
+std::vector<std::string> records(const PointCloud& c) { return test::sorted_records(c); }
 
 PointCloud scan_scene(std::uint64_t seed, std::size_t points, std::uint32_t bits) {
   test::SceneOptions o;
@@ -227,9 +219,7 @@ TEST_CASE("format 8: the time-ordered blob depends only on the multiset of point
   CHECK(geometry_codec(*a) == 9);
   test::Rng rng(78);
   for (int t = 0; t < 3; ++t) {
-    std::vector<std::uint32_t> perm(in.size());
-    for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-    for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+    const std::vector<std::uint32_t> perm = rng.permutation(in.size());
     auto b = encode_chunk(in.gathered(perm), p);
     REQUIRE(b.is_ok());
     CHECK(*a == *b);

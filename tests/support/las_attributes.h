@@ -4,6 +4,7 @@
 // field's whole range (every bit pattern a decoder must round-trip).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -145,6 +146,14 @@ inline std::string point_record(const PointCloud& c, std::size_t i) {
   r.push_back('e');
   if (!a.extra_bytes.empty()) put(a.extra_bytes.data() + i * a.extra_bytes_size, a.extra_bytes_size);
   return r;
+}
+
+// Every point's record (point_record), sorted: clouds compare as multisets.
+inline std::vector<std::string> sorted_records(const PointCloud& c) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < c.size(); ++i) out.push_back(point_record(c, i));
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 }  // namespace relief::test

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "relief/types.h"
 
@@ -16,6 +17,8 @@ class Rng {
   double uniform();                    // [0, 1)
   double uniform(double a, double b);  // [a, b)
   double normal();                     // standard normal (Box-Muller)
+  // A uniformly random permutation of 0..n-1 (Fisher-Yates).
+  std::vector<std::uint32_t> permutation(std::size_t n);
 
  private:
   std::uint64_t state_;
