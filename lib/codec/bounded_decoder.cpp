@@ -181,7 +181,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
       for (std::size_t j = 0; j < colors.size(); ++j) colors[j] = out.colors[cell_pos[j]];
       RELIEF_RETURN_IF_ERROR(
           decode_las_attribute(bit, s.payload, n, by_cell, h.version, {}, {}, colors).with_context("chunk blob"));
-      scatter_las_attribute(bit, by_cell, out.las, cell_pos);
+      permute_las_attribute(bit, by_cell, out.las, cell_pos, Permute::kScatter);
       continue;
     }
     RELIEF_RETURN_IF_ERROR(

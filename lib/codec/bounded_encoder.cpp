@@ -285,18 +285,14 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // not follow acquisition order in time order or in cell order, whichever
   // is smaller, and says which in the order mask that starts the geometry.
   // cell_pos[j]: the layer position of the j-th point in cell order.
-  std::vector<std::uint32_t> cell_pos, cell_idx;
+  std::vector<std::uint32_t> cell_pos;
   std::uint8_t order_mask = 0;
   if (geometry_codec == SectionCodec::kScanOrder) {
     std::vector<KeyedIndex> by_cell(n);
     for (std::size_t k = 0; k < n; ++k) by_cell[k] = {order[k].key, static_cast<std::uint32_t>(k)};
     radix_sort(by_cell, 3 * depth);  // stable: a cell's points stay in time order
     cell_pos.resize(n);
-    cell_idx.resize(n);
-    for (std::size_t j = 0; j < n; ++j) {
-      cell_pos[j] = by_cell[j].index;
-      cell_idx[j] = order[cell_pos[j]].index;
-    }
+    for (std::size_t j = 0; j < n; ++j) cell_pos[j] = by_cell[j].index;
   }
   // Keeps the smaller of a section coded in the layer's order and in cell
   // order (slot: its bit in the mask).
@@ -328,7 +324,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     if (!cell_pos.empty()) {
       // With a colour tolerance the decoded colours depend on the order.
       std::vector<Rgb8> by_cell(n), decoded;
-      for (std::size_t j = 0; j < n; ++j) by_cell[j] = cloud.colors[cell_idx[j]];
+      for (std::size_t j = 0; j < n; ++j) by_cell[j] = cloud.colors[order[cell_pos[j]].index];
       coded = keep_smaller(kOrderSlotColors, std::move(coded), encode_colors(by_cell, h.color_tolerance, &decoded));
       if (order_mask & (1u << kOrderSlotColors)) {
         for (std::size_t j = 0; j < n; ++j) base.colors[cell_pos[j]] = decoded[j];
@@ -367,10 +363,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     // in time order (§11.7.2): the geometry's order (§11.3.3) or the times'
     // (§11.7.1), whose section gps_payload already holds.
     if ((las_bits & kLasGpsTime) && time_order.empty()) time_order = las_time_order(ordered.gps_time);
-    LasAttributes by_cell;
     std::vector<Rgb8> colors_by_cell;
     if (!cell_pos.empty()) {
-      by_cell = cloud.gathered(cell_idx).las;
       colors_by_cell.resize(base.colors.size());
       for (std::size_t j = 0; j < colors_by_cell.size(); ++j) colors_by_cell[j] = base.colors[cell_pos[j]];
     }
@@ -383,6 +377,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         std::vector<std::uint8_t> coded = encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors);
         const int slot = order_slot(bit);
         if (!cell_pos.empty() && slot >= 0) {
+          LasAttributes by_cell;  // this attribute alone, in cell order
+          permute_las_attribute(bit, ordered, by_cell, cell_pos, Permute::kGather);
           coded = keep_smaller(slot, std::move(coded),
                                encode_las_attribute(bit, by_cell, n, h.version, {}, {}, colors_by_cell));
         }

@@ -1027,22 +1027,31 @@ Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, La
   return Status::ok();
 }
 
-void scatter_las_attribute(std::uint32_t bit, const LasAttributes& from, LasAttributes& to,
-                           std::span<const std::uint32_t> positions) {
+void permute_las_attribute(std::uint32_t bit, const LasAttributes& from, LasAttributes& to,
+                           std::span<const std::uint32_t> positions, Permute how) {
   const std::size_t n = positions.size();
+  // Point `j` of the permutation: (index in `from`, index in `to`).
+  const auto ends = [&](std::size_t j) {
+    return how == Permute::kGather ? std::pair<std::size_t, std::size_t>{positions[j], j}
+                                   : std::pair<std::size_t, std::size_t>{j, positions[j]};
+  };
   if (bit == kLasExtraBytes) {
     const std::size_t w = from.extra_bytes_size;
     to.extra_bytes_size = from.extra_bytes_size;
     to.extra_bytes.assign(n * w, 0);
     for (std::size_t j = 0; j < n; ++j) {
-      std::copy_n(from.extra_bytes.begin() + static_cast<std::ptrdiff_t>(j * w), w,
-                  to.extra_bytes.begin() + static_cast<std::ptrdiff_t>(positions[j] * w));
+      const auto [src, dst] = ends(j);
+      std::copy_n(from.extra_bytes.begin() + static_cast<std::ptrdiff_t>(src * w), w,
+                  to.extra_bytes.begin() + static_cast<std::ptrdiff_t>(dst * w));
     }
     return;
   }
   const auto scatter = [&](const auto& src, auto& dst) {
     dst.resize(n);
-    for (std::size_t j = 0; j < n; ++j) dst[positions[j]] = src[j];
+    for (std::size_t j = 0; j < n; ++j) {
+      const auto [s, d] = ends(j);
+      dst[d] = src[s];
+    }
   };
   if (bit == kLasGpsTime) return scatter(from.gps_time, to.gps_time);
   if (bit == kLasColorLow) return scatter(from.color_low, to.color_low);
