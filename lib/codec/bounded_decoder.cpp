@@ -177,8 +177,11 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     if (in_cells(order_slot(bit))) {
       LasAttributes by_cell;
       by_cell.extra_bytes_size = h.extra_bytes_size;
-      std::vector<Rgb8> colors(out.colors.size());
-      for (std::size_t j = 0; j < colors.size(); ++j) colors[j] = out.colors[cell_pos[j]];
+      std::vector<Rgb8> colors;  // the colour low bytes' "equal" decision compares in cell order
+      if (bit == kLasColorLow) {
+        colors.resize(out.colors.size());
+        for (std::size_t j = 0; j < colors.size(); ++j) colors[j] = out.colors[cell_pos[j]];
+      }
       RELIEF_RETURN_IF_ERROR(
           decode_las_attribute(bit, s.payload, n, by_cell, h.version, {}, {}, colors).with_context("chunk blob"));
       permute_las_attribute(bit, by_cell, out.las, cell_pos, Permute::kScatter);

@@ -363,8 +363,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     // in time order (§11.7.2): the geometry's order (§11.3.3) or the times'
     // (§11.7.1), whose section gps_payload already holds.
     if ((las_bits & kLasGpsTime) && time_order.empty()) time_order = las_time_order(ordered.gps_time);
-    std::vector<Rgb8> colors_by_cell;
-    if (!cell_pos.empty()) {
+    std::vector<Rgb8> colors_by_cell;  // for the colour low bytes' "equal" decision in cell order
+    if (!cell_pos.empty() && (las_bits & kLasColorLow) != 0) {
       colors_by_cell.resize(base.colors.size());
       for (std::size_t j = 0; j < colors_by_cell.size(); ++j) colors_by_cell[j] = base.colors[cell_pos[j]];
     }
