@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "codec/chunk_format.h"
 #include "codec/scan_geometry_coder.h"
 #include "relief/codec.h"
 #include "support/las_attributes.h"
@@ -298,4 +299,31 @@ TEST_CASE("format 8: each attribute section of a time-ordered layer takes the sm
     auto r = decode_chunk(bad, unchecked);
     if (r.is_ok()) CHECK(r->size() == in.size());
   }
+}
+
+TEST_CASE("format 8: a time-ordered geometry needs GPS times and version 8", "[codec][scan][reject]") {
+  const PointCloud in = scan_scene(25, 2000, 0xFFF);
+  auto blob = encode_chunk(in, las_scale(0.01, 4.0));
+  REQUIRE(blob.is_ok());
+  REQUIRE(geometry_codec(*blob) == 9);
+  auto parsed = codec::parse_blob(*blob, true);
+  REQUIRE(parsed.is_ok());
+  // Without its GPS time section (and bit), with a valid checksum: refused.
+  codec::ChunkHeader h = parsed->header;
+  h.las_attributes &= ~static_cast<std::uint32_t>(kLasGpsTime);
+  std::vector<codec::SectionEntry> kept;
+  for (const codec::SectionEntry& s : parsed->sections) {
+    if (s.id != codec::las_section_id(kLasGpsTime)) kept.push_back(s);
+  }
+  const std::vector<std::uint8_t> no_times = codec::write_blob(h, kept);
+  auto r = decode_chunk(no_times);
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().code() == StatusCode::kCorruptData);
+  CHECK(r.status().message().find("without a GPS time section") != std::string::npos);
+  // Codec 9 in a version-7 blob: refused when the blob is parsed.
+  codec::ChunkHeader v7 = parsed->header;
+  v7.version = 7;
+  auto old = decode_chunk(codec::write_blob(v7, parsed->sections));
+  REQUIRE_FALSE(old.is_ok());
+  CHECK(old.status().code() == StatusCode::kCorruptData);
 }
