@@ -408,7 +408,7 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
 // with the previous symbol as context, a new ID then as two bytes.
 constexpr int kSourceSlots = 4;
 constexpr int kSourceSymbolBits = 3;
-// In time order (format 6, `kind` non-null: pulse_kinds) the trees are also
+// In time order (format 6, `kind` non-null: las_pulse_kinds) the trees are also
 // chosen by whether the point is another return of the previous point's pulse.
 template <typename C>
 bool code_point_source(C& c, std::vector<std::uint16_t>& v, const std::vector<std::uint8_t>* kind = nullptr) {
@@ -564,8 +564,10 @@ constexpr std::uint8_t kPulseSame = 1;  // another return of the previous point'
 constexpr std::uint8_t kPulseGap = 2;   // a later pulse: floor(step / 2) > the last non-zero step
 constexpr std::size_t kPulseKinds = 3;
 
+}  // namespace
+
 // The kinds of the points in time order: `order` lists indices into `gps`.
-std::vector<std::uint8_t> pulse_kinds(const std::vector<double>& gps, std::span<const std::uint32_t> order) {
+std::vector<std::uint8_t> las_pulse_kinds(const std::vector<double>& gps, std::span<const std::uint32_t> order) {
   std::vector<std::uint8_t> kind(order.size(), kPulseNext);
   std::uint64_t last_step = 0;
   for (std::size_t k = 1; k < order.size(); ++k) {
@@ -576,9 +578,11 @@ std::vector<std::uint8_t> pulse_kinds(const std::vector<double>& gps, std::span<
   return kind;
 }
 
+namespace {
+
 // An attribute of kLasTimeOrdered with its points in time order (las's
 // vectors hold them so), where consecutive points are consecutive returns
-// and pulses as LAZ codes them; `kind` from pulse_kinds. A pulse's returns
+// and pulses as LAZ codes them; `kind` from las_pulse_kinds. A pulse's returns
 // share their scan angle, flags and source and count their return numbers
 // up; the scan angle moves slowly along a line.
 template <typename C>
@@ -856,7 +860,7 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     LasAttributes ordered;
     gather_time_ordered(bit, las, ordered, time_order);
     std::uint64_t unit = bit == kLasScanAngle ? common_unit(ordered.scan_angle) : 1;
-    code_time_ordered(c, bit, ordered, n, unit, pulse_kinds(las.gps_time, time_order));
+    code_time_ordered(c, bit, ordered, n, unit, las_pulse_kinds(las.gps_time, time_order));
     return enc.finish();
   }
   std::size_t coded = n;
@@ -953,7 +957,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
     DecCoder c(dec);
     BitModel constant_flag;
     c.bit(constant_flag, 0);  // 0: read above
-    if (!code_time_ordered(c, bit, ordered, n, 1, pulse_kinds(las.gps_time, time_order)) || dec.overrun() > 0) {
+    if (!code_time_ordered(c, bit, ordered, n, 1, las_pulse_kinds(las.gps_time, time_order)) || dec.overrun() > 0) {
       return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
     }
     size_attribute(bit, las, n);
@@ -976,10 +980,6 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
     return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
   }
   return Status::ok();
-}
-
-std::vector<std::uint8_t> las_pulse_kinds(const std::vector<double>& gps, std::span<const std::uint32_t> order) {
-  return pulse_kinds(gps, order);
 }
 
 std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times) {
