@@ -3,6 +3,7 @@
 #include "codec/attribute_coder.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <memory>
 #include <string>
 
@@ -37,39 +38,144 @@ int quantise(int e, int t) {
   return e >= 0 ? (e + t) / step : -((-e + t) / step);
 }
 
+// A colour's prediction and the model sets (first index) of its three
+// channels.
+struct ColorPrediction {
+  int r = 0, g = 0, b = 0;
+  int ctx_g = 0, ctx_r = 0, ctx_b = 0;
+};
+
+// §11.4: the previous point's colour; contexts from the classes of the
+// previous point's symbols.
+class PreviousColor {
+ public:
+  ColorPrediction predict(std::size_t, const std::vector<Rgb8>&) const {
+    return {prev_.r, prev_.g, prev_.b, cls_g_, cls_r_, cls_b_};
+  }
+  void update(std::size_t, const Rgb8& rec, int qr, int qg, int qb) {
+    prev_ = {rec.r, rec.g, rec.b};
+    cls_g_ = magnitude_class(qg);
+    cls_r_ = magnitude_class(qr);
+    cls_b_ = magnitude_class(qb);
+  }
+
+ private:
+  struct {
+    int r = 0, g = 0, b = 0;
+  } prev_;
+  int cls_g_ = 0, cls_r_ = 0, cls_b_ = 0;
+};
+
+// §11.4.1: the nearest (in cells) of the previous kColorWindow points.
+class NeighbourColor {
+ public:
+  explicit NeighbourColor(std::span<const CellXyz> cells) : cells_(cells), activity_(cells.size(), 0) {}
+
+  ColorPrediction predict(std::size_t i, const std::vector<Rgb8>& rec) const {
+    if (i == 0) return {};
+    // The kColorNeighbours smallest squared distances, nearest first; of
+    // equal ones the more recent point (visited first) stays ahead.
+    std::uint64_t d2[kColorNeighbours];
+    std::size_t idx[kColorNeighbours];
+    std::size_t found = 0;
+    const CellXyz& c = cells_[i];
+    const std::size_t window = std::min(i, kColorWindow);
+    for (std::size_t back = 1; back <= window; ++back) {
+      const std::size_t j = i - back;
+      const CellXyz& o = cells_[j];
+      std::uint64_t d = 0;
+      for (int a = 0; a < 3; ++a) {
+        const std::int64_t diff = static_cast<std::int64_t>(c[a]) - static_cast<std::int64_t>(o[a]);
+        d += static_cast<std::uint64_t>(diff * diff);
+      }
+      if (found == kColorNeighbours && d >= d2[kColorNeighbours - 1]) continue;
+      std::size_t pos = found < kColorNeighbours ? found++ : kColorNeighbours - 1;
+      while (pos > 0 && d < d2[pos - 1]) {
+        d2[pos] = d2[pos - 1];
+        idx[pos] = idx[pos - 1];
+        --pos;
+      }
+      d2[pos] = d;
+      idx[pos] = j;
+    }
+    std::uint64_t w_sum = 0, r = 0, g = 0, b = 0, act = 0;
+    for (std::size_t k = 0; k < found; ++k) {
+      const std::uint64_t w = neighbour_weight(d2[k]);
+      const Rgb8& n = rec[idx[k]];
+      w_sum += w;
+      r += w * n.r;
+      g += w * n.g;
+      b += w * n.b;
+      act += w * activity_[idx[k]];
+    }
+    const std::uint64_t half = w_sum / 2;
+    const int ctx = static_cast<int>(std::min<std::uint64_t>(kClasses - 1, 2 * act / (3 * w_sum)));
+    return {static_cast<int>((r + half) / w_sum), static_cast<int>((g + half) / w_sum),
+            static_cast<int>((b + half) / w_sum), ctx, ctx, ctx};
+  }
+  void update(std::size_t i, const Rgb8&, int qr, int qg, int qb) {
+    activity_[i] = static_cast<std::uint8_t>(std::min(255, std::abs(qr) + std::abs(qg) + std::abs(qb)));
+  }
+
+ private:
+  // 2^26 for the same cell, else max(1, floor(2^24 / d2)).
+  static std::uint64_t neighbour_weight(std::uint64_t d2) {
+    if (d2 == 0) return std::uint64_t{1} << 26;
+    return std::max<std::uint64_t>(1, (std::uint64_t{1} << 24) / d2);
+  }
+
+  std::span<const CellXyz> cells_;
+  std::vector<std::uint8_t> activity_;  // min(255, |qr| + |qg| + |qb|) of each coded point
+};
+
 // Codes n colours; `sym(model, q)` encodes q (encoder) or returns the decoded
 // value (decoder, which passes 0), false on a bad stream. `truth(i)` is the
 // input colour (encoder) and unused by the decoder. Writes the reconstruction.
-template <typename Sym, typename Truth>
-bool code_colors(std::size_t n, int t, Sym&& sym, Truth&& truth, std::vector<Rgb8>& out) {
+template <typename Sym, typename Truth, typename Predictor>
+bool code_colors(std::size_t n, int t, Sym&& sym, Truth&& truth, Predictor& predictor, std::vector<Rgb8>& out) {
   auto models = std::make_unique<ColorModels>();
   const int step = 2 * t + 1;
   out.resize(n);
-  Rgb8 prev{0, 0, 0};
-  int cls_r = 0, cls_g = 0, cls_b = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const Rgb8 c = truth(i);
-    int qg = quantise(static_cast<int>(c.g) - prev.g, t);
-    if (!sym(models->green[cls_g], qg)) return false;
-    const int g = clamp255(prev.g + qg * step);
-    const int shift = g - prev.g;
+    const ColorPrediction p = predictor.predict(i, out);
+    int qg = quantise(static_cast<int>(c.g) - p.g, t);
+    if (!sym(models->green[p.ctx_g], qg)) return false;
+    const int g = clamp255(p.g + qg * step);
+    const int shift = g - p.g;
     const int cur_g = magnitude_class(qg);
-    const int pr = clamp255(prev.r + shift);
+    const int pr = clamp255(p.r + shift);
     int qr = quantise(static_cast<int>(c.r) - pr, t);
-    if (!sym(models->red[cls_r][cur_g], qr)) return false;
-    const int pb = clamp255(prev.b + shift);
+    if (!sym(models->red[p.ctx_r][cur_g], qr)) return false;
+    const int pb = clamp255(p.b + shift);
     int qb = quantise(static_cast<int>(c.b) - pb, t);
-    if (!sym(models->blue[cls_b][cur_g], qb)) return false;
+    if (!sym(models->blue[p.ctx_b][cur_g], qb)) return false;
     const Rgb8 rec{static_cast<std::uint8_t>(clamp255(pr + qr * step)), static_cast<std::uint8_t>(g),
                    static_cast<std::uint8_t>(clamp255(pb + qb * step))};
     out[i] = rec;
-    prev = rec;
-    cls_g = cur_g;
-    cls_r = magnitude_class(qr);
-    cls_b = magnitude_class(qb);
+    predictor.update(i, rec, qr, qg, qb);
   }
   return true;
 }
+
+// The encoder's and decoder's symbol functions.
+auto encoder_symbol(RangeEncoder& enc) {
+  return [&enc](SIntModel& m, int& q) {
+    encode_sint(enc, m, q);
+    return true;
+  };
+}
+// The decoder's truth is never read: with it, each quantise() sees the
+// negated prediction and the decoded symbol then replaces q.
+auto decoder_symbol(RangeDecoder& dec) {
+  return [&dec](SIntModel& m, int& q) {
+    std::int64_t v = 0;
+    if (!decode_sint(dec, m, v) || v < -255 || v > 255) return false;
+    q = static_cast<int>(v);
+    return true;
+  };
+}
+Rgb8 no_truth(std::size_t) { return Rgb8{}; }
 
 constexpr int kValueClasses = 12;
 int value_class(std::int64_t r) {
@@ -83,28 +189,14 @@ int value_class(std::int64_t r) {
 
 void encode_colors_into(RangeEncoder& enc, std::span<const Rgb8> colors, int tolerance, std::vector<Rgb8>* reconstructed) {
   std::vector<Rgb8> rec;
-  code_colors(
-      colors.size(), tolerance,
-      [&](SIntModel& m, int& q) {
-        encode_sint(enc, m, q);
-        return true;
-      },
-      [&](std::size_t i) { return colors[i]; }, rec);
+  PreviousColor predictor;
+  code_colors(colors.size(), tolerance, encoder_symbol(enc), [&](std::size_t i) { return colors[i]; }, predictor, rec);
   if (reconstructed != nullptr) *reconstructed = std::move(rec);
 }
 
 bool decode_colors_from(RangeDecoder& dec, std::size_t count, int tolerance, std::vector<Rgb8>& out) {
-  // The decoder's truth is never read: with it, each quantise() sees 0 and
-  // the decoded symbol then replaces q.
-  return code_colors(
-      count, tolerance,
-      [&](SIntModel& m, int& q) {
-        std::int64_t v = 0;
-        if (!decode_sint(dec, m, v) || v < -255 || v > 255) return false;
-        q = static_cast<int>(v);
-        return true;
-      },
-      [](std::size_t) { return Rgb8{}; }, out);
+  PreviousColor predictor;
+  return code_colors(count, tolerance, decoder_symbol(dec), no_truth, predictor, out);
 }
 
 std::vector<std::uint8_t> encode_colors(std::span<const Rgb8> colors, int tolerance, std::vector<Rgb8>* reconstructed) {
@@ -117,6 +209,27 @@ Result<std::vector<Rgb8>> decode_colors(std::span<const std::uint8_t> data, std:
   RangeDecoder dec(data);
   std::vector<Rgb8> out;
   if (!decode_colors_from(dec, count, tolerance, out) || dec.overrun() > 0) {
+    return corrupt_data("colour section: invalid or truncated stream");
+  }
+  return out;
+}
+
+std::vector<std::uint8_t> encode_colors_near(std::span<const Rgb8> colors, std::span<const CellXyz> cells,
+                                             int tolerance, std::vector<Rgb8>* reconstructed) {
+  RangeEncoder enc;
+  std::vector<Rgb8> rec;
+  NeighbourColor predictor(cells);
+  code_colors(colors.size(), tolerance, encoder_symbol(enc), [&](std::size_t i) { return colors[i]; }, predictor, rec);
+  if (reconstructed != nullptr) *reconstructed = std::move(rec);
+  return enc.finish();
+}
+
+Result<std::vector<Rgb8>> decode_colors_near(std::span<const std::uint8_t> data, std::span<const CellXyz> cells,
+                                             int tolerance) {
+  RangeDecoder dec(data);
+  std::vector<Rgb8> out;
+  NeighbourColor predictor(cells);
+  if (!code_colors(cells.size(), tolerance, decoder_symbol(dec), no_truth, predictor, out) || dec.overrun() > 0) {
     return corrupt_data("colour section: invalid or truncated stream");
   }
   return out;

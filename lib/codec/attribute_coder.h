@@ -4,6 +4,7 @@
 // of the residuals. Internal to the codec.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -12,6 +13,9 @@
 #include "relief/types.h"
 
 namespace relief::codec {
+
+// A point's local cell coordinates (x, y, z) in the error-bounded layer.
+using CellXyz = std::array<std::uint32_t, 3>;
 
 // Colours with every channel within `tolerance` levels (0 = exact): the
 // residual of each channel is quantised with step 2 × tolerance + 1 (JPEG-LS
@@ -28,6 +32,18 @@ class RangeDecoder;
 void encode_colors_into(RangeEncoder& enc, std::span<const Rgb8> colors, int tolerance,
                         std::vector<Rgb8>* reconstructed = nullptr);
 bool decode_colors_from(RangeDecoder& dec, std::size_t count, int tolerance, std::vector<Rgb8>& out);
+
+// Format 9, section codec 10 (format-spec/chunk.md §11.4.1): the same
+// near-lossless coding with each colour predicted from the nearest (in cells)
+// of the previous kColorWindow points, weighted by inverse squared distance,
+// and contexts from those neighbours' residuals. cells[i] is point i's cell;
+// the decoder has them from the geometry section.
+inline constexpr std::size_t kColorWindow = 32;
+inline constexpr std::size_t kColorNeighbours = 4;
+std::vector<std::uint8_t> encode_colors_near(std::span<const Rgb8> colors, std::span<const CellXyz> cells,
+                                             int tolerance, std::vector<Rgb8>* reconstructed = nullptr);
+Result<std::vector<Rgb8>> decode_colors_near(std::span<const std::uint8_t> data, std::span<const CellXyz> cells,
+                                             int tolerance);
 
 // Exact integer values (e.g. 16-bit intensities, or 32-bit float patterns).
 std::vector<std::uint8_t> encode_values(std::span<const std::int64_t> values);

@@ -30,7 +30,8 @@ const SectionEntry* find_section(const ParsedBlob& blob, SectionId id) {
 // `cell_pos` gets, when the order mask sets a bit, the layer position of
 // each point in cell order (else it stays empty), `mask` the mask.
 Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::vector<std::uint32_t>& time_order,
-                                 std::uint8_t& mask, std::vector<std::uint32_t>& cell_pos) {
+                                 std::uint8_t& mask, std::vector<std::uint32_t>& cell_pos,
+                                 std::vector<CellXyz>& layer_cells) {
   const ChunkHeader& h = blob.header;
   const std::size_t n = h.input_points;
   const SectionEntry* gps = find_section(blob, las_section_id(kLasGpsTime));
@@ -73,6 +74,7 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::v
                         dequantise(h.quant_origin.z, h.quant_base[2], c[2], h.quant_step.z)};
   }
   time_order = std::move(identity);
+  layer_cells = std::move(cells).value();
   out.las.gps_time = std::move(timed.gps_time);
   out.las.return_number = std::move(timed.return_number);
   out.las.number_of_returns = std::move(timed.number_of_returns);
@@ -95,8 +97,9 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   OccupiedCells cells;
   std::uint8_t order_mask = 0;
   std::vector<std::uint32_t> cell_pos;  // layer position of each point in cell order
+  std::vector<CellXyz> layer_cells;     // each point's cell, in the layer's order
   if (time_ordered_layer) {
-    RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, out, time_order, order_mask, cell_pos));
+    RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, out, time_order, order_mask, cell_pos, layer_cells));
   } else {
     const OctreeCoding coding = geometry->codec == SectionCodec::kOctreeMixed         ? OctreeCoding::kMixed
                                 : geometry->codec == SectionCodec::kOctreeSingleChild ? OctreeCoding::kSingleChild
@@ -113,6 +116,16 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
                     dequantise(h.quant_origin.z, h.quant_base[2], compact_bits3(key >> 2), h.quant_step.z)};
       for (std::uint32_t j = 0; j < cells.counts[c]; ++j) out.positions[k++] = p;
     }
+    const SectionEntry* colors = find_section(blob, SectionId::kPointColor);
+    const bool near_colors = colors != nullptr && colors->codec == SectionCodec::kNeighbourColor;
+    if (near_colors || (h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0)) {
+      layer_cells.reserve(n);
+      for (std::size_t c = 0; c < cells.keys.size(); ++c) {
+        const std::uint64_t key = cells.keys[c];
+        const CellXyz xyz{compact_bits3(key), compact_bits3(key >> 1), compact_bits3(key >> 2)};
+        for (std::uint32_t j = 0; j < cells.counts[c]; ++j) layer_cells.push_back(xyz);
+      }
+    }
   }
   // Sections the order mask puts in cell order are moved to the layer's.
   const auto in_cells = [&](int slot) { return slot >= 0 && (order_mask & (1u << slot)) != 0; };
@@ -122,7 +135,15 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     v = std::move(moved);
   };
   if (const SectionEntry* s = find_section(blob, SectionId::kPointColor)) {
-    auto colors = decode_colors(s->payload, n, h.color_tolerance);
+    std::vector<CellXyz> cells_by_cell;  // codec 10 in cell order under a time-ordered layer
+    if (s->codec == SectionCodec::kNeighbourColor && in_cells(kOrderSlotColors)) {
+      cells_by_cell.resize(n);
+      for (std::size_t j = 0; j < n; ++j) cells_by_cell[j] = layer_cells[cell_pos[j]];
+    }
+    auto colors = s->codec != SectionCodec::kNeighbourColor
+                      ? decode_colors(s->payload, n, h.color_tolerance)
+                      : decode_colors_near(s->payload, cells_by_cell.empty() ? layer_cells : cells_by_cell,
+                                           h.color_tolerance);
     if (!colors) return colors.status().with_context("chunk blob: point colour section");
     out.colors = std::move(colors).value();
     if (in_cells(kOrderSlotColors)) to_layer(out.colors);
@@ -152,15 +173,9 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   // order, which needs every point's cell, and decodes them first: the
   // attributes that follow acquisition order are then coded in time order.
   out.las.extra_bytes_size = h.extra_bytes_size;
-  std::vector<CellXyz> point_cells;
-  if (!time_ordered_layer && h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0) {
-    point_cells.reserve(n);
-    for (std::size_t c = 0; c < cells.keys.size(); ++c) {
-      const std::uint64_t key = cells.keys[c];
-      const CellXyz xyz{compact_bits3(key), compact_bits3(key >> 1), compact_bits3(key >> 2)};
-      for (std::uint32_t j = 0; j < cells.counts[c]; ++j) point_cells.push_back(xyz);
-    }
-  }
+  // Format 6 on: the octree layer's GPS times use every point's cell.
+  const std::span<const CellXyz> point_cells =
+      time_ordered_layer ? std::span<const CellXyz>{} : std::span<const CellXyz>{layer_cells};
   if (!time_ordered_layer && h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0) {
     for (const SectionEntry& s : blob.sections) {
       if (!is_las_section(s.id) || las_section_bit(s.id) != kLasGpsTime) continue;

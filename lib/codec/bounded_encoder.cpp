@@ -147,7 +147,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = kChunkFormatVersion;  // 8: geometry codec 8 or 9 (time order), LAS fields (possibly none)
+  h.version = kChunkFormatVersion;  // 9: geometry codec 8 or 9 (time order), colour codec 6 or 10, LAS fields
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -320,18 +320,32 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (has_rgb) {
     std::vector<Rgb8> ordered(n);
     for (std::size_t k = 0; k < n; ++k) ordered[k] = cloud.colors[order[k].index];
-    std::vector<std::uint8_t> coded = encode_colors(ordered, h.color_tolerance, &base.colors);
-    if (!cell_pos.empty()) {
+    // Colours in cell order are predicted from their nearest previous points
+    // (codec 10, §11.4.1), colours in time order from the previous point
+    // (codec 6, §11.4), which the scan line makes the nearest.
+    SectionCodec color_codec = SectionCodec::kNeighbourColor;
+    std::vector<std::uint8_t> coded;
+    if (cell_pos.empty()) {
+      coded = encode_colors_near(ordered, cells_in_order(q, lo, order), h.color_tolerance, &base.colors);
+    } else {
+      color_codec = SectionCodec::kArithmetic;
+      coded = encode_colors(ordered, h.color_tolerance, &base.colors);
       // With a colour tolerance the decoded colours depend on the order.
       std::vector<Rgb8> by_cell(n), decoded;
-      for (std::size_t j = 0; j < n; ++j) by_cell[j] = cloud.colors[order[cell_pos[j]].index];
-      coded = keep_smaller(kOrderSlotColors, std::move(coded), encode_colors(by_cell, h.color_tolerance, &decoded));
+      std::vector<CellXyz> cells_by_cell(n);
+      for (std::size_t j = 0; j < n; ++j) {
+        by_cell[j] = ordered[cell_pos[j]];
+        cells_by_cell[j] = cell_of(q, lo, order[cell_pos[j]].index);
+      }
+      coded = keep_smaller(kOrderSlotColors, std::move(coded),
+                           encode_colors_near(by_cell, cells_by_cell, h.color_tolerance, &decoded));
       if (order_mask & (1u << kOrderSlotColors)) {
+        color_codec = SectionCodec::kNeighbourColor;
         for (std::size_t j = 0; j < n; ++j) base.colors[cell_pos[j]] = decoded[j];
       }
     }
     payloads.push_back(std::move(coded));
-    refined.push_back({SectionId::kPointColor, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
+    refined.push_back({SectionId::kPointColor, color_codec, static_cast<std::uint32_t>(n), 0, {}});
   }
   if (has_i) {
     bool integral = true;

@@ -67,6 +67,7 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec, std::ui
                    : version >= 5 ? SectionCodec::kOctreeSingleChild
                                   : SectionCodec::kArithmetic);
     case SectionId::kPointColor:
+      return c == SectionCodec::kArithmetic || (version >= 9 && c == SectionCodec::kNeighbourColor);
     case SectionId::kPointIntensity:
     case SectionId::kClassMap:
       return c == SectionCodec::kArithmetic;

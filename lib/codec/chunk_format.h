@@ -71,6 +71,9 @@ enum class SectionCodec : std::uint8_t {
   // Geometry only (version 8, blobs with GPS times): the points' cells in
   // time order, as predicted differences (format-spec/chunk.md §11.3.3).
   kScanOrder = 9,
+  // Point colours only (version 9): codec 6's colour coding with each colour
+  // predicted from its nearest previous points (format-spec/chunk.md §11.4.1).
+  kNeighbourColor = 10,
 };
 
 // How the error-bounded layer codes intensity (header byte 162).

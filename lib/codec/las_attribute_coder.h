@@ -11,6 +11,7 @@
 #include <span>
 #include <vector>
 
+#include "codec/attribute_coder.h"  // CellXyz
 #include "relief/status.h"
 #include "relief/types.h"
 
@@ -25,8 +26,6 @@ const char* las_attribute_name(std::uint32_t bit);
 // LAS point records are at most 65535 bytes, so are their extra bytes.
 inline constexpr std::uint32_t kMaxExtraBytesSize = 65535;
 
-// A point's local cell coordinates (x, y, z) in the error-bounded layer.
-using CellXyz = std::array<std::uint32_t, 3>;
 // Format 6 GPS time: the largest bucket shift (buckets of 2^21 cells hold a
 // whole chunk, whose local coordinates are < 2^21).
 inline constexpr int kMaxBucketShift = 21;

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <tuple>
 
+#include "codec/chunk_format.h"
 #include "relief/codec.h"
 #include "support/synthetic.h"
 
@@ -336,4 +337,46 @@ TEST_CASE("bounded: truncated and corrupted blobs are rejected without crashing"
     CHECK_FALSE(decode_chunk(bad).is_ok());  // the checksum catches every flip
   }
   CHECK(rejected > 0);
+}
+
+TEST_CASE("bounded: colour codec 10 only for point colours, only from version 9", "[codec][bounded][reject]") {
+  test::SceneOptions o;
+  o.seed = 5;
+  o.points = 3000;
+  o.colors = true;
+  o.intensity = true;
+  const PointCloud in = test::make_terrain(o, 10.0, 1.0);
+  auto blob = encode_chunk(in, bounded_params(0.005, 1.0));
+  REQUIRE(blob.is_ok());
+  auto parsed = codec::parse_blob(*blob, true);
+  REQUIRE(parsed.is_ok());
+  REQUIRE(parsed->header.version == 9);
+  bool found = false;
+  for (const codec::SectionEntry& s : parsed->sections) {
+    if (s.id == codec::SectionId::kPointColor) found = s.codec == codec::SectionCodec::kNeighbourColor;
+  }
+  REQUIRE(found);  // octree layers code their colours in cell order, with codec 10
+  const auto refused = [](const std::vector<std::uint8_t>& b) {
+    auto r = decode_chunk(b);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kCorruptData);
+  };
+  // The same sections in a version-8 header (valid checksum): refused.
+  codec::ChunkHeader v8 = parsed->header;
+  v8.version = 8;
+  refused(codec::write_blob(v8, parsed->sections));
+  // Codec 10 on the intensity section: refused.
+  std::vector<codec::SectionEntry> sections = parsed->sections;
+  for (codec::SectionEntry& s : sections) {
+    if (s.id == codec::SectionId::kPointIntensity) s.codec = codec::SectionCodec::kNeighbourColor;
+  }
+  refused(codec::write_blob(parsed->header, sections));
+  // Codec 6 in place of 10 decodes (both are valid in version 9), to other
+  // colours or to an error, never past the stream's end.
+  sections = parsed->sections;
+  for (codec::SectionEntry& s : sections) {
+    if (s.id == codec::SectionId::kPointColor) s.codec = codec::SectionCodec::kArithmetic;
+  }
+  auto other = decode_chunk(codec::write_blob(parsed->header, sections));
+  if (other.is_ok()) CHECK(other->size() == in.size());
 }

@@ -536,10 +536,11 @@ TEST_CASE("LAS attributes: truncated and lying attribute sections are refused", 
 
 // Not run by default: writes the chunk fuzz target's seeds with LAS attributes,
 //   RELIEF_FUZZ_SEED_DIR=tests/fuzz/corpus/chunk ./test_codec "[.seed]"
-// The encoder writes the current format (7) for the error-bounded layer and
+// The encoder writes the current format (9) for the error-bounded layer and
 // format 4 for resampling with a classification; the format-3 and format-6
-// seeds in the corpus (seed-v3-las-attributes.rlfc, seed-v6-las-*.rlfc) were
-// written by this test before formats 5 and 7 and are kept as they are. Seeds stay under the fuzz target's max_len
+// to format-8 seeds in the corpus (seed-v3-las-attributes.rlfc,
+// seed-v6-las-*.rlfc, ...) were written by this test before later formats and
+// are kept as they are. Seeds stay under the fuzz target's max_len
 // (4096, scripts/fuzz.sh), else libFuzzer cuts them.
 TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
   const char* dir = std::getenv("RELIEF_FUZZ_SEED_DIR");
@@ -552,7 +553,7 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
     std::ofstream(std::string(dir) + "/" + name, std::ios::binary)
         .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
   };
-  // Format 8, a scan: the geometry and GPS times in time order (codec 9),
+  // Format 9, a scan: the geometry and GPS times in time order (codec 9),
   // pulses with their returns, scan flags, angles, user data and point
   // source IDs in acquisition order, plus a classification (and so the
   // classification map) and intensities.
@@ -562,16 +563,17 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
     timed.las.classification.push_back(static_cast<std::uint8_t>(timed.las.return_number[i] == 1 ? 2 : 5));
     timed.intensities.push_back(static_cast<float>(rng.next() % 4096));
   }
-  auto v8 = encode_chunk(timed, params_for(0.005, 1.0));
-  REQUIRE(v8.is_ok());
-  CHECK(inspect_chunk(*v8)->las_attributes ==
+  auto v9 = encode_chunk(timed, params_for(0.005, 1.0));
+  REQUIRE(v9.is_ok());
+  CHECK(inspect_chunk(*v9)->las_attributes ==
         (kLasClassification | kLasReturnNumber | kLasNumberOfReturns | kLasScanFlags | kLasScanAngle | kLasUserData |
          kLasPointSourceId | kLasGpsTime));
-  for (const ChunkSectionInfo& s : inspect_chunk(*v8)->sections) {
+  for (const ChunkSectionInfo& s : inspect_chunk(*v9)->sections) {
     if (s.id == 7) CHECK(s.codec == 9);  // the geometry in time order
   }
-  write("seed-v8-las-scan-time-order.rlfc", *v8, 8);
-  // Format 8 with every attribute (NIR, colour low bytes, extra bytes too).
+  write("seed-v9-las-scan-time-order.rlfc", *v9, 9);
+  // Format 9 with every attribute (NIR, colour low bytes, extra bytes too),
+  // the colours predicted from neighbours (codec 10).
   PointCloud in = scene(12, 120, true);
   test::add_las_attributes(in, 0xFFF, 3, 12, false);
   EncodeParams p = params_for(0.005, 2.0);
@@ -579,7 +581,7 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
   auto all = encode_chunk(in, p);
   REQUIRE(all.is_ok());
   CHECK(inspect_chunk(*all)->las_attributes == 0xFFF);
-  write("seed-v8-las-attributes.rlfc", *all, 8);
+  write("seed-v9-las-attributes.rlfc", *all, 9);
   EncodeParams resample;
   resample.cell_size = 0.5;
   resample.map_resolution = 8;
