@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -28,6 +29,9 @@
 namespace fs = std::filesystem;
 
 namespace {
+
+// A colour sweep whose tolerance is chosen per grid to match G-PCC's colour error.
+constexpr int kMatchedTolerance = -1;
 
 using Clock = std::chrono::steady_clock;
 
@@ -190,7 +194,21 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
     if (full.has_colors()) {
       for (int c : opt.color_tolerances) variants.push_back({"xyz+rgb", c});
     }
-    for (const auto& [attrs, ctol] : variants) {
+    // Peers: G-PCC keeping every point (geometry-only rows for "xyz" where
+    // measured), LAZ and Draco (with colour on coloured files).
+    const std::string gpcc_nocolor = anchors_dir + "/tmc13-archive/nocolor/results-" + stem + ".csv";
+    const std::string gpcc_color = anchors_dir + "/tmc13-archive/results-" + stem + ".csv";
+    const std::vector<CurvePoint> gpcc_rgb =
+        anchors_dir.empty() ? std::vector<CurvePoint>{} : anchor_rows(gpcc_color, "tmc13", true);
+    // G-PCC's colour RMSE at grid g (NaN when not measured).
+    const auto gpcc_rgb_at = [&](int g) {
+      for (const CurvePoint& gp : gpcc_rgb) {
+        if (gp.label.find("g=" + std::to_string(g) + ",") != std::string::npos) return gp.rmse_rgb;
+      }
+      return std::numeric_limits<double>::quiet_NaN();
+    };
+    if (full.has_colors() && !gpcc_rgb.empty()) variants.push_back({"xyz+rgb", kMatchedTolerance});
+    for (const auto& [attrs, sweep_ctol] : variants) {
       relief::PointCloud cloud = full;
       if (attrs == "xyz") cloud.colors.clear();
       const fs::path input = tmp / (stem + "_" + attrs + ".ply");
@@ -200,10 +218,35 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
       std::vector<CurvePoint> curve;
       for (int g : opt.grids) {
         const double tol = extent / std::ldexp(1.0, g) / 2;
+        int ctol = sweep_ctol;
         std::vector<Run> runs;
-        for (int k = 0; k < opt.repeat; ++k) {
-          auto r = run_once(input.string(), cloud, tol, ctol, tmp, opt.threads);
-          if (r) runs.push_back(*r);
+        if (ctol == kMatchedTolerance) {
+          // The largest colour tolerance whose RGB RMSE_SNN is no worse than
+          // G-PCC's at this g (the condition), by bisection on
+          // 0..127 (the error grows with the tolerance); one run per probe.
+          const double target = gpcc_rgb_at(g);
+          if (!std::isfinite(target)) continue;
+          int lo = 0, hi = 128;  // lo meets the target (0 is exact), hi does not
+          std::optional<Run> best;
+          while (hi - lo > 1) {
+            const int mid = (lo + hi) / 2;
+            auto r = run_once(input.string(), cloud, tol, mid, tmp, opt.threads);
+            if (!r) break;
+            if (r->m.rmse_rgb_snn <= target) {
+              lo = mid;
+              best = r;
+            } else {
+              hi = mid;
+            }
+          }
+          ctol = lo;
+          if (!best) best = run_once(input.string(), cloud, tol, ctol, tmp, opt.threads);
+          if (best) runs.push_back(*best);
+        } else {
+          for (int k = 0; k < opt.repeat; ++k) {
+            auto r = run_once(input.string(), cloud, tol, ctol, tmp, opt.threads);
+            if (r) runs.push_back(*r);
+          }
         }
         if (runs.empty()) continue;
         // Median speed over the repeats; the rest is deterministic.
@@ -212,7 +255,8 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
         std::sort(runs.begin(), runs.end(), [](const Run& a, const Run& b) { return a.dec_mpts < b.dec_mpts; });
         r.dec_mpts = runs[runs.size() / 2].dec_mpts;
         r.base_dec_mpts = runs[runs.size() / 2].base_dec_mpts;
-        out.linef("bounded,%s,%s,%.6g,%d,%zu,%zu,%llu,%.4f,%.6g,%.6g,%.6g,%s,%.3f,%.3f,%.3f", stem.c_str(), attrs.c_str(),
+        out.linef("%s,%s,%s,%.6g,%d,%zu,%zu,%llu,%.4f,%.6g,%.6g,%.6g,%s,%.3f,%.3f,%.3f",
+                  sweep_ctol == kMatchedTolerance ? "bounded_matched" : "bounded", stem.c_str(), attrs.c_str(),
                   tol, ctol, cloud.size(), r.points_out, static_cast<unsigned long long>(r.bytes), r.bpp,
                   r.m.rmse_snn, r.m.hausdorff, r.max_axis_error,
                   r.m.has_rgb ? format_number(r.m.rmse_rgb_snn).c_str() : "", r.enc_mpts, r.dec_mpts,
@@ -222,21 +266,20 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
         p.rmse = r.m.rmse_snn;
         p.points_out = r.points_out;
         p.rmse_rgb = r.m.has_rgb ? r.m.rmse_rgb_snn : std::numeric_limits<double>::quiet_NaN();
+        p.color_tolerance = ctol;
         curve.push_back(p);
       }
       if (anchors_dir.empty()) continue;
-      // Peers: G-PCC keeping every point (geometry-only rows for "xyz" where
-      // measured), LAZ and Draco (with colour on coloured files).
-      const std::string gpcc_nocolor = anchors_dir + "/tmc13-archive/nocolor/results-" + stem + ".csv";
-      const std::string gpcc_color = anchors_dir + "/tmc13-archive/results-" + stem + ".csv";
       const bool use_nocolor = attrs == "xyz" && fs::exists(gpcc_nocolor);
       const std::vector<CurvePoint> gpcc = anchor_rows(use_nocolor ? gpcc_nocolor : gpcc_color, "tmc13", true);
       const std::string main_csv = anchors_dir + "/results-" + stem + ".csv";
       const std::vector<CurvePoint> laz = anchor_rows(main_csv, "laz", false);
       const std::vector<CurvePoint> draco = anchor_rows(main_csv, "draco", false);
       char line[512];
-      std::snprintf(line, sizeof line, "# %-22s %-8s ctol %3d: BD-rate vs G-PCC%s %s, vs LAZ %s, vs Draco %s",
-                    stem.c_str(), attrs.c_str(), ctol, use_nocolor ? " (geometry only)" : "",
+      const std::string ctol_text =
+          sweep_ctol == kMatchedTolerance ? "matched" : "ctol " + std::to_string(sweep_ctol);
+      std::snprintf(line, sizeof line, "# %-22s %-8s %-8s: BD-rate vs G-PCC%s %s, vs LAZ %s, vs Draco %s",
+                    stem.c_str(), attrs.c_str(), ctol_text.c_str(), use_nocolor ? " (geometry only)" : "",
                     pct(bd_rate(curve, gpcc)).c_str(), pct(bd_rate(curve, laz)).c_str(), pct(bd_rate(curve, draco)).c_str());
       summary.push_back(line);
       // G-PCC's colour error at the same grids, for the colour-tolerance choice.
@@ -247,6 +290,9 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
             if (gp.label.find("g=" + std::to_string(opt.grids[k]) + ",") == std::string::npos) continue;
             char b[64];
             std::snprintf(b, sizeof b, " %d: %.2f/%.2f", opt.grids[k], curve[k].rmse_rgb, gp.rmse_rgb);
+            if (sweep_ctol == kMatchedTolerance) {
+              std::snprintf(b + std::strlen(b), sizeof b - std::strlen(b), " (ctol %d)", curve[k].color_tolerance);
+            }
             rgb += b;
           }
         }

@@ -18,6 +18,7 @@ struct CurvePoint {
   double rmse = 0;
   std::size_t points_out = 0;
   double rmse_rgb = std::numeric_limits<double>::quiet_NaN();
+  int color_tolerance = 0;  // Relief's rows only
   std::string label;
 };
 

@@ -69,14 +69,16 @@ class PreviousColor {
 // §11.4.1: the nearest (in cells) of the previous kColorWindow points.
 class NeighbourColor {
  public:
-  explicit NeighbourColor(std::span<const CellXyz> cells) : cells_(cells), activity_(cells.size(), 0) {}
+  NeighbourColor(std::span<const CellXyz> cells, int tolerance)
+      : cells_(cells), activity_(cells.size(), 0), neighbours_(color_neighbours(tolerance)) {}
 
   ColorPrediction predict(std::size_t i, const std::vector<Rgb8>& rec) const {
     if (i == 0) return {};
-    // The kColorNeighbours smallest squared distances, nearest first; of
-    // equal ones the more recent point (visited first) stays ahead.
-    std::uint64_t d2[kColorNeighbours];
-    std::size_t idx[kColorNeighbours];
+    // The neighbours_ smallest squared distances, nearest first; of equal
+    // ones the more recent point (visited first) stays ahead.
+    std::uint64_t d2[kMaxColorNeighbours];
+    std::size_t idx[kMaxColorNeighbours];
+    const std::size_t want = neighbours_;
     std::size_t found = 0;
     const CellXyz& c = cells_[i];
     const std::size_t window = std::min(i, kColorWindow);
@@ -88,8 +90,8 @@ class NeighbourColor {
         const std::int64_t diff = static_cast<std::int64_t>(c[a]) - static_cast<std::int64_t>(o[a]);
         d += static_cast<std::uint64_t>(diff * diff);
       }
-      if (found == kColorNeighbours && d >= d2[kColorNeighbours - 1]) continue;
-      std::size_t pos = found < kColorNeighbours ? found++ : kColorNeighbours - 1;
+      if (found == want && d >= d2[want - 1]) continue;
+      std::size_t pos = found < want ? found++ : want - 1;
       while (pos > 0 && d < d2[pos - 1]) {
         d2[pos] = d2[pos - 1];
         idx[pos] = idx[pos - 1];
@@ -126,6 +128,7 @@ class NeighbourColor {
 
   std::span<const CellXyz> cells_;
   std::vector<std::uint8_t> activity_;  // min(255, |qr| + |qg| + |qb|) of each coded point
+  std::size_t neighbours_;
 };
 
 // Codes n colours; `sym(model, q)` encodes q (encoder) or returns the decoded
@@ -218,7 +221,7 @@ std::vector<std::uint8_t> encode_colors_near(std::span<const Rgb8> colors, std::
                                              int tolerance, std::vector<Rgb8>* reconstructed) {
   RangeEncoder enc;
   std::vector<Rgb8> rec;
-  NeighbourColor predictor(cells);
+  NeighbourColor predictor(cells, tolerance);
   code_colors(colors.size(), tolerance, encoder_symbol(enc), [&](std::size_t i) { return colors[i]; }, predictor, rec);
   if (reconstructed != nullptr) *reconstructed = std::move(rec);
   return enc.finish();
@@ -228,7 +231,7 @@ Result<std::vector<Rgb8>> decode_colors_near(std::span<const std::uint8_t> data,
                                              int tolerance) {
   RangeDecoder dec(data);
   std::vector<Rgb8> out;
-  NeighbourColor predictor(cells);
+  NeighbourColor predictor(cells, tolerance);
   if (!code_colors(cells.size(), tolerance, decoder_symbol(dec), no_truth, predictor, out) || dec.overrun() > 0) {
     return corrupt_data("colour section: invalid or truncated stream");
   }

@@ -60,7 +60,8 @@ Scene surface_scene(std::size_t n, std::uint32_t seed, int noise) {
 }
 
 // §11.4.1 restated: every candidate's distance, a stable sort by (distance,
-// visit order), the first four; then the three channels as §11.4 states them.
+// visit order), the first four (eight with a tolerance); then the three
+// channels as §11.4 states them.
 std::vector<Rgb8> spec_decode(const std::vector<std::uint8_t>& data, const std::vector<CellXyz>& cells, int t) {
   const auto cls = [](std::int64_t q) {
     const std::int64_t m = std::abs(q);
@@ -88,7 +89,7 @@ std::vector<Rgb8> spec_decode(const std::vector<std::uint8_t>& data, const std::
         cand.push_back({d, j});
       }
       std::stable_sort(cand.begin(), cand.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-      cand.resize(std::min<std::size_t>(cand.size(), 4));
+      cand.resize(std::min<std::size_t>(cand.size(), t > 0 ? 8 : 4));
       std::uint64_t w_sum = 0, sum[3] = {0, 0, 0}, act = 0;
       for (const auto& [d, j] : cand) {
         const std::uint64_t w = d == 0 ? (1u << 26) : std::max<std::uint64_t>(1, (1u << 24) / d);
