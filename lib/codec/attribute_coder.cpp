@@ -3,6 +3,7 @@
 #include "codec/attribute_coder.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -66,69 +67,87 @@ class PreviousColor {
   int cls_g_ = 0, cls_r_ = 0, cls_b_ = 0;
 };
 
-// §11.4.1: the nearest (in cells) of the previous kColorWindow points.
+// §11.4.1: the previous kColorWindow points, each weighted by its inverse
+// squared cell distance (with a colour tolerance) or its square (exact
+// colours, where the nearest should dominate).
 class NeighbourColor {
  public:
   NeighbourColor(std::span<const CellXyz> cells, int tolerance)
-      : cells_(cells), activity_(cells.size(), 0), neighbours_(color_neighbours(tolerance)) {}
+      : activity_(cells.size(), 0), exact_(tolerance == 0) {
+    // One array per axis and per channel: the window's sums then vectorise.
+    for (auto& axis : axes_) axis.resize(cells.size());
+    for (auto& channel : channels_) channel.resize(cells.size());
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      for (int a = 0; a < 3; ++a) axes_[a][i] = cells[i][a];
+    }
+  }
 
   ColorPrediction predict(std::size_t i, const std::vector<Rgb8>& rec) const {
     if (i == 0) return {};
-    // The neighbours_ smallest squared distances, nearest first; of equal
-    // ones the more recent point (visited first) stays ahead.
-    std::uint64_t d2[kMaxColorNeighbours];
-    std::size_t idx[kMaxColorNeighbours];
-    const std::size_t want = neighbours_;
-    std::size_t found = 0;
-    const CellXyz& c = cells_[i];
     const std::size_t window = std::min(i, kColorWindow);
-    for (std::size_t back = 1; back <= window; ++back) {
-      const std::size_t j = i - back;
-      const CellXyz& o = cells_[j];
-      std::uint64_t d = 0;
-      for (int a = 0; a < 3; ++a) {
-        const std::int64_t diff = static_cast<std::int64_t>(c[a]) - static_cast<std::int64_t>(o[a]);
-        d += static_cast<std::uint64_t>(diff * diff);
-      }
-      if (found == want && d >= d2[want - 1]) continue;
-      std::size_t pos = found < want ? found++ : want - 1;
-      while (pos > 0 && d < d2[pos - 1]) {
-        d2[pos] = d2[pos - 1];
-        idx[pos] = idx[pos - 1];
-        --pos;
-      }
-      d2[pos] = d;
-      idx[pos] = j;
+    const std::size_t first = i - window;
+    // Cell coordinates are below 2^21, so each |difference| fits 32 bits
+    // and the squared distance 64; clamped, it indexes the weight table.
+    const std::uint32_t cx = axes_[0][i], cy = axes_[1][i], cz = axes_[2][i];
+    std::uint32_t w[kColorWindow];
+    const WeightTable& table = exact_ ? weights<2>() : weights<1>();
+    for (std::size_t u = 0; u < window; ++u) {
+      const auto dx = static_cast<std::int32_t>(axes_[0][first + u] - cx);
+      const auto dy = static_cast<std::int32_t>(axes_[1][first + u] - cy);
+      const auto dz = static_cast<std::int32_t>(axes_[2][first + u] - cz);
+      const auto ax = static_cast<std::uint32_t>((dx ^ (dx >> 31)) - (dx >> 31));
+      const auto ay = static_cast<std::uint32_t>((dy ^ (dy >> 31)) - (dy >> 31));
+      const auto az = static_cast<std::uint32_t>((dz ^ (dz >> 31)) - (dz >> 31));
+      const std::uint64_t d = std::uint64_t{ax} * ax + std::uint64_t{ay} * ay + std::uint64_t{az} * az;
+      w[u] = table[static_cast<std::size_t>(std::min<std::uint64_t>(d, kFarDistance))];
     }
+    // Weights below 2^31 and values below 2^8: 32 products sum below 2^44.
     std::uint64_t w_sum = 0, r = 0, g = 0, b = 0, act = 0;
-    for (std::size_t k = 0; k < found; ++k) {
-      const std::uint64_t w = neighbour_weight(d2[k]);
-      const Rgb8& n = rec[idx[k]];
-      w_sum += w;
-      r += w * n.r;
-      g += w * n.g;
-      b += w * n.b;
-      act += w * activity_[idx[k]];
+    for (std::size_t u = 0; u < window; ++u) {
+      const std::uint64_t wu = w[u];
+      w_sum += wu;
+      r += wu * channels_[0][first + u];
+      g += wu * channels_[1][first + u];
+      b += wu * channels_[2][first + u];
+      act += wu * activity_[first + u];
     }
+    (void)rec;
     const std::uint64_t half = w_sum / 2;
     const int ctx = static_cast<int>(std::min<std::uint64_t>(kClasses - 1, 2 * act / (3 * w_sum)));
     return {static_cast<int>((r + half) / w_sum), static_cast<int>((g + half) / w_sum),
             static_cast<int>((b + half) / w_sum), ctx, ctx, ctx};
   }
-  void update(std::size_t i, const Rgb8&, int qr, int qg, int qb) {
+  void update(std::size_t i, const Rgb8& rec, int qr, int qg, int qb) {
+    channels_[0][i] = rec.r;
+    channels_[1][i] = rec.g;
+    channels_[2][i] = rec.b;
     activity_[i] = static_cast<std::uint8_t>(std::min(255, std::abs(qr) + std::abs(qg) + std::abs(qb)));
   }
 
  private:
-  // 2^26 for the same cell, else max(1, floor(2^24 / d2)).
-  static std::uint64_t neighbour_weight(std::uint64_t d2) {
-    if (d2 == 0) return std::uint64_t{1} << 26;
-    return std::max<std::uint64_t>(1, (std::uint64_t{1} << 24) / d2);
+  // Squared distances clamp at kFarDistance (64 cells).
+  static constexpr std::uint32_t kFarDistance = 4096;
+  using WeightTable = std::array<std::uint32_t, kFarDistance + 1>;
+  // w(d) = floor(2^30 / q^E) with q = max(4 d, 1): 2^30 for the same cell,
+  // at least 4 at the clamp; E = 1 with a colour tolerance, 2 for exact
+  // colours.
+  template <int E>
+  static const WeightTable& weights() {
+    static const WeightTable table = [] {
+      WeightTable t{};
+      for (std::uint32_t d = 0; d <= kFarDistance; ++d) {
+        const std::uint64_t q = std::max<std::uint64_t>(4 * std::uint64_t{d}, 1);
+        t[d] = static_cast<std::uint32_t>((std::uint64_t{1} << 30) / (E == 1 ? q : q * q));
+      }
+      return t;
+    }();
+    return table;
   }
 
-  std::span<const CellXyz> cells_;
+  std::vector<std::uint32_t> axes_[3];      // the cells' x, y and z
+  std::vector<std::uint8_t> channels_[3];   // the decoded colours' r, g and b
   std::vector<std::uint8_t> activity_;  // min(255, |qr| + |qg| + |qb|) of each coded point
-  std::size_t neighbours_;
+  bool exact_;
 };
 
 // Codes n colours; `sym(model, q)` encodes q (encoder) or returns the decoded

@@ -34,15 +34,12 @@ void encode_colors_into(RangeEncoder& enc, std::span<const Rgb8> colors, int tol
 bool decode_colors_from(RangeDecoder& dec, std::size_t count, int tolerance, std::vector<Rgb8>& out);
 
 // Format 9, section codec 10 (format-spec/chunk.md §11.4.1): the same
-// near-lossless coding with each colour predicted from the nearest (in cells)
-// of the previous kColorWindow points, weighted by inverse squared distance,
-// and contexts from those neighbours' residuals: 4 of them for exact colours,
-// 8 with a colour tolerance (a smoother prediction, whose neighbours carry
-// quantisation errors). cells[i] is point i's cell; the decoder has them
-// from the geometry section.
+// near-lossless coding with each colour predicted from the previous
+// kColorWindow points, weighted by inverse squared cell distance (its square
+// for exact colours, where the nearest point should dominate), and contexts
+// from those points' residuals. cells[i] is point i's cell; the decoder has
+// them from the geometry section.
 inline constexpr std::size_t kColorWindow = 32;
-inline constexpr std::size_t kMaxColorNeighbours = 8;
-inline constexpr std::size_t color_neighbours(int tolerance) { return tolerance > 0 ? 8 : 4; }
 std::vector<std::uint8_t> encode_colors_near(std::span<const Rgb8> colors, std::span<const CellXyz> cells,
                                              int tolerance, std::vector<Rgb8>* reconstructed = nullptr);
 Result<std::vector<Rgb8>> decode_colors_near(std::span<const std::uint8_t> data, std::span<const CellXyz> cells,

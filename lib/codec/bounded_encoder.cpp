@@ -138,6 +138,33 @@ ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::
 
 }  // namespace
 
+// Whether the octree could beat the time order (format 8 on, §11.3.3): for
+// a large blob, a trial codes the octree of the first eighth of the points
+// in time order (a few scan lines) within that share of the time-ordered
+// geometry and GPS sections. The trial leaves out the ranked GPS times the
+// octree would also need, so it errs towards trying; it saves coding most of
+// a losing octree (a quarter of the encoder's time on airborne scans).
+// Small blobs always try.
+constexpr std::size_t kOctreeTrialPoints = std::size_t{1} << 16;
+bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes) {
+  const std::size_t n = time_order.size();
+  if (n < kOctreeTrialPoints) return true;
+  const std::size_t m = n / 8;
+  std::vector<std::uint64_t> keys(m);
+  for (std::size_t k = 0; k < m; ++k) keys[k] = time_order[k].key;
+  std::sort(keys.begin(), keys.end());
+  OccupiedCells trial;
+  for (std::size_t i = 0; i < m;) {
+    std::size_t j = i + 1;
+    while (j < m && keys[j] == keys[i]) ++j;
+    trial.keys.push_back(keys[i]);
+    trial.counts.push_back(static_cast<std::uint32_t>(j - i));
+    i = j;
+  }
+  const std::uint64_t share = std::uint64_t{scan_bytes} * m / n;  // both below 2^32: no overflow
+  return encode_geometry_within(trial, depth, OctreeCoding::kMixed, share).has_value();
+}
+
 Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
                                                  EncodeStats* stats) {
   const ErrorBound& bound = *params.bound;
@@ -252,18 +279,20 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     if (!std::all_of(cell_las.gps_time.begin(), cell_las.gps_time.end(),
                      [&](double t) { return std::bit_cast<std::uint64_t>(t) == first; })) {
       ScanCoding scan = encode_in_time_order(cloud, q, lo, depth, attr_less);
-      std::vector<CellXyz> point_cells = cells_in_order(q, lo, order);
-      time_order = las_time_order(cell_las.gps_time);
-      const std::vector<std::uint8_t> gps_ranked =
-          encode_las_attribute(kLasGpsTime, cell_las, n, h.version, point_cells, time_order);
       // (+ 1: the order mask, §11.3.3)
       const std::size_t scan_bytes = scan.geometry.size() + 1 + scan.gps.size();
       std::optional<std::vector<std::uint8_t>> octree;
-      if (gps_ranked.size() <= scan_bytes) {
-        octree = encode_geometry_within(cells, depth, OctreeCoding::kMixed, scan_bytes - gps_ranked.size());
+      std::vector<std::uint8_t> gps_ranked;
+      if (octree_may_win(scan.order, depth, scan_bytes)) {
+        time_order = las_time_order(cell_las.gps_time);
+        gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, h.version, cells_in_order(q, lo, order), time_order);
+        if (gps_ranked.size() <= scan_bytes) {
+          octree = encode_geometry_within(cells, depth, OctreeCoding::kMixed, scan_bytes - gps_ranked.size());
+        }
       }
       if (octree) {
         geometry = std::move(*octree);
+        gps_payload = std::move(gps_ranked);
       } else {
         geometry = std::move(scan.geometry);
         geometry_codec = SectionCodec::kScanOrder;
@@ -271,7 +300,6 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         time_order = std::move(scan.time_order);
         gps_payload = std::move(scan.gps);
       }
-      if (geometry_codec == SectionCodec::kOctreeMixed) gps_payload = gps_ranked;
     }
   }
   if (geometry_codec == SectionCodec::kOctreeMixed && geometry.empty()) {

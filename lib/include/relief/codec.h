@@ -43,8 +43,8 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // Version 8: version 7 where a blob with GPS times may code its geometry in
 // time order instead (codec 9: each point's cell predicted from the previous
 // points of the scan, the times then without ranks). Version 9: version 8
-// where point colours in cell order are predicted from the nearest of the
-// previous 32 points (codec 10); the bounded encoder writes it for every cloud.
+// where point colours in cell order are predicted from the previous 32
+// points, weighted by distance (codec 10); the bounded encoder writes it for every cloud.
 inline constexpr std::uint16_t kChunkFormatVersion = 9;
 
 // The error-bounded mode: every input point comes back as exactly one point,
