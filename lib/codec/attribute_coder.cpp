@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -89,8 +90,12 @@ class NeighbourColor {
     // Cell coordinates are below 2^21, so each |difference| fits 32 bits
     // and the squared distance 64; clamped, it indexes the weight table.
     const std::uint32_t cx = axes_[0][i], cy = axes_[1][i], cz = axes_[2][i];
-    std::uint32_t w[kColorWindow];
-    const WeightTable& table = exact_ ? weights<2>() : weights<1>();
+    // Squared distances, then each relative to the nearest: q = max(4 d, 1)
+    // shifted right by s, where s brings the nearest's q below 32, so the
+    // weights do not depend on the grid's scale (a LAS grid of 1 cm puts
+    // neighbours hundreds of cells apart, a coarse one in the same cell).
+    std::uint64_t q[kColorWindow];
+    std::uint64_t q_min = ~std::uint64_t{0};
     for (std::size_t u = 0; u < window; ++u) {
       const auto dx = static_cast<std::int32_t>(axes_[0][first + u] - cx);
       const auto dy = static_cast<std::int32_t>(axes_[1][first + u] - cy);
@@ -99,7 +104,14 @@ class NeighbourColor {
       const auto ay = static_cast<std::uint32_t>((dy ^ (dy >> 31)) - (dy >> 31));
       const auto az = static_cast<std::uint32_t>((dz ^ (dz >> 31)) - (dz >> 31));
       const std::uint64_t d = std::uint64_t{ax} * ax + std::uint64_t{ay} * ay + std::uint64_t{az} * az;
-      w[u] = table[static_cast<std::size_t>(std::min<std::uint64_t>(d, kFarDistance))];
+      q[u] = std::max<std::uint64_t>(4 * d, 1);  // d < 3 * 2^42
+      q_min = std::min(q_min, q[u]);
+    }
+    const int shift = std::max(0, static_cast<int>(std::bit_width(q_min)) - 5);
+    const WeightTable& table = exact_ ? weights<2>() : weights<1>();
+    std::uint32_t w[kColorWindow];
+    for (std::size_t u = 0; u < window; ++u) {
+      w[u] = table[static_cast<std::size_t>(std::min<std::uint64_t>(q[u] >> shift, kFarRatio))];
     }
     // Weights below 2^31 and values below 2^8: 32 products sum below 2^44.
     std::uint64_t w_sum = 0, r = 0, g = 0, b = 0, act = 0;
@@ -125,19 +137,18 @@ class NeighbourColor {
   }
 
  private:
-  // Squared distances clamp at kFarDistance (64 cells).
-  static constexpr std::uint32_t kFarDistance = 4096;
-  using WeightTable = std::array<std::uint32_t, kFarDistance + 1>;
-  // w(d) = floor(2^30 / q^E) with q = max(4 d, 1): 2^30 for the same cell,
-  // at least 4 at the clamp; E = 1 with a colour tolerance, 2 for exact
-  // colours.
+  // Relative distances clamp at kFarRatio.
+  static constexpr std::uint32_t kFarRatio = 4095;
+  using WeightTable = std::array<std::uint32_t, kFarRatio + 1>;
+  // w(r) = floor(2^30 / max(r, 1)^E): E = 1 with a colour tolerance, 2 for
+  // exact colours.
   template <int E>
   static const WeightTable& weights() {
     static const WeightTable table = [] {
       WeightTable t{};
-      for (std::uint32_t d = 0; d <= kFarDistance; ++d) {
-        const std::uint64_t q = std::max<std::uint64_t>(4 * std::uint64_t{d}, 1);
-        t[d] = static_cast<std::uint32_t>((std::uint64_t{1} << 30) / (E == 1 ? q : q * q));
+      for (std::uint32_t r = 0; r <= kFarRatio; ++r) {
+        const std::uint64_t v = std::max<std::uint32_t>(r, 1);
+        t[r] = static_cast<std::uint32_t>((std::uint64_t{1} << 30) / (E == 1 ? v : v * v));
       }
       return t;
     }();

@@ -59,9 +59,9 @@ Scene surface_scene(std::size_t n, std::uint32_t seed, int noise) {
   return sorted;
 }
 
-// §11.4.1 restated: every point of the window weighted from its distance,
-// with divisions instead of a table; then the three channels as §11.4
-// states them.
+// §11.4.1 restated: every point of the window weighted from its distance
+// relative to the nearest, with divisions instead of a table; then the three
+// channels as §11.4 states them.
 std::vector<Rgb8> spec_decode(const std::vector<std::uint8_t>& data, const std::vector<CellXyz>& cells, int t) {
   const auto cls = [](std::int64_t q) {
     const std::int64_t m = std::abs(q);
@@ -79,15 +79,24 @@ std::vector<Rgb8> spec_decode(const std::vector<std::uint8_t>& data, const std::
     std::uint64_t p[3] = {0, 0, 0};
     int k = 0;
     if (i > 0) {
-      std::uint64_t w_sum = 0, sum[3] = {0, 0, 0}, act = 0;
+      std::vector<std::uint64_t> q;
       for (std::size_t j = i > 32 ? i - 32 : 0; j < i; ++j) {
         std::uint64_t d = 0;
         for (int a = 0; a < 3; ++a) {
           const std::int64_t e = std::int64_t{cells[i][a]} - std::int64_t{cells[j][a]};
           d += static_cast<std::uint64_t>(e * e);
         }
-        const std::uint64_t q = std::max<std::uint64_t>(4 * std::min<std::uint64_t>(d, 4096), 1);
-        const std::uint64_t w = (std::uint64_t{1} << 30) / (t > 0 ? q : q * q);
+        q.push_back(std::max<std::uint64_t>(4 * d, 1));
+      }
+      const std::uint64_t m = *std::min_element(q.begin(), q.end());
+      int bits = 0;
+      while (bits < 64 && (m >> bits) != 0) ++bits;
+      const int s_shift = std::max(0, bits - 5);
+      std::uint64_t w_sum = 0, sum[3] = {0, 0, 0}, act = 0;
+      for (std::size_t n = 0; n < q.size(); ++n) {
+        const std::size_t j = i - q.size() + n;
+        const std::uint64_t r = std::max<std::uint64_t>(std::min<std::uint64_t>(q[n] >> s_shift, 4095), 1);
+        const std::uint64_t w = (std::uint64_t{1} << 30) / (t > 0 ? r : r * r);
         w_sum += w;
         sum[0] += w * out[j].r;
         sum[1] += w * out[j].g;
