@@ -327,3 +327,27 @@ TEST_CASE("format 8: a time-ordered geometry needs GPS times and version 8", "[c
   REQUIRE_FALSE(old.is_ok());
   CHECK(old.status().code() == StatusCode::kCorruptData);
 }
+
+TEST_CASE("format 8: in a blob of 2^16 points or more the octree is tried only when a trial on the first eighth "
+          "could win", "[codec][scan][las]") {
+  // Above the trial's threshold (bounded_encoder.cpp, kOctreeTrialPoints):
+  // the scan keeps the time order, and the same points with their times
+  // shuffled (times that do not follow the geometry) still get the octree,
+  // which the trial must not skip.
+  const PointCloud in = scan_scene(26, 70000, kLasGpsTime | kLasReturnNumber | kLasNumberOfReturns);
+  const EncodeParams p = las_scale(0.01, 8.0);
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  CHECK(geometry_codec(*blob) == 9);
+  PointCloud shuffled = in;
+  test::Rng rng(4);
+  for (std::size_t i = shuffled.size() - 1; i > 0; --i) {
+    std::swap(shuffled.las.gps_time[i], shuffled.las.gps_time[rng.next() % (i + 1)]);
+  }
+  auto octree = encode_chunk(shuffled, p);
+  REQUIRE(octree.is_ok());
+  CHECK(geometry_codec(*octree) == 8);
+  auto back = decode_chunk(*octree);
+  REQUIRE(back.is_ok());
+  CHECK(records(*back) == snapped_records(shuffled, 0.01));
+}
