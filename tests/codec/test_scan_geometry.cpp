@@ -91,6 +91,22 @@ PointCloud scan_scene(std::uint64_t seed, std::size_t points, std::uint32_t bits
   return test::make_scan_with_las(o, 60.0, bits, 2);
 }
 
+// The points of `in` with their GPS times shuffled among them (times that no
+// longer follow the geometry) code as an octree, and every point comes back.
+void check_octree_with_shuffled_times(const PointCloud& in, const EncodeParams& p, std::uint64_t seed) {
+  PointCloud shuffled = in;
+  test::Rng rng(seed);
+  for (std::size_t i = shuffled.size() - 1; i > 0; --i) {
+    std::swap(shuffled.las.gps_time[i], shuffled.las.gps_time[rng.next() % (i + 1)]);
+  }
+  auto octree = encode_chunk(shuffled, p);
+  REQUIRE(octree.is_ok());
+  CHECK(geometry_codec(*octree) == 8);
+  auto back = decode_chunk(*octree);
+  REQUIRE(back.is_ok());
+  CHECK(records(*back) == snapped_records(shuffled, 0.01));
+}
+
 }  // namespace
 
 TEST_CASE("scan-order geometry: every cell comes back, with and without contexts", "[codec][scan]") {
@@ -193,17 +209,7 @@ TEST_CASE("format 8: a scan with GPS times codes its geometry in time order, eve
     CHECK(records(*out) == snapped_records(in, 0.01));
     // Smaller than the octree would be: the same points with their times
     // shuffled among them code as an octree.
-    PointCloud shuffled = in;
-    test::Rng rng(3);
-    for (std::size_t i = shuffled.size() - 1; i > 0; --i) {
-      std::swap(shuffled.las.gps_time[i], shuffled.las.gps_time[rng.next() % (i + 1)]);
-    }
-    auto octree = encode_chunk(shuffled, p);
-    REQUIRE(octree.is_ok());
-    CHECK(geometry_codec(*octree) == 8);
-    auto back = decode_chunk(*octree);
-    REQUIRE(back.is_ok());
-    CHECK(records(*back) == snapped_records(shuffled, 0.01));
+    check_octree_with_shuffled_times(in, p, 3);
   }
 }
 
@@ -339,15 +345,5 @@ TEST_CASE("format 8: in a blob of 2^16 points or more the octree is tried only w
   auto blob = encode_chunk(in, p);
   REQUIRE(blob.is_ok());
   CHECK(geometry_codec(*blob) == 9);
-  PointCloud shuffled = in;
-  test::Rng rng(4);
-  for (std::size_t i = shuffled.size() - 1; i > 0; --i) {
-    std::swap(shuffled.las.gps_time[i], shuffled.las.gps_time[rng.next() % (i + 1)]);
-  }
-  auto octree = encode_chunk(shuffled, p);
-  REQUIRE(octree.is_ok());
-  CHECK(geometry_codec(*octree) == 8);
-  auto back = decode_chunk(*octree);
-  REQUIRE(back.is_ok());
-  CHECK(records(*back) == snapped_records(shuffled, 0.01));
+  check_octree_with_shuffled_times(in, p, 4);
 }
