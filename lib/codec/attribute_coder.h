@@ -35,9 +35,9 @@ bool decode_colors_from(RangeDecoder& dec, std::size_t count, int tolerance, std
 
 // Format 9, section codec 10 (format-spec/chunk.md §11.4.1): the same
 // near-lossless coding with each colour predicted from the previous
-// kColorWindow points, weighted by inverse squared cell distance (its square
-// for exact colours, where the nearest point should dominate), and contexts
-// from those points' residuals. cells[i] is point i's cell; the decoder has
+// kColorWindow points, weighted by inverse squared cell distance relative to
+// the nearest one's (its square for exact colours, where the nearest point
+// should dominate), and contexts from those points' residuals. cells[i] is point i's cell; the decoder has
 // them from the geometry section.
 inline constexpr std::size_t kColorWindow = 32;
 std::vector<std::uint8_t> encode_colors_near(std::span<const Rgb8> colors, std::span<const CellXyz> cells,
