@@ -37,8 +37,8 @@ bool decode_colors_from(RangeDecoder& dec, std::size_t count, int tolerance, std
 // near-lossless coding with each colour predicted from the previous
 // kColorWindow points, weighted by inverse squared cell distance relative to
 // the nearest one's (its square for exact colours, where the nearest point
-// should dominate), and contexts from those points' residuals. cells[i] is point i's cell; the decoder has
-// them from the geometry section.
+// should dominate), and contexts from those points' residuals. cells[i] is
+// point i's cell; the decoder has them from the geometry section.
 inline constexpr std::size_t kColorWindow = 32;
 std::vector<std::uint8_t> encode_colors_near(std::span<const Rgb8> colors, std::span<const CellXyz> cells,
                                              int tolerance, std::vector<Rgb8>* reconstructed = nullptr);
