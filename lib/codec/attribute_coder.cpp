@@ -51,9 +51,7 @@ struct ColorPrediction {
 // previous point's symbols.
 class PreviousColor {
  public:
-  ColorPrediction predict(std::size_t, const std::vector<Rgb8>&) const {
-    return {prev_.r, prev_.g, prev_.b, cls_g_, cls_r_, cls_b_};
-  }
+  ColorPrediction predict(std::size_t) const { return {prev_.r, prev_.g, prev_.b, cls_g_, cls_r_, cls_b_}; }
   void update(std::size_t, const Rgb8& rec, int qr, int qg, int qb) {
     prev_ = {rec.r, rec.g, rec.b};
     cls_g_ = magnitude_class(qg);
@@ -69,8 +67,9 @@ class PreviousColor {
 };
 
 // §11.4.1: the previous kColorWindow points, each weighted by its inverse
-// squared cell distance (with a colour tolerance) or its square (exact
-// colours, where the nearest should dominate).
+// squared cell distance relative to the nearest one's (with a colour
+// tolerance) or its square (exact colours, where the nearest should
+// dominate). It keeps the decoded colours by channel, for the sums.
 class NeighbourColor {
  public:
   NeighbourColor(std::span<const CellXyz> cells, int tolerance)
@@ -83,17 +82,17 @@ class NeighbourColor {
     }
   }
 
-  ColorPrediction predict(std::size_t i, const std::vector<Rgb8>& rec) const {
+  ColorPrediction predict(std::size_t i) const {
     if (i == 0) return {};
     const std::size_t window = std::min(i, kColorWindow);
     const std::size_t first = i - window;
-    // Cell coordinates are below 2^21, so each |difference| fits 32 bits
-    // and the squared distance 64; clamped, it indexes the weight table.
+    // Squared distances (cell coordinates are below 2^21, so each
+    // |difference| fits 32 bits and the square 64), then each relative to
+    // the nearest: q = max(4 d, 1) shifted right by s, where s brings the
+    // nearest's q below 32, so the weights do not depend on the grid's
+    // scale (a LAS grid of 1 cm puts neighbours hundreds of cells apart, a
+    // coarse one in the same cell).
     const std::uint32_t cx = axes_[0][i], cy = axes_[1][i], cz = axes_[2][i];
-    // Squared distances, then each relative to the nearest: q = max(4 d, 1)
-    // shifted right by s, where s brings the nearest's q below 32, so the
-    // weights do not depend on the grid's scale (a LAS grid of 1 cm puts
-    // neighbours hundreds of cells apart, a coarse one in the same cell).
     std::uint64_t q[kColorWindow];
     std::uint64_t q_min = ~std::uint64_t{0};
     for (std::size_t u = 0; u < window; ++u) {
@@ -123,7 +122,6 @@ class NeighbourColor {
       b += wu * channels_[2][first + u];
       act += wu * activity_[first + u];
     }
-    (void)rec;
     const std::uint64_t half = w_sum / 2;
     const int ctx = static_cast<int>(std::min<std::uint64_t>(kClasses - 1, 2 * act / (3 * w_sum)));
     return {static_cast<int>((r + half) / w_sum), static_cast<int>((g + half) / w_sum),
@@ -171,7 +169,7 @@ bool code_colors(std::size_t n, int t, Sym&& sym, Truth&& truth, Predictor& pred
   out.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const Rgb8 c = truth(i);
-    const ColorPrediction p = predictor.predict(i, out);
+    const ColorPrediction p = predictor.predict(i);
     int qg = quantise(static_cast<int>(c.g) - p.g, t);
     if (!sym(models->green[p.ctx_g], qg)) return false;
     const int g = clamp255(p.g + qg * step);
