@@ -348,9 +348,10 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (has_rgb) {
     std::vector<Rgb8> ordered(n);
     for (std::size_t k = 0; k < n; ++k) ordered[k] = cloud.colors[order[k].index];
-    // Colours in cell order are predicted from their nearest previous points
-    // (codec 10, §11.4.1), colours in time order from the previous point
-    // (codec 6, §11.4), which the scan line makes the nearest.
+    // Colours in cell order are predicted from the previous points, the
+    // nearest weighing most (codec 10, §11.4.1), colours in time order from
+    // the previous point (codec 6, §11.4), which the scan line makes the
+    // nearest.
     SectionCodec color_codec = SectionCodec::kNeighbourColor;
     std::vector<std::uint8_t> coded;
     if (cell_pos.empty()) {
