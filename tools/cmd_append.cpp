@@ -14,7 +14,9 @@ int run_append(int argc, char** argv) {
       "Adds point files to an existing archive with the archive's grid and codec parameters.\n"
       "If it fails, the archive is left as it was.\n"
       "  --assume-crs           inputs whose CRS differs from the archive's (or each other's):\n"
-      "                         keep the archive's (with a warning) instead of refusing (exit 11)\n\n") +
+      "                         keep the archive's (with a warning) instead of refusing (exit 11)\n"
+      "  --no-extra-bytes       drop the inputs' extra bytes (LAS/LAZ extra bytes, PLY properties\n"
+      "                         and PCD fields beyond x y z, colour and intensity)\n\n") +
       kIngestOptionsHelp;
   std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kAppend);
   flags.insert(flags.end(), {"--help", "--quiet"});

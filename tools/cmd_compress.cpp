@@ -26,7 +26,9 @@ int run_compress(int argc, char** argv) {
       "  --allow-sparse         go ahead although the cell or chunk edge puts on average fewer than\n"
       "                         2 points in a cell or 16 in a chunk (refused by default: exit 16)\n"
       "  --assume-crs           inputs with different CRSs: take the first input's for all (with a\n"
-      "                         warning) instead of refusing them (exit 11)\n\n") +
+      "                         warning) instead of refusing them (exit 11)\n"
+      "  --no-extra-bytes       drop every input's extra bytes: LAS/LAZ extra bytes and the PLY\n"
+      "                         properties and PCD fields kept as such (normals, labels ...)\n\n") +
       kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
   options.push_back("-o");

@@ -38,8 +38,11 @@ std::string attributes(const ArchiveInfo& i) {
 }
 
 std::string las_text(const ArchiveInfo& i) {
-  std::string out = "point format " + std::to_string(i.las_point_format) + ", LAS 1." +
-                    std::to_string(i.las_version_minor);
+  // Attributes from non-LAS inputs only (a PLY's extra properties, a CSV's
+  // classification) have no LAS version; the format is the one LAS output uses.
+  std::string out = "point format " + std::to_string(i.las_point_format) +
+                    (i.las_version_minor >= 0 ? ", LAS 1." + std::to_string(i.las_version_minor)
+                                              : " (for LAS output; no LAS input)");
   if (i.las_gps_time_type != GpsTimeType::kUnknown) {
     out += std::string(", GPS ") + gps_time_type_name(i.las_gps_time_type) + " time";
   }

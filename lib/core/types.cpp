@@ -204,6 +204,28 @@ void PointCloud::push_back_from(const PointCloud& src, std::size_t i) {
   }
 }
 
+void PointCloud::append_points(const PointCloud& src) {
+  // Pairs each column of this cloud with the same column of `src`.
+  auto append_column = [](auto& dst, const auto& from) { dst.insert(dst.end(), from.begin(), from.end()); };
+  append_column(positions, src.positions);
+  append_column(colors, src.colors);
+  append_column(intensities, src.intensities);
+  const LasAttributes& a = src.las;
+  append_column(las.classification, a.classification);
+  append_column(las.class_flags, a.class_flags);
+  append_column(las.return_number, a.return_number);
+  append_column(las.number_of_returns, a.number_of_returns);
+  append_column(las.scan_flags, a.scan_flags);
+  append_column(las.scan_angle, a.scan_angle);
+  append_column(las.user_data, a.user_data);
+  append_column(las.point_source_id, a.point_source_id);
+  append_column(las.gps_time, a.gps_time);
+  append_column(las.nir, a.nir);
+  append_column(las.color_low, a.color_low);
+  if (!a.extra_bytes.empty()) las.extra_bytes_size = a.extra_bytes_size;
+  append_column(las.extra_bytes, a.extra_bytes);
+}
+
 PointCloud PointCloud::gathered(const std::vector<std::uint32_t>& order) const {
   PointCloud out;
   out.las.extra_bytes_size = las.extra_bytes_size;

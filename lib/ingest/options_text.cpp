@@ -238,9 +238,9 @@ std::vector<std::string> ingest_option_names(IngestOptionSet set) {
 std::vector<std::string> ingest_flag_names(IngestOptionSet set) {
   switch (set) {
     case IngestOptionSet::kCompress:
-      return {"verify", "allow-sparse", "assume-crs"};
+      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes"};
     case IngestOptionSet::kAppend:
-      return {"verify", "assume-crs"};
+      return {"verify", "assume-crs", "no-extra-bytes"};
     case IngestOptionSet::kStream:
       return {"verify"};
   }
@@ -276,7 +276,12 @@ Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>&
   }
   if (set != IngestOptionSet::kAppend) RELIEF_RETURN_IF_ERROR(apply_mode(g, o));
   RELIEF_RETURN_IF_ERROR(apply_run(g, o));
-  if (set != IngestOptionSet::kStream) RELIEF_RETURN_IF_ERROR(g.get_flag("assume-crs", o.assume_crs));
+  if (set != IngestOptionSet::kStream) {
+    RELIEF_RETURN_IF_ERROR(g.get_flag("assume-crs", o.assume_crs));
+    bool drop_extra = false;
+    RELIEF_RETURN_IF_ERROR(g.get_flag("no-extra-bytes", drop_extra));
+    o.reader.extra_bytes = !drop_extra;
+  }
   return Status::ok();
 }
 

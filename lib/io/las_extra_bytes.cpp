@@ -3,6 +3,8 @@
 // read: type, size, name, description, scale and offset.
 
 #include <array>
+#include <bit>
+#include <cstdint>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -30,12 +32,51 @@ constexpr std::array<std::size_t, kScalarTypes> kScalarSizes = {1, 1, 2, 2, 4, 4
 constexpr std::array<const char*, kScalarTypes> kScalarNames = {"uint8",  "int8",  "uint16", "int16",   "uint32",
                                                                "int32",  "uint64", "int64", "float32", "float64"};
 
+void store_double_le(char* p, double v) {
+  const auto u = std::bit_cast<std::uint64_t>(v);
+  for (int b = 0; b < 8; ++b) p[b] = static_cast<char>((u >> (8 * b)) & 0xFF);
+}
+
 std::string fixed_text(const std::uint8_t* p, std::size_t width) {
   const auto* chars = reinterpret_cast<const char*>(p);
   return std::string(chars, ::strnlen(chars, width));
 }
 
 }  // namespace
+
+std::size_t extra_bytes_type_size(int data_type) {
+  if (data_type < 1 || data_type > kLastDefinedType) return 0;
+  const int base = (data_type - 1) % kScalarTypes;
+  const int count = (data_type - 1) / kScalarTypes + 1;
+  return kScalarSizes[static_cast<std::size_t>(base)] * static_cast<std::size_t>(count);
+}
+
+Result<std::string> make_extra_bytes_vlr(const std::vector<ExtraBytesField>& fields) {
+  constexpr std::size_t kMaxFields = 65535 / kDescriptorSize;
+  if (fields.size() > kMaxFields) {
+    return invalid_argument(std::to_string(fields.size()) + " extra bytes fields: one Extra Bytes VLR holds at most " +
+                            std::to_string(kMaxFields));
+  }
+  std::string out(fields.size() * kDescriptorSize, '\0');
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    const ExtraBytesField& f = fields[i];
+    if (f.name.size() > kNameSize || f.description.size() > kNameSize) {
+      return invalid_argument("extra bytes field '" + f.name + "': a name or description longer than 32 bytes");
+    }
+    if (f.data_type < 0 || f.data_type > kLastDefinedType) {
+      return invalid_argument("extra bytes field '" + f.name + "': data type " + std::to_string(f.data_type) +
+                              " is reserved");
+    }
+    char* d = out.data() + i * kDescriptorSize;
+    d[2] = static_cast<char>(f.data_type);
+    d[3] = static_cast<char>(f.options);
+    std::memcpy(d + kNameOffset, f.name.data(), f.name.size());
+    std::memcpy(d + kDescriptionOffset, f.description.data(), f.description.size());
+    if ((f.options & kOptionScale) != 0) store_double_le(d + kScaleOffset, f.scale);
+    if ((f.options & kOptionOffset) != 0) store_double_le(d + kOffsetOffset, f.value_offset);
+  }
+  return out;
+}
 
 Result<std::vector<ExtraBytesField>> parse_extra_bytes_vlr(std::span<const std::uint8_t> payload,
                                                            std::size_t record_extra, const std::string& what) {
@@ -60,7 +101,7 @@ Result<std::vector<ExtraBytesField>> parse_extra_bytes_vlr(std::span<const std::
     } else if (f.data_type <= kLastDefinedType) {
       const int base = (f.data_type - 1) % kScalarTypes;
       const int count = (f.data_type - 1) / kScalarTypes + 1;
-      f.size = kScalarSizes[static_cast<std::size_t>(base)] * static_cast<std::size_t>(count);
+      f.size = extra_bytes_type_size(f.data_type);
       f.type_name = kScalarNames[static_cast<std::size_t>(base)];
       if (count > 1) f.type_name += "[" + std::to_string(count) + "]";
       if ((f.options & kOptionScale) != 0) f.scale = load_le<double>(d + kScaleOffset);

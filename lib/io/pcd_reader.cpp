@@ -3,8 +3,11 @@
 // write X Y Z RGB). Fields x y z (F 4 or F 8) are required; colour comes from
 // rgb or rgba (4 bytes packed as 0x00RRGGBB, whatever the TYPE says, as PCL
 // does) or else from separate r g b (or red green blue) fields, and intensity
-// (any numeric type) is read when present; every other field is skipped,
-// COUNT values at a time.
+// (any numeric type) is read when present. Every other field (normals,
+// curvature, label, ...) is kept as LAS extra bytes (io/extra_fields.h), one
+// field per value (COUNT n: <name>_0 ... <name>_<n-1>) of its TYPE and SIZE,
+// unless ReaderOptions::extra_bytes is off; fields named "_" (PCL's padding)
+// are skipped.
 //
 // Separate colour fields follow their declared type, so the rule does not
 // depend on the values or their order: SIZE 2 integers are 16-bit levels
@@ -40,6 +43,7 @@
 #include <vector>
 
 #include "io/byte_source.h"
+#include "io/extra_fields.h"
 #include "io/readers.h"
 #include "io/stream_support.h"
 #include "io/text_scan.h"
@@ -290,6 +294,46 @@ double load_value(const std::uint8_t* p, char type, std::size_t size) {
   }
 }
 
+// The LAS Extra Bytes data type of a PCD value (TYPE and SIZE already checked).
+int extra_bytes_type(char type, std::size_t size) {
+  if (type == 'F') return size == 4 ? 9 : 10;
+  const int by_size = size == 1 ? 1 : size == 2 ? 3 : size == 4 ? 5 : 7;  // unsigned
+  return type == 'I' ? by_size + 1 : by_size;
+}
+
+// An ascii value of a kept field as the little-endian bytes a binary PCD
+// would hold; false when it is not a number of that type (or out of its range).
+bool parse_value_bytes(std::string_view tok, char type, std::size_t size, std::uint8_t* out) {
+  const char* first = tok.data();
+  const char* const last = tok.data() + tok.size();
+  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') ++first;
+  if (first == last) return false;
+  std::uint64_t bits = 0;
+  bool ok = false;
+  if (type == 'F' && size == 4) {
+    float f = 0;  // parsed as a float, so a shortest float text comes back exactly
+    const auto [p, ec] = std::from_chars(first, last, f);
+    ok = ec == std::errc{} && p == last;
+    bits = std::bit_cast<std::uint32_t>(f);
+  } else if (type == 'F') {
+    double d = 0;
+    const auto [p, ec] = std::from_chars(first, last, d);
+    ok = ec == std::errc{} && p == last;
+    bits = std::bit_cast<std::uint64_t>(d);
+  } else if (type == 'U') {
+    const auto [p, ec] = std::from_chars(first, last, bits);
+    ok = ec == std::errc{} && p == last && (size == 8 || bits >> (8 * size) == 0);
+  } else {
+    std::int64_t v = 0;
+    const auto [p, ec] = std::from_chars(first, last, v);
+    const std::int64_t hi = size == 8 ? INT64_MAX : (std::int64_t{1} << (8 * size - 1)) - 1;
+    ok = ec == std::errc{} && p == last && v <= hi && v >= -hi - 1;
+    bits = static_cast<std::uint64_t>(v);
+  }
+  for (std::size_t b = 0; b < size; ++b) out[b] = static_cast<std::uint8_t>(bits >> (8 * b));
+  return ok;
+}
+
 bool parse_double(std::string_view tok, double& out) {
   const char* first = tok.data();
   const char* const last = tok.data() + tok.size();
@@ -358,11 +402,35 @@ class PcdPointReader final : public PointReader {
       roles_[split_[2]->column] = kBlue;
     }
     if (intensity_ != nullptr) roles_[intensity_->column] = kIntensity;
+    extra_of_column_.assign(header_.columns, 0);
   }
 
   // Expands a binary_compressed body into records laid out as `binary` ones
   // and reads on from them.
   Status expand_compressed();
+
+  // Keeps every other field's values as extra bytes (see the top of the file).
+  Status plan_extras() {
+    std::vector<KeptField> kept;
+    for (const PcdField& f : header_.fields) {
+      const bool used = &f == x_ || &f == y_ || &f == z_ || &f == rgb_ || &f == intensity_ ||
+                        std::find(split_.begin(), split_.end(), &f) != split_.end();
+      if (used || f.name == "_") continue;
+      for (std::size_t k = 0; k < f.count; ++k) {
+        roles_[f.column + k] = kExtra;
+        extra_of_column_[f.column + k] = static_cast<std::uint32_t>(extras_.size());
+        extras_.push_back({f.offset + k * f.size, f.size, extra_size_, f.type});
+        extra_size_ += f.size;
+        kept.push_back({f.count == 1 ? f.name : f.name + "_" + std::to_string(k), extra_bytes_type(f.type, f.size)});
+      }
+    }
+    if (kept.empty()) return Status::ok();
+    RELIEF_ASSIGN_OR_RETURN(info_.extra_bytes_vlr, kept_fields_vlr(kept, name(), "field", "PCD field", info_.warnings));
+    info_.las_attributes = kLasExtraBytes;
+    info_.extra_bytes_size = static_cast<std::uint32_t>(extra_size_);
+    scratch_.assign(extra_size_, 0);
+    return Status::ok();
+  }
 
   // Checks what the constructor relies on; call before using the reader.
   Status check() {
@@ -398,7 +466,16 @@ class PcdPointReader final : public PointReader {
 
  private:
   // Column roles in an ascii line.
-  enum : std::uint8_t { kSkip, kX, kY, kZ, kRgb, kRed, kGreen, kBlue, kIntensity };
+  enum : std::uint8_t { kSkip, kX, kY, kZ, kRgb, kRed, kGreen, kBlue, kIntensity, kExtra };
+
+  // One value kept as extra bytes: where it is in a binary record, its size,
+  // where it goes in the point's extra bytes, and its TYPE.
+  struct Extra {
+    std::size_t src = 0;
+    std::size_t size = 0;
+    std::size_t at = 0;
+    char type = 'F';
+  };
 
   struct Values {
     double x = 0, y = 0, z = 0, intensity = 0;
@@ -414,7 +491,7 @@ class PcdPointReader final : public PointReader {
   Status point_error(std::uint64_t index, const std::string& what) const {
     return format_error(name() + ": point " + std::to_string(index) + ": " + what);
   }
-  void decode_binary(const std::uint8_t* rec, Values& v) const {
+  void decode_binary(const std::uint8_t* rec, Values& v) {
     v.x = load_value(rec + x_->offset, 'F', x_->size);
     v.y = load_value(rec + y_->offset, 'F', y_->size);
     v.z = load_value(rec + z_->offset, 'F', z_->size);
@@ -426,8 +503,10 @@ class PcdPointReader final : public PointReader {
     }
     if (intensity_ != nullptr)
       v.intensity = load_value(rec + intensity_->offset, intensity_->type, intensity_->size);
+    // Binary PCD is little endian, as extra bytes are.
+    for (const Extra& e : extras_) std::memcpy(scratch_.data() + e.at, rec + e.src, e.size);
   }
-  Status parse_ascii(std::string_view line, std::uint64_t index, Values& v) const;
+  Status parse_ascii(std::string_view line, std::uint64_t index, Values& v);
   // Appends the point unless it is a no-depth (NaN) point.
   Status accept(const Values& v, std::uint64_t index, PointCloud& batch, bool& kept);
 
@@ -441,11 +520,15 @@ class PcdPointReader final : public PointReader {
   const PcdField* intensity_ = nullptr;
   std::array<const PcdField*, 3> split_{};  // separate r g b, when no packed rgb
   std::vector<std::uint8_t> roles_;
+  std::vector<Extra> extras_;
+  std::vector<std::uint32_t> extra_of_column_;  // index into extras_ where roles_ is kExtra
+  std::size_t extra_size_ = 0;
+  std::vector<std::uint8_t> scratch_;  // the current point's extra bytes
   std::vector<std::uint8_t> expanded_;  // binary_compressed records; src_ reads them
   std::uint64_t done_ = 0;  // records consumed, kept or skipped
 };
 
-Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, Values& v) const {
+Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, Values& v) {
   std::size_t pos = 0;
   for (std::size_t c = 0; c < header_.columns; ++c) {
     const std::string_view tok = next_token(line, pos);
@@ -474,6 +557,11 @@ Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, V
       case kBlue:
         ok = parse_double(tok, v.levels[role - kRed]);
         break;
+      case kExtra: {
+        const Extra& e = extras_[extra_of_column_[c]];
+        ok = parse_value_bytes(tok, e.type, e.size, scratch_.data() + e.at);
+        break;
+      }
       default:
         ok = parse_double(tok, v.intensity);
         break;
@@ -511,12 +599,15 @@ Status PcdPointReader::accept(const Values& v, std::uint64_t index, PointCloud& 
                             color_level(v.levels[2], *split_[2])});
   }
   if (intensity_ != nullptr) batch.intensities.push_back(intensity);
+  batch.las.extra_bytes.insert(batch.las.extra_bytes.end(), scratch_.begin(), scratch_.end());
   kept = true;
   return Status::ok();
 }
 
 Result<std::size_t> PcdPointReader::read(PointCloud& batch, std::size_t max_points) {
   size_batch(batch, 0, info_.has_colors, intensity_ != nullptr);  // keeps the capacity
+  batch.las.extra_bytes.clear();
+  if (extra_size_ > 0) batch.las.extra_bytes_size = static_cast<std::uint32_t>(extra_size_);
   std::size_t got = 0;
   const std::size_t stride = header_.point_size;
   while (got < max_points && done_ < header_.point_count) {
@@ -620,7 +711,7 @@ Status PcdPointReader::expand_compressed() {
 
 }  // namespace
 
-Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input) {
+Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input, const ReaderOptions& options) {
   RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
   RELIEF_ASSIGN_OR_RETURN(PcdHeader header, parse_header(src, input.name));
   for (const char* axis : {"x", "y", "z"}) {
@@ -630,6 +721,7 @@ Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input) {
   }
   std::unique_ptr<PcdPointReader> reader(new PcdPointReader(input.name, std::move(src), std::move(header)));
   RELIEF_RETURN_IF_ERROR(reader->check());
+  if (options.extra_bytes) RELIEF_RETURN_IF_ERROR(reader->plan_extras());
   return std::unique_ptr<PointReader>(std::move(reader));
 }
 

@@ -48,6 +48,32 @@ inline constexpr const char* scalar_name(ScalarType t) {
   return "?";
 }
 
+// LAS Extra Bytes data types (ASPRS LAS 1.4 R15, table 24) of the PLY scalar
+// types: every PLY scalar has one, so a vertex property kept as LAS extra
+// bytes keeps its type. The inverse is partial: 64-bit integers (7, 8) have
+// no PLY type.
+inline constexpr int extra_bytes_type(ScalarType t) {
+  switch (t) {
+    case ScalarType::kUint8: return 1;
+    case ScalarType::kInt8: return 2;
+    case ScalarType::kUint16: return 3;
+    case ScalarType::kInt16: return 4;
+    case ScalarType::kUint32: return 5;
+    case ScalarType::kInt32: return 6;
+    case ScalarType::kFloat32: return 9;
+    case ScalarType::kFloat64: return 10;
+  }
+  return 0;
+}
+
+inline std::optional<ScalarType> scalar_type_of_extra_bytes(int base_type) {
+  for (ScalarType t : {ScalarType::kUint8, ScalarType::kInt8, ScalarType::kUint16, ScalarType::kInt16,
+                       ScalarType::kUint32, ScalarType::kInt32, ScalarType::kFloat32, ScalarType::kFloat64}) {
+    if (extra_bytes_type(t) == base_type) return t;
+  }
+  return std::nullopt;
+}
+
 // Accepts both the classic names and the sized aliases (int8 ... float64).
 inline std::optional<ScalarType> parse_scalar_type(std::string_view name) {
   struct Alias {

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "io/byte_source.h"
+#include "io/extra_fields.h"
 #include "io/ply_format.h"
 #include "io/readers.h"
 #include "io/stream_support.h"
@@ -181,9 +182,40 @@ struct VertexPlan {
   // Colours wider than 8 bits follow the 16-bit rule (io/stream_support.h):
   // whether to shift depends on the levels of the whole file or a sample.
   bool wide_color = false;
+  // Every other scalar vertex property (normals, labels, curvature, alpha,
+  // scalar fields ...) is kept as LAS extra bytes: its value's bytes, little
+  // endian, at extra_at[property] within extra_size bytes per point, and
+  // described by extra_bytes_vlr (one field per property, its PLY type).
+  std::vector<std::size_t> extra_at;  // per property; kNone when not kept
+  std::size_t extra_size = 0;
+  std::string extra_bytes_vlr;
+  std::vector<std::string> warnings;
 };
 
-Result<VertexPlan> make_plan(const Element& vertex, const std::string& name) {
+// The properties kept as extra bytes (VertexPlan::extra_at): every scalar one
+// that is not a coordinate, the colour set taken or the intensity. Lists are
+// not kept (with a warning).
+Status plan_extras(const Element& vertex, const std::string& name, VertexPlan& plan) {
+  std::vector<KeptField> fields;
+  for (std::size_t j = 0; j < vertex.properties.size(); ++j) {
+    const Property& prop = vertex.properties[j];
+    if (std::find(plan.prop.begin(), plan.prop.end(), j) != plan.prop.end()) continue;
+    if (prop.is_list) {
+      plan.warnings.push_back(name + ": vertex property " + quoted(prop.name) +
+                              " is a list; lists are not kept (every scalar property is)");
+      continue;
+    }
+    plan.extra_at[j] = plan.extra_size;
+    plan.extra_size += ply::scalar_size(prop.type);
+    fields.push_back({prop.name, ply::extra_bytes_type(prop.type)});
+  }
+  if (fields.empty()) return Status::ok();
+  RELIEF_ASSIGN_OR_RETURN(plan.extra_bytes_vlr,
+                          kept_fields_vlr(fields, name, "vertex property", "PLY vertex property", plan.warnings));
+  return Status::ok();
+}
+
+Result<VertexPlan> make_plan(const Element& vertex, const std::string& name, bool keep_extras) {
   VertexPlan plan;
   plan.prop.fill(VertexPlan::kNone);
   // A scalar (non-list) property called `prop_name`, if any.
@@ -232,6 +264,8 @@ Result<VertexPlan> make_plan(const Element& vertex, const std::string& name) {
       break;
     }
   }
+  plan.extra_at.assign(vertex.properties.size(), VertexPlan::kNone);
+  if (keep_extras) RELIEF_RETURN_IF_ERROR(plan_extras(vertex, name, plan));
   return plan;
 }
 
@@ -404,7 +438,28 @@ struct Layout {
   bool wide_color = false;
   bool has_intensity = false;
   int color_shift = 0;  // for wide colours narrowed while decoding
+  // The properties kept as extra bytes (VertexPlan::extra_at), in order:
+  // offset in the record and size.
+  struct Extra {
+    std::size_t src = 0;
+    std::size_t size = 0;
+  };
+  std::vector<Extra> extras;
+  std::size_t extra_size = 0;
+  bool big_endian = false;  // kept values are reversed into little endian
 };
+
+// Copies the kept properties of n fixed-size records to `dst`, extra_size
+// bytes per point, each value little endian.
+void copy_extras(const std::uint8_t* src, std::size_t n, const Layout& lay, std::uint8_t* dst) {
+  for (std::size_t i = 0; i < n; ++i, src += lay.stride) {
+    for (const Layout::Extra& e : lay.extras) {
+      std::memcpy(dst, src + e.src, e.size);
+      if (lay.big_endian) std::reverse(dst, dst + e.size);
+      dst += e.size;
+    }
+  }
+}
 
 // Decodes n records. Colours go to `col`, or as 16-bit levels to `wide` when
 // that is given (then `col` is null); `intensity` is null without intensity.
@@ -477,9 +532,10 @@ BatchDecoder pick_decoder(const Layout& lay, const VertexPlan& plan) {
   return in ? decode_fast<float, false, true> : decode_fast<float, false, false>;
 }
 
-Layout make_layout(const Element& el, const VertexPlan& plan, bool swap) {
+Layout make_layout(const Element& el, const VertexPlan& plan, bool swap, bool big_endian) {
   Layout lay;
   lay.swap = swap;
+  lay.big_endian = big_endian;
   lay.has_color = plan.has_color;
   lay.wide_color = plan.wide_color;
   lay.has_intensity = plan.has_intensity;
@@ -493,15 +549,37 @@ Layout make_layout(const Element& el, const VertexPlan& plan, bool swap) {
     lay.offset[f] = prop_offset[plan.prop[f]];
     lay.type[f] = el.properties[plan.prop[f]].type;
   }
+  for (std::size_t j = 0; j < el.properties.size(); ++j) {
+    if (plan.extra_at[j] == VertexPlan::kNone) continue;
+    lay.extras.push_back({prop_offset[j], ply::scalar_size(el.properties[j].type)});
+  }
+  lay.extra_size = plan.extra_size;
   return lay;
 }
 
+// Where one record's kept properties go (VertexPlan::extra_at): `dst` holds
+// extra_size bytes; null when the record is only skipped.
+struct ExtraSink {
+  const std::vector<std::size_t>* at = nullptr;
+  std::uint8_t* dst = nullptr;
+  bool big_endian = false;
+
+  bool keeps(std::size_t prop) const { return dst != nullptr && (*at)[prop] != VertexPlan::kNone; }
+  // Stores a value given in the file's byte order, little endian.
+  void put(std::size_t prop, const std::uint8_t* value, std::size_t size) const {
+    std::uint8_t* d = dst + (*at)[prop];
+    std::memcpy(d, value, size);
+    if (big_endian) std::reverse(d, d + size);
+  }
+};
+
 // Reads one binary record property by property; used when the element has
 // list properties. `values` receives the fields named in `field_of` (may be
-// empty when the record is only skipped). `complete` is false if the input ended.
+// empty when the record is only skipped), `extras` the kept properties.
+// `complete` is false if the input ended.
 Status read_binary_record(ByteSource& src, const Element& el, bool swap, const std::vector<int>& field_of,
-                          std::array<double, kFieldCount>& values, bool& complete, const std::string& name,
-                          std::uint64_t index) {
+                          const ExtraSink& extras, std::array<double, kFieldCount>& values, bool& complete,
+                          const std::string& name, std::uint64_t index) {
   complete = false;
   for (std::size_t j = 0; j < el.properties.size(); ++j) {
     const Property& prop = el.properties[j];
@@ -529,6 +607,7 @@ Status read_binary_record(ByteSource& src, const Element& el, bool swap, const s
       if (!field_of.empty() && field_of[j] >= 0) {
         values[static_cast<std::size_t>(field_of[j])] = load_scalar(view.data(), prop.type, swap);
       }
+      if (extras.keeps(j)) extras.put(j, view.data(), sz);
       src.consume(sz);
     }
   }
@@ -556,7 +635,7 @@ Status skip_binary_element(ByteSource& src, const Element& el, bool swap, const 
   std::array<double, kFieldCount> unused{};
   for (std::uint64_t i = 0; i < el.count; ++i) {
     bool complete = false;
-    RELIEF_RETURN_IF_ERROR(read_binary_record(src, el, swap, {}, unused, complete, name, i));
+    RELIEF_RETURN_IF_ERROR(read_binary_record(src, el, swap, {}, ExtraSink{}, unused, complete, name, i));
     if (!complete) return truncated(name, el, i);
   }
   return Status::ok();
@@ -586,8 +665,31 @@ Status next_record_line(ByteSource& src, std::string_view& line, bool& found, co
   }
 }
 
-// Parses one ascii vertex line into `values`.
+// The little-endian bytes of `v`, a value of PLY type `t` that parse_ascii
+// read (so it is in range and, for float, exactly a float).
+void put_ascii_value(double v, ScalarType t, std::uint8_t* dst) {
+  auto put = [&](auto x) {
+    std::array<std::uint8_t, sizeof(x)> b;
+    std::memcpy(b.data(), &x, sizeof(x));
+    if constexpr (std::endian::native == std::endian::big) std::reverse(b.begin(), b.end());
+    std::memcpy(dst, b.data(), b.size());
+  };
+  switch (t) {
+    case ScalarType::kInt8: return put(static_cast<std::int8_t>(v));
+    case ScalarType::kUint8: return put(static_cast<std::uint8_t>(v));
+    case ScalarType::kInt16: return put(static_cast<std::int16_t>(v));
+    case ScalarType::kUint16: return put(static_cast<std::uint16_t>(v));
+    case ScalarType::kInt32: return put(static_cast<std::int32_t>(v));
+    case ScalarType::kUint32: return put(static_cast<std::uint32_t>(v));
+    case ScalarType::kFloat32: return put(static_cast<float>(v));
+    case ScalarType::kFloat64: return put(v);
+  }
+}
+
+// Parses one ascii vertex line into `values` and `extra` (the kept
+// properties, at VertexPlan::extra_at; null when there are none).
 Status parse_ascii_vertex(std::string_view line, const Element& el, const std::vector<int>& field_of,
+                          const std::vector<std::size_t>& extra_at, std::uint8_t* extra,
                           std::array<double, kFieldCount>& values, const std::string& name,
                           std::uint64_t index) {
   std::size_t pos = 0;
@@ -610,11 +712,15 @@ Status parse_ascii_vertex(std::string_view line, const Element& el, const std::v
       }
       continue;
     }
-    if (field_of[j] < 0) continue;
-    if (!parse_ascii(tok, prop.type, values[static_cast<std::size_t>(field_of[j])])) {
+    const bool kept = extra != nullptr && extra_at[j] != VertexPlan::kNone;
+    if (field_of[j] < 0 && !kept) continue;
+    double v = 0;
+    if (!parse_ascii(tok, prop.type, v)) {
       return format_error(vertex_label(name, index) + ": " + quoted(tok) + " is not a valid " +
                           ply::scalar_name(prop.type) + " for property " + quoted(prop.name));
     }
+    if (field_of[j] >= 0) values[static_cast<std::size_t>(field_of[j])] = v;
+    if (kept) put_ascii_value(v, prop.type, extra + extra_at[j]);
   }
   if (!next_token(line, pos).empty()) {
     return format_error(vertex_label(name, index) + ": more values than the header declares");
@@ -639,9 +745,13 @@ class PlyPointReader final : public BatchPointReader {
   // `check_trailing`: after the last vertex, also walk the elements that
   // follow and report them if they are cut short (the whole-file readers do;
   // a stream stops at the last vertex).
-  static Result<std::unique_ptr<PlyPointReader>> open(const InputSpec& input, bool check_trailing) {
+  // `keep_extras`: deliver the other scalar vertex properties as extra bytes
+  // (ReaderOptions::extra_bytes).
+  static Result<std::unique_ptr<PlyPointReader>> open(const InputSpec& input, bool check_trailing,
+                                                      bool keep_extras) {
     RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
-    std::unique_ptr<PlyPointReader> reader(new PlyPointReader(input, std::move(src), check_trailing));
+    std::unique_ptr<PlyPointReader> reader(
+        new PlyPointReader(input, std::move(src), check_trailing, keep_extras));
     RELIEF_RETURN_IF_ERROR(reader->start());
     return reader;
   }
@@ -669,13 +779,13 @@ class PlyPointReader final : public BatchPointReader {
   Result<std::unique_ptr<BatchPointReader>> reopen() const override {
     // A pipe cannot be read twice; a regular file or memory can.
     if (!input_.memory && !src_.size()) return std::unique_ptr<BatchPointReader>();
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> again, open(input_, false));
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> again, open(input_, false, keep_extras_));
     return std::unique_ptr<BatchPointReader>(std::move(again));
   }
 
  private:
-  PlyPointReader(InputSpec input, ByteSource src, bool check_trailing)
-      : input_(std::move(input)), src_(std::move(src)), check_trailing_(check_trailing) {}
+  PlyPointReader(InputSpec input, ByteSource src, bool check_trailing, bool keep_extras)
+      : input_(std::move(input)), src_(std::move(src)), check_trailing_(check_trailing), keep_extras_(keep_extras) {}
 
   Status start();
   Result<std::size_t> read_fixed(PointCloud& out, std::vector<std::uint16_t>* wide, std::size_t at,
@@ -684,6 +794,8 @@ class PlyPointReader final : public BatchPointReader {
                                    std::size_t want);
   Status push_vertex(const std::array<double, kFieldCount>& v, std::uint64_t index, PointCloud& out,
                      std::vector<std::uint16_t>* wide) const;
+  // Sizes out.las.extra_bytes for n points (nothing when no property is kept).
+  void size_extras(PointCloud& out, std::size_t n) const;
   Status finish_trailing();
   // When the vertex element is the file's last: records after the declared
   // count become a warning in info().warnings (the header count is kept).
@@ -695,6 +807,7 @@ class PlyPointReader final : public BatchPointReader {
   InputSpec input_;
   ByteSource src_;
   bool check_trailing_;
+  bool keep_extras_;
   bool trailing_checked_ = false;
   ply::Header header_;
   std::size_t vertex_el_ = 0;
@@ -718,7 +831,7 @@ Status PlyPointReader::start() {
     return format_error(name() + ": the header declares no vertex element");
   }
   vertex_el_ = static_cast<std::size_t>(it - header_.elements.begin());
-  RELIEF_ASSIGN_OR_RETURN(plan_, make_plan(vertex(), name()));
+  RELIEF_ASSIGN_OR_RETURN(plan_, make_plan(vertex(), name(), keep_extras_));
   const bool binary = header_.encoding != PlyEncoding::kAscii;
   const bool file_little = header_.encoding == PlyEncoding::kBinaryLittleEndian;
   swap_ = binary && file_little != (std::endian::native == std::endian::little);
@@ -732,7 +845,7 @@ Status PlyPointReader::start() {
 
   fixed_binary_ = binary && vertex().fixed_size();
   if (fixed_binary_) {
-    layout_ = make_layout(vertex(), plan_, swap_);
+    layout_ = make_layout(vertex(), plan_, swap_, header_.encoding == PlyEncoding::kBinaryBigEndian);
     decode_ = pick_decoder(layout_, plan_);
     // Check the declared count against the bytes actually there before any
     // allocation is sized by it.
@@ -748,8 +861,20 @@ Status PlyPointReader::start() {
   info_.point_count = vertex().count;
   info_.has_colors = plan_.has_color;
   info_.has_intensity = plan_.has_intensity;
+  if (plan_.extra_size > 0) {
+    info_.las_attributes = kLasExtraBytes;
+    info_.extra_bytes_vlr = plan_.extra_bytes_vlr;
+    info_.extra_bytes_size = static_cast<std::uint32_t>(plan_.extra_size);
+  }
+  info_.warnings = plan_.warnings;
   wide_colors_ = plan_.wide_color;
   return Status::ok();
+}
+
+void PlyPointReader::size_extras(PointCloud& out, std::size_t n) const {
+  if (plan_.extra_size == 0) return;
+  out.las.extra_bytes_size = static_cast<std::uint32_t>(plan_.extra_size);
+  out.las.extra_bytes.resize(n * plan_.extra_size);
 }
 
 Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::uint16_t>* wide,
@@ -819,6 +944,7 @@ Result<std::size_t> PlyPointReader::read_fixed(PointCloud& out, std::vector<std:
   const bool col8 = plan_.has_color && !to_wide;
   auto size_to = [&](std::size_t n) {
     size_batch(out, n, col8, plan_.has_intensity);
+    size_extras(out, n);
     if (to_wide) wide->resize(3 * n);
   };
   // Sized once when the data is known to be there, so that a batch reused at
@@ -839,6 +965,9 @@ Result<std::size_t> PlyPointReader::read_fixed(PointCloud& out, std::vector<std:
     decode_(view.data(), n, layout_, out.positions.data() + i0, col8 ? out.colors.data() + i0 : nullptr,
             to_wide ? wide->data() + 3 * i0 : nullptr, intensity);
     RELIEF_RETURN_IF_ERROR(check_finite(out.positions.data() + i0, intensity, n, done_ + got, name()));
+    if (layout_.extra_size > 0) {
+      copy_extras(view.data(), n, layout_, out.las.extra_bytes.data() + i0 * layout_.extra_size);
+    }
     src_.consume(n * stride);
     got += n;
   }
@@ -877,21 +1006,31 @@ Result<std::size_t> PlyPointReader::read_records(PointCloud& out, std::vector<st
                                                  std::size_t at, std::size_t want) {
   const bool to_wide = wide != nullptr && plan_.wide_color;
   size_batch(out, at, plan_.has_color && !to_wide, plan_.has_intensity);
+  size_extras(out, at);
   if (to_wide) wide->resize(3 * at);
   const bool ascii = header_.encoding == PlyEncoding::kAscii;
+  const std::size_t extra_size = plan_.extra_size;
   for (std::size_t i = 0; i < want; ++i) {
     const std::uint64_t index = done_ + i;
     std::array<double, kFieldCount> values{};
+    // This record's kept properties go straight into the batch.
+    std::uint8_t* extra = nullptr;
+    if (extra_size > 0) {
+      size_extras(out, at + i + 1);
+      extra = out.las.extra_bytes.data() + (at + i) * extra_size;
+    }
     if (ascii) {
       std::string_view line;
       bool found = false;
       RELIEF_RETURN_IF_ERROR(next_record_line(src_, line, found, name(), vertex(), index));
       if (!found) return truncated(name(), vertex(), index);
-      RELIEF_RETURN_IF_ERROR(parse_ascii_vertex(line, vertex(), field_of_, values, name(), index));
+      RELIEF_RETURN_IF_ERROR(
+          parse_ascii_vertex(line, vertex(), field_of_, plan_.extra_at, extra, values, name(), index));
     } else {
       bool complete = false;
+      const ExtraSink sink{&plan_.extra_at, extra, header_.encoding == PlyEncoding::kBinaryBigEndian};
       RELIEF_RETURN_IF_ERROR(
-          read_binary_record(src_, vertex(), swap_, field_of_, values, complete, name(), index));
+          read_binary_record(src_, vertex(), swap_, field_of_, sink, values, complete, name(), index));
       if (!complete) return truncated(name(), vertex(), index);
     }
     RELIEF_RETURN_IF_ERROR(push_vertex(values, index, out, wide));
@@ -910,7 +1049,7 @@ Status PlyPointReader::finish_trailing() {
 }
 
 Result<PointCloud> read_ply_input(const InputSpec& input) {
-  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> reader, PlyPointReader::open(input, true));
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> reader, PlyPointReader::open(input, true, true));
   const PointStreamInfo& info = reader->info();
   const bool wide_colors = reader->wide_colors();
   PointCloud cloud;
@@ -937,8 +1076,9 @@ Result<PointCloud> read_ply_input(const InputSpec& input) {
 
 }  // namespace
 
-Result<std::unique_ptr<PointReader>> open_ply_reader(const InputSpec& input) {
-  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> reader, PlyPointReader::open(input, false));
+Result<std::unique_ptr<PointReader>> open_ply_reader(const InputSpec& input, const ReaderOptions& options) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PlyPointReader> reader,
+                          PlyPointReader::open(input, false, options.extra_bytes));
   return std::unique_ptr<PointReader>(std::move(reader));
 }
 

@@ -3,17 +3,25 @@
 // zero-padded digits (enough for any 64-bit count), which finish() overwrites
 // in place. A zero-padded decimal is still a plain decimal integer, so every
 // PLY reader accepts it. Properties: double x y z, then uchar red green blue
-// and float intensity when the options ask for them.
+// and float intensity when the options ask for them, then the LAS extra bytes
+// (WriterOptions::las_attributes has kLasExtraBytes) as one property per
+// value: each Extra Bytes field of a PLY scalar type as that type under its
+// name (an array field as <name>_0, <name>_1, ...), 64-bit integers and
+// undocumented bytes as uchar properties <name>_0 ... (PLY has no 64-bit
+// integers, and bytes keep them exact). Names are made PLY tokens (blanks
+// become '_') and unique (a clash gets _2, _3 ...).
 
 #include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
 #include <type_traits>
+#include <vector>
 
 #include "io/output_file.h"
 #include "io/ply_format.h"
@@ -57,11 +65,14 @@ std::uint8_t* put(std::uint8_t* p, T v) {
   return p + sizeof(T);
 }
 
-// Encodes points [first, first + n) of `batch` as binary records at `dst`.
+// Encodes points [first, first + n) of `batch` as binary records at `dst`,
+// `stride` bytes apart (the core properties; extra bytes follow them).
 template <bool kSwap, bool kColors, bool kIntensity>
-void encode_binary(const PointCloud& batch, std::size_t first, std::size_t n, std::uint8_t* dst) {
+void encode_binary(const PointCloud& batch, std::size_t first, std::size_t n, std::size_t stride,
+                   std::uint8_t* records) {
   const Vec3d* pos = batch.positions.data() + first;
   for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* dst = records + i * stride;
     dst = put<kSwap>(dst, pos[i].x);
     dst = put<kSwap>(dst, pos[i].y);
     dst = put<kSwap>(dst, pos[i].z);
@@ -76,7 +87,58 @@ void encode_binary(const PointCloud& batch, std::size_t first, std::size_t n, st
   }
 }
 
-using EncodeFn = void (*)(const PointCloud&, std::size_t, std::size_t, std::uint8_t*);
+using EncodeFn = void (*)(const PointCloud&, std::size_t, std::size_t, std::size_t, std::uint8_t*);
+
+// One PLY property per value of the extra bytes, in order.
+struct ExtraProperty {
+  std::string name;
+  ply::ScalarType type = ply::ScalarType::kUint8;
+};
+
+// Makes `base` a PLY token not in `taken`, and takes it.
+std::string unique_name(std::string base, std::vector<std::string>& taken) {
+  for (char& c : base) {
+    if (c <= ' ' || c > '~') c = '_';
+  }
+  if (base.empty()) base = "extra";
+  std::string name = base;
+  for (int k = 2; std::find(taken.begin(), taken.end(), name) != taken.end(); ++k) {
+    name = base + "_" + std::to_string(k);
+  }
+  taken.push_back(name);
+  return name;
+}
+
+// The PLY properties of `size` extra bytes per point described by `vlr`
+// (bytes the VLR leaves undescribed become uchar properties "extra_<i>").
+std::vector<ExtraProperty> extra_properties(const std::string& vlr, std::size_t size,
+                                            std::vector<std::string> taken) {
+  std::vector<ExtraBytesField> fields;
+  if (!vlr.empty()) {
+    const std::span<const std::uint8_t> payload(reinterpret_cast<const std::uint8_t*>(vlr.data()), vlr.size());
+    // The archive checked this VLR when it took it; a failure leaves the bytes undescribed.
+    if (auto parsed = parse_extra_bytes_vlr(payload, size, "extra bytes")) fields = std::move(*parsed);
+  }
+  std::vector<ExtraProperty> props;
+  std::size_t described = 0;
+  for (const ExtraBytesField& f : fields) {
+    const int base = f.data_type == 0 ? 0 : (f.data_type - 1) % 10 + 1;
+    const std::optional<ply::ScalarType> t = ply::scalar_type_of_extra_bytes(base);
+    const std::size_t count = t ? f.size / ply::scalar_size(*t) : f.size;
+    if (count == 1) {
+      props.push_back({unique_name(f.name, taken), *t});
+    } else {
+      for (std::size_t k = 0; k < count; ++k) {
+        props.push_back({unique_name(f.name + "_" + std::to_string(k), taken), t.value_or(ply::ScalarType::kUint8)});
+      }
+    }
+    described += f.size;
+  }
+  for (std::size_t k = described; k < size; ++k) {
+    props.push_back({unique_name("extra_" + std::to_string(k), taken), ply::ScalarType::kUint8});
+  }
+  return props;
+}
 
 template <bool kSwap>
 EncodeFn pick_encoder(bool colors, bool intensity) {
@@ -90,13 +152,22 @@ class PlyStreamWriter final : public StreamPointWriter {
  public:
   PlyStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options)
       : StreamPointWriter(std::move(out), options) {
-    record_size_ = 3 * sizeof(double) + (options.colors ? 3 : 0) + (options.intensity ? sizeof(float) : 0);
+    core_size_ = 3 * sizeof(double) + (options.colors ? 3 : 0) + (options.intensity ? sizeof(float) : 0);
+    if ((options.las_attributes & kLasExtraBytes) != 0 && options.extra_bytes_size > 0) {
+      extra_size_ = options.extra_bytes_size;
+      std::vector<std::string> taken = {"x", "y", "z"};
+      if (options.colors) taken.insert(taken.end(), {"red", "green", "blue"});
+      if (options.intensity) taken.emplace_back("intensity");
+      extras_ = extra_properties(options.extra_bytes_vlr, extra_size_, std::move(taken));
+    }
+    record_size_ = core_size_ + extra_size_;
     const bool little = options.ply_encoding == PlyEncoding::kBinaryLittleEndian;
-    const bool swap = little != (std::endian::native == std::endian::little);
-    encode_ = swap ? pick_encoder<true>(options.colors, options.intensity)
-                   : pick_encoder<false>(options.colors, options.intensity);
+    swap_ = little != (std::endian::native == std::endian::little);
+    big_endian_ = !little;
+    encode_ = swap_ ? pick_encoder<true>(options.colors, options.intensity)
+                    : pick_encoder<false>(options.colors, options.intensity);
     // The positions array is already the record layout.
-    copy_positions_ = !swap && !options.colors && !options.intensity;
+    copy_positions_ = !swap_ && !options.colors && !options.intensity && extra_size_ == 0;
   }
 
   Status start() {
@@ -109,6 +180,7 @@ class PlyStreamWriter final : public StreamPointWriter {
     h += "\nproperty double x\nproperty double y\nproperty double z\n";
     if (options_.colors) h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
     if (options_.intensity) h += "property float intensity\n";
+    for (const ExtraProperty& p : extras_) h += std::string("property ") + ply::scalar_name(p.type) + " " + p.name + "\n";
     h += "end_header\n";
     return out_->append(h.data(), h.size());
   }
@@ -123,7 +195,8 @@ class PlyStreamWriter final : public StreamPointWriter {
       std::span<std::uint8_t> room;
       RELIEF_RETURN_IF_ERROR(out_->room(record_size_, room));
       const std::size_t k = std::min(n - i, room.size() / record_size_);
-      encode_(batch, i, k, room.data());
+      encode_(batch, i, k, record_size_, room.data());
+      if (extra_size_ > 0) put_extras(batch, i, k, room.data() + core_size_);
       out_->advance(k * record_size_);
       i += k;
     }
@@ -138,7 +211,28 @@ class PlyStreamWriter final : public StreamPointWriter {
   }
 
  private:
+  // The extra bytes of points [first, first + n) after each record's core
+  // properties (`dst` points past the first record's core).
+  void put_extras(const PointCloud& batch, std::size_t first, std::size_t n, std::uint8_t* dst) const {
+    const std::uint8_t* src = batch.las.extra_bytes.data() + first * extra_size_;
+    for (std::size_t i = 0; i < n; ++i, src += extra_size_, dst += record_size_) {
+      std::memcpy(dst, src, extra_size_);  // little endian, as LAS stores them
+      if (!big_endian_) continue;
+      std::uint8_t* v = dst;
+      for (const ExtraProperty& p : extras_) {
+        const std::size_t size = ply::scalar_size(p.type);
+        std::reverse(v, v + size);
+        v += size;
+      }
+    }
+  }
+
+  std::size_t core_size_ = 0;
+  std::size_t extra_size_ = 0;
+  std::vector<ExtraProperty> extras_;
   std::size_t record_size_ = 0;
+  bool swap_ = false;
+  bool big_endian_ = false;
   EncodeFn encode_ = nullptr;
   bool copy_positions_ = false;
   std::uint64_t count_offset_ = 0;
@@ -147,6 +241,10 @@ class PlyStreamWriter final : public StreamPointWriter {
 }  // namespace
 
 Result<std::unique_ptr<PointWriter>> open_ply_writer(const std::string& path, const WriterOptions& options) {
+  if (options.ply_encoding == PlyEncoding::kAscii && (options.las_attributes & kLasExtraBytes) != 0 &&
+      options.extra_bytes_size > 0) {
+    return unsupported(path + ": ASCII PLY output does not carry extra bytes (write binary PLY or LAS)");
+  }
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<OutputFile> out, OutputFile::create(path));
   if (out->is_stdout()) {
     return invalid_argument("PLY cannot be written to standard output (its header is completed last)");

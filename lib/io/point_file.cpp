@@ -80,15 +80,34 @@ std::string supported_writer_list() {
   return out + " (or - for XYZ text on standard output)";
 }
 
-template <typename T>
-void append(std::vector<T>& to, const std::vector<T>& from) {
-  to.insert(to.end(), from.begin(), from.end());
-}
+// A reader whose points carry no extra bytes (ReaderOptions::extra_bytes off):
+// LAS/LAZ extra bytes and the properties PLY and PCD keep as extra bytes.
+class WithoutExtraBytes final : public PointReader {
+ public:
+  explicit WithoutExtraBytes(std::unique_ptr<PointReader> inner) : inner_(std::move(inner)) { sync(); }
+  const PointStreamInfo& info() const override { return info_; }
+  Result<std::size_t> read(PointCloud& batch, std::size_t max_points) override {
+    Result<std::size_t> n = inner_->read(batch, max_points);
+    batch.las.extra_bytes.clear();
+    batch.las.extra_bytes_size = 0;
+    sync();
+    return n;
+  }
 
-}  // namespace
+ private:
+  // The inner reader's info learns things while reading (warnings, the colour rule).
+  void sync() {
+    info_ = inner_->info();
+    info_.las_attributes &= ~std::uint32_t{kLasExtraBytes};
+    info_.extra_bytes_vlr.clear();
+    info_.extra_bytes_size = 0;
+  }
 
-Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
-                                                       const ReaderOptions& options) {
+  std::unique_ptr<PointReader> inner_;
+  PointStreamInfo info_;
+};
+
+Result<std::unique_ptr<PointReader>> open_by_kind(const std::string& path, const ReaderOptions& options) {
   const std::string ext = lower(std::filesystem::path(path).extension().string());
   const auto it = std::find_if(kExtensions.begin(), kExtensions.end(),
                                [&](const Extension& e) { return e.extension == ext; });
@@ -100,15 +119,24 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
   const InputSpec input{path, std::nullopt};
   switch (it->kind) {
     case Kind::kPly:
-      return open_ply_reader(input);
+      return open_ply_reader(input, options);
     case Kind::kLas:
       return open_las_reader(input);
     case Kind::kXyz:
       return open_xyz_reader(input, options);
     case Kind::kPcd:
-      return open_pcd_reader(input);
+      return open_pcd_reader(input, options);
   }
   return internal_error(path + ": unhandled point file kind");
+}
+
+}  // namespace
+
+Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
+                                                       const ReaderOptions& options) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_by_kind(path, options));
+  if (options.extra_bytes || (reader->info().las_attributes & kLasExtraBytes) == 0) return reader;
+  return std::unique_ptr<PointReader>(std::make_unique<WithoutExtraBytes>(std::move(reader)));
 }
 
 Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options) {
@@ -146,9 +174,7 @@ Result<PointCloud> read_point_file(const std::string& path) {
   for (;;) {
     RELIEF_ASSIGN_OR_RETURN(n, reader->read(batch, kWholeFileBatch));
     if (n == 0) break;
-    append(cloud.positions, batch.positions);
-    append(cloud.colors, batch.colors);
-    append(cloud.intensities, batch.intensities);
+    cloud.append_points(batch);
   }
   return cloud;
 }

@@ -64,6 +64,7 @@ std::uint32_t ShardPlan::range_of(const ChunkKey& key) const {
 ReaderOptions ShardPlan::reader_options() const {
   ReaderOptions r;
   if (has_xyz_columns) r.xyz_columns = xyz_columns;
+  r.extra_bytes = !no_extra_bytes;
   return r;
 }
 
@@ -118,6 +119,7 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
   plan.split_points = std::max<std::uint64_t>(1, o.split_points);
   plan.has_xyz_columns = o.reader.xyz_columns.has_value();
   if (plan.has_xyz_columns) plan.xyz_columns = *o.reader.xyz_columns;
+  plan.no_extra_bytes = !o.reader.extra_bytes;
   plan.points = sample.points;
   plan.sources = in.sources;
   for (ArchiveSource& s : plan.sources) s.point_count = 0;
@@ -191,6 +193,7 @@ std::string shard_plan_text(const ShardPlan& plan) {
   line("crs", {a.crs});
   line("split_points", {std::to_string(plan.split_points)});
   if (plan.has_xyz_columns) line("xyz_columns", {plan.xyz_columns});
+  if (plan.no_extra_bytes) line("no_extra_bytes", {});
   line("points", {std::to_string(plan.points)});
   for (const ArchiveSource& s : plan.sources) line("input", {s.path, s.format, s.crs});
   line("ranges", {std::to_string(plan.range_count())});
@@ -344,6 +347,9 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       RELIEF_RETURN_IF_ERROR(want(1));
       plan.has_xyz_columns = true;
       plan.xyz_columns = l.fields[0];
+    } else if (l.key == "no_extra_bytes") {
+      RELIEF_RETURN_IF_ERROR(want(0));
+      plan.no_extra_bytes = true;
     } else if (l.key == "points") {
       RELIEF_RETURN_IF_ERROR(want(1));
       std::int64_t v = 0;

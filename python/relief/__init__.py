@@ -142,8 +142,8 @@ def compress(inputs, archive, *, progress=None, **options):
     (never overwritten). ``options``: as ``relief compress`` (``mode``,
     ``tolerance``, ``color_tolerance``, ``cell``, ``chunk_edge``,
     ``error_target``, ``memory`` ("512M", "2G" or a number of MiB), ``threads``,
-    ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs`` and the
-    encoder options). ``progress``: called about twice a second with a dict
+    ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs``,
+    ``no_extra_bytes`` and the encoder options). ``progress``: called about twice a second with a dict
     (points_read, points_total, chunks_written, bytes_written, seconds,
     phase); an exception it raises (or Ctrl-C) stops the ingest and
     propagates, and the archive keeps the chunks committed so far (an
@@ -158,7 +158,8 @@ def compress(inputs, archive, *, progress=None, **options):
 def append(archive, inputs, *, progress=None, **options):
     """Adds point files to an existing archive with its grid and codec
     parameters; on failure the archive is left as it was. ``options``: as
-    ``relief append`` (memory, threads, tmp, columns, verify, assume_crs).
+    ``relief append`` (memory, threads, tmp, columns, verify, assume_crs,
+    no_extra_bytes).
     Returns the same dict as :func:`compress`."""
     return _ingest("append", inputs, archive, options, progress)
 

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
@@ -401,4 +402,92 @@ TEST_CASE("KITTI-like float intensities in 0..1 survive: exactly in PLY, scaled 
       CHECK(got->intensities[k] == want);
     }
   }
+}
+
+TEST_CASE("PLY normals and labels survive compress and decompress, to PLY and to LAS", "[cli][io][extra]") {
+  TempDir tmp;
+  // 4,000 points on a 2 cm grid, each with normals (float), a label (int32)
+  // and a weight (double) that together identify it.
+  const int n = 4000;
+  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
+                    "\nproperty double x\nproperty double y\nproperty double z\nproperty float nx\nproperty float ny\n"
+                    "property float nz\nproperty int label\nproperty double weight\nend_header\n";
+  struct Row {
+    relief::Vec3d p;
+    std::array<std::uint8_t, 24> extra{};  // nx ny nz label weight, little endian
+  };
+  std::vector<Row> rows;
+  for (int i = 0; i < n; ++i) {
+    Row r;
+    r.p = {0.02 * (i % 80), 0.02 * (i / 80), 0.001 * (i % 13)};
+    const float nx = static_cast<float>(i % 17) / 17.0f, ny = -nx, nz = 0.5f;
+    const std::int32_t label = i * 7919 - 1000000;
+    const double weight = i / 3.0;
+    std::size_t at = 0;
+    auto add = [&](const auto& v) {
+      std::memcpy(r.extra.data() + at, &v, sizeof(v));
+      at += sizeof(v);
+    };
+    add(nx), add(ny), add(nz), add(label), add(weight);
+    ply.append(reinterpret_cast<const char*>(&r.p), sizeof(r.p));
+    ply.append(reinterpret_cast<const char*>(r.extra.data()), r.extra.size());
+    rows.push_back(std::move(r));
+  }
+  {
+    std::ofstream f(tmp.file("normals.ply"), std::ios::binary);
+    f.write(ply.data(), static_cast<std::streamsize>(ply.size()));
+  }
+  const Run c = run("compress " + tmp.file("normals.ply") + " -o " + tmp.file("n.relief") + " --tolerance 0.001 --quiet");
+  REQUIRE(c.code == 0);
+  const Run info = run("info " + tmp.file("n.relief"));
+  CHECK(has(info, "24 extra bytes: nx (float32), ny (float32), nz (float32), label (int32), weight (float64)"));
+  CHECK(has(info, "no LAS input"));
+
+  auto by_extra = [](const Row& a, const Row& b) { return a.extra < b.extra; };
+  std::sort(rows.begin(), rows.end(), by_extra);
+  for (const char* out : {"back.ply", "back.las"}) {
+    INFO(out);
+    REQUIRE(run("decompress " + tmp.file("n.relief") + " -o " + tmp.file(out) + " --quiet").code == 0);
+    auto reader = relief::open_point_reader(tmp.file(out));
+    REQUIRE(reader.is_ok());
+    const relief::PointStreamInfo& ri = (*reader)->info();
+    REQUIRE(ri.extra_bytes_size == 24);
+    std::vector<Row> got;
+    relief::PointCloud batch;
+    for (;;) {
+      auto k = (*reader)->read(batch, 1000);
+      REQUIRE(k.is_ok());
+      if (*k == 0) break;
+      for (std::size_t i = 0; i < *k; ++i) {
+        Row r{batch.positions[i], {}};
+        std::memcpy(r.extra.data(), batch.las.extra_bytes.data() + i * 24, 24);
+        got.push_back(r);
+      }
+    }
+    REQUIRE(got.size() == rows.size());
+    std::sort(got.begin(), got.end(), by_extra);
+    double worst = 0;
+    std::size_t same = 0;
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      same += got[i].extra == rows[i].extra ? 1 : 0;
+      worst = std::max({worst, std::abs(got[i].p.x - rows[i].p.x), std::abs(got[i].p.y - rows[i].p.y),
+                        std::abs(got[i].p.z - rows[i].p.z)});
+    }
+    CHECK(same == rows.size());  // every point keeps its values exactly, beside its own position
+    CHECK(worst <= 0.001 * (1 + 1e-9));
+  }
+
+  // --no-extra-bytes drops them.
+  REQUIRE(run("compress " + tmp.file("normals.ply") + " -o " + tmp.file("plain.relief") + " --no-extra-bytes --quiet")
+              .code == 0);
+  CHECK_FALSE(has(run("info " + tmp.file("plain.relief")), "extra bytes"));
+  // A PLY whose properties differ from the first's is refused, naming both.
+  write_text(tmp.file("other.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                    "property float z\nproperty uchar label\nend_header\n0.5 0.5 0 3\n");
+  const Run mixed = run("compress " + tmp.file("normals.ply") + " " + tmp.file("other.ply") + " -o " +
+                        tmp.file("mixed.relief") + " --quiet");
+  CHECK(mixed.code != 0);
+  CHECK(has(mixed, "other.ply has 1 extra bytes per point described by a different Extra Bytes VLR than"));
+  CHECK(has(mixed, "normals.ply"));
+  CHECK_FALSE(fs::exists(tmp.file("mixed.relief")));
 }

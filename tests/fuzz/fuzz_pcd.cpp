@@ -8,7 +8,7 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::span<const std::uint8_t> bytes(data, size);
-  auto reader = relief::open_pcd_reader(relief::InputSpec{"fuzz.pcd", bytes});
+  auto reader = relief::open_pcd_reader(relief::InputSpec{"fuzz.pcd", bytes}, relief::ReaderOptions{});
   if (reader.is_ok()) relief::fuzz::drain(**reader, size, "pcd reader");
   return 0;
 }

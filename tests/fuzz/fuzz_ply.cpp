@@ -12,7 +12,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::span<const std::uint8_t> bytes(data, size);
   auto cloud = relief::read_ply_memory(bytes, "fuzz.ply");
   if (cloud.is_ok()) relief::fuzz::check_points_bounded(cloud->size(), size, "read_ply_memory");
-  auto reader = relief::open_ply_reader(relief::InputSpec{"fuzz.ply", bytes});
+  auto reader = relief::open_ply_reader(relief::InputSpec{"fuzz.ply", bytes}, relief::ReaderOptions{});
   if (reader.is_ok()) relief::fuzz::drain(**reader, size, "ply reader");
   return 0;
 }

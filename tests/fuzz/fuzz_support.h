@@ -40,6 +40,14 @@ inline void drain(PointReader& reader, std::size_t input_size, const char* what)
                    batch.size(), kBatchPoints);
       std::abort();
     }
+    // Every carried attribute has one entry per point (extra bytes: its width each).
+    const auto& info = reader.info();
+    if (batch.las.extra_bytes.size() != static_cast<std::size_t>(info.extra_bytes_size) * *n &&
+        (info.las_attributes & kLasExtraBytes) != 0) {
+      std::fprintf(stderr, "%s: %zu extra bytes for %zu points of %u bytes\n", what, batch.las.extra_bytes.size(), *n,
+                   static_cast<unsigned>(info.extra_bytes_size));
+      std::abort();
+    }
     total += *n;
     check_points_bounded(total, input_size, what);
   }

@@ -97,6 +97,11 @@ struct ReaderOptions {
   // Colour levels are 0..255, or 0..65535 shifted to 8 bits by the 16-bit
   // rule when the first 2^20 points hold a level above 255.
   std::optional<std::string> xyz_columns;
+  // Keep each point's extra bytes: LAS/LAZ extra bytes, and the PLY vertex
+  // properties and PCD fields other than x y z, colour and intensity (normals,
+  // labels, curvature, alpha ...), which those readers deliver as LAS extra
+  // bytes described by an Extra Bytes VLR. Off: none are delivered.
+  bool extra_bytes = true;
 };
 
 class PointReader {
@@ -142,6 +147,16 @@ struct ExtraBytesField {
 // bytes per point (the bytes the point records have beyond their format).
 Result<std::vector<ExtraBytesField>> parse_extra_bytes_vlr(std::span<const std::uint8_t> payload,
                                                            std::size_t record_extra, const std::string& what);
+
+// The inverse: an Extra Bytes VLR payload describing `fields` in order (name,
+// description, data_type, options, and scale/offset when the options say so;
+// offset, size and type_name are implied and ignored). kInvalidArgument when
+// there are more fields than one VLR holds (65535 bytes: 341), a name or
+// description is longer than 32 bytes, or a data type is outside 0..30.
+Result<std::string> make_extra_bytes_vlr(const std::vector<ExtraBytesField>& fields);
+// Bytes per point of one field of data type 1..30 (0 for type 0, whose size
+// is its options byte, and for reserved types).
+std::size_t extra_bytes_type_size(int data_type);
 
 // ---- Streaming writers: outputs larger than memory are written in batches.
 

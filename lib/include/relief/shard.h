@@ -56,6 +56,8 @@ struct ShardPlan {
   std::uint64_t split_points = kMaxBoundedChunkPoints;
   bool has_xyz_columns = false;
   std::string xyz_columns;
+  // Every stage reads without extra bytes (compress --no-extra-bytes).
+  bool no_extra_bytes = false;
   std::uint64_t points = 0;  // points the plan pass read (all inputs)
   // One per input, in order: path, format and CRS as compress records them
   // (point_count is filled by stage 1).

@@ -157,6 +157,8 @@ struct PointCloud {
   void clear_points();
   // Appends point `i` of `src`, which must carry the same attributes.
   void push_back_from(const PointCloud& src, std::size_t i);
+  // Appends every point of `src`, which must carry the same attributes.
+  void append_points(const PointCloud& src);
   // Reorders (or selects) points: the result's point k is this cloud's point order[k].
   PointCloud gathered(const std::vector<std::uint32_t>& order) const;
   // Resizes positions and every carried attribute to n points (new points zeroed).
