@@ -398,12 +398,19 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       grouping.add(b.points.positions.data(), b.points.size(), grid);
       return Status::ok();
     }));
-    if (points_read != total) {
+    // Headers count the records a reader skips by design (PCD's no-depth
+    // NaN points), so those are subtracted, and `all`, covered up to the
+    // headers' total, shrinks to the points read.
+    std::uint64_t skipped = 0;
+    for (const auto& r : in.readers) skipped += r->info().skipped_points;
+    if (points_read + skipped != total) {
       std::string names;
       for (const ArchiveSource& src : in.sources) names += (names.empty() ? "" : ", ") + src.path;
       return format_error(names + ": " + std::to_string(points_read) + " points read where the headers declare " +
-                          std::to_string(total));
+                          std::to_string(total) +
+                          (skipped > 0 ? " (" + std::to_string(skipped) + " skipped as having no depth)" : ""));
     }
+    all.resize_points(static_cast<std::size_t>(points_read));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
                                                options.verify_blobs);

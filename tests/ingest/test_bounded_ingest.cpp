@@ -277,6 +277,7 @@ TEST_CASE("bounded compress: LAS input comes back as the same LAS integers", "[i
   WriterOptions back = w;
   back.grid_scale = params->bound->step;
   back.grid_offset = params->bound->origin;
+  back.las_attributes = out.las.carried();  // what the archive gives every point
   auto writer = open_point_writer(dir.file("out.las"), back);
   REQUIRE(writer.is_ok());
   REQUIRE((*writer)->write(out).is_ok());
@@ -284,4 +285,81 @@ TEST_CASE("bounded compress: LAS input comes back as the same LAS integers", "[i
   auto reread = read_point_file(dir.file("out.las"));
   REQUIRE(reread.is_ok());
   CHECK(ints(*reread) == ints(in));
+}
+
+TEST_CASE("bounded compress of an organised PCD: no-depth pixels skipped, fields kept, the blobs of the same PLY",
+          "[ingest][bounded][extra]") {
+  TempDir dir;
+  // A 160 x 120 depth image: every 7th pixel has no depth (NaN), the others
+  // carry a packed colour, a normal component and a label.
+  const int w = 160, h = 120;
+  std::string pcd = "VERSION 0.7\nFIELDS x y z rgb normal_x label\nSIZE 4 4 4 4 4 4\nTYPE F F F U F U\n"
+                    "COUNT 1 1 1 1 1 1\nWIDTH " + std::to_string(w) + "\nHEIGHT " + std::to_string(h) +
+                    "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(w * h) + "\nDATA binary\n";
+  std::string ply_body;
+  int kept = 0;
+  auto put = [](std::string& out, const auto& v) { out.append(reinterpret_cast<const char*>(&v), sizeof(v)); };
+  for (int i = 0; i < w * h; ++i) {
+    const bool hole = i % 7 == 3;
+    const float x = hole ? std::nanf("") : 0.01f * static_cast<float>(i % w);
+    const float y = 0.01f * static_cast<float>(i / w);
+    const float z = 1.0f + 0.002f * static_cast<float>((i * 37) % 11);
+    const std::uint32_t rgb = (static_cast<std::uint32_t>(i % 251) << 16) | (static_cast<std::uint32_t>(i % 13) << 8) | 7u;
+    const float nx = static_cast<float>(i % 101) / 100.0f;
+    const std::uint32_t label = static_cast<std::uint32_t>(i) * 2654435761u;
+    put(pcd, x), put(pcd, y), put(pcd, z), put(pcd, rgb), put(pcd, nx), put(pcd, label);
+    if (hole) continue;
+    ++kept;
+    put(ply_body, x), put(ply_body, y), put(ply_body, z);
+    const std::uint8_t c[3] = {static_cast<std::uint8_t>(rgb >> 16), static_cast<std::uint8_t>(rgb >> 8),
+                               static_cast<std::uint8_t>(rgb)};
+    ply_body.append(reinterpret_cast<const char*>(c), 3);
+    put(ply_body, nx), put(ply_body, label);
+  }
+  const std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(kept) +
+                          "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+                          "property uchar green\nproperty uchar blue\nproperty float normal_x\nproperty uint label\n"
+                          "end_header\n" + ply_body;
+  std::ofstream(dir.file("depth.pcd"), std::ios::binary) << pcd;
+  std::ofstream(dir.file("same.ply"), std::ios::binary) << ply;
+
+  IngestOptions o;
+  o.tolerance = 0.0005;
+  auto a = compress_files({dir.file("depth.pcd")}, dir.file("pcd.relief"), o);
+  REQUIRE(a.is_ok());
+  CHECK(a->points_read == static_cast<std::uint64_t>(kept));
+  auto b = compress_files({dir.file("same.ply")}, dir.file("ply.relief"), o);
+  REQUIRE(b.is_ok());
+  // The values, not the file they came from, make the blobs.
+  CHECK(blobs(dir.file("pcd.relief")) == blobs(dir.file("ply.relief")));
+
+  // Every kept pixel comes back once, with its colour and fields exactly.
+  auto source = read_point_file(dir.file("same.ply"));
+  REQUIRE(source.is_ok());
+  REQUIRE(source->las.extra_bytes_size == 8);
+  const PointCloud out = decode_all(dir.file("pcd.relief"));
+  REQUIRE(out.size() == source->size());
+  REQUIRE(out.las.extra_bytes.size() == 8 * out.size());
+  using Key = std::tuple<std::uint64_t, std::uint8_t, std::uint8_t, std::uint8_t>;  // fields, colour
+  auto keyed = [](const PointCloud& c) {
+    std::vector<std::pair<Key, Vec3d>> v;
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      std::uint64_t f = 0;
+      std::memcpy(&f, c.las.extra_bytes.data() + 8 * i, 8);
+      v.push_back({{f, c.colors[i].r, c.colors[i].g, c.colors[i].b}, c.positions[i]});
+    }
+    std::sort(v.begin(), v.end(), [](const auto& p, const auto& q) { return p.first < q.first; });
+    return v;
+  };
+  const auto want = keyed(*source);
+  const auto got = keyed(out);
+  double worst = 0;
+  bool same_keys = true;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    same_keys = same_keys && want[i].first == got[i].first;
+    worst = std::max({worst, std::abs(want[i].second.x - got[i].second.x), std::abs(want[i].second.y - got[i].second.y),
+                      std::abs(want[i].second.z - got[i].second.z)});
+  }
+  CHECK(same_keys);
+  CHECK(worst <= 0.0005 * (1 + 1e-9));
 }

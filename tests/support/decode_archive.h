@@ -31,9 +31,7 @@ inline PointCloud decode_archive(const std::string& path, std::set<std::int64_t>
       CHECK((p.x >= ref.bounds.min.x && p.x <= ref.bounds.max.x && p.y >= ref.bounds.min.y &&
              p.y <= ref.bounds.max.y && p.z >= ref.bounds.min.z && p.z <= ref.bounds.max.z));
     }
-    all.positions.insert(all.positions.end(), pts->positions.begin(), pts->positions.end());
-    all.colors.insert(all.colors.end(), pts->colors.begin(), pts->colors.end());
-    all.intensities.insert(all.intensities.end(), pts->intensities.begin(), pts->intensities.end());
+    all.append_points(*pts);
     if (scans) scans->insert(ref.scan_id);
   }
   return all;
