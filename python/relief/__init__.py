@@ -218,7 +218,14 @@ class Archive:
         archive has colour; intensity (float32); then each LAS attribute the
         points carry (classification, class_flags, return_number,
         number_of_returns, scan_flags, scan_angle, user_data,
-        point_source_id, gps_time, nir, extra_bytes).
+        point_source_id, gps_time, nir, extra_bytes). The extra bytes (LAS
+        extra bytes, and the PLY properties and PCD fields Relief keeps as
+        such: normals, labels ...) are also fields of their own, by the
+        names and types ``info["las"]["extra_bytes"]`` lists (views of the
+        same bytes; an array field such as ``uint16[3]`` has that shape; a
+        name that is already a field, and undocumented bytes, stay only in
+        ``extra_bytes``). Values are raw: apply a field's ``scale`` and
+        ``value_offset`` where the info gives them.
 
         ``batches=True``: an iterator of arrays, one per decoded batch, with
         at most a few batches in memory at a time; close it (or let it go)
@@ -241,19 +248,44 @@ class Archive:
             return self._batches(self._reader.batches(values, lod, threads, skip_corrupt, max_points))
         array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points)
         _warn_all(messages)
-        return array
+        return self._with_extra_fields(array)
 
-    @staticmethod
-    def _batches(stream):
+    def _batches(self, stream):
         # A generator, so an abandoned iteration closes the query (the
         # worker thread stops) when the generator is collected or closed.
         try:
             for array, messages in stream:
                 _warn_all(messages)
                 if array is not None:
-                    yield array
+                    yield self._with_extra_fields(array)
         finally:
             stream.close()
+
+    _EXTRA_TYPES = {"uint8": "u1", "int8": "i1", "uint16": "<u2", "int16": "<i2", "uint32": "<u4", "int32": "<i4",
+                    "uint64": "<u8", "int64": "<i8", "float32": "<f4", "float64": "<f8"}
+
+    def _with_extra_fields(self, array):
+        """`array` viewed with each described extra bytes field as a typed field."""
+        names = array.dtype.names or ()
+        las = self.info.get("las") or {}
+        described = las.get("extra_bytes") or []
+        if "extra_bytes" not in names or not described:
+            return array
+        import numpy as np
+
+        base, at = array.dtype.fields["extra_bytes"][:2]
+        fields = {n: array.dtype.fields[n][:2] for n in names}
+        for f in described:
+            kind, _, count = f["type"].partition("[")
+            if f["name"] in fields or kind not in self._EXTRA_TYPES or f["offset"] + f["size"] > base.itemsize:
+                continue
+            t = np.dtype(self._EXTRA_TYPES[kind])
+            if count:
+                t = np.dtype((t, (int(count.rstrip("]")),)))
+            fields[f["name"]] = (t, at + f["offset"])
+        view = np.dtype({"names": list(fields), "formats": [v[0] for v in fields.values()],
+                         "offsets": [v[1] for v in fields.values()], "itemsize": array.dtype.itemsize})
+        return array.view(view)
 
     def close(self):
         """Closes the archive; later queries raise ValueError."""

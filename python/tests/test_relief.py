@@ -375,3 +375,42 @@ def test_pyramid_and_max_points(tmp_path, scene):
             a.query(lod=4, max_points=10)
     with pytest.raises(relief.InvalidArgumentError, match="pyramid"):
         relief.compress([src], tmp_path / "q.relief", pyramid="sometimes")
+
+
+def test_ply_properties_come_back_as_typed_fields(tmp_path):
+    # A PLY with normals, a label and a 3-element PCD-like histogram kept as
+    # extra bytes; the query gives each its own typed field.
+    n = 3000
+    rng = np.random.default_rng(4)
+    dt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("nx", "<f4"), ("label", "<i4"), ("w", "<f8")])
+    v = np.zeros(n, dtype=dt)
+    v["x"] = np.arange(n) % 60 * 0.05
+    v["y"] = np.arange(n) // 60 * 0.05
+    v["z"] = rng.random(n) * 0.01
+    v["nx"] = rng.random(n).astype(np.float32)
+    v["label"] = rng.integers(-(2**31), 2**31 - 1, n, dtype=np.int32)
+    v["w"] = rng.random(n)
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\n"
+              "property double x\nproperty double y\nproperty double z\n"
+              "property float nx\nproperty int label\nproperty double w\nend_header\n").encode()
+    (tmp_path / "p.ply").write_bytes(header + v.tobytes())
+    out = tmp_path / "p.relief"
+    relief.compress(str(tmp_path / "p.ply"), str(out), tolerance=0.001)
+    with relief.open(out) as a:
+        assert [f["name"] for f in a.info["las"]["extra_bytes"]] == ["nx", "label", "w"]
+        pts = a.query()
+        batches = list(a.query(batches=True))
+    assert pts.dtype.names == ("x", "y", "z", "extra_bytes", "nx", "label", "w")
+    assert pts.dtype["nx"] == np.float32 and pts.dtype["label"] == np.int32 and pts.dtype["w"] == np.float64
+    assert batches and all("label" in b.dtype.names for b in batches)
+    # Each point keeps its own values, exactly.
+    order = np.argsort(pts["label"], kind="stable")
+    src = np.argsort(v["label"], kind="stable")
+    assert np.array_equal(pts["label"][order], v["label"][src])
+    assert np.array_equal(pts["nx"][order], v["nx"][src])
+    assert np.array_equal(pts["w"][order], v["w"][src])
+    assert np.max(np.abs(pts["x"][order] - v["x"][src])) <= 0.001 * (1 + 1e-9)
+    # Dropped on request.
+    relief.compress(str(tmp_path / "p.ply"), str(tmp_path / "q.relief"), no_extra_bytes=True)
+    with relief.open(tmp_path / "q.relief") as a:
+        assert a.query().dtype.names == ("x", "y", "z")
