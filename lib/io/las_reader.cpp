@@ -10,7 +10,7 @@
 // source ID, GPS time, NIR, and the record's extra bytes beyond its format's
 // minimum, raw (described by the Extra Bytes VLR, kept in
 // PointStreamInfo::extra_bytes_vlr and checked against the record length).
-// Wave packet descriptors (formats 4, 5, 9, 10) are skipped. The header is
+// Wave packet descriptors (formats 4, 5, 9, 10) are skipped, with a warning. The header is
 // validated against the file size before anything is allocated from it; VLRs
 // before the points and extended VLRs after them (LAS 1.4, read through a
 // second handle that seeks there) are scanned for the coordinate reference
@@ -541,6 +541,12 @@ Status LasPointReader::start() {
   info_.extra_bytes_size = static_cast<std::uint32_t>(layout_.extra_size);
   info_.las_point_format = header_.format;
   info_.las_version_minor = header_.version_minor;
+  if (header_.format == 4 || header_.format == 5 || header_.format == 9 || header_.format == 10) {
+    info_.warnings.push_back(name() + ": point format " + std::to_string(header_.format) +
+                             " carries wave packet descriptors (where each pulse's waveform lies), which are not "
+                             "kept: the points and their other attributes are, and LAS output writes them as format " +
+                             std::to_string(header_.format == 4 ? 1 : header_.format == 5 ? 3 : header_.format == 9 ? 6 : 8));
+  }
   info_.las_attributes = format_attributes(header_.format) | (layout_.extra_size != 0 ? kLasExtraBytes : 0u);
   if ((info_.las_attributes & kLasGpsTime) != 0) {
     info_.las_gps_time_type =
