@@ -4,8 +4,10 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <set>
 #include <thread>
 
@@ -17,8 +19,9 @@ namespace relief {
 
 namespace {
 
-// Chunks decoded per wave per thread: enough to keep every core busy, few
-// enough that memory stays a handful of chunks whatever the box.
+// Chunks in flight (read, decoding or waiting to be delivered) per decoder
+// thread: enough to keep every core busy, few enough that memory stays a
+// handful of chunks whatever the box.
 constexpr unsigned kChunksPerThreadPerWave = 2;
 
 bool contains(const Box3d& outer, const Box3d& inner) {
@@ -276,35 +279,40 @@ class Reader final : public ArchiveReader {
     // level of detail applied to the matching points here.
     const std::uint32_t every = filter.any() ? options.lod : 1;
 
+    // A pipeline: this thread reads blobs (one SQLite connection; checksum
+    // failures surface here) up to `window` chunks ahead of the next one it
+    // delivers, `threads` workers decode them as they come, and this thread
+    // hands each to the sink in index order once decoded. So reading,
+    // decoding and the sink (often a file writer) overlap, and no worker
+    // waits for the slowest chunk of a batch. At most `window` chunks are in
+    // memory whatever the box.
     struct Slot {
       ChunkRef ref;
       std::uint32_t lod = 1;
       std::vector<std::uint8_t> blob;
       PointCloud points;
       Status status;
+      bool decoded = false;  // guarded by the mutex below
     };
-    std::vector<Slot> slots;
-    for (std::size_t first = 0; first < refs.size(); first += wave) {
-      const std::size_t count = std::min(wave, refs.size() - first);
-      slots.assign(count, Slot{});
-      // Blobs are read on this thread (one SQLite connection); checksum
-      // failures surface here.
-      for (std::size_t k = 0; k < count; ++k) {
-        slots[k].ref = refs[first + k];
-        slots[k].lod = filter.any() ? 1 : plan.lods[first + k];
-        auto row = slots[k].ref.level == 0 ? archive_->read_chunk(slots[k].ref.id)
-                                           : archive_->read_level_chunk(slots[k].ref.id);
-        if (row) {
-          slots[k].blob = std::move(row->blob);
-        } else {
-          slots[k].status = row.status();
+    const std::size_t n = refs.size();
+    const std::size_t window = std::max<std::size_t>(1, std::min(wave, n));
+    std::vector<Slot> ring(window);
+    std::mutex mutex;
+    std::condition_variable changed;
+    std::size_t read_upto = 0;    // chunks [0, read_upto) have been read
+    std::size_t next_decode = 0;  // the next chunk a worker takes
+    bool stop = false;
+    const auto decode_worker = [&] {
+      for (;;) {
+        std::size_t k = 0;
+        {
+          std::unique_lock<std::mutex> lock(mutex);
+          changed.wait(lock, [&] { return stop || next_decode < read_upto; });
+          if (stop) return;
+          k = next_decode++;
         }
-      }
-      std::atomic<std::size_t> next{0};
-      const auto decode_worker = [&] {
-        for (std::size_t k = next.fetch_add(1); k < count; k = next.fetch_add(1)) {
-          Slot& s = slots[k];
-          if (!s.status) continue;
+        Slot& s = ring[k % window];
+        if (s.status) {
           DecodeOptions dec;
           dec.lod = s.lod;
           auto pts = decode_chunk(s.blob, dec);
@@ -312,37 +320,80 @@ class Reader final : public ArchiveReader {
           if (!pts) {
             s.status = pts.status().with_context(archive_->path() + ": " + chunk_name(s.ref) +
                                                  (s.ref.level > 0 ? " of pyramid level " + std::to_string(s.ref.level) : ""));
-            continue;
+          } else {
+            s.points = std::move(pts).value();
+            // Every batch carries the archive's LAS attributes, whatever the
+            // chunk's scan or layer had.
+            conform_las_attributes(s.points, info_.las_attributes, info_.extra_bytes_size);
+            if (filter.any()) {
+              select(s.points, box, !contains(box, s.ref.bounds), filter, every);
+            } else if (!contains(box, s.ref.bounds)) {
+              clip(s.points, box);
+            }
           }
-          s.points = std::move(pts).value();
-          // Every batch carries the archive's LAS attributes, whatever the
-          // chunk's scan or layer had.
-          conform_las_attributes(s.points, info_.las_attributes, info_.extra_bytes_size);
-          if (filter.any()) {
-            select(s.points, box, !contains(box, s.ref.bounds), filter, every);
-          } else if (!contains(box, s.ref.bounds)) {
-            clip(s.points, box);
-          }
         }
-      };
-      // This thread decodes too; the others join it for the wave.
-      std::vector<std::thread> pool;
-      const unsigned helpers = static_cast<unsigned>(std::min<std::size_t>(threads, count)) - 1;
-      for (unsigned t = 0; t < helpers; ++t) pool.emplace_back(decode_worker);
-      decode_worker();
-      for (std::thread& t : pool) t.join();
-      for (Slot& s : slots) {
-        if (!s.status) {
-          if (!options.skip_corrupt) return s.status;
-          ++stats.chunks_skipped;
-          if (options.on_warning) options.on_warning("skipped: " + s.status.message());
-          continue;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          s.decoded = true;
         }
-        ++stats.chunks_decoded;
-        if (plan.cap > 0 && stats.points + s.points.size() > plan.cap) {
-          s.points.resize_points(static_cast<std::size_t>(plan.cap - stats.points));
+        changed.notify_all();
+      }
+    };
+    std::vector<std::thread> pool;
+    // Stops and joins the workers on every way out of this function.
+    struct Joiner {
+      std::mutex& mutex;
+      std::condition_variable& changed;
+      bool& stop;
+      std::vector<std::thread>& pool;
+      ~Joiner() {
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          stop = true;
         }
-        if (s.points.empty()) continue;
+        changed.notify_all();
+        for (std::thread& t : pool) t.join();
+      }
+    } joiner{mutex, changed, stop, pool};
+    const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(threads, n));
+    for (unsigned t = 0; t < workers; ++t) pool.emplace_back(decode_worker);
+
+    for (std::size_t emitted = 0; emitted < n; ++emitted) {
+      // Read ahead into the free slots. A slot is free once its chunk was
+      // delivered, and workers touch only chunks below read_upto.
+      while (read_upto < n && read_upto < emitted + window) {
+        Slot& s = ring[read_upto % window];
+        s = Slot{};
+        s.ref = refs[read_upto];
+        s.lod = filter.any() ? 1 : plan.lods[read_upto];
+        auto row = s.ref.level == 0 ? archive_->read_chunk(s.ref.id) : archive_->read_level_chunk(s.ref.id);
+        if (row) {
+          s.blob = std::move(row->blob);
+        } else {
+          s.status = row.status();
+        }
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          ++read_upto;
+        }
+        changed.notify_all();
+      }
+      Slot& s = ring[emitted % window];
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [&] { return s.decoded; });
+      }
+      if (!s.status) {
+        if (!options.skip_corrupt) return s.status;
+        ++stats.chunks_skipped;
+        if (options.on_warning) options.on_warning("skipped: " + s.status.message());
+        continue;
+      }
+      ++stats.chunks_decoded;
+      if (plan.cap > 0 && stats.points + s.points.size() > plan.cap) {
+        s.points.resize_points(static_cast<std::size_t>(plan.cap - stats.points));
+      }
+      if (!s.points.empty()) {
         stats.points += s.points.size();
         RELIEF_RETURN_IF_ERROR(sink(s.points));
         s.points = PointCloud();

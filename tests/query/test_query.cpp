@@ -105,6 +105,43 @@ TEST_CASE("a box query returns exactly the full decompress's points inside the b
   }
 }
 
+TEST_CASE("chunks reach the sink in index order whatever the threads, and a failing sink stops the query",
+          "[query][threads]") {
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "order"));
+  REQUIRE(reader.is_ok());
+  // The batches in the order they arrive, one query per thread count.
+  auto batches = [&](unsigned threads) {
+    std::vector<std::vector<Vec3d>> got;
+    QueryOptions o;
+    o.threads = threads;
+    auto s = (*reader)->query_all(o, [&](const PointCloud& b) {
+      got.push_back(b.positions);
+      return Status::ok();
+    });
+    REQUIRE(s.is_ok());
+    CHECK(s->chunks_decoded == got.size());
+    return got;
+  };
+  const auto one = batches(1);
+  CHECK(one.size() > 32);  // enough chunks for several in flight per thread
+  CHECK(batches(2) == one);
+  CHECK(batches(7) == one);
+
+  for (const unsigned threads : {1u, 3u}) {
+    std::size_t calls = 0;
+    QueryOptions o;
+    o.threads = threads;
+    auto s = (*reader)->query_all(o, [&](const PointCloud&) {
+      ++calls;
+      return calls == 5 ? io_error("the disk is full") : Status::ok();
+    });
+    REQUIRE_FALSE(s.is_ok());
+    CHECK(s.status().message() == "the disk is full");
+    CHECK(calls == 5);
+  }
+}
+
 TEST_CASE("boxes outside the data return nothing and read nothing", "[query]") {
   TempDir tmp;
   auto reader = ArchiveReader::open(build(tmp, "b"));
