@@ -2,9 +2,13 @@
 #pragma once
 
 #include <algorithm>
+#include <condition_variable>
 #include <cstddef>
+#include <mutex>
 #include <thread>
 #include <vector>
+
+#include "relief/status.h"
 
 namespace relief {
 
@@ -33,6 +37,94 @@ void parallel_for_ranges(std::size_t n, unsigned threads, Fn&& fn) {
     pool.emplace_back([&fn, b, e, t] { fn(b, e, t); });
   }
   for (auto& th : pool) th.join();
+}
+
+// An ordered pipeline over items [0, n): the calling thread runs
+// read(i, slot) up to `window` items ahead of the next one it delivers,
+// `threads` workers run work(i, slot) on items as they are read, and the
+// calling thread runs deliver(i, slot, stop) in index order once an item's
+// work is done. So reading (e.g. one SQLite connection), working and
+// delivering (e.g. a file writer) overlap, no worker waits for a batch's
+// slowest item, and at most `window` slots are alive. A slot is reset to
+// Slot{} before each read. deliver returning an error, or setting `stop`,
+// ends the pipeline: workers finish the item in hand and are joined before
+// this returns. read, work and deliver must not throw.
+template <typename Slot, typename Read, typename Work, typename Deliver>
+Status ordered_pipeline(std::size_t n, unsigned threads, std::size_t window, Read&& read, Work&& work,
+                        Deliver&& deliver) {
+  if (n == 0) return Status::ok();
+  window = std::max<std::size_t>(1, std::min(window, n));
+  struct Entry {
+    Slot slot;
+    bool done = false;  // guarded by `mutex`
+  };
+  std::vector<Entry> ring(window);
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::size_t read_upto = 0;    // items [0, read_upto) have been read
+  std::size_t next_work = 0;    // the next item a worker takes
+  bool stop_workers = false;
+  const auto worker = [&] {
+    for (;;) {
+      std::size_t i = 0;
+      {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [&] { return stop_workers || next_work < read_upto; });
+        if (stop_workers) return;
+        i = next_work++;
+      }
+      Entry& e = ring[i % window];
+      work(i, e.slot);
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        e.done = true;
+      }
+      changed.notify_all();
+    }
+  };
+  std::vector<std::thread> pool;
+  // Stops and joins the workers on every way out.
+  struct Joiner {
+    std::mutex& mutex;
+    std::condition_variable& changed;
+    bool& stop_workers;
+    std::vector<std::thread>& pool;
+    ~Joiner() {
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        stop_workers = true;
+      }
+      changed.notify_all();
+      for (std::thread& t : pool) t.join();
+    }
+  } joiner{mutex, changed, stop_workers, pool};
+  const auto workers = static_cast<unsigned>(std::min<std::size_t>(std::max(1u, threads), n));
+  for (unsigned t = 0; t < workers; ++t) pool.emplace_back(worker);
+
+  for (std::size_t next = 0; next < n; ++next) {
+    // Read into the free slots: a slot is free once its item was delivered,
+    // and workers touch only items below read_upto.
+    while (read_upto < n && read_upto < next + window) {
+      Entry& e = ring[read_upto % window];
+      e.slot = Slot{};
+      e.done = false;  // no worker can see this entry until read_upto moves
+      read(read_upto, e.slot);
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        ++read_upto;
+      }
+      changed.notify_all();
+    }
+    Entry& e = ring[next % window];
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      changed.wait(lock, [&] { return e.done; });
+    }
+    bool stop = false;
+    RELIEF_RETURN_IF_ERROR(deliver(next, e.slot, stop));
+    if (stop) break;
+  }
+  return Status::ok();
 }
 
 }  // namespace relief

@@ -243,43 +243,43 @@ class Builder {
   }
 
   // Level 1's points: the map layer of every chunk, thinned to the level's
-  // pitch, a few chunks at a time (read here, decoded by every thread).
+  // pitch (read here, decoded by every thread, appended here in order;
+  // core/parallel.h's ordered pipeline, 2 chunks per thread in flight).
   Status feed_from_chunks(const std::vector<ChunkRef>& refs, const Level& level, BucketFiles& files) {
-    const std::size_t wave = static_cast<std::size_t>(threads_) * 2;
     struct Slot {
       ChunkRow row;
       PointCloud points;
       Status status;
     };
-    std::vector<Slot> slots;
     std::vector<ChunkKey> keys;
-    for (std::size_t first = 0; first < refs.size(); first += wave) {
+    const auto read = [&](std::size_t i, Slot& s) {
+      auto row = archive_.read_chunk(refs[i].id);
+      if (row) {
+        s.row = std::move(*row);
+      } else {
+        s.status = row.status();
+      }
+    };
+    const auto decode = [&](std::size_t, Slot& s) {
+      if (!s.status) return;
+      DecodeOptions dec;
+      dec.base_layer = true;
+      auto points = decode_chunk(s.row.blob, dec);
+      std::vector<std::uint8_t>().swap(s.row.blob);
+      if (!points) {
+        s.status = points.status().with_context(archive_.path() + ": chunk id " + std::to_string(s.row.ref.id));
+        return;
+      }
+      conform(*points, carried_);
+      s.points = thin(*points, grid_.origin, level.pitch);
+    };
+    const auto append = [&](std::size_t, Slot& s, bool&) -> Status {
       RELIEF_RETURN_IF_ERROR(cancelled());
-      const std::size_t count = std::min(wave, refs.size() - first);
-      slots.assign(count, Slot{});
-      for (std::size_t k = 0; k < count; ++k) {
-        RELIEF_ASSIGN_OR_RETURN(slots[k].row, archive_.read_chunk(refs[first + k].id));
-      }
-      for_each_parallel(count, threads_, [&](std::size_t k) {
-        Slot& s = slots[k];
-        DecodeOptions dec;
-        dec.base_layer = true;
-        auto points = decode_chunk(s.row.blob, dec);
-        std::vector<std::uint8_t>().swap(s.row.blob);
-        if (!points) {
-          s.status = points.status().with_context(archive_.path() + ": chunk id " + std::to_string(s.row.ref.id));
-          return;
-        }
-        conform(*points, carried_);
-        s.points = thin(*points, grid_.origin, level.pitch);
-      });
-      for (Slot& s : slots) {
-        RELIEF_RETURN_IF_ERROR(s.status);
-        keys.assign(s.points.size(), parent(s.row.ref.key, level.level));
-        RELIEF_RETURN_IF_ERROR(files.append(s.points, keys.data()));
-      }
-    }
-    return Status::ok();
+      RELIEF_RETURN_IF_ERROR(s.status);
+      keys.assign(s.points.size(), parent(s.row.ref.key, level.level));
+      return files.append(s.points, keys.data());
+    };
+    return ordered_pipeline<Slot>(refs.size(), threads_, static_cast<std::size_t>(threads_) * 2, read, decode, append);
   }
 
   struct LevelCount {

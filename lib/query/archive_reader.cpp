@@ -4,10 +4,8 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <limits>
 #include <map>
-#include <mutex>
 #include <set>
 #include <thread>
 
@@ -279,115 +277,55 @@ class Reader final : public ArchiveReader {
     // level of detail applied to the matching points here.
     const std::uint32_t every = filter.any() ? options.lod : 1;
 
-    // A pipeline: this thread reads blobs (one SQLite connection; checksum
-    // failures surface here) up to `window` chunks ahead of the next one it
-    // delivers, `threads` workers decode them as they come, and this thread
-    // hands each to the sink in index order once decoded. So reading,
-    // decoding and the sink (often a file writer) overlap, and no worker
-    // waits for the slowest chunk of a batch. At most `window` chunks are in
-    // memory whatever the box.
+    // core/parallel.h's ordered pipeline: this thread reads blobs (one
+    // SQLite connection; checksum failures surface here) a few chunks ahead,
+    // the decoders take them as they come, and this thread hands each to the
+    // sink in index order: reading, decoding and the sink (often a file
+    // writer) overlap, and at most `wave` chunks are in memory.
     struct Slot {
       ChunkRef ref;
       std::uint32_t lod = 1;
       std::vector<std::uint8_t> blob;
       PointCloud points;
       Status status;
-      bool decoded = false;  // guarded by the mutex below
     };
-    const std::size_t n = refs.size();
-    const std::size_t window = std::max<std::size_t>(1, std::min(wave, n));
-    std::vector<Slot> ring(window);
-    std::mutex mutex;
-    std::condition_variable changed;
-    std::size_t read_upto = 0;    // chunks [0, read_upto) have been read
-    std::size_t next_decode = 0;  // the next chunk a worker takes
-    bool stop = false;
-    const auto decode_worker = [&] {
-      for (;;) {
-        std::size_t k = 0;
-        {
-          std::unique_lock<std::mutex> lock(mutex);
-          changed.wait(lock, [&] { return stop || next_decode < read_upto; });
-          if (stop) return;
-          k = next_decode++;
-        }
-        Slot& s = ring[k % window];
-        if (s.status) {
-          DecodeOptions dec;
-          dec.lod = s.lod;
-          auto pts = decode_chunk(s.blob, dec);
-          std::vector<std::uint8_t>().swap(s.blob);
-          if (!pts) {
-            s.status = pts.status().with_context(archive_->path() + ": " + chunk_name(s.ref) +
-                                                 (s.ref.level > 0 ? " of pyramid level " + std::to_string(s.ref.level) : ""));
-          } else {
-            s.points = std::move(pts).value();
-            // Every batch carries the archive's LAS attributes, whatever the
-            // chunk's scan or layer had.
-            conform_las_attributes(s.points, info_.las_attributes, info_.extra_bytes_size);
-            if (filter.any()) {
-              select(s.points, box, !contains(box, s.ref.bounds), filter, every);
-            } else if (!contains(box, s.ref.bounds)) {
-              clip(s.points, box);
-            }
-          }
-        }
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          s.decoded = true;
-        }
-        changed.notify_all();
+    const auto read = [&](std::size_t i, Slot& s) {
+      s.ref = refs[i];
+      s.lod = filter.any() ? 1 : plan.lods[i];
+      auto row = s.ref.level == 0 ? archive_->read_chunk(s.ref.id) : archive_->read_level_chunk(s.ref.id);
+      if (row) {
+        s.blob = std::move(row->blob);
+      } else {
+        s.status = row.status();
       }
     };
-    std::vector<std::thread> pool;
-    // Stops and joins the workers on every way out of this function.
-    struct Joiner {
-      std::mutex& mutex;
-      std::condition_variable& changed;
-      bool& stop;
-      std::vector<std::thread>& pool;
-      ~Joiner() {
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          stop = true;
-        }
-        changed.notify_all();
-        for (std::thread& t : pool) t.join();
+    const auto decode = [&](std::size_t, Slot& s) {
+      if (!s.status) return;
+      DecodeOptions dec;
+      dec.lod = s.lod;
+      auto pts = decode_chunk(s.blob, dec);
+      std::vector<std::uint8_t>().swap(s.blob);
+      if (!pts) {
+        s.status = pts.status().with_context(archive_->path() + ": " + chunk_name(s.ref) +
+                                             (s.ref.level > 0 ? " of pyramid level " + std::to_string(s.ref.level) : ""));
+        return;
       }
-    } joiner{mutex, changed, stop, pool};
-    const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(threads, n));
-    for (unsigned t = 0; t < workers; ++t) pool.emplace_back(decode_worker);
-
-    for (std::size_t emitted = 0; emitted < n; ++emitted) {
-      // Read ahead into the free slots. A slot is free once its chunk was
-      // delivered, and workers touch only chunks below read_upto.
-      while (read_upto < n && read_upto < emitted + window) {
-        Slot& s = ring[read_upto % window];
-        s = Slot{};
-        s.ref = refs[read_upto];
-        s.lod = filter.any() ? 1 : plan.lods[read_upto];
-        auto row = s.ref.level == 0 ? archive_->read_chunk(s.ref.id) : archive_->read_level_chunk(s.ref.id);
-        if (row) {
-          s.blob = std::move(row->blob);
-        } else {
-          s.status = row.status();
-        }
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          ++read_upto;
-        }
-        changed.notify_all();
+      s.points = std::move(pts).value();
+      // Every batch carries the archive's LAS attributes, whatever the
+      // chunk's scan or layer had.
+      conform_las_attributes(s.points, info_.las_attributes, info_.extra_bytes_size);
+      if (filter.any()) {
+        select(s.points, box, !contains(box, s.ref.bounds), filter, every);
+      } else if (!contains(box, s.ref.bounds)) {
+        clip(s.points, box);
       }
-      Slot& s = ring[emitted % window];
-      {
-        std::unique_lock<std::mutex> lock(mutex);
-        changed.wait(lock, [&] { return s.decoded; });
-      }
+    };
+    const auto deliver = [&](std::size_t, Slot& s, bool& stop) -> Status {
       if (!s.status) {
         if (!options.skip_corrupt) return s.status;
         ++stats.chunks_skipped;
         if (options.on_warning) options.on_warning("skipped: " + s.status.message());
-        continue;
+        return Status::ok();
       }
       ++stats.chunks_decoded;
       if (plan.cap > 0 && stats.points + s.points.size() > plan.cap) {
@@ -398,8 +336,10 @@ class Reader final : public ArchiveReader {
         RELIEF_RETURN_IF_ERROR(sink(s.points));
         s.points = PointCloud();
       }
-      if (plan.cap > 0 && stats.points >= plan.cap) break;
-    }
+      stop = plan.cap > 0 && stats.points >= plan.cap;
+      return Status::ok();
+    };
+    RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(refs.size(), threads, wave, read, decode, deliver));
     stats.blob_bytes_read = archive_->blob_bytes_read() - bytes_before;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return stats;
