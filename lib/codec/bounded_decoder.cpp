@@ -101,7 +101,8 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   if (time_ordered_layer) {
     RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, out, time_order, order_mask, cell_pos, layer_cells));
   } else {
-    const OctreeCoding coding = geometry->codec == SectionCodec::kOctreeMixed         ? OctreeCoding::kMixed
+    const OctreeCoding coding = geometry->codec == SectionCodec::kOctreeChains        ? OctreeCoding::kChains
+                                : geometry->codec == SectionCodec::kOctreeMixed       ? OctreeCoding::kMixed
                                 : geometry->codec == SectionCodec::kOctreeSingleChild ? OctreeCoding::kSingleChild
                                                                                       : OctreeCoding::kBitwise;
     auto decoded = decode_geometry(geometry->payload, h.geometry_depth, n, coding);

@@ -162,7 +162,7 @@ bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::s
     i = j;
   }
   const std::uint64_t share = std::uint64_t{scan_bytes} * m / n;  // both below 2^32: no overflow
-  return encode_geometry_within(trial, depth, OctreeCoding::kMixed, share).has_value();
+  return encode_geometry_within(trial, depth, OctreeCoding::kChains, share).has_value();
 }
 
 Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
@@ -174,7 +174,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = kChunkFormatVersion;  // 9: geometry codec 8 or 9 (time order), colour codec 6 or 10, LAS fields
+  h.version = kChunkFormatVersion;  // 10: geometry codec 11 or 9 (time order), colour codec 6 or 10, LAS fields
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -268,7 +268,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // smaller of the two codings of geometry and times (the octree when they
   // tie), and stops coding the octree once it is sure to lose.
   std::vector<std::uint8_t> geometry;
-  SectionCodec geometry_codec = SectionCodec::kOctreeMixed;
+  SectionCodec geometry_codec = SectionCodec::kOctreeChains;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
   if ((las_bits & kLasGpsTime) != 0 && n > 1) {
@@ -287,7 +287,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         time_order = las_time_order(cell_las.gps_time);
         gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, h.version, cells_in_order(q, lo, order), time_order);
         if (gps_ranked.size() <= scan_bytes) {
-          octree = encode_geometry_within(cells, depth, OctreeCoding::kMixed, scan_bytes - gps_ranked.size());
+          octree = encode_geometry_within(cells, depth, OctreeCoding::kChains, scan_bytes - gps_ranked.size());
         }
       }
       if (octree) {
@@ -302,8 +302,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       }
     }
   }
-  if (geometry_codec == SectionCodec::kOctreeMixed && geometry.empty()) {
-    geometry = encode_geometry(cells, depth, OctreeCoding::kMixed);
+  if (geometry_codec == SectionCodec::kOctreeChains && geometry.empty()) {
+    geometry = encode_geometry(cells, depth, OctreeCoding::kChains);
   }
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;

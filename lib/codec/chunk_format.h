@@ -74,6 +74,9 @@ enum class SectionCodec : std::uint8_t {
   // Point colours only (version 9): codec 6's colour coding with each colour
   // predicted from its nearest previous points (format-spec/chunk.md §11.4.1).
   kNeighbourColor = 10,
+  // Geometry only (version 10): codec 8 with chains, isolated one-cell
+  // subtrees coded without flags or mixing (format-spec/chunk.md §11.3.4).
+  kOctreeChains = 11,
 };
 
 // How the error-bounded layer codes intensity (header byte 162).

@@ -9,7 +9,9 @@
 // before its children are coded) but not their children.
 //
 // Codec 8 (chunk format 7) makes codec 7's decisions with probabilities
-// mixed from two context models (mix_code below).
+// mixed from two context models (mix_code below). Codec 11 (chunk format 10)
+// is codec 8 with chains: an isolated node's one-cell subtree coded with the
+// plain index models, no flag and no mixing (format-spec/chunk.md §11.3.4).
 #include "codec/geometry_coder.h"
 
 #include <algorithm>
@@ -167,10 +169,15 @@ struct MixedModels {
   Mixer<12> index_mixer;
 };
 
+// Codec 11's chain flag: one model per number of levels left below the
+// node (capped).
+constexpr int kChainFlagContexts = 16;
+
 struct GeometryModels {
   BitModel occupancy[kOccupancyContexts];
   BitModel single_flag[kSingleFlagContexts];
   BitModel single_index[kSingleIndexContexts];
+  BitModel chain_flag[kChainFlagContexts];
   BitModel duplicate[kCountContexts];
   UIntModel extra;
   std::unique_ptr<MixedModels> mixed;  // codec 8
@@ -360,12 +367,19 @@ constexpr auto kScoreSpread = [] {
   return t;
 }();
 
-template <bool kMixedCoding, typename Code, typename CodeProb, typename TrueByte, typename Grow>
+// `true_chain(d, i)` (encoder side) is 1 when the subtree of node i of
+// level d holds one cell, for codec 11's chains.
+template <bool kMixedCoding, typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
-                      Code& code, CodeProb& code_prob, TrueByte& true_byte, Grow& grow) {
+                      Code& code, CodeProb& code_prob, TrueByte& true_byte, TrueChain& true_chain, Grow& grow) {
   constexpr bool mixed = kMixedCoding;
   MixedModels* const mm = models.mixed.get();  // codec 8's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
+  const bool chains = coding == OctreeCoding::kChains;
+  // Per node of the current level (codec 11): whether its subtree is known
+  // to hold one cell (a chain), known to hold more, or not known.
+  enum : std::uint8_t { kUnknown, kChain, kNotChain };
+  std::vector<std::uint8_t> chain(1, kUnknown), next_chain;
   nodes.assign(1, 0);  // the root
   // Per node of the current level: its six face neighbours' indices in the
   // level (-x, +x, -y, +y, -z, +z; kMissing when empty), its child byte and
@@ -387,6 +401,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
     planes->reset();
     const int to_leaves = std::min(depth - 1 - d, 3);
     next_lone.clear();
+    next_chain.clear();
     const std::size_t count = nodes.size();
     occ.assign(count, 0);
     first.assign(count, 0);
@@ -413,7 +428,31 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
       std::uint64_t* const next_keys = next.data();
       first[i] = static_cast<std::uint32_t>(next_count);
       bool single = false;
-      if (single_mode) {
+      // Codec 11: an isolated node (its parent's only child, no face
+      // neighbour) with at least two levels below it says with one flag
+      // whether its subtree holds one cell (a chain); a chain node's child
+      // is then its only one, its index coded with codec 7's index models
+      // alone (no flag S, no mixing; an isolated node's neighbour contexts
+      // are all empty anyway), and so are its descendants'.
+      bool on_chain = chains && chain[i] == kChain;
+      bool not_chain = chains && chain[i] == kNotChain;
+      if (chains && chain[i] == kUnknown && lone[i] != 0 && faces_mask == 0 && depth - d >= 2) {
+        on_chain = code(models.chain_flag[std::min(depth - 1 - d, kChainFlagContexts - 1)], true_chain(d, i)) != 0;
+        not_chain = !on_chain;
+      }
+      if (on_chain) {
+        const int truth_k = kBitCount[truth] == 1 ? kBitCount[static_cast<std::uint8_t>(truth - 1)] : 0;
+        int t = 1;
+        for (int a = 2; a >= 0; --a) {
+          const int axis_part = ((plane_pred[a] + 1) * 4 * 2) << 2;  // faces_a = 0, minus = 0
+          t = 2 * t + code(models.single_index[((t * 24) << 2) + axis_part + to_leaves], (truth_k >> a) & 1);
+        }
+        const int k = t - 8;
+        byte = static_cast<std::uint8_t>(1u << k);
+        siblings = 1;
+        next_keys[next_count++] = (nodes[i] << 3) | static_cast<std::uint64_t>(k);
+        if (d + 1 < depth) next_chain.push_back(kChain);
+      } else if (single_mode) {
         const int faces = kBitCount[faces_mask];
         const int flag_ctx = (std::min(faces, 3) << 3) | (lone[i] << 2) | to_leaves;
         const int truth_single = kBitCount[truth] == 1 ? 1 : 0;
@@ -454,7 +493,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         siblings = 1;
         next_keys[next_count++] = (nodes[i] << 3) | static_cast<std::uint64_t>(k);
       }
-      if (!single) {
+      if (!single && !on_chain) {
         const std::uint64_t low = kNearSpread[faces_mask] | kMinusSpread[0][minus_occ[0]] | kMinusSpread[1][minus_occ[1]] |
                                   kMinusSpread[2][minus_occ[2]];
         const std::uint64_t score =
@@ -493,6 +532,10 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
       }
       // An occupied node has at least one occupied child.
       if (byte == 0) return false;
+      if (chains && !on_chain && d + 1 < depth) {
+        // The only child of a node known to hold two cells or more holds them too.
+        next_chain.resize(next_count, not_chain && kBitCount[byte] == 1 ? kNotChain : kUnknown);
+      }
       occ[i] = byte;
       if (single_mode) next_lone.insert(next_lone.end(), kBitCount[byte], kBitCount[byte] == 1 ? 1 : 0);
       for (int a = 0; a < 3; ++a) planes->remember(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3], byte);
@@ -529,20 +572,21 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
     xyz_of.swap(next_xyz);
     nodes.swap(next);
     lone.swap(next_lone);
+    chain.swap(next_chain);
   }
   return true;
 }
 
-// The traversal, instantiated apart for codec 8 (its extra work stays out of
-// the older codecs' loop).
-template <typename Code, typename CodeProb, typename TrueByte, typename Grow>
+// The traversal, instantiated apart for codecs 8 and 11 (their extra work
+// stays out of the older codecs' loop).
+template <typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
-                 Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, Grow&& grow) {
-  if (coding == OctreeCoding::kMixed) {
+                 Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, TrueChain&& true_chain, Grow&& grow) {
+  if (coding == OctreeCoding::kMixed || coding == OctreeCoding::kChains) {
     models.mixed = std::make_unique<MixedModels>();
-    return code_octree_impl<true>(depth, coding, models, nodes, code, code_prob, true_byte, grow);
+    return code_octree_impl<true>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
   }
-  return code_octree_impl<false>(depth, coding, models, nodes, code, code_prob, true_byte, grow);
+  return code_octree_impl<false>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
 }
 
 }  // namespace
@@ -558,20 +602,38 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
   auto models = std::make_unique<GeometryModels>();
   // Child occupancy bytes of every level, from the leaves up.
   std::vector<std::vector<std::uint8_t>> bytes(static_cast<std::size_t>(depth));
+  // Codec 11: per level, the index of each node's first cell, and the cell
+  // count after the last node (a node holds one cell when the next node's
+  // first cell follows its own).
+  const bool chains = coding == OctreeCoding::kChains;
+  std::vector<std::vector<std::uint32_t>> first_cell(chains ? static_cast<std::size_t>(depth) : 0);
   {
     std::vector<std::uint64_t> level = cells.keys;
+    std::vector<std::uint32_t> level_first;
+    if (chains) {
+      level_first.resize(level.size());
+      for (std::size_t j = 0; j < level.size(); ++j) level_first[j] = static_cast<std::uint32_t>(j);
+    }
     for (int d = depth - 1; d >= 0; --d) {
       std::vector<std::uint64_t> parents;
+      std::vector<std::uint32_t> parents_first;
       std::vector<std::uint8_t>& b = bytes[static_cast<std::size_t>(d)];
-      for (const std::uint64_t key : level) {
+      for (std::size_t j = 0; j < level.size(); ++j) {
+        const std::uint64_t key = level[j];
         const std::uint64_t parent = key >> 3;
         if (parents.empty() || parents.back() != parent) {
           parents.push_back(parent);
           b.push_back(0);
+          if (chains) parents_first.push_back(level_first[j]);
         }
         b.back() = static_cast<std::uint8_t>(b.back() | (1u << (key & 7)));
       }
       level.swap(parents);
+      if (chains) {
+        level_first.swap(parents_first);
+        first_cell[static_cast<std::size_t>(d)] = level_first;
+        first_cell[static_cast<std::size_t>(d)].push_back(static_cast<std::uint32_t>(cells.keys.size()));
+      }
     }
   }
   std::vector<std::uint64_t> nodes;
@@ -586,6 +648,10 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
         return bit;
       },
       [&](int d, std::size_t i) { return bytes[static_cast<std::size_t>(d)][i]; },
+      [&](int d, std::size_t i) {
+        const std::vector<std::uint32_t>& f = first_cell[static_cast<std::size_t>(d)];
+        return f[i + 1] - f[i] == 1 ? 1 : 0;
+      },
       [&](std::size_t) { return enc.bytes() <= max_bytes; });
   if (!whole) return std::nullopt;
   int prev_dup = 0;
@@ -601,7 +667,7 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
 }
 
 Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count,
-                                      OctreeCoding coding) {
+                                      OctreeCoding coding, std::uint64_t* decisions) {
   if (depth < 0 || depth > kMaxGeometryDepth) return corrupt_data("geometry: depth out of range");
   if (point_count == 0) return corrupt_data("geometry: no points");
   RangeDecoder dec(data);
@@ -610,8 +676,8 @@ Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int de
   bool over = false;
   const bool ok = code_octree(
       depth, coding, *models, cells.keys, [&](BitModel& m, int) { return dec.decode(m); },
-      [&](std::uint32_t p0, int) { return dec.decode_prob(p0); },
-      [](int, std::size_t) { return std::uint8_t{0}; },
+      [&](std::uint32_t p0, int) { return dec.decode_prob(p0); }, [](int, std::size_t) { return std::uint8_t{0}; },
+      [](int, std::size_t) { return 0; },
       [&](std::size_t n) {
         // Every node holds a point; a stream read past its end stops here.
         over = n > point_count || dec.exhausted();
@@ -641,6 +707,7 @@ Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int de
     return corrupt_data("geometry: cells hold " + std::to_string(total) + " points, the chunk declares " +
                         std::to_string(point_count));
   }
+  if (decisions != nullptr) *decisions = dec.decisions();
   return cells;
 }
 

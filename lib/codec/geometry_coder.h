@@ -33,6 +33,11 @@ enum class OctreeCoding {
   // Codec 8 (format 7): as codec 7, the bits of multi-child nodes coded by
   // mixing three context models' predictions.
   kMixed,
+  // Codec 11 (format 10): codec 8 plus chains: an isolated node (its
+  // parent's only child, no face neighbour) says with one flag whether its
+  // subtree holds one cell; if so, it and its descendants code their one
+  // child's index with 3 plain decisions instead of a flag and 3 mixed ones.
+  kChains,
 };
 
 // `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.
@@ -48,7 +53,8 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
 // Decodes a stream made by encode_geometry with the same coding. The stream
 // must describe exactly `point_count` points; the work done is bounded by the
 // stream's size and by `point_count` (every octree node holds at least one point).
+// `decisions`, when given, receives the number of binary decisions decoded.
 Result<OccupiedCells> decode_geometry(std::span<const std::uint8_t> data, int depth, std::uint64_t point_count,
-                                      OctreeCoding coding);
+                                      OctreeCoding coding, std::uint64_t* decisions = nullptr);
 
 }  // namespace relief::codec

@@ -339,7 +339,8 @@ TEST_CASE("bounded: truncated and corrupted blobs are rejected without crashing"
   CHECK(rejected > 0);
 }
 
-TEST_CASE("bounded: colour codec 10 only for point colours, only from version 9", "[codec][bounded][reject]") {
+TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octree codec 11 only from version 10",
+          "[codec][bounded][reject]") {
   test::SceneOptions o;
   o.seed = 5;
   o.points = 3000;
@@ -350,28 +351,45 @@ TEST_CASE("bounded: colour codec 10 only for point colours, only from version 9"
   REQUIRE(blob.is_ok());
   auto parsed = codec::parse_blob(*blob, true);
   REQUIRE(parsed.is_ok());
-  REQUIRE(parsed->header.version == 9);
+  REQUIRE(parsed->header.version == 10);
   bool found = false;
+  bool chains = false;
   for (const codec::SectionEntry& s : parsed->sections) {
     if (s.id == codec::SectionId::kPointColor) found = s.codec == codec::SectionCodec::kNeighbourColor;
+    if (s.id == codec::SectionId::kGeometry) chains = s.codec == codec::SectionCodec::kOctreeChains;
   }
   REQUIRE(found);  // octree layers code their colours in cell order, with codec 10
+  REQUIRE(chains);  // and their octree with codec 11
   const auto refused = [](const std::vector<std::uint8_t>& b) {
     auto r = decode_chunk(b);
     REQUIRE_FALSE(r.is_ok());
     CHECK(r.status().code() == StatusCode::kCorruptData);
   };
-  // The same sections in a version-8 header (valid checksum): refused.
-  codec::ChunkHeader v8 = parsed->header;
-  v8.version = 8;
-  refused(codec::write_blob(v8, parsed->sections));
+  // The same sections in a version-9 header (valid checksum): refused, for
+  // codec 11; with the octree said to be codec 8, in a version-8 header:
+  // refused, for codec 10.
+  codec::ChunkHeader older = parsed->header;
+  older.version = 9;
+  refused(codec::write_blob(older, parsed->sections));
+  std::vector<codec::SectionEntry> as_codec8 = parsed->sections;
+  for (codec::SectionEntry& s : as_codec8) {
+    if (s.id == codec::SectionId::kGeometry) s.codec = codec::SectionCodec::kOctreeMixed;
+  }
+  older.version = 8;
+  refused(codec::write_blob(older, as_codec8));
+  // Codec 11 on a version-10 colour section: refused.
+  std::vector<codec::SectionEntry> misplaced = parsed->sections;
+  for (codec::SectionEntry& s : misplaced) {
+    if (s.id == codec::SectionId::kPointColor) s.codec = codec::SectionCodec::kOctreeChains;
+  }
+  refused(codec::write_blob(parsed->header, misplaced));
   // Codec 10 on the intensity section: refused.
   std::vector<codec::SectionEntry> sections = parsed->sections;
   for (codec::SectionEntry& s : sections) {
     if (s.id == codec::SectionId::kPointIntensity) s.codec = codec::SectionCodec::kNeighbourColor;
   }
   refused(codec::write_blob(parsed->header, sections));
-  // Codec 6 in place of 10 decodes (both are valid in version 9), to other
+  // Codec 6 in place of 10 decodes (both are valid from version 9), to other
   // colours or to an error, never past the stream's end.
   sections = parsed->sections;
   for (codec::SectionEntry& s : sections) {

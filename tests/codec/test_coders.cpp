@@ -880,8 +880,9 @@ std::uint64_t total_points(const relief::codec::OccupiedCells& c) {
 
 TEST_CASE("octree geometry round trips with every coding", "[coders][geometry]") {
   std::mt19937_64 rng(77);
-  for (const relief::codec::OctreeCoding coding : {relief::codec::OctreeCoding::kBitwise, relief::codec::OctreeCoding::kSingleChild,
-                                                   relief::codec::OctreeCoding::kMixed}) {
+  for (const relief::codec::OctreeCoding coding :
+       {relief::codec::OctreeCoding::kBitwise, relief::codec::OctreeCoding::kSingleChild,
+        relief::codec::OctreeCoding::kMixed, relief::codec::OctreeCoding::kChains}) {
     for (const int depth : {0, 1, 2, 5, 12, 21}) {
       for (const bool clustered : {false, true}) {
         for (const std::size_t n : {std::size_t{1}, std::size_t{7}, std::size_t{3000}}) {
@@ -922,13 +923,41 @@ TEST_CASE("mixed coding (codec 8) is smaller than single-child coding on sparse 
   }
 }
 
+TEST_CASE("chains (codec 11): isolated one-cell subtrees cost fewer decisions, within 1 % of codec 8's bytes",
+          "[coders][geometry]") {
+  // Sparse cells deep below their spacing (every cell alone from level ~7):
+  // each is a chain of ~9 levels. Codec 8 spends a flag and 3 mixed index
+  // decisions per level; codec 11 one flag per chain, then 3 plain decisions.
+  using relief::codec::OctreeCoding;
+  std::mt19937_64 rng(82);
+  for (const bool clustered : {false, true}) {
+    const relief::codec::OccupiedCells cells = random_cells(rng, 16, 5000, clustered);
+    const auto mixed = relief::codec::encode_geometry(cells, 16, OctreeCoding::kMixed);
+    const auto chains = relief::codec::encode_geometry(cells, 16, OctreeCoding::kChains);
+    std::uint64_t decisions[2] = {0, 0};
+    for (int k = 0; k < 2; ++k) {
+      const OctreeCoding coding = k == 0 ? OctreeCoding::kMixed : OctreeCoding::kChains;
+      auto back = relief::codec::decode_geometry(k == 0 ? mixed : chains, 16, total_points(cells), coding,
+                                                 &decisions[k]);
+      REQUIRE(back.is_ok());
+      CHECK(back->keys == cells.keys);
+    }
+    INFO("clustered " << clustered << ": codec 8 " << mixed.size() << " bytes, " << decisions[0]
+                      << " decisions; codec 11 " << chains.size() << " bytes, " << decisions[1] << " decisions");
+    CHECK(static_cast<double>(chains.size()) <= 1.01 * static_cast<double>(mixed.size()));
+    // Clustered cells have neighbours: few chains, and never more decisions.
+    CHECK(static_cast<double>(decisions[1]) <= (clustered ? 1.0 : 0.85) * static_cast<double>(decisions[0]));
+  }
+}
+
 TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][geometry]") {
   // Random bytes claiming a deep tree and many points: every coding must stop
   // (an error, or a set of cells that holds exactly the declared points) after
   // work bounded by the stream's size, whatever the mixer's weights do.
   using relief::codec::OctreeCoding;
   std::mt19937_64 rng(81);
-  for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed}) {
+  for (const OctreeCoding coding :
+       {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed, OctreeCoding::kChains}) {
     for (int trial = 0; trial < 60; ++trial) {
       std::vector<std::uint8_t> stream(1 + rng() % 300);
       for (auto& b : stream) b = static_cast<std::uint8_t>(trial % 3 == 0 ? 0xFF : (trial % 3 == 1 ? 0x00 : rng()));
@@ -948,7 +977,8 @@ TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][g
 TEST_CASE("octree geometry streams of the other coding, truncated or flipped fail cleanly", "[coders][geometry]") {
   using relief::codec::OctreeCoding;
   for (const auto [coding, wrong] : {std::pair{OctreeCoding::kSingleChild, OctreeCoding::kBitwise},
-                                     std::pair{OctreeCoding::kMixed, OctreeCoding::kSingleChild}}) {
+                                     std::pair{OctreeCoding::kMixed, OctreeCoding::kSingleChild},
+                                     std::pair{OctreeCoding::kChains, OctreeCoding::kMixed}}) {
     INFO("coding " << static_cast<int>(coding));
     std::mt19937_64 rng(79);
     const relief::codec::OccupiedCells cells = random_cells(rng, 14, 2000, true);

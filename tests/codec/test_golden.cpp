@@ -131,12 +131,20 @@ std::vector<Vector> vectors() {
           // Format 9: point colours in cell order predicted from their
           // neighbours (codec 10; the scan scene keeps its time-ordered
           // colours with codec 6 unless cell order is smaller).
-          {"bounded_rgb_intensity_v9", bounded, voxel_scene, 9},
-          {"bounded_rgb_tolerance6_v9", bounded_lossy, voxel_scene, 9},
-          {"bounded_geometry_octree_v9", bounded_geometry, octree_scene, 9},
-          {"bounded_las_attributes_v9", bounded, las_scene, 9},
-          {"bounded_las_colors8_v9", bounded, las_scene_8bit, 9},
-          {"bounded_las_scan_v9", bounded, las_scan_scene, 9}};
+          {"bounded_rgb_intensity_v9", bounded, voxel_scene, 9, true},
+          {"bounded_rgb_tolerance6_v9", bounded_lossy, voxel_scene, 9, true},
+          {"bounded_geometry_octree_v9", bounded_geometry, octree_scene, 9, true},
+          {"bounded_las_attributes_v9", bounded, las_scene, 9, true},
+          {"bounded_las_colors8_v9", bounded, las_scene_8bit, 9, true},
+          {"bounded_las_scan_v9", bounded, las_scan_scene, 9, true},
+          // Format 10: the octree with chains (codec 11; the scan scene keeps
+          // its geometry in time order).
+          {"bounded_rgb_intensity_v10", bounded, voxel_scene, 10},
+          {"bounded_rgb_tolerance6_v10", bounded_lossy, voxel_scene, 10},
+          {"bounded_geometry_octree_v10", bounded_geometry, octree_scene, 10},
+          {"bounded_las_attributes_v10", bounded, las_scene, 10},
+          {"bounded_las_colors8_v10", bounded, las_scene_8bit, 10},
+          {"bounded_las_scan_v10", bounded, las_scan_scene, 10}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -179,7 +187,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 9 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 10 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
@@ -206,7 +214,7 @@ TEST_CASE("golden chunk blobs of format versions 1 to 9 decode (and the current 
     CHECK(info->format_version == v.version);
     // The geometry's codec: 9 (time order) for the scan, the octree for the others.
     for (const ChunkSectionInfo& s : info->sections) {
-      if (s.id == 7 && v.version >= 8) CHECK(s.codec == (v.make == las_scan_scene ? 9 : 8));
+      if (s.id == 7 && v.version >= 8) CHECK(s.codec == (v.make == las_scan_scene ? 9 : v.version >= 10 ? 11 : 8));
       // Format 9: colours in cell order (every octree layer) are predicted from neighbours.
       if (s.id == 8 && v.version >= 9 && v.make != las_scan_scene) CHECK(s.codec == 10);
     }

@@ -44,8 +44,11 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // time order instead (codec 9: each point's cell predicted from the previous
 // points of the scan, the times then without ranks). Version 9: version 8
 // where point colours in cell order are predicted from the previous 32
-// points, weighted by distance (codec 10); the bounded encoder writes it for every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 9;
+// points, weighted by distance (codec 10). Version 10: version 9 with the
+// octree's one-cell subtrees coded as chains (codec 11: a flag, then each
+// level's child index without mixing); the bounded encoder writes it for
+// every cloud.
+inline constexpr std::uint16_t kChunkFormatVersion = 10;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
