@@ -27,10 +27,7 @@ namespace relief {
 
 namespace {
 
-void write_file(const std::string& path, const std::string& bytes) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
+using test::write_file;
 
 // Appends `v` in little or big endian.
 template <typename T>

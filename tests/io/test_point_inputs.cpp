@@ -27,10 +27,7 @@ namespace relief {
 
 namespace {
 
-void write_file(const std::string& path, const std::string& bytes) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
+using test::write_file;
 
 // Reads a whole file in batches of `batch_size`, checking the batch contract.
 Result<PointCloud> read_all(const std::string& path, std::size_t batch_size, const ReaderOptions& options = {}) {

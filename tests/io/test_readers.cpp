@@ -43,10 +43,7 @@ namespace {
 // ---------------------------------------------------------------- helpers
 
 
-void write_file(const std::string& path, const std::string& bytes) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
+using test::write_file;
 
 // Reads a whole stream in batches of `batch_size`, checking the batch
 // contract on the way. Returns the status of the first failure.

@@ -120,10 +120,7 @@ std::vector<std::uint8_t> file_bytes(const std::string& file) {
   return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), {});
 }
 
-void write_file(const std::string& file, const std::string& content) {
-  std::ofstream out(file, std::ios::binary);
-  out << content;
-}
+using relief::test::write_file;
 
 // ---- Archive helpers
 
