@@ -125,7 +125,7 @@ std::vector<ExtraProperty> extra_properties(const std::string& vlr, std::size_t 
     const int base = f.data_type == 0 ? 0 : (f.data_type - 1) % 10 + 1;
     const std::optional<ply::ScalarType> t = ply::scalar_type_of_extra_bytes(base);
     const std::size_t count = t ? f.size / ply::scalar_size(*t) : f.size;
-    if (count == 1) {
+    if (t && count == 1) {
       props.push_back({unique_name(f.name, taken), *t});
     } else {
       for (std::size_t k = 0; k < count; ++k) {
@@ -162,12 +162,12 @@ class PlyStreamWriter final : public StreamPointWriter {
     }
     record_size_ = core_size_ + extra_size_;
     const bool little = options.ply_encoding == PlyEncoding::kBinaryLittleEndian;
-    swap_ = little != (std::endian::native == std::endian::little);
+    const bool swap = little != (std::endian::native == std::endian::little);
     big_endian_ = !little;
-    encode_ = swap_ ? pick_encoder<true>(options.colors, options.intensity)
-                    : pick_encoder<false>(options.colors, options.intensity);
+    encode_ = swap ? pick_encoder<true>(options.colors, options.intensity)
+                   : pick_encoder<false>(options.colors, options.intensity);
     // The positions array is already the record layout.
-    copy_positions_ = !swap_ && !options.colors && !options.intensity && extra_size_ == 0;
+    copy_positions_ = !swap && !options.colors && !options.intensity && extra_size_ == 0;
   }
 
   Status start() {
@@ -231,7 +231,6 @@ class PlyStreamWriter final : public StreamPointWriter {
   std::size_t extra_size_ = 0;
   std::vector<ExtraProperty> extras_;
   std::size_t record_size_ = 0;
-  bool swap_ = false;
   bool big_endian_ = false;
   EncodeFn encode_ = nullptr;
   bool copy_positions_ = false;

@@ -410,8 +410,9 @@ TEST_CASE("make_extra_bytes_vlr is what parse_extra_bytes_vlr reads, and refuses
 TEST_CASE("PLY output writes extra bytes as properties of their types, read back exactly", "[io][ply][extra]") {
   test::TempDir dir;
   // A LAS-style layout: float32, int64 (no PLY type: 8 uchar), 3 undocumented
-  // bytes, uint16[2] (an array), and 2 bytes the VLR leaves undescribed.
-  std::vector<ExtraBytesField> fields(4);
+  // bytes, uint16[2] (an array), 1 undocumented byte, and 2 bytes the VLR
+  // leaves undescribed.
+  std::vector<ExtraBytesField> fields(5);
   fields[0].name = "x";  // clashes with the coordinate: becomes x_2
   fields[0].data_type = 9;
   fields[1].name = "big id";  // a blank: becomes big_id
@@ -421,9 +422,12 @@ TEST_CASE("PLY output writes extra bytes as properties of their types, read back
   fields[2].options = 3;
   fields[3].name = "pair";
   fields[3].data_type = 13;
+  fields[4].name = "flag";
+  fields[4].data_type = 0;
+  fields[4].options = 1;
   auto vlr = make_extra_bytes_vlr(fields);
   REQUIRE(vlr.is_ok());
-  const std::uint32_t size = 4 + 8 + 3 + 4 + 2;
+  const std::uint32_t size = 4 + 8 + 3 + 4 + 1 + 2;
 
   PointCloud cloud;
   std::mt19937 rng(9);
@@ -457,7 +461,7 @@ TEST_CASE("PLY output writes extra bytes as properties of their types, read back
     const std::vector<std::string> expect = {
         "x_2:float32", "big_id_0:uint8", "big_id_1:uint8", "big_id_2:uint8", "big_id_3:uint8", "big_id_4:uint8",
         "big_id_5:uint8", "big_id_6:uint8", "big_id_7:uint8", "raw_0:uint8", "raw_1:uint8", "raw_2:uint8",
-        "pair_0:uint16", "pair_1:uint16", "extra_19:uint8", "extra_20:uint8"};
+        "pair_0:uint16", "pair_1:uint16", "flag_0:uint8", "extra_20:uint8", "extra_21:uint8"};
     CHECK(names == expect);
   }
 
