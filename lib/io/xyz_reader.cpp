@@ -9,7 +9,8 @@
 // diffuse_red ...); intensity (or i, reflectance, scalar_intensity);
 // classification (or class, scalar_classification: LAS classes 0..255, into
 // PointCloud::las.classification). Other names (normals, time ...) are
-// skipped columns. A header
+// skipped columns, listed in a warning (PLY, PCD and LAS inputs keep such
+// values as extra bytes; text gives no types to keep them by). A header
 // that does not name x, y and z leaves the columns at x y z.
 //
 // Colour levels may be 8- or 16-bit: text declares no type, so the file-wide
@@ -65,6 +66,8 @@ struct ColumnPlan {
   bool colors = false;
   bool intensity = false;
   bool classification = false;
+  // Header names of the columns not read (a warning lists them).
+  std::vector<std::string> unread;
 };
 
 Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& name) {
@@ -141,6 +144,7 @@ std::optional<Role> role_of_name(std::string_view name) {
 // ',' and ';'. A name seen twice keeps its first column.
 std::optional<ColumnPlan> plan_from_header(std::string_view line) {
   ColumnPlan plan;
+  std::vector<std::string> names;  // per column, as the header gives it
   std::array<bool, kRoleCount> seen{};
   std::size_t pos = 0;
   while (pos < line.size()) {
@@ -148,13 +152,15 @@ std::optional<ColumnPlan> plan_from_header(std::string_view line) {
     if (pos == line.size()) break;
     std::size_t end = pos;
     while (end < line.size() && !is_blank(line[end]) && line[end] != ',' && line[end] != ';') ++end;
-    const std::optional<Role> role = role_of_name(line.substr(pos, end - pos));
+    const std::string_view name = line.substr(pos, end - pos);
+    const std::optional<Role> role = role_of_name(name);
     Role r = Role::kSkip;
     if (role && !seen[static_cast<std::size_t>(*role)]) {
       r = *role;
       seen[static_cast<std::size_t>(r)] = true;
     }
     plan.roles.push_back(r);
+    names.emplace_back(name);
     pos = end;
     while (pos < line.size() && is_blank(line[pos])) ++pos;
     if (pos < line.size() && (line[pos] == ',' || line[pos] == ';')) ++pos;
@@ -169,6 +175,9 @@ std::optional<ColumnPlan> plan_from_header(std::string_view line) {
   }
   plan.intensity = has(Role::kIntensity);
   plan.classification = has(Role::kClass);
+  for (std::size_t c = 0; c < names.size(); ++c) {
+    if (plan.roles[c] == Role::kSkip && !names[c].empty()) plan.unread.push_back(names[c]);
+  }
   while (plan.roles.back() == Role::kSkip) plan.roles.pop_back();  // x is there, so this stops
   return plan;
 }
@@ -316,6 +325,14 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
     plan_ = std::move(*explicit_plan);  // the caller's columns win over a header
   } else if (header_plan) {
     plan_ = std::move(*header_plan);
+    if (!plan_.unread.empty()) {
+      std::string names;
+      for (const std::string& n : plan_.unread) names += (names.empty() ? "" : ", ") + quoted(n);
+      info_.warnings.push_back(name() + ": header column" + (plan_.unread.size() > 1 ? "s " : " ") + names +
+                               (plan_.unread.size() > 1 ? " are" : " is") +
+                               " not kept (text inputs keep x, y, z, colour, intensity and classification; "
+                               "PLY, PCD and LAS keep every per-point value)");
+    }
   } else {
     RELIEF_ASSIGN_OR_RETURN(plan_, parse_columns("x,y,z", name()));
   }

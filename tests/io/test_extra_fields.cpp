@@ -477,4 +477,25 @@ TEST_CASE("PLY output writes extra bytes as properties of their types, read back
   CHECK_FALSE(std::filesystem::exists(dir.file("a.ply")));
 }
 
+
+TEST_CASE("CSV header columns that text inputs do not keep are listed in a warning", "[io][xyz][extra]") {
+  test::TempDir dir;
+  const auto warnings_of = [&](const std::string& text) {
+    const std::string path = dir.file("c.csv");
+    write_file(path, text);
+    const ReadBack got = read_extras(path);
+    CHECK(got.points == 2);
+    CHECK(got.extra.empty());
+    return got.info.warnings;
+  };
+  const auto w = warnings_of("//X,Y,Z,R,G,B,Nx,Ny,Nz\n1,2,3,10,20,30,0,0,1\n2,3,4,10,20,30,0,1,0\n");
+  REQUIRE(w.size() == 1);
+  CHECK_THAT(w[0], Contains("header columns 'Nx', 'Ny', 'Nz' are not kept"));
+  // A partial colour set is not read either.
+  const auto partial = warnings_of("x y z red time\n1 2 3 4 5\n2 3 4 5 6\n");
+  REQUIRE(partial.size() == 1);
+  CHECK_THAT(partial[0], Contains("'red', 'time' are not kept"));
+  CHECK(warnings_of("x,y,z,intensity\n1,2,3,4\n2,3,4,5\n").empty());
+}
+
 }  // namespace relief
