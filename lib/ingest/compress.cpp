@@ -264,7 +264,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   // whole (bucket slices hold whole buckets) and split by a fixed rule.
   const bool bounded = params.bound.has_value();
   const ArchiveGrid* split_grid = bounded ? &grid : nullptr;
-  const std::uint64_t task_points = bounded ? std::max<std::uint64_t>(1, options.split_points) : part_points;
+  const std::uint64_t task_points =
+      bounded ? bounded_split_points(options.split_points, in.las_attributes, in.extra_bytes_size) : part_points;
   const std::uint64_t read_batch = std::max<std::uint64_t>(
       1024, std::min<std::uint64_t>(kReadBatch, (budget / 16) / (kBatchBytesPerPoint + las_bytes)));
   // Enough buckets that a bucket usually fits one slice (x2 for skew; x4 when
@@ -629,6 +630,13 @@ void split_octants(const PointCloud& cloud, std::uint32_t* idx, std::size_t n, c
 }
 
 }  // namespace
+
+std::uint64_t bounded_split_points(std::uint64_t split_points, std::uint32_t las_attributes,
+                                   std::uint32_t extra_bytes_size) {
+  const std::uint64_t bytes = std::max<std::uint64_t>(1, las_record_bytes(las_attributes, extra_bytes_size));
+  const std::uint64_t by_width = std::max(kMinSplitPoints, kMaxChunkAttributeBytes / bytes);
+  return std::max<std::uint64_t>(1, std::min(split_points, by_width));
+}
 
 std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g,
                                   const ArchiveGrid* split_grid) {

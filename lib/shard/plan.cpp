@@ -116,7 +116,9 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const Shar
     plan.intensity_lo = chunk_params.intensity_range->first;
     plan.intensity_hi = chunk_params.intensity_range->second;
   }
-  plan.split_points = std::max<std::uint64_t>(1, o.split_points);
+  // The split compress_files would use for these attributes (recorded, so
+  // every stage-2 task uses it).
+  plan.split_points = bounded_split_points(o.split_points, in.las_attributes, in.extra_bytes_size);
   plan.has_xyz_columns = o.reader.xyz_columns.has_value();
   if (plan.has_xyz_columns) plan.xyz_columns = *o.reader.xyz_columns;
   plan.no_extra_bytes = !o.reader.extra_bytes;
