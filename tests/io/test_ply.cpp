@@ -156,6 +156,10 @@ std::string mixed_file(PlyEncoding enc, bool vertex_list, std::size_t n, PointCl
     expected.positions.push_back({x, y, static_cast<double>(z)});
     expected.colors.push_back({r, g, bl});
     expected.intensities.push_back(static_cast<float>(intensity));
+    // flags and nx, the vertex properties beyond x y z, colour and
+    // intensity: kept as extra bytes, little endian (the list is not).
+    expected.las.extra_bytes.insert(expected.las.extra_bytes.end(), {7, 0xFD, 0xFF});
+    expected.las.extra_bytes_size = 3;
   }
   for (int f = 0; f < 2; ++f) {
     b.put(std::uint8_t(3)).put(std::int32_t(0)).put(std::int32_t(1)).put(std::int32_t(f + 2));
@@ -298,7 +302,8 @@ TEST_CASE("PLY empty cloud round-trips", "[io]") {
 
 // ---------------------------------------------------------------- other writers' files
 
-TEST_CASE("PLY elements before and after the vertices and extra properties are skipped", "[io]") {
+TEST_CASE("PLY elements before and after the vertices are skipped, other vertex scalars kept as extra bytes",
+          "[io]") {
   const PlyEncoding enc = GENERATE(PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian,
                                    PlyEncoding::kBinaryBigEndian);
   const bool vertex_list = GENERATE(false, true);
@@ -311,6 +316,7 @@ TEST_CASE("PLY elements before and after the vertices and extra properties are s
     INFO(r.status().to_string());
     REQUIRE(r.is_ok());
     require_same(*r, expected);
+    CHECK(r->las.extra_bytes == expected.las.extra_bytes);
   }
   SECTION("from a file spanning several read blocks") {
     PointCloud big_expected;
@@ -322,6 +328,7 @@ TEST_CASE("PLY elements before and after the vertices and extra properties are s
     INFO(r.status().to_string());
     REQUIRE(r.is_ok());
     require_same(*r, big_expected);
+    CHECK(r->las.extra_bytes == big_expected.las.extra_bytes);
   }
 }
 
@@ -342,6 +349,7 @@ TEST_CASE("PLY read from a pipe, where the size is unknown", "[io]") {
   INFO(r.status().to_string());
   REQUIRE(r.is_ok());
   require_same(*r, expected);
+  CHECK(r->las.extra_bytes == expected.las.extra_bytes);
 }
 
 TEST_CASE("PLY header accepts CRLF line endings and sized type names", "[io]") {
