@@ -2,8 +2,10 @@
 
 #include "relief/codec.h"
 
+#include <cctype>
 #include <charconv>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 
 #include "relief/io.h"
@@ -74,6 +76,23 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   }
   auto writer = open_point_writer(out_path, w);
   if (!writer) return fail(command, writer.status());
+  // What the output format cannot hold is said, not dropped silently: LAS and
+  // LAZ carry every LAS attribute, PLY the extra bytes alone (its colours are
+  // 8-bit, so no colour low bytes), text none.
+  std::string ext = std::filesystem::path(out_path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".las" && ext != ".laz") {
+    const std::uint32_t dropped = info.las_attributes & (ext == ".ply" ? ~std::uint32_t{kLasExtraBytes} : ~0u);
+    if (dropped != 0) {
+      std::string names = las_attribute_list(dropped);
+      for (std::size_t at = names.find(','); at != std::string::npos; at = names.find(',', at + 2)) {
+        names.replace(at, 1, ", ");
+      }
+      std::cerr << "relief " << command << ": warning: " << (out_path == "-" ? "standard output" : out_path)
+                << ": this format does not carry the archive's " << names
+                << " (write .las or .laz to keep every LAS attribute)\n";
+    }
+  }
   const auto t0 = now_ns();
   const PointSink sink = [&](const PointCloud& batch) { return (*writer)->write(batch); };
   auto stats = box != nullptr ? (*reader)->query(*box, options, sink) : (*reader)->query_all(options, sink);

@@ -103,6 +103,8 @@ std::vector<LasRecord> sorted_records(const std::string& path) {
   return v;
 }
 
+using Catch::Matchers::Contains;
+
 std::string cli() { return RELIEF_CLI; }
 
 }  // namespace
@@ -236,6 +238,25 @@ TEST_CASE("LAS -> archive -> LAS keeps every field of every point", "[las][archi
     CHECK(back->format == format);
     REQUIRE(relief::test::first_difference(sorted_records(out), sorted_records(in)) == "");
   }
+}
+
+TEST_CASE("PLY and text output name the LAS attributes they cannot carry", "[las][archive]") {
+  TempDir dir;
+  const std::string in = las_file(dir, "in.las", 3, 7);
+  const std::string archive = dir.file("a.relief");
+  REQUIRE(relief::test::run_cli(cli(), "compress " + in + " -o " + archive + " --quiet").code == 0);
+  const auto to = [&](const std::string& name) {
+    const auto run = relief::test::run_cli(cli(), "decompress " + archive + " -o " + dir.file(name) + " --quiet");
+    CHECK(run.code == 0);
+    return run.output;
+  };
+  const std::string ply = to("out.ply");
+  CHECK_THAT(ply, Contains("out.ply: this format does not carry the archive's classification, class_flags, "
+                           "return_number"));
+  CHECK_THAT(ply, Contains("gps_time, color_low (write .las or .laz to keep every LAS attribute)"));
+  CHECK_THAT(to("out.xyz"), Contains("out.xyz: this format does not carry"));
+  CHECK(to("out.las").find("warning") == std::string::npos);
+  CHECK(to("out.laz").find("warning") == std::string::npos);
 }
 
 TEST_CASE("query filters: --class, --first-returns, --last-returns", "[las][archive][needs-codec-attrs]") {
