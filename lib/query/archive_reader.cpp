@@ -1,13 +1,11 @@
 // Box queries over an archive: index lookup, blob reads with checksum, parallel
 // decode at the requested level of detail, clipping, in-order delivery.
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <set>
-#include <thread>
 
 #include "core/parallel.h"
 #include "relief/codec.h"
