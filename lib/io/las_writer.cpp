@@ -868,9 +868,17 @@ class LasStreamWriter final : public StreamPointWriter {
         return in_int32_range((top - offset) * inv) && in_int32_range((lo - offset) * inv);
       };
       if (options_.grid_scale && options_.grid_offset) {
-        // The archive's own grid: its integers are the source's.
+        // The archive's own grid: its integers are the source's. A grid whose
+        // origin lies far from the data (a PLY or CSV source's grid has origin
+        // 0, and UTM coordinates at a 1 mm step need more than 32 bits) moves
+        // its offset by a whole number of steps (10^4 at a time, as the
+        // automatic offsets round): the points stay on the same grid.
         scale = std::fabs(axis(*options_.grid_scale, a));
         offset = axis(*options_.grid_offset, a);
+        if (scale > 0 && std::isfinite(scale) && std::isfinite(offset) && !fits(hi)) {
+          const double unit = scale * power_of_ten(kOffsetUnitExponent);
+          offset += std::floor((lo - offset) / unit) * unit;
+        }
         if (!(scale > 0) || !std::isfinite(scale) || !std::isfinite(offset) || (strict && !fits(hi))) {
           return invalid_argument(out_->path() + ": the archive's grid (scale " + format_double(scale) + ", offset " +
                                   format_double(offset) + ") cannot hold the " + kAxisNames[static_cast<std::size_t>(a)] +

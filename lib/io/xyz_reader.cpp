@@ -5,13 +5,27 @@
 // Header names: the first non-comment line when its first column is not a
 // number, or else the last comment line before the data (CloudCompare writes
 // "//X,Y,Z,R,G,B") when it names x, y and z. Names match in any case, with
-// quotes and a leading '#' or "//" removed: x y z; red green blue (or r g b,
-// diffuse_red ...); intensity (or i, reflectance, scalar_intensity);
-// classification (or class, scalar_classification: LAS classes 0..255, into
-// PointCloud::las.classification). Other names (normals, time ...) are
-// skipped columns, listed in a warning (PLY, PCD and LAS inputs keep such
-// values as extra bytes; text gives no types to keep them by). A header
-// that does not name x, y and z leaves the columns at x y z.
+// quotes, a leading '#' or "//", a "scalar_" prefix (CloudCompare's scalar
+// fields) and '_', '-' removed (kColumnNames below):
+// - x y z; red green blue (or r g b, diffuse_red ...); intensity (or i,
+//   reflectance);
+// - the LAS dimensions under their LAS and PDAL names (PDAL's writers.text
+//   header "X,Y,Z,Intensity,ReturnNumber,NumberOfReturns,...,GpsTime" reads
+//   whole): classification (or class), gps_time, return_number,
+//   number_of_returns, scan_direction_flag, edge_of_flight_line,
+//   scanner_channel, synthetic, key_point, withheld, overlap, scan_angle_rank
+//   (or scan_angle, degrees), user_data, point_source_id, infrared (or nir).
+//   Each becomes that LasAttributes field, checked against its LAS range.
+// - Any other named column whose value on the first data line is a number
+//   (normals, times, scalar fields ...) is kept as a float64 field of LAS
+//   extra bytes under its header name (io/extra_fields.h), unless
+//   ReaderOptions::extra_bytes is off: text declares no types, and a double
+//   holds every value a decimal text gives to 15 significant digits (PDAL
+//   reads text columns as doubles too). An empty value there is a NaN; a later
+//   value that is not a number is an error. Columns that are not kept (not
+//   numbers on the first line, a partial colour set, a name seen twice) are
+//   listed in a warning.
+// A header that does not name x, y and z leaves the columns at x y z.
 //
 // Colour levels may be 8- or 16-bit: text declares no type, so the file-wide
 // 16-bit rule of the binary formats applies (io/stream_support.h): every
@@ -27,23 +41,25 @@
 // Skipped: blank lines, comment lines (first non-blank characters '#' or
 // "//"), a UTF-8 byte order mark, and on the first non-comment line either a
 // header (its first column is not a number) or a Leica PTS point count (a
-// single integer). Columns after the last one the spec uses are ignored.
+// single integer). Columns after the last one the plan uses are ignored.
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include <cctype>
-#include <optional>
 
 #include "io/byte_source.h"
+#include "io/extra_fields.h"
 #include "io/readers.h"
 #include "io/stream_support.h"
 #include "io/text_scan.h"
@@ -56,24 +72,167 @@ namespace {
 // A point line is short; a line this long is not one (binary junk, say).
 constexpr std::size_t kMaxLine = std::size_t{1} << 20;
 
-enum class Role : std::uint8_t { kSkip, kX, kY, kZ, kRed, kGreen, kBlue, kIntensity, kClass };
-constexpr std::size_t kRoleCount = 9;
-// Classification values are LAS classes, 0..255.
-constexpr double kMaxClass = 255;
+enum class Role : std::uint8_t {
+  kSkip,
+  kX,
+  kY,
+  kZ,
+  kRed,
+  kGreen,
+  kBlue,
+  kIntensity,
+  // The LAS dimensions (kLasColumns).
+  kClass,
+  kGpsTime,
+  kReturnNumber,
+  kNumberOfReturns,
+  kScanDirection,
+  kEdgeOfFlightLine,
+  kScannerChannel,
+  kSynthetic,
+  kKeyPoint,
+  kWithheld,
+  kOverlap,
+  kScanAngle,
+  kUserData,
+  kPointSourceId,
+  kNir,
+  // A column kept as a float64 field of extra bytes; any number of them.
+  kExtra,
+};
+// Roles held by at most one column each (every one before kExtra).
+constexpr std::size_t kRoleCount = static_cast<std::size_t>(Role::kExtra);
+constexpr std::size_t at_role(Role r) { return static_cast<std::size_t>(r); }
+
+// A LAS dimension's column: the LasAttributeBits it fills, the largest whole
+// number it takes (0: not a whole number; GPS time any finite value, scan
+// angle degrees within +-kMaxScanAngle), and its name in messages.
+struct LasColumn {
+  Role role;
+  std::uint32_t bit;
+  double max;
+  const char* name;
+};
+constexpr LasColumn kLasColumns[] = {
+    {Role::kClass, kLasClassification, 255, "classification"},
+    {Role::kGpsTime, kLasGpsTime, 0, "GPS time"},
+    {Role::kReturnNumber, kLasReturnNumber, 15, "return number"},
+    {Role::kNumberOfReturns, kLasNumberOfReturns, 15, "number of returns"},
+    {Role::kScanDirection, kLasScanFlags, 1, "scan direction flag"},
+    {Role::kEdgeOfFlightLine, kLasScanFlags, 1, "edge of flight line flag"},
+    {Role::kScannerChannel, kLasScanFlags, 3, "scanner channel"},
+    {Role::kSynthetic, kLasClassFlags, 1, "synthetic flag"},
+    {Role::kKeyPoint, kLasClassFlags, 1, "key-point flag"},
+    {Role::kWithheld, kLasClassFlags, 1, "withheld flag"},
+    {Role::kOverlap, kLasClassFlags, 1, "overlap flag"},
+    {Role::kScanAngle, kLasScanAngle, 0, "scan angle"},
+    {Role::kUserData, kLasUserData, 255, "user data"},
+    {Role::kPointSourceId, kLasPointSourceId, 65535, "point source ID"},
+    {Role::kNir, kLasNir, 65535, "NIR"},
+};
+// LAS 1.4 scan angles run from -180 to 180 degrees.
+constexpr double kMaxScanAngle = 180;
+
+// Column names after normalise(): LAS's and PDAL's dimension names and the
+// usual short forms.
+struct ColumnName {
+  std::string_view name;
+  Role role;
+};
+constexpr ColumnName kColumnNames[] = {
+    {"x", Role::kX},
+    {"y", Role::kY},
+    {"z", Role::kZ},
+    {"red", Role::kRed},
+    {"r", Role::kRed},
+    {"diffusered", Role::kRed},
+    {"green", Role::kGreen},
+    {"g", Role::kGreen},
+    {"diffusegreen", Role::kGreen},
+    {"blue", Role::kBlue},
+    {"b", Role::kBlue},
+    {"diffuseblue", Role::kBlue},
+    {"intensity", Role::kIntensity},
+    {"i", Role::kIntensity},
+    {"reflectance", Role::kIntensity},
+    {"classification", Role::kClass},
+    {"class", Role::kClass},
+    {"gpstime", Role::kGpsTime},
+    {"returnnumber", Role::kReturnNumber},
+    {"numberofreturns", Role::kNumberOfReturns},
+    {"scandirectionflag", Role::kScanDirection},
+    {"scandirection", Role::kScanDirection},
+    {"edgeofflightline", Role::kEdgeOfFlightLine},
+    {"scannerchannel", Role::kScannerChannel},
+    {"synthetic", Role::kSynthetic},
+    {"keypoint", Role::kKeyPoint},
+    {"withheld", Role::kWithheld},
+    {"overlap", Role::kOverlap},
+    {"scananglerank", Role::kScanAngle},
+    {"scanangle", Role::kScanAngle},
+    {"userdata", Role::kUserData},
+    {"pointsourceid", Role::kPointSourceId},
+    {"infrared", Role::kNir},
+    {"nir", Role::kNir},
+};
+
+// A header name without quotes and a leading '#' or "//": how a kept column
+// is named.
+std::string display_name(std::string_view name) {
+  std::string n;
+  for (const char c : name) {
+    if (c != '"' && c != '\'') n.push_back(c);
+  }
+  while (n.starts_with('#') || n.starts_with("//")) n.erase(0, n.starts_with('#') ? 1 : 2);
+  return n;
+}
+
+// The form names are matched in: lower case, without a "scalar_" prefix
+// (CloudCompare's scalar fields), '_' or '-'.
+std::string normalise(std::string_view name) {
+  std::string n = display_name(name);
+  for (char& c : n) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (n.starts_with("scalar_")) n.erase(0, 7);
+  std::erase_if(n, [](char c) { return c == '_' || c == '-'; });
+  return n;
+}
+
+// The role a name gives its column, if any.
+std::optional<Role> role_of_name(std::string_view name) {
+  const std::string n = normalise(name);
+  for (const ColumnName& c : kColumnNames) {
+    if (c.name == n) return c.role;
+  }
+  return std::nullopt;
+}
 
 struct ColumnPlan {
-  std::vector<Role> roles;  // up to the last used column
+  std::vector<Role> roles;               // up to the last used column
+  std::vector<std::string> extra_names;  // of the kExtra columns, in order
   bool colors = false;
   bool intensity = false;
-  bool classification = false;
+  std::uint32_t las = 0;  // the LasAttributeBits the LAS columns fill (kLasExtraBytes apart)
   // Header names of the columns not read (a warning lists them).
   std::vector<std::string> unread;
 };
 
+// Colour, intensity and LAS flags from the roles present.
+void summarise(ColumnPlan& plan, const std::array<bool, kRoleCount>& seen) {
+  auto has = [&](Role r) { return seen[at_role(r)]; };
+  plan.colors = has(Role::kRed) && has(Role::kGreen) && has(Role::kBlue);
+  plan.intensity = has(Role::kIntensity);
+  plan.las = 0;
+  for (const LasColumn& c : kLasColumns) plan.las |= has(c.role) ? c.bit : 0u;
+}
+
+void drop_trailing_skips(ColumnPlan& plan) {
+  while (!plan.roles.empty() && plan.roles.back() == Role::kSkip) plan.roles.pop_back();
+}
+
 Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& name) {
   const std::string where = name + ": column spec '" + spec + "': ";
   ColumnPlan plan;
-  std::array<int, kRoleCount> seen{};
+  std::array<bool, kRoleCount> seen{};
   std::size_t pos = 0;
   for (;;) {
     const std::size_t comma = std::min(spec.find(',', pos), spec.size());
@@ -81,67 +240,39 @@ Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& nam
     while (!tok.empty() && is_blank(tok.front())) tok.remove_prefix(1);
     while (!tok.empty() && is_blank(tok.back())) tok.remove_suffix(1);
     Role role = Role::kSkip;
-    if (tok == "x" || tok == "X") {
-      role = Role::kX;
-    } else if (tok == "y" || tok == "Y") {
-      role = Role::kY;
-    } else if (tok == "z" || tok == "Z") {
-      role = Role::kZ;
-    } else if (tok == "r" || tok == "R") {
-      role = Role::kRed;
-    } else if (tok == "g" || tok == "G") {
-      role = Role::kGreen;
-    } else if (tok == "b" || tok == "B") {
-      role = Role::kBlue;
-    } else if (tok == "i" || tok == "I") {
-      role = Role::kIntensity;
-    } else if (tok == "c" || tok == "C") {
+    if (tok == "c" || tok == "C") {
       role = Role::kClass;
     } else if (tok != "_") {
-      return invalid_argument(where + "unknown column " + quoted(tok) +
-                              " (use x y z r g b i c or _, comma separated)");
+      const std::optional<Role> named = role_of_name(tok);
+      if (!named) {
+        return invalid_argument(where + "unknown column " + quoted(tok) +
+                                " (use x y z r g b i c, a LAS dimension such as gps_time, return_number or "
+                                "point_source_id, or _ to skip; comma separated)");
+      }
+      role = *named;
     }
-    if (role != Role::kSkip && ++seen[static_cast<std::size_t>(role)] > 1) {
-      return invalid_argument(where + "column " + quoted(tok) + " appears twice");
+    if (role != Role::kSkip) {
+      if (seen[at_role(role)]) return invalid_argument(where + "column " + quoted(tok) + " appears twice");
+      seen[at_role(role)] = true;
     }
     plan.roles.push_back(role);
     if (comma == spec.size()) break;
     pos = comma + 1;
   }
-  auto has = [&](Role r) { return seen[static_cast<std::size_t>(r)] > 0; };
-  if (!has(Role::kX) || !has(Role::kY) || !has(Role::kZ)) {
+  if (!seen[at_role(Role::kX)] || !seen[at_role(Role::kY)] || !seen[at_role(Role::kZ)]) {
     return invalid_argument(where + "it must name the x, y and z columns");
   }
-  const int rgb = static_cast<int>(has(Role::kRed)) + static_cast<int>(has(Role::kGreen)) +
-                  static_cast<int>(has(Role::kBlue));
+  const int rgb = static_cast<int>(seen[at_role(Role::kRed)]) + static_cast<int>(seen[at_role(Role::kGreen)]) +
+                  static_cast<int>(seen[at_role(Role::kBlue)]);
   if (rgb != 0 && rgb != 3) return invalid_argument(where + "r, g and b go together (all or none)");
-  plan.colors = rgb == 3;
-  plan.intensity = has(Role::kIntensity);
-  plan.classification = has(Role::kClass);
-  while (plan.roles.back() == Role::kSkip) plan.roles.pop_back();  // x is there, so this stops
+  summarise(plan, seen);
+  drop_trailing_skips(plan);
   return plan;
 }
 
-// The role a header name gives its column, if any.
-std::optional<Role> role_of_name(std::string_view name) {
-  std::string n;
-  for (const char c : name) {
-    if (c != '"' && c != '\'') n.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
-  }
-  while (n.starts_with('#') || n.starts_with("//")) n.erase(0, n.starts_with('#') ? 1 : 2);
-  if (n == "x") return Role::kX;
-  if (n == "y") return Role::kY;
-  if (n == "z") return Role::kZ;
-  if (n == "red" || n == "r" || n == "diffuse_red") return Role::kRed;
-  if (n == "green" || n == "g" || n == "diffuse_green") return Role::kGreen;
-  if (n == "blue" || n == "b" || n == "diffuse_blue") return Role::kBlue;
-  if (n == "intensity" || n == "i" || n == "reflectance" || n == "scalar_intensity") return Role::kIntensity;
-  if (n == "classification" || n == "class" || n == "scalar_classification") return Role::kClass;
-  return std::nullopt;
-}
-
 // Columns from a header line, when it names x, y and z. Separators: blanks,
-// ',' and ';'. A name seen twice keeps its first column.
+// ',' and ';'. A name seen twice keeps its first column; other names are
+// candidates for extra bytes, settled by XyzPointReader::start().
 std::optional<ColumnPlan> plan_from_header(std::string_view line) {
   ColumnPlan plan;
   std::vector<std::string> names;  // per column, as the header gives it
@@ -155,30 +286,37 @@ std::optional<ColumnPlan> plan_from_header(std::string_view line) {
     const std::string_view name = line.substr(pos, end - pos);
     const std::optional<Role> role = role_of_name(name);
     Role r = Role::kSkip;
-    if (role && !seen[static_cast<std::size_t>(*role)]) {
+    if (role && !seen[at_role(*role)]) {
       r = *role;
-      seen[static_cast<std::size_t>(r)] = true;
+      seen[at_role(r)] = true;
+    } else if (!role && !display_name(name).empty()) {
+      r = Role::kExtra;
     }
     plan.roles.push_back(r);
-    names.emplace_back(name);
+    names.push_back(display_name(name));
     pos = end;
     while (pos < line.size() && is_blank(line[pos])) ++pos;
     if (pos < line.size() && (line[pos] == ',' || line[pos] == ';')) ++pos;
   }
-  auto has = [&](Role r) { return seen[static_cast<std::size_t>(r)]; };
-  if (!has(Role::kX) || !has(Role::kY) || !has(Role::kZ)) return std::nullopt;
-  plan.colors = has(Role::kRed) && has(Role::kGreen) && has(Role::kBlue);
-  if (!plan.colors) {
-    for (Role& r : plan.roles) {
-      if (r == Role::kRed || r == Role::kGreen || r == Role::kBlue) r = Role::kSkip;  // a partial set
+  if (!seen[at_role(Role::kX)] || !seen[at_role(Role::kY)] || !seen[at_role(Role::kZ)]) return std::nullopt;
+  summarise(plan, seen);
+  for (std::size_t c = 0; c < names.size(); ++c) {
+    Role& r = plan.roles[c];
+    // A partial colour set is kept like any other values.
+    if (!plan.colors && (r == Role::kRed || r == Role::kGreen || r == Role::kBlue)) r = Role::kExtra;
+    if (r == Role::kExtra) {
+      // Names of kept columns are unique ("t", "t_2" ...).
+      std::string unique = names[c];
+      for (int k = 2; std::find(plan.extra_names.begin(), plan.extra_names.end(), unique) != plan.extra_names.end();
+           ++k) {
+        unique = names[c] + "_" + std::to_string(k);
+      }
+      plan.extra_names.push_back(std::move(unique));
+    } else if (r == Role::kSkip && !names[c].empty()) {
+      plan.unread.push_back(names[c]);
     }
   }
-  plan.intensity = has(Role::kIntensity);
-  plan.classification = has(Role::kClass);
-  for (std::size_t c = 0; c < names.size(); ++c) {
-    if (plan.roles[c] == Role::kSkip && !names[c].empty()) plan.unread.push_back(names[c]);
-  }
-  while (plan.roles.back() == Role::kSkip) plan.roles.pop_back();  // x is there, so this stops
+  drop_trailing_skips(plan);
   return plan;
 }
 
@@ -191,10 +329,33 @@ bool parse_number(std::string_view tok, double& out) {
   return ec == std::errc{} && p == last && first != last;
 }
 
+// The column of `line` at `pos` (past leading blanks), advancing `pos` past it
+// and its separator; `more` says whether another column follows (a delimiter
+// at the end of the line is followed by an empty one). `delimiter` ' ' means
+// blanks only.
+std::string_view take_column(std::string_view line, std::size_t& pos, char delimiter, bool& more) {
+  const std::size_t start = pos;
+  while (pos < line.size() && !is_blank(line[pos]) && line[pos] != delimiter) ++pos;
+  const std::string_view tok = line.substr(start, pos - start);
+  while (pos < line.size() && is_blank(line[pos])) ++pos;
+  bool delimited = false;
+  if (pos < line.size() && line[pos] == delimiter) {
+    delimited = true;
+    ++pos;
+    while (pos < line.size() && is_blank(line[pos])) ++pos;
+  }
+  more = pos < line.size() || delimited;
+  return tok;
+}
+
+std::size_t skip_blanks(std::string_view line) {
+  std::size_t pos = 0;
+  while (pos < line.size() && is_blank(line[pos])) ++pos;
+  return pos;
+}
+
 bool is_comment(std::string_view line) {
-  std::size_t i = 0;
-  while (i < line.size() && is_blank(line[i])) ++i;
-  const std::string_view rest = line.substr(i);
+  const std::string_view rest = line.substr(skip_blanks(line));
   return rest.starts_with('#') || rest.starts_with("//");
 }
 
@@ -218,6 +379,37 @@ std::string_view first_column(std::string_view line) {
   std::size_t end = i;
   while (end < line.size() && !is_blank(line[end]) && line[end] != ',' && line[end] != ';') ++end;
   return line.substr(i, end - i);
+}
+
+// The delimiter the first data line picks (see the top of the file).
+char delimiter_of(std::string_view first_data_line) {
+  if (first_data_line.find(';') != std::string_view::npos) return ';';
+  if (first_data_line.find(',') != std::string_view::npos) return ',';
+  return ' ';
+}
+
+// Appends `v` as 8 little-endian bytes.
+void put_f64_le(std::vector<std::uint8_t>& out, double v) {
+  const auto bits = std::bit_cast<std::uint64_t>(v);
+  for (int k = 0; k < 8; ++k) out.push_back(static_cast<std::uint8_t>(bits >> (8 * k)));
+}
+
+// Sizes the LAS vectors a plan fills to `n` points and clears the others.
+void size_las(LasAttributes& las, std::uint32_t bits, std::size_t extra_size, std::size_t n) {
+  const auto fit = [&](auto& v, std::uint32_t bit) { v.resize((bits & bit) != 0 ? n : 0); };
+  fit(las.classification, kLasClassification);
+  fit(las.class_flags, kLasClassFlags);
+  fit(las.return_number, kLasReturnNumber);
+  fit(las.number_of_returns, kLasNumberOfReturns);
+  fit(las.scan_flags, kLasScanFlags);
+  fit(las.scan_angle, kLasScanAngle);
+  fit(las.user_data, kLasUserData);
+  fit(las.point_source_id, kLasPointSourceId);
+  fit(las.gps_time, kLasGpsTime);
+  fit(las.nir, kLasNir);
+  las.color_low.clear();
+  las.extra_bytes_size = static_cast<std::uint32_t>(extra_size);
+  las.extra_bytes.resize(n * extra_size);
 }
 
 class XyzPointReader final : public BatchPointReader {
@@ -258,20 +450,25 @@ class XyzPointReader final : public BatchPointReader {
     return format_error(name() + ": line " + std::to_string(line_no) + ": " + what);
   }
   Status start(std::optional<ColumnPlan> explicit_plan);
+  // Settles the candidate extra columns of a header plan (see the top of the file).
+  Status settle_extras();
   // Next line that is neither blank nor a comment; `line` empty at the end.
   Status next_content_line(std::string_view& line, bool& end, std::string* last_comment_header);
   Status parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                      std::vector<std::uint16_t>* wide);
+  Status check_las_values(const double* v, std::uint64_t line_no) const;
+  void push_las_values(const double* v, LasAttributes& las) const;
 
   InputSpec input_;
   ReaderOptions options_;
   ByteSource src_;
   ColumnPlan plan_;
+  std::vector<const LasColumn*> las_columns_;  // the plan's LAS dimensions
+  std::vector<double> extra_values_;           // one point's kept columns
   std::uint64_t line_no_ = 0;
   std::string pending_;  // the first data line, read by start()
   std::uint64_t pending_line_no_ = 0;
   bool has_pending_ = false;
-  bool delimiter_known_ = false;
   char delimiter_ = ' ';  // ' ' means blanks only
 };
 
@@ -298,6 +495,45 @@ Status XyzPointReader::next_content_line(std::string_view& line, bool& end, std:
   }
 }
 
+Status XyzPointReader::settle_extras() {
+  std::size_t k = 0;  // index into extra_names
+  std::vector<std::string> kept;
+  std::vector<std::size_t> columns;  // of the candidates
+  for (std::size_t c = 0; c < plan_.roles.size(); ++c) {
+    if (plan_.roles[c] == Role::kExtra) columns.push_back(c);
+  }
+  // The first data line's value of each column, when it has one.
+  std::vector<std::string_view> first;
+  if (has_pending_) {
+    std::size_t pos = skip_blanks(pending_);
+    for (bool more = pos < pending_.size(); more;) first.push_back(take_column(pending_, pos, delimiter_, more));
+  }
+  std::vector<std::string> not_numbers;
+  for (const std::size_t c : columns) {
+    const std::string& extra_name = plan_.extra_names[k++];
+    double value = 0;
+    const bool numeric = !has_pending_ || (c < first.size() && (first[c].empty() || parse_number(first[c], value)));
+    if (!options_.extra_bytes || !numeric) {
+      plan_.roles[c] = Role::kSkip;
+      if (options_.extra_bytes) not_numbers.push_back(extra_name);
+      continue;
+    }
+    kept.push_back(extra_name);
+  }
+  plan_.extra_names = std::move(kept);
+  if (!not_numbers.empty()) plan_.unread.insert(plan_.unread.begin(), not_numbers.begin(), not_numbers.end());
+  drop_trailing_skips(plan_);
+  if (plan_.extra_names.empty()) return Status::ok();
+  std::vector<KeptField> fields;
+  constexpr int kFloat64 = 10;  // LAS Extra Bytes data type "double"
+  for (const std::string& n : plan_.extra_names) fields.push_back({n, kFloat64});
+  RELIEF_ASSIGN_OR_RETURN(info_.extra_bytes_vlr,
+                          kept_fields_vlr(fields, name(), "column", "text column", info_.warnings));
+  info_.extra_bytes_size = static_cast<std::uint32_t>(8 * plan_.extra_names.size());
+  extra_values_.assign(plan_.extra_names.size(), 0);
+  return Status::ok();
+}
+
 Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   std::string comment_header;
   std::string_view line;
@@ -319,60 +555,114 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
     pending_.assign(line);
     pending_line_no_ = line_no_;
     has_pending_ = true;
+    delimiter_ = delimiter_of(pending_);
   }
   if (!header_plan && !comment_header.empty()) header_plan = plan_from_header(comment_header);
   if (explicit_plan) {
     plan_ = std::move(*explicit_plan);  // the caller's columns win over a header
   } else if (header_plan) {
     plan_ = std::move(*header_plan);
+    RELIEF_RETURN_IF_ERROR(settle_extras());
     if (!plan_.unread.empty()) {
       std::string names;
       for (const std::string& n : plan_.unread) names += (names.empty() ? "" : ", ") + quoted(n);
       info_.warnings.push_back(name() + ": header column" + (plan_.unread.size() > 1 ? "s " : " ") + names +
                                (plan_.unread.size() > 1 ? " are" : " is") +
-                               " not kept (text inputs keep x, y, z, colour, intensity and classification; "
-                               "PLY, PCD and LAS keep every per-point value)");
+                               " not kept (text columns are kept when their first value is a number and "
+                               "their name is new)");
     }
   } else {
     RELIEF_ASSIGN_OR_RETURN(plan_, parse_columns("x,y,z", name()));
   }
+  for (const LasColumn& c : kLasColumns) {
+    if (std::find(plan_.roles.begin(), plan_.roles.end(), c.role) != plan_.roles.end()) las_columns_.push_back(&c);
+  }
   info_.has_colors = plan_.colors;
   info_.has_intensity = plan_.intensity;
-  info_.las_attributes = plan_.classification ? std::uint32_t{kLasClassification} : 0u;
+  info_.las_attributes = plan_.las | (plan_.extra_names.empty() ? 0u : std::uint32_t{kLasExtraBytes});
   wide_colors_ = plan_.colors;  // levels may be 16-bit (see the top of the file)
   return Status::ok();
+}
+
+Status XyzPointReader::check_las_values(const double* v, std::uint64_t line_no) const {
+  for (const LasColumn* c : las_columns_) {
+    const double raw = v[at_role(c->role)];
+    if (c->role == Role::kGpsTime) {
+      if (!std::isfinite(raw)) return line_error(line_no, "GPS time " + format_double(raw) + " is not finite");
+    } else if (c->role == Role::kScanAngle) {
+      if (!(std::abs(raw) <= kMaxScanAngle)) {
+        return line_error(line_no, "scan angle " + format_double(raw) + " is not from -180 to 180 degrees");
+      }
+    } else if (!(raw >= 0 && raw <= c->max) || raw != std::floor(raw)) {
+      return line_error(line_no, std::string(c->name) + " " + format_double(raw) + " is not a whole number from 0 to " +
+                                     format_double(c->max));
+    }
+  }
+  return Status::ok();
+}
+
+void XyzPointReader::push_las_values(const double* v, LasAttributes& las) const {
+  const std::uint32_t bits = plan_.las;
+  const auto u8 = [v](Role r) { return static_cast<std::uint8_t>(v[at_role(r)]); };
+  if ((bits & kLasClassification) != 0) las.classification.push_back(u8(Role::kClass));
+  if ((bits & kLasClassFlags) != 0) {
+    las.class_flags.push_back(static_cast<std::uint8_t>(u8(Role::kSynthetic) | u8(Role::kKeyPoint) << 1 |
+                                                        u8(Role::kWithheld) << 2 | u8(Role::kOverlap) << 3));
+  }
+  if ((bits & kLasReturnNumber) != 0) las.return_number.push_back(u8(Role::kReturnNumber));
+  if ((bits & kLasNumberOfReturns) != 0) las.number_of_returns.push_back(u8(Role::kNumberOfReturns));
+  if ((bits & kLasScanFlags) != 0) {
+    las.scan_flags.push_back(static_cast<std::uint8_t>(u8(Role::kScanDirection) | u8(Role::kEdgeOfFlightLine) << 1 |
+                                                       u8(Role::kScannerChannel) << 2));
+  }
+  // LasAttributes keeps thousandths of a degree.
+  if ((bits & kLasScanAngle) != 0) {
+    las.scan_angle.push_back(static_cast<std::int32_t>(std::lround(v[at_role(Role::kScanAngle)] * 1000)));
+  }
+  if ((bits & kLasUserData) != 0) las.user_data.push_back(u8(Role::kUserData));
+  if ((bits & kLasPointSourceId) != 0) {
+    las.point_source_id.push_back(static_cast<std::uint16_t>(v[at_role(Role::kPointSourceId)]));
+  }
+  if ((bits & kLasGpsTime) != 0) las.gps_time.push_back(v[at_role(Role::kGpsTime)]);
+  if ((bits & kLasNir) != 0) las.nir.push_back(static_cast<std::uint16_t>(v[at_role(Role::kNir)]));
 }
 
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                                    std::vector<std::uint16_t>* wide) {
   double v[kRoleCount] = {};
-  std::size_t pos = 0;
-  while (pos < line.size() && is_blank(line[pos])) ++pos;
+  std::size_t extra = 0;
+  std::size_t pos = skip_blanks(line);
   const std::size_t columns = plan_.roles.size();
+  bool more = pos < line.size();
   for (std::size_t c = 0; c < columns; ++c) {
-    if (pos >= line.size()) {
+    if (!more) {
       return line_error(line_no, "expected at least " + std::to_string(columns) + " columns but found " +
                                      std::to_string(c));
     }
-    const std::size_t start = pos;
-    while (pos < line.size() && !is_blank(line[pos]) && line[pos] != delimiter_) ++pos;
-    const std::string_view tok = line.substr(start, pos - start);
-    while (pos < line.size() && is_blank(line[pos])) ++pos;
-    if (pos < line.size() && line[pos] == delimiter_) {
-      ++pos;
-      while (pos < line.size() && is_blank(line[pos])) ++pos;
-    }
+    const std::string_view tok = take_column(line, pos, delimiter_, more);
     const Role role = plan_.roles[c];
     if (role == Role::kSkip) continue;
     double value = 0;
-    if (!parse_number(tok, value)) {
-      return line_error(line_no, "column " + std::to_string(c + 1) + " " +
-                                     (tok.empty() ? std::string("is empty") : quoted(tok) + " is not a number"));
+    if (role == Role::kExtra && tok.empty()) {
+      extra_values_[extra++] = std::numeric_limits<double>::quiet_NaN();  // a missing value
+      continue;
     }
-    v[static_cast<std::size_t>(role)] = value;
+    if (!parse_number(tok, value)) {
+      std::string what = "column " + std::to_string(c + 1) + " " +
+                         (tok.empty() ? std::string("is empty") : quoted(tok) + " is not a number");
+      if (role == Role::kExtra) {
+        what += " (kept as extra bytes " + quoted(plan_.extra_names[extra]) +
+                "; --no-extra-bytes skips such columns)";
+      }
+      return line_error(line_no, what);
+    }
+    if (role == Role::kExtra) {
+      extra_values_[extra++] = value;
+    } else {
+      v[at_role(role)] = value;
+    }
   }
-  const Vec3d p{v[static_cast<std::size_t>(Role::kX)], v[static_cast<std::size_t>(Role::kY)],
-                v[static_cast<std::size_t>(Role::kZ)]};
+  const Vec3d p{v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]};
   if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
     return line_error(line_no, "non-finite coordinate (" + format_double(p.x) + ", " + format_double(p.y) + ", " +
                                    format_double(p.z) + ")");
@@ -381,7 +671,7 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
   if (plan_.colors) {
     const Role roles[3] = {Role::kRed, Role::kGreen, Role::kBlue};
     for (int k = 0; k < 3; ++k) {
-      const double level = v[static_cast<std::size_t>(roles[k])];
+      const double level = v[at_role(roles[k])];
       if (!(level >= 0 && level <= kMaxWideLevel)) {
         return line_error(line_no, "colour level " + format_double(level) + " is outside 0..65535");
       }
@@ -390,23 +680,17 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
   }
   float intensity = 0;
   if (plan_.intensity) {
-    const double raw = v[static_cast<std::size_t>(Role::kIntensity)];
+    const double raw = v[at_role(Role::kIntensity)];
     // Converting a double beyond the float range is undefined; reject it first.
     if (!std::isfinite(raw) || std::abs(raw) > std::numeric_limits<float>::max()) {
       return line_error(line_no, "intensity " + format_double(raw) + " is not a finite float");
     }
     intensity = static_cast<float>(raw);
   }
-  std::uint8_t cls = 0;
-  if (plan_.classification) {
-    const double raw = v[static_cast<std::size_t>(Role::kClass)];
-    if (!(raw >= 0 && raw <= kMaxClass) || raw != std::floor(raw)) {
-      return line_error(line_no, "classification " + format_double(raw) + " is not a whole number from 0 to 255");
-    }
-    cls = static_cast<std::uint8_t>(raw);
-  }
+  RELIEF_RETURN_IF_ERROR(check_las_values(v, line_no));
   out.positions.push_back(p);
-  if (plan_.classification) out.las.classification.push_back(cls);
+  push_las_values(v, out.las);
+  for (const double e : extra_values_) put_f64_le(out.las.extra_bytes, e);
   if (plan_.colors) {
     if (wide != nullptr) {
       wide->insert(wide->end(), levels, levels + 3);
@@ -425,7 +709,7 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
   out.positions.resize(at);
   out.colors.resize(plan_.colors && !to_wide ? at : 0);
   out.intensities.resize(plan_.intensity ? at : 0);
-  out.las.classification.resize(plan_.classification ? at : 0);
+  size_las(out.las, plan_.las, info_.extra_bytes_size, at);
   if (to_wide) wide->resize(3 * at);
   std::vector<std::uint16_t>* levels = to_wide ? wide : nullptr;
   std::size_t got = 0;
@@ -441,15 +725,6 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
       RELIEF_RETURN_IF_ERROR(next_content_line(line, end, nullptr));
       if (end) break;
       line_no = line_no_;
-    }
-    if (!delimiter_known_) {
-      // The first data line picks the delimiter (see the top of the file).
-      delimiter_known_ = true;
-      if (line.find(';') != std::string_view::npos) {
-        delimiter_ = ';';
-      } else if (line.find(',') != std::string_view::npos) {
-        delimiter_ = ',';
-      }
     }
     RELIEF_RETURN_IF_ERROR(parse_point(line, line_no, out, levels));
     ++got;

@@ -491,3 +491,104 @@ TEST_CASE("PLY normals and labels survive compress and decompress, to PLY and to
   CHECK(has(mixed, "normals.ply"));
   CHECK_FALSE(fs::exists(tmp.file("mixed.relief")));
 }
+
+TEST_CASE("A PDAL text export keeps its LAS dimensions and other columns through compress and LAS output",
+          "[cli][io][xyz][las]") {
+  TempDir tmp;
+  // 3,000 points as PDAL's writers.text writes them (precision 3), with a
+  // scalar field beside the LAS dimensions. GPS times are unique, so they
+  // pair each output point with its input.
+  struct Row {
+    double x, y, z, t, dev;
+    int cls, ret, nret, dir, edge, user, src, angle_steps;
+  };
+  std::vector<Row> rows;
+  std::string csv = "\"X\",\"Y\",\"Z\",\"ReturnNumber\",\"NumberOfReturns\",\"ScanDirectionFlag\",\"EdgeOfFlightLine\","
+                    "\"Classification\",\"ScanAngleRank\",\"UserData\",\"PointSourceId\",\"GpsTime\",\"Deviation\"\n";
+  char line[512];
+  for (int i = 0; i < 3000; ++i) {
+    Row r;
+    r.x = 500000 + 0.01 * (i % 60);
+    r.y = 4000000 + 0.01 * (i / 60);
+    r.z = 100 + 0.001 * (i % 37);
+    r.ret = 1 + i % 3;
+    r.nret = 3;
+    r.dir = i % 2;
+    r.edge = (i / 7) % 2;
+    r.cls = (i * 13) % 40;
+    r.angle_steps = (i % 301) - 150;  // 0.006 degree steps, as LAS 1.4 stores them
+    r.user = i % 256;
+    r.src = 7000 + i % 5;
+    r.t = 245000 + 0.001 * i;
+    r.dev = (i % 11) * 0.125 - 0.5;
+    rows.push_back(r);
+    std::snprintf(line, sizeof line, "%.3f,%.3f,%.3f,%d,%d,%d,%d,%d,%.3f,%d,%d,%.3f,%.3f\n", r.x, r.y, r.z, r.ret,
+                  r.nret, r.dir, r.edge, r.cls, 0.006 * r.angle_steps, r.user, r.src, r.t, r.dev);
+    csv += line;
+  }
+  write_text(tmp.file("pdal.csv"), csv);
+  REQUIRE(run("compress " + tmp.file("pdal.csv") + " -o " + tmp.file("p.relief") + " --tolerance 0.0005 --quiet").code ==
+          0);
+  const Run info = run("info " + tmp.file("p.relief"));
+  CHECK(has(info, "classification"));
+  CHECK(has(info, "gps_time"));
+  CHECK(has(info, "8 extra bytes: Deviation (float64)"));
+  REQUIRE(run("decompress " + tmp.file("p.relief") + " -o " + tmp.file("back.las") + " --quiet").code == 0);
+  const auto back = relief::read_point_file(tmp.file("back.las"));
+  REQUIRE(back.is_ok());
+  const relief::PointCloud& c = *back;
+  REQUIRE(c.size() == rows.size());
+  REQUIRE(c.las.gps_time.size() == rows.size());
+  REQUIRE(c.las.extra_bytes_size == 8);
+  std::size_t same = 0;
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    const auto k = static_cast<std::size_t>(std::lround((c.las.gps_time[i] - 245000) * 1000));
+    REQUIRE(k < rows.size());
+    const Row& r = rows[k];
+    double dev = 0;
+    std::memcpy(&dev, c.las.extra_bytes.data() + 8 * i, 8);
+    const bool ok = std::abs(c.positions[i].x - r.x) <= 0.0005 + 1e-9 && std::abs(c.positions[i].z - r.z) <= 0.0005 + 1e-9 &&
+                    c.las.return_number[i] == r.ret && c.las.number_of_returns[i] == r.nret &&
+                    c.las.scan_flags[i] == (r.dir | r.edge << 1) && c.las.classification[i] == r.cls &&
+                    c.las.scan_angle[i] == 6 * r.angle_steps && c.las.user_data[i] == r.user &&
+                    c.las.point_source_id[i] == r.src && dev == r.dev;
+    same += ok ? 1 : 0;
+  }
+  CHECK(same == rows.size());
+}
+
+TEST_CASE("LAS output of a non-LAS archive at UTM coordinates and a 1 mm grid moves the grid's offset",
+          "[cli][las]") {
+  // A text source's grid has origin 0: 4,000,000 m at 1 mm needs more than
+  // 32 bits, so the writer shifts the offset by whole steps and every point
+  // stays on the grid (before, the decompress was refused).
+  TempDir tmp;
+  std::string xyz;
+  for (int i = 0; i < 500; ++i) {
+    xyz += std::to_string(500000.0 + 0.013 * i) + " " + std::to_string(4000000.0 + 0.007 * (i % 50)) + " " +
+           std::to_string(100.0 + 0.001 * (i % 9)) + "\n";
+  }
+  write_text(tmp.file("utm.xyz"), xyz);
+  REQUIRE(run("compress " + tmp.file("utm.xyz") + " -o " + tmp.file("u.relief") + " --quiet").code == 0);
+  const Run d = run("decompress " + tmp.file("u.relief") + " -o " + tmp.file("u.las") + " --quiet");
+  INFO(d.output);
+  REQUIRE(d.code == 0);
+  const auto got = relief::read_point_file(tmp.file("u.las"));
+  REQUIRE(got.is_ok());
+  REQUIRE(got->size() == 500);
+  std::vector<relief::Vec3d> want;
+  for (int i = 0; i < 500; ++i) {
+    want.push_back({500000.0 + 0.013 * i, 4000000.0 + 0.007 * (i % 50), 100.0 + 0.001 * (i % 9)});
+  }
+  std::vector<relief::Vec3d> back = got->positions;
+  const auto by_x = [](const relief::Vec3d& a, const relief::Vec3d& b) { return a.x < b.x; };
+  std::sort(back.begin(), back.end(), by_x);
+  double worst = 0;
+  for (std::size_t i = 0; i < back.size(); ++i) {
+    const relief::Vec3d& p = back[i];
+    // On the 1 mm grid of origin 0 (to the double rounding of the LAS sum).
+    for (const double v : {p.x, p.y, p.z}) CHECK(std::abs(v * 1000 - std::round(v * 1000)) < 1e-4);
+    worst = std::max({worst, std::abs(p.x - want[i].x), std::abs(p.y - want[i].y), std::abs(p.z - want[i].z)});
+  }
+  CHECK(worst <= 0.0005 + 1e-9);  // the default tolerance
+}

@@ -478,24 +478,178 @@ TEST_CASE("PLY output writes extra bytes as properties of their types, read back
 }
 
 
-TEST_CASE("CSV header columns that text inputs do not keep are listed in a warning", "[io][xyz][extra]") {
+namespace {
+
+// Reads a whole text file in batches of `batch`, every array checked against
+// the batch's count.
+PointCloud read_text(const std::string& path, std::size_t batch, PointStreamInfo* info = nullptr,
+                     const ReaderOptions& options = {}) {
+  auto r = open_point_reader(path, options);
+  INFO((r.is_ok() ? std::string() : r.status().to_string()));
+  REQUIRE(r.is_ok());
+  PointCloud all, part;
+  for (;;) {
+    auto n = (*r)->read(part, batch);
+    INFO((n.is_ok() ? std::string() : n.status().to_string()));
+    REQUIRE(n.is_ok());
+    if (*n == 0) break;
+    REQUIRE(part.las.extra_bytes.size() == *n * (*r)->info().extra_bytes_size);
+    REQUIRE(part.las.carried() == ((*r)->info().las_attributes));
+    all.append_points(part);
+  }
+  if (info != nullptr) *info = (*r)->info();
+  return all;
+}
+
+Status read_text_status(const std::string& path, const ReaderOptions& options = {}) {
+  auto r = open_point_reader(path, options);
+  if (!r.is_ok()) return r.status();
+  PointCloud part;
+  for (;;) {
+    auto n = (*r)->read(part, 1000);
+    if (!n.is_ok()) return n.status();
+    if (*n == 0) return Status::ok();
+  }
+}
+
+double extra_f64(const PointCloud& c, std::size_t point, std::size_t field) {
+  REQUIRE((point + 1) * c.las.extra_bytes_size <= c.las.extra_bytes.size());
+  REQUIRE(8 * (field + 1) <= c.las.extra_bytes_size);
+  double v = 0;
+  std::memcpy(&v, c.las.extra_bytes.data() + point * c.las.extra_bytes_size + 8 * field, 8);
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("PDAL's text header gives every LAS dimension of a CSV", "[io][xyz][las]") {
   test::TempDir dir;
-  const auto warnings_of = [&](const std::string& text) {
-    const std::string path = dir.file("c.csv");
-    write_file(path, text);
-    const ReadBack got = read_extras(path);
-    CHECK(got.points == 2);
-    CHECK(got.extra.empty());
-    return got.info.warnings;
+  const std::string path = dir.file("pdal.csv");
+  // As PDAL's writers.text writes a LAS 1.4 file (quoted header, precision 3).
+  write_file(path,
+             "\"X\",\"Y\",\"Z\",\"Intensity\",\"ReturnNumber\",\"NumberOfReturns\",\"ScanDirectionFlag\","
+             "\"EdgeOfFlightLine\",\"Classification\",\"ScanAngleRank\",\"UserData\",\"PointSourceId\",\"GpsTime\","
+             "\"Red\",\"Green\",\"Blue\",\"Synthetic\",\"KeyPoint\",\"Withheld\",\"Overlap\",\"ScannerChannel\","
+             "\"Infrared\"\n"
+             "637012.240,849028.310,431.660,143.000,1.000,2.000,0.000,1.000,1.000,-9.006,132.000,7326.000,"
+             "245380.783,68.000,77.000,88.000,1.000,0.000,1.000,0.000,2.000,4000.000\n"
+             "637019.480,849018.350,446.390,18.000,2.000,2.000,1.000,0.000,65.000,12.000,0.000,65535.000,"
+             "245381.010,70.000,80.000,90.000,0.000,1.000,0.000,1.000,3.000,65535.000\n");
+  for (const std::size_t batch : {std::size_t{1}, std::size_t{100}}) {
+    PointStreamInfo info;
+    const PointCloud c = read_text(path, batch, &info);
+    REQUIRE(c.size() == 2);
+    CHECK(info.warnings.empty());
+    CHECK(info.extra_bytes_size == 0);
+    CHECK(c.positions[1].z == 446.39);
+    CHECK(c.intensities == std::vector<float>{143, 18});
+    CHECK(c.las.return_number == std::vector<std::uint8_t>{1, 2});
+    CHECK(c.las.number_of_returns == std::vector<std::uint8_t>{2, 2});
+    CHECK(c.las.classification == std::vector<std::uint8_t>{1, 65});
+    CHECK(c.las.scan_angle == std::vector<std::int32_t>{-9006, 12000});  // thousandths of a degree
+    CHECK(c.las.user_data == std::vector<std::uint8_t>{132, 0});
+    CHECK(c.las.point_source_id == std::vector<std::uint16_t>{7326, 65535});
+    CHECK(c.las.gps_time == std::vector<double>{245380.783, 245381.010});
+    CHECK(c.las.class_flags == std::vector<std::uint8_t>{0b0101, 0b1010});
+    CHECK(c.las.scan_flags == std::vector<std::uint8_t>{0b1010, 0b1101});  // direction, edge, channel << 2
+    CHECK(c.las.nir == std::vector<std::uint16_t>{4000, 65535});
+    REQUIRE(c.colors.size() == 2);
+    CHECK(c.colors[1].b == 90);
+  }
+  // The same dimensions under LAS names through --columns.
+  write_file(path, "1 2 3 245380.5 3 5 -90\n");
+  ReaderOptions o;
+  o.xyz_columns = "x,y,z,gps_time,return_number,number_of_returns,scan_angle";
+  const PointCloud named = read_text(path, 10, nullptr, o);
+  CHECK(named.las.gps_time == std::vector<double>{245380.5});
+  CHECK(named.las.return_number == std::vector<std::uint8_t>{3});
+  CHECK(named.las.number_of_returns == std::vector<std::uint8_t>{5});
+  CHECK(named.las.scan_angle == std::vector<std::int32_t>{-90000});
+  o.xyz_columns = "x,y,z,gps_time,GpsTime";
+  CHECK(read_text_status(path, o).code() == StatusCode::kInvalidArgument);
+  o.xyz_columns = "x,y,z,normal";
+  CHECK_THAT(read_text_status(path, o).message(), Contains("unknown column 'normal'"));
+}
+
+TEST_CASE("CSV LAS dimensions out of their LAS range are refused, naming the line", "[io][xyz][las]") {
+  test::TempDir dir;
+  const std::string path = dir.file("bad.csv");
+  const auto refused = [&](const std::string& header, const std::string& value, const std::string& what) {
+    write_file(path, "x,y,z," + header + "\n1,2,3,1\n4,5,6," + value + "\n");
+    const Status s = read_text_status(path);
+    INFO(header << " = " << value << ": " << s.to_string());
+    CHECK(s.code() == StatusCode::kFormatError);
+    CHECK_THAT(s.message(), Contains("bad.csv: line 3: " + what));
   };
-  const auto w = warnings_of("//X,Y,Z,R,G,B,Nx,Ny,Nz\n1,2,3,10,20,30,0,0,1\n2,3,4,10,20,30,0,1,0\n");
-  REQUIRE(w.size() == 1);
-  CHECK_THAT(w[0], Contains("header columns 'Nx', 'Ny', 'Nz' are not kept"));
-  // A partial colour set is not read either.
-  const auto partial = warnings_of("x y z red time\n1 2 3 4 5\n2 3 4 5 6\n");
-  REQUIRE(partial.size() == 1);
-  CHECK_THAT(partial[0], Contains("'red', 'time' are not kept"));
-  CHECK(warnings_of("x,y,z,intensity\n1,2,3,4\n2,3,4,5\n").empty());
+  refused("ReturnNumber", "16", "return number 16 is not a whole number from 0 to 15");
+  refused("classification", "2.5", "classification 2.5 is not a whole number from 0 to 255");
+  refused("scan_angle", "-181", "scan angle -181 is not from -180 to 180 degrees");
+  refused("PointSourceId", "65536", "point source ID 65536 is not");
+  refused("Withheld", "2", "withheld flag 2 is not");
+  refused("ScannerChannel", "4", "scanner channel 4 is not");
+  refused("GpsTime", "nan", "GPS time nan is not finite");
+  refused("UserData", "x", "column 4 'x' is not a number");
+}
+
+TEST_CASE("CSV columns without a LAS meaning are kept as float64 extra bytes", "[io][xyz][extra]") {
+  test::TempDir dir;
+  const std::string path = dir.file("c.csv");
+  // CloudCompare's comment header: normals and a scalar field.
+  write_file(path, "//X,Y,Z,R,G,B,Nx,Ny,Nz,scalar_Deviation,scalar_GpsTime\n"
+                   "1,2,3,10,20,30,0.1,-0.2,0.97467943448089633,1e-300,100.25\n"
+                   "2,3,4,10,20,30,0,1,0,-7,100.5\n");
+  PointStreamInfo info;
+  PointCloud c = read_text(path, 1, &info);
+  REQUIRE(c.size() == 2);
+  CHECK(info.warnings.empty());
+  CHECK(c.las.gps_time == std::vector<double>{100.25, 100.5});
+  REQUIRE(info.extra_bytes_size == 32);
+  const std::vector<ExtraBytesField> fields = fields_of(info);
+  REQUIRE(fields.size() == 4);
+  CHECK(fields[0].name == "Nx");
+  CHECK(fields[3].name == "scalar_Deviation");
+  for (const ExtraBytesField& f : fields) CHECK(f.type_name == "float64");
+  CHECK(extra_f64(c, 0, 2) == 0.97467943448089633);  // every digit a double holds
+  CHECK(extra_f64(c, 0, 3) == 1e-300);
+  CHECK(extra_f64(c, 1, 1) == 1);
+  CHECK(extra_f64(c, 1, 3) == -7);
+
+  // A partial colour set and a repeated name are kept too, the repeat renamed;
+  // an empty value is a NaN; a column of words is listed in a warning, as is a
+  // second column for one LAS dimension.
+  write_file(path, "x y z red t t label class Class\n1 2 3 4 5 6 a 2 3\n2 3 4 5 6 7 b 2 3\n");
+  c = read_text(path, 100, &info);
+  REQUIRE(info.warnings.size() == 1);
+  CHECK_THAT(info.warnings[0], Contains("header columns 'label', 'Class' are not kept"));
+  const std::vector<ExtraBytesField> kept = fields_of(info);
+  REQUIRE(kept.size() == 3);
+  CHECK(kept[0].name == "red");
+  CHECK(kept[1].name == "t");
+  CHECK(kept[2].name == "t_2");
+  CHECK(extra_f64(c, 1, 2) == 7);
+  CHECK(c.las.classification == std::vector<std::uint8_t>{2, 2});
+  write_file(path, "x;y;z;w\n1;2;3;\n2;3;4;0,5\n");
+  Status bad = read_text_status(path);
+  CHECK_THAT(bad.message(), Contains("line 3: column 4 '0,5' is not a number (kept as extra bytes 'w'; "
+                                     "--no-extra-bytes skips such columns)"));
+  write_file(path, "x;y;z;w\n1;2;3;\n2;3;4;5\n");
+  c = read_text(path, 100, &info);
+  CHECK(std::isnan(extra_f64(c, 0, 0)));
+  CHECK(extra_f64(c, 1, 0) == 5);
+
+  // --no-extra-bytes: not kept, no warning.
+  ReaderOptions o;
+  o.extra_bytes = false;
+  write_file(path, "x y z nx\n1 2 3 0.5\n");
+  c = read_text(path, 100, &info, o);
+  CHECK(info.warnings.empty());
+  CHECK(info.extra_bytes_size == 0);
+  CHECK(c.las.extra_bytes.empty());
+  // A header naming no LAS dimension or other column keeps none.
+  write_file(path, "x,y,z,intensity\n1,2,3,4\n2,3,4,5\n");
+  c = read_text(path, 100, &info);
+  CHECK(info.warnings.empty());
+  CHECK(info.las_attributes == 0);
 }
 
 }  // namespace relief

@@ -87,20 +87,25 @@ struct PointStreamInfo {
 
 struct ReaderOptions {
   // ASCII XYZ/CSV: the meaning of each column, comma separated, from x y z
-  // r g b i (intensity) c (classification, 0..255, into las.classification)
-  // and _ (skip). Unset: the names of a header line (the first line when it
-  // is not numeric, or a comment line such as "//X,Y,Z,R,G,B" naming x, y
-  // and z; names in any case, red/green/blue, intensity/reflectance and their
-  // initials, classification/class), else "x,y,z". Columns may be
+  // r g b i (intensity) c (classification, 0..255, into las.classification),
+  // the LAS dimensions by their LAS or PDAL names (gps_time, return_number,
+  // ScanAngleRank ..., into PointCloud::las, range-checked) and _ (skip).
+  // Unset: the names of a header line (the first line when it is not
+  // numeric, or a comment line such as "//X,Y,Z,R,G,B" naming x, y and z;
+  // names in any case, red/green/blue, intensity/reflectance and their
+  // initials, the LAS dimensions), and every other named column whose first
+  // value is a number is kept as a float64 field of extra bytes (see
+  // extra_bytes); else "x,y,z". Columns may be
   // separated by commas, semicolons, tabs or spaces; lines starting with '#'
   // or '//' and a first line that is not numeric (a header) are skipped.
   // Colour levels are 0..255, or 0..65535 shifted to 8 bits by the 16-bit
   // rule when the first 2^20 points hold a level above 255.
   std::optional<std::string> xyz_columns;
   // Keep each point's extra bytes: LAS/LAZ extra bytes, and the PLY vertex
-  // properties and PCD fields other than x y z, colour and intensity (normals,
-  // labels, curvature, alpha ...), which those readers deliver as LAS extra
-  // bytes described by an Extra Bytes VLR. Off: none are delivered.
+  // properties, PCD fields and XYZ/CSV header columns other than x y z,
+  // colour, intensity (and, for text, the LAS dimensions): normals, labels,
+  // curvature, alpha ..., which those readers deliver as LAS extra bytes
+  // described by an Extra Bytes VLR. Off: none are delivered.
   bool extra_bytes = true;
 };
 
