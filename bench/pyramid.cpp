@@ -152,8 +152,8 @@ int main(int argc, char** argv) {
     lod1.threads = threads;
     const Measure q1 = measure(path, &box, lod1, repeat);
 
-    const auto pct = [](std::uint64_t a, std::uint64_t b) {
-      return b > 0 ? 100.0 * static_cast<double>(a) / static_cast<double>(b) : 0.0;
+    const auto pct = [](std::uint64_t part, std::uint64_t whole) {
+      return whole > 0 ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : 0.0;
     };
     std::printf("%s,%llu,%llu,%llu,%.2f,%d,%.3f,%llu,%.3f,%llu,%d,%.3f,%llu,%llu,%.1f,%llu,%llu,%.2f,%.3f,%.3f\n",
                 path.c_str(), static_cast<unsigned long long>(info.decoded_points),

@@ -103,6 +103,10 @@ __attribute__((target_clones("avx2", "default"))) WindowSums window_sums(
     q_min = std::min(q_min, q[u]);
   }
   const int shift = std::max(0, static_cast<int>(std::bit_width(q_min)) - 5);
+  // The table lookups first, then sums the compiler can vectorise (a loop
+  // with both does not).
+  std::uint32_t weight[kColorWindow];
+  for (std::size_t u = 0; u < window; ++u) weight[u] = table[std::min<std::uint64_t>(q[u] >> shift, kFarRatio)];
   // Weights below 2^31 and values below 2^8: 32 products sum below 2^44.
   WindowSums s;
   const std::uint8_t* rs = channels[0].data() + first;
@@ -110,7 +114,7 @@ __attribute__((target_clones("avx2", "default"))) WindowSums window_sums(
   const std::uint8_t* bs = channels[2].data() + first;
   const std::uint8_t* as = activity + first;
   for (std::size_t u = 0; u < window; ++u) {
-    const std::uint64_t w = table[std::min<std::uint64_t>(q[u] >> shift, kFarRatio)];
+    const std::uint64_t w = weight[u];
     s.w += w;
     s.r += w * rs[u];
     s.g += w * gs[u];
