@@ -94,6 +94,30 @@ Status StreamPointWriter::finish() {
   return Status::ok();
 }
 
+std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size_t i, const WriterOptions& options,
+                             std::uint8_t sep) {
+  const Vec3d& v = batch.positions[i];
+  p = put_shortest(p, v.x);
+  *p++ = sep;
+  p = put_shortest(p, v.y);
+  *p++ = sep;
+  p = put_shortest(p, v.z);
+  if (options.colors) {
+    const Rgb8& c = batch.colors[i];
+    *p++ = sep;
+    p = put_level(p, c.r);
+    *p++ = sep;
+    p = put_level(p, c.g);
+    *p++ = sep;
+    p = put_level(p, c.b);
+  }
+  if (options.intensity) {
+    *p++ = sep;
+    p = put_shortest(p, batch.intensities[i]);
+  }
+  return p;
+}
+
 Status write_text_points(OutputFile& out, const PointCloud& batch, const WriterOptions& options,
                          char separator) {
   const auto sep = static_cast<std::uint8_t>(separator);
@@ -107,25 +131,7 @@ Status write_text_points(OutputFile& out, const PointCloud& batch, const WriterO
     // Lines until the block may not hold another one.
     std::uint8_t* const last = begin + room.size() - kMaxTextRecord;
     for (; i < n && p <= last; ++i) {
-      const Vec3d& v = batch.positions[i];
-      p = put_shortest(p, v.x);
-      *p++ = sep;
-      p = put_shortest(p, v.y);
-      *p++ = sep;
-      p = put_shortest(p, v.z);
-      if (options.colors) {
-        const Rgb8& c = batch.colors[i];
-        *p++ = sep;
-        p = put_level(p, c.r);
-        *p++ = sep;
-        p = put_level(p, c.g);
-        *p++ = sep;
-        p = put_level(p, c.b);
-      }
-      if (options.intensity) {
-        *p++ = sep;
-        p = put_shortest(p, batch.intensities[i]);
-      }
+      p = put_text_point(p, batch, i, options, sep);
       *p++ = '\n';
     }
     out.advance(static_cast<std::size_t>(p - begin));

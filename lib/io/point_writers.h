@@ -69,13 +69,25 @@ class StreamPointWriter : public PointWriter {
 // levels, a shortest float (<= 15) and the separators.
 inline constexpr std::size_t kMaxTextRecord = 128;
 
-// Shortest text that parses back to exactly `v` (double or float).
+// Shortest text that parses back to exactly `v` (double or float): in fixed
+// notation for magnitudes from 10^-4 to below 10^15 (coordinates, times:
+// "4000000.5", not "4.0000005e+06"), else as to_chars' shortest picks. At
+// most 24 characters either way.
 template <typename T>
 std::uint8_t* put_shortest(std::uint8_t* p, T v) {
   char* c = reinterpret_cast<char*>(p);
+  const T m = v < 0 ? -v : v;
+  const bool fixed = m >= static_cast<T>(1e-4) && m < static_cast<T>(1e15);
   // kMaxTextRecord leaves room for the longest value, so this cannot fail.
-  return reinterpret_cast<std::uint8_t*>(std::to_chars(c, c + 32, v).ptr);
+  return reinterpret_cast<std::uint8_t*>(
+      (fixed ? std::to_chars(c, c + 32, v, std::chars_format::fixed) : std::to_chars(c, c + 32, v)).ptr);
 }
+
+// Point i of `batch` as "x y z [r g b] [i]" (colours and intensity when the
+// options say) at `p`, columns separated by `sep`, no newline; returns the
+// end. At most kMaxTextRecord - 1 bytes.
+std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size_t i, const WriterOptions& options,
+                             std::uint8_t sep);
 
 // Lines "x y z [r g b] [i]" (colours and intensity when the options say),
 // columns separated by `separator`.

@@ -4,27 +4,21 @@
 //
 // Header names: the first non-comment line when its first column is not a
 // number, or else the last comment line before the data (CloudCompare writes
-// "//X,Y,Z,R,G,B") when it names x, y and z. Names match in any case, with
-// quotes, a leading '#' or "//", a "scalar_" prefix (CloudCompare's scalar
-// fields) and '_', '-' removed (kColumnNames below):
-// - x y z; red green blue (or r g b, diffuse_red ...); intensity (or i,
-//   reflectance);
-// - the LAS dimensions under their LAS and PDAL names (PDAL's writers.text
-//   header "X,Y,Z,Intensity,ReturnNumber,NumberOfReturns,...,GpsTime" reads
-//   whole): classification (or class), gps_time, return_number,
-//   number_of_returns, scan_direction_flag, edge_of_flight_line,
-//   scanner_channel, synthetic, key_point, withheld, overlap, scan_angle_rank
-//   (or scan_angle, degrees), user_data, point_source_id, infrared (or nir).
-//   Each becomes that LasAttributes field, checked against its LAS range.
-// - Any other named column whose value on the first data line is a number
-//   (normals, times, scalar fields ...) is kept as a float64 field of LAS
-//   extra bytes under its header name (io/extra_fields.h), unless
-//   ReaderOptions::extra_bytes is off: text declares no types, and a double
-//   holds every value a decimal text gives to 15 significant digits (PDAL
-//   reads text columns as doubles too). An empty value there is a NaN; a later
-//   value that is not a number is an error. Columns that are not kept (not
-//   numbers on the first line, a partial colour set, a name seen twice) are
-//   listed in a warning.
+// "//X,Y,Z,R,G,B") when it names x, y and z. Names match as
+// text_column_of_name() says (io/text_columns.h): x y z, colours, intensity
+// and the LAS dimensions under their LAS and PDAL names (PDAL's writers.text
+// header "X,Y,Z,Intensity,ReturnNumber,NumberOfReturns,...,GpsTime" reads
+// whole, and so does Relief's own text output). Each LAS dimension becomes
+// that LasAttributes field, checked against its LAS range. Any other named
+// column whose value on the first data line is a number
+// (normals, times, scalar fields ...) is kept as a float64 field of LAS
+// extra bytes under its header name (io/extra_fields.h), unless
+// ReaderOptions::extra_bytes is off: text declares no types, and a double
+// holds every value a decimal text gives to 15 significant digits (PDAL reads
+// text columns as doubles too). An empty value there is a NaN; a later value
+// that is not a number is an error. Columns that are not kept (not numbers on
+// the first line, a name seen twice) are listed in a warning; a partial
+// colour set is kept as extra bytes.
 // A header that does not name x, y and z leaves the columns at x y z.
 //
 // Colour levels may be 8- or 16-bit: text declares no type, so the file-wide
@@ -62,6 +56,7 @@
 #include "io/extra_fields.h"
 #include "io/readers.h"
 #include "io/stream_support.h"
+#include "io/text_columns.h"
 #include "io/text_scan.h"
 #include "relief/io.h"
 
@@ -72,139 +67,13 @@ namespace {
 // A point line is short; a line this long is not one (binary junk, say).
 constexpr std::size_t kMaxLine = std::size_t{1} << 20;
 
-enum class Role : std::uint8_t {
-  kSkip,
-  kX,
-  kY,
-  kZ,
-  kRed,
-  kGreen,
-  kBlue,
-  kIntensity,
-  // The LAS dimensions (kLasColumns).
-  kClass,
-  kGpsTime,
-  kReturnNumber,
-  kNumberOfReturns,
-  kScanDirection,
-  kEdgeOfFlightLine,
-  kScannerChannel,
-  kSynthetic,
-  kKeyPoint,
-  kWithheld,
-  kOverlap,
-  kScanAngle,
-  kUserData,
-  kPointSourceId,
-  kNir,
-  // A column kept as a float64 field of extra bytes; any number of them.
-  kExtra,
-};
-// Roles held by at most one column each (every one before kExtra).
-constexpr std::size_t kRoleCount = static_cast<std::size_t>(Role::kExtra);
+using Role = TextColumn;
+constexpr std::size_t kRoleCount = kTextColumnKinds;
 constexpr std::size_t at_role(Role r) { return static_cast<std::size_t>(r); }
+using LasColumn = LasTextColumn;
 
-// A LAS dimension's column: the LasAttributeBits it fills, the largest whole
-// number it takes (0: not a whole number; GPS time any finite value, scan
-// angle degrees within +-kMaxScanAngle), and its name in messages.
-struct LasColumn {
-  Role role;
-  std::uint32_t bit;
-  double max;
-  const char* name;
-};
-constexpr LasColumn kLasColumns[] = {
-    {Role::kClass, kLasClassification, 255, "classification"},
-    {Role::kGpsTime, kLasGpsTime, 0, "GPS time"},
-    {Role::kReturnNumber, kLasReturnNumber, 15, "return number"},
-    {Role::kNumberOfReturns, kLasNumberOfReturns, 15, "number of returns"},
-    {Role::kScanDirection, kLasScanFlags, 1, "scan direction flag"},
-    {Role::kEdgeOfFlightLine, kLasScanFlags, 1, "edge of flight line flag"},
-    {Role::kScannerChannel, kLasScanFlags, 3, "scanner channel"},
-    {Role::kSynthetic, kLasClassFlags, 1, "synthetic flag"},
-    {Role::kKeyPoint, kLasClassFlags, 1, "key-point flag"},
-    {Role::kWithheld, kLasClassFlags, 1, "withheld flag"},
-    {Role::kOverlap, kLasClassFlags, 1, "overlap flag"},
-    {Role::kScanAngle, kLasScanAngle, 0, "scan angle"},
-    {Role::kUserData, kLasUserData, 255, "user data"},
-    {Role::kPointSourceId, kLasPointSourceId, 65535, "point source ID"},
-    {Role::kNir, kLasNir, 65535, "NIR"},
-};
-// LAS 1.4 scan angles run from -180 to 180 degrees.
-constexpr double kMaxScanAngle = 180;
-
-// Column names after normalise(): LAS's and PDAL's dimension names and the
-// usual short forms.
-struct ColumnName {
-  std::string_view name;
-  Role role;
-};
-constexpr ColumnName kColumnNames[] = {
-    {"x", Role::kX},
-    {"y", Role::kY},
-    {"z", Role::kZ},
-    {"red", Role::kRed},
-    {"r", Role::kRed},
-    {"diffusered", Role::kRed},
-    {"green", Role::kGreen},
-    {"g", Role::kGreen},
-    {"diffusegreen", Role::kGreen},
-    {"blue", Role::kBlue},
-    {"b", Role::kBlue},
-    {"diffuseblue", Role::kBlue},
-    {"intensity", Role::kIntensity},
-    {"i", Role::kIntensity},
-    {"reflectance", Role::kIntensity},
-    {"classification", Role::kClass},
-    {"class", Role::kClass},
-    {"gpstime", Role::kGpsTime},
-    {"returnnumber", Role::kReturnNumber},
-    {"numberofreturns", Role::kNumberOfReturns},
-    {"scandirectionflag", Role::kScanDirection},
-    {"scandirection", Role::kScanDirection},
-    {"edgeofflightline", Role::kEdgeOfFlightLine},
-    {"scannerchannel", Role::kScannerChannel},
-    {"synthetic", Role::kSynthetic},
-    {"keypoint", Role::kKeyPoint},
-    {"withheld", Role::kWithheld},
-    {"overlap", Role::kOverlap},
-    {"scananglerank", Role::kScanAngle},
-    {"scanangle", Role::kScanAngle},
-    {"userdata", Role::kUserData},
-    {"pointsourceid", Role::kPointSourceId},
-    {"infrared", Role::kNir},
-    {"nir", Role::kNir},
-};
-
-// A header name without quotes and a leading '#' or "//": how a kept column
-// is named.
-std::string display_name(std::string_view name) {
-  std::string n;
-  for (const char c : name) {
-    if (c != '"' && c != '\'') n.push_back(c);
-  }
-  while (n.starts_with('#') || n.starts_with("//")) n.erase(0, n.starts_with('#') ? 1 : 2);
-  return n;
-}
-
-// The form names are matched in: lower case, without a "scalar_" prefix
-// (CloudCompare's scalar fields), '_' or '-'.
-std::string normalise(std::string_view name) {
-  std::string n = display_name(name);
-  for (char& c : n) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (n.starts_with("scalar_")) n.erase(0, 7);
-  std::erase_if(n, [](char c) { return c == '_' || c == '-'; });
-  return n;
-}
-
-// The role a name gives its column, if any.
-std::optional<Role> role_of_name(std::string_view name) {
-  const std::string n = normalise(name);
-  for (const ColumnName& c : kColumnNames) {
-    if (c.name == n) return c.role;
-  }
-  return std::nullopt;
-}
+std::string display_name(std::string_view name) { return text_display_name(name); }
+std::optional<Role> role_of_name(std::string_view name) { return text_column_of_name(name); }
 
 struct ColumnPlan {
   std::vector<Role> roles;               // up to the last used column
@@ -222,7 +91,7 @@ void summarise(ColumnPlan& plan, const std::array<bool, kRoleCount>& seen) {
   plan.colors = has(Role::kRed) && has(Role::kGreen) && has(Role::kBlue);
   plan.intensity = has(Role::kIntensity);
   plan.las = 0;
-  for (const LasColumn& c : kLasColumns) plan.las |= has(c.role) ? c.bit : 0u;
+  for (const LasColumn& c : las_text_columns()) plan.las |= has(c.column) ? c.bit : 0u;
 }
 
 void drop_trailing_skips(ColumnPlan& plan) {
@@ -574,8 +443,8 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   } else {
     RELIEF_ASSIGN_OR_RETURN(plan_, parse_columns("x,y,z", name()));
   }
-  for (const LasColumn& c : kLasColumns) {
-    if (std::find(plan_.roles.begin(), plan_.roles.end(), c.role) != plan_.roles.end()) las_columns_.push_back(&c);
+  for (const LasColumn& c : las_text_columns()) {
+    if (std::find(plan_.roles.begin(), plan_.roles.end(), c.column) != plan_.roles.end()) las_columns_.push_back(&c);
   }
   info_.has_colors = plan_.colors;
   info_.has_intensity = plan_.intensity;
@@ -586,15 +455,15 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
 
 Status XyzPointReader::check_las_values(const double* v, std::uint64_t line_no) const {
   for (const LasColumn* c : las_columns_) {
-    const double raw = v[at_role(c->role)];
-    if (c->role == Role::kGpsTime) {
+    const double raw = v[at_role(c->column)];
+    if (c->column == Role::kGpsTime) {
       if (!std::isfinite(raw)) return line_error(line_no, "GPS time " + format_double(raw) + " is not finite");
-    } else if (c->role == Role::kScanAngle) {
-      if (!(std::abs(raw) <= kMaxScanAngle)) {
+    } else if (c->column == Role::kScanAngle) {
+      if (!(std::abs(raw) <= kMaxTextScanAngle)) {
         return line_error(line_no, "scan angle " + format_double(raw) + " is not from -180 to 180 degrees");
       }
     } else if (!(raw >= 0 && raw <= c->max) || raw != std::floor(raw)) {
-      return line_error(line_no, std::string(c->name) + " " + format_double(raw) + " is not a whole number from 0 to " +
+      return line_error(line_no, std::string(c->what) + " " + format_double(raw) + " is not a whole number from 0 to " +
                                      format_double(c->max));
     }
   }

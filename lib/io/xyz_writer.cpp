@@ -2,30 +2,253 @@
 // shortest round-trip doubles, so the XYZ reader gets every coordinate back
 // bit for bit. Standard output ("-") is written through the same buffer and
 // flushed by finish(); nothing there can be taken back after an error.
+//
+// Points with LAS attributes (WriterOptions::las_attributes) get a header
+// line naming every column, as PDAL's writers.text does, and after the
+// colours and intensity one column per LAS dimension they carry, under
+// PDAL's names (io/text_columns.h: Classification, the four class flags,
+// ReturnNumber ... ScanAngleRank in degrees, GpsTime, Infrared), then one per
+// value of their extra bytes: a scalar field under its name, an array's
+// components as <name>_0 ..., undocumented bytes as integers extra_<k>;
+// scaled fields (Extra Bytes options bits 3 and 4) as raw * scale + offset.
+// The XYZ reader maps those names back (the LAS dimensions exactly, the extra
+// bytes as float64 fields). Colours are 8-bit levels, so 16-bit colours' low
+// bytes (kLasColorLow) are the one attribute text leaves out. Without LAS
+// attributes there is no header, as before.
 
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cstring>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "io/output_file.h"
 #include "io/point_writers.h"
+#include "io/text_columns.h"
 
 namespace relief {
 
 namespace {
+
+// One text column after x y z, colours and intensity.
+struct TailColumn {
+  TextColumn column = TextColumn::kExtra;
+  std::uint32_t bit = 0;    // LAS dimensions: the LasAttributeBits of its vector
+  int base_type = 0;        // extra bytes: LAS data type 1..10, or 0 for a raw byte
+  std::size_t offset = 0;   // extra bytes: of the value within a point's extra bytes
+  bool scaled = false;
+  double scale = 1;
+  double value_offset = 0;
+};
+
+// The widest value text: a shortest double (24 characters) or a 64-bit
+// integer (20), and a separator.
+constexpr std::size_t kMaxColumnText = 32;
+
+template <typename T>
+T load_le_value(const std::uint8_t* p) {
+  std::uint8_t b[sizeof(T)];
+  for (std::size_t k = 0; k < sizeof(T); ++k) b[k] = p[k];
+  if constexpr (std::endian::native == std::endian::big) std::reverse(b, b + sizeof(T));
+  T v;
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+
+template <typename T>
+std::uint8_t* put_integer(std::uint8_t* p, T v) {
+  char* c = reinterpret_cast<char*>(p);
+  return reinterpret_cast<std::uint8_t*>(std::to_chars(c, c + kMaxColumnText, v).ptr);
+}
+
+// A name the reader keeps as extra bytes under the same name: no separator,
+// quote or blank in it, not read as a coordinate, colour, intensity or LAS
+// dimension, and not taken by an earlier column.
+std::string column_name(std::string base, std::vector<std::string>& taken) {
+  for (char& c : base) {
+    if (c <= ' ' || c > '~' || c == ',' || c == ';' || c == '"' || c == '\'') c = '_';
+  }
+  if (base.empty() || base[0] == '#' || base[0] == '/') base = "_" + base;
+  if (text_column_of_name(base)) base += "_extra";
+  std::string name = base;
+  for (int k = 2; std::find(taken.begin(), taken.end(), name) != taken.end(); ++k) {
+    name = base + "_" + std::to_string(k);
+  }
+  taken.push_back(name);
+  return name;
+}
 
 class XyzStreamWriter final : public StreamPointWriter {
  public:
   XyzStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options, char separator)
       : StreamPointWriter(std::move(out), options), separator_(separator) {}
 
+  // Plans the columns and writes the header when there is one.
+  Status start() {
+    const std::uint32_t bits = options_.las_attributes;
+    if ((bits & ~std::uint32_t{kLasColorLow}) == 0) return Status::ok();
+    std::vector<std::string> header = {"X", "Y", "Z"};
+    if (options_.colors) header.insert(header.end(), {"Red", "Green", "Blue"});
+    if (options_.intensity) header.emplace_back("Intensity");
+    for (const LasTextColumn& c : las_text_columns()) {
+      if ((bits & c.bit) == 0) continue;
+      tail_.push_back({c.column, c.bit});
+      header.emplace_back(c.header);
+    }
+    if ((bits & kLasExtraBytes) != 0 && options_.extra_bytes_size > 0) plan_extras(header);
+    std::string line;
+    for (const std::string& h : header) line += (line.empty() ? "" : std::string(1, separator_)) + h;
+    line += '\n';
+    return out_->append(line.data(), line.size());
+  }
+
  protected:
   Status write_points(const PointCloud& batch) override {
-    return write_text_points(*out_, batch, options_, separator_);
+    if (tail_.empty()) return write_text_points(*out_, batch, options_, separator_);
+    RELIEF_RETURN_IF_ERROR(check_tail(batch));
+    const auto sep = static_cast<std::uint8_t>(separator_);
+    const std::size_t max_line = kMaxTextRecord + kMaxColumnText * tail_.size();
+    const std::size_t n = batch.size();
+    std::size_t i = 0;
+    while (i < n) {
+      std::span<std::uint8_t> room;
+      RELIEF_RETURN_IF_ERROR(out_->room(max_line, room));
+      std::uint8_t* const begin = room.data();
+      std::uint8_t* p = begin;
+      std::uint8_t* const last = begin + room.size() - max_line;
+      for (; i < n && p <= last; ++i) {
+        p = put_text_point(p, batch, i, options_, sep);
+        for (const TailColumn& c : tail_) {
+          *p++ = sep;
+          p = put_tail(p, batch.las, i, c);
+        }
+        *p++ = '\n';
+      }
+      out_->advance(static_cast<std::size_t>(p - begin));
+    }
+    return Status::ok();
   }
   Status complete() override { return Status::ok(); }
 
  private:
+  void plan_extras(std::vector<std::string>& header) {
+    const std::size_t size = options_.extra_bytes_size;
+    std::vector<ExtraBytesField> fields;
+    if (!options_.extra_bytes_vlr.empty()) {
+      const std::span<const std::uint8_t> payload(reinterpret_cast<const std::uint8_t*>(options_.extra_bytes_vlr.data()),
+                                                  options_.extra_bytes_vlr.size());
+      // The archive checked this VLR when it took it; a failure leaves the bytes undescribed.
+      if (auto parsed = parse_extra_bytes_vlr(payload, size, "extra bytes")) fields = std::move(*parsed);
+    }
+    std::vector<std::string> taken = header;
+    std::size_t described = 0;
+    for (const ExtraBytesField& f : fields) {
+      const int base = f.data_type == 0 ? 0 : (f.data_type - 1) % 10 + 1;
+      const std::size_t value_size = base == 0 ? 1 : extra_bytes_type_size(base);
+      const std::size_t count = f.size / value_size;
+      for (std::size_t k = 0; k < count; ++k) {
+        TailColumn c;
+        c.base_type = base;
+        c.offset = f.offset + k * value_size;
+        c.scaled = base != 0 && (f.options & 0x18) != 0;
+        c.scale = (f.options & 0x08) != 0 ? f.scale : 1;
+        c.value_offset = (f.options & 0x10) != 0 ? f.value_offset : 0;
+        tail_.push_back(c);
+        header.push_back(column_name(count == 1 && base != 0 ? f.name : f.name + "_" + std::to_string(k), taken));
+      }
+      described = std::max(described, f.offset + f.size);
+    }
+    for (std::size_t k = described; k < size; ++k) {
+      TailColumn c;
+      c.offset = k;
+      tail_.push_back(c);
+      header.push_back(column_name("extra_" + std::to_string(k), taken));
+    }
+  }
+
+  // Every vector a column reads holds one value per point.
+  Status check_tail(const PointCloud& batch) const {
+    const std::size_t n = batch.size();
+    const LasAttributes& a = batch.las;
+    for (const TailColumn& c : tail_) {
+      std::size_t have = 0;
+      switch (c.bit) {
+        case kLasClassification: have = a.classification.size(); break;
+        case kLasClassFlags: have = a.class_flags.size(); break;
+        case kLasReturnNumber: have = a.return_number.size(); break;
+        case kLasNumberOfReturns: have = a.number_of_returns.size(); break;
+        case kLasScanFlags: have = a.scan_flags.size(); break;
+        case kLasScanAngle: have = a.scan_angle.size(); break;
+        case kLasUserData: have = a.user_data.size(); break;
+        case kLasPointSourceId: have = a.point_source_id.size(); break;
+        case kLasGpsTime: have = a.gps_time.size(); break;
+        case kLasNir: have = a.nir.size(); break;
+        default:
+          have = a.extra_bytes_size == options_.extra_bytes_size && a.extra_bytes.size() == n * a.extra_bytes_size ? n
+                                                                                                                 : 0;
+          break;
+      }
+      if (have != n && n > 0) {
+        return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) +
+                                " points lacks a LAS attribute the writer was opened with");
+      }
+    }
+    return Status::ok();
+  }
+
+  std::uint8_t* put_tail(std::uint8_t* p, const LasAttributes& a, std::size_t i, const TailColumn& c) const {
+    switch (c.column) {
+      case TextColumn::kClass: return put_integer(p, a.classification[i]);
+      case TextColumn::kSynthetic: return put_integer(p, a.class_flags[i] & 1);
+      case TextColumn::kKeyPoint: return put_integer(p, (a.class_flags[i] >> 1) & 1);
+      case TextColumn::kWithheld: return put_integer(p, (a.class_flags[i] >> 2) & 1);
+      case TextColumn::kOverlap: return put_integer(p, (a.class_flags[i] >> 3) & 1);
+      case TextColumn::kReturnNumber: return put_integer(p, a.return_number[i]);
+      case TextColumn::kNumberOfReturns: return put_integer(p, a.number_of_returns[i]);
+      case TextColumn::kScanDirection: return put_integer(p, a.scan_flags[i] & 1);
+      case TextColumn::kEdgeOfFlightLine: return put_integer(p, (a.scan_flags[i] >> 1) & 1);
+      case TextColumn::kScannerChannel: return put_integer(p, (a.scan_flags[i] >> 2) & 3);
+      // Thousandths of a degree as degrees: the shortest text of the nearest
+      // double, which the reader rounds back to the same thousandths.
+      case TextColumn::kScanAngle: return put_shortest(p, a.scan_angle[i] / 1000.0);
+      case TextColumn::kUserData: return put_integer(p, a.user_data[i]);
+      case TextColumn::kPointSourceId: return put_integer(p, a.point_source_id[i]);
+      case TextColumn::kGpsTime: return put_shortest(p, a.gps_time[i]);
+      case TextColumn::kNir: return put_integer(p, a.nir[i]);
+      default: break;
+    }
+    const std::uint8_t* v = a.extra_bytes.data() + i * a.extra_bytes_size + c.offset;
+    double value = 0;
+    switch (c.base_type) {
+      case 1: value = load_le_value<std::uint8_t>(v); break;
+      case 2: value = load_le_value<std::int8_t>(v); break;
+      case 3: value = load_le_value<std::uint16_t>(v); break;
+      case 4: value = load_le_value<std::int16_t>(v); break;
+      case 5: value = load_le_value<std::uint32_t>(v); break;
+      case 6: value = load_le_value<std::int32_t>(v); break;
+      case 7:
+        if (!c.scaled) return put_integer(p, load_le_value<std::uint64_t>(v));
+        value = static_cast<double>(load_le_value<std::uint64_t>(v));
+        break;
+      case 8:
+        if (!c.scaled) return put_integer(p, load_le_value<std::int64_t>(v));
+        value = static_cast<double>(load_le_value<std::int64_t>(v));
+        break;
+      case 9:
+        if (!c.scaled) return put_shortest(p, load_le_value<float>(v));
+        value = load_le_value<float>(v);
+        break;
+      case 10: value = load_le_value<double>(v); break;
+      default: return put_integer(p, v[0]);  // an undocumented byte
+    }
+    if (c.scaled) value = value * c.scale + c.value_offset;
+    return put_shortest(p, value);  // integers below 2^32 print as integers
+  }
+
   char separator_;
+  std::vector<TailColumn> tail_;
 };
 
 }  // namespace
@@ -33,7 +256,9 @@ class XyzStreamWriter final : public StreamPointWriter {
 Result<std::unique_ptr<PointWriter>> open_xyz_writer(const std::string& path, const WriterOptions& options,
                                                      char separator) {
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<OutputFile> out, OutputFile::create(path));
-  return std::unique_ptr<PointWriter>(std::make_unique<XyzStreamWriter>(std::move(out), options, separator));
+  auto writer = std::make_unique<XyzStreamWriter>(std::move(out), options, separator);
+  RELIEF_RETURN_IF_ERROR(writer->start());
+  return std::unique_ptr<PointWriter>(std::move(writer));
 }
 
 }  // namespace relief

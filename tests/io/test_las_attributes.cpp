@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -340,4 +342,60 @@ TEST_CASE("LAS attributes without a source format give LAS 1.4 format 6", "[las]
   CHECK(back->records[0].classification == 40);
   CHECK(back->records[1].classification == 200);
   CHECK(back->records[0].return_number == 1);  // not carried: "return 1 of 1"
+}
+
+TEST_CASE("Text output names every LAS attribute in a header and the text reader takes each back", "[xyz][attributes]") {
+  TempDir dir;
+  for (const int format : {1, 3, 6, 7, 8}) {
+    CAPTURE(format);
+    TestLasOptions o;
+    o.format = format;
+    o.points = 1500;
+    o.seed = static_cast<std::uint32_t>(300 + format);
+    o.extra = 3;
+    o.extra_bytes_vlr = two_field_vlr();  // uint16 height_above_ground, uint8 confidence x 0.5
+    const std::string in = dir.file("in" + std::to_string(format) + ".las");
+    REQUIRE(write_test_las(in, o));
+    const ReadBack src = read_all(in);
+    for (const char* name : {"out.csv", "out.xyz"}) {
+      CAPTURE(name);
+      const std::string out = dir.file(name);
+      auto writer = relief::open_point_writer(out, options_from(src.info, src.cloud.las.extra_bytes_size));
+      REQUIRE(writer.is_ok());
+      REQUIRE((*writer)->write(src.cloud).to_string() == "ok");
+      REQUIRE((*writer)->finish().is_ok());
+      const ReadBack back = read_all(out);
+      INFO((back.info.warnings.empty() ? std::string() : back.info.warnings[0]));
+      CHECK(back.info.warnings.empty());
+      const relief::PointCloud& a = src.cloud;
+      const relief::PointCloud& b = back.cloud;
+      REQUIRE(b.size() == a.size());
+      CHECK(b.positions == a.positions);
+      CHECK(b.colors == a.colors);
+      CHECK(b.intensities == a.intensities);
+      // Every attribute but the colours' low bytes, which text leaves out.
+      CHECK(b.las.carried() == (a.las.carried() & ~std::uint32_t{relief::kLasColorLow}));
+      CHECK(b.las.classification == a.las.classification);
+      CHECK(b.las.class_flags == a.las.class_flags);
+      CHECK(b.las.return_number == a.las.return_number);
+      CHECK(b.las.number_of_returns == a.las.number_of_returns);
+      CHECK(b.las.scan_flags == a.las.scan_flags);
+      CHECK(b.las.scan_angle == a.las.scan_angle);
+      CHECK(b.las.user_data == a.las.user_data);
+      CHECK(b.las.point_source_id == a.las.point_source_id);
+      CHECK(b.las.gps_time == a.las.gps_time);
+      CHECK(b.las.nir == a.las.nir);
+      // The extra bytes as float64 fields: the uint16 as it is, the scaled
+      // uint8 scaled.
+      REQUIRE(b.las.extra_bytes_size == 16);
+      std::size_t same = 0;
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        const std::uint8_t* e = a.las.extra_bytes.data() + i * 3;
+        double v[2];
+        std::memcpy(v, b.las.extra_bytes.data() + i * 16, 16);
+        same += v[0] == (e[0] | e[1] << 8) && v[1] == e[2] * 0.5 ? 1 : 0;
+      }
+      CHECK(same == a.size());
+    }
+  }
 }
