@@ -51,6 +51,11 @@ std::size_t extra_bytes_type_size(int data_type) {
   return kScalarSizes[static_cast<std::size_t>(base)] * static_cast<std::size_t>(count);
 }
 
+int extra_bytes_base_type(int data_type) {
+  if (data_type < 1 || data_type > kLastDefinedType) return 0;
+  return (data_type - 1) % kScalarTypes + 1;
+}
+
 Result<std::string> make_extra_bytes_vlr(const std::vector<ExtraBytesField>& fields) {
   constexpr std::size_t kMaxFields = 65535 / kDescriptorSize;
   if (fields.size() > kMaxFields) {

@@ -122,7 +122,7 @@ std::vector<ExtraProperty> extra_properties(const std::string& vlr, std::size_t 
   std::vector<ExtraProperty> props;
   std::size_t described = 0;
   for (const ExtraBytesField& f : fields) {
-    const int base = f.data_type == 0 ? 0 : (f.data_type - 1) % 10 + 1;
+    const int base = extra_bytes_base_type(f.data_type);
     const std::optional<ply::ScalarType> t = ply::scalar_type_of_extra_bytes(base);
     const std::size_t count = t ? f.size / ply::scalar_size(*t) : f.size;
     if (t && count == 1) {

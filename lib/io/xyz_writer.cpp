@@ -145,7 +145,7 @@ class XyzStreamWriter final : public StreamPointWriter {
     std::vector<std::string> taken = header;
     std::size_t described = 0;
     for (const ExtraBytesField& f : fields) {
-      const int base = f.data_type == 0 ? 0 : (f.data_type - 1) % 10 + 1;
+      const int base = extra_bytes_base_type(f.data_type);
       const std::size_t value_size = base == 0 ? 1 : extra_bytes_type_size(base);
       const std::size_t count = f.size / value_size;
       for (std::size_t k = 0; k < count; ++k) {

@@ -262,6 +262,11 @@ TEST_CASE("parse_extra_bytes_vlr names, types, offsets and scales", "[las][attri
   CHECK((*fields)[1].offset == 2);
   CHECK((*fields)[1].scale == 0.5);
   CHECK_FALSE(relief::parse_extra_bytes_vlr(v, 2, "t").is_ok());
+  // Component types: the deprecated arrays repeat the scalar types.
+  for (const auto& [type, base] : std::vector<std::pair<int, int>>{{0, 0}, {1, 1}, {10, 10}, {11, 1}, {20, 10},
+                                                                    {21, 1}, {30, 10}, {31, 0}, {-1, 0}}) {
+    CHECK(relief::extra_bytes_base_type(type) == base);
+  }
 }
 
 TEST_CASE("LAS writer refuses values a legacy format cannot hold", "[las][attributes][reject]") {

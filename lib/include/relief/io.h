@@ -162,6 +162,10 @@ Result<std::string> make_extra_bytes_vlr(const std::vector<ExtraBytesField>& fie
 // Bytes per point of one field of data type 1..30 (0 for type 0, whose size
 // is its options byte, and for reserved types).
 std::size_t extra_bytes_type_size(int data_type);
+// The scalar type 1..10 of each component of data type 1..30 (the
+// deprecated array types 11..30 repeat 1..10 two or three times); 0 for
+// type 0 (undocumented bytes) and reserved types.
+int extra_bytes_base_type(int data_type);
 
 // ---- Streaming writers: outputs larger than memory are written in batches.
 
