@@ -77,14 +77,12 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   auto writer = open_point_writer(out_path, w);
   if (!writer) return fail(command, writer.status());
   // What the output format cannot hold is said, not dropped silently: LAS and
-  // LAZ carry every LAS attribute, PLY the extra bytes alone (its colours are
-  // 8-bit, so no colour low bytes), text every one but the colour low bytes
-  // (a column each, under a header).
+  // LAZ carry every LAS attribute, PLY and text every one but the colour low
+  // bytes (their colours are 8-bit): a property or column each.
   std::string ext = std::filesystem::path(out_path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext != ".las" && ext != ".laz") {
-    const std::uint32_t dropped =
-        info.las_attributes & (ext == ".ply" ? ~std::uint32_t{kLasExtraBytes} : std::uint32_t{kLasColorLow});
+    const std::uint32_t dropped = info.las_attributes & kLasColorLow;
     if (dropped != 0) {
       std::string names = las_attribute_list(dropped);
       for (std::size_t at = names.find(','); at != std::string::npos; at = names.find(',', at + 2)) {

@@ -29,6 +29,7 @@
 #include "io/ply_format.h"
 #include "io/readers.h"
 #include "io/stream_support.h"
+#include "io/text_columns.h"
 #include "io/text_scan.h"
 #include "relief/io.h"
 
@@ -171,7 +172,11 @@ Result<ply::Header> parse_header(ByteSource& src, const std::string& name) {
 
 // ---------------------------------------------------------------- vertex plan
 
-enum Field : std::size_t { kX, kY, kZ, kRed, kGreen, kBlue, kIntensity, kFieldCount };
+// The fields a vertex property can feed: the coordinates, colours and
+// intensity, then the LAS dimensions (kLasField + k is las_text_columns()[k]).
+enum Field : std::size_t { kX, kY, kZ, kRed, kGreen, kBlue, kIntensity, kLasField };
+constexpr std::size_t kLasFields = 15;
+constexpr std::size_t kFieldCount = kLasField + kLasFields;
 
 struct VertexPlan {
   // Property index feeding each field, or kNone.
@@ -182,6 +187,8 @@ struct VertexPlan {
   // Colours wider than 8 bits follow the 16-bit rule (io/stream_support.h):
   // whether to shift depends on the levels of the whole file or a sample.
   bool wide_color = false;
+  // The LasAttributeBits the LAS dimension properties fill.
+  std::uint32_t las_bits = 0;
   // Every other scalar vertex property (normals, labels, curvature, alpha,
   // scalar fields ...) is kept as LAS extra bytes: its value's bytes, little
   // endian, at extra_at[property] within extra_size bytes per point, and
@@ -262,6 +269,25 @@ Result<VertexPlan> make_plan(const Element& vertex, const std::string& name, boo
       plan.prop[kIntensity] = *i;
       plan.has_intensity = true;
       break;
+    }
+  }
+  // The LAS dimensions under their LAS or PDAL names (io/text_columns.h),
+  // the first property of each; "class" alone is too common a label name
+  // for other meanings to be taken as one.
+  const std::span<const LasTextColumn> las = las_text_columns();
+  static_assert(kLasFields == 15);
+  for (std::size_t j = 0; j < vertex.properties.size(); ++j) {
+    const Property& prop = vertex.properties[j];
+    if (prop.is_list || std::find(plan.prop.begin(), plan.prop.end(), j) != plan.prop.end()) continue;
+    const std::optional<TextColumn> column = text_column_of_name(prop.name);
+    std::string lower = text_display_name(prop.name);
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (!column || lower == "class") continue;
+    for (std::size_t k = 0; k < las.size(); ++k) {
+      if (las[k].column == *column && plan.prop[kLasField + k] == VertexPlan::kNone) {
+        plan.prop[kLasField + k] = j;
+        plan.las_bits |= las[k].bit;
+      }
     }
   }
   plan.extra_at.assign(vertex.properties.size(), VertexPlan::kNone);
@@ -794,6 +820,11 @@ class PlyPointReader final : public BatchPointReader {
                                    std::size_t want);
   Status push_vertex(const std::array<double, kFieldCount>& v, std::uint64_t index, PointCloud& out,
                      std::vector<std::uint16_t>* wide) const;
+  // The LAS dimension of field kLasField + k: an error naming the vertex and
+  // property when `value` does not fit it.
+  Status check_las_value(std::size_t k, double value, std::uint64_t index) const;
+  // Appends the LAS dimensions of n fixed-size records (vertex `first` on).
+  Status decode_las(const std::uint8_t* src, std::size_t n, std::uint64_t first, PointCloud& out) const;
   // Sizes out.las.extra_bytes for n points (nothing when no property is kept).
   void size_extras(PointCloud& out, std::size_t n) const;
   Status finish_trailing();
@@ -861,8 +892,9 @@ Status PlyPointReader::start() {
   info_.point_count = vertex().count;
   info_.has_colors = plan_.has_color;
   info_.has_intensity = plan_.has_intensity;
+  info_.las_attributes = plan_.las_bits;
   if (plan_.extra_size > 0) {
-    info_.las_attributes = kLasExtraBytes;
+    info_.las_attributes |= kLasExtraBytes;
     info_.extra_bytes_vlr = plan_.extra_bytes_vlr;
     info_.extra_bytes_size = static_cast<std::uint32_t>(plan_.extra_size);
   }
@@ -950,6 +982,7 @@ Result<std::size_t> PlyPointReader::read_fixed(PointCloud& out, std::vector<std:
   // Sized once when the data is known to be there, so that a batch reused at
   // the same size is never touched twice; otherwise grown as data arrives.
   if (backed_) size_to(at + want);
+  size_las_columns(out.las, plan_.las_bits, at);  // grown record by record
   layout_.color_shift = color_shift_;
   const std::size_t stride = layout_.stride;
   std::size_t got = 0;
@@ -968,6 +1001,7 @@ Result<std::size_t> PlyPointReader::read_fixed(PointCloud& out, std::vector<std:
     if (layout_.extra_size > 0) {
       copy_extras(view.data(), n, layout_, out.las.extra_bytes.data() + i0 * layout_.extra_size);
     }
+    if (plan_.las_bits != 0) RELIEF_RETURN_IF_ERROR(decode_las(view.data(), n, done_ + got, out));
     src_.consume(n * stride);
     got += n;
   }
@@ -998,6 +1032,40 @@ Status PlyPointReader::push_vertex(const std::array<double, kFieldCount>& v, std
     if (!std::isfinite(f)) return non_finite_intensity(name(), index, f);
     out.intensities.push_back(f);
   }
+  if (plan_.las_bits != 0) {
+    std::array<double, kTextColumnKinds> las{};
+    for (std::size_t k = 0; k < kLasFields; ++k) {
+      if (plan_.prop[kLasField + k] == VertexPlan::kNone) continue;
+      RELIEF_RETURN_IF_ERROR(check_las_value(k, v[kLasField + k], index));
+      las[static_cast<std::size_t>(las_text_columns()[k].column)] = v[kLasField + k];
+    }
+    push_las_columns(las.data(), plan_.las_bits, out.las);
+  }
+  return Status::ok();
+}
+
+Status PlyPointReader::check_las_value(std::size_t k, double value, std::uint64_t index) const {
+  const std::string error = las_column_error(las_text_columns()[k], value);
+  if (error.empty()) return Status::ok();
+  return format_error(vertex_label(name(), index) + ": property " +
+                      quoted(vertex().properties[plan_.prop[kLasField + k]].name) + ": " + error);
+}
+
+Status PlyPointReader::decode_las(const std::uint8_t* src, std::size_t n, std::uint64_t first, PointCloud& out) const {
+  std::array<double, kFieldCount> v{};
+  for (std::size_t i = 0; i < n; ++i, src += layout_.stride) {
+    for (std::size_t k = 0; k < kLasFields; ++k) {
+      if (plan_.prop[kLasField + k] == VertexPlan::kNone) continue;
+      v[kLasField + k] = load_scalar(src + layout_.offset[kLasField + k], layout_.type[kLasField + k], layout_.swap);
+    }
+    std::array<double, kTextColumnKinds> las{};
+    for (std::size_t k = 0; k < kLasFields; ++k) {
+      if (plan_.prop[kLasField + k] == VertexPlan::kNone) continue;
+      RELIEF_RETURN_IF_ERROR(check_las_value(k, v[kLasField + k], first + i));
+      las[static_cast<std::size_t>(las_text_columns()[k].column)] = v[kLasField + k];
+    }
+    push_las_columns(las.data(), plan_.las_bits, out.las);
+  }
   return Status::ok();
 }
 
@@ -1007,6 +1075,7 @@ Result<std::size_t> PlyPointReader::read_records(PointCloud& out, std::vector<st
   const bool to_wide = wide != nullptr && plan_.wide_color;
   size_batch(out, at, plan_.has_color && !to_wide, plan_.has_intensity);
   size_extras(out, at);
+  size_las_columns(out.las, plan_.las_bits, at);
   if (to_wide) wide->resize(3 * at);
   const bool ascii = header_.encoding == PlyEncoding::kAscii;
   const std::size_t extra_size = plan_.extra_size;

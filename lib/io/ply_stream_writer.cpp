@@ -3,13 +3,20 @@
 // zero-padded digits (enough for any 64-bit count), which finish() overwrites
 // in place. A zero-padded decimal is still a plain decimal integer, so every
 // PLY reader accepts it. Properties: double x y z, then uchar red green blue
-// and float intensity when the options ask for them, then the LAS extra bytes
+// and float intensity when the options ask for them, then one property per
+// LAS dimension the points carry (binary PLY only), under LAS's names, which
+// the PLY reader maps back (io/text_columns.h): uchar classification,
+// synthetic, key_point, withheld, overlap, return_number, number_of_returns,
+// scan_direction_flag, edge_of_flight_line, scanner_channel, user_data;
+// float scan_angle (degrees); ushort point_source_id, nir; double gps_time.
+// Then the LAS extra bytes
 // (WriterOptions::las_attributes has kLasExtraBytes) as one property per
 // value: each Extra Bytes field of a PLY scalar type as that type under its
 // name (an array field as <name>_0, <name>_1, ...), 64-bit integers and
 // undocumented bytes as uchar properties <name>_0 ... (PLY has no 64-bit
 // integers, and bytes keep them exact). Names are made PLY tokens (blanks
-// become '_') and unique (a clash gets _2, _3 ...).
+// become '_') and unique (a clash gets _2, _3 ...); a name the reader would
+// take for a coordinate, colour, intensity or LAS dimension gets "_extra".
 
 #include <algorithm>
 #include <bit>
@@ -26,6 +33,7 @@
 #include "io/output_file.h"
 #include "io/ply_format.h"
 #include "io/point_writers.h"
+#include "io/text_columns.h"
 
 #ifndef RELIEF_VERSION
 #define RELIEF_VERSION "unknown"
@@ -101,6 +109,7 @@ std::string unique_name(std::string base, std::vector<std::string>& taken) {
     if (c <= ' ' || c > '~') c = '_';
   }
   if (base.empty()) base = "extra";
+  if (text_column_of_name(base)) base += "_extra";
   std::string name = base;
   for (int k = 2; std::find(taken.begin(), taken.end(), name) != taken.end(); ++k) {
     name = base + "_" + std::to_string(k);
@@ -140,6 +149,43 @@ std::vector<ExtraProperty> extra_properties(const std::string& vlr, std::size_t 
   return props;
 }
 
+// The PLY type of a LAS dimension's property.
+ply::ScalarType las_property_type(TextColumn c) {
+  switch (c) {
+    case TextColumn::kScanAngle: return ply::ScalarType::kFloat32;
+    case TextColumn::kGpsTime: return ply::ScalarType::kFloat64;
+    case TextColumn::kPointSourceId:
+    case TextColumn::kNir: return ply::ScalarType::kUint16;
+    default: return ply::ScalarType::kUint8;
+  }
+}
+
+// Stores `v` as PLY type `t` at `dst`, little endian, or big when `big`.
+std::uint8_t* put_las_value(std::uint8_t* dst, double v, ply::ScalarType t, bool big) {
+  std::size_t size = 0;
+  switch (t) {
+    case ply::ScalarType::kFloat32: {
+      const auto f = static_cast<float>(v);
+      std::memcpy(dst, &f, size = sizeof f);
+      break;
+    }
+    case ply::ScalarType::kFloat64:
+      std::memcpy(dst, &v, size = sizeof v);
+      break;
+    case ply::ScalarType::kUint16: {
+      const auto u = static_cast<std::uint16_t>(v);
+      std::memcpy(dst, &u, size = sizeof u);
+      break;
+    }
+    default:
+      *dst = static_cast<std::uint8_t>(v);
+      size = 1;
+      break;
+  }
+  if (big != (std::endian::native == std::endian::big)) std::reverse(dst, dst + size);
+  return dst + size;
+}
+
 template <bool kSwap>
 EncodeFn pick_encoder(bool colors, bool intensity) {
   if (colors) {
@@ -153,21 +199,29 @@ class PlyStreamWriter final : public StreamPointWriter {
   PlyStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options)
       : StreamPointWriter(std::move(out), options) {
     core_size_ = 3 * sizeof(double) + (options.colors ? 3 : 0) + (options.intensity ? sizeof(float) : 0);
+    std::vector<std::string> taken = {"x", "y", "z"};
+    if (options.colors) taken.insert(taken.end(), {"red", "green", "blue"});
+    if (options.intensity) taken.emplace_back("intensity");
+    if (options.ply_encoding != PlyEncoding::kAscii) {
+      for (const LasTextColumn& c : las_text_columns()) {
+        if ((options.las_attributes & c.bit) == 0) continue;
+        las_.push_back(&c);
+        las_size_ += ply::scalar_size(las_property_type(c.column));
+        taken.emplace_back(c.snake);
+      }
+    }
     if ((options.las_attributes & kLasExtraBytes) != 0 && options.extra_bytes_size > 0) {
       extra_size_ = options.extra_bytes_size;
-      std::vector<std::string> taken = {"x", "y", "z"};
-      if (options.colors) taken.insert(taken.end(), {"red", "green", "blue"});
-      if (options.intensity) taken.emplace_back("intensity");
       extras_ = extra_properties(options.extra_bytes_vlr, extra_size_, std::move(taken));
     }
-    record_size_ = core_size_ + extra_size_;
+    record_size_ = core_size_ + las_size_ + extra_size_;
     const bool little = options.ply_encoding == PlyEncoding::kBinaryLittleEndian;
     const bool swap = little != (std::endian::native == std::endian::little);
     big_endian_ = !little;
     encode_ = swap ? pick_encoder<true>(options.colors, options.intensity)
                    : pick_encoder<false>(options.colors, options.intensity);
     // The positions array is already the record layout.
-    copy_positions_ = !swap && !options.colors && !options.intensity && extra_size_ == 0;
+    copy_positions_ = !swap && !options.colors && !options.intensity && las_size_ == 0 && extra_size_ == 0;
   }
 
   Status start() {
@@ -180,6 +234,9 @@ class PlyStreamWriter final : public StreamPointWriter {
     h += "\nproperty double x\nproperty double y\nproperty double z\n";
     if (options_.colors) h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
     if (options_.intensity) h += "property float intensity\n";
+    for (const LasTextColumn* c : las_) {
+      h += std::string("property ") + ply::scalar_name(las_property_type(c->column)) + " " + c->snake + "\n";
+    }
     for (const ExtraProperty& p : extras_) h += std::string("property ") + ply::scalar_name(p.type) + " " + p.name + "\n";
     h += "end_header\n";
     return out_->append(h.data(), h.size());
@@ -188,15 +245,23 @@ class PlyStreamWriter final : public StreamPointWriter {
  protected:
   Status write_points(const PointCloud& batch) override {
     if (options_.ply_encoding == PlyEncoding::kAscii) return write_text_points(*out_, batch, options_, ' ');
-    if (copy_positions_) return out_->append(batch.positions.data(), batch.size() * sizeof(Vec3d));
     const std::size_t n = batch.size();
+    bool complete = extra_size_ == 0 || (batch.las.extra_bytes_size == extra_size_ &&
+                                         batch.las.extra_bytes.size() == n * extra_size_);
+    for (const LasTextColumn* c : las_) complete = complete && las_column_count(batch.las, c->bit) == n;
+    if (!complete && n > 0) {
+      return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) +
+                              " points lacks a LAS attribute or extra bytes the writer was opened with");
+    }
+    if (copy_positions_) return out_->append(batch.positions.data(), batch.size() * sizeof(Vec3d));
     std::size_t i = 0;
     while (i < n) {
       std::span<std::uint8_t> room;
       RELIEF_RETURN_IF_ERROR(out_->room(record_size_, room));
       const std::size_t k = std::min(n - i, room.size() / record_size_);
       encode_(batch, i, k, record_size_, room.data());
-      if (extra_size_ > 0) put_extras(batch, i, k, room.data() + core_size_);
+      if (las_size_ > 0) put_las(batch, i, k, room.data() + core_size_);
+      if (extra_size_ > 0) put_extras(batch, i, k, room.data() + core_size_ + las_size_);
       out_->advance(k * record_size_);
       i += k;
     }
@@ -227,7 +292,21 @@ class PlyStreamWriter final : public StreamPointWriter {
     }
   }
 
+  // The LAS dimensions of points [first, first + n) after each record's core
+  // properties.
+  void put_las(const PointCloud& batch, std::size_t first, std::size_t n, std::uint8_t* dst) const {
+    for (std::size_t i = 0; i < n; ++i, dst += record_size_) {
+      std::uint8_t* v = dst;
+      for (const LasTextColumn* c : las_) {
+        v = put_las_value(v, las_column_value(batch.las, c->column, first + i), las_property_type(c->column),
+                          big_endian_);
+      }
+    }
+  }
+
   std::size_t core_size_ = 0;
+  std::vector<const LasTextColumn*> las_;
+  std::size_t las_size_ = 0;
   std::size_t extra_size_ = 0;
   std::vector<ExtraProperty> extras_;
   std::size_t record_size_ = 0;

@@ -1,6 +1,7 @@
-// The columns of XYZ/CSV text: what a header name means when read, and the
-// names the text writer gives the LAS dimensions (PDAL's, which the reader
-// maps back). Shared by xyz_reader.cpp and xyz_writer.cpp. Internal to lib/io.
+// The columns of XYZ/CSV text and the properties of PLY: what a name means
+// when read, the names the writers give the LAS dimensions (which the readers
+// map back), and the checks and stores of LAS dimension values. Shared by the
+// text and PLY readers and writers. Internal to lib/io.
 #pragma once
 
 #include <cstddef>
@@ -9,6 +10,8 @@
 #include <span>
 #include <string>
 #include <string_view>
+
+#include "relief/types.h"
 
 namespace relief {
 
@@ -46,13 +49,14 @@ inline constexpr std::size_t kTextColumnKinds = static_cast<std::size_t>(TextCol
 // A LAS dimension's column: the LasAttributeBits it fills; the largest whole
 // number it takes (0: not a whole number: GPS time is any finite value, the
 // scan angle degrees within +-kMaxTextScanAngle); its name in messages; the
-// header name the writer gives it (PDAL's).
+// header name the text writer gives it (PDAL's); the PLY writer's name (LAS's).
 struct LasTextColumn {
   TextColumn column;
   std::uint32_t bit;
   double max;
   const char* what;
   const char* header;
+  const char* snake;
 };
 // Every LAS dimension, in the order the writer puts them.
 std::span<const LasTextColumn> las_text_columns();
@@ -70,5 +74,24 @@ std::string text_display_name(std::string_view name);
 // key_point, withheld, overlap, scan_angle_rank or scan_angle, user_data,
 // point_source_id, infrared or nir).
 std::optional<TextColumn> text_column_of_name(std::string_view name);
+
+// Empty when `value` is one the LAS dimension `c` can hold, else a message
+// such as "return number 16 is not a whole number from 0 to 15".
+std::string las_column_error(const LasTextColumn& c, double value);
+// Appends one point's LAS dimensions to `las`: v[k] is the value of
+// TextColumn k (0 for columns absent), checked by las_column_error; `bits`
+// the LasAttributeBits carried (class and scan flags assembled from their
+// columns, the scan angle from degrees to thousandths).
+void push_las_columns(const double* v, std::uint32_t bits, LasAttributes& las);
+// The inverse of push_las_columns for one column: point i's value (the scan
+// angle in degrees; a whole number for the others but GPS time). `las` must
+// carry the column's vector.
+double las_column_value(const LasAttributes& las, TextColumn column, std::size_t i);
+// Values `las` holds of the LAS dimension whose LasAttributeBits is `bit`
+// (one of those push_las_columns fills).
+std::size_t las_column_count(const LasAttributes& las, std::uint32_t bit);
+// Sizes the vectors push_las_columns fills for `bits` to n points and clears
+// the others of them (colour low bytes and extra bytes are left alone).
+void size_las_columns(LasAttributes& las, std::uint32_t bits, std::size_t n);
 
 }  // namespace relief

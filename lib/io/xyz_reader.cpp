@@ -263,24 +263,6 @@ void put_f64_le(std::vector<std::uint8_t>& out, double v) {
   for (int k = 0; k < 8; ++k) out.push_back(static_cast<std::uint8_t>(bits >> (8 * k)));
 }
 
-// Sizes the LAS vectors a plan fills to `n` points and clears the others.
-void size_las(LasAttributes& las, std::uint32_t bits, std::size_t extra_size, std::size_t n) {
-  const auto fit = [&](auto& v, std::uint32_t bit) { v.resize((bits & bit) != 0 ? n : 0); };
-  fit(las.classification, kLasClassification);
-  fit(las.class_flags, kLasClassFlags);
-  fit(las.return_number, kLasReturnNumber);
-  fit(las.number_of_returns, kLasNumberOfReturns);
-  fit(las.scan_flags, kLasScanFlags);
-  fit(las.scan_angle, kLasScanAngle);
-  fit(las.user_data, kLasUserData);
-  fit(las.point_source_id, kLasPointSourceId);
-  fit(las.gps_time, kLasGpsTime);
-  fit(las.nir, kLasNir);
-  las.color_low.clear();
-  las.extra_bytes_size = static_cast<std::uint32_t>(extra_size);
-  las.extra_bytes.resize(n * extra_size);
-}
-
 class XyzPointReader final : public BatchPointReader {
  public:
   // Reads up to the first data line and settles the columns.
@@ -326,7 +308,6 @@ class XyzPointReader final : public BatchPointReader {
   Status parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                      std::vector<std::uint16_t>* wide);
   Status check_las_values(const double* v, std::uint64_t line_no) const;
-  void push_las_values(const double* v, LasAttributes& las) const;
 
   InputSpec input_;
   ReaderOptions options_;
@@ -455,45 +436,10 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
 
 Status XyzPointReader::check_las_values(const double* v, std::uint64_t line_no) const {
   for (const LasColumn* c : las_columns_) {
-    const double raw = v[at_role(c->column)];
-    if (c->column == Role::kGpsTime) {
-      if (!std::isfinite(raw)) return line_error(line_no, "GPS time " + format_double(raw) + " is not finite");
-    } else if (c->column == Role::kScanAngle) {
-      if (!(std::abs(raw) <= kMaxTextScanAngle)) {
-        return line_error(line_no, "scan angle " + format_double(raw) + " is not from -180 to 180 degrees");
-      }
-    } else if (!(raw >= 0 && raw <= c->max) || raw != std::floor(raw)) {
-      return line_error(line_no, std::string(c->what) + " " + format_double(raw) + " is not a whole number from 0 to " +
-                                     format_double(c->max));
-    }
+    const std::string error = las_column_error(*c, v[at_role(c->column)]);
+    if (!error.empty()) return line_error(line_no, error);
   }
   return Status::ok();
-}
-
-void XyzPointReader::push_las_values(const double* v, LasAttributes& las) const {
-  const std::uint32_t bits = plan_.las;
-  const auto u8 = [v](Role r) { return static_cast<std::uint8_t>(v[at_role(r)]); };
-  if ((bits & kLasClassification) != 0) las.classification.push_back(u8(Role::kClass));
-  if ((bits & kLasClassFlags) != 0) {
-    las.class_flags.push_back(static_cast<std::uint8_t>(u8(Role::kSynthetic) | u8(Role::kKeyPoint) << 1 |
-                                                        u8(Role::kWithheld) << 2 | u8(Role::kOverlap) << 3));
-  }
-  if ((bits & kLasReturnNumber) != 0) las.return_number.push_back(u8(Role::kReturnNumber));
-  if ((bits & kLasNumberOfReturns) != 0) las.number_of_returns.push_back(u8(Role::kNumberOfReturns));
-  if ((bits & kLasScanFlags) != 0) {
-    las.scan_flags.push_back(static_cast<std::uint8_t>(u8(Role::kScanDirection) | u8(Role::kEdgeOfFlightLine) << 1 |
-                                                       u8(Role::kScannerChannel) << 2));
-  }
-  // LasAttributes keeps thousandths of a degree.
-  if ((bits & kLasScanAngle) != 0) {
-    las.scan_angle.push_back(static_cast<std::int32_t>(std::lround(v[at_role(Role::kScanAngle)] * 1000)));
-  }
-  if ((bits & kLasUserData) != 0) las.user_data.push_back(u8(Role::kUserData));
-  if ((bits & kLasPointSourceId) != 0) {
-    las.point_source_id.push_back(static_cast<std::uint16_t>(v[at_role(Role::kPointSourceId)]));
-  }
-  if ((bits & kLasGpsTime) != 0) las.gps_time.push_back(v[at_role(Role::kGpsTime)]);
-  if ((bits & kLasNir) != 0) las.nir.push_back(static_cast<std::uint16_t>(v[at_role(Role::kNir)]));
 }
 
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
@@ -558,7 +504,7 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
   }
   RELIEF_RETURN_IF_ERROR(check_las_values(v, line_no));
   out.positions.push_back(p);
-  push_las_values(v, out.las);
+  push_las_columns(v, plan_.las, out.las);
   for (const double e : extra_values_) put_f64_le(out.las.extra_bytes, e);
   if (plan_.colors) {
     if (wide != nullptr) {
@@ -578,7 +524,9 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
   out.positions.resize(at);
   out.colors.resize(plan_.colors && !to_wide ? at : 0);
   out.intensities.resize(plan_.intensity ? at : 0);
-  size_las(out.las, plan_.las, info_.extra_bytes_size, at);
+  size_las_columns(out.las, plan_.las, at);
+  out.las.extra_bytes_size = info_.extra_bytes_size;
+  out.las.extra_bytes.resize(at * info_.extra_bytes_size);
   if (to_wide) wide->resize(3 * at);
   std::vector<std::uint16_t>* levels = to_wide ? wide : nullptr;
   std::size_t got = 0;

@@ -173,23 +173,10 @@ class XyzStreamWriter final : public StreamPointWriter {
     const std::size_t n = batch.size();
     const LasAttributes& a = batch.las;
     for (const TailColumn& c : tail_) {
-      std::size_t have = 0;
-      switch (c.bit) {
-        case kLasClassification: have = a.classification.size(); break;
-        case kLasClassFlags: have = a.class_flags.size(); break;
-        case kLasReturnNumber: have = a.return_number.size(); break;
-        case kLasNumberOfReturns: have = a.number_of_returns.size(); break;
-        case kLasScanFlags: have = a.scan_flags.size(); break;
-        case kLasScanAngle: have = a.scan_angle.size(); break;
-        case kLasUserData: have = a.user_data.size(); break;
-        case kLasPointSourceId: have = a.point_source_id.size(); break;
-        case kLasGpsTime: have = a.gps_time.size(); break;
-        case kLasNir: have = a.nir.size(); break;
-        default:
-          have = a.extra_bytes_size == options_.extra_bytes_size && a.extra_bytes.size() == n * a.extra_bytes_size ? n
-                                                                                                                 : 0;
-          break;
-      }
+      const std::size_t have =
+          c.bit != 0 ? las_column_count(a, c.bit)
+          : a.extra_bytes_size == options_.extra_bytes_size && a.extra_bytes.size() == n * a.extra_bytes_size ? n
+                                                                                                             : 0;
       if (have != n && n > 0) {
         return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) +
                                 " points lacks a LAS attribute the writer was opened with");
@@ -199,26 +186,8 @@ class XyzStreamWriter final : public StreamPointWriter {
   }
 
   std::uint8_t* put_tail(std::uint8_t* p, const LasAttributes& a, std::size_t i, const TailColumn& c) const {
-    switch (c.column) {
-      case TextColumn::kClass: return put_integer(p, a.classification[i]);
-      case TextColumn::kSynthetic: return put_integer(p, a.class_flags[i] & 1);
-      case TextColumn::kKeyPoint: return put_integer(p, (a.class_flags[i] >> 1) & 1);
-      case TextColumn::kWithheld: return put_integer(p, (a.class_flags[i] >> 2) & 1);
-      case TextColumn::kOverlap: return put_integer(p, (a.class_flags[i] >> 3) & 1);
-      case TextColumn::kReturnNumber: return put_integer(p, a.return_number[i]);
-      case TextColumn::kNumberOfReturns: return put_integer(p, a.number_of_returns[i]);
-      case TextColumn::kScanDirection: return put_integer(p, a.scan_flags[i] & 1);
-      case TextColumn::kEdgeOfFlightLine: return put_integer(p, (a.scan_flags[i] >> 1) & 1);
-      case TextColumn::kScannerChannel: return put_integer(p, (a.scan_flags[i] >> 2) & 3);
-      // Thousandths of a degree as degrees: the shortest text of the nearest
-      // double, which the reader rounds back to the same thousandths.
-      case TextColumn::kScanAngle: return put_shortest(p, a.scan_angle[i] / 1000.0);
-      case TextColumn::kUserData: return put_integer(p, a.user_data[i]);
-      case TextColumn::kPointSourceId: return put_integer(p, a.point_source_id[i]);
-      case TextColumn::kGpsTime: return put_shortest(p, a.gps_time[i]);
-      case TextColumn::kNir: return put_integer(p, a.nir[i]);
-      default: break;
-    }
+    // A LAS dimension: its integers print as integers.
+    if (c.bit != 0) return put_shortest(p, las_column_value(a, c.column, i));
     const std::uint8_t* v = a.extra_bytes.data() + i * a.extra_bytes_size + c.offset;
     double value = 0;
     switch (c.base_type) {

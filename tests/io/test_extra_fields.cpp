@@ -459,7 +459,7 @@ TEST_CASE("PLY output writes extra bytes as properties of their types, read back
     std::vector<std::string> names;
     for (const ExtraBytesField& f : fields_of(got.info)) names.push_back(f.name + ":" + f.type_name);
     const std::vector<std::string> expect = {
-        "x_2:float32", "big_id_0:uint8", "big_id_1:uint8", "big_id_2:uint8", "big_id_3:uint8", "big_id_4:uint8",
+        "x_extra:float32", "big_id_0:uint8", "big_id_1:uint8", "big_id_2:uint8", "big_id_3:uint8", "big_id_4:uint8",
         "big_id_5:uint8", "big_id_6:uint8", "big_id_7:uint8", "raw_0:uint8", "raw_1:uint8", "raw_2:uint8",
         "pair_0:uint16", "pair_1:uint16", "flag_0:uint8", "extra_20:uint8", "extra_21:uint8"};
     CHECK(names == expect);

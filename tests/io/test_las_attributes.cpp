@@ -349,7 +349,8 @@ TEST_CASE("LAS attributes without a source format give LAS 1.4 format 6", "[las]
   CHECK(back->records[0].return_number == 1);  // not carried: "return 1 of 1"
 }
 
-TEST_CASE("Text output names every LAS attribute in a header and the text reader takes each back", "[xyz][attributes]") {
+TEST_CASE("PLY and text output carry every LAS attribute and the PLY and text readers take each back",
+          "[xyz][ply][attributes]") {
   TempDir dir;
   for (const int format : {1, 3, 6, 7, 8}) {
     CAPTURE(format);
@@ -362,10 +363,12 @@ TEST_CASE("Text output names every LAS attribute in a header and the text reader
     const std::string in = dir.file("in" + std::to_string(format) + ".las");
     REQUIRE(write_test_las(in, o));
     const ReadBack src = read_all(in);
-    for (const char* name : {"out.csv", "out.xyz"}) {
+    for (const char* name : {"out.csv", "out.xyz", "out.ply", "big.ply"}) {
       CAPTURE(name);
       const std::string out = dir.file(name);
-      auto writer = relief::open_point_writer(out, options_from(src.info, src.cloud.las.extra_bytes_size));
+      relief::WriterOptions w = options_from(src.info, src.cloud.las.extra_bytes_size);
+      if (std::string(name) == "big.ply") w.ply_encoding = relief::PlyEncoding::kBinaryBigEndian;
+      auto writer = relief::open_point_writer(out, w);
       REQUIRE(writer.is_ok());
       REQUIRE((*writer)->write(src.cloud).to_string() == "ok");
       REQUIRE((*writer)->finish().is_ok());
@@ -378,7 +381,7 @@ TEST_CASE("Text output names every LAS attribute in a header and the text reader
       CHECK(b.positions == a.positions);
       CHECK(b.colors == a.colors);
       CHECK(b.intensities == a.intensities);
-      // Every attribute but the colours' low bytes, which text leaves out.
+      // Every attribute but the colours' low bytes, which both leave out.
       CHECK(b.las.carried() == (a.las.carried() & ~std::uint32_t{relief::kLasColorLow}));
       CHECK(b.las.classification == a.las.classification);
       CHECK(b.las.class_flags == a.las.class_flags);
@@ -390,8 +393,13 @@ TEST_CASE("Text output names every LAS attribute in a header and the text reader
       CHECK(b.las.point_source_id == a.las.point_source_id);
       CHECK(b.las.gps_time == a.las.gps_time);
       CHECK(b.las.nir == a.las.nir);
-      // The extra bytes as float64 fields: the uint16 as it is, the scaled
-      // uint8 scaled.
+      if (std::string(name).ends_with(".ply")) {
+        // PLY keeps the extra bytes' types: the same bytes.
+        CHECK(b.las.extra_bytes_size == 3);
+        CHECK(b.las.extra_bytes == a.las.extra_bytes);
+        continue;
+      }
+      // Text: float64 fields, the uint16 as it is, the scaled uint8 scaled.
       REQUIRE(b.las.extra_bytes_size == 16);
       std::size_t same = 0;
       for (std::size_t i = 0; i < a.size(); ++i) {
@@ -403,4 +411,42 @@ TEST_CASE("Text output names every LAS attribute in a header and the text reader
       CHECK(same == a.size());
     }
   }
+}
+
+TEST_CASE("PLY vertex properties named as LAS dimensions fill the LAS attributes", "[ply][attributes]") {
+  TempDir dir;
+  const std::string path = dir.file("pdal.ply");
+  const std::string header =
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\nproperty double y\nproperty double z\n"
+      "property uchar Classification\nproperty double GpsTime\nproperty float ScanAngleRank\n"
+      "property uchar ReturnNumber\nproperty int class\nproperty float scalar_Withheld\nend_header\n";
+  {
+    std::ofstream f(path);
+    f << header << "1 2 3 6 100.5 -12.006 2 900 1\n4 5 6 2 101.25 7 1 -3 0\n";
+  }
+  const ReadBack got = read_all(path);
+  CHECK(got.info.las_attributes == (relief::kLasClassification | relief::kLasGpsTime | relief::kLasScanAngle |
+                                    relief::kLasReturnNumber | relief::kLasClassFlags | relief::kLasExtraBytes));
+  CHECK(got.cloud.las.classification == std::vector<std::uint8_t>{6, 2});
+  CHECK(got.cloud.las.gps_time == std::vector<double>{100.5, 101.25});
+  CHECK(got.cloud.las.scan_angle == std::vector<std::int32_t>{-12006, 7000});
+  CHECK(got.cloud.las.return_number == std::vector<std::uint8_t>{2, 1});
+  CHECK(got.cloud.las.class_flags == std::vector<std::uint8_t>{4, 0});
+  // "class" is a label of its own: kept as extra bytes.
+  REQUIRE(got.cloud.las.extra_bytes_size == 4);
+  std::int32_t label = 0;
+  std::memcpy(&label, got.cloud.las.extra_bytes.data() + 4, 4);
+  CHECK(label == -3);
+  // A value the LAS dimension cannot hold is refused, naming vertex and property.
+  {
+    std::ofstream f(path);
+    f << header << "1 2 3 6 100.5 -12.006 2 900 1\n4 5 6 2 101.25 7 16 -3 0\n";
+  }
+  auto r = relief::open_point_reader(path);
+  REQUIRE(r.is_ok());
+  relief::PointCloud batch;
+  auto n = (*r)->read(batch, 10);
+  REQUIRE_FALSE(n.is_ok());
+  CHECK(n.status().message().find("pdal.ply: vertex 1: property 'ReturnNumber': return number 16 is not a whole "
+                                  "number from 0 to 15") != std::string::npos);
 }
