@@ -2,12 +2,14 @@
 // binary and binary_compressed. Field names match in any case (some exporters
 // write X Y Z RGB). Fields x y z (F 4 or F 8) are required; colour comes from
 // rgb or rgba (4 bytes packed as 0x00RRGGBB, whatever the TYPE says, as PCL
-// does) or else from separate r g b (or red green blue) fields, and intensity
-// (any numeric type) is read when present. Every other field (normals,
-// curvature, label, ...) is kept as LAS extra bytes (io/extra_fields.h), one
-// field per value (COUNT n: <name>_0 ... <name>_<n-1>) of its TYPE and SIZE,
-// unless ReaderOptions::extra_bytes is off; fields named "_" (PCL's padding)
-// are skipped.
+// does; an rgba field's top byte is its alpha) or else from separate r g b (or
+// red green blue) fields, and intensity (any numeric type) is read when
+// present. Every other field (normals, curvature, label, ...) is kept as LAS
+// extra bytes (io/extra_fields.h), one field per value (COUNT n: <name>_0 ...
+// <name>_<n-1>) of its TYPE and SIZE, and so is an rgba field's alpha (uint8
+// "alpha", or "rgba_alpha" when a field is named alpha), unless
+// ReaderOptions::extra_bytes is off; fields named "_" (PCL's padding) are
+// skipped.
 //
 // Separate colour fields follow their declared type, so the rule does not
 // depend on the values or their order: SIZE 2 integers are 16-bit levels
@@ -243,6 +245,12 @@ Result<PcdHeader> parse_header(ByteSource& src, const std::string& name) {
   return h;
 }
 
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
 // `field_name` is lower case; the file's names match in any case.
 const PcdField* find_field(const PcdHeader& h, std::string_view field_name) {
   for (const PcdField& f : h.fields) {
@@ -424,6 +432,14 @@ class PcdPointReader final : public PointReader {
         kept.push_back({f.count == 1 ? f.name : f.name + "_" + std::to_string(k), extra_bytes_type(f.type, f.size)});
       }
     }
+    // PCL's PointXYZRGBA packs the alpha in rgba's top byte.
+    if (rgb_ != nullptr && lower(rgb_->name) == "rgba") {
+      const bool taken =
+          std::any_of(kept.begin(), kept.end(), [](const KeptField& k) { return lower(k.name) == "alpha"; });
+      alpha_at_ = extra_size_;
+      extra_size_ += 1;
+      kept.push_back({taken ? "rgba_alpha" : "alpha", 1});  // LAS data type 1: uint8
+    }
     if (kept.empty()) return Status::ok();
     RELIEF_ASSIGN_OR_RETURN(info_.extra_bytes_vlr, kept_fields_vlr(kept, name(), "field", "PCD field", info_.warnings));
     info_.las_attributes = kLasExtraBytes;
@@ -524,6 +540,8 @@ class PcdPointReader final : public PointReader {
   std::vector<std::uint32_t> extra_of_column_;  // index into extras_ where roles_ is kExtra
   std::size_t extra_size_ = 0;
   std::vector<std::uint8_t> scratch_;  // the current point's extra bytes
+  std::size_t alpha_at_ = kNoAlpha;     // where an rgba field's alpha goes in them
+  static constexpr std::size_t kNoAlpha = ~std::size_t{0};
   std::vector<std::uint8_t> expanded_;  // binary_compressed records; src_ reads them
   std::uint64_t done_ = 0;  // records consumed, kept or skipped
 };
@@ -599,6 +617,7 @@ Status PcdPointReader::accept(const Values& v, std::uint64_t index, PointCloud& 
                             color_level(v.levels[2], *split_[2])});
   }
   if (intensity_ != nullptr) batch.intensities.push_back(intensity);
+  if (alpha_at_ != kNoAlpha) scratch_[alpha_at_] = static_cast<std::uint8_t>(v.rgb >> 24);
   batch.las.extra_bytes.insert(batch.las.extra_bytes.end(), scratch_.begin(), scratch_.end());
   kept = true;
   return Status::ok();

@@ -653,3 +653,47 @@ TEST_CASE("CSV columns without a LAS meaning are kept as float64 extra bytes", "
 }
 
 }  // namespace relief
+
+namespace relief {
+
+TEST_CASE("A PCD rgba field's alpha is kept as uint8 extra bytes", "[io][pcd][extra]") {
+  test::TempDir dir;
+  const std::string path = dir.file("rgba.pcd");
+  // PCL's PointXYZRGBA: rgba as U 4, alpha in the top byte.
+  const std::uint32_t rgba[3] = {0xFF102030u, 0x80405060u, 0x00708090u};
+  std::string pcd = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgba\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+                    "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA binary\n";
+  for (int i = 0; i < 3; ++i) {
+    const float xyz[3] = {static_cast<float>(i), 1, 2};
+    pcd.append(reinterpret_cast<const char*>(xyz), sizeof xyz);
+    pcd.append(reinterpret_cast<const char*>(&rgba[i]), 4);
+  }
+  write_file(path, pcd);
+  ReadBack got = read_extras(path);
+  REQUIRE(got.points == 3);
+  CHECK(got.extra == std::vector<std::uint8_t>{0xFF, 0x80, 0x00});
+  std::vector<ExtraBytesField> fields = fields_of(got.info);
+  REQUIRE(fields.size() == 1);
+  CHECK(fields[0].name == "alpha");
+  CHECK(fields[0].type_name == "uint8");
+  auto colors = read_point_file(path);
+  REQUIRE(colors.is_ok());
+  CHECK(colors->colors[1].r == 0x40);
+  CHECK(colors->colors[1].b == 0x60);
+  // ASCII, beside a field already called alpha; --no-extra-bytes drops both.
+  write_file(path, "VERSION 0.7\nFIELDS x y z rgba alpha\nSIZE 4 4 4 4 4\nTYPE F F F U F\nCOUNT 1 1 1 1 1\n"
+                   "WIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n0 1 2 4278194208 0.5\n1 1 2 2151698528 0.25\n");
+  got = read_extras(path);
+  fields = fields_of(got.info);
+  REQUIRE(fields.size() == 2);
+  CHECK(fields[0].name == "alpha");
+  CHECK(fields[1].name == "rgba_alpha");
+  REQUIRE(got.extra.size() == 10);
+  CHECK(got.extra[4] == 0xFF);
+  CHECK(got.extra[9] == 0x80);
+  ReaderOptions none;
+  none.extra_bytes = false;
+  CHECK(read_extras(path, none).extra.empty());
+}
+
+}  // namespace relief
