@@ -174,7 +174,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = kChunkFormatVersion;  // 10: geometry codec 11 or 9 (time order), colour codec 6 or 10, LAS fields
+  h.version = kChunkFormatVersion;  // 11: geometry codec 11 or 9 (time order), colour codec 6 or 10, voted LAS bytes
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;

@@ -32,16 +32,36 @@ namespace relief::codec {
 namespace {
 
 // A byte as 8 binary decisions down a tree (node 1 is the root, node k's
-// children are 2k and 2k + 1), most significant bit first.
+// children are 2k and 2k + 1), most significant bit first. From format 11
+// (`hits`, §11.7.3) one decision first says whether the byte is the one this
+// model has coded most, and the tree follows only when it is not: a
+// context's value mostly repeats (a run of one class, a pulse's count of
+// returns), and one decision then does the work of eight.
 struct ByteModel {
   BitModel node[256];
+  // Format 11: the byte the hit flag asks about, the one this model has
+  // coded most (a majority vote: a hit adds a vote, up to 255; a miss takes
+  // one away, and a miss with no votes left makes the missed byte the guess).
+  BitModel hit;
+  std::uint8_t guess = 0;
+  std::uint8_t votes = 0;
 };
 
 template <typename C>
-void code_byte(C& c, ByteModel& m, std::uint8_t& v) {
+void code_byte(C& c, ByteModel& m, std::uint8_t& v, bool hits) {
+  if (hits && c.bit(m.hit, v == m.guess ? 1 : 0) != 0) {
+    v = m.guess;
+    if (m.votes < 255) ++m.votes;
+    return;
+  }
   unsigned node = 1;
   for (int i = 7; i >= 0; --i) node = 2 * node + static_cast<unsigned>(c.bit(m.node[node], (v >> i) & 1));
   v = static_cast<std::uint8_t>(node - 256);
+  if (m.votes == 0) {
+    m.guess = v;
+  } else {
+    --m.votes;
+  }
 }
 
 // Byte models per context, made when a context is first used (1.5 KB each).
@@ -51,11 +71,11 @@ constexpr std::size_t kByteContexts = 256;
 
 // A u8 attribute with the previous point's value as context.
 template <typename C>
-bool code_bytes_prev(C& c, std::vector<std::uint8_t>& v) {
+bool code_bytes_prev(C& c, std::vector<std::uint8_t>& v, bool hits) {
   ByteContexts models(kByteContexts);
   std::uint8_t prev = 0;
   for (std::uint8_t& x : v) {
-    code_byte(c, models[prev], x);
+    code_byte(c, models[prev], x, hits);
     prev = x;
     if (!c.ok()) return false;
   }
@@ -438,8 +458,8 @@ bool code_point_source(C& c, std::vector<std::uint16_t>& v, const std::vector<st
     std::uint16_t id = 0;
     if (sym == kSourceSlots) {
       std::uint8_t hi = static_cast<std::uint8_t>(x >> 8), lo = static_cast<std::uint8_t>(x);
-      code_byte(c, m->high, hi);
-      code_byte(c, m->low, lo);
+      code_byte(c, m->high, hi, false);
+      code_byte(c, m->low, lo, false);
       id = static_cast<std::uint16_t>(hi << 8 | lo);
       sym = kSourceSlots - 1;  // a new ID enters at the front, the last slot drops out
     } else {
@@ -467,7 +487,7 @@ std::size_t byte_delta_class(std::uint8_t d) {
   return 3;
 }
 template <typename C>
-bool code_extra_bytes(C& c, std::vector<std::uint8_t>& v, std::size_t width) {
+bool code_extra_bytes(C& c, std::vector<std::uint8_t>& v, std::size_t width, bool hits) {
   ByteContexts models(kExtraColumns * kExtraClasses);
   std::vector<std::uint8_t> prev(width, 0), cls(width, 0);
   const std::size_t n = width == 0 ? 0 : v.size() / width;
@@ -475,7 +495,7 @@ bool code_extra_bytes(C& c, std::vector<std::uint8_t>& v, std::size_t width) {
     std::uint8_t* row = v.data() + i * width;
     for (std::size_t j = 0; j < width; ++j) {
       std::uint8_t d = static_cast<std::uint8_t>(row[j] - prev[j]);
-      code_byte(c, models[std::min(j, kExtraColumns - 1) * kExtraClasses + cls[j]], d);
+      code_byte(c, models[std::min(j, kExtraColumns - 1) * kExtraClasses + cls[j]], d, hits);
       row[j] = static_cast<std::uint8_t>(prev[j] + d);
       prev[j] = row[j];
       cls[j] = static_cast<std::uint8_t>(byte_delta_class(d));
@@ -489,15 +509,18 @@ std::uint64_t double_bits(double v) { return std::bit_cast<std::uint64_t>(v); }
 
 constexpr int kMaxReturnContext = 15;
 
+// Format 11 codes bytes with a hit flag first (code_byte).
+bool byte_hits(int version) { return version >= 11; }
+
 // Codes attribute `bit` of las (every vector already sized to n points).
 // `unit` is the common unit of scan angles or NIR (encoder: computed by
-// common_unit; decoder: read here).
+// common_unit; decoder: read here). `hits`: bytes as format 11 codes them.
 template <typename C>
-bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, std::uint64_t unit) {
+bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, std::uint64_t unit, bool hits) {
   switch (bit) {
-    case kLasClassification: return code_bytes_prev(c, las.classification);
-    case kLasClassFlags: return code_bytes_prev(c, las.class_flags);
-    case kLasReturnNumber: return code_bytes_prev(c, las.return_number);
+    case kLasClassification: return code_bytes_prev(c, las.classification, hits);
+    case kLasClassFlags: return code_bytes_prev(c, las.class_flags, hits);
+    case kLasReturnNumber: return code_bytes_prev(c, las.return_number, hits);
     case kLasNumberOfReturns: {
       // The point's own return number (coded before) and the previous
       // point's number of returns: a pulse's returns share their count.
@@ -508,13 +531,13 @@ bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, 
         const int rn = has_rn ? std::min<int>(las.return_number[i], kMaxReturnContext) : 0;
         const std::size_t ctx = static_cast<std::size_t>(rn) * (kMaxReturnContext + 1) +
                                 static_cast<std::size_t>(std::min<int>(prev, kMaxReturnContext));
-        code_byte(c, models[ctx], las.number_of_returns[i]);
+        code_byte(c, models[ctx], las.number_of_returns[i], hits);
         prev = las.number_of_returns[i];
         if (!c.ok()) return false;
       }
       return true;
     }
-    case kLasScanFlags: return code_bytes_prev(c, las.scan_flags);
+    case kLasScanFlags: return code_bytes_prev(c, las.scan_flags, hits);
     case kLasScanAngle: {
       constexpr std::uint64_t kMaxUnit = std::uint64_t{1} << 31;
       if (!code_unit(c, unit, kMaxUnit)) return false;
@@ -529,7 +552,7 @@ bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, 
             return true;
           });
     }
-    case kLasUserData: return code_bytes_prev(c, las.user_data);
+    case kLasUserData: return code_bytes_prev(c, las.user_data, hits);
     case kLasPointSourceId: return code_point_source(c, las.point_source_id);
     case kLasGpsTime:
       // The IEEE bit pattern: for times of one sign and binade its
@@ -549,7 +572,7 @@ bool code_attribute(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, 
             return true;
           });
     }
-    case kLasExtraBytes: return code_extra_bytes(c, las.extra_bytes, las.extra_bytes_size);
+    case kLasExtraBytes: return code_extra_bytes(c, las.extra_bytes, las.extra_bytes_size, hits);
     default: return false;
   }
 }
@@ -587,7 +610,7 @@ namespace {
 // up; the scan angle moves slowly along a line.
 template <typename C>
 bool code_time_ordered(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, std::uint64_t unit,
-                       const std::vector<std::uint8_t>& kind) {
+                       const std::vector<std::uint8_t>& kind, bool hits) {
   if (kind.size() < n) return false;
   switch (bit) {
     case kLasReturnNumber:
@@ -598,7 +621,7 @@ bool code_time_ordered(C& c, std::uint32_t bit, LasAttributes& las, std::size_t 
       ByteContexts models(kPulseKinds * kByteContexts);
       std::uint8_t prev = 0;
       for (std::size_t k = 0; k < n; ++k) {
-        code_byte(c, models[kind[k] * kByteContexts + prev], v[k]);
+        code_byte(c, models[kind[k] * kByteContexts + prev], v[k], hits);
         prev = v[k];
         if (!c.ok()) return false;
       }
@@ -614,7 +637,7 @@ bool code_time_ordered(C& c, std::uint32_t bit, LasAttributes& las, std::size_t 
         const int rn = has_rn ? std::min<int>(las.return_number[k], kMaxReturnContext) : 0;
         const std::size_t ctx = ((kind[k] == kPulseSame ? kSide : 0) + static_cast<std::size_t>(rn)) * kSide +
                                 static_cast<std::size_t>(std::min<int>(prev, kMaxReturnContext));
-        code_byte(c, models[ctx], las.number_of_returns[k]);
+        code_byte(c, models[ctx], las.number_of_returns[k], hits);
         prev = las.number_of_returns[k];
         if (!c.ok()) return false;
       }
@@ -682,14 +705,15 @@ void gather_time_ordered(std::uint32_t bit, const LasAttributes& src, LasAttribu
 // stream must be long enough for n points before anything is allocated.
 std::uint64_t min_decisions_per_point(std::uint32_t bit, std::uint32_t extra_bytes_size, int version) {
   if (bit == kLasGpsTime && version >= 6) return 3;  // a time symbol and a rank or an index
+  const std::uint64_t byte = byte_hits(version) ? 1 : 8;  // a hit, or a byte's tree
   switch (bit) {
     case kLasScanAngle:
     case kLasNir: return 1;  // a zero difference
     case kLasGpsTime: return kGpsWindowBits + 1;  // a reference and a zero difference
     case kLasPointSourceId: return kSourceSymbolBits;
     case kLasColorLow: return 3;  // three zero differences
-    case kLasExtraBytes: return 8 * std::uint64_t{extra_bytes_size};
-    default: return 8;  // one byte
+    case kLasExtraBytes: return byte * extra_bytes_size;
+    default: return byte;  // one byte
   }
 }
 
@@ -860,7 +884,7 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     LasAttributes ordered;
     gather_time_ordered(bit, las, ordered, time_order);
     std::uint64_t unit = bit == kLasScanAngle ? common_unit(ordered.scan_angle) : 1;
-    code_time_ordered(c, bit, ordered, n, unit, las_pulse_kinds(las.gps_time, time_order));
+    code_time_ordered(c, bit, ordered, n, unit, las_pulse_kinds(las.gps_time, time_order), byte_hits(version));
     return enc.finish();
   }
   std::size_t coded = n;
@@ -873,7 +897,7 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
   std::uint64_t unit = 1;
   if (bit == kLasScanAngle) unit = common_unit(work.scan_angle);
   if (bit == kLasNir) unit = common_unit(work.nir);
-  code_attribute(c, bit, work, coded, unit);
+  code_attribute(c, bit, work, coded, unit, byte_hits(version));
   return enc.finish();
 }
 
@@ -918,7 +942,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
       // One value for every point: n is the layer's count, which the
       // geometry section has already been decoded against.
       size_attribute(bit, las, 1);
-      if (!code_attribute(c, bit, las, 1, 1) || dec.overrun() > 0) {
+      if (!code_attribute(c, bit, las, 1, 1, byte_hits(version)) || dec.overrun() > 0) {
         return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
       }
       spread_first(bit, las, n);
@@ -957,7 +981,8 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
     DecCoder c(dec);
     BitModel constant_flag;
     c.bit(constant_flag, 0);  // 0: read above
-    if (!code_time_ordered(c, bit, ordered, n, 1, las_pulse_kinds(las.gps_time, time_order)) || dec.overrun() > 0) {
+    if (!code_time_ordered(c, bit, ordered, n, 1, las_pulse_kinds(las.gps_time, time_order), byte_hits(version)) ||
+        dec.overrun() > 0) {
       return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
     }
     size_attribute(bit, las, n);
@@ -976,7 +1001,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
   DecCoder c(dec);
   BitModel constant_flag;
   if (n > 0) c.bit(constant_flag, 0);  // 0: read above
-  if (!code_attribute(c, bit, las, n, 1) || dec.overrun() > 0) {
+  if (!code_attribute(c, bit, las, n, 1, byte_hits(version)) || dec.overrun() > 0) {
     return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
   }
   return Status::ok();

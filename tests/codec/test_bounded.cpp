@@ -351,7 +351,7 @@ TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octre
   REQUIRE(blob.is_ok());
   auto parsed = codec::parse_blob(*blob, true);
   REQUIRE(parsed.is_ok());
-  REQUIRE(parsed->header.version == 10);
+  REQUIRE(parsed->header.version == 11);
   bool found = false;
   bool chains = false;
   for (const codec::SectionEntry& s : parsed->sections) {
@@ -377,7 +377,7 @@ TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octre
   }
   older.version = 8;
   refused(codec::write_blob(older, as_codec8));
-  // Codec 11 on a version-10 colour section: refused.
+  // Codec 11 on a version-11 colour section: refused.
   std::vector<codec::SectionEntry> misplaced = parsed->sections;
   for (codec::SectionEntry& s : misplaced) {
     if (s.id == codec::SectionId::kPointColor) s.codec = codec::SectionCodec::kOctreeChains;

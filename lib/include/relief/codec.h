@@ -46,9 +46,10 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // where point colours in cell order are predicted from the previous 32
 // points, weighted by distance (codec 10). Version 10: version 9 with the
 // octree's one-cell subtrees coded as chains (codec 11: a flag, then each
-// level's child index without mixing); the bounded encoder writes it for
-// every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 10;
+// level's child index without mixing). Version 11: version 10 with the LAS
+// attributes' bytes voted (one decision "the byte this tree has coded most"
+// before the byte's tree); the bounded encoder writes it for every cloud.
+inline constexpr std::uint16_t kChunkFormatVersion = 11;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
