@@ -105,17 +105,7 @@ struct ExtraProperty {
 
 // Makes `base` a PLY token not in `taken`, and takes it.
 std::string unique_name(std::string base, std::vector<std::string>& taken) {
-  for (char& c : base) {
-    if (c <= ' ' || c > '~') c = '_';
-  }
-  if (base.empty()) base = "extra";
-  if (text_column_of_name(base)) base += "_extra";
-  std::string name = base;
-  for (int k = 2; std::find(taken.begin(), taken.end(), name) != taken.end(); ++k) {
-    name = base + "_" + std::to_string(k);
-  }
-  taken.push_back(name);
-  return name;
+  return unique_field_name(std::move(base), "", "extra", taken);
 }
 
 // The PLY properties of `size` extra bytes per point described by `vlr`

@@ -102,6 +102,21 @@ std::optional<TextColumn> text_column_of_name(std::string_view name) {
   return std::nullopt;
 }
 
+std::string unique_field_name(std::string base, std::string_view replace, const char* empty,
+                              std::vector<std::string>& taken) {
+  for (char& c : base) {
+    if (c <= ' ' || c > '~' || replace.find(c) != std::string_view::npos) c = '_';
+  }
+  if (base.empty()) base = empty;
+  if (text_column_of_name(base)) base += "_extra";
+  std::string name = base;
+  for (int k = 2; std::find(taken.begin(), taken.end(), name) != taken.end(); ++k) {
+    name = base + "_" + std::to_string(k);
+  }
+  taken.push_back(name);
+  return name;
+}
+
 std::string las_column_error(const LasTextColumn& c, double value) {
   if (c.column == TextColumn::kGpsTime) {
     return std::isfinite(value) ? std::string() : "GPS time " + format_double(value) + " is not finite";

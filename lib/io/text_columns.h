@@ -10,6 +10,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "relief/types.h"
 
@@ -74,6 +75,14 @@ std::string text_display_name(std::string_view name);
 // key_point, withheld, overlap, scan_angle_rank or scan_angle, user_data,
 // point_source_id, infrared or nir).
 std::optional<TextColumn> text_column_of_name(std::string_view name);
+
+// A name for a column or property of extra bytes that the readers keep under
+// that name: `base` with blanks, non-ASCII characters and those in
+// `replace` made '_', `empty` when it is empty, "_extra" added when the
+// readers would take it for a coordinate, colour, intensity or LAS
+// dimension, and "_2", "_3" ... when `taken` has it; then added to `taken`.
+std::string unique_field_name(std::string base, std::string_view replace, const char* empty,
+                              std::vector<std::string>& taken);
 
 // Empty when `value` is one the LAS dimension `c` can hold, else a message
 // such as "return number 16 is not a whole number from 0 to 15".

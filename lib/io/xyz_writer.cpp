@@ -63,21 +63,11 @@ std::uint8_t* put_integer(std::uint8_t* p, T v) {
   return reinterpret_cast<std::uint8_t*>(std::to_chars(c, c + kMaxColumnText, v).ptr);
 }
 
-// A name the reader keeps as extra bytes under the same name: no separator,
-// quote or blank in it, not read as a coordinate, colour, intensity or LAS
-// dimension, and not taken by an earlier column.
+// A name the text reader keeps as extra bytes under the same name: no
+// separator, quote or blank in it, not starting as a comment does.
 std::string column_name(std::string base, std::vector<std::string>& taken) {
-  for (char& c : base) {
-    if (c <= ' ' || c > '~' || c == ',' || c == ';' || c == '"' || c == '\'') c = '_';
-  }
-  if (base.empty() || base[0] == '#' || base[0] == '/') base = "_" + base;
-  if (text_column_of_name(base)) base += "_extra";
-  std::string name = base;
-  for (int k = 2; std::find(taken.begin(), taken.end(), name) != taken.end(); ++k) {
-    name = base + "_" + std::to_string(k);
-  }
-  taken.push_back(name);
-  return name;
+  if (!base.empty() && (base[0] == '#' || base[0] == '/')) base = "_" + base;
+  return unique_field_name(std::move(base), ",;\"'", "_", taken);
 }
 
 class XyzStreamWriter final : public StreamPointWriter {

@@ -12,6 +12,7 @@
 
 #include "relief/io.h"
 #include "support/las_records.h"
+#include "support/same_cloud.h"
 #include "support/shared_data.h"
 #include "support/temp_dir.h"
 
@@ -383,16 +384,7 @@ TEST_CASE("PLY and text output carry every LAS attribute and the PLY and text re
       CHECK(b.intensities == a.intensities);
       // Every attribute but the colours' low bytes, which both leave out.
       CHECK(b.las.carried() == (a.las.carried() & ~std::uint32_t{relief::kLasColorLow}));
-      CHECK(b.las.classification == a.las.classification);
-      CHECK(b.las.class_flags == a.las.class_flags);
-      CHECK(b.las.return_number == a.las.return_number);
-      CHECK(b.las.number_of_returns == a.las.number_of_returns);
-      CHECK(b.las.scan_flags == a.las.scan_flags);
-      CHECK(b.las.scan_angle == a.las.scan_angle);
-      CHECK(b.las.user_data == a.las.user_data);
-      CHECK(b.las.point_source_id == a.las.point_source_id);
-      CHECK(b.las.gps_time == a.las.gps_time);
-      CHECK(b.las.nir == a.las.nir);
+      relief::test::check_same_las(b.las, a.las);
       if (std::string(name).ends_with(".ply")) {
         // PLY keeps the extra bytes' types: the same bytes.
         CHECK(b.las.extra_bytes_size == 3);

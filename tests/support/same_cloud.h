@@ -33,4 +33,19 @@ inline void require_same(const PointCloud& got, const PointCloud& want) {
   }
 }
 
+// The per-point LAS attributes but colour low bytes and extra bytes, vector
+// by vector (GPS times as doubles).
+inline void check_same_las(const LasAttributes& got, const LasAttributes& want) {
+  CHECK(got.classification == want.classification);
+  CHECK(got.class_flags == want.class_flags);
+  CHECK(got.return_number == want.return_number);
+  CHECK(got.number_of_returns == want.number_of_returns);
+  CHECK(got.scan_flags == want.scan_flags);
+  CHECK(got.scan_angle == want.scan_angle);
+  CHECK(got.user_data == want.user_data);
+  CHECK(got.point_source_id == want.point_source_id);
+  CHECK(got.gps_time == want.gps_time);
+  CHECK(got.nir == want.nir);
+}
+
 }  // namespace relief::test
