@@ -272,6 +272,29 @@ std::function<void(const IngestProgress&)> progress_printer(bool quiet) {
   };
 }
 
+QueryProgress::QueryProgress(std::string out, std::uint64_t total, bool quiet)
+    : out_(std::move(out)), total_(total), on_(!quiet && ::isatty(STDERR_FILENO)), start_ns_(now_ns()) {}
+
+void QueryProgress::count(std::uint64_t points) {
+  points_ += points;
+  if (!on_) return;
+  constexpr std::int64_t kRedrawNs = 250'000'000;
+  const std::int64_t t = now_ns();
+  if (t - drawn_ns_ < kRedrawNs) return;
+  drawn_ns_ = t;
+  const double secs = static_cast<double>(t - start_ns_) * 1e-9;
+  char share[32] = "";
+  if (total_ > 0) {
+    std::snprintf(share, sizeof share, " (%.0f%%)",
+                  100.0 * static_cast<double>(std::min(points_, total_)) / static_cast<double>(total_));
+  }
+  std::fprintf(stderr, "\r\033[K%s: %.2fM points%s, %.2f M points/s, %.0f s", out_.c_str(),
+               static_cast<double>(points_) * 1e-6, share, secs > 0 ? static_cast<double>(points_) / secs * 1e-6 : 0.0,
+               secs);
+  std::fflush(stderr);
+  g_progress_drawn = true;
+}
+
 void end_progress_line() {
   if (g_progress_drawn) std::fputc('\n', stderr);
   g_progress_drawn = false;

@@ -92,6 +92,23 @@ const std::atomic<bool>* install_interrupt_flag();
 std::function<void(const IngestProgress&)> progress_printer(bool quiet);
 // Ends the progress line (newline) if one was drawn.
 void end_progress_line();
+// A progress line for queries and decompression on a terminal (nothing
+// when `quiet` or stderr is not one): count(points) after each batch
+// redraws "OUT: 12.34M points (41%), 3.20 M points/s, 4 s" at most 4 times
+// a second; `total` is the points expected, 0 when not known.
+class QueryProgress {
+ public:
+  QueryProgress(std::string out, std::uint64_t total, bool quiet);
+  void count(std::uint64_t points);
+
+ private:
+  std::string out_;
+  std::uint64_t total_;
+  bool on_;
+  std::uint64_t points_ = 0;
+  std::int64_t start_ns_;
+  std::int64_t drawn_ns_ = 0;
+};
 
 // Human-readable byte count: "12.3 MB".
 std::string format_bytes(std::uint64_t bytes);

@@ -94,8 +94,18 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
     }
   }
   const auto t0 = now_ns();
-  const PointSink sink = [&](const PointCloud& batch) { return (*writer)->write(batch); };
+  // The share is known for a whole archive at full detail without filters.
+  const bool whole = box == nullptr && options.lod == 1 && options.max_points == 0 && options.classes.empty() &&
+                     !options.first_returns && !options.last_returns;
+  QueryProgress progress(out_path == "-" ? "standard output" : out_path, whole ? info.decoded_points : 0,
+                         quiet || out_path == "-");
+  const PointSink sink = [&](const PointCloud& batch) {
+    Status s = (*writer)->write(batch);
+    progress.count(batch.size());
+    return s;
+  };
   auto stats = box != nullptr ? (*reader)->query(*box, options, sink) : (*reader)->query_all(options, sink);
+  end_progress_line();
   if (!stats) return fail(command, stats.status());
   if (Status s = (*writer)->finish(); !s) return fail(command, s);
   const double secs = seconds_since(t0);
