@@ -820,9 +820,10 @@ class PlyPointReader final : public BatchPointReader {
                                    std::size_t want);
   Status push_vertex(const std::array<double, kFieldCount>& v, std::uint64_t index, PointCloud& out,
                      std::vector<std::uint16_t>* wide) const;
-  // The LAS dimension of field kLasField + k: an error naming the vertex and
-  // property when `value` does not fit it.
-  Status check_las_value(std::size_t k, double value, std::uint64_t index) const;
+  // Appends a vertex's LAS dimensions (fields kLasField on of `v`), or an
+  // error naming the vertex and property when a value does not fit its
+  // dimension.
+  Status push_las(const std::array<double, kFieldCount>& v, std::uint64_t index, PointCloud& out) const;
   // Appends the LAS dimensions of n fixed-size records (vertex `first` on).
   Status decode_las(const std::uint8_t* src, std::size_t n, std::uint64_t first, PointCloud& out) const;
   // Sizes out.las.extra_bytes for n points (nothing when no property is kept).
@@ -1032,23 +1033,23 @@ Status PlyPointReader::push_vertex(const std::array<double, kFieldCount>& v, std
     if (!std::isfinite(f)) return non_finite_intensity(name(), index, f);
     out.intensities.push_back(f);
   }
-  if (plan_.las_bits != 0) {
-    std::array<double, kTextColumnKinds> las{};
-    for (std::size_t k = 0; k < kLasFields; ++k) {
-      if (plan_.prop[kLasField + k] == VertexPlan::kNone) continue;
-      RELIEF_RETURN_IF_ERROR(check_las_value(k, v[kLasField + k], index));
-      las[static_cast<std::size_t>(las_text_columns()[k].column)] = v[kLasField + k];
-    }
-    push_las_columns(las.data(), plan_.las_bits, out.las);
-  }
-  return Status::ok();
+  return plan_.las_bits != 0 ? push_las(v, index, out) : Status::ok();
 }
 
-Status PlyPointReader::check_las_value(std::size_t k, double value, std::uint64_t index) const {
-  const std::string error = las_column_error(las_text_columns()[k], value);
-  if (error.empty()) return Status::ok();
-  return format_error(vertex_label(name(), index) + ": property " +
-                      quoted(vertex().properties[plan_.prop[kLasField + k]].name) + ": " + error);
+Status PlyPointReader::push_las(const std::array<double, kFieldCount>& v, std::uint64_t index,
+                                PointCloud& out) const {
+  std::array<double, kTextColumnKinds> las{};
+  for (std::size_t k = 0; k < kLasFields; ++k) {
+    if (plan_.prop[kLasField + k] == VertexPlan::kNone) continue;
+    const std::string error = las_column_error(las_text_columns()[k], v[kLasField + k]);
+    if (!error.empty()) {
+      return format_error(vertex_label(name(), index) + ": property " +
+                          quoted(vertex().properties[plan_.prop[kLasField + k]].name) + ": " + error);
+    }
+    las[static_cast<std::size_t>(las_text_columns()[k].column)] = v[kLasField + k];
+  }
+  push_las_columns(las.data(), plan_.las_bits, out.las);
+  return Status::ok();
 }
 
 Status PlyPointReader::decode_las(const std::uint8_t* src, std::size_t n, std::uint64_t first, PointCloud& out) const {
@@ -1058,13 +1059,7 @@ Status PlyPointReader::decode_las(const std::uint8_t* src, std::size_t n, std::u
       if (plan_.prop[kLasField + k] == VertexPlan::kNone) continue;
       v[kLasField + k] = load_scalar(src + layout_.offset[kLasField + k], layout_.type[kLasField + k], layout_.swap);
     }
-    std::array<double, kTextColumnKinds> las{};
-    for (std::size_t k = 0; k < kLasFields; ++k) {
-      if (plan_.prop[kLasField + k] == VertexPlan::kNone) continue;
-      RELIEF_RETURN_IF_ERROR(check_las_value(k, v[kLasField + k], first + i));
-      las[static_cast<std::size_t>(las_text_columns()[k].column)] = v[kLasField + k];
-    }
-    push_las_columns(las.data(), plan_.las_bits, out.las);
+    RELIEF_RETURN_IF_ERROR(push_las(v, first + i, out));
   }
   return Status::ok();
 }
