@@ -100,7 +100,26 @@ class XyzStreamWriter final : public StreamPointWriter {
     RELIEF_RETURN_IF_ERROR(check_tail(batch));
     const auto sep = static_cast<std::uint8_t>(separator_);
     const std::size_t max_line = kMaxTextRecord + kMaxColumnText * tail_.size();
+    const auto put_line = [&](std::uint8_t* p, std::size_t i) {
+      p = put_text_point(p, batch, i, options_, sep);
+      for (const TailColumn& c : tail_) {
+        *p++ = sep;
+        p = put_tail(p, batch.las, i, c);
+      }
+      *p++ = '\n';
+      return p;
+    };
     const std::size_t n = batch.size();
+    if (max_line > OutputFile::kBlockSize / 2) {
+      // Thousands of extra byte columns: a line may not fit the output's
+      // buffer, so each is built apart and appended.
+      std::vector<std::uint8_t> line(max_line);
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint8_t* end = put_line(line.data(), i);
+        RELIEF_RETURN_IF_ERROR(out_->append(line.data(), static_cast<std::size_t>(end - line.data())));
+      }
+      return Status::ok();
+    }
     std::size_t i = 0;
     while (i < n) {
       std::span<std::uint8_t> room;
@@ -108,14 +127,7 @@ class XyzStreamWriter final : public StreamPointWriter {
       std::uint8_t* const begin = room.data();
       std::uint8_t* p = begin;
       std::uint8_t* const last = begin + room.size() - max_line;
-      for (; i < n && p <= last; ++i) {
-        p = put_text_point(p, batch, i, options_, sep);
-        for (const TailColumn& c : tail_) {
-          *p++ = sep;
-          p = put_tail(p, batch.las, i, c);
-        }
-        *p++ = '\n';
-      }
+      for (; i < n && p <= last; ++i) p = put_line(p, i);
       out_->advance(static_cast<std::size_t>(p - begin));
     }
     return Status::ok();

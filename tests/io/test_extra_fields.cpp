@@ -697,3 +697,39 @@ TEST_CASE("A PCD rgba field's alpha is kept as uint8 extra bytes", "[io][pcd][ex
 }
 
 }  // namespace relief
+
+namespace relief {
+
+TEST_CASE("Text output of points with thousands of extra byte columns writes whole lines", "[io][xyz][extra]") {
+  // 40,000 undescribed extra bytes a point: 40,000 integer columns, a line
+  // longer than half the output buffer (built apart, then appended).
+  test::TempDir dir;
+  constexpr std::uint32_t kWidth = 40000;
+  PointCloud c;
+  c.positions = {{1, 2, 3}, {4, 5, 6}, {7, 8, 9}};
+  c.las.extra_bytes_size = kWidth;
+  c.las.extra_bytes.resize(3 * kWidth);
+  for (std::size_t i = 0; i < c.las.extra_bytes.size(); ++i) c.las.extra_bytes[i] = static_cast<std::uint8_t>(i * 7);
+  WriterOptions w;
+  w.las_attributes = kLasExtraBytes;
+  w.extra_bytes_size = kWidth;
+  const std::string path = dir.file("wide.csv");
+  auto writer = open_point_writer(path, w);
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(c).to_string() == "ok");
+  REQUIRE((*writer)->finish().is_ok());
+  std::ifstream in(path);
+  std::string line;
+  std::vector<std::string> lines;
+  while (std::getline(in, line)) lines.push_back(line);
+  REQUIRE(lines.size() == 4);
+  CHECK(lines[0].starts_with("X,Y,Z,extra_0,extra_1,"));
+  CHECK(lines[0].ends_with(",extra_39999"));
+  for (std::size_t k = 1; k < 4; ++k) {
+    CHECK(std::count(lines[k].begin(), lines[k].end(), ',') == 3 + kWidth - 1);
+  }
+  // Point 2's last byte: (2 * 40000 + 39999) * 7 mod 256.
+  CHECK(lines[3].ends_with("," + std::to_string(static_cast<std::uint8_t>((2 * kWidth + kWidth - 1) * 7))));
+}
+
+}  // namespace relief
