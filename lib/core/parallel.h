@@ -2,6 +2,7 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <mutex>
@@ -37,6 +38,22 @@ void parallel_for_ranges(std::size_t n, unsigned threads, Fn&& fn) {
     pool.emplace_back([&fn, b, e, t] { fn(b, e, t); });
   }
   for (auto& th : pool) th.join();
+}
+
+// Calls fn(i) for every i in [0, n) on up to `threads` threads, the calling
+// one included, each taking the next index as it finishes one (items of
+// uneven cost balance themselves). fn must not throw.
+template <typename Fn>
+void for_each_parallel(std::size_t n, unsigned threads, Fn&& fn) {
+  std::atomic<std::size_t> next{0};
+  const auto worker = [&] {
+    for (std::size_t i = next.fetch_add(1); i < n; i = next.fetch_add(1)) fn(i);
+  };
+  std::vector<std::thread> pool;
+  const std::size_t helpers = n == 0 ? 0 : std::min<std::size_t>(std::max(1u, threads), n) - 1;
+  for (std::size_t t = 0; t < helpers; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
 }
 
 // An ordered pipeline over items [0, n): the calling thread runs

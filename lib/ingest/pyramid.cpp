@@ -5,11 +5,9 @@
 // in bucket files between levels (ingest/bucket_files.h), so memory stays
 // bounded by the budget whatever the size of the scan.
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <thread>
 
 #include "core/parallel.h"
 #include "ingest/bucket_files.h"
@@ -138,20 +136,6 @@ void conform(PointCloud& cloud, const Carried& carried) {
   if (!carried.intensity) cloud.intensities.clear();
   if (carried.intensity && cloud.intensities.size() != n) cloud.intensities.assign(n, 0.0f);
   conform_las_attributes(cloud, carried.classification ? std::uint32_t{kLasClassification} : 0u, 0);
-}
-
-// Runs fn(i) for i in [0, n) on `threads` threads (this one included).
-template <typename Fn>
-void for_each_parallel(std::size_t n, unsigned threads, Fn&& fn) {
-  std::atomic<std::size_t> next{0};
-  const auto worker = [&] {
-    for (std::size_t i = next.fetch_add(1); i < n; i = next.fetch_add(1)) fn(i);
-  };
-  std::vector<std::thread> pool;
-  const unsigned helpers = static_cast<unsigned>(std::min<std::size_t>(threads, n)) - (n > 0 ? 1 : 0);
-  for (unsigned t = 0; t < helpers; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
 }
 
 class Builder {

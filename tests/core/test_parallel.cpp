@@ -101,3 +101,25 @@ TEST_CASE("ordered_pipeline stops at deliver's error or stop, and nothing is del
 }
 
 }  // namespace relief
+
+namespace relief {
+
+TEST_CASE("for_each_parallel calls fn once for every index, whatever the threads", "[core][parallel]") {
+  for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{7}, std::size_t{1000}}) {
+    for (const unsigned threads : {0u, 1u, 2u, 5u, 64u}) {
+      INFO(n << " items, " << threads << " threads");
+      std::vector<std::atomic<int>> calls(n);
+      std::vector<std::uint64_t> out(n, 0);
+      for_each_parallel(n, threads, [&](std::size_t i) {
+        calls[i].fetch_add(1);
+        out[i] = slow_square(i);
+      });
+      for (std::size_t i = 0; i < n; ++i) {
+        REQUIRE(calls[i].load() == 1);
+        REQUIRE(out[i] == std::uint64_t{i} * i);
+      }
+    }
+  }
+}
+
+}  // namespace relief
