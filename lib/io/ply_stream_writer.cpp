@@ -196,6 +196,7 @@ class PlyStreamWriter final : public StreamPointWriter {
       for (const LasTextColumn& c : las_text_columns()) {
         if ((options.las_attributes & c.bit) == 0) continue;
         las_.push_back(&c);
+        las_bits_ |= c.bit;
         las_size_ += ply::scalar_size(las_property_type(c.column));
         taken.emplace_back(c.snake);
       }
@@ -236,13 +237,7 @@ class PlyStreamWriter final : public StreamPointWriter {
   Status write_points(const PointCloud& batch) override {
     if (options_.ply_encoding == PlyEncoding::kAscii) return write_text_points(*out_, batch, options_, ' ');
     const std::size_t n = batch.size();
-    bool complete = extra_size_ == 0 || (batch.las.extra_bytes_size == extra_size_ &&
-                                         batch.las.extra_bytes.size() == n * extra_size_);
-    for (const LasTextColumn* c : las_) complete = complete && las_column_count(batch.las, c->bit) == n;
-    if (!complete && n > 0) {
-      return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) +
-                              " points lacks a LAS attribute or extra bytes the writer was opened with");
-    }
+    RELIEF_RETURN_IF_ERROR(check_batch_columns(batch.las, las_bits_, extra_size_, n, out_->path()));
     if (copy_positions_) return out_->append(batch.positions.data(), batch.size() * sizeof(Vec3d));
     std::size_t i = 0;
     while (i < n) {
@@ -296,6 +291,7 @@ class PlyStreamWriter final : public StreamPointWriter {
 
   std::size_t core_size_ = 0;
   std::vector<const LasTextColumn*> las_;
+  std::uint32_t las_bits_ = 0;  // the LasAttributeBits of las_
   std::size_t las_size_ = 0;
   std::size_t extra_size_ = 0;
   std::vector<ExtraProperty> extras_;

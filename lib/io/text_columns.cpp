@@ -196,6 +196,18 @@ std::size_t las_column_count(const LasAttributes& a, std::uint32_t bit) {
   }
 }
 
+Status check_batch_columns(const LasAttributes& las, std::uint32_t bits, std::size_t extra_size, std::size_t n,
+                           const std::string& path) {
+  if (n == 0) return Status::ok();
+  bool complete = extra_size == 0 || (las.extra_bytes_size == extra_size && las.extra_bytes.size() == n * extra_size);
+  for (const LasTextColumn& c : kLasColumns) {
+    if ((bits & c.bit) != 0) complete = complete && las_column_count(las, c.bit) == n;
+  }
+  if (complete) return Status::ok();
+  return invalid_argument(path + ": a batch of " + std::to_string(n) +
+                          " points lacks a LAS attribute or extra bytes the writer was opened with");
+}
+
 void size_las_columns(LasAttributes& las, std::uint32_t bits, std::size_t n) {
   const auto fit = [&](auto& v, std::uint32_t bit) { v.resize((bits & bit) != 0 ? n : 0); };
   fit(las.classification, kLasClassification);

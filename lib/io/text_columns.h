@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "relief/status.h"
 #include "relief/types.h"
 
 namespace relief {
@@ -99,6 +100,13 @@ double las_column_value(const LasAttributes& las, TextColumn column, std::size_t
 // Values `las` holds of the LAS dimension whose LasAttributeBits is `bit`
 // (one of those push_las_columns fills).
 std::size_t las_column_count(const LasAttributes& las, std::uint32_t bit);
+// Whether a writer's batch of n points carries what it was opened with: one
+// value per point of each LAS dimension whose LasAttributeBits `bits` has,
+// and `extra_size` extra bytes per point (0: none asked). An error naming
+// `path` when not (a caller's bug, which would otherwise read past the
+// vectors); every batch of 0 points passes.
+Status check_batch_columns(const LasAttributes& las, std::uint32_t bits, std::size_t extra_size, std::size_t n,
+                           const std::string& path);
 // Sizes the vectors push_las_columns fills for `bits` to n points and clears
 // the others of them (colour low bytes and extra bytes are left alone).
 void size_las_columns(LasAttributes& las, std::uint32_t bits, std::size_t n);

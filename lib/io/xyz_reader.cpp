@@ -70,10 +70,6 @@ constexpr std::size_t kMaxLine = std::size_t{1} << 20;
 using Role = TextColumn;
 constexpr std::size_t kRoleCount = kTextColumnKinds;
 constexpr std::size_t at_role(Role r) { return static_cast<std::size_t>(r); }
-using LasColumn = LasTextColumn;
-
-std::string display_name(std::string_view name) { return text_display_name(name); }
-std::optional<Role> role_of_name(std::string_view name) { return text_column_of_name(name); }
 
 struct ColumnPlan {
   std::vector<Role> roles;               // up to the last used column
@@ -91,7 +87,7 @@ void summarise(ColumnPlan& plan, const std::array<bool, kRoleCount>& seen) {
   plan.colors = has(Role::kRed) && has(Role::kGreen) && has(Role::kBlue);
   plan.intensity = has(Role::kIntensity);
   plan.las = 0;
-  for (const LasColumn& c : las_text_columns()) plan.las |= has(c.column) ? c.bit : 0u;
+  for (const LasTextColumn& c : las_text_columns()) plan.las |= has(c.column) ? c.bit : 0u;
 }
 
 void drop_trailing_skips(ColumnPlan& plan) {
@@ -112,7 +108,7 @@ Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& nam
     if (tok == "c" || tok == "C") {
       role = Role::kClass;
     } else if (tok != "_") {
-      const std::optional<Role> named = role_of_name(tok);
+      const std::optional<Role> named = text_column_of_name(tok);
       if (!named) {
         return invalid_argument(where + "unknown column " + quoted(tok) +
                                 " (use x y z r g b i c, a LAS dimension such as gps_time, return_number or "
@@ -153,16 +149,16 @@ std::optional<ColumnPlan> plan_from_header(std::string_view line) {
     std::size_t end = pos;
     while (end < line.size() && !is_blank(line[end]) && line[end] != ',' && line[end] != ';') ++end;
     const std::string_view name = line.substr(pos, end - pos);
-    const std::optional<Role> role = role_of_name(name);
+    const std::optional<Role> role = text_column_of_name(name);
     Role r = Role::kSkip;
     if (role && !seen[at_role(*role)]) {
       r = *role;
       seen[at_role(r)] = true;
-    } else if (!role && !display_name(name).empty()) {
+    } else if (!role && !text_display_name(name).empty()) {
       r = Role::kExtra;
     }
     plan.roles.push_back(r);
-    names.push_back(display_name(name));
+    names.push_back(text_display_name(name));
     pos = end;
     while (pos < line.size() && is_blank(line[pos])) ++pos;
     if (pos < line.size() && (line[pos] == ',' || line[pos] == ';')) ++pos;
@@ -313,7 +309,7 @@ class XyzPointReader final : public BatchPointReader {
   ReaderOptions options_;
   ByteSource src_;
   ColumnPlan plan_;
-  std::vector<const LasColumn*> las_columns_;  // the plan's LAS dimensions
+  std::vector<const LasTextColumn*> las_columns_;  // the plan's LAS dimensions
   std::vector<double> extra_values_;           // one point's kept columns
   std::uint64_t line_no_ = 0;
   std::string pending_;  // the first data line, read by start()
@@ -424,7 +420,7 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   } else {
     RELIEF_ASSIGN_OR_RETURN(plan_, parse_columns("x,y,z", name()));
   }
-  for (const LasColumn& c : las_text_columns()) {
+  for (const LasTextColumn& c : las_text_columns()) {
     if (std::find(plan_.roles.begin(), plan_.roles.end(), c.column) != plan_.roles.end()) las_columns_.push_back(&c);
   }
   info_.has_colors = plan_.colors;
@@ -435,7 +431,7 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
 }
 
 Status XyzPointReader::check_las_values(const double* v, std::uint64_t line_no) const {
-  for (const LasColumn* c : las_columns_) {
+  for (const LasTextColumn* c : las_columns_) {
     const std::string error = las_column_error(*c, v[at_role(c->column)]);
     if (!error.empty()) return line_error(line_no, error);
   }

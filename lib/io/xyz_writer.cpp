@@ -85,6 +85,7 @@ class XyzStreamWriter final : public StreamPointWriter {
     for (const LasTextColumn& c : las_text_columns()) {
       if ((bits & c.bit) == 0) continue;
       tail_.push_back({c.column, c.bit});
+      las_bits_ |= c.bit;
       header.emplace_back(c.header);
     }
     if ((bits & kLasExtraBytes) != 0 && options_.extra_bytes_size > 0) plan_extras(header);
@@ -97,7 +98,7 @@ class XyzStreamWriter final : public StreamPointWriter {
  protected:
   Status write_points(const PointCloud& batch) override {
     if (tail_.empty()) return write_text_points(*out_, batch, options_, separator_);
-    RELIEF_RETURN_IF_ERROR(check_tail(batch));
+    RELIEF_RETURN_IF_ERROR(check_batch_columns(batch.las, las_bits_, extra_size_, batch.size(), out_->path()));
     const auto sep = static_cast<std::uint8_t>(separator_);
     const std::size_t max_line = kMaxTextRecord + kMaxColumnText * tail_.size();
     const auto put_line = [&](std::uint8_t* p, std::size_t i) {
@@ -137,6 +138,7 @@ class XyzStreamWriter final : public StreamPointWriter {
  private:
   void plan_extras(std::vector<std::string>& header) {
     const std::size_t size = options_.extra_bytes_size;
+    extra_size_ = size;
     std::vector<ExtraBytesField> fields;
     if (!options_.extra_bytes_vlr.empty()) {
       const std::span<const std::uint8_t> payload(reinterpret_cast<const std::uint8_t*>(options_.extra_bytes_vlr.data()),
@@ -168,23 +170,6 @@ class XyzStreamWriter final : public StreamPointWriter {
       tail_.push_back(c);
       header.push_back(column_name("extra_" + std::to_string(k), taken));
     }
-  }
-
-  // Every vector a column reads holds one value per point.
-  Status check_tail(const PointCloud& batch) const {
-    const std::size_t n = batch.size();
-    const LasAttributes& a = batch.las;
-    for (const TailColumn& c : tail_) {
-      const std::size_t have =
-          c.bit != 0 ? las_column_count(a, c.bit)
-          : a.extra_bytes_size == options_.extra_bytes_size && a.extra_bytes.size() == n * a.extra_bytes_size ? n
-                                                                                                             : 0;
-      if (have != n && n > 0) {
-        return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) +
-                                " points lacks a LAS attribute the writer was opened with");
-      }
-    }
-    return Status::ok();
   }
 
   std::uint8_t* put_tail(std::uint8_t* p, const LasAttributes& a, std::size_t i, const TailColumn& c) const {
@@ -220,6 +205,8 @@ class XyzStreamWriter final : public StreamPointWriter {
 
   char separator_;
   std::vector<TailColumn> tail_;
+  std::uint32_t las_bits_ = 0;    // the LasAttributeBits of the LAS dimension columns
+  std::size_t extra_size_ = 0;    // extra bytes per point the columns read (0: none)
 };
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -441,4 +442,23 @@ TEST_CASE("PLY vertex properties named as LAS dimensions fill the LAS attributes
   REQUIRE_FALSE(n.is_ok());
   CHECK(n.status().message().find("pdal.ply: vertex 1: property 'ReturnNumber': return number 16 is not a whole "
                                   "number from 0 to 15") != std::string::npos);
+}
+
+TEST_CASE("PLY and text writers refuse a batch without the LAS attributes they were opened with",
+          "[xyz][ply][attributes]") {
+  TempDir dir;
+  relief::PointCloud c;
+  c.positions = {{1, 2, 3}, {4, 5, 6}};
+  c.las.classification = {2, 6};
+  relief::WriterOptions w;
+  w.las_attributes = relief::kLasClassification | relief::kLasGpsTime;
+  for (const char* name : {"a.csv", "a.ply"}) {
+    INFO(name);
+    auto writer = relief::open_point_writer(dir.file(name), w);
+    REQUIRE(writer.is_ok());
+    const relief::Status s = (*writer)->write(c);  // no GPS times
+    CHECK(s.code() == relief::StatusCode::kInvalidArgument);
+    CHECK(s.message().find("lacks a LAS attribute or extra bytes the writer was opened with") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file(name)));
+  }
 }
