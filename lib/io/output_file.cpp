@@ -81,6 +81,7 @@ Status OutputFile::flush() {
 
 Status OutputFile::room(std::size_t n, std::span<std::uint8_t>& out) {
   if (buf_.size() - used_ < n) RELIEF_RETURN_IF_ERROR(flush());
+  if (buf_.size() < n) buf_.resize(n);  // flush() emptied it
   out = std::span<std::uint8_t>(buf_.data() + used_, buf_.size() - used_);
   return Status::ok();
 }

@@ -40,9 +40,10 @@ class OutputFile {
   // Bytes appended so far (buffered or written).
   std::uint64_t position() const { return flushed_ + used_; }
 
-  // Free space in the block buffer, at least `n` bytes (n <= kBlockSize):
-  // the buffer is written out first when it has less. Encoders fill a prefix
-  // of the span and report it with advance().
+  // Free space in the block buffer, at least `n` bytes: the buffer is
+  // written out first when it has less, and grows when n exceeds a block (a
+  // text line of thousands of columns). Encoders fill a prefix of the span
+  // and report it with advance().
   Status room(std::size_t n, std::span<std::uint8_t>& out);
   void advance(std::size_t n) { used_ += n; }
 

@@ -111,16 +111,6 @@ class XyzStreamWriter final : public StreamPointWriter {
       return p;
     };
     const std::size_t n = batch.size();
-    if (max_line > OutputFile::kBlockSize / 2) {
-      // Thousands of extra byte columns: a line may not fit the output's
-      // buffer, so each is built apart and appended.
-      std::vector<std::uint8_t> line(max_line);
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::uint8_t* end = put_line(line.data(), i);
-        RELIEF_RETURN_IF_ERROR(out_->append(line.data(), static_cast<std::size_t>(end - line.data())));
-      }
-      return Status::ok();
-    }
     std::size_t i = 0;
     while (i < n) {
       std::span<std::uint8_t> room;

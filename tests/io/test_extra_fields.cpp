@@ -701,8 +701,9 @@ TEST_CASE("A PCD rgba field's alpha is kept as uint8 extra bytes", "[io][pcd][ex
 namespace relief {
 
 TEST_CASE("Text output of points with thousands of extra byte columns writes whole lines", "[io][xyz][extra]") {
-  // 40,000 undescribed extra bytes a point: 40,000 integer columns, a line
-  // longer than half the output buffer (built apart, then appended).
+  // 40,000 undescribed extra bytes a point: 40,000 integer columns, whose
+  // widest line needs more room than the output's 1 MiB block
+  // (OutputFile::room grows for it).
   test::TempDir dir;
   constexpr std::uint32_t kWidth = 40000;
   PointCloud c;
