@@ -16,7 +16,11 @@
 // ReaderOptions::extra_bytes is off: text declares no types, and a double
 // holds every value a decimal text gives to 15 significant digits (PDAL reads
 // text columns as doubles too). An empty value there is a NaN; a later value
-// that is not a number is an error. Columns that are not kept (not numbers on
+// that is not a number, or an integer a double would round (beyond 2^53), is
+// an error. A column whose first value is an integer beyond 2^53 in magnitude
+// (nanosecond timestamps, 64-bit IDs) is an int64 field instead (uint64 above
+// INT64_MAX), whose later values must be integers in range: rounding them
+// would change the data silently. Columns that are not kept (not numbers on
 // the first line, a name seen twice) are listed in a warning; a partial
 // colour set is kept as extra bytes.
 // A header that does not name x, y and z leaves the columns at x y z.
@@ -43,6 +47,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -253,11 +258,75 @@ char delimiter_of(std::string_view first_data_line) {
   return ' ';
 }
 
-// Appends `v` as 8 little-endian bytes.
-void put_f64_le(std::vector<std::uint8_t>& out, double v) {
-  const auto bits = std::bit_cast<std::uint64_t>(v);
+// Appends `bits` as 8 little-endian bytes.
+void put_u64_le(std::vector<std::uint8_t>& out, std::uint64_t bits) {
   for (int k = 0; k < 8; ++k) out.push_back(static_cast<std::uint8_t>(bits >> (8 * k)));
 }
+
+// LAS Extra Bytes data types of the kept text columns (see the top of the file).
+constexpr int kUInt64 = 7;
+constexpr int kInt64 = 8;
+constexpr int kFloat64 = 10;
+// Integers up to 2^53 in magnitude are exact as doubles.
+constexpr std::uint64_t kExactInDouble = std::uint64_t{1} << 53;
+
+// `tok` is an integer literal: an optional sign, then digits only.
+bool is_integer_literal(std::string_view tok) {
+  if (!tok.empty() && (tok[0] == '+' || tok[0] == '-')) tok.remove_prefix(1);
+  return !tok.empty() && std::all_of(tok.begin(), tok.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+// An integer literal's value in the column type `type` (kInt64 or kUInt64)
+// as its 64-bit pattern; false when it is none or out of the type's range.
+bool parse_integer(std::string_view tok, int type, std::uint64_t& bits) {
+  if (!is_integer_literal(tok)) return false;
+  const char* first = tok.data() + (tok[0] == '+' ? 1 : 0);
+  const char* const last = tok.data() + tok.size();
+  if (type == kUInt64) {
+    if (*first == '-') {  // only a zero ("-0", "-00") is in range
+      bits = 0;
+      return std::all_of(first + 1, last, [](char c) { return c == '0'; });
+    }
+    const auto [p, ec] = std::from_chars(first, last, bits);
+    return ec == std::errc{} && p == last;
+  }
+  std::int64_t v = 0;
+  const auto [p, ec] = std::from_chars(first, last, v);
+  bits = static_cast<std::uint64_t>(v);
+  return ec == std::errc{} && p == last;
+}
+
+// The type a kept column takes from its first value: a 64-bit integer type
+// when that value is an integer literal a double cannot hold exactly (beyond
+// 2^53 in magnitude: nanosecond timestamps, 64-bit IDs), else float64.
+int column_type_of(std::string_view first_value) {
+  if (!is_integer_literal(first_value)) return kFloat64;
+  std::uint64_t bits = 0;
+  if (parse_integer(first_value, kInt64, bits)) {
+    const auto v = static_cast<std::int64_t>(bits);
+    const std::uint64_t magnitude = v < 0 ? std::uint64_t{0} - bits : bits;
+    return magnitude > kExactInDouble ? kInt64 : kFloat64;
+  }
+  return parse_integer(first_value, kUInt64, bits) ? kUInt64 : kFloat64;
+}
+
+// Whether the double `value` read from `tok` is the number `tok` writes. Only
+// an integer literal of 16 digits or more can fail (a decimal fraction is
+// rounded to the nearest double by design, as PDAL reads text); glibc's %.0f
+// prints a double's integer value exactly.
+bool holds_integer_exactly(std::string_view tok, double value) {
+  if (tok.size() < 16 || !is_integer_literal(tok)) return true;
+  std::string_view digits = tok;
+  if (digits[0] == '+' || digits[0] == '-') digits.remove_prefix(1);
+  while (digits.size() > 1 && digits[0] == '0') digits.remove_prefix(1);
+  if (digits.size() < 16) return true;  // below 10^15 < 2^53
+  char printed[400];
+  const int len = std::snprintf(printed, sizeof printed, "%.0f", std::abs(value));
+  return len > 0 && static_cast<std::size_t>(len) < sizeof printed &&
+         std::string_view(printed, static_cast<std::size_t>(len)) == digits;
+}
+
+const char* type_name(int type) { return type == kInt64 ? "int64" : type == kUInt64 ? "uint64" : "float64"; }
 
 class XyzPointReader final : public BatchPointReader {
  public:
@@ -304,13 +373,16 @@ class XyzPointReader final : public BatchPointReader {
   Status parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                      std::vector<std::uint16_t>* wide);
   Status check_las_values(const double* v, std::uint64_t line_no) const;
+  // Reads kept column `extra` (column c of the line) into extra_values_.
+  Status parse_extra(std::string_view tok, std::size_t c, std::size_t extra, std::uint64_t line_no);
 
   InputSpec input_;
   ReaderOptions options_;
   ByteSource src_;
   ColumnPlan plan_;
   std::vector<const LasTextColumn*> las_columns_;  // the plan's LAS dimensions
-  std::vector<double> extra_values_;           // one point's kept columns
+  std::vector<int> extra_types_;               // the kept columns' LAS data types
+  std::vector<std::uint64_t> extra_values_;    // one point's kept columns, as 64-bit patterns
   std::uint64_t line_no_ = 0;
   std::string pending_;  // the first data line, read by start()
   std::uint64_t pending_line_no_ = 0;
@@ -355,6 +427,7 @@ Status XyzPointReader::settle_extras() {
     for (bool more = pos < pending_.size(); more;) first.push_back(take_column(pending_, pos, delimiter_, more));
   }
   std::vector<std::string> not_numbers;
+  extra_types_.clear();
   for (const std::size_t c : columns) {
     const std::string& extra_name = plan_.extra_names[k++];
     double value = 0;
@@ -365,14 +438,14 @@ Status XyzPointReader::settle_extras() {
       continue;
     }
     kept.push_back(extra_name);
+    extra_types_.push_back(has_pending_ ? column_type_of(first[c]) : kFloat64);
   }
   plan_.extra_names = std::move(kept);
   if (!not_numbers.empty()) plan_.unread.insert(plan_.unread.begin(), not_numbers.begin(), not_numbers.end());
   drop_trailing_skips(plan_);
   if (plan_.extra_names.empty()) return Status::ok();
   std::vector<KeptField> fields;
-  constexpr int kFloat64 = 10;  // LAS Extra Bytes data type "double"
-  for (const std::string& n : plan_.extra_names) fields.push_back({n, kFloat64});
+  for (std::size_t e = 0; e < plan_.extra_names.size(); ++e) fields.push_back({plan_.extra_names[e], extra_types_[e]});
   RELIEF_ASSIGN_OR_RETURN(info_.extra_bytes_vlr,
                           kept_fields_vlr(fields, name(), "column", "text column", info_.warnings));
   info_.extra_bytes_size = static_cast<std::uint32_t>(8 * plan_.extra_names.size());
@@ -438,6 +511,34 @@ Status XyzPointReader::check_las_values(const double* v, std::uint64_t line_no) 
   return Status::ok();
 }
 
+Status XyzPointReader::parse_extra(std::string_view tok, std::size_t c, std::size_t extra, std::uint64_t line_no) {
+  const int type = extra_types_[extra];
+  const std::string kept = " (kept as " + std::string(type_name(type)) + " extra bytes " +
+                           quoted(plan_.extra_names[extra]) + "; --no-extra-bytes skips such columns)";
+  const std::string column = "column " + std::to_string(c + 1) + " ";
+  if (type == kFloat64) {
+    double value = 0;
+    if (tok.empty()) {
+      value = std::numeric_limits<double>::quiet_NaN();  // a missing value
+    } else if (!parse_number(tok, value)) {
+      return line_error(line_no, column + quoted(tok) + " is not a number" + kept);
+    } else if (!holds_integer_exactly(tok, value)) {
+      // Rounding it would change the data silently.
+      return line_error(line_no, column + quoted(tok) + " is an integer a float64 cannot hold exactly" + kept +
+                                     ": the column's type comes from its first value, and a column whose first "
+                                     "value is an integer beyond 2^53 is kept as a 64-bit integer");
+    }
+    extra_values_[extra] = std::bit_cast<std::uint64_t>(value);
+    return Status::ok();
+  }
+  if (tok.empty()) return line_error(line_no, column + "is empty" + kept + ", which has no missing value");
+  if (!parse_integer(tok, type, extra_values_[extra])) {
+    return line_error(line_no, column + quoted(tok) + (is_integer_literal(tok) ? " is out of range" : " is not an integer") +
+                                   kept + ": the column's type comes from its first value");
+  }
+  return Status::ok();
+}
+
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                                    std::vector<std::uint16_t>* wide) {
   double v[kRoleCount] = {};
@@ -454,24 +555,16 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     const Role role = plan_.roles[c];
     if (role == Role::kSkip) continue;
     double value = 0;
-    if (role == Role::kExtra && tok.empty()) {
-      extra_values_[extra++] = std::numeric_limits<double>::quiet_NaN();  // a missing value
+    if (role == Role::kExtra) {
+      RELIEF_RETURN_IF_ERROR(parse_extra(tok, c, extra, line_no));
+      ++extra;
       continue;
     }
     if (!parse_number(tok, value)) {
-      std::string what = "column " + std::to_string(c + 1) + " " +
-                         (tok.empty() ? std::string("is empty") : quoted(tok) + " is not a number");
-      if (role == Role::kExtra) {
-        what += " (kept as extra bytes " + quoted(plan_.extra_names[extra]) +
-                "; --no-extra-bytes skips such columns)";
-      }
-      return line_error(line_no, what);
+      return line_error(line_no, "column " + std::to_string(c + 1) + " " +
+                                     (tok.empty() ? std::string("is empty") : quoted(tok) + " is not a number"));
     }
-    if (role == Role::kExtra) {
-      extra_values_[extra++] = value;
-    } else {
-      v[at_role(role)] = value;
-    }
+    v[at_role(role)] = value;
   }
   const Vec3d p{v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]};
   if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
@@ -501,7 +594,7 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
   RELIEF_RETURN_IF_ERROR(check_las_values(v, line_no));
   out.positions.push_back(p);
   push_las_columns(v, plan_.las, out.las);
-  for (const double e : extra_values_) put_f64_le(out.las.extra_bytes, e);
+  for (const std::uint64_t e : extra_values_) put_u64_le(out.las.extra_bytes, e);
   if (plan_.colors) {
     if (wide != nullptr) {
       wide->insert(wide->end(), levels, levels + 3);

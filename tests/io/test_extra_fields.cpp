@@ -520,6 +520,11 @@ double extra_f64(const PointCloud& c, std::size_t point, std::size_t field) {
   return v;
 }
 
+std::uint64_t extra_u64(const PointCloud& c, std::size_t point, std::size_t field) {
+  const double v = extra_f64(c, point, field);  // (its bounds checks)
+  return std::bit_cast<std::uint64_t>(v);
+}
+
 }  // namespace
 
 TEST_CASE("PDAL's text header gives every LAS dimension of a CSV", "[io][xyz][las]") {
@@ -630,7 +635,7 @@ TEST_CASE("CSV columns without a LAS meaning are kept as float64 extra bytes", "
   CHECK(c.las.classification == std::vector<std::uint8_t>{2, 2});
   write_file(path, "x;y;z;w\n1;2;3;\n2;3;4;0,5\n");
   Status bad = read_text_status(path);
-  CHECK_THAT(bad.message(), Contains("line 3: column 4 '0,5' is not a number (kept as extra bytes 'w'; "
+  CHECK_THAT(bad.message(), Contains("line 3: column 4 '0,5' is not a number (kept as float64 extra bytes 'w'; "
                                      "--no-extra-bytes skips such columns)"));
   write_file(path, "x;y;z;w\n1;2;3;\n2;3;4;5\n");
   c = read_text(path, 100, &info);
@@ -650,6 +655,80 @@ TEST_CASE("CSV columns without a LAS meaning are kept as float64 extra bytes", "
   c = read_text(path, 100, &info);
   CHECK(info.warnings.empty());
   CHECK(info.las_attributes == 0);
+}
+
+TEST_CASE("CSV integer columns beyond 2^53 are kept as 64-bit integers, never rounded", "[io][xyz][extra]") {
+  test::TempDir dir;
+  const std::string path = dir.file("t.csv");
+  // Nanosecond timestamps (a double would round them to 256 ns), a uint64 ID
+  // above INT64_MAX, and a float column beside them.
+  write_file(path, "x,y,z,stamp_ns,id,w\n"
+                   "1,2,3,1700000000123456789,18446744073709551615,0.5\n"
+                   "2,3,4,-1700000000123456781,9223372036854775808,7\n"
+                   "3,4,5,+17,0,-0.25\n");
+  PointStreamInfo info;
+  PointCloud c = read_text(path, 2, &info);
+  REQUIRE(c.size() == 3);
+  CHECK(info.warnings.empty());
+  const std::vector<ExtraBytesField> fields = fields_of(info);
+  REQUIRE(fields.size() == 3);
+  CHECK(fields[0].type_name == "int64");
+  CHECK(fields[1].type_name == "uint64");
+  CHECK(fields[2].type_name == "float64");
+  CHECK(static_cast<std::int64_t>(extra_u64(c, 0, 0)) == 1700000000123456789);
+  CHECK(static_cast<std::int64_t>(extra_u64(c, 1, 0)) == -1700000000123456781);
+  CHECK(static_cast<std::int64_t>(extra_u64(c, 2, 0)) == 17);
+  CHECK(extra_u64(c, 0, 1) == ~std::uint64_t{0});
+  CHECK(extra_u64(c, 1, 1) == (std::uint64_t{1} << 63));
+  CHECK(extra_u64(c, 2, 1) == 0);
+  CHECK(extra_f64(c, 1, 2) == 7);
+
+  // Text output prints them whole, and the reader takes them back.
+  WriterOptions w;
+  w.las_attributes = kLasExtraBytes;
+  w.extra_bytes_size = info.extra_bytes_size;
+  w.extra_bytes_vlr = info.extra_bytes_vlr;
+  const std::string out = dir.file("out.csv");
+  {
+    auto writer = open_point_writer(out, w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(c).to_string() == "ok");
+    REQUIRE((*writer)->finish().to_string() == "ok");
+  }
+  PointStreamInfo again_info;
+  const PointCloud again = read_text(out, 100, &again_info);
+  REQUIRE(again.size() == 3);
+  CHECK(again.las.extra_bytes == c.las.extra_bytes);
+  CHECK(again_info.extra_bytes_vlr == info.extra_bytes_vlr);
+
+  // What an integer column refuses, naming the line and the type.
+  const auto refused = [&](const std::string& second, const std::string& what) {
+    write_file(path, "x,y,z,stamp_ns\n1,2,3,1700000000123456789\n2,3,4," + second + "\n");
+    const Status s = read_text_status(path);
+    INFO(second << ": " << s.to_string());
+    CHECK(s.code() == StatusCode::kFormatError);
+    CHECK_THAT(s.message(), Contains("t.csv: line 3: column 4 " + what));
+    CHECK_THAT(s.message(), Contains("kept as int64 extra bytes 'stamp_ns'"));
+  };
+  refused("1.5", "'1.5' is not an integer");
+  refused("1e18", "'1e18' is not an integer");
+  refused("", "is empty");
+  refused("9223372036854775808", "'9223372036854775808' is out of range");
+  refused("nan", "'nan' is not an integer");
+
+  // A float64 column (its first value small) refuses an integer it would
+  // round, and keeps those it holds exactly.
+  write_file(path, "x,y,z,n\n1,2,3,5\n2,3,4,9007199254740993\n");
+  Status s = read_text_status(path);
+  CHECK_THAT(s.message(), Contains("line 3: column 4 '9007199254740993' is an integer a float64 cannot hold exactly"));
+  write_file(path, "x,y,z,n\n1,2,3,5\n2,3,4,9007199254740992\n3,4,5,-10000000000000000000000\n"
+                   "4,5,6,0000000000000000000001\n");
+  c = read_text(path, 100, &info);
+  REQUIRE(c.size() == 4);
+  CHECK(fields_of(info)[0].type_name == "float64");
+  CHECK(extra_f64(c, 1, 0) == 9007199254740992.0);
+  CHECK(extra_f64(c, 2, 0) == -1e22);  // exactly a double
+  CHECK(extra_f64(c, 3, 0) == 1);
 }
 
 }  // namespace relief
