@@ -4,7 +4,7 @@
 // in place. A zero-padded decimal is still a plain decimal integer, so every
 // PLY reader accepts it. Properties: double x y z, then uchar red green blue
 // and float intensity when the options ask for them, then one property per
-// LAS dimension the points carry (binary PLY only), under LAS's names, which
+// LAS dimension the points carry, under LAS's names, which
 // the PLY reader maps back (io/text_columns.h): uchar classification,
 // synthetic, key_point, withheld, overlap, return_number, number_of_returns,
 // scan_direction_flag, edge_of_flight_line, scanner_channel, user_data;
@@ -192,14 +192,12 @@ class PlyStreamWriter final : public StreamPointWriter {
     std::vector<std::string> taken = {"x", "y", "z"};
     if (options.colors) taken.insert(taken.end(), {"red", "green", "blue"});
     if (options.intensity) taken.emplace_back("intensity");
-    if (options.ply_encoding != PlyEncoding::kAscii) {
-      for (const LasTextColumn& c : las_text_columns()) {
-        if ((options.las_attributes & c.bit) == 0) continue;
-        las_.push_back(&c);
-        las_bits_ |= c.bit;
-        las_size_ += ply::scalar_size(las_property_type(c.column));
-        taken.emplace_back(c.snake);
-      }
+    for (const LasTextColumn& c : las_text_columns()) {
+      if ((options.las_attributes & c.bit) == 0) continue;
+      las_.push_back(&c);
+      las_bits_ |= c.bit;
+      las_size_ += ply::scalar_size(las_property_type(c.column));
+      taken.emplace_back(c.snake);
     }
     if ((options.las_attributes & kLasExtraBytes) != 0 && options.extra_bytes_size > 0) {
       extra_size_ = options.extra_bytes_size;
@@ -235,9 +233,9 @@ class PlyStreamWriter final : public StreamPointWriter {
 
  protected:
   Status write_points(const PointCloud& batch) override {
-    if (options_.ply_encoding == PlyEncoding::kAscii) return write_text_points(*out_, batch, options_, ' ');
     const std::size_t n = batch.size();
     RELIEF_RETURN_IF_ERROR(check_batch_columns(batch.las, las_bits_, extra_size_, n, out_->path()));
+    if (options_.ply_encoding == PlyEncoding::kAscii) return write_ascii(batch);
     if (copy_positions_) return out_->append(batch.positions.data(), batch.size() * sizeof(Vec3d));
     std::size_t i = 0;
     while (i < n) {
@@ -277,6 +275,47 @@ class PlyStreamWriter final : public StreamPointWriter {
     }
   }
 
+  // ASCII records: the core properties as text output writes them, then the
+  // LAS dimensions and the extra bytes' values, each as its PLY type prints
+  // (integers whole, floats and doubles in the shortest text that reads back
+  // to the same value; a NaN reads back as a NaN, without its payload).
+  Status write_ascii(const PointCloud& batch) const {
+    const std::size_t tail_room = kMaxColumnText * (las_.size() + extras_.size());
+    return write_text_lines(*out_, batch, options_, ' ', tail_room, [&](std::uint8_t* p, std::size_t i) {
+      for (const LasTextColumn* c : las_) {
+        *p++ = ' ';
+        const double v = las_column_value(batch.las, c->column, i);
+        switch (las_property_type(c->column)) {
+          case ply::ScalarType::kFloat32: p = put_shortest(p, static_cast<float>(v)); break;
+          case ply::ScalarType::kFloat64: p = put_shortest(p, v); break;
+          default: p = put_integer(p, static_cast<std::uint32_t>(v)); break;  // uchar, ushort
+        }
+      }
+      const std::uint8_t* v = batch.las.extra_bytes.data() + i * extra_size_;
+      for (const ExtraProperty& e : extras_) {
+        *p++ = ' ';
+        p = put_scalar_text(p, v, e.type);
+        v += ply::scalar_size(e.type);
+      }
+      return p;
+    });
+  }
+
+  // The little-endian value of PLY type `t` at `v` as ASCII PLY text.
+  static std::uint8_t* put_scalar_text(std::uint8_t* p, const std::uint8_t* v, ply::ScalarType t) {
+    switch (t) {
+      case ply::ScalarType::kInt8: return put_integer(p, static_cast<int>(load_le_value<std::int8_t>(v)));
+      case ply::ScalarType::kUint8: return put_integer(p, static_cast<unsigned>(v[0]));
+      case ply::ScalarType::kInt16: return put_integer(p, load_le_value<std::int16_t>(v));
+      case ply::ScalarType::kUint16: return put_integer(p, load_le_value<std::uint16_t>(v));
+      case ply::ScalarType::kInt32: return put_integer(p, load_le_value<std::int32_t>(v));
+      case ply::ScalarType::kUint32: return put_integer(p, load_le_value<std::uint32_t>(v));
+      case ply::ScalarType::kFloat32: return put_shortest(p, load_le_value<float>(v));
+      case ply::ScalarType::kFloat64: return put_shortest(p, load_le_value<double>(v));
+    }
+    return p;
+  }
+
   // The LAS dimensions of points [first, first + n) after each record's core
   // properties.
   void put_las(const PointCloud& batch, std::size_t first, std::size_t n, std::uint8_t* dst) const {
@@ -305,10 +344,6 @@ class PlyStreamWriter final : public StreamPointWriter {
 }  // namespace
 
 Result<std::unique_ptr<PointWriter>> open_ply_writer(const std::string& path, const WriterOptions& options) {
-  if (options.ply_encoding == PlyEncoding::kAscii && (options.las_attributes & kLasExtraBytes) != 0 &&
-      options.extra_bytes_size > 0) {
-    return unsupported(path + ": ASCII PLY output does not carry extra bytes (write binary PLY or LAS)");
-  }
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<OutputFile> out, OutputFile::create(path));
   if (out->is_stdout()) {
     return invalid_argument("PLY cannot be written to standard output (its header is completed last)");

@@ -120,23 +120,7 @@ std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size
 
 Status write_text_points(OutputFile& out, const PointCloud& batch, const WriterOptions& options,
                          char separator) {
-  const auto sep = static_cast<std::uint8_t>(separator);
-  const std::size_t n = batch.size();
-  std::size_t i = 0;
-  while (i < n) {
-    std::span<std::uint8_t> room;
-    RELIEF_RETURN_IF_ERROR(out.room(kMaxTextRecord, room));
-    std::uint8_t* const begin = room.data();
-    std::uint8_t* p = begin;
-    // Lines until the block may not hold another one.
-    std::uint8_t* const last = begin + room.size() - kMaxTextRecord;
-    for (; i < n && p <= last; ++i) {
-      p = put_text_point(p, batch, i, options, sep);
-      *p++ = '\n';
-    }
-    out.advance(static_cast<std::size_t>(p - begin));
-  }
-  return Status::ok();
+  return write_text_lines(out, batch, options, separator, 0, [](std::uint8_t* p, std::size_t) { return p; });
 }
 
 }  // namespace relief

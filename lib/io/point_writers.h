@@ -3,7 +3,11 @@
 // sticky errors, commit). Internal to lib/io.
 #pragma once
 
+#include <algorithm>
+#include <bit>
 #include <charconv>
+#include <cstring>
+#include <span>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -93,5 +97,52 @@ std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size
 // columns separated by `separator`.
 Status write_text_points(OutputFile& out, const PointCloud& batch, const WriterOptions& options,
                          char separator);
+
+// Room for one column: a shortest double (24 characters) or a 64-bit integer
+// (20), and a separator.
+inline constexpr std::size_t kMaxColumnText = 32;
+
+template <typename T>
+std::uint8_t* put_integer(std::uint8_t* p, T v) {
+  char* c = reinterpret_cast<char*>(p);
+  return reinterpret_cast<std::uint8_t*>(std::to_chars(c, c + kMaxColumnText, v).ptr);
+}
+
+// The little-endian value of type T at `p` (extra bytes are little endian).
+template <typename T>
+T load_le_value(const std::uint8_t* p) {
+  std::uint8_t b[sizeof(T)];
+  for (std::size_t k = 0; k < sizeof(T); ++k) b[k] = p[k];
+  if constexpr (std::endian::native == std::endian::big) std::reverse(b, b + sizeof(T));
+  T v;
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+
+// Lines as write_text_points() writes them, each point's core columns
+// followed by what `put_tail(p, i)` writes for point i at p (its columns,
+// each after a separator, at most `tail_room` bytes; it returns the end).
+template <typename PutTail>
+Status write_text_lines(OutputFile& out, const PointCloud& batch, const WriterOptions& options, char separator,
+                        std::size_t tail_room, PutTail&& put_tail) {
+  const auto sep = static_cast<std::uint8_t>(separator);
+  const std::size_t max_line = kMaxTextRecord + tail_room;
+  const std::size_t n = batch.size();
+  std::size_t i = 0;
+  while (i < n) {
+    std::span<std::uint8_t> room;
+    RELIEF_RETURN_IF_ERROR(out.room(max_line, room));
+    std::uint8_t* const begin = room.data();
+    std::uint8_t* p = begin;
+    // Lines until the block may not hold another one.
+    std::uint8_t* const last = begin + room.size() - max_line;
+    for (; i < n && p <= last; ++i) {
+      p = put_tail(put_text_point(p, batch, i, options, sep), i);
+      *p++ = '\n';
+    }
+    out.advance(static_cast<std::size_t>(p - begin));
+  }
+  return Status::ok();
+}
 
 }  // namespace relief

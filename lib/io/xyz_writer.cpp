@@ -43,26 +43,6 @@ struct TailColumn {
   double value_offset = 0;
 };
 
-// The widest value text: a shortest double (24 characters) or a 64-bit
-// integer (20), and a separator.
-constexpr std::size_t kMaxColumnText = 32;
-
-template <typename T>
-T load_le_value(const std::uint8_t* p) {
-  std::uint8_t b[sizeof(T)];
-  for (std::size_t k = 0; k < sizeof(T); ++k) b[k] = p[k];
-  if constexpr (std::endian::native == std::endian::big) std::reverse(b, b + sizeof(T));
-  T v;
-  std::memcpy(&v, b, sizeof(T));
-  return v;
-}
-
-template <typename T>
-std::uint8_t* put_integer(std::uint8_t* p, T v) {
-  char* c = reinterpret_cast<char*>(p);
-  return reinterpret_cast<std::uint8_t*>(std::to_chars(c, c + kMaxColumnText, v).ptr);
-}
-
 // A name the text reader keeps as extra bytes under the same name: no
 // separator, quote or blank in it, not starting as a comment does.
 std::string column_name(std::string base, std::vector<std::string>& taken) {
@@ -100,28 +80,14 @@ class XyzStreamWriter final : public StreamPointWriter {
     if (tail_.empty()) return write_text_points(*out_, batch, options_, separator_);
     RELIEF_RETURN_IF_ERROR(check_batch_columns(batch.las, las_bits_, extra_size_, batch.size(), out_->path()));
     const auto sep = static_cast<std::uint8_t>(separator_);
-    const std::size_t max_line = kMaxTextRecord + kMaxColumnText * tail_.size();
-    const auto put_line = [&](std::uint8_t* p, std::size_t i) {
-      p = put_text_point(p, batch, i, options_, sep);
-      for (const TailColumn& c : tail_) {
-        *p++ = sep;
-        p = put_tail(p, batch.las, i, c);
-      }
-      *p++ = '\n';
-      return p;
-    };
-    const std::size_t n = batch.size();
-    std::size_t i = 0;
-    while (i < n) {
-      std::span<std::uint8_t> room;
-      RELIEF_RETURN_IF_ERROR(out_->room(max_line, room));
-      std::uint8_t* const begin = room.data();
-      std::uint8_t* p = begin;
-      std::uint8_t* const last = begin + room.size() - max_line;
-      for (; i < n && p <= last; ++i) p = put_line(p, i);
-      out_->advance(static_cast<std::size_t>(p - begin));
-    }
-    return Status::ok();
+    return write_text_lines(*out_, batch, options_, separator_, kMaxColumnText * tail_.size(),
+                            [&](std::uint8_t* p, std::size_t i) {
+                              for (const TailColumn& c : tail_) {
+                                *p++ = sep;
+                                p = put_tail(p, batch.las, i, c);
+                              }
+                              return p;
+                            });
   }
   Status complete() override { return Status::ok(); }
 

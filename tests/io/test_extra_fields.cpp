@@ -437,10 +437,22 @@ TEST_CASE("PLY output writes extra bytes as properties of their types, read back
     for (std::uint32_t b = 0; b < size; ++b) cloud.las.extra_bytes.push_back(static_cast<std::uint8_t>(rng()));
   }
   cloud.las.extra_bytes_size = size;
+  // Finite float32 values (ASCII PLY gives a NaN back without its payload),
+  // some of them subnormal, and the extremes of every other type.
+  for (int i = 0; i < 300; ++i) {
+    std::uint8_t* f = cloud.las.extra_bytes.data() + i * size;
+    float v = 0;
+    std::memcpy(&v, f, 4);
+    if (!std::isfinite(v)) v = i % 2 == 0 ? std::numeric_limits<float>::denorm_min() * static_cast<float>(i) : -1e38f;
+    std::memcpy(f, &v, 4);
+  }
+  std::memset(cloud.las.extra_bytes.data() + 4, 0xFF, 8);  // point 0's int64: all ones
 
-  for (const PlyEncoding enc : {PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian}) {
+  for (const PlyEncoding enc : {PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian, PlyEncoding::kAscii}) {
     INFO(static_cast<int>(enc));
-    const std::string path = dir.file(enc == PlyEncoding::kBinaryBigEndian ? "be.ply" : "le.ply");
+    const std::string path = dir.file(enc == PlyEncoding::kBinaryBigEndian ? "be.ply"
+                                      : enc == PlyEncoding::kAscii         ? "ascii.ply"
+                                                                           : "le.ply");
     WriterOptions w;
     w.colors = true;
     w.las_attributes = kLasExtraBytes;
@@ -465,16 +477,25 @@ TEST_CASE("PLY output writes extra bytes as properties of their types, read back
     CHECK(names == expect);
   }
 
-  // ASCII PLY has no way to carry them here: refused, nothing written.
+  // ASCII PLY: a NaN comes back as a NaN.
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(cloud.las.extra_bytes.data() + size, &nan, 4);  // point 1's float32
   WriterOptions a;
+  a.colors = true;
   a.las_attributes = kLasExtraBytes;
   a.extra_bytes_vlr = *vlr;
   a.extra_bytes_size = size;
   a.ply_encoding = PlyEncoding::kAscii;
-  auto refused = open_point_writer(dir.file("a.ply"), a);
-  REQUIRE_FALSE(refused.is_ok());
-  CHECK(refused.status().code() == StatusCode::kUnsupported);
-  CHECK_FALSE(std::filesystem::exists(dir.file("a.ply")));
+  auto writer = open_point_writer(dir.file("nan.ply"), a);
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(cloud).is_ok());
+  REQUIRE((*writer)->finish().is_ok());
+  const ReadBack got = read_extras(dir.file("nan.ply"));
+  REQUIRE(got.extra.size() == cloud.las.extra_bytes.size());
+  float back = 0;
+  std::memcpy(&back, got.extra.data() + size, 4);
+  CHECK(std::isnan(back));
+  CHECK(std::equal(got.extra.begin() + size + 4, got.extra.end(), cloud.las.extra_bytes.begin() + size + 4));
 }
 
 

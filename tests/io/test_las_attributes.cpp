@@ -365,11 +365,12 @@ TEST_CASE("PLY and text output carry every LAS attribute and the PLY and text re
     const std::string in = dir.file("in" + std::to_string(format) + ".las");
     REQUIRE(write_test_las(in, o));
     const ReadBack src = read_all(in);
-    for (const char* name : {"out.csv", "out.xyz", "out.ply", "big.ply"}) {
+    for (const char* name : {"out.csv", "out.xyz", "out.ply", "big.ply", "ascii.ply"}) {
       CAPTURE(name);
       const std::string out = dir.file(name);
       relief::WriterOptions w = options_from(src.info, src.cloud.las.extra_bytes_size);
       if (std::string(name) == "big.ply") w.ply_encoding = relief::PlyEncoding::kBinaryBigEndian;
+      if (std::string(name) == "ascii.ply") w.ply_encoding = relief::PlyEncoding::kAscii;
       auto writer = relief::open_point_writer(out, w);
       REQUIRE(writer.is_ok());
       REQUIRE((*writer)->write(src.cloud).to_string() == "ok");

@@ -190,13 +190,14 @@ struct WriterOptions {
   std::optional<Vec3d> grid_scale;
   std::optional<Vec3d> grid_offset;
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
-  // LAS/LAZ: the per-point LAS attributes (LasAttributeBits) every batch
-  // carries and the file records; the source's point format and LAS minor
+  // The per-point LAS attributes (LasAttributeBits) every batch carries and
+  // the file records (LAS/LAZ; PLY, ASCII or binary, and text write them as
+  // properties and columns, see the README); the source's point format and LAS minor
   // version (-1: none, e.g. an archive made from PLY), from which the output
   // format is chosen (see open_point_writer); the Extra Bytes VLR payload
   // describing las.extra_bytes, extra_bytes_size bytes per point (written
   // back as the file's Extra Bytes VLR; empty: the extra bytes are written
-  // undocumented). Other formats ignore these.
+  // undocumented).
   std::uint32_t las_attributes = 0;
   int las_point_format = -1;
   int las_version_minor = -1;
