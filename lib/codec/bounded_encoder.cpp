@@ -5,6 +5,7 @@
 // by attributes within a cell) before anything is coded, and the base layer
 // is encoded from the decoded (snapped) points in that order.
 #include <algorithm>
+#include <memory>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -146,6 +147,15 @@ ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::
 // a losing octree (a quarter of the encoder's time on airborne scans).
 // Small blobs always try.
 constexpr std::size_t kOctreeTrialPoints = std::size_t{1} << 16;
+
+// Sections that may follow either order are tried on a sample first from
+// this many points on (encode_bounded).
+constexpr std::size_t kOrderTrialPoints = std::size_t{1} << 18;
+// What the sample says: code the section in both orders and keep the
+// smaller, or in one order alone.
+enum class OrderChoice { kTry, kLayer, kCells };
+// One order wins the trial when it is smaller by more than 1/kOrderTrialMargin.
+constexpr std::size_t kOrderTrialMargin = 32;
 bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes) {
   const std::size_t n = time_order.size();
   if (n < kOctreeTrialPoints) return true;
@@ -322,10 +332,39 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     cell_pos.resize(n);
     for (std::size_t j = 0; j < n; ++j) cell_pos[j] = by_cell[j].index;
   }
-  // Keeps the smaller of a section coded in the layer's order and in cell
-  // order (slot: its bit in the mask).
-  const auto keep_smaller = [&](int slot, std::vector<std::uint8_t> in_layer, std::vector<std::uint8_t> in_cells) {
-    if (!cell_pos.empty() && in_cells.size() < in_layer.size()) {
+  // Each section that may follow either order (its slot's bit in the mask)
+  // is coded in the layer's order and in cell order and the smaller kept.
+  // A large blob first codes a sample both ways, the points of the first
+  // eighth of the cell order (a region of the chunk, with every pass over
+  // it): when one order is smaller there by more than a sixteenth, the
+  // section is coded in that order alone. An encoder's choice (the format
+  // allows either); it saves coding most sections twice, whose losing
+  // order cost a sixth of a time-ordered survey's encoding.
+  // sample_layer: the sample's layer positions in layer order; sample_cells:
+  // the same in cell order.
+  std::vector<std::uint32_t> sample_layer, sample_cells;
+  if (!cell_pos.empty() && n >= kOrderTrialPoints) {
+    sample_cells.assign(cell_pos.begin(), cell_pos.begin() + static_cast<std::ptrdiff_t>(n / 8));
+    sample_layer = sample_cells;
+    std::sort(sample_layer.begin(), sample_layer.end());
+  }
+  // `code(positions, in_cells)` codes the section's values at those layer
+  // positions, in that order, with the layer's coder or the cell order's.
+  const auto choose_order = [&](auto&& code) {
+    if (sample_cells.empty()) return OrderChoice::kTry;
+    const std::size_t in_layer = code(std::span<const std::uint32_t>(sample_layer), false).size();
+    const std::size_t in_cells = code(std::span<const std::uint32_t>(sample_cells), true).size();
+    if (kOrderTrialMargin * in_cells < (kOrderTrialMargin - 1) * in_layer) return OrderChoice::kCells;
+    if (kOrderTrialMargin * in_layer < (kOrderTrialMargin - 1) * in_cells) return OrderChoice::kLayer;
+    return OrderChoice::kTry;
+  };
+  // The section as `choice` says: `in_layer` and `in_cells` are its codings
+  // (empty when not made). Sets the slot's bit when cell order is kept.
+  const auto keep = [&](int slot, OrderChoice choice, std::vector<std::uint8_t> in_layer,
+                        std::vector<std::uint8_t> in_cells) {
+    const bool cell_order = choice == OrderChoice::kCells || (choice == OrderChoice::kTry && !cell_pos.empty() &&
+                                                              in_cells.size() < in_layer.size());
+    if (cell_order) {
       order_mask = static_cast<std::uint8_t>(order_mask | (1u << slot));
       return in_cells;
     }
@@ -357,19 +396,32 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     if (cell_pos.empty()) {
       coded = encode_colors_near(ordered, cells_in_order(q, lo, order), h.color_tolerance, &base.colors);
     } else {
-      color_codec = SectionCodec::kArithmetic;
-      coded = encode_colors(ordered, h.color_tolerance, &base.colors);
+      const auto colors_at = [&](std::span<const std::uint32_t> at) {
+        std::vector<Rgb8> v(at.size());
+        for (std::size_t j = 0; j < at.size(); ++j) v[j] = ordered[at[j]];
+        return v;
+      };
+      const auto cells_at = [&](std::span<const std::uint32_t> at) {
+        std::vector<CellXyz> v(at.size());
+        for (std::size_t j = 0; j < at.size(); ++j) v[j] = cell_of(q, lo, order[at[j]].index);
+        return v;
+      };
+      const OrderChoice choice = choose_order([&](std::span<const std::uint32_t> at, bool in_cells) {
+        return in_cells ? encode_colors_near(colors_at(at), cells_at(at), h.color_tolerance, nullptr)
+                        : encode_colors(colors_at(at), h.color_tolerance, nullptr);
+      });
       // With a colour tolerance the decoded colours depend on the order.
-      std::vector<Rgb8> by_cell(n), decoded;
-      std::vector<CellXyz> cells_by_cell(n);
-      for (std::size_t j = 0; j < n; ++j) {
-        by_cell[j] = ordered[cell_pos[j]];
-        cells_by_cell[j] = cell_of(q, lo, order[cell_pos[j]].index);
+      std::vector<std::uint8_t> in_layer, in_cells;
+      std::vector<Rgb8> decoded;
+      if (choice != OrderChoice::kCells) in_layer = encode_colors(ordered, h.color_tolerance, &base.colors);
+      if (choice != OrderChoice::kLayer) {
+        in_cells = encode_colors_near(colors_at(cell_pos), cells_at(cell_pos), h.color_tolerance, &decoded);
       }
-      coded = keep_smaller(kOrderSlotColors, std::move(coded),
-                           encode_colors_near(by_cell, cells_by_cell, h.color_tolerance, &decoded));
+      color_codec = SectionCodec::kArithmetic;
+      coded = keep(kOrderSlotColors, choice, std::move(in_layer), std::move(in_cells));
       if (order_mask & (1u << kOrderSlotColors)) {
         color_codec = SectionCodec::kNeighbourColor;
+        base.colors.resize(n);
         for (std::size_t j = 0; j < n; ++j) base.colors[cell_pos[j]] = decoded[j];
       }
     }
@@ -389,11 +441,21 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       values[k] = integral ? static_cast<std::int64_t>(v) : static_cast<std::int64_t>(float_bits(v));
       base.intensities[k] = v;
     }
-    std::vector<std::uint8_t> coded = encode_values(values);
-    if (!cell_pos.empty()) {
-      std::vector<std::int64_t> by_cell(n);
-      for (std::size_t j = 0; j < n; ++j) by_cell[j] = values[cell_pos[j]];
-      coded = keep_smaller(kOrderSlotIntensity, std::move(coded), encode_values(by_cell));
+    std::vector<std::uint8_t> coded;
+    if (cell_pos.empty()) {
+      coded = encode_values(values);
+    } else {
+      // One coder, either order: the values at the positions, in turn.
+      const auto code = [&](std::span<const std::uint32_t> at, bool) {
+        std::vector<std::int64_t> v(at.size());
+        for (std::size_t j = 0; j < at.size(); ++j) v[j] = values[at[j]];
+        return encode_values(v);
+      };
+      const OrderChoice choice = choose_order(code);
+      std::vector<std::uint8_t> in_layer, in_cells;
+      if (choice != OrderChoice::kCells) in_layer = encode_values(values);
+      if (choice != OrderChoice::kLayer) in_cells = code(cell_pos, true);
+      coded = keep(kOrderSlotIntensity, choice, std::move(in_layer), std::move(in_cells));
     }
     payloads.push_back(std::move(coded));
     refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
@@ -401,31 +463,65 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (las_bits != 0) {
     // (Gathering the whole cloud costs less than copying its LAS attributes
     // out first: positions, colours and intensities are a few bytes a point.)
-    const LasAttributes ordered = cloud.gathered(order_indices(order)).las;
+    PointCloud gathered = cloud.gathered(order_indices(order));
+    const LasAttributes& ordered = gathered.las;
+    // The order trials' sample in the layer's order (made when first needed).
+    struct LayerSample {
+      LasAttributes las;
+      std::vector<std::uint32_t> identity;
+      std::vector<Rgb8> colors;
+    };
+    std::unique_ptr<LayerSample> layer_sample;
     // With GPS times, the attributes that follow acquisition order are coded
     // in time order (§11.7.2): the geometry's order (§11.3.3) or the times'
     // (§11.7.1), whose section gps_payload already holds.
     if ((las_bits & kLasGpsTime) && time_order.empty()) time_order = las_time_order(ordered.gps_time);
-    std::vector<Rgb8> colors_by_cell;  // for the colour low bytes' "equal" decision in cell order
-    if (!cell_pos.empty() && (las_bits & kLasColorLow) != 0) {
-      colors_by_cell.resize(base.colors.size());
-      for (std::size_t j = 0; j < colors_by_cell.size(); ++j) colors_by_cell[j] = base.colors[cell_pos[j]];
-    }
     for (int b = 0; b < kLasAttributeCount; ++b) {
       const std::uint32_t bit = 1u << b;
       if ((las_bits & bit) == 0) continue;
       if (bit == kLasGpsTime && !gps_payload.empty()) {
         payloads.push_back(std::move(gps_payload));
       } else {
-        std::vector<std::uint8_t> coded = encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors);
         const int slot = order_slot(bit);
-        if (!cell_pos.empty() && slot >= 0) {
-          LasAttributes by_cell;  // this attribute alone, in cell order
-          permute_las_attribute(bit, ordered, by_cell, cell_pos, Permute::kGather);
-          coded = keep_smaller(slot, std::move(coded),
-                               encode_las_attribute(bit, by_cell, n, h.version, {}, {}, colors_by_cell));
+        if (cell_pos.empty() || slot < 0) {
+          payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors));
+        } else {
+          // In cell order: this attribute alone (no context from the others).
+          const auto in_cell_order = [&](std::span<const std::uint32_t> at) {
+            LasAttributes by_cell;
+            by_cell.extra_bytes_size = ordered.extra_bytes_size;
+            permute_las_attribute(bit, ordered, by_cell, at, Permute::kGather);
+            std::vector<Rgb8> colors;  // the decoded colours, in that order
+            if (bit == kLasColorLow) {
+              colors.resize(at.size());
+              for (std::size_t j = 0; j < at.size(); ++j) colors[j] = base.colors[at[j]];
+            }
+            return encode_las_attribute(bit, by_cell, at.size(), h.version, {}, {}, colors);
+          };
+          const OrderChoice choice = choose_order([&](std::span<const std::uint32_t> at, bool in_cells) {
+            if (in_cells) return in_cell_order(at);
+            // In the layer's (time) order: every attribute at those points,
+            // the lower bits being context (gathered once for every section).
+            if (!layer_sample) {
+              layer_sample = std::make_unique<LayerSample>();
+              layer_sample->las = gathered.gathered(sample_layer).las;
+              layer_sample->identity.resize(sample_layer.size());
+              for (std::size_t j = 0; j < sample_layer.size(); ++j) layer_sample->identity[j] = static_cast<std::uint32_t>(j);
+              if (!base.colors.empty()) {
+                layer_sample->colors.resize(sample_layer.size());
+                for (std::size_t j = 0; j < sample_layer.size(); ++j) layer_sample->colors[j] = base.colors[sample_layer[j]];
+              }
+            }
+            return encode_las_attribute(bit, layer_sample->las, at.size(), h.version, {}, layer_sample->identity,
+                                        layer_sample->colors);
+          });
+          std::vector<std::uint8_t> in_layer, in_cells;
+          if (choice != OrderChoice::kCells) {
+            in_layer = encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors);
+          }
+          if (choice != OrderChoice::kLayer) in_cells = in_cell_order(cell_pos);
+          payloads.push_back(keep(slot, choice, std::move(in_layer), std::move(in_cells)));
         }
-        payloads.push_back(std::move(coded));
       }
       refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
                          static_cast<std::uint32_t>(n), 0, {}});

@@ -79,10 +79,11 @@ std::vector<std::uint8_t> las_pulse_kinds(const std::vector<double>& gps, std::s
 std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times);
 Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las);
 
-// Attribute `bit` of `from` (n points) copied to `to` in another order, with
-// `positions` a permutation of 0..n-1: kGather makes point j of `to` point
-// positions[j] of `from`, kScatter makes point j of `from` point positions[j]
-// of `to`. `to`'s vector of the attribute is resized to n points.
+// Attribute `bit` of `from` copied to `to` in another order: kGather makes
+// point j of `to` point positions[j] of `from` (any points of `from`, so a
+// subset too), kScatter makes point j of `from` point positions[j] of `to`
+// (`positions` a permutation of 0..n-1). `to`'s vector of the attribute is
+// resized to n = positions.size() points.
 enum class Permute { kGather, kScatter };
 void permute_las_attribute(std::uint32_t bit, const LasAttributes& from, LasAttributes& to,
                            std::span<const std::uint32_t> positions, Permute how);

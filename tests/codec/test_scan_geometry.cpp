@@ -307,6 +307,33 @@ TEST_CASE("format 8: each attribute section of a time-ordered layer takes the sm
   }
 }
 
+TEST_CASE("format 8: a large time-ordered blob picks each section's order from a sample, exactly",
+          "[codec][scan][las]") {
+  // 2^18 points and more: the encoder codes the first eighth of the cell
+  // order both ways and codes each section in the order that wins there
+  // (by more than 1/32) alone. The same scene as above, whose colours win
+  // in cell order and intensities in time order by far.
+  PointCloud in = scan_scene(26, 300000, 0xFFF);
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Vec3d p = in.positions[i];
+    const auto level = static_cast<std::uint8_t>(std::clamp(128.0 + 40.0 * std::sin(p.x * 0.3) + 30.0 * p.z, 0.0, 255.0));
+    in.colors[i] = {level, static_cast<std::uint8_t>(255 - level), 90};
+    in.intensities[i] = static_cast<float>(std::floor(1000.0 + 200.0 * std::cos(p.y * 0.2)));
+    in.las.classification[i] = static_cast<std::uint8_t>(in.las.return_number[i] == in.las.number_of_returns[i] ? 2 : 5);
+  }
+  auto blob = encode_chunk(in, las_scale(0.01, 4.0));
+  REQUIRE(blob.is_ok());
+  REQUIRE(geometry_codec(*blob) == 9);
+  REQUIRE(inspect_chunk(*blob)->input_points == in.size());
+  const std::uint8_t mask = (*blob)[section_at(*blob, 7)];
+  INFO("order mask " << int{mask});
+  CHECK((mask & 0x01) != 0);  // colours in cell order
+  CHECK((mask & 0x02) == 0);  // intensities in time order
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == snapped_records(in, 0.01));
+}
+
 TEST_CASE("format 8: a time-ordered geometry needs GPS times and version 8", "[codec][scan][reject]") {
   const PointCloud in = scan_scene(25, 2000, 0xFFF);
   auto blob = encode_chunk(in, las_scale(0.01, 4.0));
