@@ -65,14 +65,22 @@ Status parse_line(std::string_view line, std::uint64_t line_no, const Layout& la
                           std::to_string(layout.columns.size()) + " columns, found " + std::to_string(col));
     }
     double v = 0;
+    const std::size_t start = pos;
     const auto r = std::from_chars(line.data() + pos, line.data() + line.size(), v);
     if (r.ec != std::errc() || !std::isfinite(v)) {
       return format_error("stdin: line " + std::to_string(line_no) + ": column " + std::to_string(col + 1) +
                           " is not a finite number");
     }
     pos = static_cast<std::size_t>(r.ptr - line.data());
-    const auto u8 = [](double d) { return static_cast<std::uint8_t>(std::clamp(std::lround(d), 0L, 255L)); };
-    switch (layout.columns[col]) {
+    const char role = layout.columns[col];
+    if ((role == 'r' || role == 'g' || role == 'b') && !(v >= 0 && v <= 255)) {
+      // Clamping would change the colour silently; a stream has no file-wide
+      // 16-bit rule to apply (the file readers' one needs the first 2^20 points).
+      return format_error("stdin: line " + std::to_string(line_no) + ": column " + std::to_string(col + 1) +
+                          ": colour level " + std::string(line.substr(start, pos - start)) + " is outside 0..255");
+    }
+    const auto u8 = [](double d) { return static_cast<std::uint8_t>(std::lround(d)); };
+    switch (role) {
       case 'x': p.x = v; break;
       case 'y': p.y = v; break;
       case 'z': p.z = v; break;

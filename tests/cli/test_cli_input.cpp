@@ -300,6 +300,23 @@ TEST_CASE("stream: unknown binary attributes are a usage error", "[cli][ingest]"
   CHECK_FALSE(fs::exists(tmp.file("s.relief")));
 }
 
+TEST_CASE("stream refuses a colour level outside 0..255 instead of clamping it", "[cli][ingest]") {
+  TempDir tmp;
+  for (const char* level : {"256", "-1", "65535", "nan"}) {
+    INFO(level);
+    write_text(tmp.file("in.txt"), std::string("1 2 3 10 20 30\n2 3 4 9 ") + level + " 7\n");
+    const Run r = run("stream " + tmp.file("s.relief") + " --columns x,y,z,r,g,b --cell 1 --quiet < " +
+                      tmp.file("in.txt"));
+    CHECK(r.code == 13);
+    CHECK(has(r, std::string("stdin: line 2: column 5")));
+    CHECK_FALSE(fs::exists(tmp.file("s.relief")));
+  }
+  // 255 and fractions that round into range are levels.
+  write_text(tmp.file("in.txt"), "1 2 3 10 20 30\n2 3 4 255 0 2.4\n");
+  CHECK(run("stream " + tmp.file("s.relief") + " --columns x,y,z,r,g,b --cell 1 --quiet < " + tmp.file("in.txt"))
+            .code == 0);
+}
+
 TEST_CASE("stream refuses a chunk edge of more than 2^21 cells before creating the archive", "[cli][ingest]") {
   TempDir tmp;
   write_text(tmp.file("in.txt"), grid_xyz("5 5 5"));
