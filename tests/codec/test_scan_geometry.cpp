@@ -269,11 +269,13 @@ std::size_t section_at(const std::vector<std::uint8_t>& blob, int id) {
 
 }  // namespace
 
-TEST_CASE("format 8: each attribute section of a time-ordered layer takes the smaller order", "[codec][scan][las]") {
-  // Colours that follow the height (canopy and ground returns alternate in
-  // time: cell order wins) and intensities constant along each scan line
-  // (lines run along x at one y: time order wins).
-  PointCloud in = scan_scene(24, 6000, 0xFFF);
+namespace {
+
+// A scan whose colours follow the height (canopy and ground returns
+// alternate in time: cell order wins) and whose intensities are constant
+// along each scan line (lines run along x at one y: time order wins).
+PointCloud orders_scene(std::uint64_t seed, std::size_t points) {
+  PointCloud in = scan_scene(seed, points, 0xFFF);
   for (std::size_t i = 0; i < in.size(); ++i) {
     const Vec3d p = in.positions[i];
     const auto level = static_cast<std::uint8_t>(std::clamp(128.0 + 40.0 * std::sin(p.x * 0.3) + 30.0 * p.z, 0.0, 255.0));
@@ -281,6 +283,13 @@ TEST_CASE("format 8: each attribute section of a time-ordered layer takes the sm
     in.intensities[i] = static_cast<float>(std::floor(1000.0 + 200.0 * std::cos(p.y * 0.2)));
     in.las.classification[i] = static_cast<std::uint8_t>(in.las.return_number[i] == in.las.number_of_returns[i] ? 2 : 5);
   }
+  return in;
+}
+
+}  // namespace
+
+TEST_CASE("format 8: each attribute section of a time-ordered layer takes the smaller order", "[codec][scan][las]") {
+  const PointCloud in = orders_scene(24, 6000);
   auto blob = encode_chunk(in, las_scale(0.01, 4.0));
   REQUIRE(blob.is_ok());
   REQUIRE(geometry_codec(*blob) == 9);
@@ -311,16 +320,9 @@ TEST_CASE("format 8: a large time-ordered blob picks each section's order from a
           "[codec][scan][las]") {
   // 2^18 points and more: the encoder codes the first eighth of the cell
   // order both ways and codes each section in the order that wins there
-  // (by more than 1/32) alone. The same scene as above, whose colours win
-  // in cell order and intensities in time order by far.
-  PointCloud in = scan_scene(26, 300000, 0xFFF);
-  for (std::size_t i = 0; i < in.size(); ++i) {
-    const Vec3d p = in.positions[i];
-    const auto level = static_cast<std::uint8_t>(std::clamp(128.0 + 40.0 * std::sin(p.x * 0.3) + 30.0 * p.z, 0.0, 255.0));
-    in.colors[i] = {level, static_cast<std::uint8_t>(255 - level), 90};
-    in.intensities[i] = static_cast<float>(std::floor(1000.0 + 200.0 * std::cos(p.y * 0.2)));
-    in.las.classification[i] = static_cast<std::uint8_t>(in.las.return_number[i] == in.las.number_of_returns[i] ? 2 : 5);
-  }
+  // (by more than 1/32) alone. Colours win in cell order and intensities in
+  // time order by far.
+  const PointCloud in = orders_scene(26, 300000);
   auto blob = encode_chunk(in, las_scale(0.01, 4.0));
   REQUIRE(blob.is_ok());
   REQUIRE(geometry_codec(*blob) == 9);
