@@ -1,6 +1,10 @@
 #include "codec/octree.h"
 
+#include <algorithm>
+#include <array>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace relief::codec {
 
@@ -60,14 +64,25 @@ struct TreeBuilder {
 }  // namespace
 
 void radix_sort(std::vector<KeyedIndex>& items, int key_bits) {
-  if (items.size() < 2 || key_bits <= 0) return;
-  std::vector<KeyedIndex> tmp(items.size());
-  for (int shift = 0; shift < key_bits; shift += 8) {
-    std::size_t count[257] = {};
-    for (const KeyedIndex& it : items) ++count[((it.key >> shift) & 0xffu) + 1];
-    if (count[1] == items.size()) continue;  // every key has this digit 0: skip pass
-    for (int b = 0; b < 256; ++b) count[b + 1] += count[b];
-    for (const KeyedIndex& it : items) tmp[count[(it.key >> shift) & 0xffu]++] = it;
+  const std::size_t n = items.size();
+  if (n < 2 || key_bits <= 0) return;
+  // Every pass's histogram in one read of the items, then a pass per byte of
+  // the key that varies (one holding a single value everywhere moves nothing).
+  const int passes = std::min((key_bits + 7) / 8, 8);
+  std::vector<std::array<std::size_t, 256>> count(static_cast<std::size_t>(passes));
+  for (auto& c : count) c.fill(0);
+  for (const KeyedIndex& it : items) {
+    for (int p = 0; p < passes; ++p) ++count[static_cast<std::size_t>(p)][(it.key >> (8 * p)) & 0xffu];
+  }
+  std::vector<KeyedIndex> tmp;
+  for (int p = 0; p < passes; ++p) {
+    std::array<std::size_t, 256>& c = count[static_cast<std::size_t>(p)];
+    if (std::find(c.begin(), c.end(), n) != c.end()) continue;
+    std::size_t sum = 0;
+    for (std::size_t& v : c) sum += std::exchange(v, sum);  // bucket starts
+    if (tmp.empty()) tmp.resize(n);
+    const int shift = 8 * p;
+    for (const KeyedIndex& it : items) tmp[c[(it.key >> shift) & 0xffu]++] = it;
     items.swap(tmp);
   }
 }

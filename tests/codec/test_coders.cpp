@@ -23,6 +23,7 @@ extern "C" {
 
 #include "codec/coders.h"
 #include "codec/geometry_coder.h"
+#include "codec/octree.h"
 #include "relief/status.h"
 
 namespace {
@@ -241,6 +242,31 @@ bool fails_with(const relief::Result<T>& result, StatusCode code) {
 }  // namespace
 
 // ============================================================================ JPEG
+
+TEST_CASE("radix_sort is a stable sort by the key's low key_bits bits", "[coders]") {
+  std::mt19937_64 rng(17);
+  for (const int key_bits : {1, 7, 8, 9, 24, 33, 48, 63, 64}) {
+    for (const std::size_t n : {0, 1, 2, 300, 5000}) {
+      INFO(key_bits << " bits, " << n << " items");
+      const std::uint64_t mask = key_bits == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << key_bits) - 1;
+      std::vector<relief::codec::KeyedIndex> items(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        // Few distinct keys (ties keep their order), bytes that never vary
+        // (passes skipped) and bytes that do.
+        std::uint64_t key = rng() & mask;
+        if (i % 3 == 0) key &= 0xFF00FF;
+        if (i % 5 == 0) key = items[i / 2].key;
+        items[i] = {key & mask, static_cast<std::uint32_t>(i)};
+      }
+      std::vector<relief::codec::KeyedIndex> expect = items;
+      std::stable_sort(expect.begin(), expect.end(), [](const auto& a, const auto& b) { return a.key < b.key; });
+      relief::codec::radix_sort(items, key_bits);
+      bool same = items.size() == expect.size();
+      for (std::size_t i = 0; same && i < n; ++i) same = items[i].key == expect[i].key && items[i].index == expect[i].index;
+      CHECK(same);
+    }
+  }
+}
 
 TEST_CASE("jpeg round trip of smooth images", "[coders]") {
   using relief::codec::jpeg_decode;
