@@ -462,8 +462,11 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   }
   if (las_bits != 0) {
     // (Gathering the whole cloud costs less than copying its LAS attributes
-    // out first: positions, colours and intensities are a few bytes a point.)
-    PointCloud gathered = cloud.gathered(order_indices(order));
+    // out first: positions, colours and intensities are a few bytes a point.
+    // Only the LAS attributes are kept, as the PointCloud the order trials'
+    // samples are gathered from.)
+    PointCloud gathered;
+    gathered.las = cloud.gathered(order_indices(order)).las;
     const LasAttributes& ordered = gathered.las;
     // The order trials' sample in the layer's order (made when first needed).
     struct LayerSample {
