@@ -953,6 +953,12 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
     if (!interrupted) remove_archive_files(archive_path);
     return result.status();
   }
+  // One file, or no archive: a full disk can stop SQLite folding its log in.
+  if (Status closed = archive->close(); !closed) {
+    archive.reset();
+    remove_archive_files(archive_path);
+    return Status(closed.code(), closed.message() + "; nothing of the new archive is kept");
+  }
   return result;
 }
 
@@ -1044,6 +1050,11 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
       }
     }
     return result.status();
+  }
+  // The append is committed; a full disk can keep its last writes in the
+  // write-ahead log, which the error says must stay beside the archive.
+  if (Status closed = archive->close(); !closed) {
+    return Status(closed.code(), closed.message() + kept_in_wal_note(archive_path));
   }
   return result;
 }

@@ -101,7 +101,7 @@ class StreamIngestImpl final : public StreamIngest {
   }
 
   Status abort() override {
-    if (finished_) return invalid_argument("stream already finished");
+    if (finished_) return Status::ok();  // finish() cleaned up after itself
     finished_ = true;
     buffered_.clear();
     if (!created_) return archive_->abort_scan(scan_id_);
@@ -123,6 +123,12 @@ class StreamIngestImpl final : public StreamIngest {
                                                        progress_));
     RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, ""));
     finished_ = true;
+    if (Status closed = archive_->close(); !closed) {
+      if (!created_) return Status(closed.code(), closed.message() + kept_in_wal_note(path_));
+      archive_.reset();
+      ingest::remove_archive_files(path_);
+      return Status(closed.code(), closed.message() + "; nothing of the new archive is kept");
+    }
     IngestResult result = ingest::scan_result(pipeline_.totals(), points_read_, start_, params_.cell_size,
                                               grid_.chunk_edge, scan_id_, progress_);
     result.pyramid = pyramid;

@@ -104,7 +104,10 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
       !s) {
     return failed(s);
   }
-  archive.reset();  // closed: SQLite folds its WAL into the file
+  if (Status s = archive->close(); !s) {  // one file before it moves
+    return failed(Status(s.code(), s.message() + "; nothing of the shard is kept"));
+  }
+  archive.reset();
   // No journal of an earlier file of that name may be replayed into this one.
   for (const char* suffix : {"-wal", "-journal"}) ::unlink((out + suffix).c_str());
   if (std::rename(tmp.c_str(), out.c_str()) != 0) {

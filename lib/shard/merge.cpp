@@ -205,6 +205,9 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
   if (Status s = finish_scan(*archive, *scan_id, first.has_colors, first.has_intensity, first.crs); !s) {
     return failed(s);
   }
+  if (Status s = archive->close(); !s) {  // one file before it moves
+    return failed(Status(s.code(), s.message() + "; nothing of the merged archive is kept"));
+  }
   archive.reset();
   // Into place only when complete, and never over a file that appeared
   // meanwhile: link(2) fails on an existing name where rename would replace it.

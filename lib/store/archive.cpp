@@ -760,6 +760,7 @@ class SqliteArchive final : public Archive {
   Status check_chunks(CheckReport& report) const;
 
   const std::string& path() const override { return path_; }
+  Status close() override;
   Result<ArchiveInfo> info() const override;
   Result<std::int64_t> begin_scan(const std::vector<ArchiveSource>& sources,
                                   const ScanAttributes& attributes) override;
@@ -824,7 +825,8 @@ class SqliteArchive final : public Archive {
 
 SqliteArchive::~SqliteArchive() {
   if (mode_ != Mode::kReadWrite || !wal_) return;
-  // Statements first: the journal mode changes only on a connection without
+  // What close() does, errors ignored (a writer that reports success has
+  // called close() and seen them). Statements first: the journal mode changes only on a connection without
   // pending statements. A passive checkpoint copies the WAL into the file as
   // far as readers allow, without waiting for them; the switch to rollback
   // mode then finishes that and deletes the -wal and -shm files. The switch
@@ -834,6 +836,34 @@ SqliteArchive::~SqliteArchive() {
   for (std::unique_ptr<Statement>& statement : statements_) statement.reset();
   sqlite3_wal_checkpoint_v2(db(), nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
   sqlite3_exec(db(), "PRAGMA journal_mode = DELETE", nullptr, nullptr, nullptr);
+}
+
+}  // namespace
+
+std::string kept_in_wal_note(const std::string& path) {
+  return "; the archive is intact, but its last writes stay in " + path +
+         "-wal, which must stay beside it until a Relief writer (append, stream) closes the archive with room on the "
+         "disk";
+}
+
+namespace {
+
+Status SqliteArchive::close() {
+  if (mode_ != Mode::kReadWrite || !wal_) return Status::ok();
+  for (std::unique_ptr<Statement>& statement : statements_) statement.reset();
+  // Busy or locked: another connection holds the file (a reader); it stays
+  // in WAL mode, valid, until a writer closes alone (see the destructor).
+  const auto held_by_another = [](int rc) { return (rc & 0xff) == SQLITE_BUSY || (rc & 0xff) == SQLITE_LOCKED; };
+  const auto kept_in_wal = [&](int rc) {
+    return io_error(
+        store::sqlite_error(db(), rc, path_, "cannot fold the write-ahead log into the archive file").message());
+  };
+  int rc = sqlite3_wal_checkpoint_v2(db(), nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
+  if (rc != SQLITE_OK && !held_by_another(rc)) return kept_in_wal(rc);
+  rc = sqlite3_exec(db(), "PRAGMA journal_mode = DELETE", nullptr, nullptr, nullptr);
+  if (rc != SQLITE_OK && !held_by_another(rc)) return kept_in_wal(rc);
+  wal_ = false;
+  return Status::ok();
 }
 
 Result<Statement*> SqliteArchive::statement(Sql id) const {

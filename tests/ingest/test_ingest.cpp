@@ -21,6 +21,7 @@
 #include "relief/io.h"
 #include "relief/metrics.h"
 #include "support/decode_archive.h"
+#include "support/limited_vfs.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -667,3 +668,55 @@ TEST_CASE("an append that fills the disk leaves the archive as it was", "[ingest
   CHECK(check->problems.empty());
   CHECK(decode_all(path).size() == before.decoded_points);
 }
+
+namespace relief {
+
+TEST_CASE("a disk full when the log is folded in: compress keeps nothing, append keeps an intact archive and says so",
+          "[ingest][full-disk]") {
+  TempDir tmp;
+  const PointCloud in = scene(11, 60000);
+  REQUIRE(write_ply(tmp.file("a.ply"), in).is_ok());
+  REQUIRE(write_ply(tmp.file("b.ply"), scene(12, 30000)).is_ok());
+  test::LimitedVfs vfs;
+  REQUIRE(vfs.ok());
+  // The archive file may not grow past its first pages: every chunk reaches
+  // the write-ahead log, which then cannot be folded in.
+  vfs.limit_main_files(32 * 1024);
+  const std::string path = tmp.file("a.relief");
+  auto r = compress_files({tmp.file("a.ply")}, path, small_chunks());
+  REQUIRE_FALSE(r.is_ok());
+  INFO(r.status().to_string());
+  CHECK(r.status().code() == StatusCode::kIoError);
+  CHECK(r.status().message().find(path + ": cannot fold the write-ahead log into the archive file: ") == 0);
+  CHECK(r.status().message().find("nothing of the new archive is kept") != std::string::npos);
+  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) CHECK_FALSE(fs::exists(path + suffix));
+
+  vfs.limit_main_files(-1);
+  REQUIRE(compress_files({tmp.file("a.ply")}, path, small_chunks()).is_ok());
+  CHECK_FALSE(fs::exists(path + "-wal"));  // one file
+  const ArchiveInfo before = (*Archive::open(path, Archive::Mode::kReadOnly))->info().value();
+  vfs.limit_main_files(static_cast<std::int64_t>(fs::file_size(path)));
+  IngestOptions append;
+  append.threads = 2;
+  auto appended = append_files(path, {tmp.file("b.ply")}, append);
+  REQUIRE_FALSE(appended.is_ok());
+  INFO(appended.status().to_string());
+  CHECK(appended.status().code() == StatusCode::kIoError);
+  CHECK(appended.status().message().find("the archive is intact, but its last writes stay in " + path + "-wal") !=
+        std::string::npos);
+  CHECK(fs::exists(path + "-wal"));
+  // The append is committed, read through the log; a writer with room
+  // folds it in.
+  vfs.limit_main_files(-1);
+  const ArchiveInfo after = (*Archive::open(path, Archive::Mode::kReadOnly))->info().value();
+  CHECK(after.scans.size() == before.scans.size() + 1);
+  CHECK(after.input_points == before.input_points + 30000);
+  auto check = check_archive(path);
+  REQUIRE(check.is_ok());
+  CHECK(check->problems.empty());
+  REQUIRE((*Archive::open(path, Archive::Mode::kReadWrite))->close().is_ok());
+  CHECK_FALSE(fs::exists(path + "-wal"));
+  CHECK(decode_all(path).size() == after.decoded_points);
+}
+
+}  // namespace relief

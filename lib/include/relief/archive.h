@@ -168,6 +168,10 @@ struct ChunkRow {
   std::vector<std::uint8_t> blob;
 };
 
+// What a user must know when Archive::close() failed on an archive that is
+// kept: "; the archive is intact, but its last writes stay in PATH-wal ...".
+std::string kept_in_wal_note(const std::string& path);
+
 class Archive {
  public:
   enum class Mode { kReadOnly, kReadWrite };
@@ -187,8 +191,21 @@ class Archive {
   // those of unfinished pyramids (format-spec/archive.md §9).
   static Result<std::unique_ptr<Archive>> open(const std::string& path, Mode mode);
 
+  // Closing a handle that wrote folds SQLite's write-ahead log into the file
+  // and leaves WAL mode, so the archive is one file again; the destructor
+  // does so and ignores failures, close() reports them.
   virtual ~Archive() = default;
   virtual const std::string& path() const = 0;
+
+  // Ends writing: folds the write-ahead log into the file and leaves WAL mode
+  // (nothing to do for a read-only handle, or twice). A full disk or another
+  // I/O error is a kIoError naming the file: the archive is then intact, but
+  // its last writes are in PATH-wal, which must stay beside it until a writer
+  // closes it with room on the disk (kept_in_wal_note() says so to a user).
+  // Another open connection (a reader) is not an error: the file then stays
+  // in WAL mode until a writer closes alone. A writer calls it before it
+  // reports success or moves the file.
+  virtual Status close() = 0;
 
   virtual Result<ArchiveInfo> info() const = 0;
 

@@ -290,11 +290,15 @@ class StreamIngest {
   virtual ~StreamIngest() = default;
   // One batch of incoming points (one read, or one scan line set).
   virtual Status push(const PointCloud& batch) = 0;
-  // Encodes everything still buffered and marks the scan complete.
+  // Encodes everything still buffered, marks the scan complete and closes the
+  // archive (Archive::close). When closing fails (a full disk), an archive
+  // the stream created is removed, and one it appended to is left intact
+  // with its write-ahead log, as the error says; abort() is then not needed.
   virtual Result<IngestResult> finish() = 0;
   // Gives up after a failure: removes everything this stream added, so the
   // archive it created does not exist any more, or the archive it appended to
-  // is as before. The stream takes no more calls afterwards.
+  // is as before. The stream takes no more calls afterwards. After finish()
+  // (which cleans up after itself) it does nothing.
   virtual Status abort() = 0;
 };
 
