@@ -684,17 +684,7 @@ Status gather_subset(const PointCloud& cloud, std::span<const std::uint32_t> sub
       to.resize(n);
       for (std::size_t k = 0; k < n; ++k) to[k] = subset[k] < from.size() ? from[subset[k]] : to[k];
     };
-    gather(src.classification, dst.classification);
-    gather(src.class_flags, dst.class_flags);
-    gather(src.return_number, dst.return_number);
-    gather(src.number_of_returns, dst.number_of_returns);
-    gather(src.scan_flags, dst.scan_flags);
-    gather(src.scan_angle, dst.scan_angle);
-    gather(src.user_data, dst.user_data);
-    gather(src.point_source_id, dst.point_source_id);
-    gather(src.gps_time, dst.gps_time);
-    gather(src.nir, dst.nir);
-    gather(src.color_low, dst.color_low);
+    LasAttributes::for_each_vector_pair(src, dst, [&](const auto& from, auto& to, std::uint32_t) { gather(from, to); });
     if (!src.extra_bytes.empty()) {
       const std::size_t w = src.extra_bytes_size;
       if (w == 0 || src.extra_bytes.size() != cloud.size() * w) {

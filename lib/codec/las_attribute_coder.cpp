@@ -719,21 +719,13 @@ std::uint64_t min_decisions_per_point(std::uint32_t bit, std::uint32_t extra_byt
 
 // Resizes the vector of attribute `bit` to n points.
 void size_attribute(std::uint32_t bit, LasAttributes& las, std::size_t n) {
-  switch (bit) {
-    case kLasClassification: las.classification.assign(n, 0); break;
-    case kLasClassFlags: las.class_flags.assign(n, 0); break;
-    case kLasReturnNumber: las.return_number.assign(n, 0); break;
-    case kLasNumberOfReturns: las.number_of_returns.assign(n, 0); break;
-    case kLasScanFlags: las.scan_flags.assign(n, 0); break;
-    case kLasScanAngle: las.scan_angle.assign(n, 0); break;
-    case kLasUserData: las.user_data.assign(n, 0); break;
-    case kLasPointSourceId: las.point_source_id.assign(n, 0); break;
-    case kLasGpsTime: las.gps_time.assign(n, 0); break;
-    case kLasNir: las.nir.assign(n, 0); break;
-    case kLasColorLow: las.color_low.assign(n, Rgb8{}); break;
-    case kLasExtraBytes: las.extra_bytes.assign(n * std::size_t{las.extra_bytes_size}, 0); break;
-    default: break;
+  if (bit == kLasExtraBytes) {
+    las.extra_bytes.assign(n * std::size_t{las.extra_bytes_size}, 0);
+    return;
   }
+  las.for_each_vector([&](auto& v, std::uint32_t b) {
+    if (b == bit) v.assign(n, {});
+  });
 }
 
 // Calls f(vector) with the vector of attribute `bit` (not extra bytes or

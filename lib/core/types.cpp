@@ -136,42 +136,16 @@ void for_each_column(Cloud& c, F&& f) {
   f(c.positions);
   f(c.colors);
   f(c.intensities);
-  f(c.las.classification);
-  f(c.las.class_flags);
-  f(c.las.return_number);
-  f(c.las.number_of_returns);
-  f(c.las.scan_flags);
-  f(c.las.scan_angle);
-  f(c.las.user_data);
-  f(c.las.point_source_id);
-  f(c.las.gps_time);
-  f(c.las.nir);
-  f(c.las.color_low);
+  c.las.for_each_vector([&f](auto& v, std::uint32_t) { f(v); });
 }
 
 }  // namespace
 
-bool LasAttributes::empty() const {
-  return classification.empty() && class_flags.empty() && return_number.empty() && number_of_returns.empty() &&
-         scan_flags.empty() && scan_angle.empty() && user_data.empty() && point_source_id.empty() &&
-         gps_time.empty() && nir.empty() && color_low.empty() && extra_bytes.empty();
-}
+bool LasAttributes::empty() const { return carried() == 0; }
 
 std::uint32_t LasAttributes::carried() const {
-  std::uint32_t bits = 0;
-  const auto set = [&bits](bool has, std::uint32_t bit) { bits |= has ? bit : 0u; };
-  set(!classification.empty(), kLasClassification);
-  set(!class_flags.empty(), kLasClassFlags);
-  set(!return_number.empty(), kLasReturnNumber);
-  set(!number_of_returns.empty(), kLasNumberOfReturns);
-  set(!scan_flags.empty(), kLasScanFlags);
-  set(!scan_angle.empty(), kLasScanAngle);
-  set(!user_data.empty(), kLasUserData);
-  set(!point_source_id.empty(), kLasPointSourceId);
-  set(!gps_time.empty(), kLasGpsTime);
-  set(!nir.empty(), kLasNir);
-  set(!color_low.empty(), kLasColorLow);
-  set(!extra_bytes.empty(), kLasExtraBytes);
+  std::uint32_t bits = extra_bytes.empty() ? 0u : std::uint32_t{kLasExtraBytes};
+  for_each_vector([&bits](const auto& v, std::uint32_t bit) { bits |= v.empty() ? 0u : bit; });
   return bits;
 }
 
@@ -185,17 +159,9 @@ void PointCloud::push_back_from(const PointCloud& src, std::size_t i) {
   if (!src.colors.empty()) colors.push_back(src.colors[i]);
   if (!src.intensities.empty()) intensities.push_back(src.intensities[i]);
   const LasAttributes& a = src.las;
-  if (!a.classification.empty()) las.classification.push_back(a.classification[i]);
-  if (!a.class_flags.empty()) las.class_flags.push_back(a.class_flags[i]);
-  if (!a.return_number.empty()) las.return_number.push_back(a.return_number[i]);
-  if (!a.number_of_returns.empty()) las.number_of_returns.push_back(a.number_of_returns[i]);
-  if (!a.scan_flags.empty()) las.scan_flags.push_back(a.scan_flags[i]);
-  if (!a.scan_angle.empty()) las.scan_angle.push_back(a.scan_angle[i]);
-  if (!a.user_data.empty()) las.user_data.push_back(a.user_data[i]);
-  if (!a.point_source_id.empty()) las.point_source_id.push_back(a.point_source_id[i]);
-  if (!a.gps_time.empty()) las.gps_time.push_back(a.gps_time[i]);
-  if (!a.nir.empty()) las.nir.push_back(a.nir[i]);
-  if (!a.color_low.empty()) las.color_low.push_back(a.color_low[i]);
+  LasAttributes::for_each_vector_pair(las, a, [i](auto& to, const auto& from, std::uint32_t) {
+    if (!from.empty()) to.push_back(from[i]);
+  });
   if (!a.extra_bytes.empty()) {
     las.extra_bytes_size = a.extra_bytes_size;
     const std::size_t w = a.extra_bytes_size;
@@ -211,17 +177,7 @@ void PointCloud::append_points(const PointCloud& src) {
   append_column(colors, src.colors);
   append_column(intensities, src.intensities);
   const LasAttributes& a = src.las;
-  append_column(las.classification, a.classification);
-  append_column(las.class_flags, a.class_flags);
-  append_column(las.return_number, a.return_number);
-  append_column(las.number_of_returns, a.number_of_returns);
-  append_column(las.scan_flags, a.scan_flags);
-  append_column(las.scan_angle, a.scan_angle);
-  append_column(las.user_data, a.user_data);
-  append_column(las.point_source_id, a.point_source_id);
-  append_column(las.gps_time, a.gps_time);
-  append_column(las.nir, a.nir);
-  append_column(las.color_low, a.color_low);
+  LasAttributes::for_each_vector_pair(las, a, [&](auto& to, const auto& from, std::uint32_t) { append_column(to, from); });
   if (!a.extra_bytes.empty()) las.extra_bytes_size = a.extra_bytes_size;
   append_column(las.extra_bytes, a.extra_bytes);
 }
@@ -237,17 +193,7 @@ PointCloud PointCloud::gathered(const std::vector<std::uint32_t>& order) const {
   gather(positions, out.positions);
   gather(colors, out.colors);
   gather(intensities, out.intensities);
-  gather(las.classification, out.las.classification);
-  gather(las.class_flags, out.las.class_flags);
-  gather(las.return_number, out.las.return_number);
-  gather(las.number_of_returns, out.las.number_of_returns);
-  gather(las.scan_flags, out.las.scan_flags);
-  gather(las.scan_angle, out.las.scan_angle);
-  gather(las.user_data, out.las.user_data);
-  gather(las.point_source_id, out.las.point_source_id);
-  gather(las.gps_time, out.las.gps_time);
-  gather(las.nir, out.las.nir);
-  gather(las.color_low, out.las.color_low);
+  LasAttributes::for_each_vector_pair(las, out.las, [&](const auto& from, auto& to, std::uint32_t) { gather(from, to); });
   if (!las.extra_bytes.empty()) {
     const std::size_t w = las.extra_bytes_size;
     out.las.extra_bytes.resize(order.size() * w);

@@ -181,19 +181,9 @@ double las_column_value(const LasAttributes& a, TextColumn column, std::size_t i
 }
 
 std::size_t las_column_count(const LasAttributes& a, std::uint32_t bit) {
-  switch (bit) {
-    case kLasClassification: return a.classification.size();
-    case kLasClassFlags: return a.class_flags.size();
-    case kLasReturnNumber: return a.return_number.size();
-    case kLasNumberOfReturns: return a.number_of_returns.size();
-    case kLasScanFlags: return a.scan_flags.size();
-    case kLasScanAngle: return a.scan_angle.size();
-    case kLasUserData: return a.user_data.size();
-    case kLasPointSourceId: return a.point_source_id.size();
-    case kLasGpsTime: return a.gps_time.size();
-    case kLasNir: return a.nir.size();
-    default: return 0;
-  }
+  std::size_t count = 0;
+  a.for_each_vector([&](const auto& v, std::uint32_t b) { count = b == bit ? v.size() : count; });
+  return count;
 }
 
 Status check_batch_columns(const LasAttributes& las, std::uint32_t bits, std::size_t extra_size, std::size_t n,
@@ -209,17 +199,9 @@ Status check_batch_columns(const LasAttributes& las, std::uint32_t bits, std::si
 }
 
 void size_las_columns(LasAttributes& las, std::uint32_t bits, std::size_t n) {
-  const auto fit = [&](auto& v, std::uint32_t bit) { v.resize((bits & bit) != 0 ? n : 0); };
-  fit(las.classification, kLasClassification);
-  fit(las.class_flags, kLasClassFlags);
-  fit(las.return_number, kLasReturnNumber);
-  fit(las.number_of_returns, kLasNumberOfReturns);
-  fit(las.scan_flags, kLasScanFlags);
-  fit(las.scan_angle, kLasScanAngle);
-  fit(las.user_data, kLasUserData);
-  fit(las.point_source_id, kLasPointSourceId);
-  fit(las.gps_time, kLasGpsTime);
-  fit(las.nir, kLasNir);
+  las.for_each_vector([&](auto& v, std::uint32_t bit) {
+    if (bit != kLasColorLow) v.resize((bits & bit) != 0 ? n : 0);
+  });
 }
 
 }  // namespace relief

@@ -262,7 +262,7 @@ Result<std::uint64_t> read_partition_file(const std::string& path, std::uint64_t
         std::memcpy(&v, &bits, sizeof v);
         out.intensities.push_back(v);
       }
-      ingest::for_each_las_column(out.las, [&](auto& v, std::uint32_t bit) {
+      out.las.for_each_vector([&](auto& v, std::uint32_t bit) {
         if ((layout.las & bit) != 0) v.push_back(get_value<typename std::decay_t<decltype(v)>::value_type>(p));
       });
       if (extra) {
@@ -412,7 +412,7 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
       }
       if (a.has_intensity) w.f32(batch.intensities[i]);
       if (layout.las != 0) {
-        for_each_las_column(batch.las, [&](const auto& v, std::uint32_t bit) {
+        batch.las.for_each_vector([&](const auto& v, std::uint32_t bit) {
           if ((layout.las & bit) != 0) put_value(w, v[i]);
         });
         if (layout.extra_size != 0) w.bytes(batch.las.extra_bytes.data() + i * layout.extra_size, layout.extra_size);

@@ -4,6 +4,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "relief/status.h"
@@ -126,6 +128,38 @@ struct LasAttributes {
   bool empty() const;
   // The LasAttributeBits of the non-empty vectors.
   std::uint32_t carried() const;
+
+  // Calls f(vector, bit) for each per-point vector but extra_bytes (which
+  // holds extra_bytes_size values a point), in LasAttributeBits order: the
+  // one list of them, for code that treats every attribute alike.
+  template <typename F>
+  void for_each_vector(F&& f) {
+    std::apply([&](auto... m) { (f(this->*m.first, m.second), ...); }, vectors());
+  }
+  template <typename F>
+  void for_each_vector(F&& f) const {
+    std::apply([&](auto... m) { (f(this->*m.first, m.second), ...); }, vectors());
+  }
+  // Calls f(a's vector, b's same vector, bit) for each of them.
+  template <typename A, typename B, typename F>
+  static void for_each_vector_pair(A& a, B& b, F&& f) {
+    std::apply([&](auto... m) { (f(a.*m.first, b.*m.first, m.second), ...); }, vectors());
+  }
+
+ private:
+  static constexpr auto vectors() {
+    return std::tuple{std::pair{&LasAttributes::classification, std::uint32_t{kLasClassification}},
+                      std::pair{&LasAttributes::class_flags, std::uint32_t{kLasClassFlags}},
+                      std::pair{&LasAttributes::return_number, std::uint32_t{kLasReturnNumber}},
+                      std::pair{&LasAttributes::number_of_returns, std::uint32_t{kLasNumberOfReturns}},
+                      std::pair{&LasAttributes::scan_flags, std::uint32_t{kLasScanFlags}},
+                      std::pair{&LasAttributes::scan_angle, std::uint32_t{kLasScanAngle}},
+                      std::pair{&LasAttributes::user_data, std::uint32_t{kLasUserData}},
+                      std::pair{&LasAttributes::point_source_id, std::uint32_t{kLasPointSourceId}},
+                      std::pair{&LasAttributes::gps_time, std::uint32_t{kLasGpsTime}},
+                      std::pair{&LasAttributes::nir, std::uint32_t{kLasNir}},
+                      std::pair{&LasAttributes::color_low, std::uint32_t{kLasColorLow}}};
+  }
 };
 
 // A point cloud with optional per-point attributes. Coordinates are double
