@@ -129,6 +129,23 @@ struct LasAttributes {
   // The LasAttributeBits of the non-empty vectors.
   std::uint32_t carried() const;
 
+  // The per-point vectors but extra_bytes, each with its LasAttributeBits
+  // bit, as (member pointer, bit) pairs (defined first: the visitors below
+  // deduce from it).
+  static constexpr auto vectors() {
+    return std::tuple{std::pair{&LasAttributes::classification, std::uint32_t{kLasClassification}},
+                      std::pair{&LasAttributes::class_flags, std::uint32_t{kLasClassFlags}},
+                      std::pair{&LasAttributes::return_number, std::uint32_t{kLasReturnNumber}},
+                      std::pair{&LasAttributes::number_of_returns, std::uint32_t{kLasNumberOfReturns}},
+                      std::pair{&LasAttributes::scan_flags, std::uint32_t{kLasScanFlags}},
+                      std::pair{&LasAttributes::scan_angle, std::uint32_t{kLasScanAngle}},
+                      std::pair{&LasAttributes::user_data, std::uint32_t{kLasUserData}},
+                      std::pair{&LasAttributes::point_source_id, std::uint32_t{kLasPointSourceId}},
+                      std::pair{&LasAttributes::gps_time, std::uint32_t{kLasGpsTime}},
+                      std::pair{&LasAttributes::nir, std::uint32_t{kLasNir}},
+                      std::pair{&LasAttributes::color_low, std::uint32_t{kLasColorLow}}};
+  }
+
   // Calls f(vector, bit) for each per-point vector but extra_bytes (which
   // holds extra_bytes_size values a point), in LasAttributeBits order: the
   // one list of them, for code that treats every attribute alike.
@@ -146,20 +163,6 @@ struct LasAttributes {
     std::apply([&](auto... m) { (f(a.*m.first, b.*m.first, m.second), ...); }, vectors());
   }
 
- private:
-  static constexpr auto vectors() {
-    return std::tuple{std::pair{&LasAttributes::classification, std::uint32_t{kLasClassification}},
-                      std::pair{&LasAttributes::class_flags, std::uint32_t{kLasClassFlags}},
-                      std::pair{&LasAttributes::return_number, std::uint32_t{kLasReturnNumber}},
-                      std::pair{&LasAttributes::number_of_returns, std::uint32_t{kLasNumberOfReturns}},
-                      std::pair{&LasAttributes::scan_flags, std::uint32_t{kLasScanFlags}},
-                      std::pair{&LasAttributes::scan_angle, std::uint32_t{kLasScanAngle}},
-                      std::pair{&LasAttributes::user_data, std::uint32_t{kLasUserData}},
-                      std::pair{&LasAttributes::point_source_id, std::uint32_t{kLasPointSourceId}},
-                      std::pair{&LasAttributes::gps_time, std::uint32_t{kLasGpsTime}},
-                      std::pair{&LasAttributes::nir, std::uint32_t{kLasNir}},
-                      std::pair{&LasAttributes::color_low, std::uint32_t{kLasColorLow}}};
-  }
 };
 
 // A point cloud with optional per-point attributes. Coordinates are double
