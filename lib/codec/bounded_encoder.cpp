@@ -5,10 +5,11 @@
 // by attributes within a cell) before anything is coded, and the base layer
 // is encoded from the decoded (snapped) points in that order.
 #include <algorithm>
-#include <memory>
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <memory>
+#include <span>
 #include <string>
 
 #include "codec/attribute_coder.h"
@@ -336,8 +337,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // is coded in the layer's order and in cell order and the smaller kept.
   // A large blob first codes a sample both ways, the points of the first
   // eighth of the cell order (a region of the chunk, with every pass over
-  // it): when one order is smaller there by more than a sixteenth, the
-  // section is coded in that order alone. An encoder's choice (the format
+  // it): when one order is smaller there by more than 1/kOrderTrialMargin,
+  // the section is coded in that order alone. An encoder's choice (the format
   // allows either); it saves coding most sections twice, whose losing
   // order cost a sixth of a time-ordered survey's encoding.
   // sample_layer: the sample's layer positions in layer order; sample_cells:
@@ -503,8 +504,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
           };
           const OrderChoice choice = choose_order([&](std::span<const std::uint32_t> at, bool in_cells) {
             if (in_cells) return in_cell_order(at);
-            // In the layer's (time) order: every attribute at those points,
-            // the lower bits being context (gathered once for every section).
+            // In the layer's (time) order: every attribute at those points
+            // (`at` is sample_layer), the lower bits being context, gathered
+            // once for every section.
             if (!layer_sample) {
               layer_sample = std::make_unique<LayerSample>();
               layer_sample->las = gathered.gathered(sample_layer).las;

@@ -826,8 +826,8 @@ class SqliteArchive final : public Archive {
 SqliteArchive::~SqliteArchive() {
   if (mode_ != Mode::kReadWrite || !wal_) return;
   // What close() does, errors ignored (a writer that reports success has
-  // called close() and seen them). Statements first: the journal mode changes only on a connection without
-  // pending statements. A passive checkpoint copies the WAL into the file as
+  // called close() and seen them). Statements first: the journal mode
+  // changes only on a connection without pending statements. A passive checkpoint copies the WAL into the file as
   // far as readers allow, without waiting for them; the switch to rollback
   // mode then finishes that and deletes the -wal and -shm files. The switch
   // needs exclusive access and fails harmlessly while a reader is connected:
