@@ -827,12 +827,13 @@ SqliteArchive::~SqliteArchive() {
   if (mode_ != Mode::kReadWrite || !wal_) return;
   // What close() does, errors ignored (a writer that reports success has
   // called close() and seen them). Statements first: the journal mode
-  // changes only on a connection without pending statements. A passive checkpoint copies the WAL into the file as
-  // far as readers allow, without waiting for them; the switch to rollback
-  // mode then finishes that and deletes the -wal and -shm files. The switch
-  // needs exclusive access and fails harmlessly while a reader is connected:
-  // the file stays in WAL mode, valid, its content in the file as far as the
-  // checkpoint got, until a writer closes alone.
+  // changes only on a connection without pending statements. A passive
+  // checkpoint copies the WAL into the file as far as readers allow, without
+  // waiting for them; the switch to rollback mode then finishes that and
+  // deletes the -wal and -shm files. The switch needs exclusive access and
+  // fails harmlessly while a reader is connected: the file stays in WAL
+  // mode, valid, its content in the file as far as the checkpoint got, until
+  // a writer closes alone.
   for (std::unique_ptr<Statement>& statement : statements_) statement.reset();
   sqlite3_wal_checkpoint_v2(db(), nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
   sqlite3_exec(db(), "PRAGMA journal_mode = DELETE", nullptr, nullptr, nullptr);
