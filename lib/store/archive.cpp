@@ -843,8 +843,8 @@ SqliteArchive::~SqliteArchive() {
 
 std::string kept_in_wal_note(const std::string& path) {
   return "; the archive is intact, but its last writes stay in " + path +
-         "-wal, which must stay beside it until a Relief writer (append, stream) closes the archive with room on the "
-         "disk";
+         "-wal, which must stay beside it until 'relief check --fold-log " + path +
+         "' (or any Relief writer) folds it in with room on the disk";
 }
 
 namespace {

@@ -704,6 +704,7 @@ TEST_CASE("a disk full when the log is folded in: compress keeps nothing, append
   CHECK(appended.status().code() == StatusCode::kIoError);
   CHECK(appended.status().message().find("the archive is intact, but its last writes stay in " + path + "-wal") !=
         std::string::npos);
+  CHECK(appended.status().message().find("'relief check --fold-log " + path + "'") != std::string::npos);
   CHECK(fs::exists(path + "-wal"));
   // The append is committed, read through the log; a writer with room
   // folds it in.
@@ -714,7 +715,26 @@ TEST_CASE("a disk full when the log is folded in: compress keeps nothing, append
   auto check = check_archive(path);
   REQUIRE(check.is_ok());
   CHECK(check->problems.empty());
-  REQUIRE((*Archive::open(path, Archive::Mode::kReadWrite))->close().is_ok());
+  // `relief check` says the log must stay; --fold-log folds it in.
+  const auto run = [&](const std::string& args) {
+    std::string out;
+    FILE* pipe = ::popen((cli() + " check " + args + " 2>&1").c_str(), "r");
+    REQUIRE(pipe != nullptr);
+    char buf[512];
+    while (std::fgets(buf, sizeof buf, pipe) != nullptr) out += buf;
+    const int status = ::pclose(pipe);
+    return std::pair{WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+  };
+  const auto [plain_code, plain] = run(path);
+  CHECK(plain_code == 0);
+  CHECK(plain.find("note      " + path + "-wal holds writes not yet in the file") != std::string::npos);
+  CHECK(fs::exists(path + "-wal"));
+  const auto [fold_code, folded] = run(path + " --fold-log");
+  INFO(folded);
+  CHECK(fold_code == 0);
+  CHECK(folded.find("folded    the write-ahead log " + path + "-wal into the file") != std::string::npos);
+  CHECK(folded.find("result    intact") != std::string::npos);
+  CHECK(folded.find("note ") == std::string::npos);
   CHECK_FALSE(fs::exists(path + "-wal"));
   CHECK(decode_all(path).size() == after.decoded_points);
 }
