@@ -6,11 +6,11 @@
 #include <algorithm>
 #include <bit>
 #include <charconv>
-#include <cstring>
-#include <span>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <memory>
+#include <span>
 #include <string>
 
 #include "io/output_file.h"
