@@ -106,8 +106,12 @@ int run_info(int argc, char** argv) {
   std::printf("crs             %s\n", crs_text(i.crs).c_str());
   std::printf("creator         %s\n", i.creator.c_str());
   for (const ArchiveSource& s : i.sources) {
-    std::printf("source          %s (%s, %llu points, scan %lld)\n", s.path.c_str(), s.format.c_str(),
+    std::printf("source          %s (%s, %llu points, scan %lld", s.path.c_str(), s.format.c_str(),
                 static_cast<unsigned long long>(s.point_count), static_cast<long long>(s.scan_id));
+    // The VLRs and extended VLRs LAS output gives back (the CRS and Extra
+    // Bytes records are counted elsewhere: Relief writes those itself).
+    if (!s.las.records.empty()) std::printf(", %zu LAS records kept", s.las.records.size());
+    std::printf(")\n");
   }
   for (const ArchiveScan& s : i.scans) {
     std::printf("scan            %lld %s, %s\n", static_cast<long long>(s.id),

@@ -61,6 +61,9 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   w.extra_bytes_size = info.extra_bytes_size;
   w.las_colors_8bit = info.las_colors_8bit;
   w.las_gps_time_type = info.las_gps_time_type;
+  for (const ArchiveSource& s : info.sources) {
+    if (!s.las.empty()) w.las_sources.push_back(s.las);
+  }
   // An error-bounded archive's points lie on its grid: LAS output uses that
   // grid as scale and offset, so a LAS source's integers come back as they were.
   if (auto params = encode_params_from_string(info.codec_params); params && params->bound) {

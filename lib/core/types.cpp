@@ -252,4 +252,22 @@ bool PointCloud::same_attributes(const PointCloud& other) const {
   return flags(*this) == flags(other) && las.extra_bytes_size == other.las.extra_bytes_size;
 }
 
+std::string las_metadata_problem(const LasSourceMetadata& m) {
+  const std::size_t h = m.header.size();
+  if (h == 0 && m.records.empty()) return "";
+  if ((h != 227 && h != 235 && h != 375) || m.header[0] != 'L' || m.header[1] != 'A' || m.header[2] != 'S' ||
+      m.header[3] != 'F') {
+    return "a LAS header block must be 227, 235 or 375 bytes starting 'LASF' (it is " + std::to_string(h) +
+           " bytes)";
+  }
+  for (const LasVlr& r : m.records) {
+    const std::size_t limit = r.extended ? kMaxKeptLasRecord : 65535;
+    if (r.data.size() > limit) {
+      return "a LAS record " + std::string(r.extended ? "(extended VLR)" : "(VLR)") + " of " +
+             std::to_string(r.data.size()) + " bytes is over the " + std::to_string(limit) + " bytes kept";
+    }
+  }
+  return "";
+}
+
 }  // namespace relief

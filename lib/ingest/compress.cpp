@@ -152,6 +152,7 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
     src.path = path;
     src.format = info.format;
     src.crs = info.crs_source.empty() ? info.crs : info.crs_source;
+    src.las = info.las_metadata;
     set.sources.push_back(src);
     set.readers.push_back(std::move(r));
   }

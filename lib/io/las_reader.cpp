@@ -14,7 +14,9 @@
 // validated against the file size before anything is allocated from it; VLRs
 // before the points and extended VLRs after them (LAS 1.4, read through a
 // second handle that seeks there) are scanned for the coordinate reference
-// system and the Extra Bytes VLR.
+// system and the Extra Bytes VLR; the header block and every other record
+// (but those regenerated_record names) are kept in
+// PointStreamInfo::las_metadata, which LAS output gives back.
 //
 // LAS colours are 16-bit. They become 8-bit by the rule in io/stream_support.h:
 // from a sample of the first 2^20 points (the whole file when smaller), shift
@@ -267,6 +269,41 @@ bool is_laszip_record(std::span<const std::uint8_t> user_id, std::uint16_t recor
   return user_id_text(user_id) == laz::kVlrUserId && record_id == laz::kVlrRecordId;
 }
 
+// Records LAS output writes itself from what an archive keeps elsewhere (the
+// CRS, the Extra Bytes VLR, LASzip's and COPC's records, a LAStools spatial
+// index of the file's point order), and those describing wave packets, which
+// are not kept: the rest are kept (LasSourceMetadata).
+constexpr std::string_view kCopcUserId = "copc";
+constexpr std::string_view kLibLasUserId = "liblas";  // its copy of the CRS as WKT
+constexpr std::string_view kLasToolsUserId = "LAStools";
+constexpr std::uint16_t kLaxRecordId = 30;
+constexpr std::uint16_t kFirstWaveDescriptorId = 100;
+constexpr std::uint16_t kLastWaveDescriptorId = 354;
+constexpr std::uint16_t kWaveDataRecordId = 65535;
+
+bool regenerated_record(std::span<const std::uint8_t> user_id, std::uint16_t record_id) {
+  const std::string_view user = user_id_text(user_id);
+  if (user == kProjectionUserId || user == laz::kVlrUserId || user == kCopcUserId) return true;
+  if (user == kLibLasUserId) return record_id == kWktRecordId;
+  if (user == kSpecUserId) {
+    return record_id == kExtraBytesRecordId || record_id == kWaveDataRecordId ||
+           (record_id >= kFirstWaveDescriptorId && record_id <= kLastWaveDescriptorId);
+  }
+  return user == kLasToolsUserId && record_id == kLaxRecordId;
+}
+
+// A record's user id, record id and description, from its VLR or extended
+// VLR header (the same layout up to the length).
+LasVlr record_head(std::span<const std::uint8_t> head, bool extended) {
+  LasVlr r;
+  r.extended = extended;
+  std::memcpy(r.user_id.data(), head.data() + 2, r.user_id.size());
+  r.record_id = load_le<std::uint16_t>(head.data() + 18);
+  const std::size_t description_at = extended ? 28 : 22;
+  std::memcpy(r.description.data(), head.data() + description_at, r.description.size());
+  return r;
+}
+
 void keep_projection_record(std::uint16_t record_id, std::span<const std::uint8_t> payload,
                             ProjectionRecords& out) {
   if (record_id == kWktRecordId) {
@@ -478,6 +515,8 @@ class LasPointReader final : public BatchPointReader {
   Status read_vlrs(ProjectionRecords& records);
   Status read_evlrs(ProjectionRecords& records);
   Status start_laz(const ProjectionRecords& records);
+  // Whether record `r` of `length` bytes is kept (else says why, as a warning).
+  bool keep_record(const LasVlr& r, std::uint64_t length, const std::string& which);
   Status fetch_chunk(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out);
   // The next decoded records: the file's bytes, or for LAZ decompressed ones.
   Status fill_points(std::size_t stride, std::span<const std::uint8_t>& view);
@@ -504,6 +543,7 @@ class LasPointReader final : public BatchPointReader {
   // sized before they are read.
   bool backed_ = false;
   std::uint64_t done_ = 0;
+  std::uint64_t kept_record_bytes_ = 0;
   // LAZ state: the chunk reader and the decoded records it last handed out.
   bool laz_ = false;
   std::unique_ptr<laz::ChunkReader> laz_reader_;
@@ -515,6 +555,10 @@ Status LasPointReader::start() {
   std::span<const std::uint8_t> view;
   RELIEF_RETURN_IF_ERROR(src_.fill(kLargestHeader, view));
   RELIEF_ASSIGN_OR_RETURN(header_, parse_header(view.first(std::min(view.size(), kLargestHeader)), name()));
+  {
+    const std::size_t standard = header_size_for(header_.version_minor);  // parse_header checked view holds it
+    info_.las_metadata.header.assign(view.begin(), view.begin() + static_cast<std::ptrdiff_t>(standard));
+  }
   RELIEF_RETURN_IF_ERROR(check_size());
 
   ProjectionRecords records;
@@ -617,13 +661,21 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
     const bool laszip = is_laszip_record(view.subspan(2, 16), record_id);
     const bool extra = is_extra_bytes_record(view.subspan(2, 16), record_id);
     const bool wanted = is_projection_record(view.subspan(2, 16), record_id) || laszip || extra;
+    LasVlr kept = record_head(view, false);
+    const bool keep = !regenerated_record(view.subspan(2, 16), record_id) && keep_record(kept, length, which);
     src_.consume(kVlrHeaderSize);
     pos += kVlrHeaderSize;
     if (limit - pos < length) {
       return format_error(which + " (" + std::to_string(length) +
                           " bytes) runs past the start of the point data at byte " + std::to_string(limit));
     }
-    if (wanted) {
+    if (keep) {
+      RELIEF_RETURN_IF_ERROR(src_.fill(length, view));
+      if (view.size() < length) return format_error(which + " is cut short by the end of the file");
+      kept.data.assign(view.begin(), view.begin() + length);
+      info_.las_metadata.records.push_back(std::move(kept));
+      src_.consume(length);
+    } else if (wanted) {
       RELIEF_RETURN_IF_ERROR(src_.fill(length, view));
       if (view.size() < length) return format_error(which + " is cut short by the end of the file");
       if (laszip) {
@@ -668,12 +720,21 @@ Status LasPointReader::read_evlrs(ProjectionRecords& records) {
     const auto length = load_le<std::uint64_t>(view.data() + 20);
     const bool extra = is_extra_bytes_record(view.subspan(2, 16), record_id);
     const bool wanted = is_projection_record(view.subspan(2, 16), record_id) || extra;
+    LasVlr kept = record_head(view, true);
+    const bool keep = !regenerated_record(view.subspan(2, 16), record_id) && keep_record(kept, length, which);
     evlr_src.consume(kEvlrHeaderSize);
     pos += kEvlrHeaderSize;
     if (*size - pos < length) {
       return format_error(which + " (" + std::to_string(length) + " bytes) runs past the end of the file");
     }
-    if (wanted) {
+    if (keep) {
+      const auto len = static_cast<std::size_t>(length);  // <= kMaxKeptLasRecord
+      RELIEF_RETURN_IF_ERROR(evlr_src.fill(len, view));
+      if (view.size() < len) return format_error(which + " is cut short by the end of the file");
+      kept.data.assign(view.begin(), view.begin() + static_cast<std::ptrdiff_t>(len));
+      info_.las_metadata.records.push_back(std::move(kept));
+      evlr_src.consume(len);
+    } else if (wanted) {
       if (length > (extra ? kMaxExtraBytesRecord : kMaxProjectionRecord)) {
         return format_error(which + ": a " + (extra ? "Extra Bytes" : "projection") + " record of " +
                             std::to_string(length) + " bytes is absurdly large");
@@ -694,6 +755,26 @@ Status LasPointReader::read_evlrs(ProjectionRecords& records) {
     pos += length;
   }
   return Status::ok();
+}
+
+bool LasPointReader::keep_record(const LasVlr& r, std::uint64_t length, const std::string& which) {
+  const bool too_large = length > kMaxKeptLasRecord;
+  if (!too_large && length <= kMaxKeptLasRecords - kept_record_bytes_) {
+    kept_record_bytes_ += length;
+    return true;
+  }
+  std::string what = which;
+  what += " (user id '";
+  what += user_id_text(r.user_id);
+  what += "', record ";
+  what += std::to_string(r.record_id);
+  what += ", ";
+  what += std::to_string(length);
+  what += " bytes) is not kept: ";
+  what += too_large ? "records over " + std::to_string(kMaxKeptLasRecord >> 20) + " MiB are not"
+                    : "the file's kept records would exceed " + std::to_string(kMaxKeptLasRecords >> 20) + " MiB";
+  info_.warnings.push_back(std::move(what));
+  return false;
 }
 
 // LAZ: the LASzip VLR describes the items, 8 bytes at the point offset give

@@ -29,6 +29,11 @@
 // with WriterOptions::las_colors_8bit (a source that stored 8-bit levels in
 // its 16-bit fields) they are written as they are.
 //
+// The sources' own header fields and records (WriterOptions::las_sources,
+// format-spec/archive.md §2.3.1) follow Relief's VLRs: the identity fields all
+// sources agree on, each record once across sources; an extended VLR stays
+// one in LAS 1.4, one too large for a VLR makes the file LAS 1.4.
+//
 // Intensity (float) becomes the 16-bit field by one rule for the whole file:
 // when every intensity lies in [0, 1] (normalised reflectance, as KITTI's)
 // each is scaled by 65535 and rounded (half up), so the 16-bit field keeps
@@ -73,9 +78,12 @@
 #include <initializer_list>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <tuple>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -346,13 +354,85 @@ void append_vlr(std::vector<std::uint8_t>& out, std::uint16_t record_id, std::st
 // EVLR header (LAS 1.4): as a VLR but the length is u64 at 20 and the
 // description at 28 (60 bytes).
 std::vector<std::uint8_t> make_evlr(std::uint16_t record_id, std::string_view description,
-                                    std::span<const std::uint8_t> payload) {
+                                    std::span<const std::uint8_t> payload,
+                                    std::string_view user_id = kProjectionUserId) {
   std::vector<std::uint8_t> out(kEvlrHeaderSize, 0);
-  put_field(out.data() + 2, kProjectionUserId, 16);
+  put_field(out.data() + 2, user_id, 16);
   store_le(out.data() + 18, record_id);
   store_le(out.data() + 20, static_cast<std::uint64_t>(payload.size()));
   put_field(out.data() + 28, description, 32);
   out.insert(out.end(), payload.begin(), payload.end());
+  return out;
+}
+
+// A fixed-width field of a kept record, every byte as it was.
+template <std::size_t N>
+std::string_view raw_field(const std::array<std::uint8_t, N>& field) {
+  return {reinterpret_cast<const char*>(field.data()), N};
+}
+
+// What LAS output gives back of its sources (WriterOptions::las_sources): a
+// header field when every source with a header agrees on it, each record once.
+struct SourceIdentity {
+  std::optional<std::uint16_t> file_source_id;
+  std::optional<bool> synthetic_returns;  // global encoding bit 3 (LAS 1.3+; 0 in earlier headers)
+  std::optional<std::array<std::uint8_t, 16>> project_id;
+  std::optional<std::array<std::uint8_t, 32>> system_identifier;
+  std::optional<std::pair<std::uint16_t, std::uint16_t>> created;  // day of year, year
+  std::vector<const LasVlr*> records;
+};
+
+constexpr std::uint16_t kSyntheticReturnsBit = 1u << 3;
+
+SourceIdentity source_identity(const std::vector<LasSourceMetadata>& sources) {
+  SourceIdentity out;
+  bool first = true;
+  const auto agree = [&first](auto& slot, const auto& value) {
+    if (first) {
+      slot = value;
+    } else if (slot && *slot != value) {
+      slot.reset();
+    }
+  };
+  // Records of earlier sources, by a hash of their bytes: a record that
+  // one of them already gave is not repeated (tiles of one survey carry the
+  // same ones); within a source every record stays, repeats included.
+  std::unordered_multimap<std::uint64_t, const LasVlr*> given;
+  const auto hash = [](const LasVlr& r) {
+    std::uint64_t h = 1469598103934665603ull;  // FNV-1a
+    const auto mix = [&h](std::span<const std::uint8_t> bytes) {
+      for (const std::uint8_t b : bytes) h = (h ^ b) * 1099511628211ull;
+    };
+    const std::array<std::uint8_t, 3> head{static_cast<std::uint8_t>(r.extended),
+                                           static_cast<std::uint8_t>(r.record_id),
+                                           static_cast<std::uint8_t>(r.record_id >> 8)};
+    mix(head);
+    mix(r.user_id);
+    mix(r.description);
+    mix(r.data);
+    return h;
+  };
+  for (const LasSourceMetadata& s : sources) {
+    const std::size_t before = out.records.size();
+    for (const LasVlr& r : s.records) {
+      const auto [lo, hi] = given.equal_range(hash(r));
+      if (std::none_of(lo, hi, [&r](const auto& e) { return *e.second == r; })) out.records.push_back(&r);
+    }
+    for (std::size_t i = before; i < out.records.size(); ++i) given.emplace(hash(*out.records[i]), out.records[i]);
+    if (s.header.size() < 227) continue;  // no header block (not a LAS source)
+    const std::uint8_t* h = s.header.data();
+    std::array<std::uint8_t, 16> guid{};
+    std::array<std::uint8_t, 32> system{};
+    std::memcpy(guid.data(), h + 8, guid.size());
+    std::memcpy(system.data(), h + 26, system.size());
+    const bool v13 = h[25] >= 3;
+    agree(out.file_source_id, load_le_value<std::uint16_t>(h + 4));
+    agree(out.synthetic_returns, v13 && (load_le_value<std::uint16_t>(h + 6) & kSyntheticReturnsBit) != 0);
+    agree(out.project_id, guid);
+    agree(out.system_identifier, system);
+    agree(out.created, std::make_pair(load_le_value<std::uint16_t>(h + 90), load_le_value<std::uint16_t>(h + 92)));
+    first = false;
+  }
   return out;
 }
 
@@ -603,7 +683,11 @@ class LasStreamWriter final : public StreamPointWriter {
   LasStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options, CrsPlan crs, bool laz)
       : StreamPointWriter(std::move(out), options), crs_(std::move(crs)), laz_(laz) {
     plan_ = plan_records(options, crs_.wkt, laz_);
-    extended_ = crs_.wkt || plan_.extended;
+    identity_ = source_identity(options_.las_sources);  // the copy the writer keeps: identity_ points into it
+    // A record too large for a VLR can only follow the points, in LAS 1.4.
+    const bool large_record = std::any_of(identity_.records.begin(), identity_.records.end(),
+                                          [](const LasVlr* r) { return r->data.size() > kMaxVlrPayload; });
+    extended_ = crs_.wkt || plan_.extended || large_record;
     minor_ = extended_ ? 4 : 2;
     format_ = static_cast<std::uint8_t>(format_of(plan_));
     record_length_ = static_cast<std::uint16_t>(plan_.length);
@@ -616,6 +700,7 @@ class LasStreamWriter final : public StreamPointWriter {
       creation_day_ = static_cast<std::uint16_t>(utc.tm_yday + 1);  // 1 January is day 1
       creation_year_ = static_cast<std::uint16_t>(utc.tm_year + 1900);
     }
+    if (identity_.created) std::tie(creation_day_, creation_year_) = *identity_.created;
   }
 
   // Chooses scale and offset now when the extent is known, and writes the
@@ -644,6 +729,10 @@ class LasStreamWriter final : public StreamPointWriter {
                                                                         out_->path()));
     }
     build_vlrs();
+    if (header_size_ + vlrs_.size() > std::numeric_limits<std::uint32_t>::max()) {
+      return limit_exceeded(out_->path() + ": the sources' LAS records take " + std::to_string(vlrs_.size()) +
+                            " bytes, more than a LAS file's VLRs can (4 GiB)");
+    }
     const std::vector<std::uint8_t> h = header();
     RELIEF_RETURN_IF_ERROR(out_->append(h.data(), h.size()));
     RELIEF_RETURN_IF_ERROR(out_->append(vlrs_.data(), vlrs_.size()));
@@ -703,10 +792,15 @@ class LasStreamWriter final : public StreamPointWriter {
       RELIEF_RETURN_IF_ERROR(out_->patch(header_size_ + vlrs_.size(), offset.data(), offset.size()));
     }
     if (unit_records_ > 0) RELIEF_RETURN_IF_ERROR(unscale_unit_records());
+    if (evlr_wkt_ || !evlr_records_.empty()) evlr_start_ = out_->position();
     if (evlr_wkt_) {
       // A WKT too long for a VLR follows the points as an extended VLR.
-      evlr_start_ = out_->position();
       const std::vector<std::uint8_t> e = make_evlr(kWktRecordId, "OGC WKT coordinate system", wkt_payload());
+      RELIEF_RETURN_IF_ERROR(out_->append(e.data(), e.size()));
+    }
+    for (const LasVlr* r : evlr_records_) {
+      const std::vector<std::uint8_t> e = make_evlr(r->record_id, raw_field(r->description), r->data,
+                                                    raw_field(r->user_id));
       RELIEF_RETURN_IF_ERROR(out_->append(e.data(), e.size()));
     }
     const std::vector<std::uint8_t> h = header();
@@ -848,6 +942,15 @@ class LasStreamWriter final : public StreamPointWriter {
       append_vlr(vlrs_, kGeoKeyRecordId, "GeoTIFF GeoKeyDirectoryTag", geokey_directory(crs_.keys));
       ++vlr_count_;
     }
+    // The sources' own records: an extended VLR stays one in LAS 1.4.
+    for (const LasVlr* r : identity_.records) {
+      if (r->data.size() > kMaxVlrPayload || (r->extended && extended_)) {
+        evlr_records_.push_back(r);
+        continue;
+      }
+      append_vlr(vlrs_, r->record_id, raw_field(r->description), r->data, raw_field(r->user_id));
+      ++vlr_count_;
+    }
   }
 
   // Scale exponent of the automatic scale for axis `a`.
@@ -964,12 +1067,20 @@ class LasStreamWriter final : public StreamPointWriter {
     std::vector<std::uint8_t> h(header_size_, 0);
     std::uint8_t* p = h.data();
     std::memcpy(p, "LASF", 4);
-    // 4: file source id 0; 8-23: GUID all zero.
+    // The sources' file source id and GUID where they agree, else 0.
+    if (identity_.file_source_id) store_le(p + 4, *identity_.file_source_id);
+    if (identity_.project_id) std::memcpy(p + 8, identity_.project_id->data(), 16);
+    const bool synthetic = minor_ >= 3 && identity_.synthetic_returns.value_or(false);
     store_le(p + 6, static_cast<std::uint16_t>((crs_.wkt ? kWktGlobalEncodingBit : 0) |
-                                               (standard_gps_time() ? kStandardGpsTimeBit : 0)));
+                                               (standard_gps_time() ? kStandardGpsTimeBit : 0) |
+                                               (synthetic ? kSyntheticReturnsBit : 0)));
     p[24] = 1;
     p[25] = minor_;
-    put_field(p + 26, kSystemIdentifier, 32);
+    if (identity_.system_identifier) {
+      std::memcpy(p + 26, identity_.system_identifier->data(), 32);
+    } else {
+      put_field(p + 26, kSystemIdentifier, 32);
+    }
     put_field(p + 58, kGeneratingSoftware, 32);
     store_le(p + 90, creation_day_);
     store_le(p + 92, creation_year_);
@@ -1006,7 +1117,7 @@ class LasStreamWriter final : public StreamPointWriter {
     if (minor_ >= 4) {
       // 227: start of waveform data 0 (none).
       store_le(p + 235, evlr_start_);
-      store_le<std::uint32_t>(p + 243, evlr_wkt_ ? 1 : 0);
+      store_le<std::uint32_t>(p + 243, static_cast<std::uint32_t>((evlr_wkt_ ? 1 : 0) + evlr_records_.size()));
       store_le(p + 247, n);
       for (std::size_t r = 0; r < kExtendedReturnCounts; ++r) {
         store_le(p + 255 + 8 * r, static_cast<std::uint64_t>(r < by_return_.size() ? by_return_[r] : 0));
@@ -1046,6 +1157,8 @@ class LasStreamWriter final : public StreamPointWriter {
   std::vector<std::uint8_t> vlrs_;
   std::uint32_t vlr_count_ = 0;
   bool evlr_wkt_ = false;
+  SourceIdentity identity_;
+  std::vector<const LasVlr*> evlr_records_;  // the sources' records that follow the points
   std::uint64_t evlr_start_ = 0;
   RecordPlan plan_;
   std::vector<std::uint64_t> by_return_;  // points by return number 1..5 (legacy) or 1..15

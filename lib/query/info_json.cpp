@@ -257,10 +257,12 @@ std::string archive_info_json(const ArchiveInfo& i, const std::string& path) {
   appendf(out, "  \"sources\": [");
   for (std::size_t k = 0; k < i.sources.size(); ++k) {
     const ArchiveSource& s = i.sources[k];
-    appendf(out, "%s\n    {\"path\": %s, \"format\": %s, \"points\": %llu, \"crs\": %s, \"scan\": %lld}",
+    appendf(out,
+            "%s\n    {\"path\": %s, \"format\": %s, \"points\": %llu, \"crs\": %s, \"scan\": %lld, "
+            "\"las_records\": %llu}",
             k ? "," : "", json_string(s.path).c_str(), json_string(s.format).c_str(),
             static_cast<unsigned long long>(s.point_count), json_string(s.crs).c_str(),
-            static_cast<long long>(s.scan_id));
+            static_cast<long long>(s.scan_id), static_cast<unsigned long long>(s.las.records.size()));
   }
   appendf(out, "%s],\n", i.sources.empty() ? "" : "\n  ");
   appendf(out, "  \"scans\": [");

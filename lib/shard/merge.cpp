@@ -38,7 +38,7 @@ bool same_sources(const std::vector<ArchiveSource>& a, const std::vector<Archive
   if (a.size() != b.size()) return false;
   for (std::size_t i = 0; i < a.size(); ++i) {
     if (a[i].path != b[i].path || a[i].format != b[i].format || a[i].point_count != b[i].point_count ||
-        a[i].crs != b[i].crs) {
+        a[i].crs != b[i].crs || a[i].las != b[i].las) {
       return false;
     }
   }
@@ -61,7 +61,7 @@ std::string difference(const ArchiveInfo& a, const ArchiveInfo& b) {
   if (a.extra_bytes_size != b.extra_bytes_size || a.extra_bytes_vlr != b.extra_bytes_vlr) {
     return "extra bytes (size or Extra Bytes VLR)";
   }
-  if (!same_sources(a.sources, b.sources)) return "sources (paths, formats or point counts)";
+  if (!same_sources(a.sources, b.sources)) return "sources (paths, formats, point counts or LAS headers and records)";
   return "";
 }
 

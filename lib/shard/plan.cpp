@@ -29,6 +29,12 @@ bool decode_vlr_hex(const std::string& text, std::string& out) {
   return true;
 }
 
+// Bytes (a LAS header, a record's fields) as a string for hex_lower.
+template <typename Bytes>
+std::string as_text(const Bytes& bytes) {
+  return std::string(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+}
+
 constexpr char kPlanMagic[] = "relief-shard-plan";
 // A plan is a few lines per input; anything larger is not a plan.
 constexpr std::uint64_t kMaxPlanBytes = std::uint64_t{64} << 20;
@@ -174,7 +180,11 @@ std::string shard_plan_text(const ShardPlan& plan) {
   };
   // Version 1 when there is nothing of version 2 to say: the bytes (and the
   // plan id) of a plan without LAS attributes are those earlier builds wrote.
-  line(kPlanMagic, {plan.has_las() ? std::to_string(kShardPlanVersion) : "1"});
+  // Version 2 when there is no input's LAS header to give (the bytes of
+  // plans of inputs with LAS attributes but no LAS file, e.g. a CSV column).
+  const bool las_sources = std::any_of(plan.sources.begin(), plan.sources.end(),
+                                       [](const ArchiveSource& s) { return !s.las.empty(); });
+  line(kPlanMagic, {las_sources ? std::to_string(kShardPlanVersion) : plan.has_las() ? "2" : "1"});
   line("creator", {plan.creator});
   line("archive_params", {plan.archive_params});
   if (plan.has_intensity_range) line("intensity_range", {number(plan.intensity_lo), number(plan.intensity_hi)});
@@ -197,7 +207,14 @@ std::string shard_plan_text(const ShardPlan& plan) {
   if (plan.has_xyz_columns) line("xyz_columns", {plan.xyz_columns});
   if (plan.no_extra_bytes) line("no_extra_bytes", {});
   line("points", {std::to_string(plan.points)});
-  for (const ArchiveSource& s : plan.sources) line("input", {s.path, s.format, s.crs});
+  for (const ArchiveSource& s : plan.sources) {
+    line("input", {s.path, s.format, s.crs});
+    if (!s.las.header.empty()) line("las_header", {hex_lower(as_text(s.las.header))});
+    for (const LasVlr& r : s.las.records) {
+      line("las_record", {r.extended ? "evlr" : "vlr", hex_lower(as_text(r.user_id)), std::to_string(r.record_id),
+                          hex_lower(as_text(r.description)), hex_lower(as_text(r.data))});
+    }
+  }
   line("ranges", {std::to_string(plan.range_count())});
   for (std::size_t r = 1; r < plan.range_starts.size(); ++r) {
     const ChunkKey& k = plan.range_starts[r];
@@ -210,7 +227,12 @@ std::string shard_plan_text(const ShardPlan& plan) {
 std::uint64_t shard_plan_id(const ShardPlan& plan) { return shard::fnv1a64(shard_plan_text(plan)); }
 
 Status write_shard_plan(const ShardPlan& plan, const std::string& path) {
-  return shard::write_text_atomic(path, shard_plan_text(plan));
+  const std::string text = shard_plan_text(plan);
+  if (text.size() > kMaxPlanBytes) {
+    return limit_exceeded(path + ": the plan would take " + std::to_string(text.size() >> 20) + " MiB (at most " +
+                          std::to_string(kMaxPlanBytes >> 20) + "): its inputs' LAS records are too large together");
+  }
+  return shard::write_text_atomic(path, text);
 }
 
 Result<ShardPlan> read_shard_plan(const std::string& path) {
@@ -224,11 +246,12 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
     return format_error(path + ": not a Relief shard plan (no '" + kPlanMagic + "' line)");
   }
   const std::string& version = lines[0].fields[0];
-  if (version != "1" && version != std::to_string(kShardPlanVersion)) {
+  if (version != "1" && version != "2" && version != std::to_string(kShardPlanVersion)) {
     return unsupported(path + ": shard plan version " + version + " (this build reads versions 1 to " +
                        std::to_string(kShardPlanVersion) + ")");
   }
   const bool v2 = version != "1";
+  const bool v3 = version == "3";
   ShardPlan plan;
   ScanAttributes& a = plan.attributes;
   constexpr std::int64_t kLowest = std::numeric_limits<std::int64_t>::min();
@@ -365,6 +388,43 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
       s.format = l.fields[1];
       s.crs = l.fields[2];
       plan.sources.push_back(s);
+    } else if (l.key == "las_header") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      if (!v3) return bad(n, "'las_header' in a plan of version " + version);
+      if (plan.sources.empty() || !plan.sources.back().las.empty()) {
+        return bad(n, "'las_header' not right after an 'input' line");
+      }
+      std::optional<std::string> bytes = bytes_from_hex(l.fields[0], false);
+      if (!bytes) return bad(n, "not a LAS header block in hexadecimal");
+      plan.sources.back().las.header.assign(bytes->begin(), bytes->end());
+      if (const std::string problem = las_metadata_problem(plan.sources.back().las); !problem.empty()) {
+        return bad(n, problem);
+      }
+    } else if (l.key == "las_record") {
+      RELIEF_RETURN_IF_ERROR(want(5));
+      if (!v3) return bad(n, "'las_record' in a plan of version " + version);
+      if (plan.sources.empty() || plan.sources.back().las.header.empty()) {
+        return bad(n, "'las_record' without its input's 'las_header'");
+      }
+      LasVlr r;
+      if (l.fields[0] != "vlr" && l.fields[0] != "evlr") return bad(n, "not vlr or evlr: " + l.fields[0]);
+      r.extended = l.fields[0] == "evlr";
+      std::int64_t id = 0;
+      RELIEF_RETURN_IF_ERROR(parse_int(l.fields[2], id));
+      if (id < 0 || id > 65535) return bad(n, "record id out of range");
+      r.record_id = static_cast<std::uint16_t>(id);
+      std::optional<std::string> user = bytes_from_hex(l.fields[1], false);
+      std::optional<std::string> description = bytes_from_hex(l.fields[3], false);
+      std::optional<std::string> data = bytes_from_hex(l.fields[4], false);
+      if (!user || user->size() != r.user_id.size() || !description ||
+          description->size() != r.description.size() || !data || data->size() > kMaxKeptLasRecord) {
+        return bad(n, "a malformed LAS record");
+      }
+      std::memcpy(r.user_id.data(), user->data(), r.user_id.size());
+      std::memcpy(r.description.data(), description->data(), r.description.size());
+      r.data.assign(data->begin(), data->end());
+      if (!r.extended && r.data.size() > 65535) return bad(n, "a VLR of more than 65535 bytes");
+      plan.sources.back().las.records.push_back(std::move(r));
     } else if (l.key == "ranges") {
       RELIEF_RETURN_IF_ERROR(want(1));
       std::int64_t v = 0;

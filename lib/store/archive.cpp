@@ -23,6 +23,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <span>
 #include <string_view>
 #include <system_error>
 #include <utility>
@@ -256,6 +257,9 @@ enum class Sql : std::size_t {
   kScanDelete,
   kSourceInsert,
   kSourceDeleteOfScan,
+  kSourceLasInsert,
+  kSourceLasDeleteOfScan,
+  kSourceLasAll,
   kChunkNextSeq,
   kChunkInsert,
   kIndexInsert,
@@ -365,6 +369,16 @@ SqlText sql_text(Sql id) {
               "VALUES(?1, ?2, ?3, ?4, ?5)"};
     case Sql::kSourceDeleteOfScan:
       return {"delete sources", "DELETE FROM relief_source WHERE scan_id = ?1"};
+    case Sql::kSourceLasInsert:
+      return {"insert a LAS source record",
+              "INSERT INTO relief_source_las(source_id, kind, user_id, record_id, description, data) "
+              "VALUES(?1, ?2, ?3, ?4, ?5, ?6)"};
+    case Sql::kSourceLasDeleteOfScan:
+      return {"delete LAS source records",
+              "DELETE FROM relief_source_las WHERE source_id IN (SELECT id FROM relief_source WHERE scan_id = ?1)"};
+    case Sql::kSourceLasAll:
+      return {"read LAS source records",
+              "SELECT source_id, kind, user_id, record_id, description, data FROM relief_source_las ORDER BY rowid"};
     case Sql::kChunkNextSeq:
       // Served by the UNIQUE(ix, iy, iz, seq) index: one b-tree descent.
       return {"find next seq",
@@ -421,7 +435,7 @@ SqlText sql_text(Sql id) {
               "MAX(max_y), MAX(max_z) FROM relief_chunk"};
     case Sql::kSources:
       return {"list sources",
-              "SELECT path, format, point_count, crs, scan_id FROM relief_source ORDER BY id"};
+              "SELECT path, format, point_count, crs, scan_id, id FROM relief_source ORDER BY id"};
     case Sql::kScans:
       return {"list scans", "SELECT id, complete, created_at FROM relief_scan ORDER BY id"};
     case Sql::kLevelNextSeq:
@@ -797,6 +811,10 @@ class SqliteArchive final : public Archive {
   // Whether the optional pyramid tables exist (asked of the file each time:
   // another writer may have created them since this handle opened).
   Result<bool> pyramid_tables_exist() const;
+  Result<bool> table_exists(const char* name) const;
+  Status insert_source_las(std::int64_t source_id, const LasSourceMetadata& las);
+  // Attaches each relief_source_las row to its source (ids: relief_source.id of each).
+  Status read_source_las(const std::vector<std::int64_t>& ids, std::vector<ArchiveSource>& sources) const;
   // Checks rows for put_chunks / put_level_chunks and computes their CRC-32s.
   Status check_rows(const std::vector<ChunkRow>& rows, const char* operation, std::vector<std::uint32_t>& checksums,
                     std::set<std::int64_t>& scan_ids) const;
@@ -1185,6 +1203,9 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
       return invalid_argument(path_ + ": begin_scan: source " + source.path +
                               " has too many points to record (" + std::to_string(source.point_count) + ")");
     }
+    if (const std::string problem = las_metadata_problem(source.las); !problem.empty()) {
+      return invalid_argument(path_ + ": begin_scan: source " + source.path + ": " + problem);
+    }
   }
   Transaction transaction(db(), path_);
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
@@ -1199,15 +1220,22 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
     RELIEF_RETURN_IF_ERROR(statement->run());
   }
   const std::int64_t scan_id = sqlite3_last_insert_rowid(db());
+  if (std::any_of(sources.begin(), sources.end(), [](const ArchiveSource& s) { return !s.las.empty(); })) {
+    RELIEF_RETURN_IF_ERROR(store::exec(db(), store::compact_sql(store::kCreateSourceLasSql).c_str(), path_,
+                                       "create the LAS source table"));
+  }
   RELIEF_ASSIGN_OR_RETURN(Statement * insert, statement(Sql::kSourceInsert));
   for (const ArchiveSource& source : sources) {
-    StatementScope scope(*insert);
-    insert->bind_int64(1, scan_id);
-    insert->bind_text(2, source.path);
-    insert->bind_text(3, source.format);
-    insert->bind_int64(4, static_cast<std::int64_t>(source.point_count));
-    insert->bind_text(5, source.crs);
-    RELIEF_RETURN_IF_ERROR(insert->run());
+    {
+      StatementScope scope(*insert);
+      insert->bind_int64(1, scan_id);
+      insert->bind_text(2, source.path);
+      insert->bind_text(3, source.format);
+      insert->bind_int64(4, static_cast<std::int64_t>(source.point_count));
+      insert->bind_text(5, source.crs);
+      RELIEF_RETURN_IF_ERROR(insert->run());
+    }
+    if (!source.las.empty()) RELIEF_RETURN_IF_ERROR(insert_source_las(sqlite3_last_insert_rowid(db()), source.las));
   }
   RELIEF_RETURN_IF_ERROR(merge_las_meta(attributes));
   RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
@@ -1397,6 +1425,13 @@ Status SqliteArchive::abort_scan(std::int64_t scan_id) {
     return invalid_argument(path_ + ": abort_scan: no scan with id " + std::to_string(scan_id));
   }
   RELIEF_RETURN_IF_ERROR(delete_pyramid_rows(scan_id));
+  RELIEF_ASSIGN_OR_RETURN(const bool las_table, table_exists(store::kSourceLasTable));
+  if (las_table) {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kSourceLasDeleteOfScan));
+    StatementScope scope(*statement);
+    statement->bind_int64(1, scan_id);
+    RELIEF_RETURN_IF_ERROR(statement->run());
+  }
   // Children before parents: the index entries are found through the chunk
   // rows, and the foreign keys want chunks and sources gone before the scan.
   for (const Sql id :
@@ -1408,6 +1443,87 @@ Status SqliteArchive::abort_scan(std::int64_t scan_id) {
   }
   RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
   return transaction.commit();
+}
+
+Result<bool> SqliteArchive::table_exists(const char* name) const {
+  RELIEF_ASSIGN_OR_RETURN(
+      std::unique_ptr<Statement> table,
+      Statement::prepare(db(), "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = ?1", path_,
+                         "read the schema"));
+  table->bind_text(1, name);
+  RELIEF_ASSIGN_OR_RETURN(const bool row, table->step());
+  return row && table->column_int64(0) == 1;
+}
+
+Status SqliteArchive::insert_source_las(std::int64_t source_id, const LasSourceMetadata& las) {
+  RELIEF_ASSIGN_OR_RETURN(Statement * insert, statement(Sql::kSourceLasInsert));
+  const auto put = [&](int kind, std::span<const std::uint8_t> user_id, int record_id,
+                       std::span<const std::uint8_t> description, std::span<const std::uint8_t> data) -> Status {
+    StatementScope scope(*insert);
+    insert->bind_int64(1, source_id);
+    insert->bind_int64(2, kind);
+    insert->bind_blob(3, user_id.data(), user_id.size());
+    insert->bind_int64(4, record_id);
+    insert->bind_blob(5, description.data(), description.size());
+    insert->bind_blob(6, data.data(), data.size());
+    return insert->run();
+  };
+  if (!las.header.empty()) RELIEF_RETURN_IF_ERROR(put(0, {}, 0, {}, las.header));
+  for (const LasVlr& r : las.records) {
+    RELIEF_RETURN_IF_ERROR(put(r.extended ? 2 : 1, r.user_id, r.record_id, r.description, r.data));
+  }
+  return Status::ok();
+}
+
+Status SqliteArchive::read_source_las(const std::vector<std::int64_t>& ids, std::vector<ArchiveSource>& sources) const {
+  RELIEF_ASSIGN_OR_RETURN(const bool exists, table_exists(store::kSourceLasTable));
+  if (!exists) return Status::ok();
+  std::map<std::int64_t, std::size_t> index;
+  for (std::size_t i = 0; i < ids.size(); ++i) index[ids[i]] = i;
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kSourceLasAll));
+  StatementScope scope(*statement);
+  std::uint64_t row_number = 0;
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (!row) break;
+    ++row_number;
+    RowReader reader(*statement, path_, "relief_source_las row " + std::to_string(row_number));
+    const std::int64_t source_id = reader.integer(0, "source_id", kMinInt64, kMaxInt64);
+    const int kind = static_cast<int>(reader.integer(1, "kind", 0, 2));
+    const auto record_id = static_cast<std::uint16_t>(reader.integer(3, "record_id", 0, 65535));
+    RELIEF_RETURN_IF_ERROR(reader.status());
+    const auto at = index.find(source_id);
+    const std::string where = path_ + ": relief_source_las row " + std::to_string(row_number);
+    if (at == index.end()) return format_error(where + " names source " + std::to_string(source_id) + ", which does not exist");
+    LasSourceMetadata& las = sources[at->second].las;
+    std::vector<std::uint8_t> user_id, description, data;
+    RELIEF_RETURN_IF_ERROR(statement->column_bytes(2, user_id));
+    RELIEF_RETURN_IF_ERROR(statement->column_bytes(4, description));
+    RELIEF_RETURN_IF_ERROR(statement->column_bytes(5, data));
+    if (kind == 0) {
+      const bool sized = data.size() == 227 || data.size() == 235 || data.size() == 375;
+      if (!las.header.empty() || !las.records.empty() || !sized || std::memcmp(data.data(), "LASF", 4) != 0 ||
+          !user_id.empty() || !description.empty() || record_id != 0) {
+        return format_error(where + ": not the first and only LAS header block (227, 235 or 375 bytes) of source " +
+                            std::to_string(source_id));
+      }
+      las.header = std::move(data);
+      continue;
+    }
+    LasVlr r;
+    if (user_id.size() != r.user_id.size() || description.size() != r.description.size() ||
+        data.size() > kMaxKeptLasRecord || (kind == 1 && data.size() > 65535)) {
+      return format_error(where + ": a LAS record needs a 16-byte user id, a 32-byte description and at most " +
+                          std::to_string(kind == 1 ? 65535 : kMaxKeptLasRecord) + " bytes of data");
+    }
+    r.extended = kind == 2;
+    std::memcpy(r.user_id.data(), user_id.data(), r.user_id.size());
+    r.record_id = record_id;
+    std::memcpy(r.description.data(), description.data(), r.description.size());
+    r.data = std::move(data);
+    las.records.push_back(std::move(r));
+  }
+  return Status::ok();
 }
 
 Result<bool> SqliteArchive::pyramid_tables_exist() const {
@@ -1847,6 +1963,8 @@ Result<ArchiveInfo> SqliteArchive::info() const {
     }
   }
   {
+    std::vector<std::int64_t> source_ids;
+    {
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kSources));
     StatementScope scope(*statement);
     for (;;) {
@@ -1859,9 +1977,12 @@ Result<ArchiveInfo> SqliteArchive::info() const {
       source.point_count = static_cast<std::uint64_t>(reader.integer(2, "point_count", 0, kMaxInt64));
       source.crs = reader.text(3, "crs");
       source.scan_id = reader.integer(4, "scan_id", kMinInt64, kMaxInt64);
+      source_ids.push_back(reader.integer(5, "id", kMinInt64, kMaxInt64));
       RELIEF_RETURN_IF_ERROR(reader.status());
       info.sources.push_back(std::move(source));
     }
+    }
+    RELIEF_RETURN_IF_ERROR(read_source_las(source_ids, info.sources));
   }
   {
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScans));
@@ -2181,6 +2302,9 @@ Result<ArchiveCheck> check_archive(const std::string& path) {
       report.checked("the metadata checksum: absent in format version 1, nothing to check");
     }
     if (init_status) {
+      // Scans and sources, the LAS headers and records of sources included.
+      attempt(archive->info().status(), "the scans and sources");
+      report.checked("scans and sources (their LAS headers and records)");
       attempt(archive->check_chunks(report), "the chunks");
     } else {
       report.checked("chunks and spatial index: not checked (the archive's schema or grid is unusable)");

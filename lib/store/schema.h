@@ -116,6 +116,23 @@ CREATE TABLE IF NOT EXISTS relief_level_scan (
 );
 )sql";
 
+// What LAS sources said of themselves (format-spec/archive.md §2.3.1): an
+// optional table, created by the first writer that records a LAS source.
+// Readers that do not know it lose nothing but those records. Rows of a
+// source come in rowid order: its header block (kind 0) first, then its
+// records as the file had them (kind 1 a VLR, 2 an extended VLR).
+inline constexpr char kSourceLasTable[] = "relief_source_las";
+inline constexpr char kCreateSourceLasSql[] = R"sql(
+CREATE TABLE IF NOT EXISTS relief_source_las (
+  source_id   INTEGER NOT NULL REFERENCES relief_source(id),
+  kind        INTEGER NOT NULL CHECK (kind IN (0, 1, 2)),
+  user_id     BLOB NOT NULL,
+  record_id   INTEGER NOT NULL CHECK (record_id BETWEEN 0 AND 65535),
+  description BLOB NOT NULL,
+  data        BLOB NOT NULL
+);
+)sql";
+
 // relief_meta keys.
 inline constexpr char kMetaFormatVersion[] = "format_version";
 inline constexpr char kMetaOriginX[] = "grid_origin_x";

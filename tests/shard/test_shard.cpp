@@ -138,6 +138,7 @@ void check_same_metadata(const ArchiveInfo& a, const ArchiveInfo& b) {
   REQUIRE(a.sources.size() == b.sources.size());
   for (std::size_t i = 0; i < a.sources.size(); ++i) {
     CHECK(a.sources[i].path == b.sources[i].path);
+    CHECK(a.sources[i].las == b.sources[i].las);
     CHECK(a.sources[i].format == b.sources[i].format);
     CHECK(a.sources[i].point_count == b.sources[i].point_count);
     CHECK(a.sources[i].crs == b.sources[i].crs);
@@ -170,6 +171,11 @@ std::string las_input(const TempDir& dir, const std::string& name, int format, s
   o.seed = seed;
   o.extent = 24;
   o.wide_colors = wide_colors;
+  o.file_source_id = static_cast<std::uint16_t>(seed);
+  // A record every input has and one of its own (an extended VLR in 1.4),
+  // which the archive keeps per source and LAS output gives back.
+  o.vlrs = {{"TestVendor", 7, "shared", {1, 2, 3}, false},
+            {"TestVendor", 8, name, std::vector<std::uint8_t>(name.begin(), name.end()), format >= 6}};
   if (extra) {
     o.extra = 3;
     o.extra_bytes_vlr = extra_vlr();
@@ -310,7 +316,8 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attr
       const std::vector<std::string> shards = build_shards(inputs, o, ranges, work, &plan);
       CHECK(plan.attributes.las_attributes == want_info.las_attributes);
       if (want.size() >= 8) CHECK(plan.range_count() == ranges);
-      CHECK(shard_plan_text(plan).rfind("relief-shard-plan\t2\n", 0) == 0);
+      // Version 3: the inputs' LAS headers and records travel in the plan.
+      CHECK(shard_plan_text(plan).rfind("relief-shard-plan\t3\n", 0) == 0);
       auto merged = merge_archives(shards, work + "/merged.relief");
       REQUIRE(merged.is_ok());
       CHECK(merged->chunks == want.size());
@@ -616,7 +623,14 @@ TEST_CASE("sharded build: LAS inputs, refused and damaged as compress and the sp
       return t;
     };
     const std::string bad[] = {
-        replaced("relief-shard-plan\t2", "relief-shard-plan\t1"),    // LAS lines in a version 1 plan
+        replaced("relief-shard-plan\t3", "relief-shard-plan\t1"),    // LAS lines in a version 1 plan
+        replaced("relief-shard-plan\t3", "relief-shard-plan\t2"),    // LAS headers in a version 2 plan
+        replaced("\nlas_header\t4c415346", "\nlas_header\t4c415347"),  // not "LASF"
+        replaced("\nlas_header\t4c", "\nlas_header\t4"),              // odd length
+        replaced("\nlas_record\tvlr\t", "\nlas_record\tvrl\t"),       // neither vlr nor evlr
+        replaced("\nlas_record\tvlr\t54", "\nlas_record\tvlr\t5454"), // a 17-byte user id
+        replaced("\nlas_record\tvlr\t", "\nlas_record\t"),            // four fields
+        replaced("\ninput\t", "\nlas_record\tvlr\t\t0\t\t\ninput\t"),   // before any input
         replaced("\nlas\tclassification", "\nlas\tclassificatio"), // an unknown name
         replaced("\nextra_bytes\t3\t", "\nextra_bytes\t0\t"),      // no extra bytes per point
         replaced("\nextra_bytes\t3\t", "\nextra_bytes\t3\tz"),     // not hexadecimal

@@ -200,6 +200,15 @@ inline std::vector<std::uint8_t> extra_bytes_descriptor(std::uint8_t data_type, 
   return d;
 }
 
+// A VLR (or, in a LAS 1.4 file, an extended VLR after the points) to write.
+struct TestVlr {
+  std::string user_id;      // up to 16 bytes
+  std::uint16_t record_id = 0;
+  std::string description;  // up to 32 bytes
+  std::vector<std::uint8_t> data;
+  bool extended = false;
+};
+
 struct TestLasOptions {
   int format = 3;
   std::size_t points = 3000;
@@ -210,6 +219,10 @@ struct TestLasOptions {
   double extent = 100;                         // metres in x and y
   double scale = 0.01;
   std::uint16_t global_encoding = 0;           // header bytes 6-7 (bit 0: standard GPS time)
+  std::uint16_t file_source_id = 0;
+  std::string system_identifier;               // up to 32 bytes
+  std::uint16_t creation_day = 0, creation_year = 0;
+  std::vector<TestVlr> vlrs;                   // after the Extra Bytes VLR
 };
 
 // Writes a LAS file (1.2 for formats 0-5, 1.4 for 6-10) with every field random.
@@ -218,16 +231,30 @@ inline bool write_test_las(const std::string& path, const TestLasOptions& o) {
   const Format fm = kFormats[static_cast<std::size_t>(o.format)];
   const bool ext = o.format >= 6;
   const std::size_t header = ext ? 375 : 227;
-  const std::size_t vlr = o.extra_bytes_vlr.empty() ? 0 : 54 + o.extra_bytes_vlr.size();
+  const std::size_t eb_vlr = o.extra_bytes_vlr.empty() ? 0 : 54 + o.extra_bytes_vlr.size();
+  std::size_t vlr = eb_vlr, vlr_count = eb_vlr ? 1 : 0, evlr = 0, evlr_count = 0;
+  for (const TestVlr& v : o.vlrs) {
+    if (v.extended && ext) {
+      evlr += 60 + v.data.size();
+      ++evlr_count;
+    } else {
+      vlr += 54 + v.data.size();
+      ++vlr_count;
+    }
+  }
   const std::size_t stride = fm.length + o.extra;
-  std::vector<std::uint8_t> b(header + vlr + o.points * stride, 0);
+  std::vector<std::uint8_t> b(header + vlr + o.points * stride + evlr, 0);
   std::memcpy(b.data(), "LASF", 4);
+  put<std::uint16_t>(b, 4, o.file_source_id);
   put<std::uint16_t>(b, 6, o.global_encoding);
+  std::memcpy(b.data() + 26, o.system_identifier.data(), std::min<std::size_t>(o.system_identifier.size(), 32));
+  put<std::uint16_t>(b, 90, o.creation_day);
+  put<std::uint16_t>(b, 92, o.creation_year);
   b[24] = 1;
   b[25] = ext ? 4 : 2;
   put<std::uint16_t>(b, 94, static_cast<std::uint16_t>(header));
   put<std::uint32_t>(b, 96, static_cast<std::uint32_t>(header + vlr));
-  put<std::uint32_t>(b, 100, vlr ? 1 : 0);
+  put<std::uint32_t>(b, 100, static_cast<std::uint32_t>(vlr_count));
   b[104] = static_cast<std::uint8_t>(o.format);
   put<std::uint16_t>(b, 105, static_cast<std::uint16_t>(stride));
   if (!ext) put<std::uint32_t>(b, 107, static_cast<std::uint32_t>(o.points));
@@ -245,7 +272,30 @@ inline bool write_test_las(const std::string& path, const TestLasOptions& o) {
   put<double>(b, 211, span_z * o.scale);
   put<double>(b, 219, 0.0);
   if (ext) put<std::uint64_t>(b, 247, o.points);
-  if (vlr) {
+  {
+    std::size_t at = header + eb_vlr;
+    std::size_t evlr_at = header + vlr + o.points * stride;
+    if (evlr_count > 0) {
+      put<std::uint64_t>(b, 235, evlr_at);
+      put<std::uint32_t>(b, 243, static_cast<std::uint32_t>(evlr_count));
+    }
+    for (const TestVlr& v : o.vlrs) {
+      const bool e = v.extended && ext;
+      std::size_t& p = e ? evlr_at : at;
+      std::memcpy(b.data() + p + 2, v.user_id.data(), std::min<std::size_t>(v.user_id.size(), 16));
+      put<std::uint16_t>(b, p + 18, v.record_id);
+      if (e) {
+        put<std::uint64_t>(b, p + 20, v.data.size());
+      } else {
+        put<std::uint16_t>(b, p + 20, static_cast<std::uint16_t>(v.data.size()));
+      }
+      const std::size_t head = e ? 60 : 54;
+      std::memcpy(b.data() + p + head - 32, v.description.data(), std::min<std::size_t>(v.description.size(), 32));
+      if (!v.data.empty()) std::memcpy(b.data() + p + head, v.data.data(), v.data.size());
+      p += head + v.data.size();
+    }
+  }
+  if (eb_vlr) {
     std::memcpy(b.data() + header + 2, "LASF_Spec", 9);
     put<std::uint16_t>(b, header + 18, 4);
     put<std::uint16_t>(b, header + 20, static_cast<std::uint16_t>(o.extra_bytes_vlr.size()));

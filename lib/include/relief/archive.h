@@ -57,6 +57,9 @@ struct ArchiveSource {
   std::uint64_t point_count = 0;
   std::string crs;     // as the file gave it (relief/crs.h source form), empty when none
   std::int64_t scan_id = 0;
+  // LAS/LAZ: its header block and kept VLRs (relief/types.h), which LAS
+  // output gives back (WriterOptions::las_sources); empty for other formats.
+  LasSourceMetadata las;
 };
 
 // What every point of a scan carries, known when the scan begins.

@@ -71,6 +71,11 @@ struct PointStreamInfo {
   // LAS/LAZ whose points carry GPS time: what the times count (the header's
   // global encoding bit 0); kUnknown otherwise.
   GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
+  // LAS/LAZ: the header block and the VLRs and extended VLRs kept
+  // (LasSourceMetadata; a record over kMaxKeptLasRecord bytes, or past
+  // kMaxKeptLasRecords in all, is not kept, with a warning). Extended VLRs
+  // are read from files, not from pipes.
+  LasSourceMetadata las_metadata;
   // Coordinate precision the file stores (LAS scale factors), 0 when not known,
   // and the offset of that grid (LAS: x = X * scale + offset).
   Vec3d scale{0, 0, 0};
@@ -210,6 +215,15 @@ struct WriterOptions {
   // kStandard (adjusted standard GPS time) and clear for kWeek, as the source
   // said; kUnknown sets it with formats 6-10 only (LAS 1.4 asks it of new files).
   GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
+  // LAS/LAZ: what the sources said of themselves (LasSourceMetadata, in
+  // source order). The file gives back each of the header's file source ID,
+  // project ID (GUID), system identifier, creation day and year and, in LAS
+  // 1.4, global encoding bit 3 (synthetic return numbers) that every source
+  // with a header agrees on (else Relief's own: 0, "Relief", the day it
+  // writes); and each kept record once (the first of equal ones), after
+  // Relief's own VLRs: an extended VLR as one in LAS 1.4 output, else as a
+  // VLR; a record too large for a VLR makes the file LAS 1.4.
+  std::vector<LasSourceMetadata> las_sources;
 };
 
 class PointWriter {

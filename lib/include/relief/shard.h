@@ -28,7 +28,7 @@ namespace relief {
 // First line of a plan file: "relief-shard-plan <version>". Version 2 adds
 // the LAS attributes; a plan without them is written as version 1 (the same
 // bytes as before, so earlier plans and their partition files stay valid).
-inline constexpr int kShardPlanVersion = 2;
+inline constexpr int kShardPlanVersion = 3;
 // Partition files (".rpart") and their per-input manifests (".done") this
 // build writes; it reads versions 1 (no LAS attributes) and 2.
 inline constexpr int kPartitionFormatVersion = 2;

@@ -1,6 +1,7 @@
 // Basic value types shared by every Relief module.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -69,6 +70,42 @@ enum class GpsTimeType : int { kUnknown = -1, kWeek = 0, kStandard = 1 };
 // ("" and unknown text give kUnknown).
 const char* gps_time_type_name(GpsTimeType t);
 GpsTimeType parse_gps_time_type(const std::string& text);
+
+// ---- What a LAS file says of itself beyond its points
+//
+// One variable-length record of a LAS file (ASPRS LAS 1.4 R15 §2.5, §2.6): a
+// VLR before the points, or an extended VLR after them, with its user id and
+// description as the file had them (NUL padded).
+struct LasVlr {
+  bool extended = false;
+  std::array<std::uint8_t, 16> user_id{};
+  std::uint16_t record_id = 0;
+  std::array<std::uint8_t, 32> description{};
+  std::vector<std::uint8_t> data;
+  bool operator==(const LasVlr&) const = default;
+};
+
+// A LAS/LAZ source's public header block (its standard 227, 235 or 375
+// bytes, as the file had them) and the records Relief keeps of it: every VLR
+// and extended VLR except those LAS output writes itself from what the
+// archive keeps elsewhere (the CRS's LASF_Projection records, the Extra
+// Bytes VLR, LASzip's and COPC's records, a LAStools spatial index) or that
+// describe data it does not keep (wave packets). Empty for other sources.
+// Records Relief keeps of a LAS source: one of at most kMaxKeptLasRecord
+// bytes, at most kMaxKeptLasRecords bytes in all.
+inline constexpr std::size_t kMaxKeptLasRecord = std::size_t{1} << 20;
+inline constexpr std::size_t kMaxKeptLasRecords = std::size_t{4} << 20;
+struct LasSourceMetadata {
+  std::vector<std::uint8_t> header;
+  std::vector<LasVlr> records;
+  bool empty() const { return header.empty() && records.empty(); }
+  bool operator==(const LasSourceMetadata&) const = default;
+};
+// Empty when `m` is well formed: a header block of 0, 227, 235 or 375 bytes
+// starting "LASF" (present when there are records), VLR data of at most
+// 65,535 bytes, extended VLR data of at most kMaxKeptLasRecord; else what is
+// wrong, for an error message.
+std::string las_metadata_problem(const LasSourceMetadata& m);
 
 // Names of the LasAttributeBits, in bit order ("classification", "class_flags",
 // "return_number", "number_of_returns", "scan_flags", "scan_angle",
