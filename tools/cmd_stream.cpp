@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "ingest_options.h"
 #include "relief/ingest.h"
+#include "relief/io.h"
 
 namespace relief::cli {
 
@@ -22,8 +23,9 @@ constexpr std::size_t kReadBlock = 1 << 16;
 struct Layout {
   bool colors = false;
   bool intensity = false;
-  // ASCII: column roles ('x','y','z','r','g','b','i','_').
-  std::vector<char> columns;
+  std::uint32_t las = 0;  // LasAttributeBits (text only)
+  // Text: the columns of --columns.
+  std::unique_ptr<TextLineParser> text;
 };
 
 // Reads standard input in blocks; interrupted reads end the stream.
@@ -52,52 +54,6 @@ class StdinBlocks {
   std::string error_;
 };
 
-Status parse_line(std::string_view line, std::uint64_t line_no, const Layout& layout, PointCloud& batch) {
-  Vec3d p;
-  Rgb8 c;
-  float intensity = 0;
-  std::size_t col = 0;
-  std::size_t pos = 0;
-  while (col < layout.columns.size()) {
-    while (pos < line.size() && (line[pos] == ' ' || line[pos] == '\t' || line[pos] == ',' || line[pos] == ';')) ++pos;
-    if (pos >= line.size()) {
-      return format_error("stdin: line " + std::to_string(line_no) + ": expected " +
-                          std::to_string(layout.columns.size()) + " columns, found " + std::to_string(col));
-    }
-    double v = 0;
-    const std::size_t start = pos;
-    const auto r = std::from_chars(line.data() + pos, line.data() + line.size(), v);
-    if (r.ec != std::errc() || !std::isfinite(v)) {
-      return format_error("stdin: line " + std::to_string(line_no) + ": column " + std::to_string(col + 1) +
-                          " is not a finite number");
-    }
-    pos = static_cast<std::size_t>(r.ptr - line.data());
-    const char role = layout.columns[col];
-    if ((role == 'r' || role == 'g' || role == 'b') && !(v >= 0 && v <= 255)) {
-      // Clamping would change the colour silently; a stream has no file-wide
-      // 16-bit rule to apply (the file readers' one needs the first 2^20 points).
-      return format_error("stdin: line " + std::to_string(line_no) + ": column " + std::to_string(col + 1) +
-                          ": colour level " + std::string(line.substr(start, pos - start)) + " is outside 0..255");
-    }
-    const auto u8 = [](double d) { return static_cast<std::uint8_t>(std::lround(d)); };
-    switch (role) {
-      case 'x': p.x = v; break;
-      case 'y': p.y = v; break;
-      case 'z': p.z = v; break;
-      case 'r': c.r = u8(v); break;
-      case 'g': c.g = u8(v); break;
-      case 'b': c.b = u8(v); break;
-      case 'i': intensity = static_cast<float>(v); break;
-      default: break;
-    }
-    ++col;
-  }
-  batch.positions.push_back(p);
-  if (layout.colors) batch.colors.push_back(c);
-  if (layout.intensity) batch.intensities.push_back(intensity);
-  return Status::ok();
-}
-
 double get_f64(const unsigned char* p) {
   std::uint64_t b = 0;
   for (int i = 0; i < 8; ++i) b |= static_cast<std::uint64_t>(p[i]) << (8 * i);
@@ -123,7 +79,9 @@ int run_stream(int argc, char** argv) {
       "buffered until --idle batches in a row bring it no point (or the buffer bound is hit),\n"
       "then encoded. On end of input or Ctrl-C everything received is written. A new archive\n"
       "needs --cell (and optionally --chunk-edge); an existing one keeps its parameters.\n\n"
-      "  --format xyz           text lines 'x y z [..]' per --columns; a blank line ends a scan (batch)\n"
+      "  --format xyz           text lines 'x y z [..]' per --columns (x y z, r g b as 0..255, i, c\n"
+      "                         and the LAS dimensions by name, _ to skip; default x,y,z), columns\n"
+      "                         separated by blanks, ',' or ';'; a blank line ends a scan (batch)\n"
       "  --format binary        little-endian records: f64 x y z, then u8 r g b and f32 intensity\n"
       "                         if --attributes names them\n"
       "  --attributes LIST      binary: rgb, intensity or rgb,intensity (default none)\n"
@@ -160,21 +118,12 @@ int run_stream(int argc, char** argv) {
   }
   Layout layout;
   if (format == "xyz") {
-    const std::string spec = so.ingest.reader.xyz_columns.value_or("x,y,z");
-    for (std::size_t i = 0; i < spec.size(); ++i) {
-      if (spec[i] == ',') continue;
-      const char ch = spec[i] == 'i' ? 'i' : spec[i];
-      if (std::string("xyzrgbi_").find(ch) == std::string::npos || (i + 1 < spec.size() && spec[i + 1] != ',')) {
-        return usage_error(kCommand, "--columns takes a comma list of x y z r g b i _");
-      }
-      layout.columns.push_back(ch);
-    }
-    const auto has = [&](char ch) { return std::count(layout.columns.begin(), layout.columns.end(), ch); };
-    if (has('x') != 1 || has('y') != 1 || has('z') != 1) {
-      return usage_error(kCommand, "--columns needs x, y and z once each");
-    }
-    layout.colors = has('r') == 1 && has('g') == 1 && has('b') == 1;
-    layout.intensity = has('i') == 1;
+    auto parser = TextLineParser::create(so.ingest.reader.xyz_columns.value_or("x,y,z"), "stdin");
+    if (!parser) return usage_error(kCommand, parser.status().message());
+    layout.text = std::move(*parser);
+    layout.colors = layout.text->colors();
+    layout.intensity = layout.text->intensity();
+    layout.las = layout.text->las_attributes();
   } else {
     // Each name once, nothing else: a misspelt attribute would otherwise
     // shift every record silently.
@@ -197,7 +146,7 @@ int run_stream(int argc, char** argv) {
   const std::atomic<bool>* interrupted = install_interrupt_flag();
   so.ingest.cancel = nullptr;
   const std::string archive = args.positional()[0];
-  auto stream = StreamIngest::open(archive, so, layout.colors, layout.intensity);
+  auto stream = StreamIngest::open(archive, so, layout.colors, layout.intensity, layout.las);
   if (!stream) return fail(kCommand, stream.status());
 
   StdinBlocks input;
@@ -235,7 +184,7 @@ int run_stream(int argc, char** argv) {
           continue;
         }
         if (line[first] == '#') continue;
-        status = parse_line(line, line_no, layout, batch);
+        status = layout.text->parse(line, line_no, batch);
         if (!status) break;
         if (batch.size() >= batch_points) {
           status = push();

@@ -27,7 +27,7 @@ class StreamIngestImpl final : public StreamIngest {
  public:
   StreamIngestImpl(std::unique_ptr<Archive> archive, const ArchiveGrid& grid, const EncodeParams& params,
                    const StreamOptions& options, std::int64_t scan_id, bool colors, bool intensity,
-                   bool created)
+                   std::uint32_t las, bool created)
       : archive_(std::move(archive)),
         path_(archive_->path()),
         created_(created),
@@ -37,6 +37,7 @@ class StreamIngestImpl final : public StreamIngest {
         scan_id_(scan_id),
         colors_(colors),
         intensity_(intensity),
+        las_(las),
         pipeline_(*archive_, params, grid, scan_id, resolve_threads(options.ingest.threads), options.ingest.cancel,
                   options.ingest.verify_blobs),
         progress_(options.ingest.progress, 0),
@@ -45,20 +46,23 @@ class StreamIngestImpl final : public StreamIngest {
   Status push(const PointCloud& incoming) override {
     if (finished_) return invalid_argument("stream already finished");
     RELIEF_RETURN_IF_ERROR(incoming.validate("stream batch"));
-    // A stream records no LAS attributes (StreamIngest opens with colours and
-    // intensity only): they are dropped here, as the archive will not list them.
-    PointCloud snapped;
-    const bool copy = params_.bound.has_value() || !incoming.las.empty();
-    if (copy) {
-      snapped = incoming;
-      snapped.las = LasAttributes();
-      if (params_.bound) ingest::snap_to_grid(snapped, *params_.bound);
-    }
-    const PointCloud& batch = copy ? snapped : incoming;
-    if (batch.has_colors() != colors_ || batch.has_intensity() != intensity_) {
-      return invalid_argument("stream batch has " + ingest::attribute_list(batch.has_colors(), batch.has_intensity()) +
+    // A batch of 0 points carries nothing; any other carries the stream's set.
+    if (incoming.empty()) return Status::ok();
+    if (incoming.has_colors() != colors_ || incoming.has_intensity() != intensity_) {
+      return invalid_argument("stream batch has " +
+                              ingest::attribute_list(incoming.has_colors(), incoming.has_intensity()) +
                               " but the stream was opened with " + ingest::attribute_list(colors_, intensity_));
     }
+    if (incoming.las.carried() != las_) {
+      return invalid_argument("stream batch carries the LAS attributes '" + las_attribute_list(incoming.las.carried()) +
+                              "' but the stream was opened with '" + las_attribute_list(las_) + "'");
+    }
+    PointCloud snapped;
+    if (params_.bound) {
+      snapped = incoming;
+      ingest::snap_to_grid(snapped, *params_.bound);
+    }
+    const PointCloud& batch = params_.bound ? snapped : incoming;
     RELIEF_RETURN_IF_ERROR(ingest::check_coordinates(
         batch, max_coordinate_magnitude(params_.cell_size, grid_.chunk_edge), "stream", points_read_));
     points_read_ += batch.size();
@@ -70,9 +74,7 @@ class StreamIngestImpl final : public StreamIngest {
     }
     for (std::size_t i = 0; i < batch.size(); ++i) {
       Pending& p = buffered_[grid_.key_of(batch.positions[i])];
-      p.points.positions.push_back(batch.positions[i]);
-      if (colors_) p.points.colors.push_back(batch.colors[i]);
-      if (intensity_) p.points.intensities.push_back(batch.intensities[i]);
+      p.points.push_back_from(batch, i);
       p.last_batch = batch_index_;
     }
     buffered_points_ += batch.size();
@@ -155,15 +157,11 @@ class StreamIngestImpl final : public StreamIngest {
         const std::size_t last = std::min(pts.size(), first + static_cast<std::size_t>(kStreamPartPoints));
         ChunkTask t;
         t.key = key;
-        t.points.positions.assign(pts.positions.begin() + static_cast<std::ptrdiff_t>(first),
-                                  pts.positions.begin() + static_cast<std::ptrdiff_t>(last));
-        if (colors_) {
-          t.points.colors.assign(pts.colors.begin() + static_cast<std::ptrdiff_t>(first),
-                                 pts.colors.begin() + static_cast<std::ptrdiff_t>(last));
-        }
-        if (intensity_) {
-          t.points.intensities.assign(pts.intensities.begin() + static_cast<std::ptrdiff_t>(first),
-                                      pts.intensities.begin() + static_cast<std::ptrdiff_t>(last));
+        if (first == 0 && last == pts.size()) {
+          t.points = std::move(pts);
+        } else {
+          t.points.reserve(last - first, colors_, intensity_);
+          for (std::size_t i = first; i < last; ++i) t.points.push_back_from(pts, i);
         }
         tasks.push_back(std::move(t));
       }
@@ -187,6 +185,7 @@ class StreamIngestImpl final : public StreamIngest {
   std::int64_t scan_id_;
   bool colors_;
   bool intensity_;
+  std::uint32_t las_;  // LasAttributeBits of every batch
   ChunkPipeline pipeline_;
   ingest::Progress progress_;
   std::chrono::steady_clock::time_point start_;
@@ -201,7 +200,12 @@ class StreamIngestImpl final : public StreamIngest {
 
 Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& archive_path,
                                                          const StreamOptions& options, bool has_colors,
-                                                         bool has_intensity) {
+                                                         bool has_intensity, std::uint32_t las_attributes) {
+  if ((las_attributes & ~kLasTextAttributes) != 0) {
+    return invalid_argument(archive_path + ": a stream carries the LAS dimensions of text columns (" +
+                            las_attribute_list(kLasTextAttributes) + "), not '" +
+                            las_attribute_list(las_attributes & ~kLasTextAttributes) + "'");
+  }
   struct stat st {};
   std::unique_ptr<Archive> archive;
   ArchiveGrid grid;
@@ -253,6 +257,10 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   ScanAttributes attributes;
   attributes.has_colors = has_colors;
   attributes.has_intensity = has_intensity;
+  // As a CSV's LAS columns: LAS 1.4 point format 6 for LAS output (classes
+  // above 31), GPS times of an unknown kind.
+  attributes.las_attributes = las_attributes;
+  if (las_attributes != 0) attributes.las_point_format = 6;
   Result<std::int64_t> scan_id = archive->begin_scan({src}, attributes);
   if (!scan_id) {
     if (created) {
@@ -262,7 +270,8 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
     return scan_id.status();
   }
   return std::unique_ptr<StreamIngest>(
-      new StreamIngestImpl(std::move(archive), grid, params, options, *scan_id, has_colors, has_intensity, created));
+      new StreamIngestImpl(std::move(archive), grid, params, options, *scan_id, has_colors, has_intensity,
+                           las_attributes, created));
 }
 
 }  // namespace relief

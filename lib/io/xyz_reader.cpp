@@ -258,6 +258,47 @@ char delimiter_of(std::string_view first_data_line) {
   return ' ';
 }
 
+// What is wrong with one line's values (`v` by role), or empty: a coordinate
+// that is not finite, a colour level outside 0..max_level, an intensity no
+// float holds, a LAS dimension out of its range.
+std::string text_point_problem(const double* v, const ColumnPlan& plan,
+                               const std::vector<const LasTextColumn*>& las_columns, double max_level) {
+  const Vec3d p{v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]};
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+    return "non-finite coordinate (" + format_double(p.x) + ", " + format_double(p.y) + ", " + format_double(p.z) +
+           ")";
+  }
+  if (plan.colors) {
+    for (const Role r : {Role::kRed, Role::kGreen, Role::kBlue}) {
+      const double level = v[at_role(r)];
+      if (!(level >= 0 && level <= max_level)) {
+        return "colour level " + format_double(level) + " is outside 0.." + format_double(max_level);
+      }
+    }
+  }
+  if (plan.intensity) {
+    const double raw = v[at_role(Role::kIntensity)];
+    // Converting a double beyond the float range is undefined; reject it first.
+    if (!std::isfinite(raw) || std::abs(raw) > std::numeric_limits<float>::max()) {
+      return "intensity " + format_double(raw) + " is not a finite float";
+    }
+  }
+  for (const LasTextColumn* c : las_columns) {
+    std::string error = las_column_error(*c, v[at_role(c->column)]);
+    if (!error.empty()) return error;
+  }
+  return "";
+}
+
+// The plan's LAS dimensions.
+std::vector<const LasTextColumn*> las_columns_of(const ColumnPlan& plan) {
+  std::vector<const LasTextColumn*> out;
+  for (const LasTextColumn& c : las_text_columns()) {
+    if (std::find(plan.roles.begin(), plan.roles.end(), c.column) != plan.roles.end()) out.push_back(&c);
+  }
+  return out;
+}
+
 // Appends `bits` as 8 little-endian bytes.
 void put_u64_le(std::vector<std::uint8_t>& out, std::uint64_t bits) {
   for (int k = 0; k < 8; ++k) out.push_back(static_cast<std::uint8_t>(bits >> (8 * k)));
@@ -372,7 +413,6 @@ class XyzPointReader final : public BatchPointReader {
   Status next_content_line(std::string_view& line, bool& end, std::string* last_comment_header);
   Status parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                      std::vector<std::uint16_t>* wide);
-  Status check_las_values(const double* v, std::uint64_t line_no) const;
   // Reads kept column `extra` (column c of the line) into extra_values_.
   Status parse_extra(std::string_view tok, std::size_t c, std::size_t extra, std::uint64_t line_no);
 
@@ -493,21 +533,11 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   } else {
     RELIEF_ASSIGN_OR_RETURN(plan_, parse_columns("x,y,z", name()));
   }
-  for (const LasTextColumn& c : las_text_columns()) {
-    if (std::find(plan_.roles.begin(), plan_.roles.end(), c.column) != plan_.roles.end()) las_columns_.push_back(&c);
-  }
+  las_columns_ = las_columns_of(plan_);
   info_.has_colors = plan_.colors;
   info_.has_intensity = plan_.intensity;
   info_.las_attributes = plan_.las | (plan_.extra_names.empty() ? 0u : std::uint32_t{kLasExtraBytes});
   wide_colors_ = plan_.colors;  // levels may be 16-bit (see the top of the file)
-  return Status::ok();
-}
-
-Status XyzPointReader::check_las_values(const double* v, std::uint64_t line_no) const {
-  for (const LasTextColumn* c : las_columns_) {
-    const std::string error = las_column_error(*c, v[at_role(c->column)]);
-    if (!error.empty()) return line_error(line_no, error);
-  }
   return Status::ok();
 }
 
@@ -566,32 +596,16 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     }
     v[at_role(role)] = value;
   }
-  const Vec3d p{v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]};
-  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-    return line_error(line_no, "non-finite coordinate (" + format_double(p.x) + ", " + format_double(p.y) + ", " +
-                                   format_double(p.z) + ")");
+  if (const std::string problem = text_point_problem(v, plan_, las_columns_, kMaxWideLevel); !problem.empty()) {
+    return line_error(line_no, problem);
   }
+  const Vec3d p{v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]};
   std::uint16_t levels[3] = {};
   if (plan_.colors) {
     const Role roles[3] = {Role::kRed, Role::kGreen, Role::kBlue};
-    for (int k = 0; k < 3; ++k) {
-      const double level = v[at_role(roles[k])];
-      if (!(level >= 0 && level <= kMaxWideLevel)) {
-        return line_error(line_no, "colour level " + format_double(level) + " is outside 0..65535");
-      }
-      levels[k] = static_cast<std::uint16_t>(std::lround(level));
-    }
+    for (int k = 0; k < 3; ++k) levels[k] = static_cast<std::uint16_t>(std::lround(v[at_role(roles[k])]));
   }
-  float intensity = 0;
-  if (plan_.intensity) {
-    const double raw = v[at_role(Role::kIntensity)];
-    // Converting a double beyond the float range is undefined; reject it first.
-    if (!std::isfinite(raw) || std::abs(raw) > std::numeric_limits<float>::max()) {
-      return line_error(line_no, "intensity " + format_double(raw) + " is not a finite float");
-    }
-    intensity = static_cast<float>(raw);
-  }
-  RELIEF_RETURN_IF_ERROR(check_las_values(v, line_no));
+  const float intensity = plan_.intensity ? static_cast<float>(v[at_role(Role::kIntensity)]) : 0.0f;
   out.positions.push_back(p);
   push_las_columns(v, plan_.las, out.las);
   for (const std::uint64_t e : extra_values_) put_u64_le(out.las.extra_bytes, e);
@@ -638,7 +652,63 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
   return got;
 }
 
+// TextLineParser (relief/io.h): one line at a time, columns separated by any
+// run of blanks, ',' and ';' (a stream has no first line to pick one
+// delimiter from), colour levels 0..255 (no file-wide 16-bit rule either).
+class TextLineParserImpl final : public TextLineParser {
+ public:
+  TextLineParserImpl(ColumnPlan plan, std::string name)
+      : plan_(std::move(plan)), las_columns_(las_columns_of(plan_)), name_(std::move(name)) {}
+
+  bool colors() const override { return plan_.colors; }
+  bool intensity() const override { return plan_.intensity; }
+  std::uint32_t las_attributes() const override { return plan_.las; }
+
+  Status parse(std::string_view line, std::uint64_t line_no, PointCloud& batch) const override {
+    const auto error = [&](const std::string& what) {
+      return format_error(name_ + ": line " + std::to_string(line_no) + ": " + what);
+    };
+    const auto separator = [](char c) { return is_blank(c) || c == ',' || c == ';'; };
+    double v[kRoleCount] = {};
+    std::size_t pos = 0;
+    for (std::size_t c = 0; c < plan_.roles.size(); ++c) {
+      while (pos < line.size() && separator(line[pos])) ++pos;
+      if (pos >= line.size()) {
+        return error("expected " + std::to_string(plan_.roles.size()) + " columns, found " + std::to_string(c));
+      }
+      const std::size_t start = pos;
+      while (pos < line.size() && !separator(line[pos])) ++pos;
+      const std::string_view tok = line.substr(start, pos - start);
+      if (plan_.roles[c] == Role::kSkip) continue;
+      double value = 0;
+      if (!parse_number(tok, value)) return error("column " + std::to_string(c + 1) + " " + quoted(tok) + " is not a number");
+      v[at_role(plan_.roles[c])] = value;
+    }
+    if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
+      return error(problem);
+    }
+    batch.positions.push_back({v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]});
+    if (plan_.colors) {
+      const auto level = [&](Role r) { return static_cast<std::uint8_t>(std::lround(v[at_role(r)])); };
+      batch.colors.push_back({level(Role::kRed), level(Role::kGreen), level(Role::kBlue)});
+    }
+    if (plan_.intensity) batch.intensities.push_back(static_cast<float>(v[at_role(Role::kIntensity)]));
+    push_las_columns(v, plan_.las, batch.las);
+    return Status::ok();
+  }
+
+ private:
+  ColumnPlan plan_;
+  std::vector<const LasTextColumn*> las_columns_;
+  std::string name_;
+};
+
 }  // namespace
+
+Result<std::unique_ptr<TextLineParser>> TextLineParser::create(const std::string& spec, const std::string& name) {
+  RELIEF_ASSIGN_OR_RETURN(ColumnPlan plan, parse_columns(spec, name));
+  return std::unique_ptr<TextLineParser>(new TextLineParserImpl(std::move(plan), name));
+}
 
 Result<std::unique_ptr<PointReader>> open_xyz_reader(const InputSpec& input, const ReaderOptions& options) {
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<XyzPointReader> reader, XyzPointReader::open(input, options));

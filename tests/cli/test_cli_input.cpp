@@ -308,13 +308,45 @@ TEST_CASE("stream refuses a colour level outside 0..255 instead of clamping it",
     const Run r = run("stream " + tmp.file("s.relief") + " --columns x,y,z,r,g,b --cell 1 --quiet < " +
                       tmp.file("in.txt"));
     CHECK(r.code == 13);
-    CHECK(has(r, std::string("stdin: line 2: column 5")));
+    CHECK(has(r, std::string("stdin: line 2: colour level")));
     CHECK_FALSE(fs::exists(tmp.file("s.relief")));
   }
   // 255 and fractions that round into range are levels.
   write_text(tmp.file("in.txt"), "1 2 3 10 20 30\n2 3 4 255 0 2.4\n");
   CHECK(run("stream " + tmp.file("s.relief") + " --columns x,y,z,r,g,b --cell 1 --quiet < " + tmp.file("in.txt"))
             .code == 0);
+}
+
+TEST_CASE("stream reads LAS dimensions by name and gives them back", "[cli][ingest]") {
+  TempDir tmp;
+  write_text(tmp.file("in.txt"),
+             "1 2 3 100.25 2 7 1\n"
+             "1.5,2,3,100.5,1,31,2\n"
+             "2;2;3;100.75;3;2;1\n");
+  const std::string archive = tmp.file("s.relief");
+  const Run r = run("stream " + archive + " --columns x,y,z,gps_time,return_number,classification,_ --cell 1 --quiet < " +
+                    tmp.file("in.txt"));
+  REQUIRE(r.code == 0);
+  REQUIRE(run("decompress " + archive + " -o " + tmp.file("out.csv") + " --quiet").code == 0);
+  std::ifstream in(tmp.file("out.csv"));
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  REQUIRE(lines.size() == 4);
+  CHECK(lines[0] == "X,Y,Z,Classification,ReturnNumber,GpsTime");
+  std::sort(lines.begin() + 1, lines.end());
+  CHECK(lines[1] == "1,2,3,7,2,100.25");
+  CHECK(lines[2] == "1.5,2,3,31,1,100.5");
+  CHECK(lines[3] == "2,2,3,2,3,100.75");
+  // A value out of its dimension's range, or an unknown name, is refused.
+  write_text(tmp.file("bad.txt"), "1 2 3 16\n");
+  const Run bad = run("stream " + tmp.file("b.relief") + " --columns x,y,z,return_number --cell 1 --quiet < " +
+                      tmp.file("bad.txt"));
+  CHECK(bad.code == 13);
+  CHECK(has(bad, "stdin: line 1: return number 16"));
+  CHECK_FALSE(fs::exists(tmp.file("b.relief")));
+  const Run unknown = run("stream " + tmp.file("b.relief") + " --columns x,y,z,foo --cell 1 < " + tmp.file("bad.txt"));
+  CHECK(unknown.code == 2);
+  CHECK(has(unknown, "unknown column 'foo'"));
 }
 
 TEST_CASE("stream refuses a chunk edge of more than 2^21 cells before creating the archive", "[cli][ingest]") {

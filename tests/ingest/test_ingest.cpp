@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <tuple>
 #include <fstream>
 #include <iterator>
 #include <set>
@@ -289,6 +290,48 @@ TEST_CASE("immediate streaming encodes every batch at once", "[ingest][stream]")
   CHECK((*archive)->info()->chunk_count == 2 * after_one);  // one blob per chunk and batch
   REQUIRE((*stream)->finish().is_ok());
   CHECK(decode_all(path).size() > 0);
+}
+
+TEST_CASE("streaming keeps LAS attributes; a batch with another set is refused", "[ingest][stream][las]") {
+  TempDir tmp;
+  const std::string path = tmp.file("s.relief");
+  StreamOptions so;
+  so.ingest = small_chunks();
+  const std::uint32_t bits = kLasClassification | kLasGpsTime | kLasReturnNumber;
+  auto stream = StreamIngest::open(path, so, true, true, bits);
+  REQUIRE(stream.is_ok());
+  PointCloud a = scene(21, 20000);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    a.las.classification.push_back(static_cast<std::uint8_t>(i % 40));
+    a.las.gps_time.push_back(1e5 + 1e-4 * static_cast<double>(i));
+    a.las.return_number.push_back(static_cast<std::uint8_t>(1 + i % 3));
+  }
+  REQUIRE((*stream)->push(a).is_ok());
+  PointCloud without = scene(22, 100);
+  auto refused = (*stream)->push(without);
+  REQUIRE_FALSE(refused.is_ok());
+  CHECK(refused.message().find("LAS attributes") != std::string::npos);
+  REQUIRE((*stream)->finish().is_ok());
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  CHECK((*archive)->info()->las_attributes == bits);
+  // Every point's attributes come back with it (as a multiset: the archive
+  // orders points by chunk).
+  const PointCloud back = decode_all(path);
+  REQUIRE(back.size() == a.size());
+  using Key = std::tuple<double, int, int>;
+  std::vector<Key> want, got;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    want.emplace_back(a.las.gps_time[i], a.las.classification[i], a.las.return_number[i]);
+    got.emplace_back(back.las.gps_time[i], back.las.classification[i], back.las.return_number[i]);
+  }
+  std::sort(want.begin(), want.end());
+  std::sort(got.begin(), got.end());
+  CHECK(want == got);
+  // Only the dimensions a text column can name.
+  auto bad = StreamIngest::open(tmp.file("t.relief"), so, false, false, kLasExtraBytes);
+  REQUIRE_FALSE(bad.is_ok());
+  CHECK_FALSE(std::filesystem::exists(tmp.file("t.relief")));
 }
 
 TEST_CASE("relief stream reads a pipe; end of input writes everything", "[ingest][stream][cli]") {

@@ -1049,3 +1049,51 @@ TEST_CASE("read_point_file reads every format", "[io]") {
 
 }  // namespace
 }  // namespace relief
+
+TEST_CASE("TextLineParser: one line at a time, LAS dimensions by name, checked values", "[io][stream]") {
+  auto parser = relief::TextLineParser::create("x,y,z,r,g,b,_,intensity,gps_time,c,scan_angle", "stdin");
+  REQUIRE(parser.is_ok());
+  const relief::TextLineParser& p = **parser;
+  CHECK(p.colors());
+  CHECK(p.intensity());
+  CHECK(p.las_attributes() == (relief::kLasGpsTime | relief::kLasClassification | relief::kLasScanAngle));
+  relief::PointCloud batch;
+  // Any run of blanks, ',' and ';' separates columns; columns after the last
+  // one named are ignored.
+  REQUIRE(p.parse("1 2 3 10 20 30 skip 0.5 100.25 7 -12.5 extra", 1, batch).is_ok());
+  REQUIRE(p.parse("4,5;6 , 255;0;1\t99\t2.5 1e5 31 90", 2, batch).is_ok());
+  REQUIRE(batch.size() == 2);
+  CHECK(batch.positions[1] == relief::Vec3d{4, 5, 6});
+  CHECK(batch.colors[0].r == 10);
+  CHECK(batch.colors[1].r == 255);
+  CHECK(batch.intensities[1] == 2.5f);
+  CHECK(batch.las.gps_time[1] == 1e5);
+  CHECK(batch.las.classification[0] == 7);
+  CHECK(batch.las.scan_angle[0] == -12500);  // thousandths of a degree
+  // Errors name the input and the line, and leave the batch as it was.
+  const struct {
+    const char* line;
+    const char* says;
+  } bad[] = {
+      {"1 2 3 10 20", "expected 11 columns, found 5"},
+      {"1 2 3 10 20 256 0 0.5 1 7 0", "colour level 256 is outside 0..255"},
+      {"1 2 3 10 20 30 0 0.5 1 256 0", "classification"},
+      {"1 2 nan 10 20 30 0 0.5 1 7 0", "non-finite coordinate"},
+      {"1 2 3 x 20 30 0 0.5 1 7 0", "column 4 'x' is not a number"},
+      {"1 2 3 10 20 30 0 1e39 1 7 0", "intensity"},
+      {"1 2 3 10 20 30 0 0.5 1 7 200", "scan angle"},
+  };
+  for (const auto& b : bad) {
+    CAPTURE(b.line);
+    const relief::Status s = p.parse(b.line, 9, batch);
+    REQUIRE_FALSE(s.is_ok());
+    CHECK(s.message().find("stdin: line 9: ") == 0);
+    CHECK(s.message().find(b.says) != std::string::npos);
+    CHECK(batch.size() == 2);
+    CHECK(batch.las.gps_time.size() == 2);
+  }
+  CHECK_FALSE(relief::TextLineParser::create("x,y", "stdin").is_ok());
+  CHECK_FALSE(relief::TextLineParser::create("x,y,z,x", "stdin").is_ok());
+  CHECK_FALSE(relief::TextLineParser::create("x,y,z,r,g", "stdin").is_ok());
+}
+

@@ -285,8 +285,12 @@ struct StreamOptions {
 // chunk_edge must be set), else appends with the archive's parameters.
 class StreamIngest {
  public:
+  // Every batch carries colours, intensities and the LAS attributes
+  // `las_attributes` (LasAttributeBits: those text columns fill,
+  // TextLineParser; kLasTextAttributes) as opened.
   static Result<std::unique_ptr<StreamIngest>> open(const std::string& archive_path, const StreamOptions& options,
-                                                    bool has_colors, bool has_intensity);
+                                                    bool has_colors, bool has_intensity,
+                                                    std::uint32_t las_attributes = 0);
   virtual ~StreamIngest() = default;
   // One batch of incoming points (one read, or one scan line set).
   virtual Status push(const PointCloud& batch) = 0;

@@ -6,6 +6,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "relief/status.h"
@@ -131,6 +132,27 @@ class PointReader {
 // kUnsupported.
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
+
+// One line of XYZ/CSV text at a time: what `relief stream` reads from a pipe
+// as it arrives. The columns are those of a spec as ReaderOptions::xyz_columns
+// names them (x y z, r g b, i, c, the LAS dimensions by name, _ to skip; no
+// extra-bytes columns), separated by any run of blanks, ',' and ';'; colour
+// levels are 0..255 (a level outside is an error, never clamped).
+class TextLineParser {
+ public:
+  // kInvalidArgument for a spec that names an unknown column, one twice, or
+  // lacks x, y or z; `name` names the input in messages (e.g. "stdin").
+  static Result<std::unique_ptr<TextLineParser>> create(const std::string& spec, const std::string& name);
+  virtual ~TextLineParser() = default;
+  virtual bool colors() const = 0;
+  virtual bool intensity() const = 0;
+  virtual std::uint32_t las_attributes() const = 0;  // LasAttributeBits the columns fill
+  // Appends the point of `line` to `batch` (its colours, intensities and LAS
+  // attributes as the columns say). A missing column, a value that is not a
+  // number or is out of its range is an error naming the input and line_no,
+  // and `batch` is unchanged.
+  virtual Status parse(std::string_view line, std::uint64_t line_no, PointCloud& batch) const = 0;
+};
 
 // ---- LAS extra bytes
 

@@ -59,6 +59,9 @@ enum LasAttributeBits : std::uint32_t {
   kLasColorLow = 1u << 10,
   kLasExtraBytes = 1u << 11,
 };
+// The LAS dimensions a text column can name (all but the colour low bytes
+// and extra bytes): what `relief stream` carries.
+inline constexpr std::uint32_t kLasTextAttributes = (kLasColorLow - 1);
 
 // What a LAS source's GPS times count (its header's global encoding bit 0):
 // seconds of the GPS week, or adjusted standard GPS time (GPS seconds since
