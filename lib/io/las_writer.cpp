@@ -356,12 +356,14 @@ void append_vlr(std::vector<std::uint8_t>& out, std::uint16_t record_id, std::st
 std::vector<std::uint8_t> make_evlr(std::uint16_t record_id, std::string_view description,
                                     std::span<const std::uint8_t> payload,
                                     std::string_view user_id = kProjectionUserId) {
-  std::vector<std::uint8_t> out(kEvlrHeaderSize, 0);
+  // Sized once (growing a 60-byte vector by insert draws a false GCC 12
+  // -Warray-bounds once inlined).
+  std::vector<std::uint8_t> out(kEvlrHeaderSize + payload.size(), 0);
   put_field(out.data() + 2, user_id, 16);
   store_le(out.data() + 18, record_id);
   store_le(out.data() + 20, static_cast<std::uint64_t>(payload.size()));
   put_field(out.data() + 28, description, 32);
-  out.insert(out.end(), payload.begin(), payload.end());
+  std::copy(payload.begin(), payload.end(), out.begin() + kEvlrHeaderSize);
   return out;
 }
 
@@ -383,6 +385,7 @@ struct SourceIdentity {
 };
 
 constexpr std::uint16_t kSyntheticReturnsBit = 1u << 3;
+constexpr double kSecondsPerWeek = 604800;
 
 SourceIdentity source_identity(const std::vector<LasSourceMetadata>& sources) {
   SourceIdentity out;
@@ -753,6 +756,7 @@ class LasStreamWriter final : public StreamPointWriter {
     }
     if (!placed_) RELIEF_RETURN_IF_ERROR(place_from(batch));
     RELIEF_RETURN_IF_ERROR(check_attributes(batch));
+    note_gps_times(batch);
     if (options_.intensity && unit_intensity_ &&
         !std::all_of(batch.intensities.begin(), batch.intensities.end(), in_unit_range)) {
       if (laz_ && points_written() > 0) {
@@ -1127,8 +1131,11 @@ class LasStreamWriter final : public StreamPointWriter {
   }
 
   // Global encoding bit 0 says what the source's GPS times counted, as
-  // LAStools and PDAL forward it; when no source said, it is set with
-  // formats 6-10, as LAS 1.4 asks of new files.
+  // LAStools and PDAL forward it. When no source said (text, PLY, a stream),
+  // the times say: all within one week's seconds (0 <= t < 604800) count the
+  // week, any other is adjusted standard GPS time (GPS seconds - 10^9, which
+  // stays outside that range but for a week of September 2011); a file of
+  // no points keeps LAS 1.4's wish for formats 6-10.
   bool standard_gps_time() const {
     if (plan_.gps == 0) return false;
     switch (options_.las_gps_time_type) {
@@ -1139,7 +1146,20 @@ class LasStreamWriter final : public StreamPointWriter {
       case GpsTimeType::kUnknown:
         break;
     }
-    return format_ >= 6;
+    if (points_written() == 0) return format_ >= 6;
+    return !times_in_week_;
+  }
+
+  // Whether every GPS time written so far lies within one week's seconds
+  // (standard_gps_time, for sources that did not say what they count).
+  void note_gps_times(const PointCloud& batch) {
+    if (!times_in_week_ || plan_.gps == 0 || options_.las_gps_time_type != GpsTimeType::kUnknown) return;
+    for (const double t : batch.las.gps_time) {
+      if (!(t >= 0 && t < kSecondsPerWeek)) {
+        times_in_week_ = false;
+        return;
+      }
+    }
   }
 
   CrsPlan crs_;
@@ -1163,6 +1183,7 @@ class LasStreamWriter final : public StreamPointWriter {
   RecordPlan plan_;
   std::vector<std::uint64_t> by_return_;  // points by return number 1..5 (legacy) or 1..15
   EncodeFn encode_ = nullptr;
+  bool times_in_week_ = true;      // every GPS time so far in [0, 604800)
   bool unit_intensity_ = true;     // every intensity so far in [0, 1]
   std::uint64_t unit_records_ = 0;  // records to rewrite when that ended
   bool placed_ = false;

@@ -402,6 +402,35 @@ TEST_CASE("what the GPS times count (global encoding bit 0) is recorded and writ
   CHECK((global_encoding_of(out) & 1) == 0);
 }
 
+TEST_CASE("GPS times from text say what they count in LAS output", "[las][archive]") {
+  TempDir dir;
+  // Seconds of a week give bit 0 clear, adjusted standard GPS time sets it,
+  // whatever the (1.4) point format a CSV's LAS columns give.
+  for (const auto& [times, bit] : {std::pair{std::string("0.5\n604799.9"), 0}, std::pair{std::string("0.5\n4.1e8"), 1},
+                                   std::pair{std::string("-3.5e7\n10"), 1}}) {
+    CAPTURE(times);
+    std::string csv = "x,y,z,gps_time\n";
+    std::size_t start = 0;
+    int k = 0;
+    while (start <= times.size()) {
+      const std::size_t nl = std::min(times.find('\n', start), times.size());
+      csv += std::to_string(k++) + ",1,2," + times.substr(start, nl - start) + "\n";
+      start = nl + 1;
+    }
+    const std::string in = dir.file("t.csv");
+    { std::ofstream(in) << csv; }
+    const std::string archive = dir.file("t.relief");
+    std::filesystem::remove(archive);
+    REQUIRE(relief::compress_files({in}, archive, {}).is_ok());
+    CHECK(archive_info(archive).las_gps_time_type == relief::GpsTimeType::kUnknown);
+    for (const char* ext : {".las", ".laz"}) {
+      const std::string out = dir.file(std::string("t") + ext);
+      REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+      CHECK((global_encoding_of(out) & 1) == bit);
+    }
+  }
+}
+
 TEST_CASE("inputs whose GPS times count differently are refused, naming both", "[las][archive][reject]") {
   TempDir dir;
   const std::string week = las_with_time(dir, "week.las", 1, 0, 1);

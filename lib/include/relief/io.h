@@ -235,7 +235,9 @@ struct WriterOptions {
   bool las_colors_8bit = false;
   // LAS/LAZ with GPS time: the header's global encoding bit 0 is set for
   // kStandard (adjusted standard GPS time) and clear for kWeek, as the source
-  // said; kUnknown sets it with formats 6-10 only (LAS 1.4 asks it of new files).
+  // said; kUnknown lets the times say: clear when every one lies in
+  // 0..604800 (seconds of a week), else set (a file of no points: set with
+  // formats 6-10 only, as LAS 1.4 asks of new files).
   GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
   // LAS/LAZ: what the sources said of themselves (LasSourceMetadata, in
   // source order). The file gives back each of the header's file source ID,
