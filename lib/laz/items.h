@@ -31,6 +31,7 @@ enum ItemType : std::uint16_t {
   kItemPoint14 = 10,
   kItemRgb14 = 11,
   kItemRgbNir14 = 12,
+  kItemWavePacket14 = 13,
   kItemByte14 = 14,
 };
 
@@ -39,6 +40,7 @@ inline constexpr std::size_t kGpsTime11Size = 8;
 inline constexpr std::size_t kRgb12Size = 6;
 inline constexpr std::size_t kPoint14Size = 30;
 inline constexpr std::size_t kRgbNir14Size = 8;
+inline constexpr std::size_t kWavePacketSize = 29;
 
 // The items of a point format before any extra bytes (empty for formats
 // LAZ does not cover here) and their total size.

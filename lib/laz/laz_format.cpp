@@ -68,6 +68,10 @@ FormatItems items_for_format(int format) {
     case 6: return {{kItemPoint14}, 30};
     case 7: return {{kItemPoint14, kItemRgb14}, 36};
     case 8: return {{kItemPoint14, kItemRgbNir14}, 38};
+    // The wave packet descriptors are one layer of their own, which the
+    // layered decoder skips (Relief does not keep them).
+    case 9: return {{kItemPoint14, kItemWavePacket14}, 59};
+    case 10: return {{kItemPoint14, kItemRgbNir14, kItemWavePacket14}, 67};
     default: return {{}, 0};
   }
 }
@@ -80,6 +84,7 @@ std::size_t fixed_item_size(std::uint16_t type) {
     case kItemPoint14: return kPoint14Size;
     case kItemRgb14: return kRgb12Size;
     case kItemRgbNir14: return kRgbNir14Size;
+    case kItemWavePacket14: return kWavePacketSize;
     default: return 0;
   }
 }
@@ -127,7 +132,8 @@ Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format
   const FormatItems need = items_for_format(point_format);
   if (need.types.empty()) {
     return unsupported(name + ": LAZ point format " + std::to_string(point_format) +
-                       " is not supported (0-3 and 6-8 are; waveform formats are not)");
+                       " is not supported (0-3 and 6-10 are; 4 and 5 are not: their wave packets are "
+                       "interleaved with the other items in one stream)");
   }
   const bool layered = point_format >= 6;
   // LASzip 1.x's unchunked compressor (1) knew the pointwise items only.
@@ -404,6 +410,10 @@ class LayeredDecoder final : public ChunkDecoderBase {
           rgb_ = std::make_unique<Rgb14V3>(it.type == kItemRgbNir14);
           rgb_offset_ = offset;
           break;
+        case kItemWavePacket14:
+          wave_ = true;
+          wave_offset_ = offset;
+          break;
         default:
           bytes_ = std::make_unique<Byte14V3>(it.size);
           bytes_offset_ = offset;
@@ -423,12 +433,24 @@ class LayeredDecoder final : public ChunkDecoderBase {
       return corrupt("holds " + std::to_string(count) + " points but the chunk table says " +
                      std::to_string(points));
     }
+    // Layer sizes and layers come in item order: POINT14, RGB(NIR)14, the
+    // wave packets' one layer (skipped), BYTE14.
+    std::uint32_t wave_bytes = 0;
     std::vector<std::span<Layer>> groups = {point_.layers()};
     if (rgb_) groups.push_back(rgb_->layers());
-    if (bytes_) groups.push_back(bytes_->layers());
     std::uint64_t total = 0;
     for (auto& g : groups) {
       for (Layer& layer : g) {
+        RELIEF_RETURN_IF_ERROR(r.u32(layer.size, "layer size"));
+        total += layer.size;
+      }
+    }
+    if (wave_) {
+      RELIEF_RETURN_IF_ERROR(r.u32(wave_bytes, "wave packet layer size"));
+      total += wave_bytes;
+    }
+    if (bytes_) {
+      for (Layer& layer : bytes_->layers()) {
         RELIEF_RETURN_IF_ERROR(r.u32(layer.size, "layer size"));
         total += layer.size;
       }
@@ -438,14 +460,18 @@ class LayeredDecoder final : public ChunkDecoderBase {
                      std::to_string(r.remaining()) + " left");
     }
     std::span<const std::uint8_t> data = bytes.subspan(rl_ + r.position());
-    for (auto& g : groups) {
+    const auto start_group = [&](std::span<Layer> g) {
       std::uint64_t size = 0;
       for (Layer& layer : g) size += layer.size;
-      if (!start_layers(g, data.first(static_cast<std::size_t>(size)))) {
-        return corrupt("a compressed layer is invalid");
-      }
+      const bool ok = start_layers(g, data.first(static_cast<std::size_t>(size)));
       data = data.subspan(static_cast<std::size_t>(size));
+      return ok;
+    };
+    for (auto& g : groups) {
+      if (!start_group(g)) return corrupt("a compressed layer is invalid");
     }
+    data = data.subspan(wave_bytes);  // within `total`, checked above
+    if (bytes_ && !start_group(bytes_->layers())) return corrupt("a compressed layer is invalid");
     const std::uint32_t context = point_.init(first_.data());
     if (rgb_) rgb_->init(first_.data() + rgb_offset_, context);
     if (bytes_) bytes_->init(first_.data() + bytes_offset_, context);
@@ -461,6 +487,7 @@ class LayeredDecoder final : public ChunkDecoderBase {
       } else {
         const std::uint32_t context = point_.read(out);
         if (rgb_) rgb_->read(out + rgb_offset_, context);
+        if (wave_) std::memset(out + wave_offset_, 0, kWavePacketSize);  // not decoded
         if (bytes_) bytes_->read(out + bytes_offset_, context);
       }
       ++decoded_;
@@ -495,6 +522,8 @@ class LayeredDecoder final : public ChunkDecoderBase {
   std::unique_ptr<Byte14V3> bytes_;
   std::size_t rgb_offset_ = 0;
   std::size_t bytes_offset_ = 0;
+  bool wave_ = false;
+  std::size_t wave_offset_ = 0;
 };
 
 }  // namespace

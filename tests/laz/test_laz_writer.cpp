@@ -274,4 +274,83 @@ TEST_CASE("LAZ writer: formats and sizes it cannot write are refused", "[laz][wr
   CHECK(laz::PointCompressor::create(0, 20, laz::kVariableChunks, "var.laz").is_ok());
 }
 
+// A wave packet descriptor's bytes (LAS 1.4 R15 Table 14).
+constexpr std::size_t kWavePacketBytes = 29;
+
+TEST_CASE("LAZ formats 9 and 10: the wave packet layer is skipped, every other field decoded", "[laz][wave]") {
+  // A LASzip layered chunk of format 6 or 8 becomes one of format 9 or 10 by
+  // adding the wave packet item: 29 raw bytes after the first record's, a
+  // layer size after the other items' sizes and that layer after theirs.
+  for (const auto& [base, wave_format] : {std::pair{6, 9}, std::pair{8, 10}}) {
+    for (const std::uint32_t wave_bytes : {0u, 37u}) {
+      DYNAMIC_SECTION("format " << wave_format << ", a wave layer of " << wave_bytes << " bytes") {
+        const std::size_t rl = base_size(base);
+        const std::size_t rl_wave = rl + kWavePacketBytes;
+        const std::size_t layers = base == 8 ? 9 + 2 : 9;
+        const auto records = random_records(base, rl, 2500, 77 + static_cast<std::uint64_t>(wave_bytes));
+        auto comp = laz::PointCompressor::create(base, rl, 1000, "test");
+        REQUIRE(comp.is_ok());
+        std::vector<std::uint8_t> file(8, 0);
+        (*comp)->add(records.data(), records.size() / rl, file);
+        const auto table = (*comp)->finish(file);
+        const std::uint64_t table_at = file.size();
+        file.insert(file.end(), table.begin(), table.end());
+        auto params = laz::parse_vlr((*comp)->vlr_payload(), base, rl, "test");
+        REQUIRE(params.is_ok());
+        auto chunks = laz::parse_chunk_table(std::span(file).subspan(table_at), *params, 8, table_at, 2500, "test");
+        REQUIRE(chunks.is_ok());
+        REQUIRE(chunks->size() == 3);
+
+        // The VLR with one more item: WAVEPACKET14, 29 bytes, version 3.
+        std::vector<std::uint8_t> vlr = (*comp)->vlr_payload();
+        const auto items = load_le<std::uint16_t>(vlr.data() + 32);
+        vlr[32] = static_cast<std::uint8_t>(items + 1);
+        for (const std::uint8_t b : {13, 0, 29, 0, 3, 0}) vlr.push_back(b);
+        auto wave_params = laz::parse_vlr(vlr, wave_format, rl_wave, "test");
+        INFO(wave_params.status().to_string());
+        REQUIRE(wave_params.is_ok());
+        auto dec = laz::ChunkDecoder::create(*wave_params, "test");
+        REQUIRE(dec.is_ok());
+        std::vector<std::uint8_t> out(2500 * rl_wave);
+        std::size_t at = 0;
+        for (std::size_t i = 0; i < chunks->size(); ++i) {
+          const laz::Chunk& c = (*chunks)[i];
+          const std::span<const std::uint8_t> old = std::span(file).subspan(c.offset, c.bytes);
+          std::vector<std::uint8_t> chunk(old.begin(), old.begin() + static_cast<std::ptrdiff_t>(rl));
+          for (std::size_t k = 0; k < kWavePacketBytes; ++k) chunk.push_back(static_cast<std::uint8_t>(0xA0 + k));
+          const std::size_t sizes_end = rl + 4 + 4 * layers;  // the count, then the layer sizes
+          chunk.insert(chunk.end(), old.begin() + static_cast<std::ptrdiff_t>(rl),
+                       old.begin() + static_cast<std::ptrdiff_t>(sizes_end));
+          for (int s = 0; s < 4; ++s) chunk.push_back(static_cast<std::uint8_t>(wave_bytes >> (8 * s)));
+          chunk.insert(chunk.end(), old.begin() + static_cast<std::ptrdiff_t>(sizes_end), old.end());
+          for (std::uint32_t k = 0; k < wave_bytes; ++k) chunk.push_back(static_cast<std::uint8_t>(k * 13));
+          const Status b = (*dec)->begin(chunk, c.points, i);
+          INFO(b.to_string());
+          REQUIRE(b.is_ok());
+          const Status d = (*dec)->decode(static_cast<std::size_t>(c.points), out.data() + at);
+          INFO(d.to_string());
+          REQUIRE(d.is_ok());
+          at += c.points * rl_wave;
+        }
+        // Every record's other fields as they were; the wave packets are not
+        // decoded (zeros; a chunk's first record keeps its raw bytes).
+        for (std::size_t p = 0; p < 2500; ++p) {
+          CAPTURE(p);
+          REQUIRE(std::memcmp(out.data() + p * rl_wave, records.data() + p * rl, rl) == 0);
+          const bool first = p % 1000 == 0;
+          REQUIRE(out[p * rl_wave + rl] == (first ? 0xA0 : 0));
+        }
+        // A wave layer longer than the chunk holds is corrupt.
+        std::vector<std::uint8_t> cut(file.begin() + static_cast<std::ptrdiff_t>((*chunks)[0].offset),
+                                      file.begin() + static_cast<std::ptrdiff_t>((*chunks)[0].offset + rl));
+        cut.resize(cut.size() + kWavePacketBytes + 4 + 4 * layers, 0);
+        cut[rl + kWavePacketBytes] = 0xE8;  // 1000 points
+        cut[rl + kWavePacketBytes + 1] = 0x03;
+        for (int s = 0; s < 4; ++s) cut.push_back(0xFF);
+        CHECK_FALSE((*dec)->begin(cut, 1000, 0).is_ok());
+      }
+    }
+  }
+}
+
 }  // namespace relief

@@ -13,7 +13,10 @@
 // pointwise compressor (1: no chunk table and no table offset, the whole
 // point data is one stream) and the pointwise items in version 1, with either
 // pointwise compressor and mixed with version-2 items as LASzip allows. Not
-// supported: waveform formats 4, 5, 9 and 10, item version 4.
+// supported: waveform formats 4 and 5 (their wave packets are interleaved with
+// the other items in one stream), item version 4. Formats 9 and 10 are read
+// with their wave packet layer skipped: the records hold zeros there (a
+// chunk's first record its raw bytes), as Relief keeps no wave packets.
 // Decoding and encoding go chunk by chunk, so memory is bounded by one
 // chunk's compressed bytes whatever the file size (an unchunked stream is
 // read in pieces of bounded size).
