@@ -46,14 +46,14 @@ class StreamIngestImpl final : public StreamIngest {
   Status push(const PointCloud& incoming) override {
     if (finished_) return invalid_argument("stream already finished");
     RELIEF_RETURN_IF_ERROR(incoming.validate("stream batch"));
-    // A batch of 0 points carries nothing; any other carries the stream's set.
-    if (incoming.empty()) return Status::ok();
-    if (incoming.has_colors() != colors_ || incoming.has_intensity() != intensity_) {
+    // A batch of 0 points carries nothing (and still counts as a batch for
+    // --idle); any other carries the stream's set.
+    if (!incoming.empty() && (incoming.has_colors() != colors_ || incoming.has_intensity() != intensity_)) {
       return invalid_argument("stream batch has " +
                               ingest::attribute_list(incoming.has_colors(), incoming.has_intensity()) +
                               " but the stream was opened with " + ingest::attribute_list(colors_, intensity_));
     }
-    if (incoming.las.carried() != las_) {
+    if (!incoming.empty() && incoming.las.carried() != las_) {
       return invalid_argument("stream batch carries the LAS attributes '" + las_attribute_list(incoming.las.carried()) +
                               "' but the stream was opened with '" + las_attribute_list(las_) + "'");
     }
