@@ -307,6 +307,16 @@ TEST_CASE("streaming keeps LAS attributes; a batch with another set is refused",
     a.las.return_number.push_back(static_cast<std::uint8_t>(1 + i % 3));
   }
   REQUIRE((*stream)->push(a).is_ok());
+  {
+    // Empty batches (a scanner's idle ticks) count for --idle: after two,
+    // every chunk of `a` is encoded.
+    auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+    REQUIRE(archive.is_ok());
+    CHECK((*archive)->info()->chunk_count == 0);
+    REQUIRE((*stream)->push(PointCloud()).is_ok());
+    REQUIRE((*stream)->push(PointCloud()).is_ok());
+    CHECK((*archive)->info()->input_points == a.size());
+  }
   PointCloud without = scene(22, 100);
   auto refused = (*stream)->push(without);
   REQUIRE_FALSE(refused.is_ok());
