@@ -1527,15 +1527,9 @@ Status SqliteArchive::read_source_las(const std::vector<std::int64_t>& ids, std:
 }
 
 Result<bool> SqliteArchive::pyramid_tables_exist() const {
-  RELIEF_ASSIGN_OR_RETURN(
-      std::unique_ptr<Statement> table,
-      Statement::prepare(db(),
-                         "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name IN (?1, ?2)",
-                         path_, "read the schema"));
-  table->bind_text(1, store::kLevelChunkTable);
-  table->bind_text(2, store::kLevelScanTable);
-  RELIEF_ASSIGN_OR_RETURN(const bool row, table->step());
-  return row && table->column_int64(0) == 2;
+  RELIEF_ASSIGN_OR_RETURN(const bool chunks, table_exists(store::kLevelChunkTable));
+  if (!chunks) return false;
+  return table_exists(store::kLevelScanTable);
 }
 
 Status SqliteArchive::put_level_chunks(int level, std::vector<ChunkRow>& rows) {
