@@ -2,8 +2,6 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <charconv>
-#include <cmath>
 #include <cstring>
 #include <iostream>
 
@@ -24,8 +22,9 @@ struct Layout {
   bool colors = false;
   bool intensity = false;
   std::uint32_t las = 0;  // LasAttributeBits (text only)
-  // Text: the columns of --columns.
+  // Text: the columns of --columns; binary: the fields of --attributes.
   std::unique_ptr<TextLineParser> text;
+  std::unique_ptr<BinaryRecordParser> binary;
 };
 
 // Reads standard input in blocks; interrupted reads end the stream.
@@ -54,22 +53,6 @@ class StdinBlocks {
   std::string error_;
 };
 
-double get_f64(const unsigned char* p) {
-  std::uint64_t b = 0;
-  for (int i = 0; i < 8; ++i) b |= static_cast<std::uint64_t>(p[i]) << (8 * i);
-  double v;
-  std::memcpy(&v, &b, 8);
-  return v;
-}
-
-float get_f32(const unsigned char* p) {
-  std::uint32_t b = 0;
-  for (int i = 0; i < 4; ++i) b |= static_cast<std::uint32_t>(p[i]) << (8 * i);
-  float v;
-  std::memcpy(&v, &b, 4);
-  return v;
-}
-
 }  // namespace
 
 int run_stream(int argc, char** argv) {
@@ -82,9 +65,15 @@ int run_stream(int argc, char** argv) {
       "  --format xyz           text lines 'x y z [..]' per --columns (x y z, r g b as 0..255, i, c\n"
       "                         and the LAS dimensions by name, _ to skip; default x,y,z), columns\n"
       "                         separated by blanks, ',' or ';'; a blank line ends a scan (batch)\n"
-      "  --format binary        little-endian records: f64 x y z, then u8 r g b and f32 intensity\n"
-      "                         if --attributes names them\n"
-      "  --attributes LIST      binary: rgb, intensity or rgb,intensity (default none)\n"
+      "  --format binary        little-endian records: f64 x y z, then the fields --attributes\n"
+      "                         lists, in its order\n"
+      "  --attributes LIST      binary fields after x y z (default none): rgb (3 x u8), intensity\n"
+      "                         (f32), gps_time (f64), scan_angle (f32 degrees), point_source_id\n"
+      "                         and nir (u16), the other LAS dimensions by name (u8:\n"
+      "                         classification, return_number, number_of_returns, user_data,\n"
+      "                         scanner_channel, synthetic, key_point, withheld, overlap,\n"
+      "                         scan_direction_flag, edge_of_flight_line), _N to skip N bytes;\n"
+      "                         rgb before intensity\n"
       "  --batch N              points per batch when no blank line comes first (default 65536)\n"
       "  --idle N               batches without new points before a chunk is encoded (default 2)\n"
       "  --max-buffered N       bound on buffered points (default 4000000)\n"
@@ -125,20 +114,12 @@ int run_stream(int argc, char** argv) {
     layout.intensity = layout.text->intensity();
     layout.las = layout.text->las_attributes();
   } else {
-    // Each name once, nothing else: a misspelt attribute would otherwise
-    // shift every record silently.
-    const std::string attrs = args.get("--attributes").value_or("");
-    std::size_t start = 0;
-    while (!attrs.empty() && start <= attrs.size()) {
-      const std::size_t comma = std::min(attrs.find(',', start), attrs.size());
-      const std::string name = attrs.substr(start, comma - start);
-      bool& flag = name == "rgb" ? layout.colors : layout.intensity;
-      if ((name != "rgb" && name != "intensity") || flag) {
-        return usage_error(kCommand, "--attributes takes rgb, intensity or rgb,intensity, got '" + attrs + "'");
-      }
-      flag = true;
-      start = comma + 1;
-    }
+    auto parser = BinaryRecordParser::create(args.get("--attributes").value_or(""), "stdin");
+    if (!parser) return usage_error(kCommand, "--attributes: " + parser.status().message());
+    layout.binary = std::move(*parser);
+    layout.colors = layout.binary->colors();
+    layout.intensity = layout.binary->intensity();
+    layout.las = layout.binary->las_attributes();
   }
   const bool quiet = args.has("--quiet");
   so.ingest.progress = progress_printer(quiet);
@@ -155,7 +136,7 @@ int run_stream(int argc, char** argv) {
   PointCloud batch;
   std::uint64_t line_no = 0;
   Status status;
-  const std::size_t record = 24 + (layout.colors ? 3 : 0) + (layout.intensity ? 4 : 0);
+  const std::size_t record = layout.binary ? layout.binary->record_size() : 0;
   const auto push = [&]() -> Status {
     if (batch.empty()) return Status::ok();
     Status s = (*stream)->push(batch);
@@ -193,19 +174,9 @@ int run_stream(int argc, char** argv) {
       }
     } else {
       while (buf.size() - pos >= record) {
-        const auto* p = reinterpret_cast<const unsigned char*>(buf.data() + pos);
-        const Vec3d v{get_f64(p), get_f64(p + 8), get_f64(p + 16)};
-        if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
-          status = format_error("stdin: record " + std::to_string(line_no) + " has a non-finite coordinate");
-          break;
-        }
-        batch.positions.push_back(v);
-        std::size_t off = 24;
-        if (layout.colors) {
-          batch.colors.push_back({p[off], p[off + 1], p[off + 2]});
-          off += 3;
-        }
-        if (layout.intensity) batch.intensities.push_back(get_f32(p + off));
+        const auto* p = reinterpret_cast<const std::uint8_t*>(buf.data() + pos);
+        status = layout.binary->parse(p, line_no + 1, batch);
+        if (!status) break;
         pos += record;
         ++line_no;
         if (batch.size() >= batch_points) {

@@ -710,6 +710,160 @@ Result<std::unique_ptr<TextLineParser>> TextLineParser::create(const std::string
   return std::unique_ptr<TextLineParser>(new TextLineParserImpl(std::move(plan), name));
 }
 
+namespace {
+
+// BinaryRecordParser (relief/io.h): a field's kind in the record.
+enum class BinaryType : std::uint8_t { kU8, kU16, kF32, kF64, kRgb, kSkip };
+
+std::size_t binary_size(BinaryType t, std::size_t skip) {
+  switch (t) {
+    case BinaryType::kU8: return 1;
+    case BinaryType::kU16: return 2;
+    case BinaryType::kF32: return 4;
+    case BinaryType::kF64: return 8;
+    case BinaryType::kRgb: return 3;
+    case BinaryType::kSkip: break;
+  }
+  return skip;
+}
+
+// The binary type of a LAS dimension (relief/io.h lists them).
+BinaryType binary_type_of(Role r) {
+  switch (r) {
+    case Role::kGpsTime: return BinaryType::kF64;
+    case Role::kScanAngle:
+    case Role::kIntensity: return BinaryType::kF32;
+    case Role::kPointSourceId:
+    case Role::kNir: return BinaryType::kU16;
+    default: return BinaryType::kU8;
+  }
+}
+
+constexpr std::size_t kMaxBinarySkip = 1024;
+
+class BinaryRecordParserImpl final : public BinaryRecordParser {
+ public:
+  struct Field {
+    Role role;  // kSkip for padding and kRed for the colour triple
+    BinaryType type;
+    std::size_t offset;
+  };
+  BinaryRecordParserImpl(ColumnPlan plan, std::vector<Field> fields, std::size_t size, std::string name)
+      : plan_(std::move(plan)), fields_(std::move(fields)), size_(size), las_columns_(las_columns_of(plan_)),
+        name_(std::move(name)) {}
+
+  std::size_t record_size() const override { return size_; }
+  bool colors() const override { return plan_.colors; }
+  bool intensity() const override { return plan_.intensity; }
+  std::uint32_t las_attributes() const override { return plan_.las; }
+
+  Status parse(const std::uint8_t* record, std::uint64_t record_no, PointCloud& batch) const override {
+    double v[kRoleCount] = {};
+    v[at_role(Role::kX)] = load_le<double>(record);
+    v[at_role(Role::kY)] = load_le<double>(record + 8);
+    v[at_role(Role::kZ)] = load_le<double>(record + 16);
+    for (const Field& f : fields_) {
+      const std::uint8_t* p = record + f.offset;
+      switch (f.type) {
+        case BinaryType::kU8: v[at_role(f.role)] = p[0]; break;
+        case BinaryType::kU16: v[at_role(f.role)] = load_le<std::uint16_t>(p); break;
+        case BinaryType::kF32: v[at_role(f.role)] = load_le<float>(p); break;
+        case BinaryType::kF64: v[at_role(f.role)] = load_le<double>(p); break;
+        case BinaryType::kRgb:
+          v[at_role(Role::kRed)] = p[0];
+          v[at_role(Role::kGreen)] = p[1];
+          v[at_role(Role::kBlue)] = p[2];
+          break;
+        case BinaryType::kSkip: break;
+      }
+    }
+    if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
+      return format_error(name_ + ": record " + std::to_string(record_no) + ": " + problem);
+    }
+    batch.positions.push_back({v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]});
+    if (plan_.colors) {
+      const auto level = [&](Role r) { return static_cast<std::uint8_t>(v[at_role(r)]); };
+      batch.colors.push_back({level(Role::kRed), level(Role::kGreen), level(Role::kBlue)});
+    }
+    if (plan_.intensity) batch.intensities.push_back(static_cast<float>(v[at_role(Role::kIntensity)]));
+    push_las_columns(v, plan_.las, batch.las);
+    return Status::ok();
+  }
+
+ private:
+  ColumnPlan plan_;
+  std::vector<Field> fields_;
+  std::size_t size_;
+  std::vector<const LasTextColumn*> las_columns_;
+  std::string name_;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std::string& spec,
+                                                                       const std::string& name) {
+  const std::string where = name + ": binary fields '" + spec + "': ";
+  ColumnPlan plan;
+  plan.roles = {Role::kX, Role::kY, Role::kZ};
+  std::array<bool, kRoleCount> seen{};
+  seen[at_role(Role::kX)] = seen[at_role(Role::kY)] = seen[at_role(Role::kZ)] = true;
+  std::vector<BinaryRecordParserImpl::Field> fields;
+  std::size_t size = 24;
+  std::size_t start = 0;
+  while (!spec.empty() && start <= spec.size()) {
+    const std::size_t comma = std::min(spec.find(',', start), spec.size());
+    const std::string tok = spec.substr(start, comma - start);
+    start = comma + 1;
+    BinaryRecordParserImpl::Field f{Role::kSkip, BinaryType::kSkip, size};
+    std::size_t skip = 0;
+    if (tok.size() > 1 && tok[0] == '_') {
+      const auto [p, ec] = std::from_chars(tok.data() + 1, tok.data() + tok.size(), skip);
+      if (ec != std::errc{} || p != tok.data() + tok.size() || skip == 0 || skip > kMaxBinarySkip) {
+        return invalid_argument(where + quoted(tok) + " is not _N with N bytes to skip, 1.." +
+                                std::to_string(kMaxBinarySkip));
+      }
+    } else if (tok == "rgb") {
+      if (seen[at_role(Role::kRed)]) return invalid_argument(where + "rgb appears twice");
+      seen[at_role(Role::kRed)] = seen[at_role(Role::kGreen)] = seen[at_role(Role::kBlue)] = true;
+      f.role = Role::kRed;
+      f.type = BinaryType::kRgb;
+    } else {
+      const std::optional<Role> role = text_column_of_name(tok);
+      const bool single_colour = role == Role::kRed || role == Role::kGreen || role == Role::kBlue;
+      if (!role || single_colour) {
+        return invalid_argument(where + "unknown field " + quoted(tok) +
+                                " (rgb, intensity, the LAS dimensions by name, or _N to skip N bytes)");
+      }
+      if (*role == Role::kX || *role == Role::kY || *role == Role::kZ) {
+        return invalid_argument(where + quoted(tok) + ": x, y and z are always the record's first 24 bytes");
+      }
+      if (seen[at_role(*role)]) return invalid_argument(where + quoted(tok) + " appears twice");
+      seen[at_role(*role)] = true;
+      f.role = *role;
+      f.type = binary_type_of(*role);
+    }
+    if (f.role != Role::kSkip) {
+      plan.roles.push_back(f.role);
+      if (f.type == BinaryType::kRgb) plan.roles.insert(plan.roles.end(), {Role::kGreen, Role::kBlue});
+      fields.push_back(f);
+    }
+    size += binary_size(f.type, skip);
+  }
+  // Before rgb and intensity could be listed in any order, the record had
+  // rgb first whatever the order: refuse the other order rather than read
+  // such a stream differently.
+  const auto offset_of = [&](Role r) {
+    const auto it = std::find_if(fields.begin(), fields.end(), [&](const auto& f) { return f.role == r; });
+    return it == fields.end() ? std::optional<std::size_t>() : it->offset;
+  };
+  const auto rgb_at = offset_of(Role::kRed), intensity_at = offset_of(Role::kIntensity);
+  if (rgb_at && intensity_at && *intensity_at < *rgb_at) {
+    return invalid_argument(where + "rgb must come before intensity in the record");
+  }
+  summarise(plan, seen);
+  return std::unique_ptr<BinaryRecordParser>(new BinaryRecordParserImpl(std::move(plan), std::move(fields), size, name));
+}
+
 Result<std::unique_ptr<PointReader>> open_xyz_reader(const InputSpec& input, const ReaderOptions& options) {
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<XyzPointReader> reader, XyzPointReader::open(input, options));
   return std::unique_ptr<PointReader>(std::move(reader));

@@ -349,6 +349,46 @@ TEST_CASE("stream reads LAS dimensions by name and gives them back", "[cli][inge
   CHECK(has(unknown, "unknown column 'foo'"));
 }
 
+TEST_CASE("stream --format binary reads typed LAS fields and gives them back", "[cli][ingest]") {
+  TempDir tmp;
+  // Records: f64 x y z, u8 r g b, f32 intensity, f64 GPS time, u8 return
+  // number, 2 padding bytes, u16 point source ID.
+  const auto record = [](double x, std::uint8_t r, float intensity, double t, std::uint8_t ret, std::uint16_t src) {
+    std::string b;
+    const auto put = [&](const auto v) { b.append(reinterpret_cast<const char*>(&v), sizeof v); };
+    put(x), put(2.0), put(3.0), put(r), put(std::uint8_t{0}), put(std::uint8_t{9}), put(intensity), put(t), put(ret);
+    b.append("\xEE\xEE", 2);
+    put(src);
+    return b;
+  };
+  const std::string fields = " --format binary --attributes rgb,intensity,gps_time,return_number,_2,point_source_id";
+  {
+    std::ofstream f(tmp.file("in.bin"), std::ios::binary);
+    f << record(1, 10, 5, 100.25, 2, 7) << record(1.5, 11, 6, 100.5, 1, 65535) << record(2, 12, 7, 100.75, 3, 0);
+  }
+  const std::string archive = tmp.file("s.relief");
+  REQUIRE(run("stream " + archive + fields + " --cell 1 --quiet < " + tmp.file("in.bin")).code == 0);
+  REQUIRE(run("decompress " + archive + " -o " + tmp.file("out.csv") + " --quiet").code == 0);
+  std::ifstream in(tmp.file("out.csv"));
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  REQUIRE(lines.size() == 4);
+  CHECK(lines[0] == "X,Y,Z,Red,Green,Blue,Intensity,ReturnNumber,PointSourceId,GpsTime");
+  std::sort(lines.begin() + 1, lines.end());
+  CHECK(lines[1] == "1,2,3,10,0,9,5,2,7,100.25");
+  CHECK(lines[2] == "1.5,2,3,11,0,9,6,1,65535,100.5");
+  CHECK(lines[3] == "2,2,3,12,0,9,7,3,0,100.75");
+  // A value out of its dimension's range names the record and keeps nothing.
+  {
+    std::ofstream f(tmp.file("bad.bin"), std::ios::binary);
+    f << record(1, 10, 5, 100.25, 2, 7) << record(1.5, 11, 6, 100.5, 16, 1);
+  }
+  const Run bad = run("stream " + tmp.file("b.relief") + fields + " --cell 1 --quiet < " + tmp.file("bad.bin"));
+  CHECK(bad.code == 13);
+  CHECK(has(bad, "stdin: record 2: return number 16"));
+  CHECK_FALSE(fs::exists(tmp.file("b.relief")));
+}
+
 TEST_CASE("stream refuses a chunk edge of more than 2^21 cells before creating the archive", "[cli][ingest]") {
   TempDir tmp;
   write_text(tmp.file("in.txt"), grid_xyz("5 5 5"));

@@ -1097,3 +1097,85 @@ TEST_CASE("TextLineParser: one line at a time, LAS dimensions by name, checked v
   CHECK_FALSE(relief::TextLineParser::create("x,y,z,r,g", "stdin").is_ok());
 }
 
+
+namespace {
+
+// Little-endian bytes of each value, in turn.
+struct RecordBytes {
+  std::vector<std::uint8_t> bytes;
+  template <typename T>
+  RecordBytes& put(T v) {
+    std::uint8_t b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    bytes.insert(bytes.end(), b, b + sizeof(T));
+    return *this;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("BinaryRecordParser: fields in the order listed, LAS dimensions typed, checked values", "[io][stream]") {
+  auto parser = relief::BinaryRecordParser::create(
+      "rgb,intensity,gps_time,_3,return_number,scan_angle,point_source_id,synthetic", "stdin");
+  REQUIRE(parser.is_ok());
+  const relief::BinaryRecordParser& p = **parser;
+  CHECK(p.record_size() == 24 + 3 + 4 + 8 + 3 + 1 + 4 + 2 + 1);
+  CHECK(p.colors());
+  CHECK(p.intensity());
+  CHECK(p.las_attributes() == (relief::kLasGpsTime | relief::kLasReturnNumber | relief::kLasScanAngle |
+                               relief::kLasPointSourceId | relief::kLasClassFlags));
+  const auto record = [](double z, std::uint8_t ret, float angle, float intensity) {
+    RecordBytes r;
+    r.put(1.5).put(-2.25).put(z);
+    r.put(std::uint8_t{10}).put(std::uint8_t{20}).put(std::uint8_t{255});
+    r.put(intensity).put(123456.789);
+    r.put(std::uint8_t{0xAA}).put(std::uint8_t{0xBB}).put(std::uint8_t{0xCC});  // skipped
+    r.put(ret).put(angle).put(std::uint16_t{65535}).put(std::uint8_t{1});
+    return r.bytes;
+  };
+  relief::PointCloud batch;
+  const std::vector<std::uint8_t> good = record(3, 2, -12.5f, 17);
+  REQUIRE(good.size() == p.record_size());
+  REQUIRE(p.parse(good.data(), 1, batch).is_ok());
+  REQUIRE(batch.size() == 1);
+  CHECK(batch.positions[0] == relief::Vec3d{1.5, -2.25, 3});
+  CHECK(batch.colors[0].r == 10);
+  CHECK(batch.colors[0].g == 20);
+  CHECK(batch.colors[0].b == 255);
+  CHECK(batch.intensities[0] == 17.0f);
+  CHECK(batch.las.gps_time[0] == 123456.789);
+  CHECK(batch.las.return_number[0] == 2);
+  CHECK(batch.las.scan_angle[0] == -12500);  // thousandths of a degree
+  CHECK(batch.las.point_source_id[0] == 65535);
+  CHECK(batch.las.class_flags[0] == 1);  // synthetic is bit 0
+  // Errors name the input and the record, and leave the batch as it was.
+  const struct {
+    std::vector<std::uint8_t> bytes;
+    const char* says;
+  } bad[] = {
+      {record(std::nan(""), 2, 0, 1), "non-finite coordinate"},
+      {record(3, 16, 0, 1), "return number 16"},
+      {record(3, 2, 200, 1), "scan angle"},
+      {record(3, 2, 0, std::numeric_limits<float>::infinity()), "intensity"},
+  };
+  for (const auto& b : bad) {
+    CAPTURE(b.says);
+    const relief::Status s = p.parse(b.bytes.data(), 7, batch);
+    REQUIRE_FALSE(s.is_ok());
+    CHECK(s.message().find("stdin: record 7: ") == 0);
+    CHECK(s.message().find(b.says) != std::string::npos);
+    CHECK(batch.size() == 1);
+    CHECK(batch.las.gps_time.size() == 1);
+  }
+  // No fields: x y z alone.
+  auto bare = relief::BinaryRecordParser::create("", "stdin");
+  REQUIRE(bare.is_ok());
+  CHECK((*bare)->record_size() == 24);
+  CHECK((*bare)->las_attributes() == 0);
+  for (const char* spec : {"color", "rgb,rgb", "rgb,", "x", "r", "intensity,rgb", "_0", "_1025", "_x", "gps_time,gps_time"}) {
+    CAPTURE(spec);
+    const auto r = relief::BinaryRecordParser::create(spec, "stdin");
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == relief::StatusCode::kInvalidArgument);
+  }
+}

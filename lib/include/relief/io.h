@@ -154,6 +154,41 @@ class TextLineParser {
   virtual Status parse(std::string_view line, std::uint64_t line_no, PointCloud& batch) const = 0;
 };
 
+// Fixed-size little-endian binary records, one point each: what `relief
+// stream --format binary` reads from a pipe. A record is f64 x, y, z, then
+// the fields `spec` lists, comma separated, in its order:
+//   rgb                          3 x u8 (levels 0..255)
+//   intensity (or i)             f32
+//   gps_time                     f64
+//   scan_angle                   f32, degrees (-180..180)
+//   point_source_id, nir         u16
+//   every other LAS dimension    u8: classification, return_number,
+//     number_of_returns, scanner_channel, user_data, and the 0/1 flags
+//     synthetic, key_point, withheld, overlap, scan_direction_flag,
+//     edge_of_flight_line
+//   _N                           N bytes skipped (1..1024: padding, fields
+//                                not kept)
+// LAS dimensions go by the names the text columns take (relief/io.h
+// ReaderOptions::xyz_columns). When both are named, rgb comes before
+// intensity (the record order this format has always had).
+class BinaryRecordParser {
+ public:
+  // kInvalidArgument naming the field for a spec with an unknown name, a
+  // name twice, x/y/z (always first, not listed) or intensity before rgb;
+  // `name` names the input in messages (e.g. "stdin").
+  static Result<std::unique_ptr<BinaryRecordParser>> create(const std::string& spec, const std::string& name);
+  virtual ~BinaryRecordParser() = default;
+  virtual std::size_t record_size() const = 0;
+  virtual bool colors() const = 0;
+  virtual bool intensity() const = 0;
+  virtual std::uint32_t las_attributes() const = 0;  // LasAttributeBits the fields fill
+  // Appends the point of the record_size() bytes at `record` to `batch`. A
+  // non-finite coordinate or intensity, or a LAS dimension out of its range,
+  // is an error naming the input and record_no (`relief stream` counts from
+  // 1), and `batch` is unchanged.
+  virtual Status parse(const std::uint8_t* record, std::uint64_t record_no, PointCloud& batch) const = 0;
+};
+
 // ---- LAS extra bytes
 
 // One field of a LAS Extra Bytes VLR (LASF_Spec record 4; ASPRS LAS 1.4 R15,
