@@ -75,7 +75,12 @@ std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<
     auto range = out.equal_range(it->first);
     std::vector<std::vector<std::uint8_t>> v;
     for (auto j = range.first; j != range.second; ++j) v.push_back(j->second);
-    std::sort(v.begin(), v.end());
+    // (Compared as string views: GCC 12 with LTO warns, wrongly, about the
+    // memcmp of vector<uint8_t>'s operator< inside std::sort.)
+    const auto bytes = [](const std::vector<std::uint8_t>& b) {
+      return std::string_view(reinterpret_cast<const char*>(b.data()), b.size());
+    };
+    std::sort(v.begin(), v.end(), [&](const auto& a, const auto& b) { return bytes(a) < bytes(b); });
     for (auto& b : v) sorted.emplace(it->first, std::move(b));
     it = range.second;
   }
