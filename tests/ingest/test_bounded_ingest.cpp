@@ -9,6 +9,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <string_view>
 #include <tuple>
 
 #include "relief/archive.h"
