@@ -33,6 +33,7 @@ __all__ = [
     "append",
     "compress",
     "open",
+    "write",
 ]
 
 __version__ = _relief.__version__
@@ -301,6 +302,159 @@ class Archive:
     def __repr__(self):
         state = "closed" if self.closed else "open"
         return f"<relief.Archive {self.path!r} ({state})>"
+
+
+# ---- relief.write: a structured array (as Archive.query returns) to a file.
+
+# The fields with a meaning of their own, and the type each is written as.
+_POINT_FIELDS = {
+    "x": "<f8", "y": "<f8", "z": "<f8", "intensity": "<f4", "classification": "u1", "class_flags": "u1",
+    "return_number": "u1", "number_of_returns": "u1", "scan_flags": "u1", "scan_angle": "<i4",
+    "user_data": "u1", "point_source_id": "<u2", "gps_time": "<f8", "nir": "<u2",
+}
+_COLOUR_FIELDS = ("red", "green", "blue")
+# LAS Extra Bytes data types (LAS 1.4 R15, table 24) of numpy scalar types.
+_EXTRA_TYPE_IDS = {"u1": 1, "i1": 2, "u2": 3, "i2": 4, "u4": 5, "i4": 6, "u8": 7, "i8": 8, "f4": 9, "f8": 10}
+
+
+def _extra_descriptor(name, data_type, options=0):
+    """One 192-byte Extra Bytes descriptor (LAS 1.4 R15, section 2.5)."""
+    raw = name.encode("ascii", "strict") if data_type else b""
+    if len(raw) > 32:
+        raise InvalidArgumentError(f"write(): extra bytes field name '{name}' is longer than LAS's 32 characters")
+    d = bytearray(192)
+    d[2] = data_type
+    d[3] = options
+    d[4:4 + len(raw)] = raw
+    return bytes(d)
+
+
+def _undocumented(size):
+    """Descriptors of `size` undocumented bytes (at most 255 each)."""
+    return [_extra_descriptor("", 0, min(255, size - k)) for k in range(0, size, 255)]
+
+
+def _extra_type(name, dt):
+    """The LAS data type of a field of numpy type `dt`, and its size."""
+    import numpy as np
+
+    base, shape = (dt.subdtype if dt.subdtype else (dt, ()))
+    key = f"{base.kind}{base.itemsize}"
+    count = int(np.prod(shape)) if shape else 1
+    if base.kind not in "iuf" or key not in _EXTRA_TYPE_IDS or len(shape) > 1 or count > 3:
+        raise InvalidArgumentError(
+            f"write(): field '{name}' ({dt}) is neither a point attribute nor an extra bytes field LAS can "
+            "describe (a number, or 2 or 3 of them)")
+    return _EXTRA_TYPE_IDS[key] + 10 * (count - 1), base.itemsize * count, base.newbyteorder("<"), shape
+
+
+def _checked(name, values, target):
+    """`values` as the C-contiguous array of type `target`, refusing what it cannot hold."""
+    import numpy as np
+
+    t = np.dtype(target)
+    kind = values.dtype.kind
+    if t.kind == "f":
+        if kind not in "iuf":
+            raise InvalidArgumentError(f"write(): field '{name}' must be numeric, not {values.dtype}")
+        out = np.ascontiguousarray(values, dtype=t)
+        bad = ~np.isfinite(out)
+        if bad.any():
+            raise InvalidArgumentError(
+                f"write(): field '{name}' has a non-finite value at point {int(np.argmax(bad))}")
+        return out
+    if kind not in "iub":
+        raise InvalidArgumentError(f"write(): field '{name}' must hold integers ({t}), not {values.dtype}")
+    info = np.iinfo(t)
+    if len(values) and (values.min() < info.min or values.max() > info.max):
+        at = int(np.argmax((values < info.min) | (values > info.max)))
+        raise InvalidArgumentError(
+            f"write(): field '{name}' has {values[at]} at point {at}, outside {info.min}..{info.max}")
+    return np.ascontiguousarray(values, dtype=t)
+
+
+def write(path, points, *, crs=None, scale=None):
+    """Writes a numpy structured array of points to a point file.
+
+    The format follows the extension, as ``relief decompress`` writes it:
+    ``.las``, ``.laz``, ``.ply``, ``.xyz``/``.txt``/``.csv``. ``points``:
+    fields x, y, z (numbers, finite) and any of those
+    :meth:`Archive.query` gives (red, green, blue as uint8, or up to 65535
+    for 16-bit LAS colours; intensity; the LAS attributes classification,
+    class_flags, return_number, number_of_returns, scan_flags, scan_angle
+    (thousandths of a degree), user_data, point_source_id, gps_time, nir),
+    each checked to fit its type (a value that does not raises
+    InvalidArgumentError naming the field and the point; the LAS writer
+    refuses values its point format cannot hold). Every other field that is
+    a number, or 2 or 3 of them, becomes a LAS extra bytes field of its name
+    and type (PLY properties, text columns); a query's opaque
+    ``extra_bytes`` is written as it is, described by the typed fields that
+    view it. ``crs``: WKT or "EPSG:<code>" for LAS/LAZ. ``scale``: the LAS
+    coordinate resolution (default: 0.1 mm, coarser when the extent needs
+    it). An existing file is replaced once the new one is complete.
+    Returns the number of points written.
+    """
+    import numpy as np
+
+    if not isinstance(points, np.ndarray) or points.dtype.names is None or points.ndim != 1:
+        raise InvalidArgumentError("write(): points must be a 1-D numpy structured array")
+    names = points.dtype.names
+    missing = [k for k in ("x", "y", "z") if k not in names]
+    if missing:
+        raise InvalidArgumentError(f"write(): the points have no field {', '.join(missing)}")
+    columns = {}
+    for name in names:
+        if name in _POINT_FIELDS:
+            columns[name] = _checked(name, points[name], _POINT_FIELDS[name])
+    colours = [k for k in _COLOUR_FIELDS if k in names]
+    if colours and len(colours) != 3:
+        raise InvalidArgumentError(f"write(): colour needs red, green and blue, the points have {', '.join(colours)}")
+    if colours:
+        wide = any(points[k].dtype.itemsize > 1 or points[k].dtype.kind not in "ub" for k in colours)
+        for k in colours:
+            columns[k] = _checked(k, points[k], "<u2" if wide else "u1")
+
+    # Extra bytes: the opaque block of a query first (described by the typed
+    # fields that view it, gaps undocumented), then every other field.
+    fields = points.dtype.fields
+    extra_parts, descriptors = [], []
+    block_at, block_size = None, 0
+    if "extra_bytes" in names and fields["extra_bytes"][0].kind == "V" and fields["extra_bytes"][0].names is None:
+        block_at, block_size = fields["extra_bytes"][1], fields["extra_bytes"][0].itemsize
+        extra_parts.append(np.ascontiguousarray(points["extra_bytes"]).view(np.uint8).reshape(len(points), block_size))
+    views, others = [], []
+    for name in names:
+        if name in _POINT_FIELDS or name in _COLOUR_FIELDS or name == "extra_bytes":
+            continue
+        dt, at = fields[name][:2]
+        if block_at is not None and block_at <= at and at + dt.itemsize <= block_at + block_size:
+            views.append((at - block_at, name, dt))
+        else:
+            others.append((name, dt))
+    done = 0
+    for at, name, dt in sorted(views):
+        data_type, size, _, _ = _extra_type(name, dt)
+        if at < done:
+            raise InvalidArgumentError(f"write(): extra bytes field '{name}' overlaps the one before it")
+        descriptors += _undocumented(at - done)
+        descriptors.append(_extra_descriptor(name, data_type))
+        done = at + size
+    if descriptors:
+        descriptors += _undocumented(block_size - done)
+    described = bool(descriptors) or block_at is None
+    for name, dt in others:
+        data_type, size, little, _ = _extra_type(name, dt)
+        values = np.ascontiguousarray(points[name], dtype=little)  # (n,) or (n, count)
+        extra_parts.append(values.view(np.uint8).reshape(len(points), size))
+        if not described:  # an undescribed block before it
+            descriptors += _undocumented(block_size)
+            described = True
+        descriptors.append(_extra_descriptor(name, data_type))
+    extra = None
+    if extra_parts:
+        extra = np.ascontiguousarray(np.concatenate(extra_parts, axis=1) if len(extra_parts) > 1 else extra_parts[0])
+    return _relief.write_points(str(path), columns, extra, b"".join(descriptors), crs or "",
+                                0.0 if scale is None else float(scale))
 
 
 def open(path):  # noqa: A001 (the package's verb, as relief.open)

@@ -18,6 +18,7 @@
 
 #include "arrays.h"
 #include "batch_stream.h"
+#include "writer.h"
 #include "relief/ingest.h"
 #include "relief/query.h"
 #include "relief/status.h"
@@ -365,6 +366,16 @@ PYBIND11_MODULE(_relief, m) {
       .def_property_readonly("closed", &Reader::closed)
       .def_property_readonly("path", &Reader::path);
 
+  m.def(
+      "write_points",
+      [](const std::string& path, const py::dict& columns, const py::object& extra, const py::bytes& extra_vlr,
+         const std::string& crs, double scale) {
+        std::uint64_t written = 0;
+        if (const Status s = write_points(path, columns, extra, extra_vlr, crs, scale, written); !s) raise_status(s);
+        return written;
+      },
+      py::arg("path"), py::arg("columns"), py::arg("extra"), py::arg("extra_vlr"), py::arg("crs"),
+      py::arg("scale"));
   m.def("_synthetic_las_batch", &synthetic_las_batch, py::arg("n"), py::arg("las"),
         py::arg("extra_bytes_size"));
   m.attr("LAS_BITS") =

@@ -414,3 +414,104 @@ def test_ply_properties_come_back_as_typed_fields(tmp_path):
     relief.compress(str(tmp_path / "p.ply"), str(tmp_path / "q.relief"), no_extra_bytes=True)
     with relief.open(tmp_path / "q.relief") as a:
         assert a.query().dtype.names == ("x", "y", "z")
+
+
+# ---- relief.write: arrays back into point files.
+
+
+def _every_las_field(n):
+    bits = relief._relief.LAS_BITS
+    a = relief._relief._synthetic_las_batch(n, sum(bits.values()) & ~bits["extra_bytes"], 0)
+    i = np.arange(n)
+    a["intensity"] = i % 4000  # LAS intensities are whole numbers
+    a["scan_angle"] = -6 * (i % 90)  # whole steps of LAS 1.4's 0.006 degree
+    return a
+
+
+@pytest.mark.parametrize("ext", ["las", "laz"])
+def test_write_gives_every_las_field_back(tmp_path, ext):
+    a = _every_las_field(3000)
+    assert relief.write(tmp_path / f"p.{ext}", a) == 3000
+    relief.compress(tmp_path / f"p.{ext}", tmp_path / "p.relief")
+    with relief.open(tmp_path / "p.relief") as archive:
+        b = archive.query()
+    assert b.dtype.names == a.dtype.names
+    assert b.dtype["red"] == np.uint16  # 16-bit colours stay 16-bit
+    a, b = a[np.argsort(a["gps_time"])], b[np.argsort(b["gps_time"])]
+    for name in a.dtype.names:
+        assert np.array_equal(a[name], b[name]), name
+
+
+def test_write_extra_fields_and_a_querys_array(tmp_path):
+    n = 500
+    dt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("label", "<i4"), ("normal", "<f4", (3,)),
+                   ("w", ">f8")])
+    v = np.zeros(n, dt)
+    v["x"] = np.arange(n) * 0.01
+    v["y"] = np.arange(n) % 7 * 0.01
+    v["label"] = np.arange(n) - 250
+    v["normal"] = np.random.default_rng(1).random((n, 3))
+    v["w"] = np.arange(n) * 1.5  # big-endian in, little-endian in the file
+    relief.write(tmp_path / "e.las", v)
+    relief.compress(tmp_path / "e.las", tmp_path / "e.relief")
+    with relief.open(tmp_path / "e.relief") as a:
+        described = [(f["name"], f["type"], f["offset"]) for f in a.info["las"]["extra_bytes"]]
+        q = a.query()
+    assert described == [("label", "int32", 0), ("normal", "float32[3]", 4), ("w", "float64", 16)]
+    o = np.argsort(q["label"])
+    assert np.array_equal(q["label"][o], v["label"])
+    assert np.array_equal(q["normal"][o], v["normal"])
+    assert np.array_equal(q["w"][o], v["w"])
+    # A query's array (opaque extra_bytes plus typed views of it) written
+    # back keeps the same description and bytes.
+    relief.write(tmp_path / "f.laz", q)
+    relief.compress(tmp_path / "f.laz", tmp_path / "f.relief")
+    with relief.open(tmp_path / "f.relief") as a:
+        assert [(f["name"], f["type"], f["offset"]) for f in a.info["las"]["extra_bytes"]] == described
+        r = a.query()
+    assert np.array_equal(np.sort(r["extra_bytes"]), np.sort(q["extra_bytes"]))
+
+
+@pytest.mark.parametrize("ext", ["ply", "csv", "xyz"])
+def test_write_text_and_ply(tmp_path, ext):
+    s = make_scene(n=2000, seed=5)
+    dt = np.dtype([(k, s[k].dtype) for k in XYZRGBI])
+    v = np.zeros(len(s["x"]), dt)
+    for k in XYZRGBI:
+        v[k] = s[k]
+    assert relief.write(tmp_path / f"s.{ext}", v) == len(v)
+    relief.compress(tmp_path / f"s.{ext}", tmp_path / "s.relief", columns=None if ext == "ply" else "x,y,z,r,g,b,i")
+    with relief.open(tmp_path / "s.relief") as a:
+        pts = a.query()
+    assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(v, XYZRGBI))
+
+
+def test_write_refuses_what_it_cannot_hold(tmp_path):
+    a = _every_las_field(10)
+    out = tmp_path / "bad.las"
+    cases = [
+        (a[["y", "z"]], "no field x"),
+        (a[["x", "y", "z", "red"]], "red, green and blue"),
+        (np.arange(5), "structured array"),
+    ]
+    wide = np.zeros(3, [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("classification", "<i2")])
+    wide["classification"] = [1, 256, 2]
+    cases.append((wide, "'classification' has 256 at point 1"))
+    fractional = np.zeros(3, [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("user_data", "<f4")])
+    cases.append((fractional, "'user_data' must hold integers"))
+    nan = np.zeros(3, [("x", "<f8"), ("y", "<f8"), ("z", "<f8")])
+    nan["z"][2] = np.nan
+    cases.append((nan, "'z' has a non-finite value at point 2"))
+    text = np.zeros(3, [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("name", "U4")])
+    cases.append((text, "field 'name'"))
+    for points, says in cases:
+        with pytest.raises(relief.InvalidArgumentError, match=re.escape(says)):
+            relief.write(out, points)
+    # The LAS writer refuses a return number its point format cannot hold.
+    a["return_number"][4] = 16
+    with pytest.raises(relief.Error) as e:
+        relief.write(out, a)
+    assert "return 16" in str(e.value)
+    assert not out.exists()
+    with pytest.raises(relief.UnsupportedError):
+        relief.write(tmp_path / "p.e57", _every_las_field(3))
