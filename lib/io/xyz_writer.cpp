@@ -13,8 +13,9 @@
 // scaled fields (Extra Bytes options bits 3 and 4) as raw * scale + offset.
 // The XYZ reader maps those names back (the LAS dimensions exactly, the extra
 // bytes as float64 fields). Colours are 8-bit levels, so 16-bit colours' low
-// bytes (kLasColorLow) are the one attribute text leaves out. Without LAS
-// attributes there is no header, as before.
+// bytes (kLasColorLow) are the one attribute text leaves out. CSV (',')
+// always has the header; space-separated text without LAS attributes has
+// none, as before.
 
 #include <algorithm>
 #include <bit>
@@ -58,7 +59,10 @@ class XyzStreamWriter final : public StreamPointWriter {
   // Plans the columns and writes the header when there is one.
   Status start() {
     const std::uint32_t bits = options_.las_attributes;
-    if ((bits & ~std::uint32_t{kLasColorLow}) == 0) return Status::ok();
+    // CSV always names its columns (a spreadsheet or a reader such as
+    // Relief's then needs no column list); space-separated text only when
+    // it has LAS dimensions beyond x y z [r g b] [i].
+    if ((bits & ~std::uint32_t{kLasColorLow}) == 0 && separator_ != ',') return Status::ok();
     std::vector<std::string> header = {"X", "Y", "Z"};
     if (options_.colors) header.insert(header.end(), {"Red", "Green", "Blue"});
     if (options_.intensity) header.emplace_back("Intensity");

@@ -480,7 +480,7 @@ def test_write_text_and_ply(tmp_path, ext):
     for k in XYZRGBI:
         v[k] = s[k]
     assert relief.write(tmp_path / f"s.{ext}", v) == len(v)
-    relief.compress(tmp_path / f"s.{ext}", tmp_path / "s.relief", columns=None if ext == "ply" else "x,y,z,r,g,b,i")
+    relief.compress(tmp_path / f"s.{ext}", tmp_path / "s.relief", columns="x,y,z,r,g,b,i" if ext == "xyz" else None)
     with relief.open(tmp_path / "s.relief") as a:
         pts = a.query()
     assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(v, XYZRGBI))
