@@ -740,13 +740,21 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
   std::uint64_t threshold = ~std::uint64_t{0};
   std::vector<std::pair<std::uint64_t, Vec3d>> kept;
   std::uint64_t total = 0;
-  PointCloud batch;
+  // The inputs are read (parsed, decompressed) on a second thread while this
+  // one hashes the batch before: the two halves of this pass overlap.
+  std::vector<std::unique_ptr<PointReader>> readers;
   for (const std::string& path : inputs) {
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, reader_options));
+    readers.push_back(std::move(reader));
+  }
+  {
+    Prefetcher prefetch(readers, kReadBatch, 2, 0, nullptr);
+    ReadBatch read;
     for (;;) {
-      RELIEF_ASSIGN_OR_RETURN(const std::size_t got, reader->read(batch, kReadBatch));
-      if (got == 0) break;
-      total += got;
+      RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(read));
+      if (!more) break;
+      const PointCloud& batch = read.points;
+      total += batch.size();
       if (extra != nullptr) widen_intensity_range(batch, extra->intensity_lo, extra->intensity_hi);
       for (const Vec3d& p : batch.positions) {
         if (bounds != nullptr) bounds->add(p);
@@ -758,7 +766,9 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
         std::erase_if(kept, [&](const auto& e) { return e.first >= threshold; });
       }
     }
-    if (extra != nullptr) extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
+  }
+  if (extra != nullptr) {
+    for (const auto& reader : readers) extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
   }
   if (extra != nullptr) extra->points = total;
   if (kept.empty()) return OrderFreeCells{};  // no points at all: the caller picks the empty-input cell
