@@ -339,6 +339,8 @@ def _extra_type(name, dt):
     import numpy as np
 
     base, shape = (dt.subdtype if dt.subdtype else (dt, ()))
+    if base.kind == "b":
+        base = np.dtype("u1")  # a flag: 0 or 1
     key = f"{base.kind}{base.itemsize}"
     count = int(np.prod(shape)) if shape else 1
     if base.kind not in "iuf" or key not in _EXTRA_TYPE_IDS or len(shape) > 1 or count > 3:
@@ -386,7 +388,7 @@ def write(path, points, *, crs=None, scale=None):
     each checked to fit its type (a value that does not raises
     InvalidArgumentError naming the field and the point; the LAS writer
     refuses values its point format cannot hold). Every other field that is
-    a number, or 2 or 3 of them, becomes a LAS extra bytes field of its name
+    a number (a bool as uint8), or 2 or 3 of them, becomes a LAS extra bytes field of its name
     and type (PLY properties, text columns); a query's opaque
     ``extra_bytes`` is written as it is, described by the typed fields that
     view it. ``crs``: WKT or "EPSG:<code>" for LAS/LAZ. ``scale``: the LAS

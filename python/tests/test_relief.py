@@ -445,23 +445,26 @@ def test_write_gives_every_las_field_back(tmp_path, ext):
 def test_write_extra_fields_and_a_querys_array(tmp_path):
     n = 500
     dt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("label", "<i4"), ("normal", "<f4", (3,)),
-                   ("w", ">f8")])
+                   ("w", ">f8"), ("flag", "?")])
     v = np.zeros(n, dt)
     v["x"] = np.arange(n) * 0.01
     v["y"] = np.arange(n) % 7 * 0.01
     v["label"] = np.arange(n) - 250
     v["normal"] = np.random.default_rng(1).random((n, 3))
     v["w"] = np.arange(n) * 1.5  # big-endian in, little-endian in the file
+    v["flag"] = np.arange(n) % 3 == 0  # a bool becomes a uint8 field
     relief.write(tmp_path / "e.las", v)
     relief.compress(tmp_path / "e.las", tmp_path / "e.relief")
     with relief.open(tmp_path / "e.relief") as a:
         described = [(f["name"], f["type"], f["offset"]) for f in a.info["las"]["extra_bytes"]]
         q = a.query()
-    assert described == [("label", "int32", 0), ("normal", "float32[3]", 4), ("w", "float64", 16)]
+    assert described == [("label", "int32", 0), ("normal", "float32[3]", 4), ("w", "float64", 16),
+                         ("flag", "uint8", 24)]
     o = np.argsort(q["label"])
     assert np.array_equal(q["label"][o], v["label"])
     assert np.array_equal(q["normal"][o], v["normal"])
     assert np.array_equal(q["w"][o], v["w"])
+    assert np.array_equal(q["flag"][o], v["flag"].astype(np.uint8))
     # A query's array (opaque extra_bytes plus typed views of it) written
     # back keeps the same description and bytes.
     relief.write(tmp_path / "f.laz", q)
