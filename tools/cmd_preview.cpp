@@ -15,9 +15,9 @@
 #include "box_arg.h"
 #include "cli_common.h"
 #include "commands.h"
-#include "preview_render.h"
 #include "relief/image.h"
 #include "relief/query.h"
+#include "relief/render.h"
 
 namespace relief::cli {
 
@@ -26,35 +26,6 @@ namespace {
 constexpr const char* kCommand = "preview";
 // -o *.jpg: high enough that the scale bar's text and thin lines stay clean.
 constexpr int kPreviewJpegQuality = 90;
-// Default point budget of an archive with a pyramid, per output pixel.
-constexpr double kPreviewPointsPerPixel = 2;
-
-bool finite_box(const Box3d& b) {
-  return std::isfinite(b.min.x) && std::isfinite(b.min.y) && std::isfinite(b.min.z) && std::isfinite(b.max.x) &&
-         std::isfinite(b.max.y) && std::isfinite(b.max.z);
-}
-
-Box3d intersect(const Box3d& a, const Box3d& b) {
-  Box3d r;
-  r.min = {std::max(a.min.x, b.min.x), std::max(a.min.y, b.min.y), std::max(a.min.z, b.min.z)};
-  r.max = {std::min(a.max.x, b.max.x), std::min(a.max.y, b.max.y), std::min(a.max.z, b.max.z)};
-  return r;
-}
-
-// The region the image shows. The top view shows the box's x/y extent as
-// asked (so a box beside the data still gives an image of that box). The
-// oblique view needs finite heights and looks better framed tightly: it fits
-// the part of the box that holds data, with the heights of the data.
-Box3d choose_frame(const Box3d& box, const Box3d& bounds, PreviewView view) {
-  Box3d frame = box;
-  const Box3d common = intersect(box, bounds);
-  if (view == PreviewView::kOblique && !common.empty()) frame = common;
-  if (!std::isfinite(frame.min.z) || !std::isfinite(frame.max.z) || common.empty()) {
-    frame.min.z = bounds.min.z;
-    frame.max.z = bounds.max.z;
-  }
-  return frame;
-}
 
 }  // namespace
 
@@ -101,11 +72,11 @@ int run_preview(int argc, char** argv) {
     return usage_error(kCommand, "-o " + *out_path + ": preview writes PNG (.png) or JPEG (.jpg, .jpeg)");
   }
 
-  PreviewOptions popt;
-  const bool lod_given = args.has("--lod");
-  const auto lod = static_cast<std::uint32_t>(args.get_int("--lod", 16, 1, kMaxLod));
+  PreviewRequest request;
+  PreviewOptions& popt = request.options;
+  if (args.has("--lod")) request.lod = static_cast<std::uint32_t>(args.get_int("--lod", 16, 1, kMaxLod));
   popt.width = static_cast<int>(args.get_int("--width", 1024, 16, kMaxPreviewSide));
-  const auto threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
+  request.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   if (const auto v = args.get("--view")) {
     if (*v == "top") {
       popt.view = PreviewView::kTop;
@@ -127,14 +98,14 @@ int run_preview(int argc, char** argv) {
   if (!(std::fabs(popt.azimuth_deg) <= 360)) {
     return usage_error(kCommand, "--azimuth must be from -360 to 360 degrees");
   }
-  Box3d box;
-  const bool has_box = args.has("--box");
-  if (has_box) {
+  if (args.has("--box")) {
+    Box3d box;
     std::string err;
     if (!parse_box(*args.get("--box"), box, err)) return usage_error(kCommand, "--box: " + err);
     if (!(box.max.x > box.min.x) || !(box.max.y > box.min.y)) {
       return usage_error(kCommand, "--box must have xmax > xmin and ymax > ymin to make an image");
     }
+    request.box = box;
   }
   const bool quiet = args.has("--quiet");
   const std::string& archive_path = args.positional()[0];
@@ -147,46 +118,12 @@ int run_preview(int argc, char** argv) {
   }
   auto reader = ArchiveReader::open(archive_path);
   if (!reader) return fail(kCommand, reader.status());
-  const ArchiveInfo& info = (*reader)->info();
-  if (info.bounds.empty() || !finite_box(info.bounds)) {
-    return fail(kCommand, invalid_argument(archive_path + " holds no points: nothing to preview"));
-  }
-  if (!has_box) box = info.bounds;
-
-  popt.use_colors = info.has_colors;
-  const Box3d frame = choose_frame(box, info.bounds, popt.view);
-  auto renderer = PreviewRenderer::create(frame, popt);
-  if (!renderer) return fail(kCommand, renderer.status());
-
-  QueryOptions qopt;
-  qopt.lod = lod;
-  qopt.threads = threads;
-  bool pyramid = false;
-  for (const ScanPyramid& scan : info.pyramid) pyramid = pyramid || !scan.levels.empty();
-  if (!lod_given && pyramid) {
-    // A point budget instead of a fraction: the time then stays the same
-    // whatever the size of the archive (the pyramid's coarse levels).
-    const double dx = frame.max.x - frame.min.x, dy = frame.max.y - frame.min.y;
-    const double rows = popt.view == PreviewView::kTop && dx > 0 ? std::clamp(popt.width * dy / dx, 1.0, 8192.0)
-                                                                  : static_cast<double>(popt.width);
-    qopt.lod = 1;
-    qopt.max_points = static_cast<std::uint64_t>(kPreviewPointsPerPixel * popt.width * rows);
-  }
-  std::mutex draw_mutex;  // the header promises batches in order, not on which thread
-  const PointSink sink = [&](const PointCloud& batch) {
-    const std::lock_guard<std::mutex> lock(draw_mutex);
-    return renderer->add(batch);
-  };
-  auto stats = has_box ? (*reader)->query(box, qopt, sink) : (*reader)->query_all(qopt, sink);
-  if (!stats) return fail(kCommand, stats.status());
-  const double query_s = seconds_since(t0);
-
-  std::int64_t t1 = now_ns();
-  auto finished = renderer->finish();
-  if (!finished) return fail(kCommand, finished.status());
-  const PreviewImage& image = *finished;
-  const double shade_s = seconds_since(t1);
-  t1 = now_ns();
+  auto rendered = render_preview(**reader, request);
+  if (!rendered) return fail(kCommand, rendered.status());
+  const PreviewResult& r = *rendered;
+  const PreviewImage& image = r.image;
+  const double render_s = seconds_since(t0);
+  const std::int64_t t1 = now_ns();
   // Very large images: the fastest zlib level (a few seconds saved, ~20 % bigger).
   auto png = jpeg ? encode_jpeg_rgb(image.rgb, image.width, image.height, kPreviewJpegQuality)
                   : encode_png(image, image.rgb.size() > (std::size_t{48} << 20) ? 1 : 3);
@@ -194,32 +131,31 @@ int run_preview(int argc, char** argv) {
   if (Status s = write_file_atomic(*out_path, *png); !s) return fail(kCommand, s);
   const double png_s = seconds_since(t1);
 
-  if (renderer->points_drawn() == 0) {
+  if (r.points_drawn == 0) {
     // Not an error: an empty region is a valid answer, and scripts that tile
     // an area want an image for every tile.
-    std::cerr << "relief preview: warning: no points in the " << (has_box ? "box" : "archive")
+    std::cerr << "relief preview: warning: no points in the " << (request.box ? "box" : "archive")
               << "; " << *out_path << " is all background\n";
   }
   if (!quiet) {
-    const std::string detail = qopt.max_points > 0 ? "at most " + std::to_string(qopt.max_points) + " points"
-                                                  : "lod " + std::to_string(qopt.lod);
+    const std::string detail = r.max_points > 0 ? "at most " + std::to_string(r.max_points) + " points"
+                                                : "lod " + std::to_string(r.lod);
     std::printf("%s: %d x %d px, %s view, %s, %.4g units/px\n", out_path->c_str(), image.width, image.height,
-                popt.view == PreviewView::kTop ? "top" : "oblique", detail.c_str(), renderer->pixel_size());
-    std::printf("points drawn    %llu (of %llu delivered)", static_cast<unsigned long long>(renderer->points_drawn()),
-                static_cast<unsigned long long>(stats->points));
-    if (renderer->detail_level() > 0) {
+                popt.view == PreviewView::kTop ? "top" : "oblique", detail.c_str(), r.pixel_size);
+    std::printf("points drawn    %llu (of %llu delivered)", static_cast<unsigned long long>(r.points_drawn),
+                static_cast<unsigned long long>(r.stats.points));
+    if (r.detail_level > 0) {
       // Said so that a soft image is not mistaken for a codec problem.
-      std::printf(", sparse: drawn at 1/%d resolution and scaled up%s", 1 << renderer->detail_level(),
-                  lod > 1 ? " (a lower --lod is sharper)" : "");
+      std::printf(", sparse: drawn at 1/%d resolution and scaled up%s", 1 << r.detail_level,
+                  r.lod > 1 ? " (a lower --lod is sharper)" : "");
     }
     std::printf("\n");
-    std::printf("chunks decoded  %llu (of %llu in the archive)", static_cast<unsigned long long>(stats->chunks_decoded),
-                static_cast<unsigned long long>(info.chunk_count));
-    if (stats->pyramid_level > 0) std::printf(", up to pyramid level %d", stats->pyramid_level);
-    std::printf(", %s of blobs read\n", format_bytes(stats->blob_bytes_read).c_str());
-    std::printf("time            %.3f s (open, query and drawing %.3f s, shading %.3f s, %s %.3f s, %s)\n",
-                seconds_since(t0), query_s, shade_s, jpeg ? "JPEG" : "PNG", png_s,
-                format_bytes(png->size()).c_str());
+    std::printf("chunks decoded  %llu (of %llu in the archive)", static_cast<unsigned long long>(r.stats.chunks_decoded),
+                static_cast<unsigned long long>((*reader)->info().chunk_count));
+    if (r.stats.pyramid_level > 0) std::printf(", up to pyramid level %d", r.stats.pyramid_level);
+    std::printf(", %s of blobs read\n", format_bytes(r.stats.blob_bytes_read).c_str());
+    std::printf("time            %.3f s (open, query, drawing and shading %.3f s, %s %.3f s, %s)\n",
+                seconds_since(t0), render_s, jpeg ? "JPEG" : "PNG", png_s, format_bytes(png->size()).c_str());
   }
   return kExitOk;
 }

@@ -15,7 +15,9 @@ library code checks them for both. Every failure the library reports raises
 ``.code_name``.
 """
 
+import builtins as _builtins
 import json as _json
+import os as _os
 import warnings as _warnings
 
 from . import _relief
@@ -109,6 +111,11 @@ def _make_error(code, code_name, message):
 _relief._set_error_factory(_make_error)
 
 
+def _invalid(message):
+    """InvalidArgumentError with its code, for the checks made here."""
+    return _make_error(1, "invalid-argument", message)
+
+
 def _option_text(name, value):
     # The library parses options as the CLI's text; bool first (it is an int).
     if isinstance(value, bool):
@@ -192,6 +199,7 @@ class Archive:
     def __init__(self, path):
         self._reader = _relief.Reader(str(path))
         self._info = None
+        self.last_preview = None
 
     @property
     def path(self):
@@ -288,6 +296,46 @@ class Archive:
                          "offsets": [v[1] for v in fields.values()], "itemsize": array.dtype.itemsize})
         return array.view(view)
 
+    def preview(self, box=None, *, path=None, width=1024, view="top", azimuth=30, elevation=35, lod=None,
+                threads=0):
+        """A quick-look image of the archive, or of the points inside ``box``,
+        as ``relief preview`` draws it (the same library call): an (height,
+        width, 3) uint8 RGB array, rows from the top.
+
+        ``box`` as for :meth:`query` (the top view shows its x/y extent;
+        None: the archive's bounds). ``view``: "top" (north up, with a scale
+        bar) or "oblique" (rotated by ``azimuth`` degrees about z, tilted by
+        ``elevation`` above the horizon). ``width``: 16..8192 pixels, the
+        height following the aspect ratio. ``lod``: about 1/lod of the
+        points; None: from an archive's level-of-detail pyramid the finest
+        level that gives at most 2 points per pixel, else lod 16. Colours are
+        the points' RGB when the archive has colour, else a height colour
+        map, hill-shaded. ``path``: also write the image, PNG (.png) or JPEG
+        (.jpg, .jpeg) by extension, replacing the file once it is complete.
+        The figures of the drawing (points read and drawn, chunks decoded,
+        bytes read, pixel size, level of detail) are in ``last_preview``.
+        """
+        encoding = ""
+        if path is not None:
+            ext = _os.path.splitext(str(path))[1].lower()
+            if ext not in (".png", ".jpg", ".jpeg"):
+                raise _invalid(f"preview(): {path}: the image is written as PNG (.png) or JPEG (.jpg, .jpeg)")
+            encoding = "png" if ext == ".png" else "jpeg"
+        image, figures, data = self._reader.preview(_box_values(box), int(lod or 0), int(width), str(view),
+                                                    float(azimuth), float(elevation), int(threads), encoding)
+        self.last_preview = figures
+        if data is not None:
+            tmp = f"{path}.tmp-{_os.getpid()}"
+            try:
+                with _builtins.open(tmp, "wb") as f:
+                    f.write(data)
+                _os.replace(tmp, str(path))
+            except OSError as e:
+                if _os.path.exists(tmp):
+                    _os.unlink(tmp)
+                raise _make_error(2, "io-error", f"{path}: cannot write: {e.strerror or e}") from e
+        return image
+
     def close(self):
         """Closes the archive; later queries raise ValueError."""
         self._reader.close()
@@ -321,7 +369,7 @@ def _extra_descriptor(name, data_type, options=0):
     """One 192-byte Extra Bytes descriptor (LAS 1.4 R15, section 2.5)."""
     raw = name.encode("ascii", "strict") if data_type else b""
     if len(raw) > 32:
-        raise InvalidArgumentError(f"write(): extra bytes field name '{name}' is longer than LAS's 32 characters")
+        raise _invalid(f"write(): extra bytes field name '{name}' is longer than LAS's 32 characters")
     d = bytearray(192)
     d[2] = data_type
     d[3] = options
@@ -344,7 +392,7 @@ def _extra_type(name, dt):
     key = f"{base.kind}{base.itemsize}"
     count = int(np.prod(shape)) if shape else 1
     if base.kind not in "iuf" or key not in _EXTRA_TYPE_IDS or len(shape) > 1 or count > 3:
-        raise InvalidArgumentError(
+        raise _invalid(
             f"write(): field '{name}' ({dt}) is neither a point attribute nor an extra bytes field LAS can "
             "describe (a number, or 2 or 3 of them)")
     return _EXTRA_TYPE_IDS[key] + 10 * (count - 1), base.itemsize * count, base.newbyteorder("<"), shape
@@ -358,19 +406,19 @@ def _checked(name, values, target):
     kind = values.dtype.kind
     if t.kind == "f":
         if kind not in "iuf":
-            raise InvalidArgumentError(f"write(): field '{name}' must be numeric, not {values.dtype}")
+            raise _invalid(f"write(): field '{name}' must be numeric, not {values.dtype}")
         out = np.ascontiguousarray(values, dtype=t)
         bad = ~np.isfinite(out)
         if bad.any():
-            raise InvalidArgumentError(
+            raise _invalid(
                 f"write(): field '{name}' has a non-finite value at point {int(np.argmax(bad))}")
         return out
     if kind not in "iub":
-        raise InvalidArgumentError(f"write(): field '{name}' must hold integers ({t}), not {values.dtype}")
+        raise _invalid(f"write(): field '{name}' must hold integers ({t}), not {values.dtype}")
     info = np.iinfo(t)
     if len(values) and (values.min() < info.min or values.max() > info.max):
         at = int(np.argmax((values < info.min) | (values > info.max)))
-        raise InvalidArgumentError(
+        raise _invalid(
             f"write(): field '{name}' has {values[at]} at point {at}, outside {info.min}..{info.max}")
     return np.ascontiguousarray(values, dtype=t)
 
@@ -399,18 +447,18 @@ def write(path, points, *, crs=None, scale=None):
     import numpy as np
 
     if not isinstance(points, np.ndarray) or points.dtype.names is None or points.ndim != 1:
-        raise InvalidArgumentError("write(): points must be a 1-D numpy structured array")
+        raise _invalid("write(): points must be a 1-D numpy structured array")
     names = points.dtype.names
     missing = [k for k in ("x", "y", "z") if k not in names]
     if missing:
-        raise InvalidArgumentError(f"write(): the points have no field {', '.join(missing)}")
+        raise _invalid(f"write(): the points have no field {', '.join(missing)}")
     columns = {}
     for name in names:
         if name in _POINT_FIELDS:
             columns[name] = _checked(name, points[name], _POINT_FIELDS[name])
     colours = [k for k in _COLOUR_FIELDS if k in names]
     if colours and len(colours) != 3:
-        raise InvalidArgumentError(f"write(): colour needs red, green and blue, the points have {', '.join(colours)}")
+        raise _invalid(f"write(): colour needs red, green and blue, the points have {', '.join(colours)}")
     if colours:
         wide = any(points[k].dtype.itemsize > 1 or points[k].dtype.kind not in "ub" for k in colours)
         for k in colours:
@@ -437,7 +485,7 @@ def write(path, points, *, crs=None, scale=None):
     for at, name, dt in sorted(views):
         data_type, size, _, _ = _extra_type(name, dt)
         if at < done:
-            raise InvalidArgumentError(f"write(): extra bytes field '{name}' overlaps the one before it")
+            raise _invalid(f"write(): extra bytes field '{name}' overlaps the one before it")
         descriptors += _undocumented(at - done)
         descriptors.append(_extra_descriptor(name, data_type))
         done = at + size

@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -20,7 +21,9 @@
 #include "batch_stream.h"
 #include "writer.h"
 #include "relief/ingest.h"
+#include "relief/image.h"
 #include "relief/query.h"
+#include "relief/render.h"
 #include "relief/status.h"
 
 namespace py = pybind11;
@@ -277,6 +280,57 @@ class Reader {
     return std::make_unique<BatchIterator>(std::move(stream), fields);
   }
 
+  // A preview image as an (height, width, 3) uint8 array, the figures of
+  // its drawing, and the image encoded as `encoding` ("png", "jpeg", or ""
+  // for none) for the package to write.
+  py::tuple preview(const std::optional<std::vector<double>>& box_values, std::uint32_t lod, int width,
+                    const std::string& view, double azimuth, double elevation, unsigned threads,
+                    const std::string& encoding) {
+    PreviewRequest request;
+    request.box = to_box(box_values);
+    if (lod > 0) request.lod = lod;
+    request.threads = threads;
+    PreviewOptions& o = request.options;
+    if (width < 16 || width > kMaxPreviewSide) {
+      raise_status(invalid_argument("width must be from 16 to " + std::to_string(kMaxPreviewSide)));
+    }
+    o.width = width;
+    if (view != "top" && view != "oblique") raise_status(invalid_argument("view must be 'top' or 'oblique', got '" + view + "'"));
+    o.view = view == "top" ? PreviewView::kTop : PreviewView::kOblique;
+    if (!(elevation >= 0 && elevation <= 90)) raise_status(invalid_argument("elevation must be from 0 to 90 degrees"));
+    if (!(std::fabs(azimuth) <= 360)) raise_status(invalid_argument("azimuth must be from -360 to 360 degrees"));
+    o.azimuth_deg = azimuth;
+    o.elevation_deg = elevation;
+    reader();  // refuses a closed archive while the GIL is held
+    Result<PreviewResult> r = Status(internal_error("preview did not run"));
+    Result<std::vector<std::uint8_t>> encoded = std::vector<std::uint8_t>();
+    {
+      py::gil_scoped_release release;
+      const std::lock_guard<std::mutex> lock(mutex_);
+      r = render_preview(reader(), request);
+      if (r && encoding == "png") encoded = encode_png(r->image);
+      if (r && encoding == "jpeg") encoded = encode_jpeg_rgb(r->image.rgb, r->image.width, r->image.height, 90);
+    }
+    if (!r) raise_status(r.status());
+    if (!encoded) raise_status(encoded.status());
+    const PreviewImage& image = r->image;
+    py::array_t<std::uint8_t> pixels({image.height, image.width, 3});
+    std::memcpy(pixels.mutable_data(), image.rgb.data(), image.rgb.size());
+    py::dict figures;
+    figures["lod"] = r->lod;
+    figures["max_points"] = r->max_points;
+    figures["points_drawn"] = r->points_drawn;
+    figures["points_read"] = r->stats.points;
+    figures["chunks_decoded"] = r->stats.chunks_decoded;
+    figures["blob_bytes_read"] = r->stats.blob_bytes_read;
+    figures["pyramid_level"] = r->stats.pyramid_level;
+    figures["pixel_size"] = r->pixel_size;
+    figures["detail_level"] = r->detail_level;
+    py::object file = py::none();
+    if (!encoding.empty()) file = py::bytes(reinterpret_cast<const char*>(encoded->data()), encoded->size());
+    return py::make_tuple(pixels, figures, file);
+  }
+
   void close() {
     py::gil_scoped_release release;
     const std::lock_guard<std::mutex> lock(mutex_);
@@ -362,6 +416,8 @@ PYBIND11_MODULE(_relief, m) {
            py::arg("skip_corrupt"), py::arg("max_points"))
       .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
            py::arg("skip_corrupt"), py::arg("max_points"))
+      .def("preview", &Reader::preview, py::arg("box"), py::arg("lod"), py::arg("width"), py::arg("view"),
+           py::arg("azimuth"), py::arg("elevation"), py::arg("threads"), py::arg("encoding"))
       .def("close", &Reader::close)
       .def_property_readonly("closed", &Reader::closed)
       .def_property_readonly("path", &Reader::path);

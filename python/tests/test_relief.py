@@ -518,3 +518,40 @@ def test_write_refuses_what_it_cannot_hold(tmp_path):
     assert not out.exists()
     with pytest.raises(relief.UnsupportedError):
         relief.write(tmp_path / "p.e57", _every_las_field(3))
+
+
+# ---- Archive.preview: relief preview's image as an array.
+
+
+def test_preview_image_and_file(xyz_archive, tmp_path):
+    path, _ = xyz_archive
+    cli = os.environ.get("RELIEF_CLI")
+    with relief.open(path) as a:
+        img = a.preview(width=200)
+        figures = a.last_preview
+        assert img.shape[1:] == (200, 3) and 195 <= img.shape[0] <= 205  # the scene is about a 40 m square
+        assert img.dtype == np.uint8
+        assert figures["lod"] == 16 and figures["points_drawn"] > 500
+        background = np.all(img == (48, 48, 52), axis=2)
+        assert background.mean() < 0.2  # the terrain fills the frame
+        # A box: half as wide, as tall; the rest of the archive is not drawn.
+        half = a.preview((0, 0, 20, 40), width=100)
+        assert half.shape == (200, 100, 3)
+        assert a.last_preview["points_drawn"] < figures["points_drawn"]
+        oblique = a.preview(view="oblique", azimuth=45, elevation=30, width=160, lod=4)
+        assert oblique.shape[1] == 160 and a.last_preview["lod"] == 4
+        # Written as PNG, the same image `relief preview` writes.
+        again = a.preview(width=200, path=tmp_path / "p.png")
+        assert np.array_equal(again, img)
+        assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        a.preview(width=64, path=tmp_path / "p.jpg")
+        assert (tmp_path / "p.jpg").read_bytes()[:3] == b"\xff\xd8\xff"
+        for bad in ({"width": 8}, {"view": "side"}, {"elevation": 91}, {"lod": 5000}, {"path": tmp_path / "p.gif"}):
+            with pytest.raises(relief.InvalidArgumentError) as e:
+                a.preview(**bad)
+            assert e.value.code == 1
+        assert not (tmp_path / "p.gif").exists()
+    if cli:
+        subprocess.run([cli, "preview", str(path), "--width", "200", "--quiet", "-o", str(tmp_path / "cli.png")],
+                       check=True)
+        assert (tmp_path / "cli.png").read_bytes() == (tmp_path / "p.png").read_bytes()

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "box_arg.h"
-#include "preview_render.h"
 #include "relief/io.h"
+#include "relief/render.h"
 #include "support/run_cli.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
@@ -26,10 +26,10 @@ using relief::Box3d;
 using relief::PointCloud;
 using relief::Rgb8;
 using relief::Vec3d;
-using relief::cli::PreviewImage;
-using relief::cli::PreviewOptions;
-using relief::cli::PreviewRenderer;
-using relief::cli::PreviewView;
+using relief::PreviewImage;
+using relief::PreviewOptions;
+using relief::PreviewRenderer;
+using relief::PreviewView;
 
 namespace {
 
@@ -247,8 +247,8 @@ TEST_CASE("preview renderer: scale bar, label and north arrow in the top view", 
 }
 
 TEST_CASE("preview renderer: nice scale lengths and their labels", "[preview]") {
-  using relief::cli::format_length;
-  using relief::cli::nice_length;
+  using relief::format_length;
+  using relief::nice_length;
   CHECK(nice_length(40) == Approx(50));
   CHECK(nice_length(37) == Approx(50));
   CHECK(nice_length(140) == Approx(100));
@@ -269,7 +269,7 @@ TEST_CASE("preview renderer: image size rules", "[preview]") {
   // Tall frame: the height would be 100000, so it is capped and the width shrinks.
   auto tall = PreviewRenderer::create(box(0, 0, 0, 10, 1000, 1), o);
   REQUIRE(tall.is_ok());
-  CHECK(tall->height() == relief::cli::kMaxPreviewSide);
+  CHECK(tall->height() == relief::kMaxPreviewSide);
   CHECK(tall->width() == 82);
   // One point (zero extent) still makes a valid image.
   auto dot = PreviewRenderer::create(box(5, 5, 5, 5, 5, 5), o);
@@ -310,7 +310,7 @@ TEST_CASE("preview renderer: oblique view fits the points and keeps the nearest"
   const Rgb8 c = img->at(img->width / 2, img->height / 2);
   CHECK(c.g > c.r);
   // Corners of the fitted image are background; the label is drawn.
-  CHECK(img->at(2, 2) == relief::cli::kPreviewBackground);
+  CHECK(img->at(2, 2) == relief::kPreviewBackground);
   CHECK(count_white(*img, 0, img->height - 30, 200, img->height) > 20);
 }
 
@@ -326,7 +326,7 @@ TEST_CASE("preview renderer: sparse points are drawn at a coarser level, without
   CHECK(r->detail_level() == 2);
   int background = 0;
   for (int y = 20; y < 160; ++y) {
-    for (int x = 20; x < 380; ++x) background += img->at(x, y) == relief::cli::kPreviewBackground ? 1 : 0;
+    for (int x = 20; x < 380; ++x) background += img->at(x, y) == relief::kPreviewBackground ? 1 : 0;
   }
   CHECK(background == 0);
 }
@@ -337,7 +337,7 @@ TEST_CASE("preview renderer: PNG encoding", "[preview]") {
   img.height = 11;
   img.rgb.assign(37 * 11 * 3, 0);
   for (std::size_t i = 0; i < img.rgb.size(); ++i) img.rgb[i] = static_cast<std::uint8_t>(i * 7);
-  auto png = relief::cli::encode_png(img);
+  auto png = relief::encode_png(img);
   REQUIRE(png.is_ok());
   CHECK(png_size(*png) == std::pair<std::uint32_t, std::uint32_t>(37, 11));
   PreviewTempDir tmp;
@@ -347,7 +347,7 @@ TEST_CASE("preview renderer: PNG encoding", "[preview]") {
   CHECK(back.width == 37);
   CHECK(back.rgb == img.rgb);
   img.rgb.pop_back();
-  CHECK_FALSE(relief::cli::encode_png(img).is_ok());
+  CHECK_FALSE(relief::encode_png(img).is_ok());
 }
 
 TEST_CASE("parse_box: 4 or 6 finite numbers, min <= max", "[preview]") {
@@ -461,8 +461,8 @@ TEST_CASE("relief preview: a box without points gives an all-background image an
   const PreviewImage img = read_png(tmp.file("empty.png"));
   REQUIRE(img.width == 200);
   CHECK(img.height == 100);
-  CHECK(img.at(100, 50) == relief::cli::kPreviewBackground);
-  CHECK(img.at(150, 20) == relief::cli::kPreviewBackground);
+  CHECK(img.at(100, 50) == relief::kPreviewBackground);
+  CHECK(img.at(150, 20) == relief::kPreviewBackground);
 }
 
 TEST_CASE("relief preview: errors exit with documented codes and leave no file", "[cli][preview]") {
@@ -519,4 +519,36 @@ TEST_CASE("relief preview: errors exit with documented codes and leave no file",
     CHECK(r.output.find("v.png") != std::string::npos);
   }
   CHECK(fs::is_empty(tmp.path()));
+}
+
+TEST_CASE("render_preview: the library call behind relief preview", "[preview]") {
+  const Archives& a = archives();
+  auto reader = relief::ArchiveReader::open(a.colored);
+  REQUIRE(reader.is_ok());
+  relief::PreviewRequest request;
+  request.options.width = 200;
+  auto whole = relief::render_preview(**reader, request);
+  REQUIRE(whole.is_ok());
+  CHECK(whole->image.width == 200);
+  CHECK(whole->image.height == 200);  // a 40 x 40 m square
+  CHECK(whole->lod == relief::kDefaultPreviewLod);  // no pyramid in a 60 k-point archive
+  CHECK(whole->points_drawn > 1000);
+  CHECK(whole->stats.chunks_decoded > 0);
+  // The CLI writes the same image.
+  PreviewTempDir tmp;
+  REQUIRE(run_cli("preview " + a.colored + " --width 200 --quiet -o " + tmp.file("p.png")).code == 0);
+  const PreviewImage png = read_png(tmp.file("p.png"));
+  CHECK(png.rgb == whole->image.rgb);
+  // A box: half the width, the same scale.
+  request.box = relief::Box3d{{0, 0, -1e300}, {20, 40, 1e300}};
+  auto half = relief::render_preview(**reader, request);
+  REQUIRE(half.is_ok());
+  CHECK(half->image.height == 400);
+  CHECK(half->points_drawn < whole->points_drawn);
+  // Refusals.
+  request.box = relief::Box3d{{0, 0, 0}, {0, 40, 1}};
+  CHECK(relief::render_preview(**reader, request).status().code() == relief::StatusCode::kInvalidArgument);
+  request.box.reset();
+  request.lod = 0;
+  CHECK(relief::render_preview(**reader, request).status().code() == relief::StatusCode::kInvalidArgument);
 }

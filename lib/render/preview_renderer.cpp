@@ -1,4 +1,4 @@
-#include "preview_render.h"
+#include "relief/render.h"
 
 #include <png.h>
 
@@ -11,7 +11,7 @@
 #include <limits>
 #include <new>
 
-namespace relief::cli {
+namespace relief {
 
 namespace {
 
@@ -922,4 +922,4 @@ Result<std::vector<std::uint8_t>> encode_png(const PreviewImage& image, int leve
   return out;
 }
 
-}  // namespace relief::cli
+}  // namespace relief

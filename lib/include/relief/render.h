@@ -1,20 +1,24 @@
-// Quick-look images of point clouds for `relief preview`: points arrive in
-// batches and are drawn into z-buffers (O(points + pixels); memory bounded by
-// the image, plus at most a few million projected points for the oblique
-// view), then the image is shaded, overlaid with a scale bar or a view label
-// and encoded as PNG. Independent of the archive: anything that yields
-// PointCloud batches works.
+// Quick-look images of point clouds (`relief preview`, and Archive.preview
+// in Python): points arrive in batches and are drawn into z-buffers
+// (O(points + pixels); memory bounded by the image, plus at most a few
+// million projected points for the oblique view), then the image is shaded,
+// overlaid with a scale bar or a view label and encoded as PNG.
+// PreviewRenderer is independent of the archive (anything that yields
+// PointCloud batches works); render_preview draws an archive or a box of it,
+// reading as few points as the image needs.
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "relief/query.h"
 #include "relief/status.h"
 #include "relief/types.h"
 
-namespace relief::cli {
+namespace relief {
 
 enum class PreviewView {
   kTop,      // orthographic, straight down, north up
@@ -140,6 +144,40 @@ class PreviewRenderer {
   int chosen_level_ = 0;
 };
 
+// ---- An archive's preview: what `relief preview` draws.
+
+struct PreviewRequest {
+  // The region to show (closed); unset: the archive's bounds. A box with
+  // infinite heights shows every height. Its x and y extents must be
+  // positive.
+  std::optional<Box3d> box;
+  // Level of detail (1..kMaxQueryLod). Unset: an archive with a level-of-detail
+  // pyramid reads the finest level that gives at most
+  // kPreviewPointsPerPixel points per pixel of the image, one without lod 16.
+  std::optional<std::uint32_t> lod;
+  PreviewOptions options;  // use_colors is set from the archive
+  unsigned threads = 0;    // decoder threads (0 = all cores)
+};
+
+inline constexpr double kPreviewPointsPerPixel = 2;
+inline constexpr std::uint32_t kDefaultPreviewLod = 16;
+
+struct PreviewResult {
+  PreviewImage image;
+  QueryStats stats;
+  std::uint32_t lod = 1;            // the level of detail read
+  std::uint64_t max_points = 0;     // the point budget read from the pyramid (0: lod)
+  std::uint64_t points_drawn = 0;   // points that fell inside the image
+  int detail_level = 0;             // PreviewRenderer::detail_level()
+  double pixel_size = 1;            // coordinate units per pixel
+};
+
+// Draws `request`'s region of the archive. The top view shows the box's x/y
+// extent as asked (a box beside the data gives an all-background image); the
+// oblique view frames the part of the box that holds data. kInvalidArgument
+// for an archive without points or a box without x/y extent.
+Result<PreviewResult> render_preview(ArchiveReader& reader, const PreviewRequest& request);
+
 // A "nice" length (1, 2 or 5 x 10^k) close to `target` (> 0).
 double nice_length(double target);
 // "200 m", "0.5 m", "2 km": the scale bar label.
@@ -149,4 +187,4 @@ std::string format_length(double metres);
 // previews compress well anyway).
 Result<std::vector<std::uint8_t>> encode_png(const PreviewImage& image, int level = 3);
 
-}  // namespace relief::cli
+}  // namespace relief
