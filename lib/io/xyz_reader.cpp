@@ -652,6 +652,18 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
   return got;
 }
 
+// Appends one checked point (`v` by role, text_point_problem passed) to
+// `batch`: colour levels rounded to the nearest.
+void append_point(const double* v, const ColumnPlan& plan, PointCloud& batch) {
+  batch.positions.push_back({v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]});
+  if (plan.colors) {
+    const auto level = [&](Role r) { return static_cast<std::uint8_t>(std::lround(v[at_role(r)])); };
+    batch.colors.push_back({level(Role::kRed), level(Role::kGreen), level(Role::kBlue)});
+  }
+  if (plan.intensity) batch.intensities.push_back(static_cast<float>(v[at_role(Role::kIntensity)]));
+  push_las_columns(v, plan.las, batch.las);
+}
+
 // TextLineParser (relief/io.h): one line at a time, columns separated by any
 // run of blanks, ',' and ';' (a stream has no first line to pick one
 // delimiter from), colour levels 0..255 (no file-wide 16-bit rule either).
@@ -687,13 +699,7 @@ class TextLineParserImpl final : public TextLineParser {
     if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
       return error(problem);
     }
-    batch.positions.push_back({v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]});
-    if (plan_.colors) {
-      const auto level = [&](Role r) { return static_cast<std::uint8_t>(std::lround(v[at_role(r)])); };
-      batch.colors.push_back({level(Role::kRed), level(Role::kGreen), level(Role::kBlue)});
-    }
-    if (plan_.intensity) batch.intensities.push_back(static_cast<float>(v[at_role(Role::kIntensity)]));
-    push_las_columns(v, plan_.las, batch.las);
+    append_point(v, plan_, batch);
     return Status::ok();
   }
 
@@ -780,13 +786,7 @@ class BinaryRecordParserImpl final : public BinaryRecordParser {
     if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
       return format_error(name_ + ": record " + std::to_string(record_no) + ": " + problem);
     }
-    batch.positions.push_back({v[at_role(Role::kX)], v[at_role(Role::kY)], v[at_role(Role::kZ)]});
-    if (plan_.colors) {
-      const auto level = [&](Role r) { return static_cast<std::uint8_t>(v[at_role(r)]); };
-      batch.colors.push_back({level(Role::kRed), level(Role::kGreen), level(Role::kBlue)});
-    }
-    if (plan_.intensity) batch.intensities.push_back(static_cast<float>(v[at_role(Role::kIntensity)]));
-    push_las_columns(v, plan_.las, batch.las);
+    append_point(v, plan_, batch);
     return Status::ok();
   }
 
