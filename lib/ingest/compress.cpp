@@ -21,6 +21,7 @@
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
 #include "ingest/las_columns.h"
+#include "ingest/lazy_reader.h"
 #include "ingest/prefetch.h"
 #include "ingest/slice_pool.h"
 #include "relief/archive.h"
@@ -95,7 +96,8 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
   set.colors = true;
   set.intensity = true;
   for (const std::string& path : inputs) {
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> r, open_point_reader(path, reader_options));
+    // Open to check it and take its info, then closed until it is read.
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> r, open_lazy_reader(path, reader_options));
     const PointStreamInfo& info = r->info();
     set.colors = set.colors && info.has_colors;
     set.intensity = set.intensity && info.has_intensity;
@@ -744,7 +746,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
   // one hashes the batch before: the two halves of this pass overlap.
   std::vector<std::unique_ptr<PointReader>> readers;
   for (const std::string& path : inputs) {
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, reader_options));
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, reader_options));
     readers.push_back(std::move(reader));
   }
   {

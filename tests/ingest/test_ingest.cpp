@@ -793,3 +793,42 @@ TEST_CASE("a disk full when the log is folded in: compress keeps nothing, append
 }
 
 }  // namespace relief
+
+TEST_CASE("compress reads more input files than the process may hold open at once", "[ingest]") {
+  // A survey delivered as tiles: 150 files under a limit of 64 open files.
+  // Each input is opened to be checked, closed, and opened again only while
+  // it is read (before, all were held open: "Too many open files" past the
+  // limit, and a read buffer per file).
+  TempDir tmp;
+  std::vector<std::string> inputs;
+  std::size_t total = 0;
+  for (int t = 0; t < 150; ++t) {
+    test::SceneOptions o;
+    o.seed = static_cast<std::uint64_t>(t) + 1;
+    o.points = 200;
+    o.offset = Vec3d{static_cast<double>(t % 15) * 4.0, static_cast<double>(t / 15) * 4.0, 0};
+    const PointCloud tile = test::make_terrain(o, 4.0, 0.2);
+    total += tile.size();
+    inputs.push_back(tmp.file("t" + std::to_string(t) + ".ply"));
+    REQUIRE(write_ply(inputs.back(), tile).is_ok());
+  }
+  const std::string path = tmp.file("tiles.relief");
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    struct rlimit limit {};
+    if (::getrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
+    limit.rlim_cur = 64;
+    if (::setrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
+    IngestOptions o;
+    o.threads = 2;
+    auto r = compress_files(inputs, path, o);
+    if (!r.is_ok()) std::fprintf(stderr, "compress failed: %s\n", r.status().to_string().c_str());
+    ::_exit(r.is_ok() ? 0 : 1);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(WIFEXITED(status));
+  REQUIRE(WEXITSTATUS(status) == 0);
+  CHECK(test::decode_archive(path).size() == total);
+}
