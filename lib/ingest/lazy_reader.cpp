@@ -1,5 +1,7 @@
 #include "ingest/lazy_reader.h"
 
+#include <sys/stat.h>
+
 #include <utility>
 
 namespace relief::ingest {
@@ -42,7 +44,11 @@ class LazyReader final : public PointReader {
 
 Result<std::unique_ptr<PointReader>> open_lazy_reader(const std::string& path, const ReaderOptions& options) {
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, options));
-  if (path == "-") return reader;
+  // Only a regular file reads the same the second time: standard input, a
+  // named pipe or a process substitution (/dev/fd/N) is read once, so it
+  // stays open.
+  struct stat st {};
+  if (path == "-" || ::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return reader;
   PointStreamInfo info = reader->info();
   reader.reset();
   return std::unique_ptr<PointReader>(new LazyReader(path, options, std::move(info)));

@@ -18,8 +18,8 @@ namespace relief::ingest {
 // first read() opens it anew and reads on from its first point; the read that
 // finds its end (returns 0) keeps the final info() (counts of skipped points,
 // warnings, the colour-level rule, which only reading settles) and closes it.
-// Later reads return 0. Standard input ("-") cannot be opened twice: it stays
-// open.
+// Later reads return 0. Only regular files are reopened: standard input
+// ("-"), a named pipe or a /dev/fd/N cannot be read twice and stay open.
 Result<std::unique_ptr<PointReader>> open_lazy_reader(const std::string& path, const ReaderOptions& options);
 
 }  // namespace relief::ingest

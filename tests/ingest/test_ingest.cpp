@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -831,4 +832,33 @@ TEST_CASE("compress reads more input files than the process may hold open at onc
   REQUIRE(WIFEXITED(status));
   REQUIRE(WEXITSTATUS(status) == 0);
   CHECK(test::decode_archive(path).size() == total);
+}
+
+TEST_CASE("compress reads a named pipe once, with the grid given", "[ingest]") {
+  // A pipe cannot be reopened: the reader that checks it stays open and reads
+  // on (only regular files are closed until read).
+  TempDir tmp;
+  const PointCloud in = scene(11, 4000);
+  REQUIRE(write_ply(tmp.file("in.ply"), in).is_ok());
+  const std::string fifo = tmp.file("pipe.ply");
+  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    std::ifstream src(tmp.file("in.ply"), std::ios::binary);
+    std::ofstream dst(fifo, std::ios::binary);
+    dst << src.rdbuf();
+    ::_exit(dst.good() ? 0 : 1);
+  }
+  IngestOptions o;
+  o.codec.cell_size = 0.25;
+  o.chunk_edge = 2.0;
+  o.threads = 2;
+  auto r = compress_files({fifo}, tmp.file("p.relief"), o);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  INFO((r.is_ok() ? std::string() : r.status().to_string()));
+  REQUIRE(r.is_ok());
+  CHECK(r->points_read == in.size());
+  CHECK(test::decode_archive(tmp.file("p.relief")).size() == in.size());
 }
