@@ -21,7 +21,7 @@ constexpr std::size_t kReadBlock = 1 << 16;
 struct Layout {
   bool colors = false;
   bool intensity = false;
-  std::uint32_t las = 0;  // LasAttributeBits (text only)
+  std::uint32_t las = 0;  // LasAttributeBits the columns or fields fill
   // Text: the columns of --columns; binary: the fields of --attributes.
   std::unique_ptr<TextLineParser> text;
   std::unique_ptr<BinaryRecordParser> binary;
@@ -104,6 +104,12 @@ int run_stream(int argc, char** argv) {
   const std::string format = args.get("--format").value_or("xyz");
   if (format != "xyz" && format != "binary") {
     return usage_error(kCommand, "--format must be xyz or binary");
+  }
+  if (format == "xyz" && args.has("--attributes")) {
+    return usage_error(kCommand, "--attributes names the fields of --format binary; text takes --columns");
+  }
+  if (format == "binary" && so.ingest.reader.xyz_columns) {
+    return usage_error(kCommand, "--columns names text columns; --format binary takes --attributes");
   }
   Layout layout;
   if (format == "xyz") {

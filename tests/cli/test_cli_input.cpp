@@ -297,6 +297,13 @@ TEST_CASE("stream: unknown binary attributes are a usage error", "[cli][ingest]"
     CHECK(r.code == 2);
     CHECK(has(r, "--attributes"));
   }
+  // Each format takes its own column option, not the other's.
+  const Run text = run("stream " + tmp.file("s.relief") + " --cell 1 --attributes rgb < /dev/null");
+  CHECK(text.code == 2);
+  CHECK(has(text, "--attributes names the fields of --format binary"));
+  const Run binary = run("stream " + tmp.file("s.relief") + " --format binary --cell 1 --columns x,y,z < /dev/null");
+  CHECK(binary.code == 2);
+  CHECK(has(binary, "--format binary takes --attributes"));
   CHECK_FALSE(fs::exists(tmp.file("s.relief")));
 }
 
