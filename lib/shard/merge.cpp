@@ -20,6 +20,8 @@ namespace {
 // A transaction per this many rows or blob bytes (as the ingest pipeline).
 constexpr std::size_t kBatchRows = 64;
 constexpr std::size_t kBatchBytes = std::size_t{32} << 20;
+// Shards open at once while their chunks are copied.
+constexpr std::size_t kMaxOpenShards = 8;
 
 std::string key_text(const ChunkKey& k) {
   // Appended piece by piece: GCC 12 warns falsely (-Wrestrict, bug 105329)
@@ -74,9 +76,15 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
   struct stat st {};
   if (::stat(out.c_str(), &st) == 0) return io_error(out + ": already exists (merge never overwrites)");
   RELIEF_RETURN_IF_ERROR(check_output_directory(out));
+  // Each shard is opened to be checked and listed, then closed: a Slurm
+  // array may leave thousands, more than the process may hold open (three
+  // files each, with a page cache). The copy below opens them again, a few
+  // at a time (shards hold disjoint key ranges, so it reads them mostly in
+  // turn).
   struct Shard {
     std::unique_ptr<Archive> archive;
     ArchiveInfo info;
+    std::vector<ChunkRef> refs;
   };
   std::vector<Shard> opened;
   std::map<std::pair<dev_t, ino_t>, std::string> files;
@@ -101,6 +109,8 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
                                 "'s: not a shard of the same plan");
       }
     }
+    RELIEF_ASSIGN_OR_RETURN(s.refs, s.archive->all_chunks());
+    s.archive.reset();
     opened.push_back(std::move(s));
   }
   // Every chunk, in key order; a voxel must come from one shard only.
@@ -112,8 +122,7 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
   std::vector<Entry> entries;
   std::map<ChunkKey, std::size_t> owner;
   for (std::size_t i = 0; i < opened.size(); ++i) {
-    RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> refs, opened[i].archive->all_chunks());
-    for (const ChunkRef& ref : refs) {
+    for (const ChunkRef& ref : opened[i].refs) {
       const auto [it, inserted] = owner.emplace(ref.key, i);
       if (!inserted && it->second != i) {
         return invalid_argument(shards[i] + " and " + shards[it->second] + " both hold chunk " + key_text(ref.key) +
@@ -162,13 +171,31 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
     batch_bytes = 0;
     return Status::ok();
   };
+  // The shards open for reading, most recently used last.
+  std::vector<std::size_t> open_shards;
+  const auto shard_archive = [&](std::size_t k) -> Result<Archive*> {
+    const auto at = std::find(open_shards.begin(), open_shards.end(), k);
+    if (at != open_shards.end()) {
+      open_shards.erase(at);
+    } else {
+      if (open_shards.size() >= kMaxOpenShards) {
+        opened[open_shards.front()].archive.reset();
+        open_shards.erase(open_shards.begin());
+      }
+      RELIEF_ASSIGN_OR_RETURN(opened[k].archive, Archive::open(shards[k], Archive::Mode::kReadOnly));
+    }
+    open_shards.push_back(k);
+    return opened[k].archive.get();
+  };
   for (std::size_t i = 0; i < entries.size();) {
     // One voxel's blobs (the parts of a split chunk), ordered by content:
     // the merged archive does not depend on the order the shard committed them.
     std::size_t j = i;
     std::vector<ChunkRow> voxel;
     for (; j < entries.size() && entries[j].key == entries[i].key; ++j) {
-      auto row = opened[entries[j].shard].archive->read_chunk(entries[j].id);
+      auto shard = shard_archive(entries[j].shard);
+      if (!shard) return failed(shard.status());
+      auto row = (*shard)->read_chunk(entries[j].id);
       if (!row) return failed(row.status());
       if (row_params.empty()) row_params = row->codec_params;
       if (row->codec_params != row_params) {

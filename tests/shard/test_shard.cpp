@@ -3,6 +3,9 @@
 // any number of shards; merge refuses shards that do not fit together; a
 // stage run again writes the same files.
 #include <catch2/catch.hpp>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <limits>
@@ -255,6 +258,36 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress", "[shard
       for (const std::string& name : TempDir::list(work)) CHECK(name.find(".tmp-") == std::string::npos);
     }
   }
+}
+
+TEST_CASE("sharded build: merge takes more shards than the process may hold open at once", "[shard]") {
+  // A Slurm array's worth of shards under a limit of 48 open files (each
+  // open archive holds three): merge opens a few at a time.
+  TempDir dir;
+  const Scene s{41, 60000, 2, true, true, {0, 0, 0}, 0, 1.0, kMaxBoundedChunkPoints};
+  const std::vector<std::string> inputs = write_inputs(dir, s);
+  const IngestOptions o = options_for(s);
+  REQUIRE(compress_files(inputs, dir.file("one.relief"), o).is_ok());
+  ShardPlan plan;
+  const std::vector<std::string> shards = build_shards(inputs, o, 60, dir.file("work"), &plan);
+  REQUIRE(plan.range_count() >= 40);
+  const std::string merged = dir.file("merged.relief");
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    struct rlimit limit {};
+    if (::getrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
+    limit.rlim_cur = 48;
+    if (::setrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
+    auto r = merge_archives(shards, merged);
+    if (!r.is_ok()) std::fprintf(stderr, "merge failed: %s\n", r.status().to_string().c_str());
+    ::_exit(r.is_ok() ? 0 : 1);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(WIFEXITED(status));
+  REQUIRE(WEXITSTATUS(status) == 0);
+  CHECK(rows_of(merged) == rows_of(dir.file("one.relief")));
 }
 
 TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attributes included", "[shard][las]") {
