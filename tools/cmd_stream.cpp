@@ -72,8 +72,9 @@ int run_stream(int argc, char** argv) {
       "                         and nir (u16), the other LAS dimensions by name (u8:\n"
       "                         classification, return_number, number_of_returns, user_data,\n"
       "                         scanner_channel, synthetic, key_point, withheld, overlap,\n"
-      "                         scan_direction_flag, edge_of_flight_line), _N to skip N bytes;\n"
-      "                         rgb before intensity\n"
+      "                         scan_direction_flag, edge_of_flight_line), _N to skip N bytes,\n"
+      "                         name:type a field kept as LAS extra bytes (type u8 i8 u16 i16 u32\n"
+      "                         i32 u64 i64 f32 f64, e.g. amplitude:f32); rgb before intensity\n"
       "  --batch N              points per batch when no blank line comes first (default 65536)\n"
       "  --idle N               batches without new points before a chunk is encoded (default 2)\n"
       "  --max-buffered N       bound on buffered points (default 4000000)\n"
@@ -133,7 +134,9 @@ int run_stream(int argc, char** argv) {
   const std::atomic<bool>* interrupted = install_interrupt_flag();
   so.ingest.cancel = nullptr;
   const std::string archive = args.positional()[0];
-  auto stream = StreamIngest::open(archive, so, layout.colors, layout.intensity, layout.las);
+  auto stream = layout.binary ? StreamIngest::open(archive, so, layout.colors, layout.intensity, layout.las,
+                                                   layout.binary->extra_bytes_vlr(), layout.binary->extra_bytes_size())
+                              : StreamIngest::open(archive, so, layout.colors, layout.intensity, layout.las);
   if (!stream) return fail(kCommand, stream.status());
 
   StdinBlocks input;

@@ -12,6 +12,7 @@
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
 #include "relief/ingest.h"
+#include "relief/io.h"
 
 namespace relief {
 
@@ -27,7 +28,7 @@ class StreamIngestImpl final : public StreamIngest {
  public:
   StreamIngestImpl(std::unique_ptr<Archive> archive, const ArchiveGrid& grid, const EncodeParams& params,
                    const StreamOptions& options, std::int64_t scan_id, bool colors, bool intensity,
-                   std::uint32_t las, bool created)
+                   std::uint32_t las, std::uint32_t extra_size, bool created)
       : archive_(std::move(archive)),
         path_(archive_->path()),
         created_(created),
@@ -38,6 +39,7 @@ class StreamIngestImpl final : public StreamIngest {
         colors_(colors),
         intensity_(intensity),
         las_(las),
+        extra_size_(extra_size),
         pipeline_(*archive_, params, grid, scan_id, resolve_threads(options.ingest.threads), options.ingest.cancel,
                   options.ingest.verify_blobs),
         progress_(options.ingest.progress, 0),
@@ -56,6 +58,10 @@ class StreamIngestImpl final : public StreamIngest {
     if (!incoming.empty() && incoming.las.carried() != las_) {
       return invalid_argument("stream batch carries the LAS attributes '" + las_attribute_list(incoming.las.carried()) +
                               "' but the stream was opened with '" + las_attribute_list(las_) + "'");
+    }
+    if (!incoming.empty() && (las_ & kLasExtraBytes) != 0 && incoming.las.extra_bytes_size != extra_size_) {
+      return invalid_argument("stream batch has " + std::to_string(incoming.las.extra_bytes_size) +
+                              " extra bytes a point but the stream was opened with " + std::to_string(extra_size_));
     }
     PointCloud snapped;
     if (params_.bound) {
@@ -186,6 +192,7 @@ class StreamIngestImpl final : public StreamIngest {
   bool colors_;
   bool intensity_;
   std::uint32_t las_;  // LasAttributeBits of every batch
+  std::uint32_t extra_size_;  // extra bytes a point (kLasExtraBytes)
   ChunkPipeline pipeline_;
   ingest::Progress progress_;
   std::chrono::steady_clock::time_point start_;
@@ -200,8 +207,19 @@ class StreamIngestImpl final : public StreamIngest {
 
 Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& archive_path,
                                                          const StreamOptions& options, bool has_colors,
-                                                         bool has_intensity, std::uint32_t las_attributes) {
-  if ((las_attributes & ~kLasTextAttributes) != 0) {
+                                                         bool has_intensity, std::uint32_t las_attributes,
+                                                         const std::string& extra_bytes_vlr,
+                                                         std::uint32_t extra_bytes_size) {
+  if (((las_attributes & kLasExtraBytes) != 0) != (extra_bytes_size > 0)) {
+    return invalid_argument(archive_path + ": a stream carries extra bytes exactly when it gives their size");
+  }
+  if (extra_bytes_size > 0) {
+    RELIEF_RETURN_IF_ERROR(parse_extra_bytes_vlr({reinterpret_cast<const std::uint8_t*>(extra_bytes_vlr.data()),
+                                                  extra_bytes_vlr.size()},
+                                                 extra_bytes_size, archive_path + ": the stream's Extra Bytes VLR")
+                               .status());
+  }
+  if ((las_attributes & ~(kLasTextAttributes | kLasExtraBytes)) != 0) {
     return invalid_argument(archive_path + ": a stream carries the LAS dimensions of text columns (" +
                             las_attribute_list(kLasTextAttributes) + "), not '" +
                             las_attribute_list(las_attributes & ~kLasTextAttributes) + "'");
@@ -217,6 +235,11 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
     RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
     RELIEF_ASSIGN_OR_RETURN(params, encode_params_from_string(info.codec_params));
     grid = info.grid;
+    if (info.chunk_count > 0 && (info.extra_bytes_size != extra_bytes_size || info.extra_bytes_vlr != extra_bytes_vlr)) {
+      return invalid_argument(archive_path + ": the archive's points carry other extra bytes fields (" +
+                              std::to_string(info.extra_bytes_size) + " bytes a point) than the stream's (" +
+                              std::to_string(extra_bytes_size) + ")");
+    }
     if (info.chunk_count > 0 && (info.has_colors != has_colors || info.has_intensity != has_intensity)) {
       // Every chunk of an archive carries the same attributes.
       return invalid_argument(archive_path + ": the archive has " +
@@ -260,6 +283,8 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   // As a CSV's LAS columns: LAS 1.4 point format 6 for LAS output (classes
   // above 31), GPS times of an unknown kind.
   attributes.las_attributes = las_attributes;
+  attributes.extra_bytes_vlr = extra_bytes_vlr;
+  attributes.extra_bytes_size = extra_bytes_size;
   if (las_attributes != 0) attributes.las_point_format = 6;
   Result<std::int64_t> scan_id = archive->begin_scan({src}, attributes);
   if (!scan_id) {
@@ -271,7 +296,7 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   }
   return std::unique_ptr<StreamIngest>(
       new StreamIngestImpl(std::move(archive), grid, params, options, *scan_id, has_colors, has_intensity,
-                           las_attributes, created));
+                           las_attributes, extra_bytes_size, created));
 }
 
 }  // namespace relief

@@ -719,7 +719,7 @@ Result<std::unique_ptr<TextLineParser>> TextLineParser::create(const std::string
 namespace {
 
 // BinaryRecordParser (relief/io.h): a field's kind in the record.
-enum class BinaryType : std::uint8_t { kU8, kU16, kF32, kF64, kRgb, kSkip };
+enum class BinaryType : std::uint8_t { kU8, kU16, kF32, kF64, kRgb, kSkip, kExtra };
 
 std::size_t binary_size(BinaryType t, std::size_t skip) {
   switch (t) {
@@ -728,10 +728,21 @@ std::size_t binary_size(BinaryType t, std::size_t skip) {
     case BinaryType::kF32: return 4;
     case BinaryType::kF64: return 8;
     case BinaryType::kRgb: return 3;
-    case BinaryType::kSkip: break;
+    case BinaryType::kSkip:
+    case BinaryType::kExtra: break;
   }
-  return skip;
+  return skip;  // (the bytes of a skip or of an extra field)
 }
+
+// An extra bytes field's type: the LAS Extra Bytes data types 1..10 by the
+// names relief/io.h gives them, with their sizes.
+struct ExtraType {
+  const char* name;
+  int data_type;
+  std::size_t size;
+};
+constexpr ExtraType kExtraTypes[] = {{"u8", 1, 1},  {"i8", 2, 1},  {"u16", 3, 2}, {"i16", 4, 2}, {"u32", 5, 4},
+                                     {"i32", 6, 4}, {"u64", 7, 8}, {"i64", 8, 8}, {"f32", 9, 4}, {"f64", 10, 8}};
 
 // The binary type of a LAS dimension (relief/io.h lists them).
 BinaryType binary_type_of(Role r) {
@@ -750,18 +761,24 @@ constexpr std::size_t kMaxBinarySkip = 1024;
 class BinaryRecordParserImpl final : public BinaryRecordParser {
  public:
   struct Field {
-    Role role;  // kSkip for padding and kRed for the colour triple
+    Role role;  // kSkip for padding, kRed for the colour triple, kExtra for an extra bytes field
     BinaryType type;
     std::size_t offset;
+    std::size_t size = 0;  // of an extra bytes field
   };
-  BinaryRecordParserImpl(ColumnPlan plan, std::vector<Field> fields, std::size_t size, std::string name)
+  BinaryRecordParserImpl(ColumnPlan plan, std::vector<Field> fields, std::size_t size, std::string name,
+                         std::string extra_vlr, std::uint32_t extra_size)
       : plan_(std::move(plan)), fields_(std::move(fields)), size_(size), las_columns_(las_columns_of(plan_)),
-        name_(std::move(name)) {}
+        name_(std::move(name)), extra_vlr_(std::move(extra_vlr)), extra_size_(extra_size) {}
 
   std::size_t record_size() const override { return size_; }
   bool colors() const override { return plan_.colors; }
   bool intensity() const override { return plan_.intensity; }
-  std::uint32_t las_attributes() const override { return plan_.las; }
+  std::uint32_t las_attributes() const override {
+    return plan_.las | (extra_size_ > 0 ? std::uint32_t{kLasExtraBytes} : 0u);
+  }
+  const std::string& extra_bytes_vlr() const override { return extra_vlr_; }
+  std::uint32_t extra_bytes_size() const override { return extra_size_; }
 
   Status parse(const std::uint8_t* record, std::uint64_t record_no, PointCloud& batch) const override {
     double v[kRoleCount] = {};
@@ -780,13 +797,23 @@ class BinaryRecordParserImpl final : public BinaryRecordParser {
           v[at_role(Role::kGreen)] = p[1];
           v[at_role(Role::kBlue)] = p[2];
           break;
-        case BinaryType::kSkip: break;
+        case BinaryType::kSkip:
+        case BinaryType::kExtra: break;
       }
     }
     if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
       return format_error(name_ + ": record " + std::to_string(record_no) + ": " + problem);
     }
     append_point(v, plan_, batch);
+    if (extra_size_ > 0) {
+      // The fields' little-endian bytes, in the order listed: the layout the
+      // Extra Bytes VLR describes.
+      batch.las.extra_bytes_size = extra_size_;
+      for (const Field& f : fields_) {
+        if (f.type != BinaryType::kExtra) continue;
+        batch.las.extra_bytes.insert(batch.las.extra_bytes.end(), record + f.offset, record + f.offset + f.size);
+      }
+    }
     return Status::ok();
   }
 
@@ -796,6 +823,8 @@ class BinaryRecordParserImpl final : public BinaryRecordParser {
   std::size_t size_;
   std::vector<const LasTextColumn*> las_columns_;
   std::string name_;
+  std::string extra_vlr_;
+  std::uint32_t extra_size_;
 };
 
 }  // namespace
@@ -808,6 +837,8 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
   std::array<bool, kRoleCount> seen{};
   seen[at_role(Role::kX)] = seen[at_role(Role::kY)] = seen[at_role(Role::kZ)] = true;
   std::vector<BinaryRecordParserImpl::Field> fields;
+  std::vector<KeptField> kept;  // the extra bytes fields
+  std::uint32_t extra_size = 0;
   std::size_t size = 24;
   std::size_t start = 0;
   while (!spec.empty() && start <= spec.size()) {
@@ -816,7 +847,28 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
     start = comma + 1;
     BinaryRecordParserImpl::Field f{Role::kSkip, BinaryType::kSkip, size};
     std::size_t skip = 0;
-    if (tok.size() > 1 && tok[0] == '_') {
+    if (const std::size_t colon = tok.find(':'); colon != std::string::npos) {
+      // name:type, an extra bytes field.
+      const std::string field = tok.substr(0, colon), type = tok.substr(colon + 1);
+      const auto t = std::find_if(std::begin(kExtraTypes), std::end(kExtraTypes),
+                                  [&](const ExtraType& e) { return type == e.name; });
+      if (t == std::end(kExtraTypes)) {
+        return invalid_argument(where + quoted(tok) + ": the type of an extra field is one of u8 i8 u16 i16 u32 i32 " +
+                                "u64 i64 f32 f64");
+      }
+      if (field.empty() || text_column_of_name(field) || field[0] == '_') {
+        return invalid_argument(where + quoted(tok) + ": an extra field needs a name that is not a point attribute's");
+      }
+      for (const KeptField& k : kept) {
+        if (k.name == field) return invalid_argument(where + quoted(field) + " appears twice");
+      }
+      kept.push_back({field, t->data_type});
+      f.role = Role::kExtra;
+      f.type = BinaryType::kExtra;
+      f.size = t->size;
+      skip = t->size;
+      extra_size += static_cast<std::uint32_t>(t->size);
+    } else if (tok.size() > 1 && tok[0] == '_') {
       const auto [p, ec] = std::from_chars(tok.data() + 1, tok.data() + tok.size(), skip);
       if (ec != std::errc{} || p != tok.data() + tok.size() || skip == 0 || skip > kMaxBinarySkip) {
         return invalid_argument(where + quoted(tok) + " is not _N with N bytes to skip, 1.." +
@@ -842,7 +894,9 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
       f.role = *role;
       f.type = binary_type_of(*role);
     }
-    if (f.role != Role::kSkip) {
+    if (f.role == Role::kExtra) {
+      fields.push_back(f);
+    } else if (f.role != Role::kSkip) {
       plan.roles.push_back(f.role);
       if (f.type == BinaryType::kRgb) plan.roles.insert(plan.roles.end(), {Role::kGreen, Role::kBlue});
       fields.push_back(f);
@@ -861,7 +915,13 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
     return invalid_argument(where + "rgb must come before intensity in the record");
   }
   summarise(plan, seen);
-  return std::unique_ptr<BinaryRecordParser>(new BinaryRecordParserImpl(std::move(plan), std::move(fields), size, name));
+  std::string vlr;
+  if (!kept.empty()) {
+    std::vector<std::string> warnings;  // a name longer than a descriptor's 32 bytes is cut
+    RELIEF_ASSIGN_OR_RETURN(vlr, kept_fields_vlr(kept, name, "binary field", "relief stream field", warnings));
+  }
+  return std::unique_ptr<BinaryRecordParser>(
+      new BinaryRecordParserImpl(std::move(plan), std::move(fields), size, name, std::move(vlr), extra_size));
 }
 
 Result<std::unique_ptr<PointReader>> open_xyz_reader(const InputSpec& input, const ReaderOptions& options) {

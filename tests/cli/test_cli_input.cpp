@@ -385,6 +385,37 @@ TEST_CASE("stream --format binary reads typed LAS fields and gives them back", "
   CHECK(lines[1] == "1,2,3,10,0,9,5,2,7,100.25");
   CHECK(lines[2] == "1.5,2,3,11,0,9,6,1,65535,100.5");
   CHECK(lines[3] == "2,2,3,12,0,9,7,3,0,100.75");
+  // Fields of other kinds as extra bytes, named and typed.
+  {
+    std::ofstream f(tmp.file("extra.bin"), std::ios::binary);
+    for (int i = 0; i < 3; ++i) {
+      const double xyz[3] = {1.0 + i, 2.0, 3.0};
+      const float amplitude = 0.5f * static_cast<float>(i);
+      const std::uint16_t ring = static_cast<std::uint16_t>(40 + i);
+      f.write(reinterpret_cast<const char*>(xyz), sizeof xyz);
+      f.write(reinterpret_cast<const char*>(&amplitude), sizeof amplitude);
+      f.write(reinterpret_cast<const char*>(&ring), sizeof ring);
+    }
+  }
+  const std::string extra = tmp.file("e.relief");
+  REQUIRE(run("stream " + extra + " --format binary --attributes amplitude:f32,ring:u16 --cell 1 --quiet < " +
+              tmp.file("extra.bin")).code == 0);
+  REQUIRE(run("decompress " + extra + " -o " + tmp.file("e.csv") + " --quiet").code == 0);
+  {
+    std::ifstream in(tmp.file("e.csv"));
+    std::vector<std::string> rows;
+    for (std::string line; std::getline(in, line);) rows.push_back(line);
+    REQUIRE(rows.size() == 4);
+    CHECK(rows[0] == "X,Y,Z,amplitude,ring");
+    std::sort(rows.begin() + 1, rows.end());
+    CHECK(rows[1] == "1,2,3,0,40");
+    CHECK(rows[3] == "3,2,3,1,42");
+  }
+  // Appending other extra fields to that archive is refused.
+  const Run other = run("stream " + extra + " --format binary --attributes amplitude:f64,ring:u16 --quiet < " +
+                        tmp.file("extra.bin"));
+  CHECK(other.code == 11);
+  CHECK(has(other, "other extra bytes fields"));
   // A value out of its dimension's range names the record and keeps nothing.
   {
     std::ofstream f(tmp.file("bad.bin"), std::ios::binary);

@@ -1167,12 +1167,36 @@ TEST_CASE("BinaryRecordParser: fields in the order listed, LAS dimensions typed,
     CHECK(batch.size() == 1);
     CHECK(batch.las.gps_time.size() == 1);
   }
+  // Extra fields: their bytes as they are, described by an Extra Bytes VLR.
+  auto extra = relief::BinaryRecordParser::create("amplitude:f32,_1,ring:u16,classification", "stdin");
+  REQUIRE(extra.is_ok());
+  CHECK((*extra)->record_size() == 24 + 4 + 1 + 2 + 1);
+  CHECK((*extra)->extra_bytes_size() == 6);
+  CHECK((*extra)->las_attributes() == (relief::kLasExtraBytes | relief::kLasClassification));
+  auto fields = relief::parse_extra_bytes_vlr(
+      {reinterpret_cast<const std::uint8_t*>((*extra)->extra_bytes_vlr().data()), (*extra)->extra_bytes_vlr().size()},
+      6, "test");
+  REQUIRE(fields.is_ok());
+  REQUIRE(fields->size() == 2);
+  CHECK((*fields)[0].name == "amplitude");
+  CHECK((*fields)[0].type_name == "float32");
+  CHECK((*fields)[1].name == "ring");
+  CHECK((*fields)[1].offset == 4);
+  RecordBytes with;
+  with.put(1.0).put(2.0).put(3.0).put(2.5f).put(std::uint8_t{0xEE}).put(std::uint16_t{513}).put(std::uint8_t{6});
+  relief::PointCloud eb;
+  REQUIRE((*extra)->parse(with.bytes.data(), 1, eb).is_ok());
+  CHECK(eb.las.extra_bytes_size == 6);
+  const std::vector<std::uint8_t> want_extra = {0x00, 0x00, 0x20, 0x40, 0x01, 0x02};  // 2.5f, 513
+  CHECK(eb.las.extra_bytes == want_extra);
+  CHECK(eb.las.classification == std::vector<std::uint8_t>{6});
   // No fields: x y z alone.
   auto bare = relief::BinaryRecordParser::create("", "stdin");
   REQUIRE(bare.is_ok());
   CHECK((*bare)->record_size() == 24);
   CHECK((*bare)->las_attributes() == 0);
-  for (const char* spec : {"color", "rgb,rgb", "rgb,", "x", "r", "intensity,rgb", "_0", "_1025", "_x", "gps_time,gps_time"}) {
+  for (const char* spec : {"color", "rgb,rgb", "rgb,", "x", "r", "intensity,rgb", "_0", "_1025", "_x", "gps_time,gps_time",
+                           "a:f16", "x:f32", ":u8", "a:u8,a:i8"}) {
     CAPTURE(spec);
     const auto r = relief::BinaryRecordParser::create(spec, "stdin");
     REQUIRE_FALSE(r.is_ok());

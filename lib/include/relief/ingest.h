@@ -287,10 +287,15 @@ class StreamIngest {
  public:
   // Every batch carries colours, intensities and the LAS attributes
   // `las_attributes` (LasAttributeBits: those text columns fill,
-  // TextLineParser; kLasTextAttributes) as opened.
+  // TextLineParser; kLasTextAttributes, and kLasExtraBytes with
+  // `extra_bytes_size` bytes a point described by the Extra Bytes VLR payload
+  // `extra_bytes_vlr`, BinaryRecordParser) as opened. Appending to an archive
+  // whose chunks have other extra bytes is refused.
   static Result<std::unique_ptr<StreamIngest>> open(const std::string& archive_path, const StreamOptions& options,
                                                     bool has_colors, bool has_intensity,
-                                                    std::uint32_t las_attributes = 0);
+                                                    std::uint32_t las_attributes = 0,
+                                                    const std::string& extra_bytes_vlr = {},
+                                                    std::uint32_t extra_bytes_size = 0);
   virtual ~StreamIngest() = default;
   // One batch of incoming points (one read, or one scan line set).
   virtual Status push(const PointCloud& batch) = 0;

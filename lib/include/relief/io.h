@@ -168,6 +168,9 @@ class TextLineParser {
 //     edge_of_flight_line
 //   _N                           N bytes skipped (1..1024: padding, fields
 //                                not kept)
+//   name:type                    a field kept as LAS extra bytes under its
+//                                name: type u8 i8 u16 i16 u32 i32 u64 i64
+//                                f32 f64 (amplitude:f32, ring:u16 ...)
 // LAS dimensions go by the names the text columns take (relief/io.h
 // ReaderOptions::xyz_columns). When both are named, rgb comes before
 // intensity (the record order this format has always had).
@@ -182,6 +185,10 @@ class BinaryRecordParser {
   virtual bool colors() const = 0;
   virtual bool intensity() const = 0;
   virtual std::uint32_t las_attributes() const = 0;  // LasAttributeBits the fields fill
+  // The extra bytes fields (kLasExtraBytes): their Extra Bytes VLR payload
+  // and bytes per point (0 and empty when none).
+  virtual const std::string& extra_bytes_vlr() const = 0;
+  virtual std::uint32_t extra_bytes_size() const = 0;
   // Appends the point of the record_size() bytes at `record` to `batch`. A
   // non-finite coordinate or intensity, or a LAS dimension out of its range,
   // is an error naming the input and record_no (`relief stream` counts from
