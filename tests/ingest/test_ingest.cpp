@@ -24,6 +24,7 @@
 #include "relief/metrics.h"
 #include "support/decode_archive.h"
 #include "support/limited_vfs.h"
+#include "support/open_file_limit.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -814,23 +815,9 @@ TEST_CASE("compress reads more input files than the process may hold open at onc
     REQUIRE(write_ply(inputs.back(), tile).is_ok());
   }
   const std::string path = tmp.file("tiles.relief");
-  const pid_t pid = ::fork();
-  REQUIRE(pid >= 0);
-  if (pid == 0) {
-    struct rlimit limit {};
-    if (::getrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
-    limit.rlim_cur = 64;
-    if (::setrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
-    IngestOptions o;
-    o.threads = 2;
-    auto r = compress_files(inputs, path, o);
-    if (!r.is_ok()) std::fprintf(stderr, "compress failed: %s\n", r.status().to_string().c_str());
-    ::_exit(r.is_ok() ? 0 : 1);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  REQUIRE(WIFEXITED(status));
-  REQUIRE(WEXITSTATUS(status) == 0);
+  IngestOptions o;
+  o.threads = 2;
+  CHECK(test::with_open_file_limit(64, [&] { return compress_files(inputs, path, o).status(); }) == 0);
   CHECK(test::decode_archive(path).size() == total);
 }
 

@@ -3,9 +3,6 @@
 // any number of shards; merge refuses shards that do not fit together; a
 // stage run again writes the same files.
 #include <catch2/catch.hpp>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <limits>
@@ -19,6 +16,7 @@
 #include "relief/io.h"
 #include "relief/shard.h"
 #include "support/las_records.h"
+#include "support/open_file_limit.h"
 #include "support/run_cli.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
@@ -272,21 +270,7 @@ TEST_CASE("sharded build: merge takes more shards than the process may hold open
   const std::vector<std::string> shards = build_shards(inputs, o, 60, dir.file("work"), &plan);
   REQUIRE(plan.range_count() >= 40);
   const std::string merged = dir.file("merged.relief");
-  const pid_t pid = ::fork();
-  REQUIRE(pid >= 0);
-  if (pid == 0) {
-    struct rlimit limit {};
-    if (::getrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
-    limit.rlim_cur = 48;
-    if (::setrlimit(RLIMIT_NOFILE, &limit) != 0) ::_exit(3);
-    auto r = merge_archives(shards, merged);
-    if (!r.is_ok()) std::fprintf(stderr, "merge failed: %s\n", r.status().to_string().c_str());
-    ::_exit(r.is_ok() ? 0 : 1);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  REQUIRE(WIFEXITED(status));
-  REQUIRE(WEXITSTATUS(status) == 0);
+  REQUIRE(test::with_open_file_limit(48, [&] { return merge_archives(shards, merged).status(); }) == 0);
   CHECK(rows_of(merged) == rows_of(dir.file("one.relief")));
 }
 
