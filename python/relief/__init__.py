@@ -315,6 +315,8 @@ class Archive:
         The figures of the drawing (points read and drawn, chunks decoded,
         bytes read, pixel size, level of detail) are in ``last_preview``.
         """
+        if lod is not None and int(lod) < 1:
+            raise _invalid(f"preview(): lod must be from 1 to 1024, got {lod}")
         encoding = ""
         if path is not None:
             ext = _os.path.splitext(str(path))[1].lower()

@@ -546,7 +546,8 @@ def test_preview_image_and_file(xyz_archive, tmp_path):
         assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         a.preview(width=64, path=tmp_path / "p.jpg")
         assert (tmp_path / "p.jpg").read_bytes()[:3] == b"\xff\xd8\xff"
-        for bad in ({"width": 8}, {"view": "side"}, {"elevation": 91}, {"lod": 5000}, {"path": tmp_path / "p.gif"}):
+        for bad in ({"width": 8}, {"view": "side"}, {"elevation": 91}, {"lod": 5000}, {"lod": 0},
+                    {"path": tmp_path / "p.gif"}):
             with pytest.raises(relief.InvalidArgumentError) as e:
                 a.preview(**bad)
             assert e.value.code == 1
