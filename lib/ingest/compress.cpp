@@ -750,7 +750,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
     readers.push_back(std::move(reader));
   }
   {
-    Prefetcher prefetch(readers, kReadBatch, 2, 0, nullptr);
+    Prefetcher prefetch(readers, kReadBatch, 1, 0, nullptr);  // one batch ahead, as the main pass
     ReadBatch read;
     for (;;) {
       RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(read));
