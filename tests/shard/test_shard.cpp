@@ -591,7 +591,8 @@ TEST_CASE("sharded build: LAS inputs, refused and damaged as compress and the sp
     put(bytes);
     CHECK(refused("count").message().find("truncated or damaged") != std::string::npos);
     bytes = good;
-    bytes.resize(bytes.size() - 1);
+    REQUIRE(!bytes.empty());
+    bytes.pop_back();  // (not resize(size() - 1): GCC 12 under ASan warns, wrongly, of a huge memset)
     put(bytes);
     CHECK(refused("truncated").code() == StatusCode::kCorruptData);
     bytes = good;
