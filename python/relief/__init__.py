@@ -462,7 +462,10 @@ def write(path, points, *, crs=None, scale=None):
     if colours and len(colours) != 3:
         raise _invalid(f"write(): colour needs red, green and blue, the points have {', '.join(colours)}")
     if colours:
-        wide = any(points[k].dtype.itemsize > 1 or points[k].dtype.kind not in "ub" for k in colours)
+        # 16-bit LAS colours as a query gives them (uint16), or any integers
+        # above 255; other integer types holding 0..255 are 8-bit levels.
+        wide = any(points[k].dtype == np.uint16 for k in colours) or any(
+            points[k].dtype.kind in "iu" and len(points) and points[k].max() > 255 for k in colours)
         for k in colours:
             columns[k] = _checked(k, points[k], "<u2" if wide else "u1")
 

@@ -475,6 +475,30 @@ def test_write_extra_fields_and_a_querys_array(tmp_path):
     assert np.array_equal(np.sort(r["extra_bytes"]), np.sort(q["extra_bytes"]))
 
 
+def test_write_colour_depth_follows_the_values(tmp_path):
+    # Levels 0..255 in a wide integer type are 8-bit (LAS stores level x 257);
+    # uint16 (a query's 16-bit LAS colours) or values above 255 are 16-bit LAS
+    # values, stored as they are.
+    import struct
+
+    for colour_type, levels, stored in (("<i8", [0, 128, 255], [0, 128 * 257, 65535]),
+                                        ("u1", [0, 128, 255], [0, 128 * 257, 65535]),
+                                        ("<u2", [0, 128, 255], [0, 128, 255]),
+                                        ("<i4", [0, 300, 65535], [0, 300, 65535])):
+        v = np.zeros(3, [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("red", colour_type), ("green", colour_type),
+                         ("blue", colour_type)])
+        v["x"] = [0, 1, 2]
+        for k in ("red", "green", "blue"):
+            v[k] = levels
+        out = tmp_path / f"c{colour_type[1:]}.las"
+        relief.write(out, v)
+        data = out.read_bytes()
+        start, length = struct.unpack_from("<I", data, 96)[0], struct.unpack_from("<H", data, 105)[0]
+        assert data[104] in (2, 7)  # RGB in the record's last 6 bytes (7: 16-bit colours carry low bytes)
+        red = [struct.unpack_from("<H", data, start + i * length + length - 6)[0] for i in range(3)]
+        assert red == stored, colour_type
+
+
 @pytest.mark.parametrize("ext", ["ply", "csv", "xyz"])
 def test_write_text_and_ply(tmp_path, ext):
     s = make_scene(n=2000, seed=5)
