@@ -49,9 +49,8 @@ using LazySInts = LazyModels<SIntModel>;
 struct StepHistory {
   std::array<std::int64_t, kMedianSpan> steps{};
   std::int64_t median() const {
-    std::array<std::int64_t, kMedianSpan> s = steps;
-    std::nth_element(s.begin(), s.begin() + kMedianSpan / 2, s.end());
-    return s[kMedianSpan / 2];
+    static_assert(kMedianSpan == 5);
+    return median_of_five(steps);
   }
   void push(std::int64_t d) {
     std::copy(steps.begin() + 1, steps.end(), steps.begin());

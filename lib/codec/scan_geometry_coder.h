@@ -7,6 +7,8 @@
 // previous pulse. Internal to the codec.
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -46,6 +48,15 @@ int order_slot(std::uint32_t bit);
 // (1 for the first point, a zero step, no step yet, or a step of more than
 // 64 spacings: a new line rather than missed pulses).
 std::vector<std::uint8_t> scan_pulse_multiples(std::span<const double> times);
+
+// The median of five steps (§11.3.3's predictor), without branches: the
+// median of the two pairs' inner values and the fifth, the value sorting the
+// five would give.
+inline std::int64_t median_of_five(const std::array<std::int64_t, 5>& v) {
+  const std::int64_t lo = std::max(std::min(v[0], v[1]), std::min(v[2], v[3]));
+  const std::int64_t hi = std::min(std::max(v[0], v[1]), std::max(v[2], v[3]));
+  return std::max(std::min(lo, hi), std::min(std::max(lo, hi), v[4]));
+}
 
 // `cells` (local cell coordinates, each below 2^depth) in time order; the
 // context spans have cells.size() entries or are empty (pulse_kind too: then

@@ -376,3 +376,15 @@ TEST_CASE("format 8: in a blob of 2^16 points or more the octree is tried only w
   CHECK(geometry_codec(*blob) == 9);
   check_octree_with_shuffled_times(in, p, 4);
 }
+
+TEST_CASE("median_of_five equals sorting, for every ordering with ties", "[codec][scan]") {
+  // Every 5-tuple of values 0..4 covers every ordering of five values, ties
+  // included; large magnitudes check nothing overflows.
+  for (int code = 0; code < 5 * 5 * 5 * 5 * 5; ++code) {
+    std::array<std::int64_t, 5> v{};
+    for (int k = 0, c = code; k < 5; ++k, c /= 5) v[static_cast<std::size_t>(k)] = (c % 5 - 2) * (std::int64_t{1} << 40);
+    std::array<std::int64_t, 5> sorted = v;
+    std::sort(sorted.begin(), sorted.end());
+    REQUIRE(codec::median_of_five(v) == sorted[2]);
+  }
+}
