@@ -37,33 +37,38 @@ void append(const Column& c, std::size_t first, std::size_t n, std::vector<T>& o
 Status write_points(const std::string& path, const py::dict& columns, const py::object& extra,
                     const py::bytes& extra_vlr, const std::string& crs, double scale, std::uint64_t& written) {
   written = 0;
-  const auto column = [&](const char* name) -> std::optional<Column> {
+  // `size`: the element size the copy below reads (colours: 1 or 2), so a
+  // column of another type is refused rather than read past its end.
+  const auto column = [&](const char* name, std::size_t size) -> std::optional<Column> {
     if (!columns.contains(name)) return std::nullopt;
     const auto a = py::reinterpret_borrow<py::array>(columns[name]);
-    if (a.ndim() != 1 || !(a.flags() & py::array::c_style)) {
-      throw py::value_error(std::string("column ") + name + " must be a 1-D C-contiguous array");
+    const auto itemsize = static_cast<std::size_t>(a.itemsize());
+    if (a.ndim() != 1 || !(a.flags() & py::array::c_style) || (size != 0 && itemsize != size) ||
+        (size == 0 && itemsize != 1 && itemsize != 2)) {
+      throw py::value_error(std::string("column ") + name + " must be a 1-D C-contiguous array of its type");
     }
-    return Column{a.data(), static_cast<std::size_t>(a.shape(0)), static_cast<std::size_t>(a.itemsize())};
+    return Column{a.data(), static_cast<std::size_t>(a.shape(0)), itemsize};
   };
-  const std::optional<Column> x = column("x"), y = column("y"), z = column("z");
+  const std::optional<Column> x = column("x", 8), y = column("y", 8), z = column("z", 8);
   if (!x || !y || !z) return invalid_argument(path + ": the points need x, y and z");
   const std::size_t n = x->size;
-  const std::optional<Column> red = column("red"), green = column("green"), blue = column("blue");
-  const std::optional<Column> intensity = column("intensity");
+  const std::optional<Column> red = column("red", 0), green = column("green", 0), blue = column("blue", 0);
+  const std::optional<Column> intensity = column("intensity", 4);
   const struct {
     std::uint32_t bit;
     const char* name;
+    std::size_t size;
   } las_names[] = {
-      {kLasClassification, "classification"}, {kLasClassFlags, "class_flags"},
-      {kLasReturnNumber, "return_number"},     {kLasNumberOfReturns, "number_of_returns"},
-      {kLasScanFlags, "scan_flags"},           {kLasScanAngle, "scan_angle"},
-      {kLasUserData, "user_data"},             {kLasPointSourceId, "point_source_id"},
-      {kLasGpsTime, "gps_time"},               {kLasNir, "nir"},
+      {kLasClassification, "classification", 1}, {kLasClassFlags, "class_flags", 1},
+      {kLasReturnNumber, "return_number", 1},     {kLasNumberOfReturns, "number_of_returns", 1},
+      {kLasScanFlags, "scan_flags", 1},           {kLasScanAngle, "scan_angle", 4},
+      {kLasUserData, "user_data", 1},             {kLasPointSourceId, "point_source_id", 2},
+      {kLasGpsTime, "gps_time", 8},               {kLasNir, "nir", 2},
   };
   std::optional<Column> las[std::size(las_names)];
   WriterOptions o;
   for (std::size_t k = 0; k < std::size(las_names); ++k) {
-    las[k] = column(las_names[k].name);
+    las[k] = column(las_names[k].name, las_names[k].size);
     if (las[k]) o.las_attributes |= las_names[k].bit;
   }
   Column extra_column;
@@ -95,6 +100,9 @@ Status write_points(const std::string& path, const py::dict& columns, const py::
     return invalid_argument(path + ": the columns differ in length");
   }
   o.colors = red && green && blue;
+  if (o.colors && (green->itemsize != red->itemsize || blue->itemsize != red->itemsize)) {
+    throw py::value_error("red, green and blue must be of one type");
+  }
   const bool wide = o.colors && red->itemsize == 2;
   if (wide) o.las_attributes |= kLasColorLow;
   o.intensity = intensity.has_value();

@@ -542,6 +542,11 @@ def test_write_refuses_what_it_cannot_hold(tmp_path):
     assert not out.exists()
     with pytest.raises(relief.UnsupportedError):
         relief.write(tmp_path / "p.e57", _every_las_field(3))
+    # The extension's own check: a column of another element size is refused,
+    # never read past its end.
+    with pytest.raises(ValueError, match="of its type"):
+        relief._relief.write_points(str(out), {"x": np.zeros(3, np.int8), "y": np.zeros(3), "z": np.zeros(3)}, None,
+                                    b"", "", 0.0)
 
 
 # ---- Archive.preview: relief preview's image as an array.
