@@ -25,6 +25,9 @@ struct Layout {
   // Text: the columns of --columns; binary: the fields of --attributes.
   std::unique_ptr<TextLineParser> text;
   std::unique_ptr<BinaryRecordParser> binary;
+  // Binary: the extra bytes fields' Extra Bytes VLR and size (none in text).
+  std::string extra_bytes_vlr;
+  std::uint32_t extra_bytes_size = 0;
 };
 
 // Reads standard input in blocks; interrupted reads end the stream.
@@ -127,6 +130,8 @@ int run_stream(int argc, char** argv) {
     layout.colors = layout.binary->colors();
     layout.intensity = layout.binary->intensity();
     layout.las = layout.binary->las_attributes();
+    layout.extra_bytes_vlr = layout.binary->extra_bytes_vlr();
+    layout.extra_bytes_size = layout.binary->extra_bytes_size();
   }
   const bool quiet = args.has("--quiet");
   so.ingest.progress = progress_printer(quiet);
@@ -134,9 +139,8 @@ int run_stream(int argc, char** argv) {
   const std::atomic<bool>* interrupted = install_interrupt_flag();
   so.ingest.cancel = nullptr;
   const std::string archive = args.positional()[0];
-  auto stream = layout.binary ? StreamIngest::open(archive, so, layout.colors, layout.intensity, layout.las,
-                                                   layout.binary->extra_bytes_vlr(), layout.binary->extra_bytes_size())
-                              : StreamIngest::open(archive, so, layout.colors, layout.intensity, layout.las);
+  auto stream = StreamIngest::open(archive, so, layout.colors, layout.intensity, layout.las, layout.extra_bytes_vlr,
+                                   layout.extra_bytes_size);
   if (!stream) return fail(kCommand, stream.status());
 
   StdinBlocks input;

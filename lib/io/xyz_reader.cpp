@@ -721,7 +721,8 @@ namespace {
 // BinaryRecordParser (relief/io.h): a field's kind in the record.
 enum class BinaryType : std::uint8_t { kU8, kU16, kF32, kF64, kRgb, kSkip, kExtra };
 
-std::size_t binary_size(BinaryType t, std::size_t skip) {
+// The bytes of a fixed-size field (a skip's and an extra field's are their own).
+std::size_t binary_size(BinaryType t) {
   switch (t) {
     case BinaryType::kU8: return 1;
     case BinaryType::kU16: return 2;
@@ -731,7 +732,7 @@ std::size_t binary_size(BinaryType t, std::size_t skip) {
     case BinaryType::kSkip:
     case BinaryType::kExtra: break;
   }
-  return skip;  // (the bytes of a skip or of an extra field)
+  return 0;
 }
 
 // An extra bytes field's type: the LAS Extra Bytes data types 1..10 by the
@@ -757,6 +758,8 @@ BinaryType binary_type_of(Role r) {
 }
 
 constexpr std::size_t kMaxBinarySkip = 1024;
+// An Extra Bytes descriptor's name field.
+constexpr std::size_t kMaxExtraName = 32;
 
 class BinaryRecordParserImpl final : public BinaryRecordParser {
  public:
@@ -764,7 +767,7 @@ class BinaryRecordParserImpl final : public BinaryRecordParser {
     Role role;  // kSkip for padding, kRed for the colour triple, kExtra for an extra bytes field
     BinaryType type;
     std::size_t offset;
-    std::size_t size = 0;  // of an extra bytes field
+    std::size_t size;
   };
   BinaryRecordParserImpl(ColumnPlan plan, std::vector<Field> fields, std::size_t size, std::string name,
                          std::string extra_vlr, std::uint32_t extra_size)
@@ -845,8 +848,7 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
     const std::size_t comma = std::min(spec.find(',', start), spec.size());
     const std::string tok = spec.substr(start, comma - start);
     start = comma + 1;
-    BinaryRecordParserImpl::Field f{Role::kSkip, BinaryType::kSkip, size};
-    std::size_t skip = 0;
+    BinaryRecordParserImpl::Field f{Role::kSkip, BinaryType::kSkip, size, 0};
     if (const std::size_t colon = tok.find(':'); colon != std::string::npos) {
       // name:type, an extra bytes field.
       const std::string field = tok.substr(0, colon), type = tok.substr(colon + 1);
@@ -859,6 +861,10 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
       if (field.empty() || text_column_of_name(field) || field[0] == '_') {
         return invalid_argument(where + quoted(tok) + ": an extra field needs a name that is not a point attribute's");
       }
+      if (field.size() > kMaxExtraName) {
+        return invalid_argument(where + quoted(tok) + ": an extra field's name has at most " +
+                                std::to_string(kMaxExtraName) + " bytes (an Extra Bytes descriptor's)");
+      }
       for (const KeptField& k : kept) {
         if (k.name == field) return invalid_argument(where + quoted(field) + " appears twice");
       }
@@ -866,19 +872,21 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
       f.role = Role::kExtra;
       f.type = BinaryType::kExtra;
       f.size = t->size;
-      skip = t->size;
       extra_size += static_cast<std::uint32_t>(t->size);
     } else if (tok.size() > 1 && tok[0] == '_') {
+      std::size_t skip = 0;
       const auto [p, ec] = std::from_chars(tok.data() + 1, tok.data() + tok.size(), skip);
       if (ec != std::errc{} || p != tok.data() + tok.size() || skip == 0 || skip > kMaxBinarySkip) {
         return invalid_argument(where + quoted(tok) + " is not _N with N bytes to skip, 1.." +
                                 std::to_string(kMaxBinarySkip));
       }
+      f.size = skip;
     } else if (tok == "rgb") {
       if (seen[at_role(Role::kRed)]) return invalid_argument(where + "rgb appears twice");
       seen[at_role(Role::kRed)] = seen[at_role(Role::kGreen)] = seen[at_role(Role::kBlue)] = true;
       f.role = Role::kRed;
       f.type = BinaryType::kRgb;
+      f.size = binary_size(f.type);
     } else {
       const std::optional<Role> role = text_column_of_name(tok);
       const bool single_colour = role == Role::kRed || role == Role::kGreen || role == Role::kBlue;
@@ -893,6 +901,7 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
       seen[at_role(*role)] = true;
       f.role = *role;
       f.type = binary_type_of(*role);
+      f.size = binary_size(f.type);
     }
     if (f.role == Role::kExtra) {
       fields.push_back(f);
@@ -901,7 +910,7 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
       if (f.type == BinaryType::kRgb) plan.roles.insert(plan.roles.end(), {Role::kGreen, Role::kBlue});
       fields.push_back(f);
     }
-    size += binary_size(f.type, skip);
+    size += f.size;
   }
   // Before rgb and intensity could be listed in any order, the record had
   // rgb first whatever the order: refuse the other order rather than read
@@ -917,7 +926,7 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
   summarise(plan, seen);
   std::string vlr;
   if (!kept.empty()) {
-    std::vector<std::string> warnings;  // a name longer than a descriptor's 32 bytes is cut
+    std::vector<std::string> warnings;  // none: the names fit (checked above)
     RELIEF_ASSIGN_OR_RETURN(vlr, kept_fields_vlr(kept, name, "binary field", "relief stream field", warnings));
   }
   return std::unique_ptr<BinaryRecordParser>(

@@ -1196,7 +1196,7 @@ TEST_CASE("BinaryRecordParser: fields in the order listed, LAS dimensions typed,
   CHECK((*bare)->record_size() == 24);
   CHECK((*bare)->las_attributes() == 0);
   for (const char* spec : {"color", "rgb,rgb", "rgb,", "x", "r", "intensity,rgb", "_0", "_1025", "_x", "gps_time,gps_time",
-                           "a:f16", "x:f32", ":u8", "a:u8,a:i8"}) {
+                           "a:f16", "x:f32", ":u8", "a:u8,a:i8", "a_name_of_more_than_thirty_two_bytes:u8"}) {
     CAPTURE(spec);
     const auto r = relief::BinaryRecordParser::create(spec, "stdin");
     REQUIRE_FALSE(r.is_ok());

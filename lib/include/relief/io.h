@@ -169,8 +169,9 @@ class TextLineParser {
 //   _N                           N bytes skipped (1..1024: padding, fields
 //                                not kept)
 //   name:type                    a field kept as LAS extra bytes under its
-//                                name: type u8 i8 u16 i16 u32 i32 u64 i64
-//                                f32 f64 (amplitude:f32, ring:u16 ...)
+//                                name (at most 32 bytes): type u8 i8 u16
+//                                i16 u32 i32 u64 i64 f32 f64 (amplitude:f32,
+//                                ring:u16 ...)
 // LAS dimensions go by the names the text columns take (relief/io.h
 // ReaderOptions::xyz_columns). When both are named, rgb comes before
 // intensity (the record order this format has always had).
