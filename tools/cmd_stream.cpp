@@ -66,7 +66,8 @@ int run_stream(int argc, char** argv) {
       "then encoded. On end of input or Ctrl-C everything received is written. A new archive\n"
       "needs --cell (and optionally --chunk-edge); an existing one keeps its parameters.\n\n"
       "  --format xyz           text lines 'x y z [..]' per --columns (x y z, r g b as 0..255, i, c\n"
-      "                         and the LAS dimensions by name, _ to skip; default x,y,z), columns\n"
+      "                         and the LAS dimensions by name, name:type kept as LAS extra bytes as\n"
+      "                         in --attributes, _ to skip; default x,y,z), columns\n"
       "                         separated by blanks, ',' or ';'; a blank line ends a scan (batch)\n"
       "  --format binary        little-endian records: f64 x y z, then the fields --attributes\n"
       "                         lists, in its order\n"
@@ -123,6 +124,8 @@ int run_stream(int argc, char** argv) {
     layout.colors = layout.text->colors();
     layout.intensity = layout.text->intensity();
     layout.las = layout.text->las_attributes();
+    layout.extra_bytes_vlr = layout.text->extra_bytes_vlr();
+    layout.extra_bytes_size = layout.text->extra_bytes_size();
   } else {
     auto parser = BinaryRecordParser::create(args.get("--attributes").value_or(""), "stdin");
     if (!parser) return usage_error(kCommand, "--attributes: " + parser.status().message());

@@ -25,6 +25,11 @@
 // colour set is kept as extra bytes.
 // A header that does not name x, y and z leaves the columns at x y z.
 //
+// ReaderOptions::xyz_columns may name a column `name:type` (type u8 i8 u16
+// i16 u32 i32 u64 i64 f32 f64): kept as extra bytes of that type, every
+// value checked to fit it (typed_value_problem below). The stream parser
+// TextLineParser takes the same columns.
+//
 // Colour levels may be 8- or 16-bit: text declares no type, so the file-wide
 // 16-bit rule of the binary formats applies (io/stream_support.h): every
 // level is shifted right by 8 when the first 2^20 points hold a level above
@@ -79,6 +84,7 @@ constexpr std::size_t at_role(Role r) { return static_cast<std::size_t>(r); }
 struct ColumnPlan {
   std::vector<Role> roles;               // up to the last used column
   std::vector<std::string> extra_names;  // of the kExtra columns, in order
+  std::vector<int> extra_types;          // their LAS Extra Bytes data types (1..10), once settled
   bool colors = false;
   bool intensity = false;
   std::uint32_t las = 0;  // the LasAttributeBits the LAS columns fill (kLasExtraBytes apart)
@@ -99,6 +105,57 @@ void drop_trailing_skips(ColumnPlan& plan) {
   while (!plan.roles.empty() && plan.roles.back() == Role::kSkip) plan.roles.pop_back();
 }
 
+// An extra bytes field's type: the LAS Extra Bytes data types 1..10 by the
+// names relief/io.h gives them, with their sizes.
+struct ExtraType {
+  const char* name;
+  int data_type;
+  std::size_t size;
+};
+constexpr ExtraType kExtraTypes[] = {{"u8", 1, 1},  {"i8", 2, 1},  {"u16", 3, 2}, {"i16", 4, 2}, {"u32", 5, 4},
+                                     {"i32", 6, 4}, {"u64", 7, 8}, {"i64", 8, 8}, {"f32", 9, 4}, {"f64", 10, 8}};
+
+// An Extra Bytes descriptor's name field.
+constexpr std::size_t kMaxExtraName = 32;
+// The descriptors one Extra Bytes VLR holds (its payload is below 2^16 bytes).
+constexpr std::size_t kMaxExtraColumns = 65535 / 192;
+
+// The type named `type` (u8 ... f64), or null.
+const ExtraType* extra_type_named(std::string_view type) {
+  const auto t = std::find_if(std::begin(kExtraTypes), std::end(kExtraTypes),
+                              [&](const ExtraType& e) { return type == e.name; });
+  return t == std::end(kExtraTypes) ? nullptr : t;
+}
+std::size_t extra_type_size(int data_type) {
+  return data_type >= 1 && data_type <= 10 ? kExtraTypes[data_type - 1].size : 8;
+}
+
+// Checks the `name:type` token `tok` of a spec (text --columns or binary
+// fields): a known type and a name that is new, is no point attribute's and
+// fits an Extra Bytes descriptor. Returns the type, or an error after `where`.
+Result<const ExtraType*> named_extra_field(const std::string& where, std::string_view tok,
+                                          const std::vector<std::string>& taken) {
+  const std::size_t colon = tok.find(':');
+  const std::string field(tok.substr(0, colon));
+  const ExtraType* t = extra_type_named(tok.substr(colon + 1));
+  if (t == nullptr) {
+    return invalid_argument(where + quoted(tok) + ": the type of an extra field is one of u8 i8 u16 i16 u32 i32 " +
+                            "u64 i64 f32 f64");
+  }
+  if (field.empty() || text_column_of_name(field) || field[0] == '_' || field == "c" || field == "C" ||
+      field == "rgb") {
+    return invalid_argument(where + quoted(tok) + ": an extra field needs a name that is not a point attribute's");
+  }
+  if (field.size() > kMaxExtraName) {
+    return invalid_argument(where + quoted(tok) + ": an extra field's name has at most " +
+                            std::to_string(kMaxExtraName) + " bytes (an Extra Bytes descriptor's)");
+  }
+  if (std::find(taken.begin(), taken.end(), field) != taken.end()) {
+    return invalid_argument(where + quoted(field) + " appears twice");
+  }
+  return t;
+}
+
 Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& name) {
   const std::string where = name + ": column spec '" + spec + "': ";
   ColumnPlan plan;
@@ -112,12 +169,26 @@ Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& nam
     Role role = Role::kSkip;
     if (tok == "c" || tok == "C") {
       role = Role::kClass;
+    } else if (tok.find(':') != std::string_view::npos) {
+      // name:type, a column kept as LAS extra bytes.
+      RELIEF_ASSIGN_OR_RETURN(const ExtraType* t, named_extra_field(where, tok, plan.extra_names));
+      if (plan.extra_names.size() == kMaxExtraColumns) {
+        return invalid_argument(where + "more than " + std::to_string(kMaxExtraColumns) +
+                                " extra fields (what one Extra Bytes VLR describes)");
+      }
+      plan.extra_names.emplace_back(tok.substr(0, tok.find(':')));
+      plan.extra_types.push_back(t->data_type);
+      plan.roles.push_back(Role::kExtra);
+      if (comma == spec.size()) break;
+      pos = comma + 1;
+      continue;
     } else if (tok != "_") {
       const std::optional<Role> named = text_column_of_name(tok);
       if (!named) {
         return invalid_argument(where + "unknown column " + quoted(tok) +
                                 " (use x y z r g b i c, a LAS dimension such as gps_time, return_number or "
-                                "point_source_id, or _ to skip; comma separated)");
+                                "point_source_id, name:type to keep a column as extra bytes (type u8 i8 u16 i16 "
+                                "u32 i32 u64 i64 f32 f64), or _ to skip; comma separated)");
       }
       role = *named;
     }
@@ -299,9 +370,22 @@ std::vector<const LasTextColumn*> las_columns_of(const ColumnPlan& plan) {
   return out;
 }
 
-// Appends `bits` as 8 little-endian bytes.
-void put_u64_le(std::vector<std::uint8_t>& out, std::uint64_t bits) {
-  for (int k = 0; k < 8; ++k) out.push_back(static_cast<std::uint8_t>(bits >> (8 * k)));
+// The Extra Bytes VLR describing a plan's kept columns, in order; `file`
+// names the input in messages.
+Result<std::string> extras_vlr(const ColumnPlan& plan, const std::string& file, std::vector<std::string>& warnings) {
+  std::vector<KeptField> fields;
+  for (std::size_t e = 0; e < plan.extra_names.size(); ++e) fields.push_back({plan.extra_names[e], plan.extra_types[e]});
+  return kept_fields_vlr(fields, file, "column", "text column", warnings);
+}
+std::uint32_t extras_size(const ColumnPlan& plan) {
+  std::size_t size = 0;
+  for (const int t : plan.extra_types) size += extra_type_size(t);
+  return static_cast<std::uint32_t>(size);
+}
+
+// Appends the low `size` bytes of `bits`, little-endian.
+void put_le(std::vector<std::uint8_t>& out, std::uint64_t bits, std::size_t size) {
+  for (std::size_t k = 0; k < size; ++k) out.push_back(static_cast<std::uint8_t>(bits >> (8 * k)));
 }
 
 // LAS Extra Bytes data types of the kept text columns (see the top of the file).
@@ -367,7 +451,62 @@ bool holds_integer_exactly(std::string_view tok, double value) {
          std::string_view(printed, static_cast<std::size_t>(len)) == digits;
 }
 
-const char* type_name(int type) { return type == kInt64 ? "int64" : type == kUInt64 ? "uint64" : "float64"; }
+const char* type_name(int type) {
+  constexpr const char* kNames[] = {"uint8",  "int8",  "uint16", "int16",   "uint32",
+                                    "int32",  "uint64", "int64", "float32", "float64"};
+  return type >= 1 && type <= 10 ? kNames[type - 1] : "float64";
+}
+
+// Parses the text `tok` as a value of LAS Extra Bytes data type `type`
+// (1..10) into `bits` (its little-endian pattern in the low bytes); else
+// says why. Floats: any number (an empty value is a NaN, the missing value);
+// an integer literal a float64 would round is refused, and float32 takes the
+// nearest float of a value within its range. Integers: an integer literal,
+// or a number with no fraction (CloudCompare writes "12.000000") up to 2^53,
+// within the type's range; an empty value is refused (no missing value).
+std::string typed_value_problem(std::string_view tok, int type, std::uint64_t& bits) {
+  if (type == kFloat64 || type == 9) {
+    double value = std::numeric_limits<double>::quiet_NaN();
+    if (!tok.empty() && !parse_number(tok, value)) return quoted(tok) + " is not a number";
+    if (!tok.empty() && !holds_integer_exactly(tok, value)) {
+      return quoted(tok) + " is an integer a float64 cannot hold exactly";
+    }
+    if (type == kFloat64) {
+      bits = std::bit_cast<std::uint64_t>(value);
+      return "";
+    }
+    if (std::isfinite(value) && std::abs(value) > std::numeric_limits<float>::max()) {
+      return quoted(tok) + " is outside the float32 range";
+    }
+    bits = std::bit_cast<std::uint32_t>(static_cast<float>(value));
+    return "";
+  }
+  if (tok.empty()) return "is empty, which an integer field cannot hold (it has no missing value)";
+  const bool is_unsigned = type % 2 == 1;
+  const std::size_t size = extra_type_size(type);
+  if (!parse_integer(tok, is_unsigned ? kUInt64 : kInt64, bits)) {
+    double value = 0;
+    if (is_integer_literal(tok)) return quoted(tok) + " is out of range";
+    if (!parse_number(tok, value) || !std::isfinite(value) || value != std::trunc(value)) {
+      return quoted(tok) + " is not an integer";
+    }
+    if (std::abs(value) > static_cast<double>(kExactInDouble)) {
+      return quoted(tok) + " is not an integer written in digits, as one beyond 2^53 must be";
+    }
+    if (is_unsigned && value < 0) return quoted(tok) + " is out of range";
+    const auto v = static_cast<std::int64_t>(value);
+    bits = static_cast<std::uint64_t>(v);
+  }
+  if (size < 8) {
+    const auto v = static_cast<std::int64_t>(bits);
+    const int width = static_cast<int>(8 * size);
+    const bool fits = is_unsigned ? bits < (std::uint64_t{1} << width)
+                                  : v >= -(std::int64_t{1} << (width - 1)) && v < (std::int64_t{1} << (width - 1));
+    if (!fits) return quoted(tok) + " is out of range";
+    bits &= (std::uint64_t{1} << width) - 1;
+  }
+  return "";
+}
 
 class XyzPointReader final : public BatchPointReader {
  public:
@@ -409,6 +548,8 @@ class XyzPointReader final : public BatchPointReader {
   Status start(std::optional<ColumnPlan> explicit_plan);
   // Settles the candidate extra columns of a header plan (see the top of the file).
   Status settle_extras();
+  // The Extra Bytes VLR and size of the plan's kept columns.
+  Status settle_vlr();
   // Next line that is neither blank nor a comment; `line` empty at the end.
   Status next_content_line(std::string_view& line, bool& end, std::string* last_comment_header);
   Status parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
@@ -421,12 +562,12 @@ class XyzPointReader final : public BatchPointReader {
   ByteSource src_;
   ColumnPlan plan_;
   std::vector<const LasTextColumn*> las_columns_;  // the plan's LAS dimensions
-  std::vector<int> extra_types_;               // the kept columns' LAS data types
   std::vector<std::uint64_t> extra_values_;    // one point's kept columns, as 64-bit patterns
   std::uint64_t line_no_ = 0;
   std::string pending_;  // the first data line, read by start()
   std::uint64_t pending_line_no_ = 0;
   bool has_pending_ = false;
+  bool explicit_columns_ = false;  // ReaderOptions::xyz_columns, not a header, gave the plan
   char delimiter_ = ' ';  // ' ' means blanks only
 };
 
@@ -467,7 +608,7 @@ Status XyzPointReader::settle_extras() {
     for (bool more = pos < pending_.size(); more;) first.push_back(take_column(pending_, pos, delimiter_, more));
   }
   std::vector<std::string> not_numbers;
-  extra_types_.clear();
+  plan_.extra_types.clear();
   for (const std::size_t c : columns) {
     const std::string& extra_name = plan_.extra_names[k++];
     double value = 0;
@@ -478,17 +619,18 @@ Status XyzPointReader::settle_extras() {
       continue;
     }
     kept.push_back(extra_name);
-    extra_types_.push_back(has_pending_ ? column_type_of(first[c]) : kFloat64);
+    plan_.extra_types.push_back(has_pending_ ? column_type_of(first[c]) : kFloat64);
   }
   plan_.extra_names = std::move(kept);
   if (!not_numbers.empty()) plan_.unread.insert(plan_.unread.begin(), not_numbers.begin(), not_numbers.end());
   drop_trailing_skips(plan_);
+  return settle_vlr();
+}
+
+Status XyzPointReader::settle_vlr() {
   if (plan_.extra_names.empty()) return Status::ok();
-  std::vector<KeptField> fields;
-  for (std::size_t e = 0; e < plan_.extra_names.size(); ++e) fields.push_back({plan_.extra_names[e], extra_types_[e]});
-  RELIEF_ASSIGN_OR_RETURN(info_.extra_bytes_vlr,
-                          kept_fields_vlr(fields, name(), "column", "text column", info_.warnings));
-  info_.extra_bytes_size = static_cast<std::uint32_t>(8 * plan_.extra_names.size());
+  RELIEF_ASSIGN_OR_RETURN(info_.extra_bytes_vlr, extras_vlr(plan_, name(), info_.warnings));
+  info_.extra_bytes_size = extras_size(plan_);
   extra_values_.assign(plan_.extra_names.size(), 0);
   return Status::ok();
 }
@@ -519,6 +661,12 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   if (!header_plan && !comment_header.empty()) header_plan = plan_from_header(comment_header);
   if (explicit_plan) {
     plan_ = std::move(*explicit_plan);  // the caller's columns win over a header
+    explicit_columns_ = true;
+    if (!plan_.extra_names.empty() && !options_.extra_bytes) {
+      return invalid_argument(name() + ": the columns name extra fields (" + quoted(plan_.extra_names[0]) +
+                              " ...) but extra bytes are not kept (--no-extra-bytes)");
+    }
+    RELIEF_RETURN_IF_ERROR(settle_vlr());
   } else if (header_plan) {
     plan_ = std::move(*header_plan);
     RELIEF_RETURN_IF_ERROR(settle_extras());
@@ -542,31 +690,17 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
 }
 
 Status XyzPointReader::parse_extra(std::string_view tok, std::size_t c, std::size_t extra, std::uint64_t line_no) {
-  const int type = extra_types_[extra];
-  const std::string kept = " (kept as " + std::string(type_name(type)) + " extra bytes " +
-                           quoted(plan_.extra_names[extra]) + "; --no-extra-bytes skips such columns)";
-  const std::string column = "column " + std::to_string(c + 1) + " ";
-  if (type == kFloat64) {
-    double value = 0;
-    if (tok.empty()) {
-      value = std::numeric_limits<double>::quiet_NaN();  // a missing value
-    } else if (!parse_number(tok, value)) {
-      return line_error(line_no, column + quoted(tok) + " is not a number" + kept);
-    } else if (!holds_integer_exactly(tok, value)) {
-      // Rounding it would change the data silently.
-      return line_error(line_no, column + quoted(tok) + " is an integer a float64 cannot hold exactly" + kept +
-                                     ": the column's type comes from its first value, and a column whose first "
-                                     "value is an integer beyond 2^53 is kept as a 64-bit integer");
-    }
-    extra_values_[extra] = std::bit_cast<std::uint64_t>(value);
-    return Status::ok();
+  const int type = plan_.extra_types[extra];
+  const std::string problem = typed_value_problem(tok, type, extra_values_[extra]);
+  if (problem.empty()) return Status::ok();
+  std::string why = " (kept as " + std::string(type_name(type)) + " extra bytes " + quoted(plan_.extra_names[extra]);
+  if (explicit_columns_) {
+    why += " as the columns say)";
+  } else {
+    why += "; --no-extra-bytes skips such columns): the column's type comes from its first value";
+    if (type == kFloat64) why += ", and a column whose first value is an integer beyond 2^53 is kept as a 64-bit integer";
   }
-  if (tok.empty()) return line_error(line_no, column + "is empty" + kept + ", which has no missing value");
-  if (!parse_integer(tok, type, extra_values_[extra])) {
-    return line_error(line_no, column + quoted(tok) + (is_integer_literal(tok) ? " is out of range" : " is not an integer") +
-                                   kept + ": the column's type comes from its first value");
-  }
-  return Status::ok();
+  return line_error(line_no, "column " + std::to_string(c + 1) + " " + problem + why);
 }
 
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
@@ -608,7 +742,9 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
   const float intensity = plan_.intensity ? static_cast<float>(v[at_role(Role::kIntensity)]) : 0.0f;
   out.positions.push_back(p);
   push_las_columns(v, plan_.las, out.las);
-  for (const std::uint64_t e : extra_values_) put_u64_le(out.las.extra_bytes, e);
+  for (std::size_t e = 0; e < extra_values_.size(); ++e) {
+    put_le(out.las.extra_bytes, extra_values_[e], extra_type_size(plan_.extra_types[e]));
+  }
   if (plan_.colors) {
     if (wide != nullptr) {
       wide->insert(wide->end(), levels, levels + 3);
@@ -669,12 +805,17 @@ void append_point(const double* v, const ColumnPlan& plan, PointCloud& batch) {
 // delimiter from), colour levels 0..255 (no file-wide 16-bit rule either).
 class TextLineParserImpl final : public TextLineParser {
  public:
-  TextLineParserImpl(ColumnPlan plan, std::string name)
-      : plan_(std::move(plan)), las_columns_(las_columns_of(plan_)), name_(std::move(name)) {}
+  TextLineParserImpl(ColumnPlan plan, std::string name, std::string extra_vlr)
+      : plan_(std::move(plan)), las_columns_(las_columns_of(plan_)), name_(std::move(name)),
+        extra_vlr_(std::move(extra_vlr)), extra_size_(extras_size(plan_)) {}
 
   bool colors() const override { return plan_.colors; }
   bool intensity() const override { return plan_.intensity; }
-  std::uint32_t las_attributes() const override { return plan_.las; }
+  std::uint32_t las_attributes() const override {
+    return plan_.las | (extra_size_ > 0 ? std::uint32_t{kLasExtraBytes} : 0u);
+  }
+  const std::string& extra_bytes_vlr() const override { return extra_vlr_; }
+  std::uint32_t extra_bytes_size() const override { return extra_size_; }
 
   Status parse(std::string_view line, std::uint64_t line_no, PointCloud& batch) const override {
     const auto error = [&](const std::string& what) {
@@ -682,6 +823,9 @@ class TextLineParserImpl final : public TextLineParser {
     };
     const auto separator = [](char c) { return is_blank(c) || c == ',' || c == ';'; };
     double v[kRoleCount] = {};
+    // The extra fields' bytes, in the order listed (at most 8 each).
+    std::uint8_t extra[8 * kMaxExtraColumns];
+    std::size_t extra_at = 0, e = 0;
     std::size_t pos = 0;
     for (std::size_t c = 0; c < plan_.roles.size(); ++c) {
       while (pos < line.size() && separator(line[pos])) ++pos;
@@ -691,15 +835,31 @@ class TextLineParserImpl final : public TextLineParser {
       const std::size_t start = pos;
       while (pos < line.size() && !separator(line[pos])) ++pos;
       const std::string_view tok = line.substr(start, pos - start);
-      if (plan_.roles[c] == Role::kSkip) continue;
+      const Role role = plan_.roles[c];
+      if (role == Role::kSkip) continue;
+      if (role == Role::kExtra) {
+        std::uint64_t bits = 0;
+        const int type = plan_.extra_types[e];
+        if (const std::string problem = typed_value_problem(tok, type, bits); !problem.empty()) {
+          return error("column " + std::to_string(c + 1) + " " + problem + " (the " + type_name(type) + " field " +
+                       quoted(plan_.extra_names[e]) + ")");
+        }
+        for (std::size_t k = 0; k < extra_type_size(type); ++k) extra[extra_at++] = static_cast<std::uint8_t>(bits >> (8 * k));
+        ++e;
+        continue;
+      }
       double value = 0;
       if (!parse_number(tok, value)) return error("column " + std::to_string(c + 1) + " " + quoted(tok) + " is not a number");
-      v[at_role(plan_.roles[c])] = value;
+      v[at_role(role)] = value;
     }
     if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
       return error(problem);
     }
     append_point(v, plan_, batch);
+    if (extra_size_ > 0) {
+      batch.las.extra_bytes_size = extra_size_;
+      batch.las.extra_bytes.insert(batch.las.extra_bytes.end(), extra, extra + extra_at);
+    }
     return Status::ok();
   }
 
@@ -707,13 +867,20 @@ class TextLineParserImpl final : public TextLineParser {
   ColumnPlan plan_;
   std::vector<const LasTextColumn*> las_columns_;
   std::string name_;
+  std::string extra_vlr_;
+  std::uint32_t extra_size_;
 };
 
 }  // namespace
 
 Result<std::unique_ptr<TextLineParser>> TextLineParser::create(const std::string& spec, const std::string& name) {
   RELIEF_ASSIGN_OR_RETURN(ColumnPlan plan, parse_columns(spec, name));
-  return std::unique_ptr<TextLineParser>(new TextLineParserImpl(std::move(plan), name));
+  std::string vlr;
+  if (!plan.extra_names.empty()) {
+    std::vector<std::string> warnings;  // none: the names fit (parse_columns checked them)
+    RELIEF_ASSIGN_OR_RETURN(vlr, extras_vlr(plan, name, warnings));
+  }
+  return std::unique_ptr<TextLineParser>(new TextLineParserImpl(std::move(plan), name, std::move(vlr)));
 }
 
 namespace {
@@ -735,16 +902,6 @@ std::size_t binary_size(BinaryType t) {
   return 0;
 }
 
-// An extra bytes field's type: the LAS Extra Bytes data types 1..10 by the
-// names relief/io.h gives them, with their sizes.
-struct ExtraType {
-  const char* name;
-  int data_type;
-  std::size_t size;
-};
-constexpr ExtraType kExtraTypes[] = {{"u8", 1, 1},  {"i8", 2, 1},  {"u16", 3, 2}, {"i16", 4, 2}, {"u32", 5, 4},
-                                     {"i32", 6, 4}, {"u64", 7, 8}, {"i64", 8, 8}, {"f32", 9, 4}, {"f64", 10, 8}};
-
 // The binary type of a LAS dimension (relief/io.h lists them).
 BinaryType binary_type_of(Role r) {
   switch (r) {
@@ -758,8 +915,6 @@ BinaryType binary_type_of(Role r) {
 }
 
 constexpr std::size_t kMaxBinarySkip = 1024;
-// An Extra Bytes descriptor's name field.
-constexpr std::size_t kMaxExtraName = 32;
 
 class BinaryRecordParserImpl final : public BinaryRecordParser {
  public:
@@ -841,6 +996,7 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
   seen[at_role(Role::kX)] = seen[at_role(Role::kY)] = seen[at_role(Role::kZ)] = true;
   std::vector<BinaryRecordParserImpl::Field> fields;
   std::vector<KeptField> kept;  // the extra bytes fields
+  std::vector<std::string> kept_names;
   std::uint32_t extra_size = 0;
   std::size_t size = 24;
   std::size_t start = 0;
@@ -851,24 +1007,9 @@ Result<std::unique_ptr<BinaryRecordParser>> BinaryRecordParser::create(const std
     BinaryRecordParserImpl::Field f{Role::kSkip, BinaryType::kSkip, size, 0};
     if (const std::size_t colon = tok.find(':'); colon != std::string::npos) {
       // name:type, an extra bytes field.
-      const std::string field = tok.substr(0, colon), type = tok.substr(colon + 1);
-      const auto t = std::find_if(std::begin(kExtraTypes), std::end(kExtraTypes),
-                                  [&](const ExtraType& e) { return type == e.name; });
-      if (t == std::end(kExtraTypes)) {
-        return invalid_argument(where + quoted(tok) + ": the type of an extra field is one of u8 i8 u16 i16 u32 i32 " +
-                                "u64 i64 f32 f64");
-      }
-      if (field.empty() || text_column_of_name(field) || field[0] == '_') {
-        return invalid_argument(where + quoted(tok) + ": an extra field needs a name that is not a point attribute's");
-      }
-      if (field.size() > kMaxExtraName) {
-        return invalid_argument(where + quoted(tok) + ": an extra field's name has at most " +
-                                std::to_string(kMaxExtraName) + " bytes (an Extra Bytes descriptor's)");
-      }
-      for (const KeptField& k : kept) {
-        if (k.name == field) return invalid_argument(where + quoted(field) + " appears twice");
-      }
-      kept.push_back({field, t->data_type});
+      RELIEF_ASSIGN_OR_RETURN(const ExtraType* t, named_extra_field(where, tok, kept_names));
+      kept_names.push_back(tok.substr(0, colon));
+      kept.push_back({kept_names.back(), t->data_type});
       f.role = Role::kExtra;
       f.type = BinaryType::kExtra;
       f.size = t->size;

@@ -356,6 +356,50 @@ TEST_CASE("stream reads LAS dimensions by name and gives them back", "[cli][inge
   CHECK(has(unknown, "unknown column 'foo'"));
 }
 
+TEST_CASE("stream and compress keep name:type text columns as extra bytes", "[cli][ingest][extra]") {
+  TempDir tmp;
+  write_text(tmp.file("in.txt"),
+             "1 2 3 0.5 40 7\n"
+             "1.5,2,3,0.25,41,8\n"
+             "2;2;3;-1;65535;9\n");
+  const std::string columns = " --columns x,y,z,amplitude:f32,ring:u16,_";
+  const std::string streamed = tmp.file("s.relief");
+  REQUIRE(run("stream " + streamed + columns + " --cell 1 --quiet < " + tmp.file("in.txt")).code == 0);
+  const std::string compressed = tmp.file("c.relief");
+  // A file picks one delimiter from its first line (a stream takes any on each line).
+  write_text(tmp.file("in.csv"), "1,2,3,0.5,40,7\n1.5,2,3,0.25,41,8\n2,2,3,-1,65535,9\n");
+  REQUIRE(run("compress " + tmp.file("in.csv") + " -o " + compressed + columns + " --quiet").code == 0);
+  for (const std::string& archive : {streamed, compressed}) {
+    CAPTURE(archive);
+    REQUIRE(run("decompress " + archive + " -o " + tmp.file("out.csv") + " --quiet").code == 0);
+    std::ifstream in(tmp.file("out.csv"));
+    std::vector<std::string> lines;
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+    REQUIRE(lines.size() == 4);
+    CHECK(lines[0] == "X,Y,Z,amplitude,ring");
+    std::sort(lines.begin() + 1, lines.end());
+    CHECK(lines[1] == "1,2,3,0.5,40");
+    CHECK(lines[2] == "1.5,2,3,0.25,41");
+    CHECK(lines[3] == "2,2,3,-1,65535");
+  }
+  // A stream of other extra fields does not append; a value that does not fit
+  // its type names the line and writes nothing.
+  const Run other = run("stream " + streamed + " --columns x,y,z,amplitude:f64,ring:u16 --quiet < " +
+                        tmp.file("in.txt"));
+  CHECK(other.code == 11);
+  CHECK(has(other, "other extra bytes fields"));
+  write_text(tmp.file("bad.txt"), "1 2 3 0.5 40\n1 2 3 0.5 65536\n");
+  const Run bad = run("stream " + tmp.file("b.relief") + " --columns x,y,z,amplitude:f32,ring:u16 --cell 1 --quiet < " +
+                      tmp.file("bad.txt"));
+  CHECK(bad.code == 13);
+  CHECK(has(bad, "stdin: line 2: column 5 '65536' is out of range (the uint16 field 'ring')"));
+  CHECK_FALSE(fs::exists(tmp.file("b.relief")));
+  const Run typo = run("stream " + tmp.file("b.relief") + " --columns x,y,z,amplitude:f16 --cell 1 < " +
+                       tmp.file("bad.txt"));
+  CHECK(typo.code == 2);
+  CHECK(has(typo, "the type of an extra field is one of u8"));
+}
+
 TEST_CASE("stream --format binary reads typed LAS fields and gives them back", "[cli][ingest]") {
   TempDir tmp;
   // Records: f64 x y z, u8 r g b, f32 intensity, f64 GPS time, u8 return

@@ -10,10 +10,12 @@
 
 namespace {
 
-// Layouts the CLI's --columns accepts, including skipped and reordered ones
-// and the malformed kinds the option parser must reject.
-constexpr std::array<const char*, 8> kColumns = {
-    "x,y,z", "x,y,z,r,g,b", "x,y,z,i", "x,y,z,r,g,b,i", "_,x,_,y,z", "i,z,y,x", "x,y", "x,y,z,q"};
+// Layouts the CLI's --columns accepts, including skipped and reordered ones,
+// typed extra columns (name:type), and the malformed kinds the option parser
+// must reject.
+constexpr std::array<const char*, 10> kColumns = {
+    "x,y,z",     "x,y,z,r,g,b", "x,y,z,i", "x,y,z,r,g,b,i", "_,x,_,y,z", "i,z,y,x", "x,y", "x,y,z,q",
+    "x,y,z,a:u16,amp:f32", "x,y,z,id:i64,_,t:f64,u:u8,s:i8"};
 
 }  // namespace
 

@@ -83,8 +83,38 @@ def xyz_seeds(out, pts):
     put(out, "xyz", "intensity_tabs.txt", b"\x02" + txt.encode())
     semi = "".join("%d;%g;%d;%g;%g\n" % (i, p[0], i, p[1], p[2]) for i, p in enumerate(pts[:6]))
     put(out, "xyz", "skip_semicolon.xyz", b"\x04" + semi.encode())
+    typed = "".join("%g %g %g %d %g\n" % (p[0], p[1], p[2], 40000 + i, p[3] / 7.0) for i, p in enumerate(pts[:6]))
+    put(out, "xyz", "typed_u16_f32.xyz", b"\x08" + typed.encode())
+    typed = "".join("%g,%g,%g,%d,skip,%.17g,%d,%d\n" % (p[0], p[1], p[2], -(1 << 62) + i, p[4] / 3.0, p[5], i - 3)
+                    for i, p in enumerate(pts[:6]))
+    put(out, "xyz", "typed_i64_f64_u8_i8.csv", b"\x09" + typed.encode())
     put(out, "xyz", "rgbi_crlf.xyz",
         b"\x03" + "".join("%g %g %g %d %d %d 0.5\r\n" % p for p in pts[:6]).encode())
+
+
+def stream_seed(binary, spec, body):
+    # fuzz_stream.cpp: byte 0 picks the parser (odd: binary), byte 1 the spec's length.
+    spec = spec.encode()
+    return bytes([1 if binary else 0, len(spec)]) + spec + body
+
+
+def stream_seeds(out, pts):
+    put(out, "stream", "text_rgbi.txt", stream_seed(False, "x,y,z,r,g,b,i",
+        "".join("%g %g %g %d %d %d %d\n" % (p + (i * 37,)) for i, p in enumerate(pts[:8])).encode()))
+    put(out, "stream", "text_las.txt", stream_seed(False, "x,y,z,classification,return_number,number_of_returns,"
+        "gps_time,scan_angle,point_source_id", "".join("%g,%g,%g,%d,%d,2,%.6f,%d,%d\n" % (
+            p[0], p[1], p[2], 2 + i % 4, 1 + i % 2, 1000.5 + i * 1e-5, i - 3, 7) for i, p in enumerate(pts[:8])).encode()))
+    put(out, "stream", "text_typed.txt", stream_seed(False, "x,y,z,amplitude:f32,ring:u16,id:i64", "".join(
+        "%g %g %g %g %d %d\n" % (p[0], p[1], p[2], p[3] / 9.0, 60000 + i, -(1 << 60) - i) for i, p in enumerate(pts[:8])).encode()))
+    put(out, "stream", "text_skip.txt", stream_seed(False, "_,z,_,y,x", b"1 2 3 4 5\n6;7;8;9;10\n\nbad\n"))
+    rec = b"".join(struct.pack("<dddBBBf", p[0], p[1], p[2], p[3], p[4], p[5], i * 0.5) for i, p in enumerate(pts[:8]))
+    put(out, "stream", "binary_rgbi.bin", stream_seed(True, "rgb,intensity", rec))
+    rec = b"".join(struct.pack("<dddd B B xx f H", p[0], p[1], p[2], 5e5 + i * 1e-4, 2, 1 + i % 3, 0.25 * i, i)
+                   for i, p in enumerate(pts[:8]))
+    put(out, "stream", "binary_las_extra.bin", stream_seed(True, "gps_time,classification,return_number,_2,"
+                                                           "amplitude:f32,ring:u16", rec))
+    rec = b"".join(struct.pack("<ddd f H B", p[0], p[1], p[2], 12.5 - i, 300 + i, i % 2) for i, p in enumerate(pts[:8]))
+    put(out, "stream", "binary_angle_nir.bin", stream_seed(True, "scan_angle,nir,synthetic", rec))
 
 
 def pcd(pts, data_kind):
@@ -244,6 +274,7 @@ def main():
     pts = kinect_points(300, 701)
     ply_seeds(out, pts)
     xyz_seeds(out, pts)
+    stream_seeds(out, pts)
     pcd_seeds(out, pts)
     las_seeds(out)
     chunk_and_archive_seeds(out, build, pts)

@@ -752,6 +752,103 @@ TEST_CASE("CSV integer columns beyond 2^53 are kept as 64-bit integers, never ro
   CHECK(extra_f64(c, 3, 0) == 1);
 }
 
+TEST_CASE("Text columns named name:type are kept as extra bytes of that type", "[io][xyz][extra]") {
+  test::TempDir dir;
+  const std::string path = dir.file("t.txt");
+  // A scanner export without a header: amplitude, ring, a 64-bit ID, a flag.
+  write_file(path, "1 2 3 0.25 17.000000 -5 skipped 1\n"
+                   "4 5 6 1e-3 65535 9007199254740993 0 0\n"
+                   "7 8 9 -2.5 0 -9223372036854775808 255 1\n");
+  ReaderOptions o;
+  o.xyz_columns = "x,y,z,amplitude:f32,ring:u16,id:i64,_,c";
+  PointStreamInfo info;
+  PointCloud c = read_text(path, 2, &info, o);
+  REQUIRE(c.size() == 3);
+  CHECK(info.las_attributes == (kLasExtraBytes | kLasClassification));
+  REQUIRE(info.extra_bytes_size == 4 + 2 + 8);
+  const std::vector<ExtraBytesField> fields = fields_of(info);
+  REQUIRE(fields.size() == 3);
+  CHECK(fields[0].name == "amplitude");
+  CHECK(fields[0].type_name == "float32");
+  CHECK(fields[1].type_name == "uint16");
+  CHECK(fields[1].offset == 4);
+  CHECK(fields[2].type_name == "int64");
+  CHECK(fields[2].offset == 6);
+  const auto at = [&](std::size_t point, std::size_t offset, auto v) {
+    std::memcpy(&v, c.las.extra_bytes.data() + point * 14 + offset, sizeof v);
+    return v;
+  };
+  CHECK(at(0, 0, 0.0f) == 0.25f);
+  CHECK(at(1, 0, 0.0f) == 1e-3f);  // the nearest float
+  CHECK(at(2, 0, 0.0f) == -2.5f);
+  CHECK(at(0, 4, std::uint16_t{0}) == 17);
+  CHECK(at(1, 4, std::uint16_t{0}) == 65535);
+  CHECK(at(0, 6, std::int64_t{0}) == -5);
+  CHECK(at(1, 6, std::int64_t{0}) == 9007199254740993);  // every digit, as an integer
+  CHECK(at(2, 6, std::int64_t{0}) == std::numeric_limits<std::int64_t>::min());
+  CHECK(c.las.classification == std::vector<std::uint8_t>{1, 0, 1});
+
+  // What each type refuses, naming the line, the column and the field.
+  const auto refused = [&](const std::string& columns, const std::string& value, const std::string& what) {
+    write_file(path, "1,2,3,0\n4,5,6," + value + "\n");
+    ReaderOptions typed;
+    typed.xyz_columns = "x,y,z," + columns;
+    const Status s = read_text_status(path, typed);
+    INFO(columns << " = " << value << ": " << s.to_string());
+    CHECK(s.code() == StatusCode::kFormatError);
+    CHECK_THAT(s.message(), Contains("t.txt: line 2: column 4 " + what));
+    CHECK_THAT(s.message(), Contains("extra bytes '" + columns.substr(0, columns.find(':')) + "' as the columns say"));
+  };
+  refused("ring:u16", "65536", "'65536' is out of range");
+  refused("ring:u16", "-1", "'-1' is out of range");
+  refused("ring:u8", "2.5", "'2.5' is not an integer");
+  refused("ring:i8", "-129", "'-129' is out of range");
+  refused("ring:u32", "", "is empty");
+  refused("ring:u64", "1e300", "'1e300' is not an integer written in digits");
+  refused("amp:f32", "1e39", "'1e39' is outside the float32 range");
+  refused("amp:f64", "abc", "'abc' is not a number");
+  // An empty float is a NaN, the missing value.
+  write_file(path, "1 2 3 0.5\n4 5 6\n");
+  o.xyz_columns = "x,y,z,amp:f32";
+  REQUIRE(read_text_status(path, o).code() == StatusCode::kFormatError);  // a column short, not empty
+  write_file(path, "1,2,3,0.5\n4,5,6,\n");
+  c = read_text(path, 100, &info, o);
+  REQUIRE(c.size() == 2);
+  float missing = 0;
+  std::memcpy(&missing, c.las.extra_bytes.data() + 4, 4);
+  CHECK(std::isnan(missing));
+
+  // Specs refused before anything is read, and --no-extra-bytes with typed columns.
+  for (const char* spec : {"x,y,z,a:f16", "x,y,z,x:f32", "x,y,z,:u8", "x,y,z,a:u8,a:i8", "x,y,z,rgb:u8",
+                           "x,y,z,intensity:f32", "x,y,z,a_name_of_more_than_thirty_two_bytes:u8", "x,y,z,amp"}) {
+    ReaderOptions bad;
+    bad.xyz_columns = spec;
+    INFO(spec);
+    CHECK(open_point_reader(path, bad).status().code() == StatusCode::kInvalidArgument);
+  }
+  ReaderOptions none;
+  none.xyz_columns = "x,y,z,amp:f32";
+  none.extra_bytes = false;
+  const auto refused_none = open_point_reader(path, none);
+  REQUIRE_FALSE(refused_none.is_ok());
+  CHECK_THAT(refused_none.status().message(), Contains("--no-extra-bytes"));
+
+  // The stream parser takes the same columns.
+  auto parser = TextLineParser::create("x,y,z,ring:u16,_,amp:f32", "stdin");
+  REQUIRE(parser.is_ok());
+  CHECK((*parser)->extra_bytes_size() == 6);
+  CHECK((*parser)->las_attributes() == kLasExtraBytes);
+  CHECK((*parser)->extra_bytes_vlr().size() == 2 * 192);
+  PointCloud batch;
+  REQUIRE((*parser)->parse("1;2;3;513;skip;2.5", 1, batch).is_ok());
+  CHECK(batch.las.extra_bytes == std::vector<std::uint8_t>{0x01, 0x02, 0x00, 0x00, 0x20, 0x40});
+  CHECK(batch.las.extra_bytes_size == 6);
+  const Status s = (*parser)->parse("1 2 3 70000 skip 1", 2, batch);
+  CHECK_THAT(s.message(), Contains("stdin: line 2: column 4 '70000' is out of range (the uint16 field 'ring')"));
+  CHECK(batch.size() == 1);
+  CHECK(batch.las.extra_bytes.size() == 6);
+}
+
 }  // namespace relief
 
 namespace relief {

@@ -95,7 +95,10 @@ struct ReaderOptions {
   // ASCII XYZ/CSV: the meaning of each column, comma separated, from x y z
   // r g b i (intensity) c (classification, 0..255, into las.classification),
   // the LAS dimensions by their LAS or PDAL names (gps_time, return_number,
-  // ScanAngleRank ..., into PointCloud::las, range-checked) and _ (skip).
+  // ScanAngleRank ..., into PointCloud::las, range-checked), name:type (a
+  // column kept as LAS extra bytes under that name, type u8 i8 u16 i16 u32
+  // i32 u64 i64 f32 f64, each value checked to fit it; refused with
+  // extra_bytes off) and _ (skip).
   // Unset: the names of a header line (the first line when it is not
   // numeric, or a comment line such as "//X,Y,Z,R,G,B" naming x, y and z;
   // names in any case, red/green/blue, intensity/reflectance and their
@@ -135,8 +138,8 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
 
 // One line of XYZ/CSV text at a time: what `relief stream` reads from a pipe
 // as it arrives. The columns are those of a spec as ReaderOptions::xyz_columns
-// names them (x y z, r g b, i, c, the LAS dimensions by name, _ to skip; no
-// extra-bytes columns), separated by any run of blanks, ',' and ';'; colour
+// names them (x y z, r g b, i, c, the LAS dimensions by name, name:type extra
+// fields, _ to skip), separated by any run of blanks, ',' and ';'; colour
 // levels are 0..255 (a level outside is an error, never clamped).
 class TextLineParser {
  public:
@@ -147,6 +150,10 @@ class TextLineParser {
   virtual bool colors() const = 0;
   virtual bool intensity() const = 0;
   virtual std::uint32_t las_attributes() const = 0;  // LasAttributeBits the columns fill
+  // The name:type columns' Extra Bytes VLR payload and bytes per point (empty
+  // and 0 when there are none).
+  virtual const std::string& extra_bytes_vlr() const = 0;
+  virtual std::uint32_t extra_bytes_size() const = 0;
   // Appends the point of `line` to `batch` (its colours, intensities and LAS
   // attributes as the columns say). A missing column, a value that is not a
   // number or is out of its range is an error naming the input and line_no,
