@@ -154,19 +154,32 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>((*big_reader)->info().decoded_points),
               static_cast<unsigned long long>((*big_reader)->info().chunk_count));
   std::printf("kind,archive,threads,median_s,points,mpts_s\n");
-  for (unsigned threads : {1u, 2u}) {
+  // Every attribute, then x y z alone (QueryOptions::attributes: the colour
+  // sections are not decoded), alternated so that drift slows both alike.
+  struct Run {
+    const char* kind;
+    unsigned threads;
+    relief::AttributeSet attributes;
     std::vector<double> times;
     std::uint64_t points = 0;
-    for (int k = 0; k < repeat; ++k) {
+  };
+  std::vector<Run> runs = {{"decompress_library", 1, relief::AttributeSet::all(), {}},
+                           {"decompress_library", 2, relief::AttributeSet::all(), {}},
+                           {"decompress_library_xyz_only", 2, relief::AttributeSet::none(), {}}};
+  for (int k = 0; k < repeat; ++k) {
+    for (Run& r : runs) {
       relief::QueryOptions q;
-      q.threads = threads;
+      q.threads = r.threads;
+      q.attributes = r.attributes;
       const auto t0 = std::chrono::steady_clock::now();
       auto s = (*big_reader)->query_all(q, [](const relief::PointCloud&) { return relief::Status::ok(); });
-      times.push_back(seconds_since(t0));
-      if (s) points = s->points;
+      r.times.push_back(seconds_since(t0));
+      if (s) r.points = s->points;
     }
-    std::printf("decompress_library,10M,%u,%.3f,%llu,%.2f\n", threads, median(times),
-                static_cast<unsigned long long>(points), static_cast<double>(points) / median(times) * 1e-6);
+  }
+  for (const Run& r : runs) {
+    std::printf("%s,10M,%u,%.3f,%llu,%.2f\n", r.kind, r.threads, median(r.times),
+                static_cast<unsigned long long>(r.points), static_cast<double>(r.points) / median(r.times) * 1e-6);
   }
   {
     std::vector<double> times;

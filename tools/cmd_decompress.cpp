@@ -10,9 +10,9 @@ namespace relief::cli {
 int run_decompress(int argc, char** argv) {
   constexpr const char* kUsage =
       "usage: relief decompress ARCHIVE -o OUT [--lod L] [--class C,...] [--first-returns] [--last-returns]\n"
-      "                         [--skip-corrupt] [--threads N] [--quiet]\n"
-      "Writes every point of the archive (.ply, .las, .xyz; '-' = XYZ text on stdout).\n";
-  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--lod", "-o", "--threads", "--class"});
+      "                         [--attributes LIST] [--skip-corrupt] [--threads N] [--quiet]\n"
+      "Writes every point of the archive (.las, .laz, .ply, .xyz/.txt/.csv; '-' = XYZ text on stdout).\n";
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--lod", "-o", "--threads", "--class", "--attributes"});
   if (args.has("--help")) {
     std::cout << kUsage << kQueryFilterHelp;
     return kExitOk;

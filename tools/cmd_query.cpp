@@ -12,7 +12,7 @@ namespace {
 constexpr const char* kCommand = "query";
 constexpr const char* kUsageText =
     "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L | --max-points N] [--class C,...]\n"
-    "                    [--first-returns] [--last-returns] -o OUT\n"
+    "                    [--first-returns] [--last-returns] [--attributes LIST] -o OUT\n"
     "Writes the archive's points inside the box (bounds included). Only the chunks the box\n"
     "touches are read and decoded.\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"
@@ -21,14 +21,14 @@ constexpr const char* kUsageText =
     "  --max-points N   at most N points: the finest level of detail of the pyramid whose nodes in the\n"
     "                   box hold at most N (a spatially uniform subset; cut at N if even the top\n"
     "                   level holds more)\n"
-    "  -o OUT           .ply, .las or .xyz/.txt/.csv; '-' writes XYZ text to stdout\n"
+    "  -o OUT           .las, .laz, .ply or .xyz/.txt/.csv; '-' writes XYZ text to stdout\n"
     "  --skip-corrupt   report damaged chunks and go on instead of failing\n"
     "  --threads N      decoder threads (default: all cores)\n"
     "  --quiet          no summary on stderr\n";
 }  // namespace
 
 int run_query(int argc, char** argv) {
-  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--box", "--lod", "--max-points", "-o", "--threads", "--class"});
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--box", "--lod", "--max-points", "-o", "--threads", "--class", "--attributes"});
   if (args.has("--help")) {
     std::cout << kUsageText << kQueryFilterHelp;
     return kExitOk;

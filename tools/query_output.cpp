@@ -39,6 +39,14 @@ QueryOptions query_options_from(Args& args, const std::string& command) {
       start = end + 1;
     }
   }
+  if (const auto list = args.get("--attributes")) {
+    auto set = parse_attribute_set(*list);
+    if (set) {
+      q.attributes = *set;
+    } else {
+      args.add_error("--attributes: " + set.status().message());
+    }
+  }
   q.on_warning = [command](const std::string& w) { std::cerr << "relief " << command << ": warning: " << w << "\n"; };
   return q;
 }
@@ -48,17 +56,24 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   auto reader = ArchiveReader::open(archive_path);
   if (!reader) return fail(command, reader.status());
   const ArchiveInfo& info = (*reader)->info();
+  const AttributeSet& want = options.attributes;
+  if (Status s = check_attributes(info, want, archive_path); !s) return fail(command, s);
+  // The LAS attributes written: those asked for, the colour low bytes with the colours.
+  const std::uint32_t las_kept =
+      info.las_attributes & ((want.las & ~std::uint32_t{kLasColorLow}) | (want.colors ? kLasColorLow : 0u));
   WriterOptions w;
-  w.colors = info.has_colors;
-  w.intensity = info.has_intensity;
+  w.colors = info.has_colors && want.colors;
+  w.intensity = info.has_intensity && want.intensity;
   w.crs = info.crs;
   w.crs_source = info.crs_source;
   w.expected_bounds = info.bounds;
-  w.las_attributes = info.las_attributes;
+  w.las_attributes = las_kept;
   w.las_point_format = info.las_point_format;
   w.las_version_minor = info.las_version_minor;
-  w.extra_bytes_vlr = info.extra_bytes_vlr;
-  w.extra_bytes_size = info.extra_bytes_size;
+  if ((las_kept & kLasExtraBytes) != 0) {
+    w.extra_bytes_vlr = info.extra_bytes_vlr;
+    w.extra_bytes_size = info.extra_bytes_size;
+  }
   w.las_colors_8bit = info.las_colors_8bit;
   w.las_gps_time_type = info.las_gps_time_type;
   for (const ArchiveSource& s : info.sources) {
@@ -85,7 +100,7 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   std::string ext = std::filesystem::path(out_path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext != ".las" && ext != ".laz") {
-    const std::uint32_t dropped = info.las_attributes & kLasColorLow;
+    const std::uint32_t dropped = las_kept & kLasColorLow;
     if (dropped != 0) {
       std::string names = las_attribute_list(dropped);
       for (std::size_t at = names.find(','); at != std::string::npos; at = names.find(',', at + 2)) {

@@ -20,7 +20,10 @@ inline constexpr const char* kQueryFilterHelp =
     "  --class C,...     only points whose LAS classification is one of these (0..255)\n"
     "  --first-returns   only first returns (return number 1)\n"
     "  --last-returns    only last returns (return number = number of returns)\n"
-    "                    Filters combine; they need an archive that carries the LAS attributes\n";
+    "                    Filters combine; they need an archive that carries the LAS attributes\n"
+    "  --attributes LIST only these attributes beside x y z, as 'relief info' lists them: rgb,\n"
+    "                    intensity, classification, return_number, gps_time, extra_bytes ...;\n"
+    "                    'none' for x y z alone (default all). The others are not decoded: faster\n";
 
 // Runs `box` (or everything when `all`) against the archive at `archive_path`
 // into `out_path`. Returns the process exit code; prints errors and, unless

@@ -28,6 +28,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
                                                  EncodeStats* stats);
 
 // Every point of the error-bounded layer, in the blob's canonical order.
-Result<PointCloud> decode_bounded_points(const ParsedBlob& blob);
+// Sections of attributes `want` leaves out are skipped unless a wanted one is
+// coded against them (the result may then carry them: the caller keeps what
+// it asked for).
+Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const AttributeSet& want = {});
 
 }  // namespace relief::codec

@@ -83,11 +83,20 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::v
 
 }  // namespace
 
-Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
+Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const AttributeSet& want) {
   const ChunkHeader& h = blob.header;
   PointCloud out;
   const std::size_t n = h.input_points;
   if (n == 0) return out;
+  // The LAS sections to decode: those wanted and those they are coded
+  // against (number of returns against return numbers; from format 6, the
+  // attributes in time order against the GPS times; colour low bytes
+  // against the colours).
+  std::uint32_t las = want.las & ~std::uint32_t{kLasColorLow};
+  if (want.colors) las |= kLasColorLow;
+  if ((las & kLasNumberOfReturns) != 0) las |= kLasReturnNumber;
+  if ((las & kLasTimeOrdered) != 0 && h.version >= 6) las |= kLasGpsTime;
+  const bool colors = want.colors || (las & kLasColorLow) != 0;
   const SectionEntry* geometry = find_section(blob, SectionId::kGeometry);
   if (geometry == nullptr) return corrupt_data("chunk blob: no geometry section");  // parse_blob guarantees it
   // Decoded before the other sections: in time order, the geometry with
@@ -119,7 +128,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     }
     const SectionEntry* colors = find_section(blob, SectionId::kPointColor);
     const bool near_colors = colors != nullptr && colors->codec == SectionCodec::kNeighbourColor;
-    if (near_colors || (h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0)) {
+    if ((near_colors && colors) || (h.version >= 6 && (h.las_attributes & kLasGpsTime & las) != 0)) {
       layer_cells.reserve(n);
       for (std::size_t c = 0; c < cells.keys.size(); ++c) {
         const std::uint64_t key = cells.keys[c];
@@ -135,7 +144,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     for (std::size_t j = 0; j < v.size(); ++j) moved[cell_pos[j]] = v[j];
     v = std::move(moved);
   };
-  if (const SectionEntry* s = find_section(blob, SectionId::kPointColor)) {
+  if (const SectionEntry* s = colors ? find_section(blob, SectionId::kPointColor) : nullptr) {
     std::vector<CellXyz> cells_by_cell;  // codec 10 in cell order under a time-ordered layer
     if (s->codec == SectionCodec::kNeighbourColor && in_cells(kOrderSlotColors)) {
       cells_by_cell.resize(n);
@@ -149,7 +158,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
     out.colors = std::move(colors).value();
     if (in_cells(kOrderSlotColors)) to_layer(out.colors);
   }
-  if (const SectionEntry* s = find_section(blob, SectionId::kPointIntensity)) {
+  if (const SectionEntry* s = want.intensity ? find_section(blob, SectionId::kPointIntensity) : nullptr) {
     auto values = decode_values(s->payload, n);
     if (!values) return values.status().with_context("chunk blob: point intensity section");
     if (in_cells(kOrderSlotIntensity)) to_layer(*values);
@@ -177,7 +186,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   // Format 6 on: the octree layer's GPS times use every point's cell.
   const std::span<const CellXyz> point_cells =
       time_ordered_layer ? std::span<const CellXyz>{} : std::span<const CellXyz>{layer_cells};
-  if (!time_ordered_layer && h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0) {
+  if (!time_ordered_layer && h.version >= 6 && (h.las_attributes & kLasGpsTime) != 0 && (las & kLasGpsTime) != 0) {
     for (const SectionEntry& s : blob.sections) {
       if (!is_las_section(s.id) || las_section_bit(s.id) != kLasGpsTime) continue;
       RELIEF_RETURN_IF_ERROR(
@@ -188,6 +197,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob) {
   for (const SectionEntry& s : blob.sections) {
     if (!is_las_section(s.id)) continue;
     const std::uint32_t bit = las_section_bit(s.id);
+    if ((las & bit) == 0) continue;  // not wanted, and no wanted section is coded against it
     if (bit == kLasGpsTime && !time_order.empty()) continue;  // decoded above
     if (time_ordered_layer && (bit == kLasReturnNumber || bit == kLasNumberOfReturns)) continue;  // likewise
     if (in_cells(order_slot(bit))) {

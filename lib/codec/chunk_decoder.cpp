@@ -248,8 +248,9 @@ Result<PointCloud> decode_maps(const codec::ParsedBlob& parsed, std::uint64_t ke
 
 }  // namespace
 
-Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const DecodeOptions& options) {
-  if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
+namespace {
+
+Result<PointCloud> decode_any(std::span<const std::uint8_t> blob, const DecodeOptions& options) {
   RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, options.verify_checksum));
   const codec::ChunkHeader& h = parsed.header;
   if (!codec::has_bounded_layer(h.version)) return decode_maps(parsed, 1, options.base_layer ? 1 : options.lod, options);
@@ -265,13 +266,22 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
   if (options.lod > 1 && want > 0 && 2 * static_cast<std::uint64_t>(h.decoded_points) >= want) {
     return decode_maps(parsed, std::min<std::uint64_t>(want, h.decoded_points), h.decoded_points, options);
   }
-  RELIEF_ASSIGN_OR_RETURN(PointCloud all, codec::decode_bounded_points(parsed));
+  RELIEF_ASSIGN_OR_RETURN(PointCloud all, codec::decode_bounded_points(parsed, options.attributes));
   if (options.lod == 1) return all;
   // Every lod-th point in the layer's Morton order: spread over the chunk.
   std::vector<std::uint32_t> keep;
   keep.reserve((all.size() + options.lod - 1) / options.lod);
   for (std::size_t i = 0; i < all.size(); i += options.lod) keep.push_back(static_cast<std::uint32_t>(i));
   return all.gathered(keep);
+}
+
+}  // namespace
+
+Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const DecodeOptions& options) {
+  if (options.lod < 1) return invalid_argument("level of detail must be at least 1");
+  RELIEF_ASSIGN_OR_RETURN(PointCloud out, decode_any(blob, options));
+  keep_attributes(out, options.attributes);
+  return out;
 }
 
 }  // namespace relief

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 namespace relief {
 
@@ -239,6 +240,65 @@ void conform_las_attributes(PointCloud& cloud, std::uint32_t bits, std::uint32_t
   } else if (a.extra_bytes_size != extra_bytes_size || a.extra_bytes.size() != n * std::size_t{extra_bytes_size}) {
     a.extra_bytes.assign(n * std::size_t{extra_bytes_size}, 0);
     a.extra_bytes_size = extra_bytes_size;
+  }
+}
+
+Result<AttributeSet> parse_attribute_set(const std::string& list) {
+  AttributeSet set = AttributeSet::none();
+  std::size_t start = 0;
+  while (start <= list.size()) {
+    std::size_t end = list.find(',', start);
+    if (end == std::string::npos) end = list.size();
+    const std::string name = list.substr(start, end - start);
+    start = end + 1;
+    if (name == "all") {
+      set = AttributeSet::all();
+      continue;
+    }
+    if (name == "none" && list == "none") continue;
+    if (name == "rgb") {
+      set.colors = true;
+      continue;
+    }
+    if (name == "intensity") {
+      set.intensity = true;
+      continue;
+    }
+    std::uint32_t bit = 0;
+    for (std::uint32_t i = 0; i < kLasAttributeCount; ++i) {
+      if (name == kLasAttributeNames[i]) bit = 1u << i;
+    }
+    if (bit == 0) {
+      return invalid_argument("attribute " + (name.empty() ? std::string("list '" + list + "' has an empty name")
+                                                           : "'" + name + "' is unknown") +
+                              " (rgb, intensity, " + las_attribute_list(~std::uint32_t{0}) +
+                              "; all; or none for x y z alone)");
+    }
+    set.las |= bit;
+  }
+  return set;
+}
+
+std::string attribute_set_list(const AttributeSet& set) {
+  std::string out = set.colors ? "rgb" : "";
+  if (set.intensity) out += out.empty() ? "intensity" : ",intensity";
+  const std::string las = las_attribute_list(set.las & ((1u << kLasAttributeCount) - 1));
+  if (!las.empty()) out += (out.empty() ? "" : ",") + las;
+  return out;
+}
+
+void keep_attributes(PointCloud& cloud, const AttributeSet& set) {
+  if (set.everything()) return;
+  if (!set.colors) std::vector<Rgb8>().swap(cloud.colors);
+  if (!set.intensity) std::vector<float>().swap(cloud.intensities);
+  std::uint32_t keep = set.las & ~std::uint32_t{kLasColorLow};
+  if (set.colors) keep |= kLasColorLow;
+  cloud.las.for_each_vector([&](auto& v, std::uint32_t bit) {
+    if ((keep & bit) == 0) std::remove_reference_t<decltype(v)>().swap(v);
+  });
+  if ((keep & kLasExtraBytes) == 0) {
+    std::vector<std::uint8_t>().swap(cloud.las.extra_bytes);
+    cloud.las.extra_bytes_size = 0;
   }
 }
 

@@ -41,6 +41,7 @@ struct LasFilter {
   bool by_class = false;
   bool first = false;
   bool last = false;
+  std::uint32_t bits = 0;  // the LAS attributes the filters read
   bool any() const { return by_class || first || last; }
   bool pass(const LasAttributes& a, std::size_t i) const {
     if (by_class && !classes[a.classification[i]]) return false;
@@ -53,6 +54,7 @@ struct LasFilter {
 Result<LasFilter> make_filter(const QueryOptions& o, const ArchiveInfo& info, const std::string& path) {
   LasFilter f;
   const auto need = [&](std::uint32_t bits, const char* what, const char* filter) -> Status {
+    f.bits |= bits;
     if ((info.las_attributes & bits) == bits) return Status::ok();
     return invalid_argument(path + ": " + filter + " needs " + what +
                             ", which this archive does not carry (it keeps LAS attributes only from LAS/LAZ "
@@ -266,6 +268,7 @@ class Reader final : public ArchiveReader {
     QueryStats stats;
     const unsigned threads = resolve_threads(options.threads);
     const std::size_t wave = static_cast<std::size_t>(threads) * kChunksPerThreadPerWave;
+    RELIEF_RETURN_IF_ERROR(check_attributes(info_, options.attributes, archive_->path()));
     RELIEF_ASSIGN_OR_RETURN(const LasFilter filter, make_filter(options, info_, archive_->path()));
     RELIEF_ASSIGN_OR_RETURN(const Plan plan, make_plan(base, box, options, filter.any()));
     const std::vector<ChunkRef>& refs = plan.refs;
@@ -274,6 +277,10 @@ class Reader final : public ArchiveReader {
     // A filter needs every point's LAS attributes: the full layer, with the
     // level of detail applied to the matching points here.
     const std::uint32_t every = filter.any() ? options.lod : 1;
+    // What the chunks decode: the attributes asked for and those the filters read.
+    // (The colour low bytes go with the colours.)
+    AttributeSet decoded = options.attributes;
+    decoded.las = (decoded.las & ~std::uint32_t{kLasColorLow}) | (decoded.colors ? kLasColorLow : 0u) | filter.bits;
 
     // core/parallel.h's ordered pipeline: this thread reads blobs (one
     // SQLite connection; checksum failures surface here) a few chunks ahead,
@@ -301,6 +308,7 @@ class Reader final : public ArchiveReader {
       if (!s.status) return;
       DecodeOptions dec;
       dec.lod = s.lod;
+      dec.attributes = decoded;
       auto pts = decode_chunk(s.blob, dec);
       std::vector<std::uint8_t>().swap(s.blob);
       if (!pts) {
@@ -311,12 +319,13 @@ class Reader final : public ArchiveReader {
       s.points = std::move(pts).value();
       // Every batch carries the archive's LAS attributes, whatever the
       // chunk's scan or layer had.
-      conform_las_attributes(s.points, info_.las_attributes, info_.extra_bytes_size);
+      conform_las_attributes(s.points, info_.las_attributes & decoded.las, info_.extra_bytes_size);
       if (filter.any()) {
         select(s.points, box, !contains(box, s.ref.bounds), filter, every);
       } else if (!contains(box, s.ref.bounds)) {
         clip(s.points, box);
       }
+      keep_attributes(s.points, options.attributes);
     };
     const auto deliver = [&](std::size_t, Slot& s, bool& stop) -> Status {
       if (!s.status) {
@@ -353,6 +362,18 @@ Result<std::unique_ptr<ArchiveReader>> ArchiveReader::open(const std::string& pa
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive, Archive::open(path, Archive::Mode::kReadOnly));
   RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
   return std::unique_ptr<ArchiveReader>(new Reader(std::move(archive), std::move(info)));
+}
+
+Status check_attributes(const ArchiveInfo& info, const AttributeSet& set, const std::string& path) {
+  if (set.everything()) return Status::ok();
+  AttributeSet missing = set;
+  missing.colors = set.colors && !info.has_colors;
+  missing.intensity = set.intensity && !info.has_intensity;
+  missing.las = set.las & ~info.las_attributes & ((1u << kLasAttributeCount) - 1);
+  if (missing == AttributeSet::none()) return Status::ok();
+  const std::string has = attribute_set_list({info.has_colors, info.has_intensity, info.las_attributes});
+  return invalid_argument(path + ": the attributes asked for include " + attribute_set_list(missing) +
+                          ", which this archive does not carry (it has " + (has.empty() ? "none" : has) + ")");
 }
 
 Box3d box_2d(double xmin, double ymin, double xmax, double ymax) {

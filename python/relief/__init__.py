@@ -172,7 +172,7 @@ def append(archive, inputs, *, progress=None, **options):
     return _ingest("append", inputs, archive, options, progress)
 
 
-_QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points")
+_QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points", "attributes")
 
 
 def _box_values(box):
@@ -186,6 +186,19 @@ def _box_values(box):
             "invalid-argument",
         )
     return values
+
+
+def _attribute_list(attributes):
+    """The C++ side's attribute list text for a query's ``attributes``."""
+    if attributes is None:
+        return "all"
+    if isinstance(attributes, str):
+        return attributes
+    names = [str(a) for a in attributes]
+    for n in names:
+        if not n or "," in n:
+            raise _invalid(f"attribute name {n!r} is not a single name")
+    return ",".join(names) if names else "none"
 
 
 def _warn_all(messages):
@@ -242,7 +255,12 @@ class Archive:
         = all cores), ``skip_corrupt`` (skip damaged chunks with a
         RuntimeWarning instead of raising CorruptDataError), ``max_points``
         (instead of ``lod``: at most that many points, from the finest level
-        of the archive's level-of-detail pyramid that fits).
+        of the archive's level-of-detail pyramid that fits), ``attributes``
+        (the fields wanted beside x, y, z, by the names ``info["attributes"]``
+        lists, e.g. ``["classification", "gps_time"]`` or ``"rgb,intensity"``;
+        ``[]`` or ``"none"`` for x, y, z alone; default all: the others are
+        not decoded, which is faster; a name the archive lacks raises
+        InvalidArgumentError).
         """
         for name in options:
             if name not in _QUERY_OPTIONS:
@@ -252,10 +270,11 @@ class Archive:
         threads = options.get("threads", 0)
         skip_corrupt = bool(options.get("skip_corrupt", False))
         max_points = options.get("max_points") or 0
+        attributes = _attribute_list(options.get("attributes"))
         values = _box_values(box)
         if batches:
-            return self._batches(self._reader.batches(values, lod, threads, skip_corrupt, max_points))
-        array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points)
+            return self._batches(self._reader.batches(values, lod, threads, skip_corrupt, max_points, attributes))
+        array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points, attributes)
         _warn_all(messages)
         return self._with_extra_fields(array)
 

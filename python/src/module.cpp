@@ -132,7 +132,8 @@ std::vector<std::string> option_names(const std::string& command, bool flags) {
   return flags ? ingest_flag_names(set) : ingest_option_names(set);
 }
 
-QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrupt, std::uint64_t max_points) {
+QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrupt, std::uint64_t max_points,
+                           const std::string& attributes) {
   if (lod < 1 || lod > kMaxQueryLod) {
     raise_status(invalid_argument("lod must be a whole number from 1 to " + std::to_string(kMaxQueryLod) +
                                   ", got " + std::to_string(lod)));
@@ -143,6 +144,9 @@ QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrup
   q.threads = threads;
   q.skip_corrupt = skip_corrupt;
   q.max_points = max_points;
+  Result<AttributeSet> set = parse_attribute_set(attributes);
+  if (!set) raise_status(set.status());
+  q.attributes = *set;
   return q;
 }
 
@@ -166,10 +170,10 @@ std::optional<Box3d> to_box(const std::optional<std::vector<double>>& b) {
 
 // The fields every array of the archive has (what its info says); batches
 // may add LAS attributes the archive-level info does not list.
-FieldSet archive_fields(const ArchiveInfo& info) {
+FieldSet archive_fields(const ArchiveInfo& info, const AttributeSet& asked) {
   FieldSet f;
-  f.colors = info.has_colors;
-  f.intensity = info.has_intensity;
+  f.colors = info.has_colors && asked.colors;
+  f.intensity = info.has_intensity && asked.intensity;
   return f;
 }
 
@@ -239,11 +243,11 @@ class Reader {
 
   // The whole answer as one array, plus the warnings of skipped chunks.
   py::tuple query(const std::optional<std::vector<double>>& box_values, std::uint32_t lod, unsigned threads,
-                  bool skip_corrupt, std::uint64_t max_points) {
+                  bool skip_corrupt, std::uint64_t max_points, const std::string& attributes) {
     const std::optional<Box3d> box = to_box(box_values);
     std::vector<PointCloud> batches;
     std::vector<std::string> warnings;
-    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes);
     q.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
     FieldSet fields;
     Result<QueryStats> r = Status(internal_error("query did not run"));
@@ -252,7 +256,7 @@ class Reader {
       py::gil_scoped_release release;
       const std::lock_guard<std::mutex> lock(mutex_);
       ArchiveReader& rd = reader();
-      fields = archive_fields(rd.info());
+      fields = archive_fields(rd.info(), q.attributes);
       const PointSink sink = [&](const PointCloud& batch) {
         fields.add(batch);
         batches.push_back(batch);
@@ -266,16 +270,18 @@ class Reader {
 
   std::unique_ptr<BatchIterator> batches(const std::optional<std::vector<double>>& box_values,
                                          std::uint32_t lod, unsigned threads, bool skip_corrupt,
-                                         std::uint64_t max_points) {
+                                         std::uint64_t max_points, const std::string& attributes) {
     const std::optional<Box3d> box = to_box(box_values);
-    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes);
     reader();  // refuses a closed archive
     Result<std::unique_ptr<ArchiveReader>> own = [&] {
       py::gil_scoped_release release;
       return ArchiveReader::open(path_);
     }();
     if (!own) raise_status(own.status());
-    const FieldSet fields = archive_fields((*own)->info());
+    // Refused here, before any batch, as query() refuses it.
+    if (Status s = check_attributes((*own)->info(), q.attributes, path_); !s) raise_status(s);
+    const FieldSet fields = archive_fields((*own)->info(), q.attributes);
     auto stream = std::make_unique<BatchStream>(std::move(own).value(), box, std::move(q));
     return std::make_unique<BatchIterator>(std::move(stream), fields);
   }
@@ -413,9 +419,9 @@ PYBIND11_MODULE(_relief, m) {
       .def(py::init<const std::string&>(), py::arg("path"))
       .def("info_json", &Reader::info_json)
       .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"), py::arg("max_points"))
+           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"))
       .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"), py::arg("max_points"))
+           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"))
       .def("preview", &Reader::preview, py::arg("box"), py::arg("lod"), py::arg("width"), py::arg("view"),
            py::arg("azimuth"), py::arg("elevation"), py::arg("threads"), py::arg("encoding"))
       .def("close", &Reader::close)

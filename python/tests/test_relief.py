@@ -442,6 +442,31 @@ def test_write_gives_every_las_field_back(tmp_path, ext):
         assert np.array_equal(a[name], b[name]), name
 
 
+def test_query_attributes_gives_only_those_fields(tmp_path):
+    a = _every_las_field(3000)
+    relief.write(tmp_path / "p.laz", a)
+    relief.compress(tmp_path / "p.laz", tmp_path / "p.relief")
+    with relief.open(tmp_path / "p.relief") as archive:
+        full = archive.query()
+        for asked, fields in [("none", ("x", "y", "z")), ([], ("x", "y", "z")),
+                              (["classification", "gps_time"], ("x", "y", "z", "classification", "gps_time")),
+                              ("rgb,intensity", ("x", "y", "z", "red", "green", "blue", "intensity"))]:
+            part = archive.query(attributes=asked)
+            assert part.dtype.names == fields, asked
+            for name in fields:
+                assert np.array_equal(part[name], full[name]), (asked, name)
+            streamed = np.concatenate(list(archive.query(batches=True, attributes=asked)))
+            assert streamed.dtype.names == fields
+        with pytest.raises(relief.InvalidArgumentError, match="attribute 'colour' is unknown"):
+            archive.query(attributes=["colour"])
+    relief.compress(tmp_path / "p.laz", tmp_path / "q.relief", no_extra_bytes=True)
+    with relief.open(tmp_path / "q.relief") as archive:
+        with pytest.raises(relief.InvalidArgumentError, match="include extra_bytes, which this archive does not"):
+            archive.query(attributes="extra_bytes")
+        with pytest.raises(relief.InvalidArgumentError, match="include extra_bytes"):
+            archive.query(batches=True, attributes="extra_bytes")
+
+
 def test_write_extra_fields_and_a_querys_array(tmp_path):
     n = 500
     dt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("label", "<i4"), ("normal", "<f4", (3,)),

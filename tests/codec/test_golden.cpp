@@ -256,3 +256,41 @@ TEST_CASE("golden chunk blobs of format versions 1 to 11 decode (and the current
     }
   }
 }
+
+TEST_CASE("every golden blob decodes any attribute subset to the full decode's attributes", "[golden][attributes]") {
+  // Each attribute alone, none, and pairs whose sections depend on each
+  // other: what DecodeOptions::attributes skips must not change what it keeps.
+  std::vector<AttributeSet> sets = {AttributeSet::none(), {true, false, 0}, {false, true, 0},
+                                    {true, true, kLasNumberOfReturns | kLasExtraBytes}};
+  for (std::uint32_t i = 0; i < kLasAttributeCount; ++i) sets.push_back({false, false, 1u << i});
+  for (const Vector& v : vectors()) {
+    INFO(v.name);
+    const std::vector<std::uint8_t> golden = slurp(vector_path(v.name, ".rlfc"));
+    REQUIRE(!golden.empty());
+    for (const std::uint32_t lod : {1u, 16u}) {
+      DecodeOptions all;
+      all.lod = lod;
+      auto full = decode_chunk(golden, all);
+      REQUIRE(full.is_ok());
+      for (const AttributeSet& set : sets) {
+        INFO("lod " << lod << ", attributes '" << attribute_set_list(set) << "'");
+        DecodeOptions some = all;
+        some.attributes = set;
+        auto part = decode_chunk(golden, some);
+        REQUIRE(part.is_ok());
+        PointCloud want = *full;
+        keep_attributes(want, set);
+        REQUIRE(part->size() == want.size());
+        CHECK(part->positions == want.positions);
+        CHECK(part->colors == want.colors);
+        CHECK(part->intensities == want.intensities);
+        CHECK(part->las.carried() == want.las.carried());
+        bool same = true;
+        LasAttributes::for_each_vector_pair(part->las, want.las,
+                                            [&](const auto& a, const auto& b, std::uint32_t) { same = same && a == b; });
+        CHECK(same);
+        CHECK(part->las.extra_bytes == want.las.extra_bytes);
+      }
+    }
+  }
+}

@@ -301,6 +301,90 @@ TEST_CASE("query filters: --class, --first-returns, --last-returns", "[las][arch
   for (const LasRecord& p : lod) REQUIRE(p.classification == 2);
 }
 
+namespace {
+// A record's x, y and z alone, as LAS output writes a point without LAS
+// attributes ("return 1 of 1").
+LasRecord bare_xyz(const LasRecord& p) {
+  LasRecord bare;
+  bare.x = p.x;
+  bare.y = p.y;
+  bare.z = p.z;
+  bare.return_number = bare.number_of_returns = 1;
+  return bare;
+}
+}  // namespace
+
+TEST_CASE("query and decompress --attributes: output carries only those named, the others not decoded",
+          "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  const std::string in = las_file(dir, "in.las", 8, 91);  // RGB, NIR, GPS time, extra bytes
+  const std::string archive = dir.file("a.relief");
+  REQUIRE(relief::compress_files({in}, archive, {}).is_ok());
+  const std::vector<LasRecord> all = sorted_records(in);
+  struct Case {
+    std::string list;
+    int format;
+    void (*strip)(LasRecord&);
+  };
+  const std::vector<Case> cases = {
+      {"none", 6, [](LasRecord& p) { p = bare_xyz(p); }},
+      {"classification,gps_time,rgb", 7,
+       [](LasRecord& p) {
+         LasRecord q = bare_xyz(p);
+         q.classification = p.classification;
+         q.gps_time = p.gps_time;
+         q.red = p.red, q.green = p.green, q.blue = p.blue;
+         p = q;
+       }},
+      {"number_of_returns,extra_bytes,nir,intensity", 8,
+       [](LasRecord& p) {
+         LasRecord q = bare_xyz(p);
+         q.number_of_returns = p.number_of_returns;
+         q.extra = p.extra;
+         q.nir = p.nir;
+         q.intensity = p.intensity;
+         p = q;
+       }},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.list);
+    const std::string out = dir.file("s.las");
+    std::filesystem::remove(out);
+    const auto run = relief::test::run_cli(cli(), "decompress " + archive + " --attributes " + c.list + " -o " + out);
+    REQUIRE(run.code == 0);
+    const auto back = read_las_records(out);
+    REQUIRE(back);
+    CHECK(back->format == c.format);
+    CHECK(back->extra_bytes_vlr.empty() == (c.list.find("extra_bytes") == std::string::npos));
+    std::vector<LasRecord> want = all;
+    for (LasRecord& p : want) c.strip(p);
+    std::sort(want.begin(), want.end());
+    REQUIRE(relief::test::first_difference(sorted_records(out), want) == "");
+  }
+  // With a filter on an attribute not asked for: the filter still applies.
+  const std::string out = dir.file("f.las");
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " --class 2 --attributes none -o " + out + " --quiet")
+              .code == 0);
+  std::size_t class2 = 0;
+  for (const LasRecord& p : all) class2 += p.classification == 2 ? 1 : 0;
+  const std::vector<LasRecord> filtered = sorted_records(out);
+  CHECK(filtered.size() == class2);
+  for (const LasRecord& p : filtered) REQUIRE(p.classification == 0);
+  // Names the archive lacks, and unknown names, are refused.
+  const std::string plain = dir.file("p.relief");
+  REQUIRE(relief::test::run_cli(cli(), "compress " + las_file(dir, "p.las", 1, 5, false) + " -o " + plain +
+                                           " --quiet").code == 0);
+  const auto lacks = relief::test::run_cli(cli(), "decompress " + plain + " --attributes rgb,nir -o " +
+                                                      dir.file("x.las"));
+  CHECK(lacks.code != 0);
+  CHECK_THAT(lacks.output, Contains("p.relief: the attributes asked for include rgb,nir, which this archive does not carry (it has "));
+  const auto unknown = relief::test::run_cli(cli(), "query " + archive + " --box 0,0,1,1 --attributes colour -o " +
+                                                        dir.file("x.las"));
+  CHECK(unknown.code == 2);
+  CHECK_THAT(unknown.output, Contains("attribute 'colour' is unknown"));
+}
+
 TEST_CASE("an input without an attribute gets zeros", "[las][archive][needs-codec-attrs]") {
   if (!need_codec_attributes()) return;
   TempDir dir;

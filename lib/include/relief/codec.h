@@ -120,6 +120,12 @@ struct DecodeOptions {
   // error-bounded blob's base layer (one point per occupied pixel), a
   // resampling blob's whole content. A level-of-detail pyramid is built from it.
   bool base_layer = false;
+  // The attributes to return beyond x, y and z (those the blob holds). An
+  // error-bounded blob's full decode skips the sections of the others, and
+  // of what only they depend on (GPS times, return numbers and colours are
+  // decoded when a wanted section is coded against them), so asking for
+  // fewer is faster; other paths decode everything and drop the rest.
+  AttributeSet attributes;
   // Verify the blob's CRC-32 first (turn off only to exercise the inner decoders).
   bool verify_checksum = true;
   // Refuse blobs that claim more decoded points than this (bounds memory).

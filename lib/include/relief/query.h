@@ -46,6 +46,11 @@ struct QueryOptions {
   // when even the top level holds more, its nodes are thinned further and the
   // answer is cut at the limit.
   std::uint64_t max_points = 0;
+  // The attributes each batch carries beyond x, y and z: the archive's
+  // that this set names (default: all). Chunks skip decoding the others
+  // (DecodeOptions::attributes), so a query for fewer runs faster; filters
+  // still see the attributes they need.
+  AttributeSet attributes;
   // Read a coarse level of detail from the archive's pyramid (archive.md §9)
   // where one fits: a level with at least as many points as the level of
   // detail asks for, thinned to it. false: always decode the chunks.
@@ -64,10 +69,16 @@ struct QueryStats {
 
 // Batches carry the archive's attributes (ArchiveInfo: colours, intensity,
 // and each LAS attribute, zero-filled for points of scans that lacked one
-// and for coarse levels of detail read from a chunk's base layer).
+// and for coarse levels of detail read from a chunk's base layer) that
+// QueryOptions::attributes names.
 // Receives the query's points batch by batch (one or more chunks at a time, in
 // chunk id order). Returning an error stops the query with that error.
 using PointSink = std::function<Status(const PointCloud& batch)>;
+
+// kInvalidArgument naming `path` when `set` (not AttributeSet::all()) names
+// an attribute the archive does not carry: a query refuses it, so a typo or
+// a wrong archive does not pass for "no such values".
+Status check_attributes(const ArchiveInfo& info, const AttributeSet& set, const std::string& path);
 
 class ArchiveReader {
  public:

@@ -124,6 +124,31 @@ std::string las_attribute_list(std::uint32_t bits);
 std::uint32_t las_attributes_from_list(const std::string& list);
 
 struct PointCloud;
+
+// The attributes a reader asks for beyond x, y and z (DecodeOptions,
+// QueryOptions): colours, intensities and LasAttributeBits. Asking for fewer
+// decodes less. The colour low bytes go with the colours, whatever `las`
+// says of kLasColorLow.
+struct AttributeSet {
+  bool colors = true;
+  bool intensity = true;
+  std::uint32_t las = ~std::uint32_t{0};
+  static AttributeSet all() { return {}; }
+  static AttributeSet none() { return {false, false, 0}; }
+  bool everything() const { return colors && intensity && (las | ~((1u << kLasAttributeCount) - 1)) == ~0u; }
+  bool operator==(const AttributeSet&) const = default;
+};
+// An AttributeSet from a comma-separated list of "rgb", "intensity", the
+// kLasAttributeNames, "all" and "none" (x y z alone): the names `relief info`
+// lists ("color_low" counts only beside "rgb"). An empty or unknown name is
+// kInvalidArgument naming it.
+Result<AttributeSet> parse_attribute_set(const std::string& list);
+// The names of `set`'s members, as parse_attribute_set takes them
+// ("rgb,intensity,classification"; "" for none).
+std::string attribute_set_list(const AttributeSet& set);
+// Removes from `cloud` what `set` does not ask for (the colour low bytes with
+// the colours).
+void keep_attributes(PointCloud& cloud, const AttributeSet& set);
 // Gives `cloud` exactly the LAS attributes `bits` (extra_bytes_size extra
 // bytes per point): one it lacks is zero-filled (colour low bytes: the colour
 // itself, so its 16-bit level reads v * 257; none without colours), one it
