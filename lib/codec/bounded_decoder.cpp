@@ -27,11 +27,12 @@ const SectionEntry* find_section(const ParsedBlob& blob, SectionId id) {
 // the geometry uses as context, then the geometry. The layer is in time
 // order: `out` gets the positions and those attributes, `time_order` the
 // identity.
-// `cell_pos` gets, when the order mask sets a bit, the layer position of
-// each point in cell order (else it stays empty), `mask` the mask.
-Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::vector<std::uint32_t>& time_order,
-                                 std::uint8_t& mask, std::vector<std::uint32_t>& cell_pos,
-                                 std::vector<CellXyz>& layer_cells) {
+// `cell_pos` gets, when the order mask sets a bit of `slots` (those of the
+// sections to be decoded), the layer position of each point in cell order
+// (else it stays empty), `mask` the mask.
+Status decode_time_ordered_layer(const ParsedBlob& blob, std::uint8_t slots, PointCloud& out,
+                                 std::vector<std::uint32_t>& time_order, std::uint8_t& mask,
+                                 std::vector<std::uint32_t>& cell_pos, std::vector<CellXyz>& layer_cells) {
   const ChunkHeader& h = blob.header;
   const std::size_t n = h.input_points;
   const SectionEntry* gps = find_section(blob, las_section_id(kLasGpsTime));
@@ -55,7 +56,7 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, PointCloud& out, std::v
   auto cells = decode_scan_geometry(geometry->payload.subspan(1), h.geometry_depth, n,
                                     ScanContext{kinds, multiples, timed.return_number, timed.number_of_returns});
   if (!cells) return cells.status().with_context("chunk blob: geometry section");
-  if (mask != 0) {
+  if ((mask & slots) != 0) {
     std::vector<KeyedIndex> by_cell(n);
     for (std::size_t k = 0; k < n; ++k) {
       const CellXyz& c = (*cells)[k];
@@ -97,6 +98,14 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
   if ((las & kLasNumberOfReturns) != 0) las |= kLasReturnNumber;
   if ((las & kLasTimeOrdered) != 0 && h.version >= 6) las |= kLasGpsTime;
   const bool colors = want.colors || (las & kLasColorLow) != 0;
+  // The order mask's slots (§11.3.3) of the sections decoded.
+  std::uint8_t slots = 0;
+  if (colors) slots |= 1u << kOrderSlotColors;
+  if (want.intensity) slots |= 1u << kOrderSlotIntensity;
+  for (std::uint32_t b = 0; b < kLasAttributeCount; ++b) {
+    const int slot = order_slot(1u << b);
+    if ((las & (1u << b)) != 0 && slot >= 0) slots |= static_cast<std::uint8_t>(1u << slot);
+  }
   const SectionEntry* geometry = find_section(blob, SectionId::kGeometry);
   if (geometry == nullptr) return corrupt_data("chunk blob: no geometry section");  // parse_blob guarantees it
   // Decoded before the other sections: in time order, the geometry with
@@ -108,7 +117,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
   std::vector<std::uint32_t> cell_pos;  // layer position of each point in cell order
   std::vector<CellXyz> layer_cells;     // each point's cell, in the layer's order
   if (time_ordered_layer) {
-    RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, out, time_order, order_mask, cell_pos, layer_cells));
+    RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, slots, out, time_order, order_mask, cell_pos, layer_cells));
   } else {
     const OctreeCoding coding = geometry->codec == SectionCodec::kOctreeChains        ? OctreeCoding::kChains
                                 : geometry->codec == SectionCodec::kOctreeMixed       ? OctreeCoding::kMixed
