@@ -17,16 +17,21 @@ int run_append(int argc, char** argv) {
       "                         keep the archive's (with a warning) instead of refusing (exit 11)\n"
       "  --no-extra-bytes       drop the inputs' extra bytes (LAS/LAZ extra bytes, PLY properties\n"
       "                         and PCD fields beyond x y z, colour and intensity)\n\n") +
-      kIngestOptionsHelp;
+      kInputsHelp + "\n" + kIngestOptionsHelp;
   std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kAppend);
   flags.insert(flags.end(), {"--help", "--quiet"});
-  Args args(argc, argv, flags, ingest_cli_options(IngestOptionSet::kAppend));
+  std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kAppend);
+  options.push_back("--input-list");
+  Args args(argc, argv, flags, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
   }
   if (!args.ok()) return usage_error("append", args.error());
-  if (args.positional().size() < 2) return usage_error("append", "expected ARCHIVE and at least one input");
+  if (args.positional().empty()) return usage_error("append", "expected ARCHIVE and at least one input");
+  std::string input_error;
+  const std::vector<std::string> inputs = command_inputs(args, 1, input_error);
+  if (!input_error.empty()) return usage_error("append", input_error);
   IngestOptions o;
   if (const std::string err = parse_ingest_options(args, IngestOptionSet::kAppend, o); !err.empty()) {
     return usage_error("append", err);
@@ -35,7 +40,6 @@ int run_append(int argc, char** argv) {
   o.progress = progress_printer(quiet);
   o.cancel = install_interrupt_flag();
   const std::string archive = args.positional()[0];
-  const std::vector<std::string> inputs(args.positional().begin() + 1, args.positional().end());
   auto r = append_files(archive, inputs, o);
   end_progress_line();
   if (!r) {

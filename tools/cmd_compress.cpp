@@ -29,9 +29,9 @@ int run_compress(int argc, char** argv) {
       "                         warning) instead of refusing them (exit 11)\n"
       "  --no-extra-bytes       drop every input's extra bytes: LAS/LAZ extra bytes and the PLY\n"
       "                         properties and PCD fields kept as such (normals, labels ...)\n\n") +
-      kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
+      kInputsHelp + "\n" + kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
-  options.push_back("-o");
+  options.insert(options.end(), {"-o", "--input-list"});
   std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kCompress);
   flags.insert(flags.end(), {"--help", "--quiet"});
   Args args(argc, argv, flags, options);
@@ -40,7 +40,9 @@ int run_compress(int argc, char** argv) {
     return kExitOk;
   }
   if (!args.ok()) return usage_error(kCommand, args.error());
-  if (args.positional().empty()) return usage_error(kCommand, "expected at least one input file");
+  std::string input_error;
+  const std::vector<std::string> inputs = command_inputs(args, 0, input_error);
+  if (!input_error.empty()) return usage_error(kCommand, input_error);
   const auto out = args.get("-o");
   if (!out) return usage_error(kCommand, "missing -o OUT.relief");
   IngestOptions o;
@@ -50,7 +52,7 @@ int run_compress(int argc, char** argv) {
   const bool quiet = args.has("--quiet");
   o.progress = progress_printer(quiet);
   o.cancel = install_interrupt_flag();
-  auto r = compress_files(args.positional(), *out, o);
+  auto r = compress_files(inputs, *out, o);
   end_progress_line();
   if (!r) {
     if (o.cancel->load()) {

@@ -26,10 +26,10 @@ int run_shard_plan(int argc, char** argv) {
       "  --quiet                print nothing but errors and warnings\n"
       "Every option of 'relief compress' (below) is taken and recorded in the plan\n"
       "(--chunk-edge, --allow-sparse, --assume-crs, --columns...).\n\n") +
-      kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
+      kInputsHelp + "\n" + kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   // Every option compress takes (the same library parser), plus --ranges.
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
-  options.insert(options.end(), {"-o", "--ranges"});
+  options.insert(options.end(), {"-o", "--ranges", "--input-list"});
   std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kCompress);
   flags.insert(flags.end(), {"--help", "--quiet"});
   Args args(argc, argv, flags, options);
@@ -38,7 +38,9 @@ int run_shard_plan(int argc, char** argv) {
     return kExitOk;
   }
   if (!args.ok()) return usage_error(kCommand, args.error());
-  if (args.positional().empty()) return usage_error(kCommand, "expected at least one input file");
+  std::string input_error;
+  const std::vector<std::string> inputs = command_inputs(args, 0, input_error);
+  if (!input_error.empty()) return usage_error(kCommand, input_error);
   const auto out = args.get("-o");
   if (!out) return usage_error(kCommand, "missing -o PLAN");
   ShardPlanOptions po;
@@ -48,7 +50,7 @@ int run_shard_plan(int argc, char** argv) {
   }
   po.ranges = static_cast<std::uint32_t>(args.get_int("--ranges", 0, 1, kMaxShardRanges));
   if (!args.ok()) return usage_error(kCommand, args.error());
-  auto plan = plan_shards(args.positional(), po);
+  auto plan = plan_shards(inputs, po);
   if (!plan) return fail(kCommand, plan.status());
   for (const std::string& w : plan->warnings) std::fprintf(stderr, "relief %s: warning: %s\n", kCommand, w.c_str());
   if (Status s = write_shard_plan(*plan, *out); !s) return fail(kCommand, s);

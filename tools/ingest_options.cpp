@@ -2,6 +2,8 @@
 
 #include <cstdio>
 
+#include "relief/io.h"
+
 namespace relief::cli {
 
 const char* const kIngestOptionsHelp =
@@ -30,6 +32,27 @@ const char* const kModeOptionsHelp =
 
 std::vector<std::string> ingest_cli_options(IngestOptionSet set) { return cli_names(ingest_option_names(set)); }
 std::vector<std::string> ingest_cli_flags(IngestOptionSet set) { return cli_names(ingest_flag_names(set)); }
+
+const char* const kInputsHelp =
+    "Inputs: files, or directories (the point files directly in each, by name);\n"
+    "  --input-list FILE      more inputs, one path a line ('#' comments; for more files than a\n"
+    "                         command line holds)\n";
+
+std::vector<std::string> command_inputs(Args& args, std::size_t first, std::string& error) {
+  std::vector<std::string> inputs;
+  const std::vector<std::string>& pos = args.positional();
+  if (pos.size() > first) inputs.assign(pos.begin() + static_cast<std::ptrdiff_t>(first), pos.end());
+  if (const auto list = args.get("--input-list")) {
+    Result<std::vector<std::string>> listed = read_input_list(*list);
+    if (!listed) {
+      error = listed.status().message();
+      return {};
+    }
+    inputs.insert(inputs.end(), listed->begin(), listed->end());
+  }
+  if (inputs.empty()) error = "expected at least one input (a file, a directory or --input-list FILE)";
+  return inputs;
+}
 
 std::string parse_ingest_options(Args& args, IngestOptionSet set, IngestOptions& o) {
   std::vector<std::string> names = ingest_option_names(set);

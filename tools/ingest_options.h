@@ -9,6 +9,13 @@
 
 namespace relief::cli {
 
+// Help for how inputs are given (compress, append, shard-plan).
+extern const char* const kInputsHelp;
+// The input paths of a command: its positional arguments from `first` on,
+// then the lines of --input-list FILE. Sets `error` (a usage error) when
+// there are none or the list cannot be read.
+std::vector<std::string> command_inputs(Args& args, std::size_t first, std::string& error);
+
 extern const char* const kIngestOptionsHelp;
 // --mode, --tolerance, --color-tolerance (commands that create archives).
 extern const char* const kModeOptionsHelp;

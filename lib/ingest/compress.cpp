@@ -935,10 +935,11 @@ std::uint32_t ingest_page_size(std::uint64_t input_points) {
   return input_points <= kSmallArchiveMaxPoints ? kSmallArchivePageSize : kArchivePageSize;
 }
 
-Result<IngestResult> compress_files(const std::vector<std::string>& inputs, const std::string& archive_path,
+Result<IngestResult> compress_files(const std::vector<std::string>& given, const std::string& archive_path,
                                     const IngestOptions& options) {
   using namespace ingest;
   RELIEF_RETURN_IF_ERROR(validate_build_options(options));
+  RELIEF_ASSIGN_OR_RETURN(const std::vector<std::string> inputs, expand_inputs(given));
   struct stat st {};
   if (::stat(archive_path.c_str(), &st) == 0) {
     // Say what is there: an archive to append to, or some other file.
@@ -975,9 +976,10 @@ Result<IngestResult> compress_files(const std::vector<std::string>& inputs, cons
   return result;
 }
 
-Result<IngestResult> append_files(const std::string& archive_path, const std::vector<std::string>& inputs,
+Result<IngestResult> append_files(const std::string& archive_path, const std::vector<std::string>& given,
                                   const IngestOptions& options) {
   using namespace ingest;
+  RELIEF_ASSIGN_OR_RETURN(const std::vector<std::string> inputs, expand_inputs(given));
   RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs));
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive, Archive::open(archive_path, Archive::Mode::kReadWrite));
   RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());

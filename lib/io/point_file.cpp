@@ -4,7 +4,10 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <string_view>
 
@@ -137,6 +140,57 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_by_kind(path, options));
   if (options.extra_bytes || (reader->info().las_attributes & kLasExtraBytes) == 0) return reader;
   return std::unique_ptr<PointReader>(std::make_unique<WithoutExtraBytes>(std::move(reader)));
+}
+
+Result<std::vector<std::string>> expand_inputs(const std::vector<std::string>& inputs) {
+  std::vector<std::string> out;
+  for (const std::string& input : inputs) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(input, ec)) {
+      out.push_back(input);  // a file, or a path the reader will name as missing
+      continue;
+    }
+    std::vector<std::string> found;
+    std::filesystem::directory_iterator it(input, ec);
+    if (ec) return io_error(input + ": cannot list the directory: " + ec.message());
+    for (; it != std::filesystem::directory_iterator(); it.increment(ec)) {
+      const std::filesystem::path& p = it->path();
+      const std::string name = p.filename().string();
+      const std::string ext = lower(p.extension().string());
+      const bool point_file = std::any_of(kExtensions.begin(), kExtensions.end(),
+                                          [&](const Extension& e) { return e.extension == ext; });
+      std::error_code file_ec;
+      if (point_file && !name.starts_with(".") && std::filesystem::is_regular_file(p, file_ec)) {
+        found.push_back(p.string());
+      }
+    }
+    if (ec) return io_error(input + ": cannot list the directory: " + ec.message());
+    if (found.empty()) {
+      return invalid_argument(input + ": a directory without point files (" + supported_list() + ")");
+    }
+    std::sort(found.begin(), found.end());
+    out.insert(out.end(), found.begin(), found.end());
+  }
+  return out;
+}
+
+Result<std::vector<std::string>> read_input_list(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return io_error(path + ": cannot open the input list: " + std::strerror(errno));
+  std::vector<std::string> out;
+  std::string line;
+  std::uint64_t line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const std::size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    const std::size_t last = line.find_last_not_of(" \t");
+    out.push_back(line.substr(first, last + 1 - first));
+  }
+  if (in.bad()) return io_error(path + ": cannot read the input list: " + std::strerror(errno));
+  if (out.empty()) return invalid_argument(path + ": the input list names no file");
+  return out;
 }
 
 Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options) {

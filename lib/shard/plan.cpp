@@ -74,8 +74,9 @@ ReaderOptions ShardPlan::reader_options() const {
   return r;
 }
 
-Result<ShardPlan> plan_shards(const std::vector<std::string>& inputs, const ShardPlanOptions& options) {
+Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const ShardPlanOptions& options) {
   using namespace ingest;
+  RELIEF_ASSIGN_OR_RETURN(const std::vector<std::string> inputs, expand_inputs(given));
   const IngestOptions& o = options.ingest;
   if (o.mode != IngestMode::kBounded) {
     return invalid_argument("a sharded build makes error-bounded archives (the resampling mode's chunks depend on "

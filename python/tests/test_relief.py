@@ -442,6 +442,20 @@ def test_write_gives_every_las_field_back(tmp_path, ext):
         assert np.array_equal(a[name], b[name]), name
 
 
+def test_compress_a_directory_of_tiles(tmp_path):
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    write_xyz(tiles / "a.xyz", make_scene(n=3000, seed=1))
+    write_xyz(tiles / "b.xyz", make_scene(n=2000, seed=2, x0=50.0))
+    result = relief.compress(tiles, tmp_path / "d.relief", columns="x,y,z,r,g,b,i")
+    assert result["points_read"] == 5000
+    with relief.open(tmp_path / "d.relief") as a:
+        assert [s["path"] for s in a.info["sources"]] == [str(tiles / "a.xyz"), str(tiles / "b.xyz")]
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(relief.InvalidArgumentError, match="a directory without point files"):
+        relief.compress(tmp_path / "empty", tmp_path / "e.relief")
+
+
 def test_query_attributes_gives_only_those_fields(tmp_path):
     a = _every_las_field(3000)
     relief.write(tmp_path / "p.laz", a)

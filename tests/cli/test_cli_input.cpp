@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "relief/archive.h"
 #include "relief/image.h"
 #include "relief/io.h"
 #include "support/run_cli.h"
@@ -354,6 +355,58 @@ TEST_CASE("stream reads LAS dimensions by name and gives them back", "[cli][inge
   const Run unknown = run("stream " + tmp.file("b.relief") + " --columns x,y,z,foo --cell 1 < " + tmp.file("bad.txt"));
   CHECK(unknown.code == 2);
   CHECK(has(unknown, "unknown column 'foo'"));
+}
+
+TEST_CASE("compress and append take directories and --input-list: the same archive as the files", "[cli][ingest]") {
+  TempDir tmp;
+  fs::create_directories(tmp.file("tiles"));
+  std::string list = "# tiles\n";
+  for (int t = 0; t < 3; ++t) {
+    std::string text;
+    for (int i = 0; i < 40; ++i) {
+      text += std::to_string(10 * t + (i % 7)) + " " + std::to_string(i / 7) + " " + std::to_string(i % 3) + "\n";
+    }
+    const std::string name = tmp.file("tiles/t" + std::to_string(t) + ".xyz");
+    write_text(name, text);
+    list += name + "\n";
+  }
+  write_text(tmp.file("list.txt"), list);
+  const std::string files = tmp.file("tiles/t0.xyz") + " " + tmp.file("tiles/t1.xyz") + " " + tmp.file("tiles/t2.xyz");
+  REQUIRE(run("compress " + files + " -o " + tmp.file("f.relief") + " --quiet").code == 0);
+  REQUIRE(run("compress " + tmp.file("tiles") + " -o " + tmp.file("d.relief") + " --quiet").code == 0);
+  REQUIRE(run("compress --input-list " + tmp.file("list.txt") + " -o " + tmp.file("l.relief") + " --quiet").code == 0);
+  const auto rows = [](const std::string& path) {
+    auto a = relief::Archive::open(path, relief::Archive::Mode::kReadOnly);
+    REQUIRE(a.is_ok());
+    auto refs = (*a)->all_chunks();
+    REQUIRE(refs.is_ok());
+    std::vector<std::vector<std::uint8_t>> blobs;
+    for (const auto& r : *refs) {
+      auto row = (*a)->read_chunk(r.id);
+      REQUIRE(row.is_ok());
+      blobs.push_back(row->blob);
+    }
+    auto info = (*a)->info();
+    REQUIRE(info.is_ok());
+    CHECK(info->sources.size() == 3);
+    return blobs;
+  };
+  const auto want = rows(tmp.file("f.relief"));
+  CHECK(rows(tmp.file("d.relief")) == want);
+  CHECK(rows(tmp.file("l.relief")) == want);
+  // append takes them too; a command without inputs, an empty directory or
+  // list, or an unreadable list, is refused before anything is written.
+  REQUIRE(run("compress " + tmp.file("tiles/t0.xyz") + " -o " + tmp.file("a.relief") + " --quiet").code == 0);
+  REQUIRE(run("append " + tmp.file("a.relief") + " --input-list " + tmp.file("list.txt") + " --quiet").code == 0);
+  CHECK(run("compress -o " + tmp.file("n.relief")).code == 2);
+  fs::create_directories(tmp.file("empty"));
+  const Run empty = run("compress " + tmp.file("empty") + " -o " + tmp.file("n.relief"));
+  CHECK(empty.code == 11);
+  CHECK(has(empty, "a directory without point files"));
+  const Run missing = run("compress --input-list " + tmp.file("nope.txt") + " -o " + tmp.file("n.relief"));
+  CHECK(missing.code == 2);
+  CHECK(has(missing, "nope.txt: cannot open the input list"));
+  CHECK_FALSE(fs::exists(tmp.file("n.relief")));
 }
 
 TEST_CASE("stream and compress keep name:type text columns as extra bytes", "[cli][ingest][extra]") {

@@ -294,7 +294,7 @@ TEST_CASE("immediate streaming encodes every batch at once", "[ingest][stream]")
   CHECK(decode_all(path).size() > 0);
 }
 
-TEST_CASE("streaming keeps LAS attributes; a batch with another set is refused", "[ingest][stream][las]") {
+TEST_CASE("streaming keeps LAS attributes, a batch with another set is refused", "[ingest][stream][las]") {
   TempDir tmp;
   const std::string path = tmp.file("s.relief");
   StreamOptions so;
@@ -346,7 +346,7 @@ TEST_CASE("streaming keeps LAS attributes; a batch with another set is refused",
   CHECK_FALSE(std::filesystem::exists(tmp.file("t.relief")));
 }
 
-TEST_CASE("relief stream reads a pipe; end of input writes everything", "[ingest][stream][cli]") {
+TEST_CASE("relief stream reads a pipe, end of input writes everything", "[ingest][stream][cli]") {
   TempDir tmp;
   const std::string path = tmp.file("p.relief");
   const std::string cmd = cli() + " stream " + path + " --cell 0.25 --chunk-edge 2 --columns x,y,z,i --quiet";

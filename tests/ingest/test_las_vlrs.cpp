@@ -199,7 +199,7 @@ TEST_CASE("a LAS record too large to keep is dropped with a warning", "[las][arc
   CHECK(i.warnings[0].find("not kept") != std::string::npos);
 }
 
-TEST_CASE("an aborted scan leaves no LAS records; damaged rows are refused by name", "[las][archive][vlr]") {
+TEST_CASE("an aborted scan leaves no LAS records, damaged rows are refused by name", "[las][archive][vlr]") {
   TempDir dir;
   const std::string in = dir.file("in.las");
   REQUIRE(relief::test::write_test_las(in, tile(3, 6, {kCalibration})));

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <string>
@@ -359,5 +360,42 @@ TEST_CASE("LAS output scales intensities in 0..1 by 65535, one rule per file", "
 }
 
 }  // namespace
+
+}  // namespace relief
+
+namespace relief {
+
+TEST_CASE("directories expand to their point files by name, input lists give one path a line", "[io][inputs]") {
+  test::TempDir dir;
+  const std::string tiles = dir.file("tiles");
+  std::filesystem::create_directories(tiles + "/sub");
+  for (const char* name : {"b.las", "a.LAZ", "c.ply", ".hidden.las", "notes.md", "sub/d.las", "e.csv"}) {
+    write_file(tiles + "/" + name, "x");
+  }
+  auto files = expand_inputs({dir.file("one.xyz"), tiles});
+  REQUIRE(files.is_ok());
+  // The file as it is (missing: its reader names it), then the directory's
+  // point files, sorted, without the hidden one, other files or subdirectories.
+  CHECK(*files == std::vector<std::string>{dir.file("one.xyz"), tiles + "/a.LAZ", tiles + "/b.las",
+                                           tiles + "/c.ply", tiles + "/e.csv"});
+  const std::string none = dir.file("none");
+  std::filesystem::create_directories(none);
+  write_file(none + "/readme.txt.bak", "x");
+  auto empty = expand_inputs({none});
+  REQUIRE_FALSE(empty.is_ok());
+  CHECK(empty.status().code() == StatusCode::kInvalidArgument);
+  CHECK_THAT(empty.status().message(), Contains("none: a directory without point files"));
+
+  const std::string list = dir.file("list.txt");
+  write_file(list, "# tiles of block 7\r\n  a.las  \r\n\r\n\tb dir/c.laz\n#x.las\n");
+  auto listed = read_input_list(list);
+  REQUIRE(listed.is_ok());
+  CHECK(*listed == std::vector<std::string>{"a.las", "b dir/c.laz"});
+  write_file(list, "# nothing\n\n");
+  CHECK(read_input_list(list).status().code() == StatusCode::kInvalidArgument);
+  const auto missing = read_input_list(dir.file("missing.txt"));
+  CHECK(missing.status().code() == StatusCode::kIoError);
+  CHECK_THAT(missing.status().message(), Contains("missing.txt: cannot open the input list"));
+}
 
 }  // namespace relief

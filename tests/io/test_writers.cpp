@@ -809,7 +809,7 @@ TEST_CASE("a finished writer replaces an existing file", "[io]") {
   CHECK(dir.entries() == std::vector<std::string>{"a.ply", "b.las", "c.xyz", "d.csv"});
 }
 
-TEST_CASE("non-finite points are refused naming the point; the writer stays failed", "[io]") {
+TEST_CASE("non-finite points are refused naming the point, the writer stays failed", "[io]") {
   TempDir dir;
   const double kNaN = std::numeric_limits<double>::quiet_NaN();
   const double kInf = std::numeric_limits<double>::infinity();

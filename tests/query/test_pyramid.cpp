@@ -268,7 +268,7 @@ TEST_CASE("the pyramid's blobs depend only on the points, not their order, threa
   CHECK(level_blobs(b) == blobs_a);
 }
 
-TEST_CASE("an append brings its own pyramid; removing the scan removes it", "[pyramid]") {
+TEST_CASE("an append brings its own pyramid, removing the scan removes it", "[pyramid]") {
   TempDir tmp;
   const std::string path = build(tmp, "a", terrain(5, 100000));
   REQUIRE(write_ply(tmp.file("more.ply"), terrain(6, 100000, {kSize, 0, 0})).is_ok());

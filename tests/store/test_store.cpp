@@ -488,7 +488,7 @@ TEST_CASE("open rejects what is not an archive of a known version", "[store]") {
 
 // ---- Writing and reading chunks
 
-TEST_CASE("put_chunks assigns ids and per-voxel seqs; read_chunk returns the bytes", "[store]") {
+TEST_CASE("put_chunks assigns ids and per-voxel seqs, read_chunk returns the bytes", "[store]") {
   TempDir dir;
   const std::string path = dir.file("a.relief");
   auto archive = create_ok(path);
@@ -978,7 +978,7 @@ bool reads_fully(const std::string& path, std::size_t chunks) {
   return true;
 }
 
-TEST_CASE("a closed archive is one file in rollback mode; readers create no file beside it", "[store][readonly]") {
+TEST_CASE("a closed archive is one file in rollback mode, readers create no file beside it", "[store][readonly]") {
   TempDir dir;
   const std::string path = dir.file("a.relief");
   {

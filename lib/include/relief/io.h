@@ -136,6 +136,20 @@ class PointReader {
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
+// The point files `inputs` name: a file (or a missing path, which the reader
+// then names) as it is; a directory, the regular files directly in it whose
+// extension open_point_reader takes (any case; names starting with '.'
+// skipped), sorted by name, so a folder of tiles is one argument however many
+// it holds. A directory without such files is kInvalidArgument, one that
+// cannot be listed kIoError. compress_files, append_files and plan_shards
+// expand their inputs with it.
+Result<std::vector<std::string>> expand_inputs(const std::vector<std::string>& inputs);
+
+// The paths listed in the text file `path`, one a line (blank lines and lines
+// starting with '#' skipped, surrounding blanks trimmed): `--input-list`, for
+// more inputs than a command line holds. An empty list is kInvalidArgument.
+Result<std::vector<std::string>> read_input_list(const std::string& path);
+
 // One line of XYZ/CSV text at a time: what `relief stream` reads from a pipe
 // as it arrives. The columns are those of a spec as ReaderOptions::xyz_columns
 // names them (x y z, r g b, i, c, the LAS dimensions by name, name:type extra
