@@ -118,7 +118,15 @@ def _maybe_die(kill_once, stage, index):
 
 def _plan_task(cli, inputs, plan_path, args):
     cli = find_cli(cli)
-    _run(cli, "shard-plan", list(inputs) + ["-o", plan_path] + args)
+    # The inputs go through a list file: tens of thousands of tile paths do
+    # not fit a command line.
+    list_path = plan_path + ".inputs"
+    with open(list_path, "w", encoding="utf-8") as f:
+        for p in inputs:
+            if "\n" in p:
+                raise ValueError("%r: an input path with a line break cannot be listed" % p)
+            f.write(p + "\n")
+    _run(cli, "shard-plan", ["--input-list", list_path, "-o", plan_path] + args)
     return read_plan_counts(plan_path)
 
 
@@ -187,7 +195,9 @@ def compress(inputs, archive, client=None, *, ranges=None, work_dir=None, keep_w
     Returns a dict: archive, inputs, ranges, shards. Raises FileExistsError when
     the archive exists (never overwritten), ReliefCliError when a stage fails.
     """
-    inputs = [os.path.abspath(p) for p in inputs]
+    if isinstance(inputs, (str, bytes, os.PathLike)):
+        inputs = [inputs]
+    inputs = [os.path.abspath(os.fsdecode(p)) for p in inputs]
     archive = os.path.abspath(archive)
     if not inputs:
         raise ValueError("no input files")
@@ -243,7 +253,7 @@ def main(argv=None):
                     "--tolerance 0.002 --chunk-edge 10).")
     sub = parser.add_subparsers(dest="command", required=True)
     c = sub.add_parser("compress", help="compress point files into an archive on a Dask cluster")
-    c.add_argument("inputs", nargs="+", metavar="IN")
+    c.add_argument("inputs", nargs="+", metavar="IN", help="point files or directories of them")
     c.add_argument("-o", dest="output", required=True, metavar="OUT")
     where = c.add_mutually_exclusive_group()
     where.add_argument("--scheduler", metavar="ADDR", help="a running scheduler, e.g. tcp://host:8786")

@@ -146,6 +146,10 @@ def test_same_archive_as_one_box(cluster, scene, tmp_path):
     assert not os.path.exists(out + ".work")  # the work files are gone
     with pytest.raises(FileExistsError):
         rd.compress(inputs, out, client=cluster, ranges=4, **OPTIONS)
+    # Their directory (the plan lists its point files by name: in0.ply ...).
+    by_dir = str(tmp_path / "dir.relief")
+    rd.compress(os.path.dirname(inputs[0]), by_dir, client=cluster, ranges=4, **OPTIONS)
+    assert archive_content(by_dir) == want
 
 
 def test_worker_killed_mid_build(cluster, scene, tmp_path):
