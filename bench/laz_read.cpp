@@ -38,10 +38,12 @@ struct Timing {
 };
 
 // Seconds to read every point, or a negative wall time (after a message) on error.
-Timing time_read(const std::string& path, std::uint64_t& points) {
+Timing time_read(const std::string& path, std::uint64_t& points, bool positions_only) {
   const auto t0 = std::chrono::steady_clock::now();
   const double c0 = cpu_seconds();
-  auto reader = relief::open_point_reader(path);
+  relief::ReaderOptions options;
+  options.positions_only = positions_only;
+  auto reader = relief::open_point_reader(path, options);
   if (!reader.is_ok()) {
     std::fprintf(stderr, "%s\n", reader.status().to_string().c_str());
     return {-1, -1};
@@ -60,10 +62,10 @@ Timing time_read(const std::string& path, std::uint64_t& points) {
   return {std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), cpu_seconds() - c0};
 }
 
-Timing median_read(const std::string& path, int repeat, std::uint64_t& points) {
+Timing median_read(const std::string& path, int repeat, std::uint64_t& points, bool positions_only = false) {
   std::vector<double> wall, cpu;
   for (int i = 0; i < repeat; ++i) {
-    const Timing t = time_read(path, points);
+    const Timing t = time_read(path, points, positions_only);
     if (t.wall < 0) return t;
     wall.push_back(t.wall);
     cpu.push_back(t.cpu);
@@ -99,7 +101,7 @@ int main(int argc, char** argv) {
   std::printf("# median of %d runs, batches of %zu points; LAZ chunks decode on up to %u threads\n", repeat, kBatch,
               std::max(1u, std::min(4u, std::thread::hardware_concurrency())));
   std::printf("file,points,laz_bytes,las_bytes,laz_wall_s,laz_wall_mpts_s,laz_cpu_s,laz_cpu_mpts_s,las_wall_s,"
-              "las_cpu_s,las_cpu_mpts_s,laz_over_las_cpu\n");
+              "las_cpu_s,las_cpu_mpts_s,laz_over_las_cpu,laz_xyz_cpu_s,laz_xyz_cpu_mpts_s\n");
   int status = 0;
   for (const Pair& p : pairs) {
     const std::string laz = data + "/" + p.laz;
@@ -111,17 +113,20 @@ int main(int argc, char** argv) {
     std::uint64_t n_laz = 0, n_las = 0;
     const Timing t_laz = median_read(laz, repeat, n_laz);
     const Timing t_las = median_read(las, repeat, n_las);
-    if (t_laz.wall < 0 || t_las.wall < 0 || n_laz != n_las) {
+    std::uint64_t n_xyz = 0;
+    const Timing t_xyz = median_read(laz, repeat, n_xyz, /*positions_only=*/true);
+    if (t_laz.wall < 0 || t_las.wall < 0 || t_xyz.wall < 0 || n_laz != n_las || n_xyz != n_laz) {
       std::printf("# %s: failed\n", p.name);
       status = 1;
       continue;
     }
     const auto n = static_cast<double>(n_laz);
-    std::printf("%s,%llu,%llu,%llu,%.4f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.1f\n", p.name,
+    std::printf("%s,%llu,%llu,%llu,%.4f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.1f,%.4f,%.2f\n", p.name,
                 static_cast<unsigned long long>(n_laz),
                 static_cast<unsigned long long>(std::filesystem::file_size(laz)),
                 static_cast<unsigned long long>(std::filesystem::file_size(las)), t_laz.wall, n / t_laz.wall / 1e6, t_laz.cpu,
-                n / t_laz.cpu / 1e6, t_las.wall, t_las.cpu, n / t_las.cpu / 1e6, t_laz.cpu / t_las.cpu);
+                n / t_laz.cpu / 1e6, t_las.wall, t_las.cpu, n / t_las.cpu / 1e6, t_laz.cpu / t_las.cpu, t_xyz.cpu,
+                n / t_xyz.cpu / 1e6);
   }
   return status;
 }

@@ -744,9 +744,14 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
   std::uint64_t total = 0;
   // The inputs are read (parsed, decompressed) on a second thread while this
   // one hashes the batch before: the two halves of this pass overlap.
+  // Without `extra` (a shard plan also takes the intensity range and the
+  // colour rule) only positions are used: a layered LAZ file then decodes
+  // only its x, y and z.
+  ReaderOptions first_pass = reader_options;
+  first_pass.positions_only = extra == nullptr;
   std::vector<std::unique_ptr<PointReader>> readers;
   for (const std::string& path : inputs) {
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, reader_options));
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, first_pass));
     readers.push_back(std::move(reader));
   }
   {

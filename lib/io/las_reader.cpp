@@ -490,9 +490,10 @@ DecodeFn pick_decoder(ColorOut color) {
 
 class LasPointReader final : public BatchPointReader {
  public:
-  static Result<std::unique_ptr<LasPointReader>> open(const InputSpec& input) {
+  static Result<std::unique_ptr<LasPointReader>> open(const InputSpec& input, bool positions_only) {
     RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
     std::unique_ptr<LasPointReader> reader(new LasPointReader(input, std::move(src)));
+    reader->positions_only_ = positions_only;
     RELIEF_RETURN_IF_ERROR(reader->start());
     return reader;
   }
@@ -503,12 +504,13 @@ class LasPointReader final : public BatchPointReader {
  protected:
   Result<std::unique_ptr<BatchPointReader>> reopen() const override {
     if (!input_.memory && !src_.size()) return std::unique_ptr<BatchPointReader>();
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> again, open(input_));
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> again, open(input_, positions_only_));
     return std::unique_ptr<BatchPointReader>(std::move(again));
   }
 
  private:
   LasPointReader(InputSpec input, ByteSource src) : input_(std::move(input)), src_(std::move(src)) {}
+  bool positions_only_ = false;  // ReaderOptions::positions_only
 
   Status start();
   Status check_size();
@@ -792,6 +794,7 @@ Status LasPointReader::start_laz(const ProjectionRecords& records) {
   }
   RELIEF_ASSIGN_OR_RETURN(laz::Params params,
                           laz::parse_vlr(*records.laszip, header_.format, header_.record_length, name()));
+  params.positions_only = positions_only_;
   if (params.unchunked()) {
     // LASzip 1.x without chunks: no table offset and no table; the points
     // are one stream to the extended VLRs (when they follow) or the end.
@@ -949,8 +952,8 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
 
 }  // namespace
 
-Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input) {
-  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> reader, LasPointReader::open(input));
+Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input, bool positions_only) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> reader, LasPointReader::open(input, positions_only));
   return std::unique_ptr<PointReader>(std::move(reader));
 }
 

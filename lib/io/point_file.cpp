@@ -124,7 +124,7 @@ Result<std::unique_ptr<PointReader>> open_by_kind(const std::string& path, const
     case Kind::kPly:
       return open_ply_reader(input, options);
     case Kind::kLas:
-      return open_las_reader(input);
+      return open_las_reader(input, options.positions_only);
     case Kind::kXyz:
       return open_xyz_reader(input, options);
     case Kind::kPcd:

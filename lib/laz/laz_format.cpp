@@ -13,6 +13,7 @@
 #include "laz/arithmetic_decoder.h"
 #include "laz/integer_coder.h"
 #include "laz/items.h"
+#include "laz/items_v3_state.h"
 #include "relief/laz.h"
 
 namespace relief::laz {
@@ -400,7 +401,8 @@ class PointwiseDecoder final : public ChunkDecoderBase {
 
 class LayeredDecoder final : public ChunkDecoderBase {
  public:
-  LayeredDecoder(const Params& params, std::string name) : ChunkDecoderBase(params, std::move(name)) {
+  LayeredDecoder(const Params& params, std::string name)
+      : ChunkDecoderBase(params, std::move(name)), positions_only_(params.positions_only) {
     std::size_t offset = 0;
     for (const Item& it : params.items) {
       switch (it.type) {
@@ -472,6 +474,16 @@ class LayeredDecoder final : public ChunkDecoderBase {
     }
     data = data.subspan(wave_bytes);  // within `total`, checked above
     if (bytes_ && !start_group(bytes_->layers())) return corrupt("a compressed layer is invalid");
+    if (positions_only_) {
+      // Every layer but XY and Z reads as unchanged: its fields keep the
+      // first point's values, and its bytes are neither decoded nor checked.
+      const auto skip = [](std::span<Layer> g, std::size_t from) {
+        for (std::size_t i = from; i < g.size(); ++i) g[i].changed = false;
+      };
+      skip(point_.layers(), kZ + 1);
+      if (rgb_) skip(rgb_->layers(), 0);
+      if (bytes_) skip(bytes_->layers(), 0);
+    }
     const std::uint32_t context = point_.init(first_.data());
     if (rgb_) rgb_->init(first_.data() + rgb_offset_, context);
     if (bytes_) bytes_->init(first_.data() + bytes_offset_, context);
@@ -509,7 +521,10 @@ class LayeredDecoder final : public ChunkDecoderBase {
       std::size_t unread = 0;
       for (auto g : {point_.layers(), rgb_ ? rgb_->layers() : std::span<Layer>(),
                      bytes_ ? bytes_->layers() : std::span<Layer>()}) {
-        for (const Layer& layer : g) unread += layer.dec.unread();
+        for (std::size_t i = 0; i < g.size(); ++i) {
+          // (Layers skipped for positions_only are not read at all.)
+          if (!positions_only_ || (g.data() == point_.layers().data() && i <= kZ)) unread += g[i].dec.unread();
+        }
       }
       if (unread > 0) return trailing(unread);
     }
@@ -524,6 +539,7 @@ class LayeredDecoder final : public ChunkDecoderBase {
   std::size_t bytes_offset_ = 0;
   bool wave_ = false;
   std::size_t wave_offset_ = 0;
+  bool positions_only_ = false;
 };
 
 }  // namespace

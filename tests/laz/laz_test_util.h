@@ -117,7 +117,8 @@ inline std::vector<std::uint8_t> twin_records(const std::vector<std::uint8_t>& l
 // chunks, table), and decodes them through the reading API. With
 // kVariableChunks a chunk ends after each count in `variable` in turn.
 inline std::vector<std::uint8_t> round_trip(const std::vector<std::uint8_t>& records, int format, std::size_t rl,
-                                     std::uint32_t chunk_size, const std::vector<std::size_t>& variable = {}) {
+                                     std::uint32_t chunk_size, const std::vector<std::size_t>& variable = {},
+                                     bool positions_only = false) {
   auto comp = laz::PointCompressor::create(format, rl, chunk_size, "test");
   INFO(comp.status().to_string());
   REQUIRE(comp.is_ok());
@@ -149,6 +150,7 @@ inline std::vector<std::uint8_t> round_trip(const std::vector<std::uint8_t>& rec
   INFO(chunks.status().to_string());
   REQUIRE(chunks.is_ok());
   if (chunk_size != laz::kVariableChunks) CHECK(chunks->size() == (count + chunk_size - 1) / chunk_size);
+  params->positions_only = positions_only;
   auto dec = laz::ChunkDecoder::create(*params, "test");
   REQUIRE(dec.is_ok());
   std::vector<std::uint8_t> out(records.size());

@@ -42,7 +42,7 @@ void check_twin(const std::string& laz_path, const std::string& las_path) {
   SUCCEED();
 }
 
-Result<PointCloud> read_all(const std::string& path);
+Result<PointCloud> read_all(const std::string& path, const ReaderOptions& options = {});
 
 const std::string kSimpleLaz = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.laz";
 const std::string kSimpleLas = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las";
@@ -80,6 +80,12 @@ TEST_CASE("Shared LAZ files decode to their LAS twins record for record", "[laz]
       CHECK(from_laz->positions == from_las->positions);
       CHECK(from_laz->colors == from_las->colors);
       CHECK(from_laz->intensities == from_las->intensities);
+      // Positions only (layered files decode just the XY and Z layers): the same positions.
+      ReaderOptions xyz;
+      xyz.positions_only = true;
+      const auto positions = read_all(*laz_path, xyz);
+      REQUIRE(positions.is_ok());
+      CHECK(positions->positions == from_las->positions);
     }
   }
 }
@@ -90,8 +96,8 @@ namespace relief {
 namespace {
 
 // Reads every point of `path` through the LAS reader.
-Result<PointCloud> read_all(const std::string& path) {
-  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path));
+Result<PointCloud> read_all(const std::string& path, const ReaderOptions& options) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, options));
   PointCloud all, batch;
   for (;;) {
     RELIEF_ASSIGN_OR_RETURN(std::size_t n, reader->read(batch, 500));

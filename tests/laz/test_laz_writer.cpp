@@ -175,6 +175,34 @@ TEST_CASE("LAZ writer: random records of every format come back exactly", "[laz]
   }
 }
 
+TEST_CASE("LAZ positions_only: layered chunks give every x, y, z while skipping the other layers",
+          "[laz][selective]") {
+  for (const int format : {0, 3, 6, 7, 8}) {
+    for (const std::size_t extra : {std::size_t{0}, std::size_t{5}}) {
+      DYNAMIC_SECTION("format " << format << ", " << extra << " extra bytes") {
+        const std::size_t rl = base_size(format) + extra;
+        const auto records = random_records(format, rl, 6000, 77 + static_cast<std::uint64_t>(format));
+        for (const std::uint32_t chunk : {std::uint32_t{1000}, std::uint32_t{1}}) {
+          const std::vector<std::uint8_t> in(records.begin(),
+                                             records.begin() + static_cast<std::ptrdiff_t>((chunk == 1 ? 200 : 6000) * rl));
+          const auto got = round_trip(in, format, rl, chunk, {}, /*positions_only=*/true);
+          REQUIRE(got.size() == in.size());
+          bool same_xyz = true, same_rest = true;
+          for (std::size_t i = 0; i < in.size(); i += rl) {
+            same_xyz = same_xyz && std::memcmp(got.data() + i, in.data() + i, 12) == 0;
+            same_rest = same_rest && std::memcmp(got.data() + i + 12, in.data() + i + 12, rl - 12) == 0;
+          }
+          CHECK(same_xyz);
+          // The pointwise formats decode everything; the layered ones do not
+          // decode what changes in other layers (chunks of one point are
+          // their raw first points, whole).
+          CHECK(same_rest == (format < 6 || chunk == 1));
+        }
+      }
+    }
+  }
+}
+
 TEST_CASE("LAZ writer: a record that repeats its predecessor in every field", "[laz][writer]") {
   // All layers but XY and Z are then left out of the chunk (and BYTE's
   // stream codes only zeros): the reader must still give the records back.

@@ -116,6 +116,12 @@ struct ReaderOptions {
   // curvature, alpha ..., which those readers deliver as LAS extra bytes
   // described by an Extra Bytes VLR. Off: none are delivered.
   bool extra_bytes = true;
+  // For a pass that uses only x, y and z: LAZ of LAS 1.4 point formats 6-10
+  // then decodes only the layers of x, y and z (LASzip's selective
+  // decompression; 2-3x less work), and every other value of a chunk's
+  // points repeats its first point's. Do not use anything but the
+  // positions of what such a reader returns. Other formats read as usual.
+  bool positions_only = false;
 };
 
 class PointReader {

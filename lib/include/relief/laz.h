@@ -54,6 +54,12 @@ struct Params {
   std::size_t record_length = 0;
   // LASzip 1.x's compressor 1: no chunk table, one stream (see unchunked_stream()).
   bool unchunked() const { return compressor == 1; }
+  // Not from the VLR, a decoding choice: decode only the x, y and z of the
+  // layered compressor's points (the channel/returns/XY layer and the Z
+  // layer, as LASzip's selective decompression does); every other field of
+  // a chunk's points repeats its first point's. The pointwise compressors
+  // decode everything regardless (one stream holds every field).
+  bool positions_only = false;
 };
 inline constexpr std::uint32_t kVariableChunks = 0xFFFFFFFFu;
 
