@@ -97,10 +97,10 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
   if (want.colors) las |= kLasColorLow;
   if ((las & kLasNumberOfReturns) != 0) las |= kLasReturnNumber;
   if ((las & kLasTimeOrdered) != 0 && h.version >= 6) las |= kLasGpsTime;
-  const bool colors = want.colors || (las & kLasColorLow) != 0;
+  const bool with_colors = want.colors || (las & kLasColorLow) != 0;
   // The order mask's slots (§11.3.3) of the sections decoded.
   std::uint8_t slots = 0;
-  if (colors) slots |= 1u << kOrderSlotColors;
+  if (with_colors) slots |= 1u << kOrderSlotColors;
   if (want.intensity) slots |= 1u << kOrderSlotIntensity;
   for (std::uint32_t b = 0; b < kLasAttributeCount; ++b) {
     const int slot = order_slot(1u << b);
@@ -137,7 +137,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
     }
     const SectionEntry* colors = find_section(blob, SectionId::kPointColor);
     const bool near_colors = colors != nullptr && colors->codec == SectionCodec::kNeighbourColor;
-    if ((near_colors && colors) || (h.version >= 6 && (h.las_attributes & kLasGpsTime & las) != 0)) {
+    if ((near_colors && with_colors) || (h.version >= 6 && (h.las_attributes & kLasGpsTime & las) != 0)) {
       layer_cells.reserve(n);
       for (std::size_t c = 0; c < cells.keys.size(); ++c) {
         const std::uint64_t key = cells.keys[c];
@@ -153,7 +153,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
     for (std::size_t j = 0; j < v.size(); ++j) moved[cell_pos[j]] = v[j];
     v = std::move(moved);
   };
-  if (const SectionEntry* s = colors ? find_section(blob, SectionId::kPointColor) : nullptr) {
+  if (const SectionEntry* s = with_colors ? find_section(blob, SectionId::kPointColor) : nullptr) {
     std::vector<CellXyz> cells_by_cell;  // codec 10 in cell order under a time-ordered layer
     if (s->codec == SectionCodec::kNeighbourColor && in_cells(kOrderSlotColors)) {
       cells_by_cell.resize(n);
