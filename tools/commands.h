@@ -14,6 +14,7 @@ int run_preview(int argc, char** argv);
 int run_query(int argc, char** argv);
 int run_decompress(int argc, char** argv);
 int run_info(int argc, char** argv);
+int run_stats(int argc, char** argv);
 int run_check(int argc, char** argv);
 int run_shard_plan(int argc, char** argv);
 int run_shard_partition(int argc, char** argv);

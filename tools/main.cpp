@@ -19,6 +19,7 @@ constexpr const char* kUsage =
     "  query ARCHIVE --box B -o OUT      the points inside a box, at any level of detail\n"
     "  decompress ARCHIVE -o OUT         every point of an archive\n"
     "  info ARCHIVE [--json]             what an archive holds\n"
+    "  stats ARCHIVE [--box B] [--json]  what its points hold: ranges, classes, returns ...\n"
     "  check ARCHIVE                     verify a whole archive and list what is damaged\n"
     "  merge SHARD... -o OUT.relief      join the shard archives of a sharded build\n"
     "  shard-plan IN... -o PLAN          sharded build, stage 0: fix every parameter\n"
@@ -53,6 +54,7 @@ int main(int argc, char** argv) {
   if (command == "query") return relief::cli::run_query(sub_argc, sub_argv);
   if (command == "decompress") return relief::cli::run_decompress(sub_argc, sub_argv);
   if (command == "info") return relief::cli::run_info(sub_argc, sub_argv);
+  if (command == "stats") return relief::cli::run_stats(sub_argc, sub_argv);
   if (command == "check") return relief::cli::run_check(sub_argc, sub_argv);
   if (command == "merge") return relief::cli::run_merge(sub_argc, sub_argv);
   if (command == "shard-plan") return relief::cli::run_shard_plan(sub_argc, sub_argv);

@@ -278,6 +278,20 @@ class Archive:
         _warn_all(messages)
         return self._with_extra_fields(array)
 
+    def stats(self, box=None, *, attributes=None, threads=0, skip_corrupt=False):
+        """What the points (in ``box``, as ``query`` takes it) hold, as ``relief
+        stats --json``: a dict with ``points``; ``x``, ``y``, ``z`` and each
+        ranged attribute as ``{"count", "min", "max", "mean"}``;
+        ``classification``, ``return_number``, ``number_of_returns`` as
+        ``{value: count}`` (values as strings, JSON's keys); flag counts;
+        ``point_sources`` (distinct IDs); ``extra_bytes`` by field name.
+        ``attributes``: only those (as ``query``), and only they are decoded,
+        so asking for few is quick.
+        """
+        text = self._reader.stats_json(_box_values(box), threads, bool(skip_corrupt),
+                                       _attribute_list(attributes))
+        return _json.loads(text)
+
     def _batches(self, stream):
         # A generator, so an abandoned iteration closes the query (the
         # worker thread stops) when the generator is collected or closed.

@@ -268,6 +268,23 @@ class Reader {
     return py::make_tuple(to_array(batches, fields), warnings);
   }
 
+  // archive_stats of the box (or everything) as JSON, for the package to parse.
+  std::string stats_json(const std::optional<std::vector<double>>& box_values, unsigned threads, bool skip_corrupt,
+                         const std::string& attributes) {
+    const std::optional<Box3d> box = to_box(box_values);
+    std::vector<std::string> warnings;
+    QueryOptions q = query_options(1, threads, skip_corrupt, 0, attributes);
+    Result<ArchiveStats> r = Status(internal_error("stats did not run"));
+    reader();  // refuses a closed archive while the GIL is held
+    {
+      py::gil_scoped_release release;
+      const std::lock_guard<std::mutex> lock(mutex_);
+      r = archive_stats(reader(), box ? &*box : nullptr, q);
+    }
+    if (!r) raise_status(r.status());
+    return archive_stats_json(*r);
+  }
+
   std::unique_ptr<BatchIterator> batches(const std::optional<std::vector<double>>& box_values,
                                          std::uint32_t lod, unsigned threads, bool skip_corrupt,
                                          std::uint64_t max_points, const std::string& attributes) {
@@ -420,6 +437,8 @@ PYBIND11_MODULE(_relief, m) {
       .def("info_json", &Reader::info_json)
       .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
            py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"))
+      .def("stats_json", &Reader::stats_json, py::arg("box"), py::arg("threads"), py::arg("skip_corrupt"),
+           py::arg("attributes"))
       .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
            py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"))
       .def("preview", &Reader::preview, py::arg("box"), py::arg("lod"), py::arg("width"), py::arg("view"),

@@ -481,6 +481,24 @@ def test_query_attributes_gives_only_those_fields(tmp_path):
             archive.query(batches=True, attributes="extra_bytes")
 
 
+def test_stats_match_the_points(tmp_path):
+    a = _every_las_field(3000)
+    relief.write(tmp_path / "p.las", a)
+    relief.compress(tmp_path / "p.las", tmp_path / "p.relief")
+    with relief.open(tmp_path / "p.relief") as archive:
+        s = archive.stats()
+        assert s["points"] == 3000
+        values, counts = np.unique(a["classification"], return_counts=True)
+        assert s["classification"] == {str(v): int(c) for v, c in zip(values, counts)}
+        assert s["gps_time"]["min"] == a["gps_time"].min() and s["gps_time"]["max"] == a["gps_time"].max()
+        assert s["intensity"]["max"] == a["intensity"].max()
+        assert s["point_sources"] == len(np.unique(a["point_source_id"]))
+        box = (-1e9, -1e9, 1e9, 1e9)
+        only = archive.stats(box, attributes=["return_number"])
+        assert set(only) == {"points", "x", "y", "z", "return_number"}
+        assert sum(only["return_number"].values()) == 3000
+
+
 def test_write_extra_fields_and_a_querys_array(tmp_path):
     n = 500
     dt = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("label", "<i4"), ("normal", "<f4", (3,)),

@@ -9,9 +9,11 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -544,4 +546,94 @@ TEST_CASE("inputs whose GPS times count differently are refused, naming both", "
   // The same kind appends.
   REQUIRE(relief::append_files(archive, {las_with_time(dir, "week2.las", 3, 0, 4)}, {}).is_ok());
   CHECK(archive_info(archive).las_gps_time_type == relief::GpsTimeType::kWeek);
+}
+
+TEST_CASE("archive_stats summarises every attribute as the input holds it, only those asked for",
+          "[las][archive][stats][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  const std::string in = las_file(dir, "in.las", 8, 123);  // RGB, NIR, GPS time, extra bytes
+  const std::string archive = dir.file("a.relief");
+  REQUIRE(relief::compress_files({in}, archive, {}).is_ok());
+  const auto file = read_las_records(in);
+  REQUIRE(file);
+  const std::vector<LasRecord>& recs = file->records;
+  auto reader = relief::ArchiveReader::open(archive);
+  REQUIRE(reader.is_ok());
+  auto stats = relief::archive_stats(**reader, nullptr, {});
+  REQUIRE(stats.is_ok());
+  const relief::ArchiveStats& s = *stats;
+  REQUIRE(s.points == recs.size());
+  std::array<std::uint64_t, 256> classes{};
+  std::array<std::uint64_t, 16> returns{}, counts{};
+  std::set<std::uint16_t> sources;
+  double gps_lo = recs[0].gps_time, gps_hi = recs[0].gps_time, z_lo = 1e300, z_hi = -1e300;
+  int angle_lo = 1 << 30, angle_hi = -(1 << 30), height_lo = 1 << 30, height_hi = -1, red_hi = 0;
+  std::uint64_t withheld = 0, edge = 0;
+  for (const LasRecord& p : recs) {
+    ++classes[p.classification];
+    ++returns[p.return_number];
+    ++counts[p.number_of_returns];
+    sources.insert(p.point_source_id);
+    gps_lo = std::min(gps_lo, p.gps_time);
+    gps_hi = std::max(gps_hi, p.gps_time);
+    z_lo = std::min(z_lo, p.z * file->scale[2] + file->offset[2]);
+    z_hi = std::max(z_hi, p.z * file->scale[2] + file->offset[2]);
+    angle_lo = std::min(angle_lo, p.scan_angle);
+    angle_hi = std::max(angle_hi, p.scan_angle);
+    const int height = p.extra[0] | (p.extra[1] << 8);  // uint16 "height_above_ground"
+    height_lo = std::min(height_lo, height);
+    height_hi = std::max(height_hi, height);
+    red_hi = std::max(red_hi, p.red >> 8);
+    withheld += p.withheld;
+    edge += p.edge;
+  }
+  CHECK(s.classification == classes);
+  CHECK(s.return_number == returns);
+  CHECK(s.number_of_returns == counts);
+  CHECK(s.point_sources == sources.size());
+  CHECK(s.gps_time.min == gps_lo);
+  CHECK(s.gps_time.max == gps_hi);
+  CHECK(s.z.min == Approx(z_lo).margin(1e-9));
+  CHECK(s.z.max == Approx(z_hi).margin(1e-9));
+  CHECK(s.scan_angle.min == Approx(angle_lo * 0.006).margin(1e-9));  // LAS 1.4 steps of 0.006 degree
+  CHECK(s.scan_angle.max == Approx(angle_hi * 0.006).margin(1e-9));
+  CHECK(s.withheld == withheld);
+  CHECK(s.edge_of_flight_line == edge);
+  CHECK(s.red.max == red_hi);
+  REQUIRE(s.extra.size() == 2);
+  CHECK(s.extra[0].first == "height_above_ground");
+  CHECK(s.extra[0].second.min == height_lo);
+  CHECK(s.extra[0].second.max == height_hi);
+  CHECK(s.extra[0].second.count == recs.size());
+  // Only what is asked for, and a box: the points a query of it returns.
+  relief::QueryOptions some;
+  some.attributes = {false, false, relief::kLasClassification};
+  const relief::Box3d box{{-1e9, -1e9, -1e9}, {1e9, 1e9, z_lo + (z_hi - z_lo) / 2}};
+  auto part = relief::archive_stats(**reader, &box, some);
+  REQUIRE(part.is_ok());
+  CHECK(part->las == relief::kLasClassification);
+  CHECK_FALSE(part->has_colors);
+  std::uint64_t in_box = 0;
+  REQUIRE((*reader)->query(box, some, [&](const relief::PointCloud& c) {
+    in_box += c.size();
+    return relief::Status::ok();
+  }).is_ok());
+  CHECK(part->points == in_box);
+  std::uint64_t classified = 0;
+  for (const std::uint64_t n : part->classification) classified += n;
+  CHECK(classified == in_box);
+  CHECK(part->z.max <= box.max.z);
+  // The CLI prints them, as text or JSON.
+  const auto text = relief::test::run_cli(cli(), "stats " + archive + " --attributes classification,gps_time");
+  REQUIRE(text.code == 0);
+  CHECK_THAT(text.output, Contains("points               " ));
+  CHECK_THAT(text.output, Contains("gps_time"));
+  CHECK(text.output.find("intensity") == std::string::npos);
+  const auto json = relief::test::run_cli(cli(), "stats " + archive + " --json --attributes point_source_id");
+  REQUIRE(json.code == 0);
+  CHECK_THAT(json.output, Contains("\"point_sources\": " + std::to_string(sources.size())));
+  relief::QueryOptions coarse;
+  coarse.lod = 4;
+  CHECK(relief::archive_stats(**reader, nullptr, coarse).status().code() == relief::StatusCode::kInvalidArgument);
 }

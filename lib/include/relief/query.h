@@ -2,6 +2,7 @@
 // level of detail, and stream the points inside the box in batches.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -109,6 +110,57 @@ std::vector<std::string> archive_attribute_names(const ArchiveInfo& info);
 // The typed fields of the archive's Extra Bytes VLR (empty when it has none,
 // or when it does not parse, which the reader that stored it had checked).
 std::vector<ExtraBytesField> archive_extra_bytes_fields(const ArchiveInfo& info);
+
+// ---- Statistics of the points (what lasinfo prints of a LAS file)
+
+// The smallest and largest of some values, their count and sum. Non-finite
+// values (a float extra field's NaN, its missing value) are counted apart.
+struct ValueSummary {
+  std::uint64_t count = 0;
+  double min = 0, max = 0, sum = 0;
+  std::uint64_t non_finite = 0;
+  void add(double v);
+  double mean() const { return count > 0 ? sum / static_cast<double>(count) : 0.0; }
+};
+
+// Per attribute, for the points of an archive (or a box): each `has_*` says
+// whether the archive carries it and the statistics were asked for.
+struct ArchiveStats {
+  std::uint64_t points = 0;
+  ValueSummary x, y, z;
+  bool has_colors = false;
+  ValueSummary red, green, blue;  // 8-bit levels
+  bool has_intensity = false;
+  ValueSummary intensity;
+  std::uint32_t las = 0;  // the LasAttributeBits summarised below
+  std::array<std::uint64_t, 256> classification{};
+  // Points with each flag set: synthetic, key-point, withheld, overlap
+  // (class_flags), scan direction, edge of flight line (scan_flags).
+  std::uint64_t synthetic = 0, key_point = 0, withheld = 0, overlap = 0, scan_direction = 0, edge_of_flight_line = 0;
+  std::array<std::uint64_t, 4> scanner_channel{};
+  std::array<std::uint64_t, 16> return_number{};
+  std::array<std::uint64_t, 16> number_of_returns{};
+  ValueSummary scan_angle;  // degrees
+  ValueSummary user_data;
+  ValueSummary point_source_id;
+  std::uint64_t point_sources = 0;  // distinct point source IDs
+  ValueSummary gps_time;
+  ValueSummary nir;
+  // The archive's scalar extra bytes fields, by name, after their scale and
+  // offset (arrays and undocumented bytes are not summarised).
+  std::vector<std::pair<std::string, ValueSummary>> extra;
+};
+
+// Decodes the points in `box` (every point when null) with the attributes
+// `options.attributes` names (and the query's filters) and summarises them.
+// Only what is asked for is decoded, so `--attributes classification` is a
+// fraction of a full decode. kInvalidArgument for a level of detail above 1
+// (coarse levels read from the base layer carry no LAS attributes but a
+// classification, which would summarise as zeros) or max_points.
+Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, const QueryOptions& options);
+// The statistics as one JSON object: what `relief stats --json` prints and
+// Python's Archive.stats returns.
+std::string archive_stats_json(const ArchiveStats& stats);
 
 // A box for "all heights" from a 2D box: z from -inf to +inf.
 Box3d box_2d(double xmin, double ymin, double xmax, double ymax);
