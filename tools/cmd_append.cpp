@@ -16,7 +16,9 @@ int run_append(int argc, char** argv) {
       "  --assume-crs           inputs whose CRS differs from the archive's (or each other's):\n"
       "                         keep the archive's (with a warning) instead of refusing (exit 11)\n"
       "  --no-extra-bytes       drop the inputs' extra bytes (LAS/LAZ extra bytes, PLY properties\n"
-      "                         and PCD fields beyond x y z, colour and intensity)\n\n") +
+      "                         and PCD fields beyond x y z, colour and intensity)\n"
+      "  --attributes LIST      read only these attributes of the inputs (as compress); the\n"
+      "                         archive's others are 0 for the new points\n\n") +
       kInputsHelp + "\n" + kIngestOptionsHelp;
   std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kAppend);
   flags.insert(flags.end(), {"--help", "--quiet"});

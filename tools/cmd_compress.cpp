@@ -28,7 +28,10 @@ int run_compress(int argc, char** argv) {
       "  --assume-crs           inputs with different CRSs: take the first input's for all (with a\n"
       "                         warning) instead of refusing them (exit 11)\n"
       "  --no-extra-bytes       drop every input's extra bytes: LAS/LAZ extra bytes and the PLY\n"
-      "                         properties and PCD fields kept as such (normals, labels ...)\n\n") +
+      "                         properties and PCD fields kept as such (normals, labels ...)\n"
+      "  --attributes LIST      keep only these attributes beside x y z, as 'relief info' lists them\n"
+      "                         (rgb, intensity, classification, gps_time, extra_bytes ...; none; default\n"
+      "                         all): a smaller archive when the others are not needed\n\n") +
       kInputsHelp + "\n" + kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
   options.insert(options.end(), {"-o", "--input-list"});

@@ -25,6 +25,9 @@ const std::vector<std::string> kEncodeNames = {
 const std::vector<std::string> kModeNames = {"mode", "tolerance", "color-tolerance"};
 const std::vector<std::string> kRunNames = {"memory", "threads", "tmp", "columns", "pyramid"};
 const std::vector<std::string> kCompressOnlyNames = {"chunk-edge", "error-target"};
+// Options of the commands that read input files (not stream, whose
+// --attributes names its binary record's fields).
+const std::vector<std::string> kFileInputNames = {"attributes"};
 
 std::string canonical(std::string_view name) {
   while (!name.empty() && name.front() == '-') name.remove_prefix(1);
@@ -232,6 +235,7 @@ std::vector<std::string> ingest_option_names(IngestOptionSet set) {
   }
   append_names(names, kRunNames);
   if (set == IngestOptionSet::kCompress) append_names(names, kCompressOnlyNames);
+  if (set != IngestOptionSet::kStream) append_names(names, kFileInputNames);
   return names;
 }
 
@@ -281,6 +285,11 @@ Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>&
     bool drop_extra = false;
     RELIEF_RETURN_IF_ERROR(g.get_flag("no-extra-bytes", drop_extra));
     o.reader.extra_bytes = !drop_extra;
+    if (const auto list = g.get("attributes")) {
+      Result<AttributeSet> keep = parse_attribute_set(*list);
+      if (!keep) return invalid_argument(g.show("attributes") + ": " + keep.status().message());
+      o.reader.attributes = *keep;
+    }
   }
   return Status::ok();
 }

@@ -83,16 +83,18 @@ std::string supported_writer_list() {
   return out + " (or - for XYZ text on standard output)";
 }
 
-// A reader whose points carry no extra bytes (ReaderOptions::extra_bytes off):
-// LAS/LAZ extra bytes and the properties PLY and PCD keep as extra bytes.
-class WithoutExtraBytes final : public PointReader {
+// A reader whose points carry only some attributes: ReaderOptions::attributes,
+// without the extra bytes when ReaderOptions::extra_bytes is off (LAS/LAZ
+// extra bytes and the properties PLY and PCD keep as extra bytes).
+class WithAttributes final : public PointReader {
  public:
-  explicit WithoutExtraBytes(std::unique_ptr<PointReader> inner) : inner_(std::move(inner)) { sync(); }
+  WithAttributes(std::unique_ptr<PointReader> inner, const AttributeSet& keep) : inner_(std::move(inner)), keep_(keep) {
+    sync();
+  }
   const PointStreamInfo& info() const override { return info_; }
   Result<std::size_t> read(PointCloud& batch, std::size_t max_points) override {
     Result<std::size_t> n = inner_->read(batch, max_points);
-    batch.las.extra_bytes.clear();
-    batch.las.extra_bytes_size = 0;
+    keep_attributes(batch, keep_);
     sync();
     return n;
   }
@@ -101,12 +103,18 @@ class WithoutExtraBytes final : public PointReader {
   // The inner reader's info learns things while reading (warnings, the colour rule).
   void sync() {
     info_ = inner_->info();
-    info_.las_attributes &= ~std::uint32_t{kLasExtraBytes};
-    info_.extra_bytes_vlr.clear();
-    info_.extra_bytes_size = 0;
+    info_.has_colors = info_.has_colors && keep_.colors;
+    info_.has_intensity = info_.has_intensity && keep_.intensity;
+    const std::uint32_t las = (keep_.las & ~std::uint32_t{kLasColorLow}) | (keep_.colors ? kLasColorLow : 0u);
+    info_.las_attributes &= las;
+    if ((info_.las_attributes & kLasExtraBytes) == 0) {
+      info_.extra_bytes_vlr.clear();
+      info_.extra_bytes_size = 0;
+    }
   }
 
   std::unique_ptr<PointReader> inner_;
+  AttributeSet keep_;
   PointStreamInfo info_;
 };
 
@@ -138,8 +146,16 @@ Result<std::unique_ptr<PointReader>> open_by_kind(const std::string& path, const
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options) {
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_by_kind(path, options));
-  if (options.extra_bytes || (reader->info().las_attributes & kLasExtraBytes) == 0) return reader;
-  return std::unique_ptr<PointReader>(std::make_unique<WithoutExtraBytes>(std::move(reader)));
+  AttributeSet keep = options.attributes;
+  if (!options.extra_bytes) keep.las &= ~std::uint32_t{kLasExtraBytes};
+  // Nothing to drop: the reader as it is.
+  const PointStreamInfo& info = reader->info();
+  const std::uint32_t las_kept = (keep.las & ~std::uint32_t{kLasColorLow}) | (keep.colors ? kLasColorLow : 0u);
+  if ((!info.has_colors || keep.colors) && (!info.has_intensity || keep.intensity) &&
+      (info.las_attributes & ~las_kept) == 0) {
+    return reader;
+  }
+  return std::unique_ptr<PointReader>(std::make_unique<WithAttributes>(std::move(reader), keep));
 }
 
 Result<std::vector<std::string>> expand_inputs(const std::vector<std::string>& inputs) {

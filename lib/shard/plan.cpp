@@ -71,6 +71,7 @@ ReaderOptions ShardPlan::reader_options() const {
   ReaderOptions r;
   if (has_xyz_columns) r.xyz_columns = xyz_columns;
   r.extra_bytes = !no_extra_bytes;
+  r.attributes = keep;
   return r;
 }
 
@@ -129,6 +130,7 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   plan.has_xyz_columns = o.reader.xyz_columns.has_value();
   if (plan.has_xyz_columns) plan.xyz_columns = *o.reader.xyz_columns;
   plan.no_extra_bytes = !o.reader.extra_bytes;
+  plan.keep = o.reader.attributes;
   plan.points = sample.points;
   plan.sources = in.sources;
   for (ArchiveSource& s : plan.sources) s.point_count = 0;
@@ -207,6 +209,7 @@ std::string shard_plan_text(const ShardPlan& plan) {
   line("split_points", {std::to_string(plan.split_points)});
   if (plan.has_xyz_columns) line("xyz_columns", {plan.xyz_columns});
   if (plan.no_extra_bytes) line("no_extra_bytes", {});
+  if (!plan.keep.everything()) line("keep_attributes", {attribute_set_list(plan.keep)});
   line("points", {std::to_string(plan.points)});
   for (const ArchiveSource& s : plan.sources) {
     line("input", {s.path, s.format, s.crs});
@@ -376,6 +379,11 @@ Result<ShardPlan> read_shard_plan(const std::string& path) {
     } else if (l.key == "no_extra_bytes") {
       RELIEF_RETURN_IF_ERROR(want(0));
       plan.no_extra_bytes = true;
+    } else if (l.key == "keep_attributes") {
+      RELIEF_RETURN_IF_ERROR(want(1));
+      Result<AttributeSet> keep = parse_attribute_set(l.fields[0].empty() ? "none" : l.fields[0]);
+      if (!keep) return bad(n, keep.status().message());
+      plan.keep = *keep;
     } else if (l.key == "points") {
       RELIEF_RETURN_IF_ERROR(want(1));
       std::int64_t v = 0;

@@ -122,6 +122,8 @@ def _option_text(name, value):
         return "true" if value else "false"
     if isinstance(value, (int, float, str)):
         return str(value)
+    if isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value):
+        return ",".join(value) if value else "none"  # a list of names, e.g. attributes=["classification"]
     raise TypeError(f"option {name} must be a number, a string or a bool, got {type(value).__name__}")
 
 

@@ -548,6 +548,42 @@ TEST_CASE("inputs whose GPS times count differently are refused, naming both", "
   CHECK(archive_info(archive).las_gps_time_type == relief::GpsTimeType::kWeek);
 }
 
+TEST_CASE("compress --attributes keeps only those attributes of the inputs", "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  const std::string in = las_file(dir, "in.las", 8, 92);
+  const std::string archive = dir.file("a.relief");
+  const auto run = relief::test::run_cli(
+      cli(), "compress " + in + " -o " + archive + " --attributes classification,gps_time,rgb --quiet");
+  REQUIRE(run.code == 0);
+  const relief::ArchiveInfo info = archive_info(archive);
+  CHECK(info.has_colors);
+  CHECK_FALSE(info.has_intensity);
+  CHECK(info.las_attributes == (relief::kLasClassification | relief::kLasGpsTime | relief::kLasColorLow));
+  CHECK(info.extra_bytes_vlr.empty());
+  const std::string out = dir.file("out.las");
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+  const auto back = read_las_records(out);
+  REQUIRE(back);
+  CHECK(back->format == 7);
+  std::vector<LasRecord> want;
+  for (const LasRecord& p : sorted_records(in)) {
+    LasRecord q = bare_xyz(p);
+    q.classification = p.classification;
+    q.gps_time = p.gps_time;
+    q.red = p.red, q.green = p.green, q.blue = p.blue;  // 16-bit, with their low bytes
+    want.push_back(q);
+  }
+  std::sort(want.begin(), want.end());
+  REQUIRE(relief::test::first_difference(sorted_records(out), want) == "");
+  // An unknown name is a usage error before anything is written.
+  const auto bad = relief::test::run_cli(cli(), "compress " + in + " -o " + dir.file("b.relief") +
+                                                    " --attributes classification,colour");
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.output, Contains("--attributes: attribute 'colour' is unknown"));
+  CHECK_FALSE(std::filesystem::exists(dir.file("b.relief")));
+}
+
 TEST_CASE("archive_stats summarises every attribute as the input holds it, only those asked for",
           "[las][archive][stats][needs-codec-attrs]") {
   if (!need_codec_attributes()) return;

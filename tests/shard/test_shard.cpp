@@ -280,6 +280,7 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attr
     std::vector<std::string> (*inputs)(const TempDir&);
     std::uint32_t must_carry;  // LasAttributeBits the archive must show
     bool colors_8bit;          // what the archive must say of the colour levels
+    AttributeSet keep = {};    // compress --attributes (in the plan: keep_attributes)
   };
   const LasScene scenes[] = {
       // Three point formats: 1.2 format 3 and 1.4 format 8 with the same extra
@@ -309,6 +310,14 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attr
          return std::vector<std::string>{data + "simple.laz", data + "simple.las"};
        },
        kLasClassification | kLasGpsTime | kLasColorLow, true},
+      // Only some attributes kept: the plan records them, every stage reads
+      // the inputs with them alone.
+      {"formats 3 and 8, classification, GPS time and extra bytes kept",
+       [](const TempDir& d) {
+         return std::vector<std::string>{las_input(d, "a.las", 3, 7, true), las_input(d, "b.las", 8, 8, true)};
+       },
+       kLasClassification | kLasGpsTime | kLasExtraBytes, false,
+       AttributeSet{false, false, kLasClassification | kLasGpsTime | kLasExtraBytes}},
   };
   for (const LasScene& s : scenes) {
     INFO(s.what);
@@ -319,11 +328,17 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attr
     o.split_points = 2500;
     o.threads = 2;
     o.allow_sparse = true;
+    o.reader.attributes = s.keep;
     auto one = compress_files(inputs, dir.file("one.relief"), o);
     REQUIRE(one.is_ok());
     const std::vector<Row> want = rows_of(dir.file("one.relief"));
     const ArchiveInfo want_info = info_of(dir.file("one.relief"));
     CHECK((want_info.las_attributes & s.must_carry) == s.must_carry);
+    if (!s.keep.everything()) {
+      CHECK(want_info.las_attributes == s.must_carry);
+      CHECK_FALSE(want_info.has_colors);
+      CHECK_FALSE(want_info.has_intensity);
+    }
     CHECK(want_info.las_colors_8bit == s.colors_8bit);
     CHECK(want.size() >= 4);
     for (const std::uint32_t ranges : {1u, 3u}) {
@@ -335,6 +350,8 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress, LAS attr
       if (want.size() >= 8) CHECK(plan.range_count() == ranges);
       // Version 3: the inputs' LAS headers and records travel in the plan.
       CHECK(shard_plan_text(plan).rfind("relief-shard-plan\t3\n", 0) == 0);
+      CHECK((shard_plan_text(plan).find("\nkeep_attributes\tclassification,gps_time,extra_bytes\n") !=
+             std::string::npos) == !s.keep.everything());
       auto merged = merge_archives(shards, work + "/merged.relief");
       REQUIRE(merged.is_ok());
       CHECK(merged->chunks == want.size());

@@ -116,6 +116,10 @@ struct ReaderOptions {
   // curvature, alpha ..., which those readers deliver as LAS extra bytes
   // described by an Extra Bytes VLR. Off: none are delivered.
   bool extra_bytes = true;
+  // The attributes delivered beside x, y and z (relief compress
+  // --attributes): the others are dropped as the points are read and are
+  // not in info(). The colour low bytes go with the colours.
+  AttributeSet attributes;
   // For a pass that uses only x, y and z: LAZ of LAS 1.4 point formats 6-10
   // then decodes only the layers of x, y and z (LASzip's selective
   // decompression; 2-3x less work), and every other value of a chunk's

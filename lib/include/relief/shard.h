@@ -58,6 +58,8 @@ struct ShardPlan {
   std::string xyz_columns;
   // Every stage reads without extra bytes (compress --no-extra-bytes).
   bool no_extra_bytes = false;
+  // Every stage reads only these attributes (compress --attributes; all by default).
+  AttributeSet keep;
   std::uint64_t points = 0;  // points the plan pass read (all inputs)
   // One per input, in order: path, format and CRS as compress records them
   // (point_count is filled by stage 1).
