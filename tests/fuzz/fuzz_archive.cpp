@@ -107,6 +107,12 @@ void exercise_query(const std::string& path, bool skip_corrupt) {
   }
   const auto ignore = [](const relief::PointCloud&) { return relief::Status::ok(); };
   (void)(*reader)->query(box, options, ignore);
+  // Some attributes alone (QueryOptions::attributes: the chunks skip the
+  // others' sections) and statistics of what is decoded.
+  const relief::ArchiveInfo& info = (*reader)->info();
+  options.attributes = {false, info.has_intensity, info.las_attributes & (relief::kLasClassification | relief::kLasGpsTime)};
+  (void)relief::archive_stats(**reader, &box, options);
+  options.attributes = relief::AttributeSet::all();
   // With a pyramid listed: a coarse level of detail and a point limit, which
   // read its nodes.
   bool pyramid = false;
