@@ -16,10 +16,12 @@ namespace {
 
 constexpr const char* kCommand = "stats";
 constexpr const char* kUsageText =
-    "usage: relief stats ARCHIVE [--box B] [--attributes LIST] [--json]\n"
+    "usage: relief stats ARCHIVE|POINT_FILE [--box B] [--attributes LIST] [--json]\n"
     "Decodes the points (of a box) and prints, per attribute, the range and mean of its values or\n"
     "the count of each value: x, y, z, colours, intensity, classification, flags, returns, scan\n"
     "angle, user data, point source IDs, GPS time, NIR and each scalar extra bytes field.\n"
+    "A point file (.las, .laz, .ply, .xyz/.txt/.csv/.pts, .pcd) is summarised the same way, so an\n"
+    "archive can be checked against its source (without --box or filters).\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights (default: everything)\n"
     "  --attributes L   only these (as 'relief info' lists them; default all): only they are decoded,\n"
     "                   so e.g. '--attributes classification' takes a fraction of a full decode\n"
@@ -122,9 +124,20 @@ int run_stats(int argc, char** argv) {
   const auto box_text = args.get("--box");
   std::string error;
   if (box_text && !parse_box(*box_text, box, error)) return usage_error(kCommand, "--box: " + error);
-  auto reader = ArchiveReader::open(args.positional()[0]);
-  if (!reader) return fail(kCommand, reader.status());
-  auto stats = archive_stats(**reader, box_text ? &box : nullptr, q);
+  const std::string& path = args.positional()[0];
+  Result<ArchiveStats> stats = Status(internal_error("stats did not run"));
+  if (is_point_file_name(path)) {
+    if (box_text || !q.classes.empty() || q.first_returns || q.last_returns) {
+      return usage_error(kCommand, "--box and the LAS filters apply to archives, not to a point file");
+    }
+    ReaderOptions ro;
+    ro.attributes = q.attributes;
+    stats = point_file_stats(path, ro);
+  } else {
+    auto reader = ArchiveReader::open(path);
+    if (!reader) return fail(kCommand, reader.status());
+    stats = archive_stats(**reader, box_text ? &box : nullptr, q);
+  }
   if (!stats) return fail(kCommand, stats.status());
   if (args.has("--json")) {
     std::fputs(archive_stats_json(*stats).c_str(), stdout);

@@ -158,6 +158,11 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
   return std::unique_ptr<PointReader>(std::make_unique<WithAttributes>(std::move(reader), keep));
 }
 
+bool is_point_file_name(const std::string& path) {
+  const std::string ext = lower(std::filesystem::path(path).extension().string());
+  return std::any_of(kExtensions.begin(), kExtensions.end(), [&](const Extension& e) { return e.extension == ext; });
+}
+
 Result<std::vector<std::string>> expand_inputs(const std::vector<std::string>& inputs) {
   std::vector<std::string> out;
   for (const std::string& input : inputs) {
@@ -172,9 +177,7 @@ Result<std::vector<std::string>> expand_inputs(const std::vector<std::string>& i
     for (; it != std::filesystem::directory_iterator(); it.increment(ec)) {
       const std::filesystem::path& p = it->path();
       const std::string name = p.filename().string();
-      const std::string ext = lower(p.extension().string());
-      const bool point_file = std::any_of(kExtensions.begin(), kExtensions.end(),
-                                          [&](const Extension& e) { return e.extension == ext; });
+      const bool point_file = is_point_file_name(name);
       std::error_code file_ec;
       if (point_file && !name.starts_with(".") && std::filesystem::is_regular_file(p, file_ec)) {
         found.push_back(p.string());

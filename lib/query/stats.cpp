@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,7 +21,9 @@ void ValueSummary::add(double v) {
   }
   if (count == 0 || v < min) min = v;
   if (count == 0 || v > max) max = v;
-  sum += v;
+  const double t = sum + v;
+  sum_error += std::abs(sum) >= std::abs(v) ? (sum - t) + v : (v - t) + sum;
+  sum = t;
   ++count;
 }
 
@@ -52,15 +56,23 @@ double read_scalar(const std::uint8_t* p, int type) {
   }
 }
 
+// What a source of points carries: an archive's info or a point file's.
+struct Carried {
+  bool colors = false, intensity = false;
+  std::uint32_t las = 0;
+  std::vector<ExtraBytesField> extra;
+  std::uint32_t extra_size = 0;
+};
+
 class Summariser {
  public:
-  Summariser(const ArchiveInfo& info, const AttributeSet& asked) {
-    s_.has_colors = info.has_colors && asked.colors;
-    s_.has_intensity = info.has_intensity && asked.intensity;
-    s_.las = info.las_attributes & asked.las & ~std::uint32_t{kLasColorLow};
+  Summariser(const Carried& info, const AttributeSet& asked) {
+    s_.has_colors = info.colors && asked.colors;
+    s_.has_intensity = info.intensity && asked.intensity;
+    s_.las = info.las & asked.las & ~std::uint32_t{kLasColorLow};
     if ((s_.las & kLasExtraBytes) != 0) {
-      for (const ExtraBytesField& f : archive_extra_bytes_fields(info)) {
-        if (f.data_type < 1 || f.data_type > 10 || f.offset + f.size > info.extra_bytes_size) continue;
+      for (const ExtraBytesField& f : info.extra) {
+        if (f.data_type < 1 || f.data_type > 10 || f.offset + f.size > info.extra_size) continue;
         const bool scaled = (f.options & 0x08) != 0, offset = (f.options & 0x10) != 0;
         scalars_.push_back({f.offset, f.data_type, scaled ? f.scale : 1.0, offset ? f.value_offset : 0.0});
         s_.extra.emplace_back(f.name, ValueSummary{});
@@ -157,13 +169,41 @@ Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, cons
   if (options.lod != 1 || options.max_points != 0) {
     return invalid_argument("statistics are of every point: no level of detail or maximum number of points");
   }
-  Summariser sum(reader.info(), options.attributes);
+  const ArchiveInfo& info = reader.info();
+  Summariser sum({info.has_colors, info.has_intensity, info.las_attributes, archive_extra_bytes_fields(info),
+                  info.extra_bytes_size},
+                 options.attributes);
   const PointSink sink = [&](const PointCloud& batch) {
     sum.add(batch);
     return Status::ok();
   };
   RELIEF_RETURN_IF_ERROR((box != nullptr ? reader.query(*box, options, sink) : reader.query_all(options, sink)).status());
   return sum.take();
+}
+
+Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptions& options) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, options));
+  // A reader knows some things only once it has read (a PLY's extra
+  // properties do not change, but a text file's colour rule may): the
+  // summary is set up from the first batch's info.
+  PointCloud batch;
+  std::optional<Summariser> sum;
+  for (;;) {
+    RELIEF_ASSIGN_OR_RETURN(const std::size_t n, reader->read(batch, std::size_t{1} << 16));
+    if (!sum) {
+      const PointStreamInfo& i = reader->info();
+      Carried c{i.has_colors, i.has_intensity, i.las_attributes, {}, i.extra_bytes_size};
+      if (!i.extra_bytes_vlr.empty()) {
+        const std::span<const std::uint8_t> vlr(reinterpret_cast<const std::uint8_t*>(i.extra_bytes_vlr.data()),
+                                                i.extra_bytes_vlr.size());
+        if (auto fields = parse_extra_bytes_vlr(vlr, i.extra_bytes_size, path)) c.extra = std::move(fields).value();
+      }
+      sum.emplace(c, options.attributes);
+    }
+    if (n == 0) break;
+    sum->add(batch);
+  }
+  return sum->take();
 }
 
 std::string archive_stats_json(const ArchiveStats& s) {

@@ -672,4 +672,16 @@ TEST_CASE("archive_stats summarises every attribute as the input holds it, only 
   relief::QueryOptions coarse;
   coarse.lod = 4;
   CHECK(relief::archive_stats(**reader, nullptr, coarse).status().code() == relief::StatusCode::kInvalidArgument);
+  // The source file summarises to the same JSON, byte for byte: the archive
+  // gives every value back (means compensated, so the order of the points
+  // does not show).
+  const auto from_file = relief::test::run_cli(cli(), "stats " + in + " --json");
+  const auto from_archive = relief::test::run_cli(cli(), "stats " + archive + " --json");
+  REQUIRE(from_file.code == 0);
+  REQUIRE(from_archive.code == 0);
+  CHECK(from_file.output == from_archive.output);
+  auto direct = relief::point_file_stats(in);
+  REQUIRE(direct.is_ok());
+  CHECK(relief::archive_stats_json(*direct) == relief::archive_stats_json(s));
+  CHECK(relief::test::run_cli(cli(), "stats " + in + " --box 0,0,1,1").code == 2);
 }

@@ -146,6 +146,10 @@ class PointReader {
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
+// Whether `path` names a file open_point_reader reads, by its extension
+// (any case).
+bool is_point_file_name(const std::string& path);
+
 // The point files `inputs` name: a file (or a missing path, which the reader
 // then names) as it is; a directory, the regular files directly in it whose
 // extension open_point_reader takes (any case; names starting with '.'
