@@ -800,14 +800,14 @@ void append_point(const double* v, const ColumnPlan& plan, PointCloud& batch) {
   push_las_columns(v, plan.las, batch.las);
 }
 
-// TextLineParser (relief/io.h): one line at a time, columns separated by any
-// run of blanks, ',' and ';' (a stream has no first line to pick one
-// delimiter from), colour levels 0..255 (no file-wide 16-bit rule either).
-class TextLineParserImpl final : public TextLineParser {
+// What both stream parsers (TextLineParser, BinaryRecordParser) say of the
+// points they append: the plan's attributes and the extra fields' VLR.
+template <typename Parser>
+class StreamFields : public Parser {
  public:
-  TextLineParserImpl(ColumnPlan plan, std::string name, std::string extra_vlr)
+  StreamFields(ColumnPlan plan, std::string name, std::string extra_vlr, std::uint32_t extra_size)
       : plan_(std::move(plan)), las_columns_(las_columns_of(plan_)), name_(std::move(name)),
-        extra_vlr_(std::move(extra_vlr)), extra_size_(extras_size(plan_)) {}
+        extra_vlr_(std::move(extra_vlr)), extra_size_(extra_size) {}
 
   bool colors() const override { return plan_.colors; }
   bool intensity() const override { return plan_.intensity; }
@@ -816,6 +816,22 @@ class TextLineParserImpl final : public TextLineParser {
   }
   const std::string& extra_bytes_vlr() const override { return extra_vlr_; }
   std::uint32_t extra_bytes_size() const override { return extra_size_; }
+
+ protected:
+  ColumnPlan plan_;
+  std::vector<const LasTextColumn*> las_columns_;
+  std::string name_;
+  std::string extra_vlr_;
+  std::uint32_t extra_size_;
+};
+
+// TextLineParser (relief/io.h): one line at a time, columns separated by any
+// run of blanks, ',' and ';' (a stream has no first line to pick one
+// delimiter from), colour levels 0..255 (no file-wide 16-bit rule either).
+class TextLineParserImpl final : public StreamFields<TextLineParser> {
+ public:
+  TextLineParserImpl(ColumnPlan plan, std::string name, std::string extra_vlr)
+      : StreamFields(plan, std::move(name), std::move(extra_vlr), extras_size(plan)) {}
 
   Status parse(std::string_view line, std::uint64_t line_no, PointCloud& batch) const override {
     const auto error = [&](const std::string& what) {
@@ -862,13 +878,6 @@ class TextLineParserImpl final : public TextLineParser {
     }
     return Status::ok();
   }
-
- private:
-  ColumnPlan plan_;
-  std::vector<const LasTextColumn*> las_columns_;
-  std::string name_;
-  std::string extra_vlr_;
-  std::uint32_t extra_size_;
 };
 
 }  // namespace
@@ -916,7 +925,7 @@ BinaryType binary_type_of(Role r) {
 
 constexpr std::size_t kMaxBinarySkip = 1024;
 
-class BinaryRecordParserImpl final : public BinaryRecordParser {
+class BinaryRecordParserImpl final : public StreamFields<BinaryRecordParser> {
  public:
   struct Field {
     Role role;  // kSkip for padding, kRed for the colour triple, kExtra for an extra bytes field
@@ -926,17 +935,10 @@ class BinaryRecordParserImpl final : public BinaryRecordParser {
   };
   BinaryRecordParserImpl(ColumnPlan plan, std::vector<Field> fields, std::size_t size, std::string name,
                          std::string extra_vlr, std::uint32_t extra_size)
-      : plan_(std::move(plan)), fields_(std::move(fields)), size_(size), las_columns_(las_columns_of(plan_)),
-        name_(std::move(name)), extra_vlr_(std::move(extra_vlr)), extra_size_(extra_size) {}
+      : StreamFields(std::move(plan), std::move(name), std::move(extra_vlr), extra_size), fields_(std::move(fields)),
+        size_(size) {}
 
   std::size_t record_size() const override { return size_; }
-  bool colors() const override { return plan_.colors; }
-  bool intensity() const override { return plan_.intensity; }
-  std::uint32_t las_attributes() const override {
-    return plan_.las | (extra_size_ > 0 ? std::uint32_t{kLasExtraBytes} : 0u);
-  }
-  const std::string& extra_bytes_vlr() const override { return extra_vlr_; }
-  std::uint32_t extra_bytes_size() const override { return extra_size_; }
 
   Status parse(const std::uint8_t* record, std::uint64_t record_no, PointCloud& batch) const override {
     double v[kRoleCount] = {};
@@ -976,13 +978,8 @@ class BinaryRecordParserImpl final : public BinaryRecordParser {
   }
 
  private:
-  ColumnPlan plan_;
   std::vector<Field> fields_;
   std::size_t size_;
-  std::vector<const LasTextColumn*> las_columns_;
-  std::string name_;
-  std::string extra_vlr_;
-  std::uint32_t extra_size_;
 };
 
 }  // namespace
