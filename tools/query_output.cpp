@@ -59,8 +59,7 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   const AttributeSet& want = options.attributes;
   if (Status s = check_attributes(info, want, archive_path); !s) return fail(command, s);
   // The LAS attributes written: those asked for, the colour low bytes with the colours.
-  const std::uint32_t las_kept =
-      info.las_attributes & ((want.las & ~std::uint32_t{kLasColorLow}) | (want.colors ? kLasColorLow : 0u));
+  const std::uint32_t las_kept = info.las_attributes & want.las_kept();
   WriterOptions w;
   w.colors = info.has_colors && want.colors;
   w.intensity = info.has_intensity && want.intensity;

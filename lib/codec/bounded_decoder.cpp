@@ -91,13 +91,12 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
   if (n == 0) return out;
   // The LAS sections to decode: those wanted and those they are coded
   // against (number of returns against return numbers; from format 6, the
-  // attributes in time order against the GPS times; colour low bytes
-  // against the colours).
-  std::uint32_t las = want.las & ~std::uint32_t{kLasColorLow};
-  if (want.colors) las |= kLasColorLow;
+  // attributes in time order against the GPS times). The colour low bytes,
+  // coded against the colours, come with them (AttributeSet::las_kept).
+  std::uint32_t las = want.las_kept();
   if ((las & kLasNumberOfReturns) != 0) las |= kLasReturnNumber;
   if ((las & kLasTimeOrdered) != 0 && h.version >= 6) las |= kLasGpsTime;
-  const bool with_colors = want.colors || (las & kLasColorLow) != 0;
+  const bool with_colors = want.colors;
   // The order mask's slots (§11.3.3) of the sections decoded.
   std::uint8_t slots = 0;
   if (with_colors) slots |= 1u << kOrderSlotColors;

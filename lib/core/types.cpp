@@ -291,8 +291,7 @@ void keep_attributes(PointCloud& cloud, const AttributeSet& set) {
   if (set.everything()) return;
   if (!set.colors) std::vector<Rgb8>().swap(cloud.colors);
   if (!set.intensity) std::vector<float>().swap(cloud.intensities);
-  std::uint32_t keep = set.las & ~std::uint32_t{kLasColorLow};
-  if (set.colors) keep |= kLasColorLow;
+  const std::uint32_t keep = set.las_kept();
   cloud.las.for_each_vector([&](auto& v, std::uint32_t bit) {
     if ((keep & bit) == 0) std::remove_reference_t<decltype(v)>().swap(v);
   });

@@ -105,8 +105,7 @@ class WithAttributes final : public PointReader {
     info_ = inner_->info();
     info_.has_colors = info_.has_colors && keep_.colors;
     info_.has_intensity = info_.has_intensity && keep_.intensity;
-    const std::uint32_t las = (keep_.las & ~std::uint32_t{kLasColorLow}) | (keep_.colors ? kLasColorLow : 0u);
-    info_.las_attributes &= las;
+    info_.las_attributes &= keep_.las_kept();
     if ((info_.las_attributes & kLasExtraBytes) == 0) {
       info_.extra_bytes_vlr.clear();
       info_.extra_bytes_size = 0;
@@ -150,9 +149,8 @@ Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
   if (!options.extra_bytes) keep.las &= ~std::uint32_t{kLasExtraBytes};
   // Nothing to drop: the reader as it is.
   const PointStreamInfo& info = reader->info();
-  const std::uint32_t las_kept = (keep.las & ~std::uint32_t{kLasColorLow}) | (keep.colors ? kLasColorLow : 0u);
   if ((!info.has_colors || keep.colors) && (!info.has_intensity || keep.intensity) &&
-      (info.las_attributes & ~las_kept) == 0) {
+      (info.las_attributes & ~keep.las_kept()) == 0) {
     return reader;
   }
   return std::unique_ptr<PointReader>(std::make_unique<WithAttributes>(std::move(reader), keep));
@@ -198,9 +196,7 @@ Result<std::vector<std::string>> read_input_list(const std::string& path) {
   if (!in) return io_error(path + ": cannot open the input list: " + std::strerror(errno));
   std::vector<std::string> out;
   std::string line;
-  std::uint64_t line_no = 0;
   while (std::getline(in, line)) {
-    ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const std::size_t first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;

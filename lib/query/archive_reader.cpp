@@ -280,7 +280,7 @@ class Reader final : public ArchiveReader {
     // What the chunks decode: the attributes asked for and those the filters read.
     // (The colour low bytes go with the colours.)
     AttributeSet decoded = options.attributes;
-    decoded.las = (decoded.las & ~std::uint32_t{kLasColorLow}) | (decoded.colors ? kLasColorLow : 0u) | filter.bits;
+    decoded.las = decoded.las_kept() | filter.bits;
 
     // core/parallel.h's ordered pipeline: this thread reads blobs (one
     // SQLite connection; checksum failures surface here) a few chunks ahead,

@@ -136,6 +136,11 @@ struct AttributeSet {
   static AttributeSet all() { return {}; }
   static AttributeSet none() { return {false, false, 0}; }
   bool everything() const { return colors && intensity && (las | ~((1u << kLasAttributeCount) - 1)) == ~0u; }
+  // The LasAttributeBits kept: `las`, with the colour low bytes exactly when
+  // the colours are.
+  std::uint32_t las_kept() const {
+    return (las & ~std::uint32_t{kLasColorLow}) | (colors ? std::uint32_t{kLasColorLow} : 0u);
+  }
   bool operator==(const AttributeSet&) const = default;
 };
 // An AttributeSet from a comma-separated list of "rgb", "intensity", the
