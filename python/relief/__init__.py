@@ -460,6 +460,13 @@ def _checked(name, values, target):
     return np.ascontiguousarray(values, dtype=t)
 
 
+def stats(path, *, attributes=None):
+    """What a point file (LAS, LAZ, PLY, XYZ/CSV, PCD) holds, summarised as
+    ``Archive.stats`` summarises an archive (the same dict): compare the two
+    to check an archive against its source."""
+    return _json.loads(_relief.file_stats_json(str(path), _attribute_list(attributes)))
+
+
 def write(path, points, *, crs=None, scale=None):
     """Writes a numpy structured array of points to a point file.
 

@@ -426,6 +426,22 @@ PYBIND11_MODULE(_relief, m) {
   m.def("option_names", &option_names, py::arg("command"), py::arg("flags"));
   m.def("ingest", &ingest, py::arg("command"), py::arg("inputs"), py::arg("archive"), py::arg("options"),
         py::arg("progress"));
+  m.def(
+      "file_stats_json",
+      [](const std::string& path, const std::string& attributes) {
+        ReaderOptions options;
+        Result<AttributeSet> set = parse_attribute_set(attributes);
+        if (!set) raise_status(set.status());
+        options.attributes = *set;
+        Result<ArchiveStats> r = Status(internal_error("stats did not run"));
+        {
+          py::gil_scoped_release release;
+          r = point_file_stats(path, options);
+        }
+        if (!r) raise_status(r.status());
+        return archive_stats_json(*r);
+      },
+      py::arg("path"), py::arg("attributes"));
 
   py::class_<BatchIterator>(m, "BatchIterator")
       .def("__iter__", [](BatchIterator& it) -> BatchIterator& { return it; })

@@ -497,6 +497,10 @@ def test_stats_match_the_points(tmp_path):
         only = archive.stats(box, attributes=["return_number"])
         assert set(only) == {"points", "x", "y", "z", "return_number"}
         assert sum(only["return_number"].values()) == 3000
+    with relief.open(tmp_path / "p.relief") as archive:
+        assert relief.stats(tmp_path / "p.las") == archive.stats()  # the source file, summarised alike
+    with pytest.raises(relief.IoError):
+        relief.stats(tmp_path / "missing.las")
     relief.compress(tmp_path / "p.las", tmp_path / "k.relief", attributes=["classification", "gps_time"])
     with relief.open(tmp_path / "k.relief") as archive:
         assert archive.info["attributes"] == ["classification", "gps_time"]
