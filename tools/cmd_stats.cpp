@@ -28,7 +28,8 @@ constexpr const char* kUsageText =
 
     "  --json           one JSON object instead of text\n"
     "  --threads N      decoder threads (default: all cores)\n"
-    "  --skip-corrupt   report damaged chunks and go on instead of failing\n";
+    "  --skip-corrupt   report damaged chunks and go on instead of failing\n"
+    "  --quiet          no progress line on the terminal\n";
 
 std::string grouped(std::uint64_t v) {
   std::string digits = std::to_string(v), out;
@@ -111,7 +112,7 @@ void print_text(const ArchiveStats& s) {
 }  // namespace
 
 int run_stats(int argc, char** argv) {
-  Args args(argc, argv, {"--help", "--json", "--skip-corrupt", "--first-returns", "--last-returns"},
+  Args args(argc, argv, {"--help", "--json", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"},
             {"--box", "--attributes", "--threads", "--class"});
   if (args.has("--help")) {
     std::cout << kUsageText << kQueryFilterHelp;
@@ -136,7 +137,10 @@ int run_stats(int argc, char** argv) {
   } else {
     auto reader = ArchiveReader::open(path);
     if (!reader) return fail(kCommand, reader.status());
-    stats = archive_stats(**reader, box_text ? &box : nullptr, q);
+    // A progress line on a terminal (stderr), the share known for a whole archive.
+    QueryProgress progress(path, box_text ? 0 : (*reader)->info().decoded_points, args.has("--quiet"));
+    stats = archive_stats(**reader, box_text ? &box : nullptr, q, [&](std::uint64_t n) { progress.count(n); });
+    end_progress_line();
   }
   if (!stats) return fail(kCommand, stats.status());
   if (args.has("--json")) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -165,7 +166,8 @@ std::string histogram_json(const std::array<std::uint64_t, N>& h) {
 
 }  // namespace
 
-Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, const QueryOptions& options) {
+Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, const QueryOptions& options,
+                                   const std::function<void(std::uint64_t points)>& progress) {
   if (options.lod != 1 || options.max_points != 0) {
     return invalid_argument("statistics are of every point: no level of detail or maximum number of points");
   }
@@ -175,6 +177,7 @@ Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, cons
                  options.attributes);
   const PointSink sink = [&](const PointCloud& batch) {
     sum.add(batch);
+    if (progress) progress(batch.size());
     return Status::ok();
   };
   RELIEF_RETURN_IF_ERROR((box != nullptr ? reader.query(*box, options, sink) : reader.query_all(options, sink)).status());

@@ -162,7 +162,9 @@ struct ArchiveStats {
 // fraction of a full decode. kInvalidArgument for a level of detail above 1
 // (coarse levels read from the base layer carry no LAS attributes but a
 // classification, which would summarise as zeros) or max_points.
-Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, const QueryOptions& options);
+// `progress`, when set, hears the points of each batch as it is summarised.
+Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, const QueryOptions& options,
+                                   const std::function<void(std::uint64_t points)>& progress = {});
 // The same of a point file (any format open_point_reader reads), read whole
 // with `options` (its `attributes` choose what is summarised): `relief stats
 // in.laz` beside `relief stats out.relief` checks an archive against its
