@@ -137,8 +137,9 @@ int run_stats(int argc, char** argv) {
   } else {
     auto reader = ArchiveReader::open(path);
     if (!reader) return fail(kCommand, reader.status());
-    // A progress line on a terminal (stderr), the share known for a whole archive.
-    QueryProgress progress(path, box_text ? 0 : (*reader)->info().decoded_points, args.has("--quiet"));
+    // A progress line on a terminal (stderr), the share known for a whole archive unfiltered.
+    const bool whole = !box_text && q.classes.empty() && !q.first_returns && !q.last_returns;
+    QueryProgress progress(path, whole ? (*reader)->info().decoded_points : 0, args.has("--quiet"));
     stats = archive_stats(**reader, box_text ? &box : nullptr, q, [&](std::uint64_t n) { progress.count(n); });
     end_progress_line();
   }
