@@ -133,7 +133,9 @@ int run_stats(int argc, char** argv) {
     }
     ReaderOptions ro;
     ro.attributes = q.attributes;
-    stats = point_file_stats(path, ro);
+    QueryProgress progress(path, 0, args.has("--quiet"));
+    stats = point_file_stats(path, ro, [&](std::uint64_t n) { progress.count(n); });
+    end_progress_line();
   } else {
     auto reader = ArchiveReader::open(path);
     if (!reader) return fail(kCommand, reader.status());

@@ -184,7 +184,8 @@ Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, cons
   return sum.take();
 }
 
-Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptions& options) {
+Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptions& options,
+                                      const std::function<void(std::uint64_t points)>& progress) {
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, options));
   // A reader knows some things only once it has read (a PLY's extra
   // properties do not change, but a text file's colour rule may): the
@@ -205,6 +206,7 @@ Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptio
     }
     if (n == 0) break;
     sum->add(batch);
+    if (progress) progress(n);
   }
   return sum->take();
 }

@@ -169,7 +169,8 @@ Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, cons
 // with `options` (its `attributes` choose what is summarised): `relief stats
 // in.laz` beside `relief stats out.relief` checks an archive against its
 // source.
-Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptions& options = {});
+Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptions& options = {},
+                                      const std::function<void(std::uint64_t points)>& progress = {});
 // The statistics as one JSON object: what `relief stats --json` prints and
 // Python's Archive.stats returns.
 std::string archive_stats_json(const ArchiveStats& stats);
