@@ -3,6 +3,13 @@
 // ~10 M-point archive. Prints CSV.
 //
 //   build/bench/query [--data DIR] [--tmp DIR] [--repeat N] [--chunk-edge M]
+//   build/bench/query --decode ARCHIVE [--repeat N] [--threads N]
+//
+// --decode: a whole-archive decode of an existing archive (e.g. the survey
+// `bench/ingest --billion --keep DIR` leaves) through the library, with every
+// attribute, x y z alone, the classification, GPS times, and colours
+// (QueryOptions::attributes), the five alternated; median seconds and
+// M points/s.
 //
 // Boxes are 2D (all heights) covering 0.1 %, 1 %, 10 % and 100 % of the
 // scene's x-y bounding-box area, at 9 positions each (a 3 x 3 grid over the
@@ -39,6 +46,55 @@ void remove_archive(const std::string& p) {
   for (const char* s : {"", "-wal", "-shm"}) fs::remove(p + s);
 }
 
+int decode_subsets(const std::string& path, int repeat, unsigned threads) {
+  auto reader = relief::ArchiveReader::open(path);
+  if (!reader) {
+    std::fprintf(stderr, "%s\n", reader.status().to_string().c_str());
+    return 1;
+  }
+  const relief::ArchiveInfo& info = (*reader)->info();
+  struct Run {
+    const char* name;
+    relief::AttributeSet attributes;
+    std::vector<double> times;
+    std::uint64_t points = 0;
+  };
+  std::vector<Run> runs = {{"all", relief::AttributeSet::all(), {}},
+                           {"none", relief::AttributeSet::none(), {}},
+                           {"classification", {false, false, relief::kLasClassification}, {}},
+                           {"gps_time", {false, false, relief::kLasGpsTime}, {}},
+                           {"rgb", {true, false, 0}, {}}};
+  std::printf("# %s: %llu points, %llu chunks, attributes %s; %u decoder threads, median of %d\n", path.c_str(),
+              static_cast<unsigned long long>(info.decoded_points), static_cast<unsigned long long>(info.chunk_count),
+              relief::attribute_set_list({info.has_colors, info.has_intensity, info.las_attributes}).c_str(), threads,
+              repeat);
+  std::printf("attributes,median_s,points,mpts_s,vs_all\n");
+  for (int k = 0; k < repeat; ++k) {
+    for (Run& r : runs) {
+      if (!relief::check_attributes(info, r.attributes, path)) continue;  // the archive lacks it
+      relief::QueryOptions q;
+      q.threads = threads;
+      q.attributes = r.attributes;
+      const auto t0 = std::chrono::steady_clock::now();
+      auto s = (*reader)->query_all(q, [](const relief::PointCloud&) { return relief::Status::ok(); });
+      if (!s) {
+        std::fprintf(stderr, "%s\n", s.status().to_string().c_str());
+        return 1;
+      }
+      r.times.push_back(seconds_since(t0));
+      r.points = s->points;
+    }
+  }
+  const double all = median(runs[0].times);
+  for (const Run& r : runs) {
+    if (r.times.empty()) continue;
+    const double t = median(r.times);
+    std::printf("%s,%.3f,%llu,%.2f,%.2f\n", r.name, t, static_cast<unsigned long long>(r.points),
+                static_cast<double>(r.points) / t * 1e-6, all / t);
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -47,6 +103,8 @@ int main(int argc, char** argv) {
   std::string cli = RELIEF_BENCH_CLI;
   int repeat = 3;
   double chunk_edge = 24.0;  // 4 cells of the aerial tile's ~6 m default cell
+  std::string decode;
+  unsigned threads = 2;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const auto value = [&]() -> const char* { return i + 1 < argc ? argv[++i] : ""; };
@@ -58,11 +116,18 @@ int main(int argc, char** argv) {
       repeat = std::max(1, std::atoi(value()));
     } else if (a == "--chunk-edge") {
       chunk_edge = std::atof(value());
+    } else if (a == "--decode") {
+      decode = value();
+    } else if (a == "--threads") {
+      threads = static_cast<unsigned>(std::max(1, std::atoi(value())));
     } else {
-      std::fprintf(stderr, "usage: query [--data DIR] [--tmp DIR] [--repeat N] [--chunk-edge M]\n");
+      std::fprintf(stderr,
+                   "usage: query [--data DIR] [--tmp DIR] [--repeat N] [--chunk-edge M]\n"
+                   "       query --decode ARCHIVE [--repeat N] [--threads N]\n");
       return a == "--help" ? 0 : 2;
     }
   }
+  if (!decode.empty()) return decode_subsets(decode, repeat, threads);
   const std::string input = data + "/medium/fr_aerial_rgb_698k.ply";
   if (!fs::exists(input)) {
     std::printf("# skipped: %s absent\n", input.c_str());
