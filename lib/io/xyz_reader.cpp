@@ -391,6 +391,7 @@ void put_le(std::vector<std::uint8_t>& out, std::uint64_t bits, std::size_t size
 // LAS Extra Bytes data types of the kept text columns (see the top of the file).
 constexpr int kUInt64 = 7;
 constexpr int kInt64 = 8;
+constexpr int kFloat32 = 9;
 constexpr int kFloat64 = 10;
 // Integers up to 2^53 in magnitude are exact as doubles.
 constexpr std::uint64_t kExactInDouble = std::uint64_t{1} << 53;
@@ -465,13 +466,13 @@ const char* type_name(int type) {
 // or a number with no fraction (CloudCompare writes "12.000000") up to 2^53,
 // within the type's range; an empty value is refused (no missing value).
 std::string typed_value_problem(std::string_view tok, int type, std::uint64_t& bits) {
-  if (type == kFloat64 || type == 9) {
+  if (type == kFloat64 || type == kFloat32) {
     double value = std::numeric_limits<double>::quiet_NaN();
     if (!tok.empty() && !parse_number(tok, value)) return quoted(tok) + " is not a number";
-    if (!tok.empty() && !holds_integer_exactly(tok, value)) {
-      return quoted(tok) + " is an integer a float64 cannot hold exactly";
-    }
     if (type == kFloat64) {
+      if (!tok.empty() && !holds_integer_exactly(tok, value)) {
+        return quoted(tok) + " is an integer a float64 cannot hold exactly";
+      }
       bits = std::bit_cast<std::uint64_t>(value);
       return "";
     }
