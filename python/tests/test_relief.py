@@ -456,11 +456,17 @@ def test_compress_a_directory_of_tiles(tmp_path):
         relief.compress(tmp_path / "empty", tmp_path / "e.relief")
 
 
-def test_query_attributes_gives_only_those_fields(tmp_path):
+def _every_field_archive(tmp_path, ext):
+    """3000 points with every LAS field, written as p.EXT and compressed to p.relief."""
     a = _every_las_field(3000)
-    relief.write(tmp_path / "p.laz", a)
-    relief.compress(tmp_path / "p.laz", tmp_path / "p.relief")
-    with relief.open(tmp_path / "p.relief") as archive:
+    relief.write(tmp_path / f"p.{ext}", a)
+    relief.compress(tmp_path / f"p.{ext}", tmp_path / "p.relief")
+    return a, tmp_path / "p.relief"
+
+
+def test_query_attributes_gives_only_those_fields(tmp_path):
+    _, path = _every_field_archive(tmp_path, "laz")
+    with relief.open(path) as archive:
         full = archive.query()
         for asked, fields in [("none", ("x", "y", "z")), ([], ("x", "y", "z")),
                               (["classification", "gps_time"], ("x", "y", "z", "classification", "gps_time")),
@@ -482,10 +488,8 @@ def test_query_attributes_gives_only_those_fields(tmp_path):
 
 
 def test_stats_match_the_points(tmp_path):
-    a = _every_las_field(3000)
-    relief.write(tmp_path / "p.las", a)
-    relief.compress(tmp_path / "p.las", tmp_path / "p.relief")
-    with relief.open(tmp_path / "p.relief") as archive:
+    a, path = _every_field_archive(tmp_path, "las")
+    with relief.open(path) as archive:
         s = archive.stats()
         assert s["points"] == 3000
         values, counts = np.unique(a["classification"], return_counts=True)
