@@ -2,6 +2,7 @@
 // points hold, attribute by attribute (lasinfo's summary for an archive).
 #include <cstdio>
 #include <iostream>
+#include <iterator>
 #include <string>
 
 #include "box_arg.h"
@@ -67,6 +68,30 @@ void print_histogram(const char* name, const std::array<std::uint64_t, N>& h, st
   std::printf("%s\n", any ? "" : " (none)");
 }
 
+// ASPRS LAS 1.4 R15 Table 17: the standard classes (19-63 reserved, 64-255 user definable).
+const char* class_name(std::size_t c) {
+  constexpr const char* kNames[] = {"never classified", "unclassified", "ground", "low vegetation",
+                                    "medium vegetation", "high vegetation", "building", "low point (noise)",
+                                    "reserved", "water", "rail", "road surface", "reserved",
+                                    "wire - guard (shield)", "wire - conductor (phase)", "transmission tower",
+                                    "wire-structure connector", "bridge deck", "high noise"};
+  if (c < std::size(kNames)) return kNames[c];
+  return c < 64 ? "reserved" : "user defined";
+}
+
+// One line per class present: value, ASPRS name, count, share.
+void print_classes(const std::array<std::uint64_t, 256>& h, std::uint64_t points) {
+  bool any = false;
+  for (std::size_t k = 0; k < h.size(); ++k) {
+    if (h[k] == 0) continue;
+    std::printf("%-20s %3zu %-26s %15s (%.2f %%)\n", any ? "" : "classification", k, class_name(k),
+                grouped(h[k]).c_str(),
+                points > 0 ? 100.0 * static_cast<double>(h[k]) / static_cast<double>(points) : 0.0);
+    any = true;
+  }
+  if (!any) std::printf("%-20s (none)\n", "classification");
+}
+
 void print_count(const char* name, std::uint64_t n, std::uint64_t points) {
   std::printf("%-20s %s (%.2f %%)\n", name, grouped(n).c_str(),
               points > 0 ? 100.0 * static_cast<double>(n) / static_cast<double>(points) : 0.0);
@@ -84,7 +109,7 @@ void print_text(const ArchiveStats& s) {
   }
   if (s.has_intensity) print_range("intensity", s.intensity, "%.6g");
   const auto has = [&](std::uint32_t bit) { return (s.las & bit) != 0; };
-  if (has(kLasClassification)) print_histogram("classification", s.classification, s.points);
+  if (has(kLasClassification)) print_classes(s.classification, s.points);
   if (has(kLasClassFlags)) {
     print_count("synthetic", s.synthetic, s.points);
     print_count("key_point", s.key_point, s.points);
