@@ -666,6 +666,9 @@ TEST_CASE("archive_stats summarises every attribute as the input holds it, only 
   CHECK_THAT(text.output, Contains("points               " ));
   CHECK_THAT(text.output, Contains("gps_time"));
   CHECK(text.output.find("intensity") == std::string::npos);
+  // One line per class present, with its ASPRS name.
+  REQUIRE(classes[2] > 0);
+  CHECK_THAT(text.output, Contains("  2 ground "));
   const auto json = relief::test::run_cli(cli(), "stats " + archive + " --json --attributes point_source_id");
   REQUIRE(json.code == 0);
   CHECK_THAT(json.output, Contains("\"point_sources\": " + std::to_string(sources.size())));
