@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 
+#include "codec/color_window.h"
 #include "codec/range_coder.h"
 
 namespace relief::codec {
@@ -66,63 +67,7 @@ class PreviousColor {
   int cls_g_ = 0, cls_r_ = 0, cls_b_ = 0;
 };
 
-// Relative distances clamp at kFarRatio (§11.4.1).
-constexpr std::uint32_t kFarRatio = 4095;
-
-struct WindowSums {
-  std::uint64_t w = 0, r = 0, g = 0, b = 0, act = 0;
-};
-
-// The weighted sums of §11.4.1 over points first..i-1 for point i: squared
-// distances (cell coordinates are below 2^21, so each |difference| fits 32
-// bits and the square 64), then each relative to the nearest: q = max(4 d, 1)
-// shifted right by s, where s brings the nearest's q below 32, so the weights
-// do not depend on the grid's scale (a LAS grid of 1 cm puts neighbours
-// hundreds of cells apart, a coarse one in the same cell). Built twice, for
-// AVX2 and for the baseline, the loader picking one (the same integers
-// either way).
-__attribute__((target_clones("avx2", "default"))) WindowSums window_sums(
-    const std::vector<std::uint32_t> (&axes)[3], const std::vector<std::uint8_t> (&channels)[3],
-    const std::uint8_t* activity, std::size_t first, std::size_t i, const std::uint32_t* table) {
-  const std::size_t window = i - first;
-  const std::uint32_t* xs = axes[0].data() + first;
-  const std::uint32_t* ys = axes[1].data() + first;
-  const std::uint32_t* zs = axes[2].data() + first;
-  const std::uint32_t cx = axes[0][i], cy = axes[1][i], cz = axes[2][i];
-  std::uint64_t q[kColorWindow];
-  std::uint64_t q_min = ~std::uint64_t{0};
-  for (std::size_t u = 0; u < window; ++u) {
-    const auto dx = static_cast<std::int32_t>(xs[u] - cx);
-    const auto dy = static_cast<std::int32_t>(ys[u] - cy);
-    const auto dz = static_cast<std::int32_t>(zs[u] - cz);
-    const auto ax = static_cast<std::uint32_t>((dx ^ (dx >> 31)) - (dx >> 31));
-    const auto ay = static_cast<std::uint32_t>((dy ^ (dy >> 31)) - (dy >> 31));
-    const auto az = static_cast<std::uint32_t>((dz ^ (dz >> 31)) - (dz >> 31));
-    const std::uint64_t d = std::uint64_t{ax} * ax + std::uint64_t{ay} * ay + std::uint64_t{az} * az;
-    q[u] = std::max<std::uint64_t>(4 * d, 1);  // d < 3 * 2^42
-    q_min = std::min(q_min, q[u]);
-  }
-  const int shift = std::max(0, static_cast<int>(std::bit_width(q_min)) - 5);
-  // The table lookups first, then sums the compiler can vectorise (a loop
-  // with both does not).
-  std::uint32_t weight[kColorWindow];
-  for (std::size_t u = 0; u < window; ++u) weight[u] = table[std::min<std::uint64_t>(q[u] >> shift, kFarRatio)];
-  // Weights below 2^31 and values below 2^8: 32 products sum below 2^44.
-  WindowSums s;
-  const std::uint8_t* rs = channels[0].data() + first;
-  const std::uint8_t* gs = channels[1].data() + first;
-  const std::uint8_t* bs = channels[2].data() + first;
-  const std::uint8_t* as = activity + first;
-  for (std::size_t u = 0; u < window; ++u) {
-    const std::uint64_t w = weight[u];
-    s.w += w;
-    s.r += w * rs[u];
-    s.g += w * gs[u];
-    s.b += w * bs[u];
-    s.act += w * as[u];
-  }
-  return s;
-}
+static_assert(kColorWindow == 32, "color_window.cpp's vector form assumes a window of 32");
 
 // §11.4.1: the previous kColorWindow points, each weighted by its inverse
 // squared cell distance relative to the nearest one's (with a colour
@@ -144,8 +89,9 @@ class NeighbourColor {
     if (i == 0) return {};
     const std::size_t window = std::min(i, kColorWindow);
     const std::size_t first = i - window;
-    const WindowSums sums = window_sums(axes_, channels_, activity_.data(), first, i,
-                                        exact_ ? weights<2>().data() : weights<1>().data());
+    const ColorWindowView view{axes_[0].data(),     axes_[1].data(),     axes_[2].data(),  channels_[0].data(),
+                               channels_[1].data(), channels_[2].data(), activity_.data()};
+    const WindowSums sums = window_sums(view, first, i, exact_ ? weights<2>().data() : weights<1>().data());
     const std::uint64_t w_sum = sums.w, r = sums.r, g = sums.g, b = sums.b, act = sums.act;
     const std::uint64_t half = w_sum / 2;
     const int ctx = static_cast<int>(std::min<std::uint64_t>(kClasses - 1, 2 * act / (3 * w_sum)));
