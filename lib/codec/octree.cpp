@@ -1,7 +1,6 @@
 #include "codec/octree.h"
 
 #include <algorithm>
-#include <array>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,23 +65,30 @@ struct TreeBuilder {
 void radix_sort(std::vector<KeyedIndex>& items, int key_bits) {
   const std::size_t n = items.size();
   if (n < 2 || key_bits <= 0) return;
-  // Every pass's histogram in one read of the items, then a pass per byte of
-  // the key that varies (one holding a single value everywhere moves nothing).
-  const int passes = std::min((key_bits + 7) / 8, 8);
-  std::vector<std::array<std::size_t, 256>> count(static_cast<std::size_t>(passes));
-  for (auto& c : count) c.fill(0);
+  key_bits = std::min(key_bits, 64);
+  // Digits of 11 bits for large inputs (a 51-bit key in 5 passes instead of
+  // 7; 2,048 buckets still fit the L2 cache), bytes for small ones, whose
+  // passes the buckets' prefix sums would dominate. Stable either way, so
+  // the order is the same.
+  const int digit_bits = n >= 65536 ? 11 : 8;
+  const std::size_t buckets = std::size_t{1} << digit_bits;
+  const std::uint64_t digit_mask = buckets - 1;
+  const int passes = (key_bits + digit_bits - 1) / digit_bits;
+  // Every pass's histogram in one read of the items, then a pass per digit
+  // that varies (one holding a single value everywhere moves nothing).
+  std::vector<std::size_t> count(static_cast<std::size_t>(passes) * buckets, 0);
   for (const KeyedIndex& it : items) {
-    for (int p = 0; p < passes; ++p) ++count[static_cast<std::size_t>(p)][(it.key >> (8 * p)) & 0xffu];
+    for (int p = 0; p < passes; ++p) ++count[static_cast<std::size_t>(p) * buckets + ((it.key >> (digit_bits * p)) & digit_mask)];
   }
   std::vector<KeyedIndex> tmp;
   for (int p = 0; p < passes; ++p) {
-    std::array<std::size_t, 256>& c = count[static_cast<std::size_t>(p)];
-    if (std::find(c.begin(), c.end(), n) != c.end()) continue;
+    std::size_t* c = count.data() + static_cast<std::size_t>(p) * buckets;
+    if (std::find(c, c + buckets, n) != c + buckets) continue;
     std::size_t sum = 0;
-    for (std::size_t& v : c) sum += std::exchange(v, sum);  // bucket starts
+    for (std::size_t b = 0; b < buckets; ++b) sum += std::exchange(c[b], sum);  // bucket starts
     if (tmp.empty()) tmp.resize(n);
-    const int shift = 8 * p;
-    for (const KeyedIndex& it : items) tmp[c[(it.key >> shift) & 0xffu]++] = it;
+    const int shift = digit_bits * p;
+    for (const KeyedIndex& it : items) tmp[c[(it.key >> shift) & digit_mask]++] = it;
     items.swap(tmp);
   }
 }

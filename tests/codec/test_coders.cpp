@@ -246,7 +246,7 @@ bool fails_with(const relief::Result<T>& result, StatusCode code) {
 TEST_CASE("radix_sort is a stable sort by the key's low key_bits bits", "[coders]") {
   std::mt19937_64 rng(17);
   for (const int key_bits : {1, 7, 8, 9, 24, 33, 48, 63, 64}) {
-    for (const std::size_t n : {0, 1, 2, 300, 5000}) {
+    for (const std::size_t n : {0, 1, 2, 300, 5000, 70000}) {  // bytes, then 11-bit digits
       INFO(key_bits << " bits, " << n << " items");
       const std::uint64_t mask = key_bits == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << key_bits) - 1;
       std::vector<relief::codec::KeyedIndex> items(n);
