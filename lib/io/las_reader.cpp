@@ -832,6 +832,11 @@ Status LasPointReader::start_laz(const ProjectionRecords& records) {
   // The table runs to the extended VLRs when they follow it, else to the end.
   std::uint64_t end = *size;
   if (header_.evlr_count > 0 && header_.evlr_start > table_offset) end = header_.evlr_start;
+  if (table_offset >= *size && table_offset != kChunkTableAtEnd) {
+    // The usual sign of a cut download or copy: say so.
+    return format_error(name() + ": truncated: the LAZ chunk table is at byte " + std::to_string(table_offset) +
+                        " but the file ends at byte " + std::to_string(*size));
+  }
   if (table_offset < first_chunk || table_offset >= end) {
     return format_error(name() + ": the LAZ chunk table offset " + std::to_string(table_offset) +
                         " lies outside the point data (bytes " + std::to_string(first_chunk) + " to " +

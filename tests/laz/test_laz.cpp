@@ -151,6 +151,23 @@ TEST_CASE("Truncated LAZ files are refused at every length", "[laz][reject]") {
   }
 }
 
+TEST_CASE("A LAZ file cut inside its points says it is truncated", "[laz][reject]") {
+  // A cut download or copy: the chunk table offset points past the end.
+  const auto f = slurp(kSimpleLaz);
+  const Header h = header_of(f);
+  test::TempDir tmp;
+  for (const std::size_t n : {static_cast<std::size_t>(h.point_offset) + 8, static_cast<std::size_t>(h.point_offset) + 100,
+                              f.size() / 2}) {
+    INFO("cut to " << n << " bytes");
+    const std::string path = tmp.file("cut.laz");
+    spit(path, std::vector<std::uint8_t>(f.begin(), f.begin() + static_cast<std::ptrdiff_t>(n)));
+    const auto r = read_all(path);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().message().find("cut.laz: truncated: the LAZ chunk table is at byte ") != std::string::npos);
+    CHECK(r.status().message().find("but the file ends at byte " + std::to_string(n)) != std::string::npos);
+  }
+}
+
 TEST_CASE("Damaged LASzip VLRs are refused", "[laz][reject]") {
   const auto f = slurp(kSimpleLaz);
   const Header h = header_of(f);
