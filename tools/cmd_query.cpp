@@ -12,9 +12,9 @@ namespace {
 constexpr const char* kCommand = "query";
 constexpr const char* kUsageText =
     "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L | --max-points N] [--class C,...]\n"
-    "                    [--first-returns] [--last-returns] [--attributes LIST] -o OUT\n"
-    "Writes the archive's points inside the box (bounds included). Only the chunks the box\n"
-    "touches are read and decoded.\n"
+    "                    [--first-returns] [--last-returns] [--attributes LIST] [--polygon WKT] -o OUT\n"
+    "Writes the archive's points inside the box (bounds included) and the polygon, when given\n"
+    "(then --box is optional). Only the chunks they touch are read and decoded.\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"
     "  --lod L          level of detail: a spatially uniform ~1/L of the points (1..1024, default 1);\n"
     "                   read from the archive's pyramid where it has one\n"
@@ -28,7 +28,7 @@ constexpr const char* kUsageText =
 }  // namespace
 
 int run_query(int argc, char** argv) {
-  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--box", "--lod", "--max-points", "-o", "--threads", "--class", "--attributes"});
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--box", "--lod", "--max-points", "-o", "--threads", "--class", "--attributes", "--polygon"});
   if (args.has("--help")) {
     std::cout << kUsageText << kQueryFilterHelp;
     return kExitOk;
@@ -37,13 +37,13 @@ int run_query(int argc, char** argv) {
   if (!args.ok()) return usage_error(kCommand, args.error());
   if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE");
   const auto box_text = args.get("--box");
-  if (!box_text) return usage_error(kCommand, "missing --box");
+  if (!box_text && !q.polygon) return usage_error(kCommand, "missing --box (or --polygon)");
   Box3d box;
   std::string error;
-  if (!parse_box(*box_text, box, error)) return usage_error(kCommand, "--box: " + error);
+  if (box_text && !parse_box(*box_text, box, error)) return usage_error(kCommand, "--box: " + error);
   const auto out = args.get("-o");
   if (!out) return usage_error(kCommand, "missing -o OUT");
-  return run_query_to_file(kCommand, args.positional()[0], &box, *out, q, args.has("--quiet"));
+  return run_query_to_file(kCommand, args.positional()[0], box_text ? &box : nullptr, *out, q, args.has("--quiet"));
 }
 
 }  // namespace relief::cli

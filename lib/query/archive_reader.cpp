@@ -1,5 +1,6 @@
 // Box queries over an archive: index lookup, blob reads with checksum, parallel
 // decode at the requested level of detail, clipping, in-order delivery.
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -77,14 +78,17 @@ Result<LasFilter> make_filter(const QueryOptions& o, const ArchiveInfo& info, co
   return f;
 }
 
-// Keeps the points inside `box` that pass `filter`, then with `every` > 1
-// every every-th of them (a level of detail taken after filtering).
-void select(PointCloud& cloud, const Box3d& box, bool clip_box, const LasFilter& filter, std::uint32_t every) {
+// Keeps the points inside `box` (and `polygon`, when given) that pass
+// `filter`, then with `every` > 1 every every-th of them (a level of detail
+// taken after filtering).
+void select(PointCloud& cloud, const Box3d& box, bool clip_box, const LasFilter& filter, std::uint32_t every,
+            const Polygon2D* polygon = nullptr) {
   std::vector<std::uint32_t> order;
   order.reserve(cloud.size());
   std::uint64_t matched = 0;
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     if (clip_box && !inside(cloud.positions[i], box)) continue;
+    if (polygon != nullptr && !polygon->contains(cloud.positions[i].x, cloud.positions[i].y)) continue;
     if (!filter.pass(cloud.las, i)) continue;
     if (matched++ % every == 0) order.push_back(static_cast<std::uint32_t>(i));
   }
@@ -129,17 +133,32 @@ class Reader final : public ArchiveReader {
     if (box.min.x > box.max.x || box.min.y > box.max.y || box.min.z > box.max.z) {
       return invalid_argument("query box is empty or inverted (a min is above its max)");
     }
+    return query_within(box, options, sink);
+  }
+
+  Result<QueryStats> query_all(const QueryOptions& options, const PointSink& sink) override {
+    const double inf = std::numeric_limits<double>::infinity();
+    const Box3d all{{-inf, -inf, -inf}, {inf, inf, inf}};
+    if (options.polygon) return query_within(all, options, sink);
+    RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, archive_->all_chunks());
+    return run(refs, all, options, sink);
+  }
+
+ private:
+  // A box query, within the polygon's bounds when there is one.
+  Result<QueryStats> query_within(Box3d box, const QueryOptions& options, const PointSink& sink) {
+    if (options.polygon) {
+      const Box3d& p = options.polygon->bounds();
+      box.min.x = std::max(box.min.x, p.min.x);
+      box.min.y = std::max(box.min.y, p.min.y);
+      box.max.x = std::min(box.max.x, p.max.x);
+      box.max.y = std::min(box.max.y, p.max.y);
+      if (box.min.x > box.max.x || box.min.y > box.max.y) return run({}, box, options, sink);
+    }
     RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, archive_->find_chunks(box));
     return run(refs, box, options, sink);
   }
 
-  Result<QueryStats> query_all(const QueryOptions& options, const PointSink& sink) override {
-    RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, archive_->all_chunks());
-    const double inf = std::numeric_limits<double>::infinity();
-    return run(refs, Box3d{{-inf, -inf, -inf}, {inf, inf, inf}}, options, sink);
-  }
-
- private:
   // What a query reads: chunk and pyramid rows, each with the level of
   // detail to decode it at, and a cut for a max_points query that even the
   // top of the pyramid cannot meet.
@@ -270,7 +289,25 @@ class Reader final : public ArchiveReader {
     const std::size_t wave = static_cast<std::size_t>(threads) * kChunksPerThreadPerWave;
     RELIEF_RETURN_IF_ERROR(check_attributes(info_, options.attributes, archive_->path()));
     RELIEF_ASSIGN_OR_RETURN(const LasFilter filter, make_filter(options, info_, archive_->path()));
-    RELIEF_ASSIGN_OR_RETURN(const Plan plan, make_plan(base, box, options, filter.any()));
+    RELIEF_ASSIGN_OR_RETURN(Plan plan, make_plan(base, box, options, filter.any()));
+    // With a polygon: rows wholly outside it are dropped unread, and only
+    // those it crosses are tested point by point.
+    std::vector<bool> crossed(plan.refs.size(), false);
+    if (options.polygon) {
+      Plan kept = plan;
+      kept.refs.clear();
+      kept.lods.clear();
+      crossed.clear();
+      for (std::size_t i = 0; i < plan.refs.size(); ++i) {
+        const Polygon2D::Overlap o = plan.refs[i].bounds.empty() ? Polygon2D::Overlap::kOutside
+                                                                 : options.polygon->classify(plan.refs[i].bounds);
+        if (o == Polygon2D::Overlap::kOutside) continue;
+        kept.refs.push_back(plan.refs[i]);
+        kept.lods.push_back(plan.lods[i]);
+        crossed.push_back(o == Polygon2D::Overlap::kPartial);
+      }
+      plan = std::move(kept);
+    }
     const std::vector<ChunkRef>& refs = plan.refs;
     stats.chunks_in_index = refs.size();
     stats.pyramid_level = plan.level;
@@ -290,6 +327,7 @@ class Reader final : public ArchiveReader {
     struct Slot {
       ChunkRef ref;
       std::uint32_t lod = 1;
+      bool crossed = false;  // by the polygon's edges
       std::vector<std::uint8_t> blob;
       PointCloud points;
       Status status;
@@ -297,6 +335,7 @@ class Reader final : public ArchiveReader {
     const auto read = [&](std::size_t i, Slot& s) {
       s.ref = refs[i];
       s.lod = filter.any() ? 1 : plan.lods[i];
+      s.crossed = crossed[i];
       auto row = s.ref.level == 0 ? archive_->read_chunk(s.ref.id) : archive_->read_level_chunk(s.ref.id);
       if (row) {
         s.blob = std::move(row->blob);
@@ -320,8 +359,8 @@ class Reader final : public ArchiveReader {
       // Every batch carries the archive's LAS attributes, whatever the
       // chunk's scan or layer had.
       conform_las_attributes(s.points, info_.las_attributes & decoded.las, info_.extra_bytes_size);
-      if (filter.any()) {
-        select(s.points, box, !contains(box, s.ref.bounds), filter, every);
+      if (filter.any() || s.crossed) {
+        select(s.points, box, !contains(box, s.ref.bounds), filter, every, s.crossed ? options.polygon.get() : nullptr);
       } else if (!contains(box, s.ref.bounds)) {
         clip(s.points, box);
       }

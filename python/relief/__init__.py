@@ -174,7 +174,7 @@ def append(archive, inputs, *, progress=None, **options):
     return _ingest("append", inputs, archive, options, progress)
 
 
-_QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points", "attributes")
+_QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points", "attributes", "polygon")
 
 
 def _box_values(box):
@@ -262,7 +262,10 @@ class Archive:
         lists, e.g. ``["classification", "gps_time"]`` or ``"rgb,intensity"``;
         ``[]`` or ``"none"`` for x, y, z alone; default all: the others are
         not decoded, which is faster; a name the archive lacks raises
-        InvalidArgumentError).
+        InvalidArgumentError), ``polygon`` (only the points inside this x-y
+        area, as the WKT text of a POLYGON or MULTIPOLYGON in the archive's
+        coordinates, holes by the even-odd rule; with or without ``box``;
+        chunks outside it are not read).
         """
         for name in options:
             if name not in _QUERY_OPTIONS:
@@ -273,10 +276,14 @@ class Archive:
         skip_corrupt = bool(options.get("skip_corrupt", False))
         max_points = options.get("max_points") or 0
         attributes = _attribute_list(options.get("attributes"))
+        polygon = options.get("polygon") or ""
+        if not isinstance(polygon, str):
+            raise TypeError(f"query(): polygon must be WKT text (a str), not {type(polygon).__name__}")
         values = _box_values(box)
         if batches:
-            return self._batches(self._reader.batches(values, lod, threads, skip_corrupt, max_points, attributes))
-        array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points, attributes)
+            return self._batches(
+                self._reader.batches(values, lod, threads, skip_corrupt, max_points, attributes, polygon))
+        array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points, attributes, polygon)
         _warn_all(messages)
         return self._with_extra_fields(array)
 

@@ -22,6 +22,7 @@
 #include "writer.h"
 #include "relief/ingest.h"
 #include "relief/image.h"
+#include "relief/polygon.h"
 #include "relief/query.h"
 #include "relief/render.h"
 #include "relief/status.h"
@@ -133,7 +134,7 @@ std::vector<std::string> option_names(const std::string& command, bool flags) {
 }
 
 QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrupt, std::uint64_t max_points,
-                           const std::string& attributes) {
+                           const std::string& attributes, const std::string& polygon = "") {
   if (lod < 1 || lod > kMaxQueryLod) {
     raise_status(invalid_argument("lod must be a whole number from 1 to " + std::to_string(kMaxQueryLod) +
                                   ", got " + std::to_string(lod)));
@@ -147,6 +148,11 @@ QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrup
   Result<AttributeSet> set = parse_attribute_set(attributes);
   if (!set) raise_status(set.status());
   q.attributes = *set;
+  if (!polygon.empty()) {
+    Result<Polygon2D> area = Polygon2D::from_wkt(polygon, "polygon");
+    if (!area) raise_status(area.status());
+    q.polygon = std::make_shared<const Polygon2D>(std::move(area).value());
+  }
   return q;
 }
 
@@ -243,11 +249,12 @@ class Reader {
 
   // The whole answer as one array, plus the warnings of skipped chunks.
   py::tuple query(const std::optional<std::vector<double>>& box_values, std::uint32_t lod, unsigned threads,
-                  bool skip_corrupt, std::uint64_t max_points, const std::string& attributes) {
+                  bool skip_corrupt, std::uint64_t max_points, const std::string& attributes,
+                  const std::string& polygon) {
     const std::optional<Box3d> box = to_box(box_values);
     std::vector<PointCloud> batches;
     std::vector<std::string> warnings;
-    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes, polygon);
     q.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
     FieldSet fields;
     Result<QueryStats> r = Status(internal_error("query did not run"));
@@ -287,9 +294,10 @@ class Reader {
 
   std::unique_ptr<BatchIterator> batches(const std::optional<std::vector<double>>& box_values,
                                          std::uint32_t lod, unsigned threads, bool skip_corrupt,
-                                         std::uint64_t max_points, const std::string& attributes) {
+                                         std::uint64_t max_points, const std::string& attributes,
+                                         const std::string& polygon) {
     const std::optional<Box3d> box = to_box(box_values);
-    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes, polygon);
     reader();  // refuses a closed archive
     Result<std::unique_ptr<ArchiveReader>> own = [&] {
       py::gil_scoped_release release;
@@ -452,11 +460,11 @@ PYBIND11_MODULE(_relief, m) {
       .def(py::init<const std::string&>(), py::arg("path"))
       .def("info_json", &Reader::info_json)
       .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"))
+           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"))
       .def("stats_json", &Reader::stats_json, py::arg("box"), py::arg("threads"), py::arg("skip_corrupt"),
            py::arg("attributes"))
       .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"))
+           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"))
       .def("preview", &Reader::preview, py::arg("box"), py::arg("lod"), py::arg("width"), py::arg("view"),
            py::arg("azimuth"), py::arg("elevation"), py::arg("threads"), py::arg("encoding"))
       .def("close", &Reader::close)

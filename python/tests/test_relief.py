@@ -113,6 +113,44 @@ def test_box_query(xyz_archive, scene, dims):
     assert sum(len(p) for p in parts) == len(pts)
 
 
+def test_polygon_query(xyz_archive, scene):
+    path, _ = xyz_archive
+    # A triangle with a square hole, in the scene's 40 m square.
+    outer = [(2.0, 3.0), (37.0, 5.0), (20.0, 36.0)]
+    hole = [(15.0, 10.0), (25.0, 10.0), (25.0, 20.0), (15.0, 20.0)]
+    ring = lambda r: "(" + ", ".join(f"{x} {y}" for x, y in r + r[:1]) + ")"
+    wkt = f"POLYGON ({ring(outer)}, {ring(hole)})"
+
+    def crossings(r, x, y):
+        c = np.zeros(len(x), dtype=bool)
+        for (x0, y0), (x1, y1) in zip(r, r[1:] + r[:1]):
+            if (y0, x0) > (y1, x1):
+                x0, y0, x1, y1 = x1, y1, x0, y0
+            if y0 == y1:
+                continue
+            m = (y0 <= y) & (y < y1)
+            c ^= m & (x < x0 + (y - y0) * (x1 - x0) / (y1 - y0))
+        return c
+
+    inside = crossings(outer, scene["x"], scene["y"]) ^ crossings(hole, scene["x"], scene["y"])
+    expected = {k: v[inside] for k, v in scene.items()}
+    with relief.open(path) as a:
+        pts = a.query(polygon=wkt)
+        parts = list(a.query(polygon=wkt, batches=True))
+        boxed = a.query((0, 0, 20, 40), polygon=wkt)
+        coarse = a.query(polygon=wkt, lod=8)
+        with pytest.raises(relief.InvalidArgumentError, match="polygon: ring 1"):
+            a.query(polygon="POLYGON ((0 0, 1 1, 0 0))")
+        with pytest.raises(TypeError, match="WKT"):
+            a.query(polygon=[(0, 0), (1, 0), (1, 1)])
+    assert 1000 < len(pts) < len(scene["x"]) / 2
+    assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(expected, XYZRGBI))
+    assert sum(len(p) for p in parts) == len(pts)
+    assert 0 < len(boxed) < len(pts) and np.all(boxed["x"] <= 20)
+    assert 0 < len(coarse) < len(pts) / 2
+    assert np.all(crossings(outer, coarse["x"], coarse["y"]) ^ crossings(hole, coarse["x"], coarse["y"]))
+
+
 def test_empty_box_gives_an_empty_array_with_the_fields(xyz_archive):
     path, _ = xyz_archive
     with relief.open(path) as a:

@@ -14,6 +14,7 @@
 
 #include "relief/codec.h"
 #include "relief/io.h"
+#include "relief/polygon.h"
 #include "support/run_cli.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
@@ -281,6 +282,54 @@ TEST_CASE("query and decompress: LAS output keeps coordinates within the scale",
   const Run d = run("decompress " + tmp.file("k.relief") + " -o - --quiet");
   CHECK(d.code == 0);
   CHECK(std::count(d.output.begin(), d.output.end(), '\n') > 50000);
+}
+
+TEST_CASE("query and decompress --polygon: the points inside a WKT area", "[cli][query][polygon]") {
+  TempDir tmp;
+  const std::string a = tmp.file("k.relief");
+  REQUIRE(run("compress " + sample() + " -o " + a + " --quiet").code == 0);
+  const std::string wkt = "POLYGON ((-0.5 -0.2, 0.5 -0.2, 0.1 0.5, -0.5 -0.2), (-0.1 -0.1, 0.1 -0.1, 0 0.1, -0.1 -0.1))";
+  write_text(tmp.file("area.wkt"), wkt + "\n");
+  auto area = relief::Polygon2D::from_wkt(wkt, "area");
+  REQUIRE(area.is_ok());
+  REQUIRE(run("decompress " + a + " -o " + tmp.file("all.ply") + " --quiet").code == 0);
+  auto all = relief::read_point_file(tmp.file("all.ply"));
+  REQUIRE(all.is_ok());
+  std::vector<std::array<double, 3>> want;
+  for (const relief::Vec3d& p : all->positions) {
+    if (area->contains(p.x, p.y) && p.z <= -1.0) want.push_back({p.x, p.y, p.z});
+  }
+  std::sort(want.begin(), want.end());
+  REQUIRE(want.size() > 1000);
+  REQUIRE(want.size() < all->size() / 2);
+  // query: a WKT file, and a box beside it (all heights up to z = -1);
+  // decompress: the WKT itself, then the same height cut here.
+  const Run q = run("query " + a + " --polygon @" + tmp.file("area.wkt") + " --box -9,-9,-9,9,9,-1 -o " +
+                    tmp.file("q.ply"));
+  REQUIRE(q.code == 0);
+  const Run d = run("decompress " + a + " --polygon '" + wkt + "' -o " + tmp.file("d.ply") + " --quiet");
+  REQUIRE(d.code == 0);
+  for (const std::string& name : {"q.ply", "d.ply"}) {
+    auto got = relief::read_point_file(tmp.file(name));
+    REQUIRE(got.is_ok());
+    std::vector<std::array<double, 3>> v;
+    for (const relief::Vec3d& p : got->positions) {
+      if (name == "q.ply" || p.z <= -1.0) v.push_back({p.x, p.y, p.z});
+    }
+    std::sort(v.begin(), v.end());
+    INFO(name);
+    CHECK(v == want);
+  }
+  // Refusals: usage errors naming --polygon, and no output.
+  for (const std::string& bad : {std::string("'POLYGON ((0 0, 1 1, 0 0))'"), std::string("'LINESTRING (0 0, 1 1)'"),
+                                 "@" + tmp.file("missing.wkt"), "@" + tmp.path().string()}) {
+    const Run r = run("query " + a + " --polygon " + bad + " -o " + tmp.file("o.ply"));
+    INFO(bad);
+    CHECK(r.code == 2);
+    CHECK(r.output.find("--polygon: ") != std::string::npos);
+  }
+  CHECK_FALSE(fs::exists(tmp.file("o.ply")));
+  CHECK(run("query " + a + " -o " + tmp.file("o.ply")).output.find("missing --box (or --polygon)") != std::string::npos);
 }
 
 TEST_CASE("query and info: clear errors for bad archives and boxes", "[cli][query]") {

@@ -184,6 +184,67 @@ TEST_CASE("a query reads only the chunks whose bounds intersect the box", "[quer
   CHECK(stats.blob_bytes_read < total_bytes / 4);
 }
 
+TEST_CASE("a polygon query returns the points inside it and reads only the chunks it touches", "[query][polygon]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "p");
+  auto reader = ArchiveReader::open(path);
+  REQUIRE(reader.is_ok());
+  const PointCloud full = run_query(**reader, nullptr);
+  // An L-shaped area with a hole, a thin diagonal sliver, and two parts.
+  const std::vector<std::string> areas = {
+      "POLYGON ((1 1, 15 1, 15 5, 5 5, 5 15, 1 15, 1 1), (2 2, 4 2, 4 4, 2 4, 2 2))",
+      "POLYGON ((0.5 0.5, 15.5 14.9, 15.5 15.5, 0.5 0.5))",
+      "MULTIPOLYGON (((0 0, 3 0, 3 3, 0 3, 0 0)), ((10.3 10.1, 14.2 10.7, 12.9 15.8, 10.3 10.1)))",
+  };
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  for (const std::string& wkt : areas) {
+    auto polygon = Polygon2D::from_wkt(wkt, "area");
+    REQUIRE(polygon.is_ok());
+    QueryOptions o;
+    o.polygon = std::make_shared<const Polygon2D>(*polygon);
+    for (const bool with_box : {false, true}) {
+      const Box3d box = box_2d(2.5, 0.5, 13.5, 12.5);
+      QueryStats stats;
+      const PointCloud got = run_query(**reader, with_box ? &box : nullptr, &stats, o);
+      PointCloud want;
+      for (const Vec3d& p : full.positions) {
+        if (polygon->contains(p.x, p.y) && (!with_box || inside(p, box))) want.positions.push_back(p);
+      }
+      INFO(wkt << (with_box ? " within a box" : ""));
+      CHECK(sorted_points(got) == sorted_points(want));
+      CHECK(got.colors.size() == got.size());
+      CHECK(!want.empty());
+      // The chunks read: those whose bounds the area does not leave out.
+      std::uint64_t touched = 0;
+      for (const ChunkRef& r : *refs) {
+        if (with_box && !intersects(r.bounds, box)) continue;
+        if (polygon->classify(r.bounds) != Polygon2D::Overlap::kOutside) ++touched;
+      }
+      CHECK(stats.chunks_decoded == touched);
+      CHECK(touched < refs->size());
+    }
+    // A coarse level of detail within the area: still from the base layer,
+    // about 1/4 of the points, all inside.
+    o.lod = 4;
+    const PointCloud coarse = run_query(**reader, nullptr, nullptr, o);
+    std::size_t inside_count = 0;
+    for (const Vec3d& p : full.positions) inside_count += polygon->contains(p.x, p.y) ? 1 : 0;
+    CHECK(std::abs(static_cast<double>(coarse.size()) - inside_count / 4.0) < 0.15 * inside_count / 4.0 + 64);
+    bool all_inside = true;
+    for (const Vec3d& p : coarse.positions) all_inside = all_inside && polygon->contains(p.x, p.y);
+    CHECK(all_inside);
+  }
+  // An area beside the data reads nothing.
+  QueryOptions far;
+  far.polygon = std::make_shared<const Polygon2D>(*Polygon2D::from_wkt("POLYGON ((100 100, 110 100, 105 109))", "far"));
+  QueryStats stats;
+  CHECK(run_query(**reader, nullptr, &stats, far).empty());
+  CHECK(stats.chunks_decoded == 0);
+  CHECK(stats.blob_bytes_read == 0);
+}
+
 TEST_CASE("level of detail L returns about 1/L of the points, spread uniformly", "[query][lod]") {
   TempDir tmp;
   auto reader = ArchiveReader::open(build(tmp, "d", 5, 400000));

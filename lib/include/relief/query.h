@@ -11,6 +11,7 @@
 
 #include "relief/archive.h"
 #include "relief/io.h"
+#include "relief/polygon.h"
 #include "relief/status.h"
 #include "relief/types.h"
 
@@ -56,6 +57,12 @@ struct QueryOptions {
   // where one fits: a level with at least as many points as the level of
   // detail asks for, thinned to it. false: always decode the chunks.
   bool use_pyramid = true;
+  // Only the points inside this area of x and y (relief/polygon.h), besides
+  // the box: chunks wholly outside it are not read, those wholly inside are
+  // not tested point by point. Unlike the LAS filters it needs no attribute,
+  // so a coarse level of detail still comes from the base layer or pyramid
+  // (a max_points query counts the rows the area's bounds touch).
+  std::shared_ptr<const Polygon2D> polygon;
 };
 
 struct QueryStats {

@@ -1,0 +1,59 @@
+// Areas of interest for queries: a polygon (with holes) or several, in the
+// archive's x-y coordinates, read from OGC Well-Known Text.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "relief/status.h"
+#include "relief/types.h"
+
+namespace relief {
+
+class Polygon2D {
+ public:
+  // `POLYGON ((x y, x y, ...), (hole ...))` or `MULTIPOLYGON (((...)), ...)`,
+  // keywords in any case, with optional Z, M or ZM (only x and y are used).
+  // A ring needs 3 distinct vertices; an unclosed ring is closed. Errors name
+  // `source` (a file name, or "--polygon") and what is wrong.
+  static Result<Polygon2D> from_wkt(std::string_view wkt, const std::string& source);
+
+  // Whether (x, y) is inside by the even-odd rule over every ring (holes are
+  // rings inside rings). A point exactly on an edge is inside on one side of
+  // it and outside on the other (the crossing rule, half-open in y), so
+  // polygons that share an edge split the points on it between them, each to
+  // exactly one.
+  bool contains(double x, double y) const;
+
+  enum class Overlap { kOutside, kPartial, kInside };
+  // How the x-y rectangle of `box` lies against the area: kInside or
+  // kOutside when no edge comes near it (then contains() gives that for
+  // every point of it), else kPartial.
+  Overlap classify(const Box3d& box) const;
+
+  // The x-y bounds, z from -inf to +inf.
+  const Box3d& bounds() const { return bounds_; }
+  std::size_t ring_count() const { return ring_count_; }
+  std::size_t edge_count() const { return edges_.size(); }
+
+ private:
+  struct Edge {
+    double x0, y0, x1, y1;
+  };
+  void build_index();
+
+  std::vector<Edge> edges_;
+  std::size_t ring_count_ = 0;
+  Box3d bounds_;
+  // Edges by horizontal strip of the bounds: strip s holds every edge whose
+  // y range meets it, so a point tests only its strip's edges.
+  double strip_height_ = 1;
+  std::vector<std::uint32_t> strip_start_;  // strips + 1 offsets into strip_edges_
+  std::vector<std::uint32_t> strip_edges_;
+  std::size_t strip_of(double y) const;
+};
+
+}  // namespace relief

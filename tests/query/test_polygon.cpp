@@ -1,0 +1,227 @@
+// Polygon areas of interest (relief/polygon.h): WKT accepted and refused,
+// the strip-indexed point test against a plain test over every edge, edges
+// shared by neighbours, and the rectangle test against the points in it.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "relief/polygon.h"
+
+using namespace relief;
+
+namespace {
+
+using Ring = std::vector<std::array<double, 2>>;
+
+// The even-odd crossing test over every edge, each taken lower end first:
+// what Polygon2D::contains promises, without its index.
+bool plain_contains(const std::vector<Ring>& rings, double x, double y) {
+  bool in = false;
+  for (const Ring& r : rings) {
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      auto a = r[i], b = r[(i + 1) % r.size()];
+      if (a[1] > b[1] || (a[1] == b[1] && a[0] > b[0])) std::swap(a, b);
+      if (a[1] <= y && y < b[1]) {
+        const double xi = a[0] + (y - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+        if (x < xi) in = !in;
+      }
+    }
+  }
+  return in;
+}
+
+std::string wkt_ring(const Ring& r) {
+  std::ostringstream s;
+  s.precision(17);
+  s << "(";
+  for (std::size_t i = 0; i <= r.size(); ++i) s << (i ? ", " : "") << r[i % r.size()][0] << " " << r[i % r.size()][1];
+  s << ")";
+  return s.str();
+}
+
+// A star-shaped ring of `n` vertices around (cx, cy): a jagged outline with
+// long and short edges.
+Ring star(std::mt19937& rng, double cx, double cy, double radius, int n) {
+  std::uniform_real_distribution<double> jitter(0.3, 1.0);
+  Ring r;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * M_PI * i / n;
+    const double d = radius * jitter(rng);
+    r.push_back({cx + d * std::cos(a), cy + d * std::sin(a)});
+  }
+  return r;
+}
+
+Polygon2D parse(const std::string& wkt) {
+  auto p = Polygon2D::from_wkt(wkt, "test");
+  INFO(wkt);
+  REQUIRE(p.is_ok());
+  return std::move(p).value();
+}
+
+}  // namespace
+
+TEST_CASE("WKT polygons are read in their usual forms", "[polygon]") {
+  const Polygon2D square = parse("POLYGON ((0 0, 10 0, 10 10, 0 10, 0 0))");
+  CHECK(square.ring_count() == 1);
+  CHECK(square.edge_count() == 4);
+  CHECK(square.bounds().min.x == 0);
+  CHECK(square.bounds().max.y == 10);
+  CHECK(std::isinf(square.bounds().min.z));
+  CHECK(square.contains(5, 5));
+  CHECK_FALSE(square.contains(15, 5));
+  CHECK_FALSE(square.contains(NAN, 5));
+  // Case, spacing, signs, exponents, Z / M / ZM values, an unclosed ring.
+  for (const char* text : {"polygon((0 0,10 0,10 10,0 10,0 0))", "  Polygon Z ((0 0 1, 10 0 2, 10 10 3, 0 10 4, 0 0 1))  ",
+                           "POLYGON M ((0 0 7,1e1 0 7,10 +10 7,0 10 7,0 0 7))", "POLYGON ZM ((0 0 1 2, 10 0 1 2, 10 10 1 2, 0 10 1 2))",
+                           "POLYGON ((0 0, 10 0, 10 10, 0 10))", "POLYGON ((0 0, 10 0, 10 0, 10 10, 0 10, 0 0, 0 0))",
+                           "POLYGON((-0 -0,10.0 0,10 10,0 10,0 0))\n"}) {
+    const Polygon2D p = parse(text);
+    INFO(text);
+    CHECK(p.edge_count() == 4);
+    CHECK(p.contains(5, 5));
+    CHECK_FALSE(p.contains(10.5, 5));
+  }
+  const Polygon2D holed = parse("POLYGON ((0 0, 10 0, 10 10, 0 10, 0 0), (4 4, 6 4, 6 6, 4 6, 4 4))");
+  CHECK(holed.ring_count() == 2);
+  CHECK(holed.contains(2, 2));
+  CHECK_FALSE(holed.contains(5, 5));
+  const Polygon2D multi = parse("MULTIPOLYGON (((0 0, 1 0, 1 1, 0 0)), ((5 5, 9 5, 9 9, 5 9, 5 5), (6 6, 7 6, 7 7, 6 6)))");
+  CHECK(multi.ring_count() == 3);
+  CHECK(multi.contains(0.9, 0.5));
+  CHECK(multi.contains(8, 8));
+  CHECK_FALSE(multi.contains(3, 3));
+  CHECK_FALSE(multi.contains(6.8, 6.5));
+  CHECK(multi.bounds().max.x == 9);
+}
+
+TEST_CASE("malformed WKT is refused naming the source and the problem", "[polygon]") {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"", "expected POLYGON or MULTIPOLYGON"},
+      {"POINT (1 2)", "'POINT' is not POLYGON or MULTIPOLYGON"},
+      {"POLYGON EMPTY", "EMPTY"},
+      {"POLYGON ((0 0, 1 0, 1 1, 0 0)) x", "unexpected text after the polygon"},
+      {"POLYGON ((0 0, 1 0, 1 1, 0 0)", "expected ')'"},
+      {"POLYGON (0 0, 1 0, 1 1, 0 0)", "expected '('"},
+      {"POLYGON ((0 0, 1 0, 1 nan, 0 0))", "a vertex needs x and y"},
+      {"POLYGON ((0 0, 1 0, 1 -inf, 0 0))", "expected a finite number"},
+      {"POLYGON ((0 0, 1 0, 1 1e999, 0 0))", "expected a finite number"},
+      {"POLYGON ((0 0, 1, 1 1, 0 0))", "a vertex needs x and y"},
+      {"POLYGON ((0 0 0 0 0, 1 0, 1 1, 0 0))", "more than 4 numbers"},
+      {"POLYGON ((0 0, 1 1, 0 0))", "ring 1 of the polygon has 2 distinct vertices"},
+      {"POLYGON ((0 0, 1 0, 1 1, 0 0), (5 5, 5 5, 5 5))", "ring 2 of the polygon has 1 distinct vertices"},
+      {"POLYGON Q ((0 0, 1 0, 1 1, 0 0))", "unexpected 'Q'"},
+      {"MULTIPOLYGON ((0 0, 1 0, 1 1, 0 0))", "expected '('"},
+  };
+  for (const auto& [text, message] : cases) {
+    INFO("'" << text << "'");
+    const auto p = Polygon2D::from_wkt(text, "aoi.wkt");
+    REQUIRE_FALSE(p.is_ok());
+    CHECK(p.status().code() == StatusCode::kInvalidArgument);
+    CHECK(p.status().message().rfind("aoi.wkt: ", 0) == 0);
+    CHECK(p.status().message().find(message) != std::string::npos);
+  }
+}
+
+TEST_CASE("the indexed point test equals the plain test over every edge", "[polygon]") {
+  std::mt19937 rng(5);
+  for (const int vertices : {3, 12, 200, 5000}) {
+    // An outer star, a hole star inside it and a second part beside it.
+    const std::vector<Ring> rings = {star(rng, 0, 0, 100, vertices), star(rng, 0, 0, 25, vertices / 3 + 3),
+                                     star(rng, 300, 50, 60, vertices)};
+    const std::string wkt = "MULTIPOLYGON ((" + wkt_ring(rings[0]) + ", " + wkt_ring(rings[1]) + "), (" +
+                            wkt_ring(rings[2]) + "))";
+    const Polygon2D p = parse(wkt);
+    std::uniform_real_distribution<double> x(-120, 380), y(-120, 130);
+    std::size_t in = 0, mismatches = 0;
+    for (int i = 0; i < 100000; ++i) {
+      const double px = x(rng), py = y(rng);
+      const bool want = plain_contains(rings, px, py);
+      in += want ? 1 : 0;
+      mismatches += p.contains(px, py) != want ? 1 : 0;
+    }
+    // Vertices themselves, where rounding and the half-open rule bite.
+    for (const Ring& r : rings) {
+      for (const auto& v : r) mismatches += p.contains(v[0], v[1]) != plain_contains(rings, v[0], v[1]) ? 1 : 0;
+    }
+    INFO(vertices << " vertices a ring");
+    CHECK(mismatches == 0);
+    CHECK(in > 2000);  // the test is not vacuous
+  }
+}
+
+TEST_CASE("neighbouring polygons split the points on their shared edges", "[polygon]") {
+  // Two quadrilaterals sharing a slanted edge, run in opposite directions.
+  const Polygon2D left = parse("POLYGON ((0 0, 3 0, 5 10, 0 10, 0 0))");
+  const Polygon2D right = parse("POLYGON ((5 10, 3 0, 10 0, 10 10, 5 10))");
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> t(0, 1);
+  for (int i = 0; i < 20000; ++i) {
+    const double s = t(rng);
+    const double x = 3 + 2 * s, y = 10 * s;  // on the shared edge (up to rounding)
+    CHECK(left.contains(x, y) + right.contains(x, y) == 1);
+    const double gx = 10 * t(rng), gy = 10 * t(rng);  // anywhere in the pair's square
+    CHECK(left.contains(gx, gy) + right.contains(gx, gy) == 1);
+  }
+}
+
+TEST_CASE("rectangles inside or outside a polygon hold only such points", "[polygon]") {
+  std::mt19937 rng(11);
+  const std::vector<Ring> rings = {star(rng, 0, 0, 100, 300), star(rng, 0, 0, 30, 40)};
+  const Polygon2D p = parse("POLYGON (" + wkt_ring(rings[0]) + ", " + wkt_ring(rings[1]) + ")");
+  std::uniform_real_distribution<double> c(-130, 130), e(0.01, 20);
+  std::uniform_real_distribution<double> t(0, 1);
+  int counts[3] = {0, 0, 0};
+  for (int i = 0; i < 6000; ++i) {
+    const double x0 = c(rng), y0 = c(rng), w = e(rng), h = e(rng);
+    const Box3d box{{x0, y0, 0}, {x0 + w, y0 + h, 1}};
+    const Polygon2D::Overlap o = p.classify(box);
+    ++counts[static_cast<int>(o)];
+    if (o == Polygon2D::Overlap::kPartial) continue;
+    const bool want = o == Polygon2D::Overlap::kInside;
+    bool all = true;
+    for (int k = 0; k < 200 && all; ++k) {
+      // Corners and edges of the rectangle too.
+      const double u = k < 4 ? (k & 1) : t(rng), v = k < 4 ? (k >> 1) : t(rng);
+      all = p.contains(x0 + u * w, y0 + v * h) == want;
+    }
+    INFO("box " << x0 << "," << y0 << " " << w << "x" << h);
+    CHECK(all);
+  }
+  // Every kind occurs, so the checks above mean something.
+  CHECK(counts[0] > 100);
+  CHECK(counts[1] > 100);
+  CHECK(counts[2] > 50);
+  // Not finite, or degenerate: partial, or outside.
+  CHECK(p.classify(Box3d{{-INFINITY, 0, 0}, {1, 1, 1}}) == Polygon2D::Overlap::kPartial);
+  CHECK(p.classify(Box3d{{1000, 1000, 0}, {1001, 1001, 1}}) == Polygon2D::Overlap::kOutside);
+}
+
+TEST_CASE("a comb of long edges is tested right", "[polygon]") {
+  // A comb: 2,000 teeth whose long sides run the polygon's whole height.
+  Ring r;
+  for (int i = 0; i < 2000; ++i) {
+    r.push_back({2.0 * i, 0});
+    r.push_back({2.0 * i, 1000});
+    r.push_back({2.0 * i + 1, 1000});
+    r.push_back({2.0 * i + 1, 0.5});
+  }
+  r.push_back({4000, -1});
+  r.push_back({0, -1});
+  const Polygon2D p = parse("POLYGON (" + wkt_ring(r) + ")");
+  CHECK(p.contains(0.5, 500));
+  CHECK_FALSE(p.contains(1.5, 500));
+  CHECK(p.contains(1.5, 0.1));
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> x(-1, 4001), y(-2, 1001);
+  std::size_t mismatches = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const double px = x(rng), py = y(rng);
+    mismatches += p.contains(px, py) != plain_contains({r}, px, py) ? 1 : 0;
+  }
+  CHECK(mismatches == 0);
+}
