@@ -17,13 +17,15 @@ namespace {
 
 constexpr const char* kCommand = "stats";
 constexpr const char* kUsageText =
-    "usage: relief stats ARCHIVE|POINT_FILE [--box B] [--attributes LIST] [--json]\n"
+    "usage: relief stats ARCHIVE|POINT_FILE [--box B] [--polygon WKT] [--attributes LIST] [--json]\n"
     "Decodes the points (of a box) and prints, per attribute, the range and mean of its values or\n"
     "the count of each value: x, y, z, colours, intensity, classification, flags, returns, scan\n"
     "angle, user data, point source IDs, GPS time, NIR and each scalar extra bytes field.\n"
     "A point file (.las, .laz, .ply, .xyz/.txt/.csv/.pts, .pcd) is summarised the same way, so an\n"
     "archive can be checked against its source (without --box or filters).\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights (default: everything)\n"
+    "  --polygon WKT    only the points inside this x-y area (WKT POLYGON or MULTIPOLYGON, or @FILE),\n"
+    "                   as 'relief query --polygon'\n"
     "  --attributes L   only these (as 'relief info' lists them; default all): only they are decoded,\n"
     "                   so e.g. '--attributes classification' takes a fraction of a full decode\n"
 
@@ -138,7 +140,7 @@ void print_text(const ArchiveStats& s) {
 
 int run_stats(int argc, char** argv) {
   Args args(argc, argv, {"--help", "--json", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"},
-            {"--box", "--attributes", "--threads", "--class"});
+            {"--box", "--attributes", "--threads", "--class", "--polygon"});
   if (args.has("--help")) {
     std::cout << kUsageText << kQueryFilterHelp;
     return kExitOk;
@@ -153,8 +155,8 @@ int run_stats(int argc, char** argv) {
   const std::string& path = args.positional()[0];
   Result<ArchiveStats> stats = Status(internal_error("stats did not run"));
   if (is_point_file_name(path)) {
-    if (box_text || !q.classes.empty() || q.first_returns || q.last_returns) {
-      return usage_error(kCommand, "--box and the LAS filters apply to archives, not to a point file");
+    if (box_text || q.polygon || !q.classes.empty() || q.first_returns || q.last_returns) {
+      return usage_error(kCommand, "--box, --polygon and the LAS filters apply to archives, not to a point file");
     }
     ReaderOptions ro;
     ro.attributes = q.attributes;
@@ -165,7 +167,7 @@ int run_stats(int argc, char** argv) {
     auto reader = ArchiveReader::open(path);
     if (!reader) return fail(kCommand, reader.status());
     // A progress line on a terminal (stderr), the share known for a whole archive unfiltered.
-    const bool whole = !box_text && q.classes.empty() && !q.first_returns && !q.last_returns;
+    const bool whole = !box_text && !q.polygon && q.classes.empty() && !q.first_returns && !q.last_returns;
     QueryProgress progress(path, whole ? (*reader)->info().decoded_points : 0, args.has("--quiet"));
     stats = archive_stats(**reader, box_text ? &box : nullptr, q, [&](std::uint64_t n) { progress.count(n); });
     end_progress_line();

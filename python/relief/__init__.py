@@ -287,7 +287,7 @@ class Archive:
         _warn_all(messages)
         return self._with_extra_fields(array)
 
-    def stats(self, box=None, *, attributes=None, threads=0, skip_corrupt=False):
+    def stats(self, box=None, *, attributes=None, threads=0, skip_corrupt=False, polygon=None):
         """What the points (in ``box``, as ``query`` takes it) hold, as ``relief
         stats --json``: a dict with ``points``; ``x``, ``y``, ``z`` and each
         ranged attribute as ``{"count", "min", "max", "mean"}``;
@@ -295,10 +295,13 @@ class Archive:
         ``{value: count}`` (values as strings, JSON's keys); flag counts;
         ``point_sources`` (distinct IDs); ``extra_bytes`` by field name.
         ``attributes``: only those (as ``query``), and only they are decoded,
-        so asking for few is quick.
+        so asking for few is quick. ``polygon``: only the points inside this
+        WKT area, as ``query``.
         """
+        if polygon is not None and not isinstance(polygon, str):
+            raise TypeError(f"stats(): polygon must be WKT text (a str), not {type(polygon).__name__}")
         text = self._reader.stats_json(_box_values(box), threads, bool(skip_corrupt),
-                                       _attribute_list(attributes))
+                                       _attribute_list(attributes), polygon or "")
         return _json.loads(text)
 
     def _batches(self, stream):

@@ -277,10 +277,10 @@ class Reader {
 
   // archive_stats of the box (or everything) as JSON, for the package to parse.
   std::string stats_json(const std::optional<std::vector<double>>& box_values, unsigned threads, bool skip_corrupt,
-                         const std::string& attributes) {
+                         const std::string& attributes, const std::string& polygon) {
     const std::optional<Box3d> box = to_box(box_values);
     std::vector<std::string> warnings;
-    QueryOptions q = query_options(1, threads, skip_corrupt, 0, attributes);
+    QueryOptions q = query_options(1, threads, skip_corrupt, 0, attributes, polygon);
     Result<ArchiveStats> r = Status(internal_error("stats did not run"));
     reader();  // refuses a closed archive while the GIL is held
     {
@@ -462,7 +462,7 @@ PYBIND11_MODULE(_relief, m) {
       .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
            py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"))
       .def("stats_json", &Reader::stats_json, py::arg("box"), py::arg("threads"), py::arg("skip_corrupt"),
-           py::arg("attributes"))
+           py::arg("attributes"), py::arg("polygon"))
       .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
            py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"))
       .def("preview", &Reader::preview, py::arg("box"), py::arg("lod"), py::arg("width"), py::arg("view"),

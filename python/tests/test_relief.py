@@ -139,6 +139,7 @@ def test_polygon_query(xyz_archive, scene):
         parts = list(a.query(polygon=wkt, batches=True))
         boxed = a.query((0, 0, 20, 40), polygon=wkt)
         coarse = a.query(polygon=wkt, lod=8)
+        stats = a.stats(polygon=wkt, attributes=[])
         with pytest.raises(relief.InvalidArgumentError, match="polygon: ring 1"):
             a.query(polygon="POLYGON ((0 0, 1 1, 0 0))")
         with pytest.raises(TypeError, match="WKT"):
@@ -146,6 +147,7 @@ def test_polygon_query(xyz_archive, scene):
     assert 1000 < len(pts) < len(scene["x"]) / 2
     assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(expected, XYZRGBI))
     assert sum(len(p) for p in parts) == len(pts)
+    assert stats["points"] == len(pts) and stats["x"]["max"] == pts["x"].max()
     assert 0 < len(boxed) < len(pts) and np.all(boxed["x"] <= 20)
     assert 0 < len(coarse) < len(pts) / 2
     assert np.all(crossings(outer, coarse["x"], coarse["y"]) ^ crossings(hole, coarse["x"], coarse["y"]))

@@ -320,6 +320,11 @@ TEST_CASE("query and decompress --polygon: the points inside a WKT area", "[cli]
     INFO(name);
     CHECK(v == want);
   }
+  // stats of the same area, and refused for a point file.
+  const Run st = run("stats " + a + " --polygon @" + tmp.file("area.wkt") + " --box -9,-9,-9,9,9,-1 --json");
+  REQUIRE(st.code == 0);
+  CHECK(st.output.find("\"points\": " + std::to_string(want.size()) + ",") != std::string::npos);
+  CHECK(run("stats " + tmp.file("all.ply") + " --polygon @" + tmp.file("area.wkt")).code == 2);
   // Refusals: usage errors naming --polygon, and no output.
   for (const std::string& bad : {std::string("'POLYGON ((0 0, 1 1, 0 0))'"), std::string("'LINESTRING (0 0, 1 1)'"),
                                  "@" + tmp.file("missing.wkt"), "@" + tmp.path().string()}) {
