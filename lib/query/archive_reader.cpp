@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <set>
@@ -149,6 +150,18 @@ class Reader final : public ArchiveReader {
   Result<QueryStats> query_within(Box3d box, const QueryOptions& options, const PointSink& sink) {
     if (options.polygon) {
       const Box3d& p = options.polygon->bounds();
+      const Box3d& a = info_.bounds;
+      if (options.on_warning && !a.empty() &&
+          (p.max.x < a.min.x || p.min.x > a.max.x || p.max.y < a.min.y || p.min.y > a.max.y)) {
+        // Most often a polygon in another CRS (longitude and latitude against
+        // a projected archive): say so rather than return nothing silently.
+        char text[512];
+        std::snprintf(text, sizeof text,
+                      "the polygon (x %.9g .. %.9g, y %.9g .. %.9g) lies outside the archive's bounds (x %.9g .. "
+                      "%.9g, y %.9g .. %.9g): are its coordinates in the archive's CRS?",
+                      p.min.x, p.max.x, p.min.y, p.max.y, a.min.x, a.max.x, a.min.y, a.max.y);
+        options.on_warning(archive_->path() + ": " + text);
+      }
       box.min.x = std::max(box.min.x, p.min.x);
       box.min.y = std::max(box.min.y, p.min.y);
       box.max.x = std::min(box.max.x, p.max.x);

@@ -174,6 +174,20 @@ def append(archive, inputs, *, progress=None, **options):
     return _ingest("append", inputs, archive, options, progress)
 
 
+def _polygon_text(polygon, caller):
+    """WKT text of a polygon argument: a str, or an object with a ``wkt``
+    attribute (a shapely geometry, as GeoPandas holds them); None: none."""
+    if polygon is None:
+        return ""
+    if isinstance(polygon, str):
+        return polygon
+    wkt = getattr(polygon, "wkt", None)
+    if isinstance(wkt, str):
+        return wkt
+    raise TypeError(f"{caller}(): polygon must be WKT text or have a .wkt (a shapely geometry), "
+                    f"not {type(polygon).__name__}")
+
+
 _QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points", "attributes", "polygon")
 
 
@@ -264,8 +278,10 @@ class Archive:
         not decoded, which is faster; a name the archive lacks raises
         InvalidArgumentError), ``polygon`` (only the points inside this x-y
         area, as the WKT text of a POLYGON or MULTIPOLYGON in the archive's
-        coordinates, holes by the even-odd rule; with or without ``box``;
-        chunks outside it are not read).
+        coordinates, or an object with a ``wkt`` attribute such as a shapely
+        geometry; holes by the even-odd rule; with or without ``box``; chunks
+        outside it are not read; a polygon beside the archive's bounds gives
+        a RuntimeWarning, as it is most often in another CRS).
         """
         for name in options:
             if name not in _QUERY_OPTIONS:
@@ -276,9 +292,7 @@ class Archive:
         skip_corrupt = bool(options.get("skip_corrupt", False))
         max_points = options.get("max_points") or 0
         attributes = _attribute_list(options.get("attributes"))
-        polygon = options.get("polygon") or ""
-        if not isinstance(polygon, str):
-            raise TypeError(f"query(): polygon must be WKT text (a str), not {type(polygon).__name__}")
+        polygon = _polygon_text(options.get("polygon"), "query")
         values = _box_values(box)
         if batches:
             return self._batches(
@@ -298,10 +312,8 @@ class Archive:
         so asking for few is quick. ``polygon``: only the points inside this
         WKT area, as ``query``.
         """
-        if polygon is not None and not isinstance(polygon, str):
-            raise TypeError(f"stats(): polygon must be WKT text (a str), not {type(polygon).__name__}")
         text = self._reader.stats_json(_box_values(box), threads, bool(skip_corrupt),
-                                       _attribute_list(attributes), polygon or "")
+                                       _attribute_list(attributes), _polygon_text(polygon, "stats"))
         return _json.loads(text)
 
     def _batches(self, stream):

@@ -144,6 +144,11 @@ def test_polygon_query(xyz_archive, scene):
             a.query(polygon="POLYGON ((0 0, 1 1, 0 0))")
         with pytest.raises(TypeError, match="WKT"):
             a.query(polygon=[(0, 0), (1, 0), (1, 1)])
+
+        shape = type("Shape", (), {"wkt": wkt})()  # what a shapely geometry offers
+        assert len(a.query(polygon=shape)) == len(pts)
+        with pytest.warns(RuntimeWarning, match="outside the archive's bounds"):
+            assert len(a.query(polygon="POLYGON ((10 50, 11 50, 11 51, 10 50))")) == 0
     assert 1000 < len(pts) < len(scene["x"]) / 2
     assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(expected, XYZRGBI))
     assert sum(len(p) for p in parts) == len(pts)

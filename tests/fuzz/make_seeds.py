@@ -267,6 +267,22 @@ def chunk_and_archive_seeds(out, build, pts):
                 put(out, "chunk", name, f.read())
 
 
+def polygon_seeds(out):
+    # fuzz_polygon.cpp: WKT text as `query --polygon` takes it.
+    put(out, "polygon", "square.wkt", b"POLYGON ((0 0, 10 0, 10 10, 0 10, 0 0))")
+    put(out, "polygon", "hole_z.wkt", b"POLYGON Z ((0 0 1, 10 0 1, 10 10 1, 0 10 1, 0 0 1), (4 4 0, 6 4 0, 6 6 0, 4 4 0))")
+    put(out, "polygon", "multi.wkt",
+        b"MULTIPOLYGON (((0 0, 1 0, 1 1, 0 0)), ((5 5, 9 5, 9 9, 5 9, 5 5), (6 6, 7 6, 7 7, 6 6)))")
+    star = ", ".join(f"{500000 + 100 * (1 + 0.3 * math.sin(7 * a)) * math.cos(a):.3f} "
+                     f"{4000000 + 100 * (1 + 0.3 * math.sin(7 * a)) * math.sin(a):.3f}"
+                     for a in (2 * math.pi * i / 97 for i in range(97)))
+    put(out, "polygon", "star_utm.wkt", f"polygon(({star}))".encode())
+    put(out, "polygon", "comb.wkt", ("POLYGON ((" + ", ".join(
+        f"{2 * i} 0, {2 * i} 1000, {2 * i + 1} 1000, {2 * i + 1} 0.5" for i in range(40)) + ", 80 -1, 0 -1))").encode())
+    put(out, "polygon", "zm_exp.wkt", b"POLYGON ZM ((1e3 -2E-1 0 0, +5e3 0 0 0, 2.5e3 4e3 1 1))")
+    put(out, "polygon", "bad_ring.wkt", b"POLYGON ((0 0, 1 1, 0 0))")
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
@@ -277,6 +293,7 @@ def main():
     stream_seeds(out, pts)
     pcd_seeds(out, pts)
     las_seeds(out)
+    polygon_seeds(out)
     chunk_and_archive_seeds(out, build, pts)
 
 

@@ -236,13 +236,23 @@ TEST_CASE("a polygon query returns the points inside it and reads only the chunk
     for (const Vec3d& p : coarse.positions) all_inside = all_inside && polygon->contains(p.x, p.y);
     CHECK(all_inside);
   }
-  // An area beside the data reads nothing.
+  // An area beside the data reads nothing, and says why it may be so.
   QueryOptions far;
   far.polygon = std::make_shared<const Polygon2D>(*Polygon2D::from_wkt("POLYGON ((100 100, 110 100, 105 109))", "far"));
+  std::vector<std::string> warnings;
+  far.on_warning = [&](const std::string& w) { warnings.push_back(w); };
   QueryStats stats;
   CHECK(run_query(**reader, nullptr, &stats, far).empty());
   CHECK(stats.chunks_decoded == 0);
   CHECK(stats.blob_bytes_read == 0);
+  REQUIRE(warnings.size() == 1);
+  CHECK(warnings[0].find("p.relief: the polygon (x 100 .. 110, y 100 .. 109) lies outside the archive's bounds") !=
+        std::string::npos);
+  // One that overlaps the bounds says nothing.
+  warnings.clear();
+  far.polygon = std::make_shared<const Polygon2D>(*Polygon2D::from_wkt("POLYGON ((15 15, 30 15, 30 30, 15 15))", "c"));
+  run_query(**reader, nullptr, nullptr, far);
+  CHECK(warnings.empty());
 }
 
 TEST_CASE("level of detail L returns about 1/L of the points, spread uniformly", "[query][lod]") {

@@ -39,10 +39,14 @@ class Polygon2D {
   std::size_t ring_count() const { return ring_count_; }
   std::size_t edge_count() const { return edges_.size(); }
 
- private:
+  // Every ring's edges, each with its lower end first (y0 < y1, or y0 == y1
+  // and x0 <= x1): contains() is the crossing test over these.
   struct Edge {
     double x0, y0, x1, y1;
   };
+  const std::vector<Edge>& edges() const { return edges_; }
+
+ private:
   void build_index();
 
   std::vector<Edge> edges_;
