@@ -27,6 +27,7 @@
 #include "run_child.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
+#include "relief/polygon.h"
 #include "relief/query.h"
 
 namespace fs = std::filesystem;
@@ -44,6 +45,23 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 void remove_archive(const std::string& p) {
   for (const char* s : {"", "-wal", "-shm"}) fs::remove(p + s);
+}
+
+// A star of 256 vertices inscribed in the x-y rectangle of `box` (radius
+// between 0.6 and 1 of the half side, 9 points), as WKT would give it.
+relief::Polygon2D star_in(const relief::Box3d& box) {
+  const double cx = 0.5 * (box.min.x + box.max.x), cy = 0.5 * (box.min.y + box.max.y);
+  const double rx = 0.5 * (box.max.x - box.min.x), ry = 0.5 * (box.max.y - box.min.y);
+  std::string wkt = "POLYGON ((";
+  char v[64];
+  for (int i = 0; i <= 256; ++i) {
+    const double a = 2 * M_PI * (i % 256) / 256.0;
+    const double r = 0.8 + 0.2 * std::cos(9 * a);
+    std::snprintf(v, sizeof v, "%s%.6f %.6f", i ? ", " : "", cx + r * rx * std::cos(a), cy + r * ry * std::sin(a));
+    wkt += v;
+  }
+  wkt += "))";
+  return *relief::Polygon2D::from_wkt(wkt, "star");
 }
 
 int decode_subsets(const std::string& path, int repeat, unsigned threads) {
@@ -157,8 +175,9 @@ int main(int argc, char** argv) {
   for (double pct : {0.1, 1.0, 10.0, 100.0}) {
     const double side = std::sqrt(pct / 100.0);
     for (std::uint32_t lod : {1u, 4u, 16u}) {
-      std::vector<double> ms;
+      std::vector<double> ms, poly_ms;
       double bytes = 0, points = 0, chunks = 0;
+      double poly_bytes = 0, poly_points = 0, poly_chunks = 0;
       int boxes = 0;
       for (int gy = 0; gy < 3; ++gy) {
         for (int gx = 0; gx < 3; ++gx) {
@@ -181,10 +200,29 @@ int main(int argc, char** argv) {
           points += static_cast<double>(last.points);
           chunks += static_cast<double>(last.chunks_decoded);
           ++boxes;
+          if (lod != 1) continue;
+          // The same box's inscribed 256-vertex star (QueryOptions::polygon):
+          // the chunks outside it unread, those it crosses tested point by point.
+          q.polygon = std::make_shared<const relief::Polygon2D>(star_in(box));
+          times.clear();
+          for (int k = 0; k < repeat; ++k) {
+            const auto t0 = std::chrono::steady_clock::now();
+            auto s = (*reader)->query(box, q, [](const relief::PointCloud&) { return relief::Status::ok(); });
+            times.push_back(seconds_since(t0) * 1e3);
+            if (s) last = *s;
+          }
+          poly_ms.push_back(median(times));
+          poly_bytes += static_cast<double>(last.blob_bytes_read);
+          poly_points += static_cast<double>(last.points);
+          poly_chunks += static_cast<double>(last.chunks_decoded);
         }
       }
       std::printf("box,%.1f,%u,%.2f,%.0f,%.1f,%.2f\n", pct, lod, median(ms), points / boxes, chunks / boxes,
                   100.0 * bytes / boxes / static_cast<double>(info.blob_bytes));
+      if (!poly_ms.empty()) {
+        std::printf("polygon,%.1f,%u,%.2f,%.0f,%.1f,%.2f\n", pct, lod, median(poly_ms), poly_points / boxes,
+                    poly_chunks / boxes, 100.0 * poly_bytes / boxes / static_cast<double>(info.blob_bytes));
+      }
       std::fflush(stdout);
     }
   }
