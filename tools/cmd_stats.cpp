@@ -24,7 +24,7 @@ constexpr const char* kUsageText =
     "A point file (.las, .laz, .ply, .xyz/.txt/.csv/.pts, .pcd) is summarised the same way, so an\n"
     "archive can be checked against its source (without --box or filters).\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights (default: everything)\n"
-    "  --polygon WKT    only the points inside this x-y area (WKT POLYGON or MULTIPOLYGON, or @FILE),\n"
+    "  --polygon WKT    only the points inside this x-y area (WKT, or @FILE of WKT or a .shp),\n"
     "                   as 'relief query --polygon'\n"
     "  --attributes L   only these (as 'relief info' lists them; default all): only they are decoded,\n"
     "                   so e.g. '--attributes classification' takes a fraction of a full decode\n"

@@ -48,7 +48,7 @@ QueryOptions query_options_from(Args& args, const std::string& command) {
     }
   }
   if (const auto text = args.get("--polygon")) {
-    auto polygon = polygon_arg(*text);
+    auto polygon = Polygon2D::from_arg(*text);
     if (polygon) {
       q.polygon = std::make_shared<const Polygon2D>(std::move(polygon).value());
     } else {
@@ -59,20 +59,6 @@ QueryOptions query_options_from(Args& args, const std::string& command) {
   return q;
 }
 
-Result<Polygon2D> polygon_arg(const std::string& text) {
-  if (text.empty() || text[0] != '@') return Polygon2D::from_wkt(text, "the polygon");
-  const std::string path = text.substr(1);
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return invalid_argument(path + ": is a directory, not a WKT file");
-  const auto size = std::filesystem::file_size(path, ec);
-  if (ec) return io_error(path + ": cannot read: " + ec.message());
-  constexpr std::uintmax_t kMaxWktBytes = std::uintmax_t{256} << 20;
-  if (size > kMaxWktBytes) {
-    return invalid_argument(path + ": " + std::to_string(size) + " bytes; a WKT polygon file may hold at most 256 MiB");
-  }
-  RELIEF_ASSIGN_OR_RETURN(std::vector<std::uint8_t> bytes, read_file(path));
-  return Polygon2D::from_wkt(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), path);
-}
 
 int run_query_to_file(const std::string& command, const std::string& archive_path, const Box3d* box,
                       const std::string& out_path, const QueryOptions& options, bool quiet) {

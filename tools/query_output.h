@@ -15,9 +15,6 @@ namespace relief::cli {
 // to stderr prefixed "relief COMMAND: ".
 QueryOptions query_options_from(Args& args, const std::string& command);
 
-// --polygon's value: WKT, or @FILE for a file holding it (at most 256 MiB).
-Result<Polygon2D> polygon_arg(const std::string& text);
-
 // Help lines for the LAS filters, shared by query and decompress.
 inline constexpr const char* kQueryFilterHelp =
     "  --class C,...     only points whose LAS classification is one of these (0..255)\n"
@@ -28,8 +25,9 @@ inline constexpr const char* kQueryFilterHelp =
     "                    intensity, classification, return_number, gps_time, extra_bytes ...;\n"
     "                    'none' for x y z alone (default all). The others are not decoded: faster\n"
     "  --polygon WKT     only points inside this x-y area: POLYGON or MULTIPOLYGON Well-Known Text\n"
-    "                    (holes by the even-odd rule; Z/M values ignored), or @FILE holding it, in\n"
-    "                    the archive's coordinates. Chunks outside it are not read\n";
+    "                    (holes by the even-odd rule; Z/M values ignored), or @FILE: a file of WKT\n"
+    "                    or an ESRI shapefile (.shp) of polygons, in the archive's coordinates.\n"
+    "                    Chunks outside it are not read\n";
 
 // Runs `box` (or everything when `all`) against the archive at `archive_path`
 // into `out_path`. Returns the process exit code; prints errors and, unless

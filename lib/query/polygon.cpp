@@ -8,6 +8,10 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 
 namespace relief {
@@ -156,6 +160,157 @@ bool segment_meets(double x0, double y0, double x1, double y1, double rx0, doubl
 Result<Polygon2D> Polygon2D::from_wkt(std::string_view wkt, const std::string& source) {
   std::vector<Ring> rings;
   RELIEF_RETURN_IF_ERROR(WktParser(wkt, source).parse(rings));
+  return from_rings(rings, source);
+}
+
+namespace {
+
+std::int32_t le_i32(const std::uint8_t* p) {
+  std::uint32_t v = 0;
+  for (int i = 3; i >= 0; --i) v = (v << 8) | p[i];
+  return static_cast<std::int32_t>(v);
+}
+std::int32_t be_i32(const std::uint8_t* p) {
+  std::uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v = (v << 8) | p[i];
+  return static_cast<std::int32_t>(v);
+}
+double le_f64(const std::uint8_t* p) {
+  std::uint64_t v = 0;
+  for (int i = 7; i >= 0; --i) v = (v << 8) | p[i];
+  double d = 0;
+  std::memcpy(&d, &v, sizeof d);
+  return d;
+}
+
+constexpr std::int32_t kShapefileCode = 9994;
+constexpr std::size_t kShapefileHeader = 100;
+
+const char* shape_type_name(std::int32_t t) {
+  switch (t) {
+    case 1: case 11: case 21: return "a point";
+    case 3: case 13: case 23: return "a polyline";
+    case 8: case 18: case 28: return "a multipoint";
+    case 31: return "a multipatch";
+    default: return "an unknown shape";
+  }
+}
+
+}  // namespace
+
+bool Polygon2D::is_shapefile(std::span<const std::uint8_t> bytes) {
+  return bytes.size() >= 4 && be_i32(bytes.data()) == kShapefileCode;
+}
+
+Result<Polygon2D> Polygon2D::from_shapefile(std::span<const std::uint8_t> bytes, const std::string& source) {
+  const auto bad = [&](const std::string& what) { return format_error(source + ": not a polygon shapefile: " + what); };
+  if (bytes.size() < kShapefileHeader || !is_shapefile(bytes)) return bad("no shapefile header (file code 9994)");
+  if (le_i32(bytes.data() + 28) != 1000) return bad("version " + std::to_string(le_i32(bytes.data() + 28)) + ", not 1000");
+  const std::int32_t type = le_i32(bytes.data() + 32);
+  if (type != 5 && type != 15 && type != 25) {
+    return bad("its shapes are " + std::string(shape_type_name(type)) + " (type " + std::to_string(type) +
+               "), not polygons (5, 15 or 25)");
+  }
+  // The header's length (16-bit words) may not exceed the bytes present.
+  const std::uint64_t declared = 2 * static_cast<std::uint64_t>(static_cast<std::uint32_t>(be_i32(bytes.data() + 24)));
+  if (declared > bytes.size()) {
+    return bad("truncated: the header declares " + std::to_string(declared) + " bytes, the file has " +
+               std::to_string(bytes.size()));
+  }
+  if (declared < kShapefileHeader) return bad("the header declares " + std::to_string(declared) + " bytes");
+  std::vector<Ring> rings;
+  std::size_t at = kShapefileHeader;
+  std::uint64_t record = 0;
+  while (at < declared) {
+    ++record;
+    const std::string which = "record " + std::to_string(record) + " at byte " + std::to_string(at);
+    if (declared - at < 8) return bad(which + ": its header is cut short");
+    const std::uint64_t length = 2 * static_cast<std::uint64_t>(static_cast<std::uint32_t>(be_i32(bytes.data() + at + 4)));
+    const std::size_t body = at + 8;
+    if (length > declared - body) return bad(which + ": its " + std::to_string(length) + " bytes run past the end");
+    at = body + static_cast<std::size_t>(length);
+    if (length < 4) return bad(which + ": no shape type");
+    const std::uint8_t* c = bytes.data() + body;
+    const std::int32_t shape = le_i32(c);
+    if (shape == 0) continue;  // a null shape
+    if (shape != type) {
+      return bad(which + ": shape type " + std::to_string(shape) + " in a file of type " + std::to_string(type));
+    }
+    if (length < 44) return bad(which + ": too short for a polygon");
+    const std::int32_t parts = le_i32(c + 36), points = le_i32(c + 40);
+    // Both counts bounded by the record's bytes before anything is allocated.
+    if (parts < 1 || points < 0 ||
+        44 + 4 * static_cast<std::uint64_t>(parts) + 16 * static_cast<std::uint64_t>(points) > length) {
+      return bad(which + ": " + std::to_string(parts) + " parts and " + std::to_string(points) +
+                 " points do not fit its " + std::to_string(length) + " bytes");
+    }
+    const std::uint8_t* part_at = c + 44;
+    const std::uint8_t* xy = part_at + 4 * static_cast<std::size_t>(parts);
+    for (std::int32_t k = 0; k < parts; ++k) {
+      const std::int32_t first = le_i32(part_at + 4 * k);
+      const std::int32_t end = k + 1 < parts ? le_i32(part_at + 4 * (k + 1)) : points;
+      if (first < 0 || first > end || end > points || (k == 0 && first != 0)) {
+        return bad(which + ": part " + std::to_string(k + 1) + " starts at point " + std::to_string(first) +
+                   " (the parts must start at 0 and rise to the " + std::to_string(points) + " points)");
+      }
+      Ring ring;
+      for (std::int32_t i = first; i < end; ++i) {
+        const double x = le_f64(xy + 16 * static_cast<std::size_t>(i)), y = le_f64(xy + 16 * static_cast<std::size_t>(i) + 8);
+        if (!std::isfinite(x) || !std::isfinite(y)) return bad(which + ": point " + std::to_string(i) + " is not finite");
+        ring.push_back({x, y});
+      }
+      if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+      ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+      if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+      if (ring.size() < 3) {
+        return invalid_argument(source + ": " + which + ": part " + std::to_string(k + 1) + " has " +
+                                std::to_string(ring.size()) + " distinct vertices; a ring needs 3");
+      }
+      rings.push_back(std::move(ring));
+    }
+  }
+  if (rings.empty()) return invalid_argument(source + ": the shapefile holds no polygon");
+  return from_rings(rings, source);
+}
+
+Result<Polygon2D> Polygon2D::from_file(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return invalid_argument(path + ": is a directory, not a polygon file");
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) return io_error(path + ": cannot read: " + ec.message());
+  constexpr std::uintmax_t kMaxBytes = std::uintmax_t{256} << 20;
+  if (size > kMaxBytes) {
+    return invalid_argument(path + ": " + std::to_string(size) + " bytes; a polygon file may hold at most 256 MiB");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return io_error(path + ": cannot open");
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
+  in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  if (static_cast<std::uintmax_t>(in.gcount()) != size) return io_error(path + ": read error");
+  if (is_shapefile(bytes)) return from_shapefile(bytes, path);
+  return from_wkt(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), path);
+}
+
+Result<Polygon2D> Polygon2D::from_arg(const std::string& text) {
+  if (!text.empty() && text[0] == '@') return from_file(text.substr(1));
+  return from_wkt(text, "the polygon");
+}
+
+Result<Polygon2D> Polygon2D::from_rings(const std::vector<std::vector<std::array<double, 2>>>& rings,
+                                        const std::string& source) {
+  // Archives hold coordinates within 2^50 (README, Limits); so must an area,
+  // which also keeps the crossing test's products far from overflow.
+  constexpr double kLimit = 1125899906842624.0;  // 2^50
+  for (std::size_t r = 0; r < rings.size(); ++r) {
+    for (const auto& v : rings[r]) {
+      if (std::abs(v[0]) > kLimit || std::abs(v[1]) > kLimit) {
+        char text[160];
+        std::snprintf(text, sizeof text, ": ring %zu has the vertex (%.17g, %.17g), beyond the coordinate limit of 2^50",
+                      r + 1, v[0], v[1]);
+        return invalid_argument(source + text);
+      }
+    }
+  }
   Polygon2D p;
   p.ring_count_ = rings.size();
   const double inf = std::numeric_limits<double>::infinity();

@@ -175,16 +175,20 @@ def append(archive, inputs, *, progress=None, **options):
 
 
 def _polygon_text(polygon, caller):
-    """WKT text of a polygon argument: a str, or an object with a ``wkt``
-    attribute (a shapely geometry, as GeoPandas holds them); None: none."""
+    """The polygon argument as the library takes it: WKT text (a str, or an
+    object with a ``wkt`` attribute: a shapely geometry, as GeoPandas holds
+    them), or a file path (os.PathLike, or a str starting with ``@``) of WKT
+    or an ESRI shapefile (.shp); None: none."""
     if polygon is None:
         return ""
+    if isinstance(polygon, _os.PathLike):
+        return "@" + _os.fspath(polygon)
     if isinstance(polygon, str):
         return polygon
     wkt = getattr(polygon, "wkt", None)
     if isinstance(wkt, str):
         return wkt
-    raise TypeError(f"{caller}(): polygon must be WKT text or have a .wkt (a shapely geometry), "
+    raise TypeError(f"{caller}(): polygon must be WKT text, a path, or have a .wkt (a shapely geometry), "
                     f"not {type(polygon).__name__}")
 
 
@@ -279,7 +283,8 @@ class Archive:
         InvalidArgumentError), ``polygon`` (only the points inside this x-y
         area, as the WKT text of a POLYGON or MULTIPOLYGON in the archive's
         coordinates, or an object with a ``wkt`` attribute such as a shapely
-        geometry; holes by the even-odd rule; with or without ``box``; chunks
+        geometry, or a path (``pathlib.Path``, or ``"@file"``) of WKT or an
+        ESRI shapefile ``.shp``; holes by the even-odd rule; with or without ``box``; chunks
         outside it are not read; a polygon beside the archive's bounds gives
         a RuntimeWarning, as it is most often in another CRS).
         """

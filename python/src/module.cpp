@@ -149,7 +149,7 @@ QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrup
   if (!set) raise_status(set.status());
   q.attributes = *set;
   if (!polygon.empty()) {
-    Result<Polygon2D> area = Polygon2D::from_wkt(polygon, "polygon");
+    Result<Polygon2D> area = Polygon2D::from_arg(polygon);
     if (!area) raise_status(area.status());
     q.polygon = std::make_shared<const Polygon2D>(std::move(area).value());
   }

@@ -113,7 +113,7 @@ def test_box_query(xyz_archive, scene, dims):
     assert sum(len(p) for p in parts) == len(pts)
 
 
-def test_polygon_query(xyz_archive, scene):
+def test_polygon_query(xyz_archive, scene, tmp_path):
     path, _ = xyz_archive
     # A triangle with a square hole, in the scene's 40 m square.
     outer = [(2.0, 3.0), (37.0, 5.0), (20.0, 36.0)]
@@ -147,6 +147,12 @@ def test_polygon_query(xyz_archive, scene):
 
         shape = type("Shape", (), {"wkt": wkt})()  # what a shapely geometry offers
         assert len(a.query(polygon=shape)) == len(pts)
+        area_file = tmp_path / "area.wkt"
+        area_file.write_text(wkt)
+        assert len(a.query(polygon=area_file)) == len(pts)
+        assert len(a.query(polygon="@" + str(area_file))) == len(pts)
+        with pytest.raises(relief.IoError, match="nope.shp"):
+            a.query(polygon=tmp_path / "nope.shp")
         with pytest.warns(RuntimeWarning, match="outside the archive's bounds"):
             assert len(a.query(polygon="POLYGON ((10 50, 11 50, 11 51, 10 50))")) == 0
     assert 1000 < len(pts) < len(scene["x"]) / 2

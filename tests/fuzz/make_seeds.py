@@ -281,6 +281,33 @@ def polygon_seeds(out):
         f"{2 * i} 0, {2 * i} 1000, {2 * i + 1} 1000, {2 * i + 1} 0.5" for i in range(40)) + ", 80 -1, 0 -1))").encode())
     put(out, "polygon", "zm_exp.wkt", b"POLYGON ZM ((1e3 -2E-1 0 0, +5e3 0 0 0, 2.5e3 4e3 1 1))")
     put(out, "polygon", "bad_ring.wkt", b"POLYGON ((0 0, 1 1, 0 0))")
+    # ESRI shapefiles (.shp): a square with a hole and a triangle, type 5 and
+    # (with Z values) type 15, a null shape between them.
+    def shp(shape_type, rings_per_record):
+        records = b""
+        for number, rings in enumerate(rings_per_record, 1):
+            if rings is None:
+                content = struct.pack("<i", 0)
+            else:
+                points = [p for r in rings for p in r + r[:1]]
+                starts, k = [], 0
+                for r in rings:
+                    starts.append(k)
+                    k += len(r) + 1
+                content = struct.pack("<i4dii", shape_type, 0, 0, 0, 0, len(rings), len(points))
+                content += struct.pack(f"<{len(starts)}i", *starts)
+                content += b"".join(struct.pack("<2d", *p) for p in points)
+                if shape_type in (15, 25):
+                    content += struct.pack(f"<{2 + len(points)}d", *([1.0] * (2 + len(points))))
+            records += struct.pack(">2i", number, len(content) // 2) + content
+        header = struct.pack(">7i", 9994, 0, 0, 0, 0, 0, (100 + len(records)) // 2)
+        header += struct.pack("<2i8d", 1000, shape_type, 0, 0, 0, 0, 0, 0, 0, 0)
+        return header + records
+    square = [(0, 0), (0, 10), (10, 10), (10, 0)]
+    hole = [(4, 4), (6, 4), (6, 6), (4, 6)]
+    triangle = [(20, 0), (30, 0), (25, 8)]
+    put(out, "polygon", "holed.shp", shp(5, [[square, hole], None, [triangle]]))
+    put(out, "polygon", "z.shp", shp(15, [[square], [triangle]]))
 
 
 def main():

@@ -4,12 +4,16 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "relief/polygon.h"
+#include "support/temp_dir.h"
 
 using namespace relief;
 
@@ -115,6 +119,7 @@ TEST_CASE("malformed WKT is refused naming the source and the problem", "[polygo
       {"POLYGON ((0 0, 1 1, 0 0))", "ring 1 of the polygon has 2 distinct vertices"},
       {"POLYGON ((0 0, 1 0, 1 1, 0 0), (5 5, 5 5, 5 5))", "ring 2 of the polygon has 1 distinct vertices"},
       {"POLYGON Q ((0 0, 1 0, 1 1, 0 0))", "unexpected 'Q'"},
+      {"POLYGON ((0 0, 1 0, 1 2e15, 0 0))", "ring 1 has the vertex (1, 2000000000000000), beyond the coordinate limit"},
       {"MULTIPOLYGON ((0 0, 1 0, 1 1, 0 0))", "expected '('"},
   };
   for (const auto& [text, message] : cases) {
@@ -224,4 +229,203 @@ TEST_CASE("a comb of long edges is tested right", "[polygon]") {
     mismatches += p.contains(px, py) != plain_contains({r}, px, py) ? 1 : 0;
   }
   CHECK(mismatches == 0);
+}
+
+namespace {
+
+// An ESRI shapefile main file, written field by field as the ESRI whitepaper
+// (July 1998) lays it out: a 100-byte header (file code 9994 and the length
+// in 16-bit words big-endian, version 1000 and the shape type little-endian,
+// the bounding box), then records of a big-endian header (number, content
+// length in words) and a little-endian content.
+struct Shp {
+  std::vector<std::uint8_t> bytes = std::vector<std::uint8_t>(100, 0);
+  int type;
+  int records = 0;
+  explicit Shp(int t) : type(t) {}
+  static void be(std::vector<std::uint8_t>& b, std::size_t at, std::int32_t v) {
+    for (int i = 0; i < 4; ++i) b[at + i] = static_cast<std::uint8_t>(static_cast<std::uint32_t>(v) >> (24 - 8 * i));
+  }
+  static void le(std::vector<std::uint8_t>& b, std::int32_t v) {
+    for (int i = 0; i < 4; ++i) b.push_back(static_cast<std::uint8_t>(static_cast<std::uint32_t>(v) >> (8 * i)));
+  }
+  static void le(std::vector<std::uint8_t>& b, double d) {
+    std::uint64_t v;
+    std::memcpy(&v, &d, 8);
+    for (int i = 0; i < 8; ++i) b.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void null_record() {
+    std::vector<std::uint8_t> c;
+    le(c, std::int32_t{0});
+    add(c);
+  }
+  // Rings as parts; type 15 appends the Z range and values, 25 the M ones.
+  void polygon(const std::vector<Ring>& rings, int shape = -1) {
+    std::vector<std::uint8_t> c;
+    std::int32_t points = 0;
+    for (const Ring& r : rings) points += static_cast<std::int32_t>(r.size());
+    le(c, std::int32_t{shape < 0 ? type : shape});
+    for (int i = 0; i < 4; ++i) le(c, 0.0);  // the record's box (not read)
+    le(c, static_cast<std::int32_t>(rings.size()));
+    le(c, points);
+    std::int32_t first = 0;
+    for (const Ring& r : rings) {
+      le(c, first);
+      first += static_cast<std::int32_t>(r.size());
+    }
+    for (const Ring& r : rings) {
+      for (const auto& v : r) {
+        le(c, v[0]);
+        le(c, v[1]);
+      }
+    }
+    if (type == 15 || type == 25) {
+      for (int i = 0; i < 2 + points; ++i) le(c, 7.5);  // range, then one per point
+    }
+    add(c);
+  }
+  void add(const std::vector<std::uint8_t>& content) {
+    const std::size_t at = bytes.size();
+    bytes.resize(at + 8);
+    be(bytes, at, ++records);
+    be(bytes, at + 4, static_cast<std::int32_t>(content.size() / 2));
+    bytes.insert(bytes.end(), content.begin(), content.end());
+  }
+  std::vector<std::uint8_t> finish() const {
+    std::vector<std::uint8_t> b = bytes;
+    be(b, 0, 9994);
+    be(b, 24, static_cast<std::int32_t>(b.size() / 2));
+    std::vector<std::uint8_t> v;
+    le(v, std::int32_t{1000});
+    le(v, std::int32_t{type});
+    std::memcpy(b.data() + 28, v.data(), 8);
+    return b;
+  }
+};
+
+// A closed ring, as shapefiles store them (first point repeated last).
+Ring closed(Ring r) {
+  r.push_back(r.front());
+  return r;
+}
+
+}  // namespace
+
+TEST_CASE("polygon shapefiles read as the same area as their WKT", "[polygon][shapefile]") {
+  std::mt19937 rng(21);
+  // Outer ring clockwise, hole counter-clockwise, as ESRI writes them; the
+  // even-odd rule does not care.
+  const Ring outer = {{0, 0}, {0, 50}, {60, 50}, {60, 0}};
+  const Ring hole = {{10, 10}, {20, 10}, {20, 20}, {10, 20}};
+  const Ring other = star(rng, 100, 25, 20, 50);
+  const std::string wkt = "MULTIPOLYGON ((" + wkt_ring(outer) + ", " + wkt_ring(hole) + "), (" + wkt_ring(other) + "))";
+  const Polygon2D want = parse(wkt);
+  for (const int type : {5, 15, 25}) {
+    Shp shp(type);
+    shp.polygon({closed(outer), closed(hole)});
+    shp.null_record();
+    shp.polygon({closed(other)});
+    auto got = Polygon2D::from_shapefile(shp.finish(), "aoi.shp");
+    INFO("shape type " << type);
+    REQUIRE(got.is_ok());
+    CHECK(got->ring_count() == 3);
+    CHECK(got->edge_count() == want.edge_count());
+    std::uniform_real_distribution<double> x(-5, 125), y(-5, 55);
+    std::size_t mismatches = 0, in = 0;
+    for (int i = 0; i < 20000; ++i) {
+      const double px = x(rng), py = y(rng);
+      mismatches += got->contains(px, py) != want.contains(px, py) ? 1 : 0;
+      in += want.contains(px, py) ? 1 : 0;
+    }
+    CHECK(mismatches == 0);
+    CHECK(in > 5000);
+    CHECK_FALSE(got->contains(15, 15));  // the hole
+  }
+}
+
+TEST_CASE("damaged or non-polygon shapefiles are refused naming the file and the record", "[polygon][shapefile]") {
+  Shp good(5);
+  good.polygon({closed({{0, 0}, {1, 0}, {1, 1}})});
+  good.polygon({closed({{5, 5}, {6, 5}, {6, 6}})});
+  const std::vector<std::uint8_t> ok = good.finish();
+  REQUIRE(Polygon2D::from_shapefile(ok, "a.shp").is_ok());
+  struct Case {
+    std::string what;
+    std::vector<std::uint8_t> bytes;
+    std::string message;
+  };
+  std::vector<Case> cases;
+  {
+    Shp lines(3);
+    lines.polygon({closed({{0, 0}, {1, 0}, {1, 1}})}, 3);
+    cases.push_back({"polylines", lines.finish(), "its shapes are a polyline (type 3), not polygons"});
+  }
+  {
+    auto b = ok;
+    b.resize(b.size() - 10);
+    cases.push_back({"cut short", b, "truncated: the header declares"});
+    auto c = ok;
+    c[28] = 0xE9;  // version 1001
+    cases.push_back({"version", c, "version 1001, not 1000"});
+    auto d = ok;
+    Shp::be(d, 100 + 4, 1 << 28);  // the first record's length
+    cases.push_back({"record length", d, "record 1 at byte 100: its 536870912 bytes run past the end"});
+    auto e = ok;
+    e[100 + 8 + 36] = 0xFF;  // parts = 255 (+ high bytes 0)
+    cases.push_back({"parts", e, "record 1 at byte 100: 255 parts and 4 points do not fit"});
+    auto f = ok;
+    f[100 + 8 + 40] = 0x7F;
+    f[100 + 8 + 43] = 0x7F;  // points = 2,130,706,559
+    cases.push_back({"points", f, "parts and 2130706559 points do not fit"});
+    auto g = ok;
+    g[100 + 8 + 44] = 2;  // part 1 starts at point 2
+    cases.push_back({"part start", g, "part 1 starts at point 2"});
+    auto h = ok;
+    std::memset(h.data() + 100 + 8 + 48 + 16, 0xFF, 8);  // point 1's x: a NaN
+    cases.push_back({"NaN", h, "record 1 at byte 100: point 1 is not finite"});
+    auto k = ok;
+    k[100 + 8] = 1;  // record 1 says it is a point in a polygon file
+    cases.push_back({"mixed types", k, "shape type 1 in a file of type 5"});
+    cases.push_back({"header only", std::vector<std::uint8_t>(ok.begin(), ok.begin() + 60), "no shapefile header"});
+  }
+  {
+    Shp degenerate(5);
+    degenerate.polygon({closed({{0, 0}, {1, 1}})});
+    cases.push_back({"two vertices", degenerate.finish(), "part 1 has 2 distinct vertices"});
+    Shp empty(5);
+    empty.null_record();
+    cases.push_back({"only null shapes", empty.finish(), "holds no polygon"});
+  }
+  for (const Case& c : cases) {
+    INFO(c.what);
+    const auto p = Polygon2D::from_shapefile(c.bytes, "a.shp");
+    REQUIRE_FALSE(p.is_ok());
+    CHECK(p.status().message().rfind("a.shp: ", 0) == 0);
+    CHECK(p.status().message().find(c.message) != std::string::npos);
+  }
+}
+
+TEST_CASE("polygon files: a shapefile or WKT by content, @ in an argument", "[polygon][shapefile]") {
+  relief::test::TempDir tmp;
+  Shp shp(5);
+  shp.polygon({closed({{0, 0}, {0, 10}, {10, 10}, {10, 0}})});
+  const auto bytes = shp.finish();
+  std::ofstream(tmp.file("aoi.shp"), std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                                              static_cast<std::streamsize>(bytes.size()));
+  std::ofstream(tmp.file("aoi.wkt")) << "POLYGON ((0 0, 10 0, 10 10, 0 10, 0 0))\n";
+  for (const std::string name : {"aoi.shp", "aoi.wkt"}) {
+    auto p = Polygon2D::from_arg("@" + tmp.file(name));
+    INFO(name);
+    REQUIRE(p.is_ok());
+    CHECK(p->contains(5, 5));
+    CHECK_FALSE(p->contains(11, 5));
+  }
+  CHECK(Polygon2D::from_arg("POLYGON ((0 0, 1 0, 1 1, 0 0))").is_ok());
+  const auto missing = Polygon2D::from_arg("@" + tmp.file("none.shp"));
+  REQUIRE_FALSE(missing.is_ok());
+  CHECK(missing.status().code() == StatusCode::kIoError);
+  CHECK(missing.status().message().find("none.shp: cannot read") != std::string::npos);
+  const auto dir = Polygon2D::from_arg("@" + tmp.path().string());
+  REQUIRE_FALSE(dir.is_ok());
+  CHECK(dir.status().message().find("is a directory") != std::string::npos);
 }

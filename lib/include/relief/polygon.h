@@ -1,9 +1,12 @@
 // Areas of interest for queries: a polygon (with holes) or several, in the
-// archive's x-y coordinates, read from OGC Well-Known Text.
+// archive's x-y coordinates, read from OGC Well-Known Text or an ESRI
+// shapefile.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,9 +20,20 @@ class Polygon2D {
  public:
   // `POLYGON ((x y, x y, ...), (hole ...))` or `MULTIPOLYGON (((...)), ...)`,
   // keywords in any case, with optional Z, M or ZM (only x and y are used).
-  // A ring needs 3 distinct vertices; an unclosed ring is closed. Errors name
-  // `source` (a file name, or "--polygon") and what is wrong.
+  // A ring needs 3 distinct vertices; an unclosed ring is closed; every
+  // coordinate must lie within 2^50 (archives' limit). Errors name `source`
+  // (a file name, or "the polygon") and what is wrong.
   static Result<Polygon2D> from_wkt(std::string_view wkt, const std::string& source);
+  // An ESRI shapefile's main file (.shp) of polygons (shape types 5, 15 or 25;
+  // null shapes skipped, Z and M ignored): every part of every record is a
+  // ring, all of them one area by the even-odd rule (so ring orientation does
+  // not matter). Any other shape type is refused, naming it.
+  static Result<Polygon2D> from_shapefile(std::span<const std::uint8_t> bytes, const std::string& source);
+  static bool is_shapefile(std::span<const std::uint8_t> bytes);
+  // A file of at most 256 MiB: a shapefile (by its file code) or WKT text.
+  static Result<Polygon2D> from_file(const std::string& path);
+  // What --polygon and Python's polygon= take: "@PATH" for from_file, else WKT.
+  static Result<Polygon2D> from_arg(const std::string& text);
 
   // Whether (x, y) is inside by the even-odd rule over every ring (holes are
   // rings inside rings). A point exactly on an edge is inside on one side of
@@ -47,6 +61,8 @@ class Polygon2D {
   const std::vector<Edge>& edges() const { return edges_; }
 
  private:
+  static Result<Polygon2D> from_rings(const std::vector<std::vector<std::array<double, 2>>>& rings,
+                                      const std::string& source);
   void build_index();
 
   std::vector<Edge> edges_;
