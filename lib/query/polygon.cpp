@@ -338,7 +338,9 @@ Result<Polygon2D> Polygon2D::from_rings(const std::vector<std::vector<std::array
 
 void Polygon2D::build_index() {
   const double height = bounds_.max.y - bounds_.min.y;
-  std::size_t strips = std::clamp<std::size_t>(edges_.size() / 2, 1, 4096);
+  // About two edges a strip, up to 2^16 strips (a detailed coastline of
+  // 10^5-10^6 vertices still tests a handful of edges a point).
+  std::size_t strips = std::clamp<std::size_t>(edges_.size() / 2, 1, std::size_t{1} << 16);
   for (;;) {
     strip_height_ = height > 0 ? height / static_cast<double>(strips) : 1;
     strip_start_.assign(strips + 1, 0);
