@@ -175,9 +175,26 @@ int main(int argc, char** argv) {
   for (double pct : {0.1, 1.0, 10.0, 100.0}) {
     const double side = std::sqrt(pct / 100.0);
     for (std::uint32_t lod : {1u, 4u, 16u}) {
-      std::vector<double> ms, poly_ms;
-      double bytes = 0, points = 0, chunks = 0;
-      double poly_bytes = 0, poly_points = 0, poly_chunks = 0;
+      // Per query kind (the box; at lod 1 also its inscribed star): the
+      // boxes' median times and their summed figures.
+      struct Row {
+        std::vector<double> ms;
+        double bytes = 0, points = 0, chunks = 0;
+        void time(relief::ArchiveReader& reader, const relief::Box3d& box, const relief::QueryOptions& q, int repeat) {
+          std::vector<double> times;
+          relief::QueryStats last;
+          for (int k = 0; k < repeat; ++k) {
+            const auto t0 = std::chrono::steady_clock::now();
+            auto s = reader.query(box, q, [](const relief::PointCloud&) { return relief::Status::ok(); });
+            times.push_back(seconds_since(t0) * 1e3);
+            if (s) last = *s;
+          }
+          ms.push_back(median(times));
+          bytes += static_cast<double>(last.blob_bytes_read);
+          points += static_cast<double>(last.points);
+          chunks += static_cast<double>(last.chunks_decoded);
+        }
+      } box_row, polygon_row;
       int boxes = 0;
       for (int gy = 0; gy < 3; ++gy) {
         for (int gx = 0; gx < 3; ++gx) {
@@ -187,41 +204,19 @@ int main(int argc, char** argv) {
           relief::QueryOptions q;
           q.lod = lod;
           q.threads = 2;
-          std::vector<double> times;
-          relief::QueryStats last;
-          for (int k = 0; k < repeat; ++k) {
-            const auto t0 = std::chrono::steady_clock::now();
-            auto s = (*reader)->query(box, q, [](const relief::PointCloud&) { return relief::Status::ok(); });
-            times.push_back(seconds_since(t0) * 1e3);
-            if (s) last = *s;
-          }
-          ms.push_back(median(times));
-          bytes += static_cast<double>(last.blob_bytes_read);
-          points += static_cast<double>(last.points);
-          chunks += static_cast<double>(last.chunks_decoded);
+          box_row.time(**reader, box, q, repeat);
           ++boxes;
           if (lod != 1) continue;
           // The same box's inscribed 256-vertex star (QueryOptions::polygon):
           // the chunks outside it unread, those it crosses tested point by point.
           q.polygon = std::make_shared<const relief::Polygon2D>(star_in(box));
-          times.clear();
-          for (int k = 0; k < repeat; ++k) {
-            const auto t0 = std::chrono::steady_clock::now();
-            auto s = (*reader)->query(box, q, [](const relief::PointCloud&) { return relief::Status::ok(); });
-            times.push_back(seconds_since(t0) * 1e3);
-            if (s) last = *s;
-          }
-          poly_ms.push_back(median(times));
-          poly_bytes += static_cast<double>(last.blob_bytes_read);
-          poly_points += static_cast<double>(last.points);
-          poly_chunks += static_cast<double>(last.chunks_decoded);
+          polygon_row.time(**reader, box, q, repeat);
         }
       }
-      std::printf("box,%.1f,%u,%.2f,%.0f,%.1f,%.2f\n", pct, lod, median(ms), points / boxes, chunks / boxes,
-                  100.0 * bytes / boxes / static_cast<double>(info.blob_bytes));
-      if (!poly_ms.empty()) {
-        std::printf("polygon,%.1f,%u,%.2f,%.0f,%.1f,%.2f\n", pct, lod, median(poly_ms), poly_points / boxes,
-                    poly_chunks / boxes, 100.0 * poly_bytes / boxes / static_cast<double>(info.blob_bytes));
+      for (const auto& [kind, row] : {std::pair<const char*, const Row*>{"box", &box_row}, {"polygon", &polygon_row}}) {
+        if (row->ms.empty()) continue;
+        std::printf("%s,%.1f,%u,%.2f,%.0f,%.1f,%.2f\n", kind, pct, lod, median(row->ms), row->points / boxes,
+                    row->chunks / boxes, 100.0 * row->bytes / boxes / static_cast<double>(info.blob_bytes));
       }
       std::fflush(stdout);
     }
