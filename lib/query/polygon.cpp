@@ -20,6 +20,15 @@ namespace {
 
 using Ring = std::vector<std::array<double, 2>>;
 
+// Drops the closing vertex and repeated ones (they add nothing; three
+// distinct vertices make an area) and returns how many are left.
+std::size_t tidy(Ring& ring) {
+  if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+  ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+  if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
+  return ring.size();
+}
+
 class WktParser {
  public:
   WktParser(std::string_view text, const std::string& source) : s_(text), source_(source) {}
@@ -71,11 +80,7 @@ class WktParser {
       } while (accept(','));
       RELIEF_RETURN_IF_ERROR(expect(')'));
       const std::size_t index = rings.size() + 1;
-      if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
-      // Repeated vertices add nothing; three distinct ones make an area.
-      ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
-      if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
-      if (ring.size() < 3) {
+      if (tidy(ring) < 3) {
         return invalid_argument(source_ + ": ring " + std::to_string(index) + " of the polygon has " +
                                 std::to_string(ring.size()) + " distinct vertices; a ring needs 3");
       }
@@ -259,10 +264,7 @@ Result<Polygon2D> Polygon2D::from_shapefile(std::span<const std::uint8_t> bytes,
         if (!std::isfinite(x) || !std::isfinite(y)) return bad(which + ": point " + std::to_string(i) + " is not finite");
         ring.push_back({x, y});
       }
-      if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
-      ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
-      if (ring.size() > 1 && ring.front() == ring.back()) ring.pop_back();
-      if (ring.size() < 3) {
+      if (tidy(ring) < 3) {
         return invalid_argument(source + ": " + which + ": part " + std::to_string(k + 1) + " has " +
                                 std::to_string(ring.size()) + " distinct vertices; a ring needs 3");
       }
@@ -329,8 +331,10 @@ Result<Polygon2D> Polygon2D::from_rings(const std::vector<std::vector<std::array
       p.bounds_.max.y = std::max(p.bounds_.max.y, a[1]);
     }
   }
-  if (p.edges_.size() > std::numeric_limits<std::uint32_t>::max() / 2) {
-    return invalid_argument(source + ": the polygon has too many vertices");
+  // The strip index holds at most 16 entries an edge (+ 4096) in 32-bit offsets.
+  if (p.edges_.size() > (std::numeric_limits<std::uint32_t>::max() - 4096) / 16) {
+    return invalid_argument(source + ": the polygon has " + std::to_string(p.edges_.size()) +
+                            " vertices; at most 268,435,199 are taken");
   }
   p.build_index();
   return p;
