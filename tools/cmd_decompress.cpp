@@ -12,7 +12,7 @@ int run_decompress(int argc, char** argv) {
       "usage: relief decompress ARCHIVE -o OUT [--lod L] [--class C,...] [--first-returns] [--last-returns]\n"
       "                         [--attributes LIST] [--skip-corrupt] [--threads N] [--quiet]\n"
       "Writes every point of the archive (.las, .laz, .ply, .xyz/.txt/.csv; '-' = XYZ text on stdout).\n";
-  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--lod", "-o", "--threads", "--class", "--attributes", "--polygon"});
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--lod", "-o", "--threads", "--class", "--attributes", "--polygon", "--polygon-crs"});
   if (args.has("--help")) {
     std::cout << kUsage << kQueryFilterHelp;
     return kExitOk;

@@ -12,7 +12,7 @@ namespace {
 constexpr const char* kCommand = "query";
 constexpr const char* kUsageText =
     "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L | --max-points N] [--class C,...]\n"
-    "                    [--first-returns] [--last-returns] [--attributes LIST] [--polygon WKT] -o OUT\n"
+    "                    [--first-returns] [--last-returns] [--attributes LIST] [--polygon AREA [--polygon-crs CRS]] -o OUT\n"
     "Writes the archive's points inside the box (bounds included) and the polygon, when given\n"
     "(then --box is optional). Only the chunks they touch are read and decoded.\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"
@@ -28,7 +28,7 @@ constexpr const char* kUsageText =
 }  // namespace
 
 int run_query(int argc, char** argv) {
-  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--box", "--lod", "--max-points", "-o", "--threads", "--class", "--attributes", "--polygon"});
+  Args args(argc, argv, {"--help", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"}, {"--box", "--lod", "--max-points", "-o", "--threads", "--class", "--attributes", "--polygon", "--polygon-crs"});
   if (args.has("--help")) {
     std::cout << kUsageText << kQueryFilterHelp;
     return kExitOk;

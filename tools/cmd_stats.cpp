@@ -17,15 +17,16 @@ namespace {
 
 constexpr const char* kCommand = "stats";
 constexpr const char* kUsageText =
-    "usage: relief stats ARCHIVE|POINT_FILE [--box B] [--polygon WKT] [--attributes LIST] [--json]\n"
+    "usage: relief stats ARCHIVE|POINT_FILE [--box B] [--polygon AREA [--polygon-crs CRS]] [--attributes LIST] [--json]\n"
     "Decodes the points (of a box) and prints, per attribute, the range and mean of its values or\n"
     "the count of each value: x, y, z, colours, intensity, classification, flags, returns, scan\n"
     "angle, user data, point source IDs, GPS time, NIR and each scalar extra bytes field.\n"
     "A point file (.las, .laz, .ply, .xyz/.txt/.csv/.pts, .pcd) is summarised the same way, so an\n"
     "archive can be checked against its source (without --box or filters).\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights (default: everything)\n"
-    "  --polygon WKT    only the points inside this x-y area (WKT, or @FILE of WKT or a .shp),\n"
-    "                   as 'relief query --polygon'\n"
+    "  --polygon AREA   only the points inside this x-y area (WKT or GeoJSON, or @FILE of WKT,\n"
+    "                   GeoJSON or a .shp), as 'relief query --polygon'\n"
+    "  --polygon-crs CRS   the CRS of the area's coordinates, as 'relief query --polygon-crs'\n"
     "  --attributes L   only these (as 'relief info' lists them; default all): only they are decoded,\n"
     "                   so e.g. '--attributes classification' takes a fraction of a full decode\n"
 
@@ -140,7 +141,7 @@ void print_text(const ArchiveStats& s) {
 
 int run_stats(int argc, char** argv) {
   Args args(argc, argv, {"--help", "--json", "--quiet", "--skip-corrupt", "--first-returns", "--last-returns"},
-            {"--box", "--attributes", "--threads", "--class", "--polygon"});
+            {"--box", "--attributes", "--threads", "--class", "--polygon", "--polygon-crs"});
   if (args.has("--help")) {
     std::cout << kUsageText << kQueryFilterHelp;
     return kExitOk;

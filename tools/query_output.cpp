@@ -49,11 +49,19 @@ QueryOptions query_options_from(Args& args, const std::string& command) {
   }
   if (const auto text = args.get("--polygon")) {
     auto polygon = Polygon2D::from_arg(*text);
+    Status crs_status;
     if (polygon) {
-      q.polygon = std::make_shared<const Polygon2D>(std::move(polygon).value());
-    } else {
-      args.add_error("--polygon: " + polygon.status().message());
+      if (const auto crs = args.get("--polygon-crs")) crs_status = polygon->set_crs(*crs, "--polygon-crs");
     }
+    if (!polygon) {
+      args.add_error("--polygon: " + polygon.status().message());
+    } else if (!crs_status) {
+      args.add_error(crs_status.message());
+    } else {
+      q.polygon = std::make_shared<const Polygon2D>(std::move(polygon).value());
+    }
+  } else if (args.get("--polygon-crs")) {
+    args.add_error("--polygon-crs needs --polygon");
   }
   q.on_warning = [command](const std::string& w) { std::cerr << "relief " << command << ": warning: " << w << "\n"; };
   return q;

@@ -24,10 +24,14 @@ inline constexpr const char* kQueryFilterHelp =
     "  --attributes LIST only these attributes beside x y z, as 'relief info' lists them: rgb,\n"
     "                    intensity, classification, return_number, gps_time, extra_bytes ...;\n"
     "                    'none' for x y z alone (default all). The others are not decoded: faster\n"
-    "  --polygon WKT     only points inside this x-y area: POLYGON or MULTIPOLYGON Well-Known Text\n"
-    "                    (holes by the even-odd rule; Z/M values ignored), or @FILE: a file of WKT\n"
-    "                    or an ESRI shapefile (.shp) of polygons, in the archive's coordinates.\n"
-    "                    Chunks outside it are not read\n";
+    "  --polygon AREA    only points inside this x-y area: POLYGON or MULTIPOLYGON Well-Known Text\n"
+    "                    or GeoJSON (holes by the even-odd rule; Z/M values ignored), or @FILE: a\n"
+    "                    file of WKT or GeoJSON, or an ESRI shapefile (.shp) of polygons. WKT is in\n"
+    "                    the archive's coordinates; GeoJSON in longitude/latitude (or the CRS its\n"
+    "                    \"crs\" member names) and a shapefile in its .prj's CRS are converted to\n"
+    "                    the archive's CRS. Chunks outside the area are not read\n"
+    "  --polygon-crs CRS the CRS the area's coordinates are in (EPSG:4326, WKT, ...; easting or\n"
+    "                    longitude first), converted to the archive's; overrides the file's\n";
 
 // Runs `box` (or everything when `all`) against the archive at `archive_path`
 // into `out_path`. Returns the process exit code; prints errors and, unless

@@ -753,4 +753,56 @@ std::string crs_label(const std::string& text) {
   return label;
 }
 
+// ---- Conversions between CRSs
+
+namespace {
+
+// The horizontal CRS of `crs`: the first part of a compound CRS, else itself.
+Pj horizontal_part(PJ_CONTEXT* ctx, const PJ* crs) {
+  if (proj_get_type(crs) == PJ_TYPE_COMPOUND_CRS) return Pj(proj_crs_get_sub_crs(ctx, crs, 0));
+  return Pj(proj_clone(ctx, crs));
+}
+
+}  // namespace
+
+struct CrsTransform::Impl {
+  Context ctx;
+  Pj op;
+};
+
+CrsTransform::CrsTransform(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+CrsTransform::CrsTransform(CrsTransform&&) noexcept = default;
+CrsTransform& CrsTransform::operator=(CrsTransform&&) noexcept = default;
+CrsTransform::~CrsTransform() = default;
+
+Result<CrsTransform> CrsTransform::create(const std::string& from, const std::string& to, const std::string& where) {
+  auto impl = std::make_unique<Impl>();
+  impl->ctx = new_context();
+  PJ_CONTEXT* ctx = impl->ctx.get();
+  if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
+  RELIEF_ASSIGN_OR_RETURN(Pj a, parse_any(ctx, from, where + ": CRS " + crs_label(from)));
+  RELIEF_ASSIGN_OR_RETURN(Pj b, parse_any(ctx, to, where + ": CRS " + crs_label(to)));
+  Pj ha = horizontal_part(ctx, a.get());
+  Pj hb = horizontal_part(ctx, b.get());
+  if (!ha || !hb) return format_error(where + ": the horizontal part of a CRS cannot be read: " + last_error(ctx));
+  Pj op(proj_create_crs_to_crs_from_pj(ctx, ha.get(), hb.get(), nullptr, nullptr));
+  if (!op) {
+    return format_error(where + ": PROJ finds no conversion from " + crs_label(from) + " to " + crs_label(to) + ": " +
+                        last_error(ctx));
+  }
+  impl->op.reset(proj_normalize_for_visualization(ctx, op.get()));
+  if (!impl->op) return format_error(where + ": PROJ cannot put the conversion's axes in GIS order: " + last_error(ctx));
+  return CrsTransform(std::move(impl));
+}
+
+bool CrsTransform::apply(double& x, double& y) const {
+  if (!std::isfinite(x) || !std::isfinite(y)) return false;
+  proj_errno_reset(impl_->op.get());
+  const PJ_COORD out = proj_trans(impl_->op.get(), PJ_FWD, proj_coord(x, y, 0, 0));
+  if (proj_errno(impl_->op.get()) != 0 || !std::isfinite(out.xy.x) || !std::isfinite(out.xy.y)) return false;
+  x = out.xy.x;
+  y = out.xy.y;
+  return true;
+}
+
 }  // namespace relief

@@ -7,10 +7,12 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <memory>
 #include <set>
 
 #include "core/parallel.h"
 #include "relief/codec.h"
+#include "relief/crs.h"
 #include "relief/query.h"
 
 namespace relief {
@@ -146,8 +148,36 @@ class Reader final : public ArchiveReader {
   }
 
  private:
+  // The polygon in the archive's CRS: converted when it names another one.
+  Result<std::shared_ptr<const Polygon2D>> polygon_here(const QueryOptions& options) const {
+    const std::string& from = options.polygon->crs();
+    if (from.empty()) return options.polygon;
+    if (info_.crs.empty()) {
+      if (options.on_warning) {
+        options.on_warning(archive_->path() + ": the archive names no CRS, so the polygon's coordinates (in " +
+                           crs_label(from) + ") are taken as they are");
+      }
+      return options.polygon;
+    }
+    RELIEF_ASSIGN_OR_RETURN(const bool same, crs_equivalent(from, info_.crs));
+    if (same) return options.polygon;
+    RELIEF_ASSIGN_OR_RETURN(Polygon2D p, options.polygon->converted_to(info_.crs, "the polygon"));
+    return std::make_shared<const Polygon2D>(std::move(p));
+  }
+
   // A box query, within the polygon's bounds when there is one.
-  Result<QueryStats> query_within(Box3d box, const QueryOptions& options, const PointSink& sink) {
+  Result<QueryStats> query_within(Box3d box, const QueryOptions& given, const PointSink& sink) {
+    QueryOptions converted;
+    const QueryOptions* use = &given;
+    if (given.polygon) {
+      RELIEF_ASSIGN_OR_RETURN(std::shared_ptr<const Polygon2D> here, polygon_here(given));
+      if (here != given.polygon) {
+        converted = given;
+        converted.polygon = std::move(here);
+        use = &converted;
+      }
+    }
+    const QueryOptions& options = *use;
     if (options.polygon) {
       const Box3d& p = options.polygon->bounds();
       const Box3d& a = info_.bounds;
@@ -158,9 +188,13 @@ class Reader final : public ArchiveReader {
         char text[512];
         std::snprintf(text, sizeof text,
                       "the polygon (x %.9g .. %.9g, y %.9g .. %.9g) lies outside the archive's bounds (x %.9g .. "
-                      "%.9g, y %.9g .. %.9g): are its coordinates in the archive's CRS?",
+                      "%.9g, y %.9g .. %.9g): ",
                       p.min.x, p.max.x, p.min.y, p.max.y, a.min.x, a.max.x, a.min.y, a.max.y);
-        options.on_warning(archive_->path() + ": " + text);
+        const std::string why = given.polygon->crs().empty()
+                                    ? "are its coordinates in the archive's CRS?"
+                                    : "it was converted from " + crs_label(given.polygon->crs()) +
+                                          " to the archive's CRS: is that the CRS its coordinates are in?";
+        options.on_warning(archive_->path() + ": " + text + why);
       }
       box.min.x = std::max(box.min.x, p.min.x);
       box.min.y = std::max(box.min.y, p.min.y);

@@ -1,6 +1,7 @@
-// Polygon areas of interest: a WKT reader, an even-odd point test through a
-// strip index of the edges, and a rectangle test that lets a query skip the
-// chunks outside and the point tests of the chunks inside.
+// Polygon areas of interest: WKT, shapefile and GeoJSON readers, conversion
+// between CRSs, an even-odd point test through a strip index of the edges,
+// and a rectangle test that lets a query skip the chunks outside and the
+// point tests of the chunks inside.
 #include "relief/polygon.h"
 
 #include <algorithm>
@@ -13,6 +14,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <utility>
+
+#include "geojson.h"
+#include "relief/crs.h"
 
 namespace relief {
 
@@ -275,6 +280,32 @@ Result<Polygon2D> Polygon2D::from_shapefile(std::span<const std::uint8_t> bytes,
   return from_rings(rings, source);
 }
 
+namespace {
+
+// The text of the .prj beside a shapefile (same stem, either case of the
+// extension), or "" when there is none.
+Result<std::string> read_prj(const std::string& shp) {
+  for (const char* ext : {".prj", ".PRJ"}) {
+    const std::filesystem::path prj = std::filesystem::path(shp).replace_extension(ext);
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(prj, ec)) continue;
+    const auto size = std::filesystem::file_size(prj, ec);
+    if (ec) return io_error(prj.string() + ": cannot read: " + ec.message());
+    if (size > (std::uintmax_t{1} << 20)) {
+      return invalid_argument(prj.string() + ": " + std::to_string(size) + " bytes; a .prj may hold at most 1 MiB");
+    }
+    std::ifstream in(prj, std::ios::binary);
+    std::string text(static_cast<std::size_t>(size), '\0');
+    if (!in || !in.read(text.data(), static_cast<std::streamsize>(text.size()))) return io_error(prj.string() + ": cannot read");
+    while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back())) != 0) text.pop_back();
+    if (text.empty()) continue;
+    return text;
+  }
+  return std::string();
+}
+
+}  // namespace
+
 Result<Polygon2D> Polygon2D::from_file(const std::string& path) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) return invalid_argument(path + ": is a directory, not a polygon file");
@@ -289,53 +320,158 @@ Result<Polygon2D> Polygon2D::from_file(const std::string& path) {
   std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
   in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
   if (static_cast<std::uintmax_t>(in.gcount()) != size) return io_error(path + ": read error");
-  if (is_shapefile(bytes)) return from_shapefile(bytes, path);
-  return from_wkt(std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()), path);
+  if (is_shapefile(bytes)) {
+    RELIEF_ASSIGN_OR_RETURN(Polygon2D p, from_shapefile(bytes, path));
+    RELIEF_ASSIGN_OR_RETURN(std::string prj, read_prj(path));
+    if (!prj.empty()) RELIEF_RETURN_IF_ERROR(p.set_crs(prj, std::filesystem::path(path).replace_extension(".prj").string()));
+    return p;
+  }
+  const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  if (geojson::looks_like(text)) return from_geojson(text, path);
+  return from_wkt(text, path);
 }
 
 Result<Polygon2D> Polygon2D::from_arg(const std::string& text) {
   if (!text.empty() && text[0] == '@') return from_file(text.substr(1));
+  if (geojson::looks_like(text)) return from_geojson(text, "the polygon");
   return from_wkt(text, "the polygon");
+}
+
+Result<Polygon2D> Polygon2D::from_geojson(std::string_view text, const std::string& source) {
+  geojson::Area area;
+  RELIEF_RETURN_IF_ERROR(geojson::read(text, source, area));
+  std::vector<Ring> rings;
+  rings.reserve(area.rings.size());
+  for (geojson::Ring& r : area.rings) {
+    if (tidy(r.vertices) < 3) {
+      return invalid_argument(source + ": " + r.label + " has " + std::to_string(r.vertices.size()) +
+                              " distinct vertices; a ring needs 3");
+    }
+    rings.push_back(std::move(r.vertices));
+  }
+  RELIEF_ASSIGN_OR_RETURN(Polygon2D p, from_rings(rings, source));
+  RELIEF_RETURN_IF_ERROR(p.set_crs(area.crs, source));
+  return p;
+}
+
+Status Polygon2D::set_crs(const std::string& crs, const std::string& where) {
+  if (!crs.empty()) RELIEF_RETURN_IF_ERROR(crs_to_wkt2(crs, where).status());
+  crs_ = crs;
+  return Status::ok();
+}
+
+Result<Polygon2D> Polygon2D::converted_to(const std::string& target, const std::string& where) const {
+  const std::string from = crs_.empty() ? target : crs_;
+  RELIEF_ASSIGN_OR_RETURN(CrsTransform t, CrsTransform::create(from, target, where));
+  const auto convert = [&](double x, double y) -> Result<std::array<double, 2>> {
+    double cx = x, cy = y;
+    if (!t.apply(cx, cy)) {
+      char text[200];
+      std::snprintf(text, sizeof text, ": the polygon's vertex (%.17g, %.17g) cannot be converted from ", x, y);
+      return invalid_argument(where + text + crs_label(from) + " to " + crs_label(target) +
+                              ": are its coordinates in that CRS, easting or longitude first?");
+    }
+    return std::array<double, 2>{cx, cy};
+  };
+  // Every vertex first (each edge's ends), for the converted area's extent.
+  std::vector<std::array<double, 2>> ends;
+  ends.reserve(2 * edges_.size());
+  double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
+  for (const Edge& e : edges_) {
+    for (const auto& [x, y] : {std::pair{e.x0, e.y0}, std::pair{e.x1, e.y1}}) {
+      RELIEF_ASSIGN_OR_RETURN(const auto c, convert(x, y));
+      ends.push_back(c);
+      x0 = std::min(x0, c[0]);
+      y0 = std::min(y0, c[1]);
+      x1 = std::max(x1, c[0]);
+      y1 = std::max(y1, c[1]);
+    }
+  }
+  // Pieces of an edge: split where the converted midpoint of the source's
+  // straight edge lies more than 10^-7 of the area's extent off the straight
+  // piece, up to 10 levels deep, within a budget for the whole area.
+  const double tolerance = 1e-7 * std::hypot(x1 - x0, y1 - y0);
+  constexpr int kMaxLevels = 10;
+  const std::size_t budget = std::max<std::size_t>(16 * edges_.size(), std::size_t{1} << 20);
+  std::vector<Edge> out;
+  out.reserve(edges_.size());
+  struct Piece {
+    double sx0, sy0, sx1, sy1;  // in the source
+    std::array<double, 2> a, b;  // converted ends
+    int level;
+  };
+  std::vector<Piece> stack;
+  for (std::size_t i = 0; i < edges_.size(); ++i) {
+    const Edge& e = edges_[i];
+    stack.push_back({e.x0, e.y0, e.x1, e.y1, ends[2 * i], ends[2 * i + 1], 0});
+    while (!stack.empty()) {
+      const Piece p = stack.back();
+      stack.pop_back();
+      bool split = false;
+      if (p.level < kMaxLevels && out.size() + stack.size() + 2 <= budget) {
+        const double mx = 0.5 * (p.sx0 + p.sx1), my = 0.5 * (p.sy0 + p.sy1);
+        RELIEF_ASSIGN_OR_RETURN(const auto m, convert(mx, my));
+        split = std::hypot(m[0] - 0.5 * (p.a[0] + p.b[0]), m[1] - 0.5 * (p.a[1] + p.b[1])) > tolerance;
+        if (split) {
+          // Second half first on the stack, so pieces come out in order.
+          stack.push_back({mx, my, p.sx1, p.sy1, m, p.b, p.level + 1});
+          stack.push_back({p.sx0, p.sy0, mx, my, p.a, m, p.level + 1});
+        }
+      }
+      if (!split) out.push_back({p.a[0], p.a[1], p.b[0], p.b[1]});
+    }
+  }
+  RELIEF_ASSIGN_OR_RETURN(Polygon2D p, from_edges(std::move(out), ring_count_, where));
+  p.crs_ = target;
+  return p;
 }
 
 Result<Polygon2D> Polygon2D::from_rings(const std::vector<std::vector<std::array<double, 2>>>& rings,
                                         const std::string& source) {
-  // Archives hold coordinates within 2^50 (README, Limits); so must an area,
-  // which also keeps the crossing test's products far from overflow.
-  constexpr double kLimit = 1125899906842624.0;  // 2^50
-  for (std::size_t r = 0; r < rings.size(); ++r) {
-    for (const auto& v : rings[r]) {
-      if (std::abs(v[0]) > kLimit || std::abs(v[1]) > kLimit) {
-        char text[160];
-        std::snprintf(text, sizeof text, ": ring %zu has the vertex (%.17g, %.17g), beyond the coordinate limit of 2^50",
-                      r + 1, v[0], v[1]);
-        return invalid_argument(source + text);
-      }
-    }
-  }
-  Polygon2D p;
-  p.ring_count_ = rings.size();
-  const double inf = std::numeric_limits<double>::infinity();
-  p.bounds_ = Box3d{{inf, inf, -inf}, {-inf, -inf, inf}};
+  std::vector<Edge> edges;
   for (const Ring& ring : rings) {
     for (std::size_t i = 0; i < ring.size(); ++i) {
       const auto& a = ring[i];
       const auto& b = ring[(i + 1) % ring.size()];
-      // Lower end first, so an edge two polygons share gives both the same
-      // crossing whichever way each runs.
-      const bool up = a[1] < b[1] || (a[1] == b[1] && a[0] <= b[0]);
-      p.edges_.push_back(up ? Edge{a[0], a[1], b[0], b[1]} : Edge{b[0], b[1], a[0], a[1]});
-      p.bounds_.min.x = std::min(p.bounds_.min.x, a[0]);
-      p.bounds_.min.y = std::min(p.bounds_.min.y, a[1]);
-      p.bounds_.max.x = std::max(p.bounds_.max.x, a[0]);
-      p.bounds_.max.y = std::max(p.bounds_.max.y, a[1]);
+      edges.push_back({a[0], a[1], b[0], b[1]});
+    }
+  }
+  return from_edges(std::move(edges), rings.size(), source);
+}
+
+Result<Polygon2D> Polygon2D::from_edges(std::vector<Edge> edges, std::size_t rings, const std::string& source) {
+  // Archives hold coordinates within 2^50 (README, Limits); so must an area,
+  // which also keeps the crossing test's products far from overflow.
+  constexpr double kLimit = 1125899906842624.0;  // 2^50
+  for (const Edge& e : edges) {
+    for (const auto& [x, y] : {std::pair{e.x0, e.y0}, std::pair{e.x1, e.y1}}) {
+      if (std::abs(x) > kLimit || std::abs(y) > kLimit) {
+        char text[160];
+        std::snprintf(text, sizeof text, ": the polygon has the vertex (%.17g, %.17g), beyond the coordinate limit of 2^50",
+                      x, y);
+        return invalid_argument(source + text);
+      }
     }
   }
   // The strip index holds at most 16 entries an edge (+ 4096) in 32-bit offsets.
-  if (p.edges_.size() > (std::numeric_limits<std::uint32_t>::max() - 4096) / 16) {
-    return invalid_argument(source + ": the polygon has " + std::to_string(p.edges_.size()) +
+  if (edges.size() > (std::numeric_limits<std::uint32_t>::max() - 4096) / 16) {
+    return invalid_argument(source + ": the polygon has " + std::to_string(edges.size()) +
                             " vertices; at most 268,435,199 are taken");
   }
+  Polygon2D p;
+  p.ring_count_ = rings;
+  const double inf = std::numeric_limits<double>::infinity();
+  p.bounds_ = Box3d{{inf, inf, -inf}, {-inf, -inf, inf}};
+  for (Edge& e : edges) {
+    // Lower end first, so an edge two polygons share gives both the same
+    // crossing whichever way each runs.
+    if (!(e.y0 < e.y1 || (e.y0 == e.y1 && e.x0 <= e.x1))) e = Edge{e.x1, e.y1, e.x0, e.y0};
+    p.bounds_.min.x = std::min({p.bounds_.min.x, e.x0, e.x1});
+    p.bounds_.min.y = std::min(p.bounds_.min.y, e.y0);
+    p.bounds_.max.x = std::max({p.bounds_.max.x, e.x0, e.x1});
+    p.bounds_.max.y = std::max(p.bounds_.max.y, e.y1);
+  }
+  p.edges_ = std::move(edges);
   p.build_index();
   return p;
 }

@@ -175,24 +175,27 @@ def append(archive, inputs, *, progress=None, **options):
 
 
 def _polygon_text(polygon, caller):
-    """The polygon argument as the library takes it: WKT text (a str, or an
-    object with a ``wkt`` attribute: a shapely geometry, as GeoPandas holds
-    them), or a file path (os.PathLike, or a str starting with ``@``) of WKT
-    or an ESRI shapefile (.shp); None: none."""
+    """The polygon argument as the library takes it: WKT text or GeoJSON text
+    (a str), a GeoJSON mapping (a dict, as ``json.load`` gives one), an
+    object with a ``wkt`` attribute (a shapely geometry, as GeoPandas holds
+    them), or a file path (os.PathLike, or a str starting with ``@``) of WKT,
+    GeoJSON or an ESRI shapefile (.shp); None: none."""
     if polygon is None:
         return ""
     if isinstance(polygon, _os.PathLike):
         return "@" + _os.fspath(polygon)
     if isinstance(polygon, str):
         return polygon
+    if isinstance(polygon, dict):
+        return _json.dumps(polygon)
     wkt = getattr(polygon, "wkt", None)
     if isinstance(wkt, str):
         return wkt
-    raise TypeError(f"{caller}(): polygon must be WKT text, a path, or have a .wkt (a shapely geometry), "
-                    f"not {type(polygon).__name__}")
+    raise TypeError(f"{caller}(): polygon must be WKT or GeoJSON text, a GeoJSON dict, a path, or have a .wkt "
+                    f"(a shapely geometry), not {type(polygon).__name__}")
 
 
-_QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points", "attributes", "polygon")
+_QUERY_OPTIONS = ("threads", "skip_corrupt", "max_points", "attributes", "polygon", "polygon_crs")
 
 
 def _box_values(box):
@@ -281,12 +284,17 @@ class Archive:
         ``[]`` or ``"none"`` for x, y, z alone; default all: the others are
         not decoded, which is faster; a name the archive lacks raises
         InvalidArgumentError), ``polygon`` (only the points inside this x-y
-        area, as the WKT text of a POLYGON or MULTIPOLYGON in the archive's
+        area: the WKT text of a POLYGON or MULTIPOLYGON in the archive's
         coordinates, or an object with a ``wkt`` attribute such as a shapely
-        geometry, or a path (``pathlib.Path``, or ``"@file"``) of WKT or an
-        ESRI shapefile ``.shp``; holes by the even-odd rule; with or without ``box``; chunks
-        outside it are not read; a polygon beside the archive's bounds gives
-        a RuntimeWarning, as it is most often in another CRS).
+        geometry; GeoJSON text or a GeoJSON dict, in longitude/latitude or
+        the CRS its ``crs`` member names; or a path (``pathlib.Path``, or
+        ``"@file"``) of WKT, GeoJSON or an ESRI shapefile ``.shp``, whose
+        ``.prj`` gives its CRS; holes by the even-odd rule; with or without
+        ``box``; chunks outside it are not read; an area in another CRS than
+        the archive's is converted to it; one beside the archive's bounds
+        gives a RuntimeWarning), ``polygon_crs`` (the CRS the polygon's
+        coordinates are in, e.g. ``"EPSG:4326"``, easting or longitude
+        first; overrides the file's).
         """
         for name in options:
             if name not in _QUERY_OPTIONS:
@@ -298,15 +306,17 @@ class Archive:
         max_points = options.get("max_points") or 0
         attributes = _attribute_list(options.get("attributes"))
         polygon = _polygon_text(options.get("polygon"), "query")
+        polygon_crs = options.get("polygon_crs") or ""
         values = _box_values(box)
         if batches:
-            return self._batches(
-                self._reader.batches(values, lod, threads, skip_corrupt, max_points, attributes, polygon))
-        array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points, attributes, polygon)
+            return self._batches(self._reader.batches(values, lod, threads, skip_corrupt, max_points, attributes,
+                                                      polygon, polygon_crs))
+        array, messages = self._reader.query(values, lod, threads, skip_corrupt, max_points, attributes, polygon,
+                                             polygon_crs)
         _warn_all(messages)
         return self._with_extra_fields(array)
 
-    def stats(self, box=None, *, attributes=None, threads=0, skip_corrupt=False, polygon=None):
+    def stats(self, box=None, *, attributes=None, threads=0, skip_corrupt=False, polygon=None, polygon_crs=None):
         """What the points (in ``box``, as ``query`` takes it) hold, as ``relief
         stats --json``: a dict with ``points``; ``x``, ``y``, ``z`` and each
         ranged attribute as ``{"count", "min", "max", "mean"}``;
@@ -314,11 +324,13 @@ class Archive:
         ``{value: count}`` (values as strings, JSON's keys); flag counts;
         ``point_sources`` (distinct IDs); ``extra_bytes`` by field name.
         ``attributes``: only those (as ``query``), and only they are decoded,
-        so asking for few is quick. ``polygon``: only the points inside this
-        WKT area, as ``query``.
+        so asking for few is quick. ``polygon`` and ``polygon_crs``: only the
+        points inside this area, as ``query``.
         """
-        text = self._reader.stats_json(_box_values(box), threads, bool(skip_corrupt),
-                                       _attribute_list(attributes), _polygon_text(polygon, "stats"))
+        text, messages = self._reader.stats_json(_box_values(box), threads, bool(skip_corrupt),
+                                                 _attribute_list(attributes), _polygon_text(polygon, "stats"),
+                                                 polygon_crs or "")
+        _warn_all(messages)
         return _json.loads(text)
 
     def _batches(self, stream):

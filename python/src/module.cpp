@@ -134,7 +134,8 @@ std::vector<std::string> option_names(const std::string& command, bool flags) {
 }
 
 QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrupt, std::uint64_t max_points,
-                           const std::string& attributes, const std::string& polygon = "") {
+                           const std::string& attributes, const std::string& polygon = "",
+                           const std::string& polygon_crs = "") {
   if (lod < 1 || lod > kMaxQueryLod) {
     raise_status(invalid_argument("lod must be a whole number from 1 to " + std::to_string(kMaxQueryLod) +
                                   ", got " + std::to_string(lod)));
@@ -148,9 +149,13 @@ QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrup
   Result<AttributeSet> set = parse_attribute_set(attributes);
   if (!set) raise_status(set.status());
   q.attributes = *set;
+  if (polygon.empty() && !polygon_crs.empty()) raise_status(invalid_argument("polygon_crs needs polygon"));
   if (!polygon.empty()) {
     Result<Polygon2D> area = Polygon2D::from_arg(polygon);
     if (!area) raise_status(area.status());
+    if (!polygon_crs.empty()) {
+      if (Status s = area->set_crs(polygon_crs, "polygon_crs"); !s) raise_status(s);
+    }
     q.polygon = std::make_shared<const Polygon2D>(std::move(area).value());
   }
   return q;
@@ -250,11 +255,11 @@ class Reader {
   // The whole answer as one array, plus the warnings of skipped chunks.
   py::tuple query(const std::optional<std::vector<double>>& box_values, std::uint32_t lod, unsigned threads,
                   bool skip_corrupt, std::uint64_t max_points, const std::string& attributes,
-                  const std::string& polygon) {
+                  const std::string& polygon, const std::string& polygon_crs) {
     const std::optional<Box3d> box = to_box(box_values);
     std::vector<PointCloud> batches;
     std::vector<std::string> warnings;
-    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes, polygon);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes, polygon, polygon_crs);
     q.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
     FieldSet fields;
     Result<QueryStats> r = Status(internal_error("query did not run"));
@@ -275,12 +280,14 @@ class Reader {
     return py::make_tuple(to_array(batches, fields), warnings);
   }
 
-  // archive_stats of the box (or everything) as JSON, for the package to parse.
-  std::string stats_json(const std::optional<std::vector<double>>& box_values, unsigned threads, bool skip_corrupt,
-                         const std::string& attributes, const std::string& polygon) {
+  // archive_stats of the box (or everything) as JSON, for the package to
+  // parse, and the query's warnings.
+  py::tuple stats_json(const std::optional<std::vector<double>>& box_values, unsigned threads, bool skip_corrupt,
+                       const std::string& attributes, const std::string& polygon, const std::string& polygon_crs) {
     const std::optional<Box3d> box = to_box(box_values);
     std::vector<std::string> warnings;
-    QueryOptions q = query_options(1, threads, skip_corrupt, 0, attributes, polygon);
+    QueryOptions q = query_options(1, threads, skip_corrupt, 0, attributes, polygon, polygon_crs);
+    q.on_warning = [&warnings](const std::string& w) { warnings.push_back(w); };
     Result<ArchiveStats> r = Status(internal_error("stats did not run"));
     reader();  // refuses a closed archive while the GIL is held
     {
@@ -289,15 +296,15 @@ class Reader {
       r = archive_stats(reader(), box ? &*box : nullptr, q);
     }
     if (!r) raise_status(r.status());
-    return archive_stats_json(*r);
+    return py::make_tuple(archive_stats_json(*r), warnings);
   }
 
   std::unique_ptr<BatchIterator> batches(const std::optional<std::vector<double>>& box_values,
                                          std::uint32_t lod, unsigned threads, bool skip_corrupt,
                                          std::uint64_t max_points, const std::string& attributes,
-                                         const std::string& polygon) {
+                                         const std::string& polygon, const std::string& polygon_crs) {
     const std::optional<Box3d> box = to_box(box_values);
-    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes, polygon);
+    QueryOptions q = query_options(lod, threads, skip_corrupt, max_points, attributes, polygon, polygon_crs);
     reader();  // refuses a closed archive
     Result<std::unique_ptr<ArchiveReader>> own = [&] {
       py::gil_scoped_release release;
@@ -460,11 +467,14 @@ PYBIND11_MODULE(_relief, m) {
       .def(py::init<const std::string&>(), py::arg("path"))
       .def("info_json", &Reader::info_json)
       .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"))
+           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"),
+           py::arg("polygon_crs"))
       .def("stats_json", &Reader::stats_json, py::arg("box"), py::arg("threads"), py::arg("skip_corrupt"),
-           py::arg("attributes"), py::arg("polygon"))
+           py::arg("attributes"), py::arg("polygon"),
+           py::arg("polygon_crs"))
       .def("batches", &Reader::batches, py::arg("box"), py::arg("lod"), py::arg("threads"),
-           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"))
+           py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"),
+           py::arg("polygon_crs"))
       .def("preview", &Reader::preview, py::arg("box"), py::arg("lod"), py::arg("width"), py::arg("view"),
            py::arg("azimuth"), py::arg("elevation"), py::arg("threads"), py::arg("encoding"))
       .def("close", &Reader::close)

@@ -155,6 +155,21 @@ def test_polygon_query(xyz_archive, scene, tmp_path):
             a.query(polygon=tmp_path / "nope.shp")
         with pytest.warns(RuntimeWarning, match="outside the archive's bounds"):
             assert len(a.query(polygon="POLYGON ((10 50, 11 50, 11 51, 10 50))")) == 0
+        # GeoJSON, as a dict or text: in longitude/latitude by default, which
+        # this archive without a CRS cannot convert from, so it says so.
+        area = {"type": "Polygon", "coordinates": [[list(p) for p in outer], [list(p) for p in hole]]}
+        with pytest.warns(RuntimeWarning, match="the archive names no CRS"):
+            assert len(a.query(polygon=area)) == len(pts)
+        with pytest.warns(RuntimeWarning, match="the archive names no CRS"):
+            assert a.stats(polygon=json.dumps(area), attributes=[])["points"] == len(pts)
+        with pytest.warns(RuntimeWarning, match="the archive names no CRS"):
+            assert len(a.query(polygon=wkt, polygon_crs="EPSG:32610")) == len(pts)
+        with pytest.raises(relief.InvalidArgumentError, match="polygon_crs needs polygon"):
+            a.query(polygon_crs="EPSG:4326")
+        with pytest.raises(relief.FormatError, match="polygon_crs: .*not a coordinate reference system"):
+            a.query(polygon=wkt, polygon_crs="EPSG:999999")
+        with pytest.raises(relief.InvalidArgumentError, match="not GeoJSON"):
+            a.stats(polygon='{"type": "Polygon", "coordinates": [')
     assert 1000 < len(pts) < len(scene["x"]) / 2
     assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(expected, XYZRGBI))
     assert sum(len(p) for p in parts) == len(pts)

@@ -7,6 +7,10 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -316,6 +320,48 @@ bool valid_utf8(const std::string& s) {
   return true;
 }
 
+TEST_CASE("CrsTransform: longitude and latitude to UTM, axes in GIS order", "[crs]") {
+  // On the central meridian of WGS 84 / UTM 10N (123 W) the easting is the
+  // false easting and the northing 0.9996 times the meridian arc, here
+  // integrated numerically for 44 N on the WGS 84 ellipsoid: 4,871,872.8408 m.
+  for (const char* from : {"OGC:CRS84", "EPSG:4326", "urn:ogc:def:crs:OGC:1.3:CRS84"}) {
+    CAPTURE(from);
+    auto t = CrsTransform::create(from, "EPSG:32610", "test");
+    REQUIRE(t.is_ok());
+    double x = -123.0, y = 44.0;  // longitude first, even for EPSG:4326's latitude-first definition
+    REQUIRE(t->apply(x, y));
+    CHECK(x == Approx(500000.0).margin(1e-6));
+    CHECK(y == Approx(4871872.8408).margin(2e-3));
+  }
+  // A compound target converts through its horizontal part.
+  auto compound = CrsTransform::create("OGC:CRS84", "EPSG:32610+5703", "test");
+  REQUIRE(compound.is_ok());
+  double x = -123.0, y = 44.0;
+  REQUIRE(compound->apply(x, y));
+  CHECK(y == Approx(4871872.8408).margin(2e-3));
+  // Back again.
+  auto back = CrsTransform::create("EPSG:32610", "OGC:CRS84", "test");
+  REQUIRE(back.is_ok());
+  REQUIRE(back->apply(x, y));
+  CHECK(x == Approx(-123.0).margin(1e-9));
+  CHECK(y == Approx(44.0).margin(1e-9));
+}
+
+TEST_CASE("CrsTransform: positions it cannot take, and CRSs it does not know", "[crs]") {
+  auto t = CrsTransform::create("OGC:CRS84", "EPSG:32610", "area.geojson");
+  REQUIRE(t.is_ok());
+  double x = 10.0, y = 95.0;  // beyond the pole
+  CHECK_FALSE(t->apply(x, y));
+  CHECK(x == 10.0);
+  CHECK(y == 95.0);
+  double nx = std::nan(""), ny = 0;
+  CHECK_FALSE(t->apply(nx, ny));
+  auto bad = CrsTransform::create("EPSG:999999", "EPSG:32610", "area.geojson");
+  REQUIRE_FALSE(bad.is_ok());
+  CHECK(bad.status().code() == StatusCode::kFormatError);
+  CHECK(bad.status().message().find("area.geojson") != std::string::npos);
+}
+
 TEST_CASE("compress and append refuse inputs with different CRSs unless --assume-crs", "[crs][cli]") {
   TempDir dir;
   const std::string utm = dir.file("utm.las");
@@ -370,6 +416,104 @@ TEST_CASE("compress and append refuse inputs with different CRSs unless --assume
     CHECK(ok.code == 0);
     CHECK(ok.output.find("warning") == std::string::npos);
   }
+}
+
+TEST_CASE("query and stats convert an area in another CRS to the archive's", "[crs][cli][polygon]") {
+  TempDir dir;
+  // A 40 x 40 grid of points 0.5 m apart in WGS 84 / UTM 10N; the area's
+  // corners lie between grid lines, so no point is near its edges.
+  const auto grid = [&](const std::string& path, const std::string& crs) {
+    WriterOptions o;
+    o.crs = crs;
+    auto w = open_point_writer(path, o);
+    REQUIRE(w.is_ok());
+    PointCloud c;
+    for (int i = 0; i < 1600; ++i) c.positions.push_back({500000 + (i % 40) * 0.5, 4871800 + (i / 40) * 0.5, 10.0});
+    REQUIRE((*w)->write(c).is_ok());
+    REQUIRE((*w)->finish().is_ok());
+  };
+  grid(dir.file("utm.las"), "EPSG:32610");
+  grid(dir.file("plain.las"), "");
+  const std::string archive = dir.file("utm.relief");
+  const std::string plain = dir.file("plain.relief");
+  REQUIRE(cli("compress " + dir.file("utm.las") + " -o " + archive + " --quiet").code == 0);
+  REQUIRE(cli("compress " + dir.file("plain.las") + " -o " + plain + " --quiet").code == 0);
+  // A triangle (73 grid points inside by the crossing rule, counted below).
+  const double corners[3][2] = {{500002.25, 4871802.25}, {500012.25, 4871803.25}, {500004.25, 4871811.75}};
+  std::size_t want = 0;
+  for (int i = 0; i < 1600; ++i) {
+    const double x = 500000 + (i % 40) * 0.5, y = 4871800 + (i / 40) * 0.5;
+    bool in = false;
+    for (int k = 0; k < 3; ++k) {
+      const double* a = corners[k];
+      const double* b = corners[(k + 1) % 3];
+      if ((a[1] <= y) != (b[1] <= y) && x < a[0] + (y - a[1]) * (b[0] - a[0]) / (b[1] - a[1])) in = !in;
+    }
+    want += in ? 1 : 0;
+  }
+  REQUIRE(want > 40);
+  auto to_lonlat = CrsTransform::create("EPSG:32610", "OGC:CRS84", "test");
+  REQUIRE(to_lonlat.is_ok());
+  std::string utm_wkt = "POLYGON ((", ll_wkt = "POLYGON ((", geojson = "{\"type\": \"Polygon\", \"coordinates\": [[";
+  for (int k = 0; k < 3; ++k) {
+    double x = corners[k][0], y = corners[k][1];
+    char t[120];
+    std::snprintf(t, sizeof t, "%s%.17g %.17g", k ? ", " : "", x, y);
+    utm_wkt += t;
+    REQUIRE(to_lonlat->apply(x, y));
+    std::snprintf(t, sizeof t, "%s%.17g %.17g", k ? ", " : "", x, y);
+    ll_wkt += t;
+    std::snprintf(t, sizeof t, "%s[%.17g, %.17g]", k ? ", " : "", x, y);
+    geojson += t;
+  }
+  utm_wkt += "))";
+  ll_wkt += "))";
+  geojson += "]]}";
+  std::ofstream(dir.file("lot.geojson")) << geojson;
+  const auto count = [](const test::CliRun& r) {
+    const std::size_t at = r.output.find("points ");
+    REQUIRE(at != std::string::npos);
+    std::string digits;
+    for (std::size_t i = at + 7; i < r.output.size() && r.output[i] != '\n'; ++i) {
+      if (std::isdigit(static_cast<unsigned char>(r.output[i])) != 0) digits += r.output[i];
+    }
+    return std::stoull(digits);
+  };
+  const auto utm = cli("stats " + archive + " --polygon '" + utm_wkt + "'");
+  REQUIRE(utm.code == 0);
+  CHECK(count(utm) == want);
+  const auto geo = cli("stats " + archive + " --polygon @" + dir.file("lot.geojson"));
+  REQUIRE(geo.code == 0);
+  CHECK(count(geo) == want);
+  CHECK(geo.output.find("warning") == std::string::npos);
+  const auto ll = cli("stats " + archive + " --polygon '" + ll_wkt + "' --polygon-crs EPSG:4326");
+  REQUIRE(ll.code == 0);
+  CHECK(count(ll) == want);
+  const auto q = cli("query " + archive + " --polygon @" + dir.file("lot.geojson") + " -o " + dir.file("lot.xyz") + " --quiet");
+  REQUIRE(q.code == 0);
+  std::ifstream xyz(dir.file("lot.xyz"));
+  const auto lines = static_cast<std::size_t>(std::count(std::istreambuf_iterator<char>(xyz), {}, '\n'));
+  CHECK(lines >= want);  // a header line or none, then one line a point
+  CHECK(lines <= want + 1);
+  // Longitude/latitude taken as the archive's coordinates: nothing, and why.
+  const auto raw = cli("stats " + archive + " --polygon '" + ll_wkt + "'");
+  REQUIRE(raw.code == 0);
+  CHECK(count(raw) == 0);
+  CHECK(raw.output.find("are its coordinates in the archive's CRS?") != std::string::npos);
+  // An archive without a CRS takes the coordinates as they are, and says so.
+  const auto none = cli("stats " + plain + " --polygon @" + dir.file("lot.geojson"));
+  REQUIRE(none.code == 0);
+  CHECK(count(none) == 0);
+  CHECK(none.output.find("the archive names no CRS, so the polygon's coordinates (in \"WGS 84 (CRS84)\"") !=
+        std::string::npos);
+  // Usage errors.
+  const auto alone = cli("stats " + archive + " --polygon-crs EPSG:4326");
+  CHECK(alone.code == 2);
+  CHECK(alone.output.find("--polygon-crs needs --polygon") != std::string::npos);
+  const auto bad = cli("query " + archive + " --polygon '" + ll_wkt + "' --polygon-crs EPSG:999999 -o " + dir.file("x.xyz"));
+  CHECK(bad.code == 2);
+  CHECK(bad.output.find("--polygon-crs") != std::string::npos);
+  CHECK(bad.output.find("not a coordinate reference system PROJ understands") != std::string::npos);
 }
 
 TEST_CASE("info --json: attributes array, codec parameters object, CRS object, valid UTF-8", "[crs][cli]") {

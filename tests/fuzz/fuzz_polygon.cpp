@@ -1,6 +1,7 @@
-// libFuzzer target: the polygon readers of `query --polygon` (WKT text a user
-// or a file gives, or an ESRI shapefile: input starting with the shapefile
-// file code goes to from_shapefile). Any input must parse or be refused, naming the source,
+// libFuzzer target: the polygon readers of `query --polygon` (WKT or GeoJSON
+// text a user or a file gives, or an ESRI shapefile: input starting with the
+// shapefile file code goes to from_shapefile), and GeoJSON areas converted to
+// another CRS. Any input must parse or be refused, naming the source,
 // without a crash. A polygon that parses must answer contains() as the plain
 // crossing test over all its edges does within its bounds (its strip index
 // must not change the answer), at random points, its vertices and its edges'
@@ -14,6 +15,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -89,15 +91,30 @@ void check(const relief::Polygon2D& p, std::uint64_t seed) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
   const std::span<const std::uint8_t> bytes(data, size);
+  // from_arg: WKT, or GeoJSON by its '{' (never a file: no '@' reaches it).
   auto p = relief::Polygon2D::is_shapefile(bytes) ? relief::Polygon2D::from_shapefile(bytes, "fuzz.wkt")
+           : text.empty() || text[0] != '@'       ? relief::Polygon2D::from_arg(std::string(text))
                                                   : relief::Polygon2D::from_wkt(text, "fuzz.wkt");
   if (!p.is_ok()) {
-    if (p.status().message().rfind("fuzz.wkt: ", 0) != 0) std::abort();  // errors name the source
+    // Errors name the source ("the polygon" for text from_arg reads).
+    const std::string& m = p.status().message();
+    if (m.rfind("fuzz.wkt: ", 0) != 0 && m.rfind("the polygon: ", 0) != 0) std::abort();
     return 0;
   }
   if (p->edge_count() < 3 || p->ring_count() == 0) std::abort();
   std::uint64_t seed = size;
   for (std::size_t i = 0; i < std::min<std::size_t>(size, 64); ++i) seed = seed * 131 + data[i];
   check(*p, seed);
+  // A GeoJSON area (longitude/latitude, or the CRS it names) converted to
+  // Web Mercator: refused naming where, or an area as sound as any.
+  if (!p->crs().empty()) {
+    auto q = p->converted_to("EPSG:3857", "fuzz");
+    if (!q.is_ok()) {
+      if (q.status().message().rfind("fuzz: ", 0) != 0) std::abort();
+      return 0;
+    }
+    if (q->edge_count() < p->edge_count() || q->ring_count() != p->ring_count()) std::abort();
+    check(*q, seed + 1);
+  }
   return 0;
 }

@@ -119,7 +119,7 @@ TEST_CASE("malformed WKT is refused naming the source and the problem", "[polygo
       {"POLYGON ((0 0, 1 1, 0 0))", "ring 1 of the polygon has 2 distinct vertices"},
       {"POLYGON ((0 0, 1 0, 1 1, 0 0), (5 5, 5 5, 5 5))", "ring 2 of the polygon has 1 distinct vertices"},
       {"POLYGON Q ((0 0, 1 0, 1 1, 0 0))", "unexpected 'Q'"},
-      {"POLYGON ((0 0, 1 0, 1 2e15, 0 0))", "ring 1 has the vertex (1, 2000000000000000), beyond the coordinate limit"},
+      {"POLYGON ((0 0, 1 0, 1 2e15, 0 0))", "the polygon has the vertex (1, 2000000000000000), beyond the coordinate limit"},
       {"MULTIPOLYGON ((0 0, 1 0, 1 1, 0 0))", "expected '('"},
   };
   for (const auto& [text, message] : cases) {
@@ -428,4 +428,37 @@ TEST_CASE("polygon files: a shapefile or WKT by content, @ in an argument", "[po
   const auto dir = Polygon2D::from_arg("@" + tmp.path().string());
   REQUIRE_FALSE(dir.is_ok());
   CHECK(dir.status().message().find("is a directory") != std::string::npos);
+}
+
+TEST_CASE("a shapefile's .prj beside it names the area's CRS", "[polygon][shapefile][crs]") {
+  relief::test::TempDir tmp;
+  Shp shp(5);
+  shp.polygon({closed({{0, 0}, {0, 10}, {10, 10}, {10, 0}})});
+  const auto bytes = shp.finish();
+  for (const char* name : {"a.shp", "b.shp", "c.shp", "d.shp"}) {
+    std::ofstream(tmp.file(name), std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                                          static_cast<std::streamsize>(bytes.size()));
+  }
+  // As ArcGIS and QGIS write them: ESRI WKT 1 on one line.
+  const std::string esri =
+      "PROJCS[\"WGS_1984_UTM_Zone_10N\",GEOGCS[\"GCS_WGS_1984\",DATUM[\"D_WGS_1984\",SPHEROID[\"WGS_1984\",6378137.0,"
+      "298.257223563]],PRIMEM[\"Greenwich\",0.0],UNIT[\"Degree\",0.0174532925199433]],PROJECTION[\"Transverse_Mercator\"],"
+      "PARAMETER[\"False_Easting\",500000.0],PARAMETER[\"False_Northing\",0.0],PARAMETER[\"Central_Meridian\",-123.0],"
+      "PARAMETER[\"Scale_Factor\",0.9996],PARAMETER[\"Latitude_Of_Origin\",0.0],UNIT[\"Meter\",1.0]]";
+  std::ofstream(tmp.file("a.prj")) << esri << "\r\n";
+  std::ofstream(tmp.file("b.PRJ")) << esri;
+  std::ofstream(tmp.file("c.prj")) << "no CRS at all";
+  const auto a = Polygon2D::from_arg("@" + tmp.file("a.shp"));
+  REQUIRE(a.is_ok());
+  CHECK(a->crs() == esri);
+  const auto b = Polygon2D::from_arg("@" + tmp.file("b.shp"));
+  REQUIRE(b.is_ok());
+  CHECK(b->crs() == esri);
+  const auto c = Polygon2D::from_arg("@" + tmp.file("c.shp"));
+  REQUIRE_FALSE(c.is_ok());
+  CHECK(c.status().message().find("c.prj: ") != std::string::npos);
+  CHECK(c.status().message().find("not a coordinate reference system") != std::string::npos);
+  const auto d = Polygon2D::from_arg("@" + tmp.file("d.shp"));  // no .prj: the archive's CRS
+  REQUIRE(d.is_ok());
+  CHECK(d->crs().empty());
 }

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -73,5 +74,31 @@ Result<bool> crs_equivalent(const std::string& a, const std::string& b);
 // "NAD83 / UTM zone 10N (EPSG:26910)" for messages; the text's first
 // 60 characters when it is not a CRS.
 std::string crs_label(const std::string& text);
+
+// Converts x-y positions between the horizontal parts of two CRSs (any of the
+// accepted forms; a compound CRS's vertical part is left out), with PROJ's
+// best operation for each position. Axes are in GIS order at both ends:
+// easting or longitude first, whatever order the CRS's definition gives
+// (PROJ's proj_normalize_for_visualization), as LAS files, shapefiles and
+// GeoJSON hold them. One object is for one thread at a time.
+class CrsTransform {
+ public:
+  // kFormatError naming `where` when either CRS is not understood or PROJ
+  // finds no operation between them.
+  static Result<CrsTransform> create(const std::string& from, const std::string& to, const std::string& where);
+  CrsTransform(CrsTransform&&) noexcept;
+  CrsTransform& operator=(CrsTransform&&) noexcept;
+  ~CrsTransform();
+
+  // (x, y) converted in place; false, leaving them alone, when the position
+  // lies outside what the operation can take (a latitude beyond 90 degrees,
+  // a point a projection cannot reach) or the result is not finite.
+  bool apply(double& x, double& y) const;
+
+ private:
+  struct Impl;
+  explicit CrsTransform(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace relief
