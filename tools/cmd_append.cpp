@@ -15,6 +15,8 @@ int run_append(int argc, char** argv) {
       "If it fails, the archive is left as it was.\n"
       "  --assume-crs           inputs whose CRS differs from the archive's (or each other's):\n"
       "                         keep the archive's (with a warning) instead of refusing (exit 11)\n"
+      "  --crs CRS              the new inputs' CRS, as 'relief compress --crs' (it must be the\n"
+      "                         archive's, unless --assume-crs; an archive without one takes it)\n"
       "  --no-extra-bytes       drop the inputs' extra bytes (LAS/LAZ extra bytes, PLY properties\n"
       "                         and PCD fields beyond x y z, colour and intensity)\n"
       "  --attributes LIST      read only these attributes of the inputs (as compress); the\n"

@@ -25,7 +25,7 @@ int run_shard_plan(int argc, char** argv) {
       "  --ranges N             key ranges = shards (default: about 8 M points each; at most 512)\n"
       "  --quiet                print nothing but errors and warnings\n"
       "Every option of 'relief compress' (below) is taken and recorded in the plan\n"
-      "(--chunk-edge, --allow-sparse, --assume-crs, --columns...).\n\n") +
+      "(--chunk-edge, --allow-sparse, --assume-crs, --crs, --columns...).\n\n") +
       kInputsHelp + "\n" + kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   // Every option compress takes (the same library parser), plus --ranges.
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);

@@ -89,10 +89,14 @@ bool same_crs(const std::string& a, const std::string& b) {
 }
 
 Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                             bool assume_crs) {
+                             bool assume_crs, const std::string& crs) {
   if (inputs.empty()) return invalid_argument("no input files");
   std::vector<std::string> without_crs;
   InputSet set;
+  if (!crs.empty()) {
+    RELIEF_ASSIGN_OR_RETURN(set.crs, crs_to_wkt2(crs, "--crs"));
+    set.crs_from = "--crs";
+  }
   set.colors = true;
   set.intensity = true;
   for (const std::string& path : inputs) {
@@ -108,7 +112,12 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
     }
     if (info.point_count) set.known_total += *info.point_count;
     set.all_counts_known = set.all_counts_known && info.point_count.has_value();
-    if (info.crs.empty()) {
+    if (!crs.empty()) {
+      if (!info.crs.empty() && !same_crs(set.crs, info.crs)) {
+        set.warnings.push_back(path + " has the CRS " + crs_label(info.crs) + "; --crs gives the archive " +
+                               crs_label(set.crs) + " (the coordinates are not converted)");
+      }
+    } else if (info.crs.empty()) {
       without_crs.push_back(path);
     } else if (set.crs.empty()) {
       set.crs = info.crs;
@@ -955,7 +964,7 @@ Result<IngestResult> compress_files(const std::vector<std::string>& given, const
     return io_error(archive_path + ": already exists and is not a Relief archive (compress never overwrites a file)");
   }
   RELIEF_RETURN_IF_ERROR(check_output_directory(archive_path));
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs, options.crs));
   PointCloud first;
   RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, options, in, first));
   const EncodeParams& params = built.params;
@@ -985,7 +994,7 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
                                   const IngestOptions& options) {
   using namespace ingest;
   RELIEF_ASSIGN_OR_RETURN(const std::vector<std::string> inputs, expand_inputs(given));
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs, options.crs));
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive, Archive::open(archive_path, Archive::Mode::kReadWrite));
   RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
   // One CRS per archive: the archive's wins over the inputs' when they differ

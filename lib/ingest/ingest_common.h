@@ -49,9 +49,10 @@ struct InputSet {
 // Opens every input up front, so a missing or unsupported file fails before
 // anything is created. Inputs whose CRSs differ are refused (kInvalidArgument
 // naming both) unless `assume_crs`, when the first one's is taken for all
-// (with a warning).
+// (with a warning). `crs` (IngestOptions::crs), when set, is every input's
+// CRS: those naming another are told of in the warnings.
 Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                             bool assume_crs = false);
+                             bool assume_crs = false, const std::string& crs = {});
 // Whether two CRSs are the same (PROJ equivalence; text equality for a CRS
 // PROJ cannot read).
 bool same_crs(const std::string& a, const std::string& b);

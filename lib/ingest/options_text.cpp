@@ -7,6 +7,7 @@
 #include <map>
 #include <optional>
 
+#include "relief/crs.h"
 #include "relief/ingest.h"
 
 namespace relief {
@@ -27,7 +28,7 @@ const std::vector<std::string> kRunNames = {"memory", "threads", "tmp", "columns
 const std::vector<std::string> kCompressOnlyNames = {"chunk-edge", "error-target"};
 // Options of the commands that read input files (not stream, whose
 // --attributes names its binary record's fields).
-const std::vector<std::string> kFileInputNames = {"attributes"};
+const std::vector<std::string> kFileInputNames = {"attributes", "crs"};
 
 std::string canonical(std::string_view name) {
   while (!name.empty() && name.front() == '-') name.remove_prefix(1);
@@ -285,6 +286,10 @@ Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>&
     bool drop_extra = false;
     RELIEF_RETURN_IF_ERROR(g.get_flag("no-extra-bytes", drop_extra));
     o.reader.extra_bytes = !drop_extra;
+    if (const auto crs = g.get("crs")) {
+      if (Result<std::string> wkt = crs_to_wkt2(*crs, g.show("crs")); !wkt) return invalid_argument(wkt.status().message());
+      o.crs = *crs;
+    }
     if (const auto list = g.get("attributes")) {
       Result<AttributeSet> keep = parse_attribute_set(*list);
       if (!keep) return invalid_argument(g.show("attributes") + ": " + keep.status().message());

@@ -90,7 +90,7 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   // open_inputs makes the LAS decisions of compress (the union of the
   // attribute sets, one Extra Bytes layout: different VLRs are refused there,
   // naming both inputs).
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, o.reader, o.assume_crs));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, o.reader, o.assume_crs, o.crs));
   PointCloud first;
   OrderFreeSample sample;
   RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, o, in, first, &sample));

@@ -153,7 +153,8 @@ def compress(inputs, archive, *, progress=None, **options):
     ``tolerance``, ``color_tolerance``, ``cell``, ``chunk_edge``,
     ``error_target``, ``memory`` ("512M", "2G" or a number of MiB), ``threads``,
     ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs``,
-    ``no_extra_bytes`` and the encoder options). ``progress``: called about twice a second with a dict
+    ``crs`` (the inputs' CRS, e.g. ``"EPSG:32633"``, for files that name
+    none), ``no_extra_bytes`` and the encoder options). ``progress``: called about twice a second with a dict
     (points_read, points_total, chunks_written, bytes_written, seconds,
     phase); an exception it raises (or Ctrl-C) stops the ingest and
     propagates, and the archive keeps the chunks committed so far (an

@@ -508,6 +508,25 @@ def test_write_gives_every_las_field_back(tmp_path, ext):
         assert np.array_equal(a[name], b[name]), name
 
 
+def test_compress_with_a_crs_for_files_without_one(tmp_path, scene):
+    src = tmp_path / "utm.xyz"
+    with open(src, "w") as f:
+        f.write("x y z\n")
+        for i in range(400):
+            f.write(f"{500000 + (i % 20) * 0.5} {4871800 + (i // 20) * 0.5} 10\n")
+    out = tmp_path / "utm.relief"
+    relief.compress(src, out, crs="EPSG:32610")
+    with relief.open(out) as a:
+        assert a.info["crs"]["epsg"] == 32610
+        # An area in longitude/latitude now finds the points.
+        lonlat = {"type": "Polygon", "coordinates": [[[-123.0001, 43.99], [-122.99, 43.99], [-122.99, 44.1],
+                                                      [-123.0001, 44.1]]]}
+        assert len(a.query(polygon=lonlat)) == 400
+    with pytest.raises(relief.InvalidArgumentError, match="crs: not a coordinate reference system"):
+        relief.compress(src, tmp_path / "bad.relief", crs="EPSG:999999")
+    assert not (tmp_path / "bad.relief").exists()
+
+
 def test_compress_a_directory_of_tiles(tmp_path):
     tiles = tmp_path / "tiles"
     tiles.mkdir()

@@ -516,6 +516,69 @@ TEST_CASE("query and stats convert an area in another CRS to the archive's", "[c
   CHECK(bad.output.find("not a coordinate reference system PROJ understands") != std::string::npos);
 }
 
+TEST_CASE("compress --crs names the inputs' CRS, append checks it against the archive's", "[crs][cli]") {
+  TempDir dir;
+  const std::string xyz = dir.file("scan.xyz");
+  {
+    std::ofstream out(xyz);
+    out << "x y z\n";
+    for (int i = 0; i < 400; ++i) out << 500000 + (i % 20) * 0.5 << " " << 4871800 + (i / 20) * 0.5 << " 10\n";
+  }
+  const std::string nad = dir.file("nad.las");
+  write_las(nad, "EPSG:26910", "", 500000);
+  const auto json_crs = [&](const std::string& archive) {
+    const auto r = cli("info " + archive + " --json");
+    REQUIRE(r.code == 0);
+    return r.output;
+  };
+
+  // An XYZ file names no CRS: --crs gives the archive one.
+  const std::string a = dir.file("a.relief");
+  const auto made = cli("compress " + xyz + " -o " + a + " --crs EPSG:32610 --quiet");
+  REQUIRE(made.code == 0);
+  CHECK(made.output.find("warning") == std::string::npos);
+  CHECK(json_crs(a).find("\"epsg\": 32610") != std::string::npos);
+  // A LAS file naming another: replaced, with a warning that says the
+  // coordinates stay as they are.
+  const std::string b = dir.file("b.relief");
+  const auto replaced = cli("compress " + nad + " -o " + b + " --crs EPSG:32610 --quiet");
+  REQUIRE(replaced.code == 0);
+  CHECK(replaced.output.find("has the CRS \"NAD83 / UTM zone 10N\" (EPSG:26910); --crs gives the archive \"WGS 84 / "
+                             "UTM zone 10N\" (EPSG:32610) (the coordinates are not converted)") != std::string::npos);
+  CHECK(json_crs(b).find("\"epsg\": 32610") != std::string::npos);
+  // The same CRS said twice: no warning.
+  const std::string c = dir.file("c.relief");
+  const auto same = cli("compress " + nad + " -o " + c + " --crs EPSG:26910 --quiet");
+  REQUIRE(same.code == 0);
+  CHECK(same.output.find("warning") == std::string::npos);
+  // Without --crs the XYZ archive has none.
+  const std::string d = dir.file("d.relief");
+  REQUIRE(cli("compress " + xyz + " -o " + d + " --quiet").code == 0);
+  CHECK(json_crs(d).find("\"crs\": null") != std::string::npos);
+
+  // Append: --crs is the new inputs' CRS, checked against the archive's.
+  const auto clash = cli("append " + a + " " + xyz + " --crs EPSG:2154 --quiet");
+  CHECK(clash.code == 11);
+  CHECK(clash.output.find("has the CRS \"WGS 84 / UTM zone 10N\" (EPSG:32610) but --crs has \"RGF93 v1 / Lambert-93\"") !=
+        std::string::npos);
+  CHECK(cli("append " + a + " " + xyz + " --crs EPSG:32610 --quiet").code == 0);
+  const auto given = cli("append " + d + " " + xyz + " --crs EPSG:32610 --quiet");
+  REQUIRE(given.code == 0);
+  CHECK(json_crs(d).find("\"epsg\": 32610") != std::string::npos);
+
+  // Not a CRS: a usage error before anything is made.
+  const auto bad = cli("compress " + xyz + " -o " + dir.file("e.relief") + " --crs EPSG:999999");
+  CHECK(bad.code == 2);
+  CHECK(bad.output.find("--crs: not a coordinate reference system PROJ understands") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(dir.file("e.relief")));
+
+  // What a CRS is for: an area in longitude/latitude finds the points.
+  const auto area = cli("stats " + a + " --polygon \"POLYGON ((-123.0001 43.99, -122.99 43.99, -122.99 44.1, -123.0001 44.1))\" "
+                        "--polygon-crs EPSG:4326");
+  REQUIRE(area.code == 0);
+  CHECK(area.output.find("points               800") != std::string::npos);
+}
+
 TEST_CASE("info --json: attributes array, codec parameters object, CRS object, valid UTF-8", "[crs][cli]") {
   TempDir dir;
   // A file name that is not UTF-8: the JSON must still be.

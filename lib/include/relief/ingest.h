@@ -122,6 +122,11 @@ struct IngestOptions {
   // refused (kInvalidArgument naming both). true: the first input's CRS, or
   // the archive's, is taken for all, with a warning in IngestResult.
   bool assume_crs = false;
+  // The inputs' CRS, in any form relief/crs.h reads ("EPSG:32633", WKT,
+  // PROJJSON), as PDAL's a_srs: it names the CRS of inputs that give none
+  // (XYZ, PLY, PCD, a LAS file without one) and replaces, with a warning, a
+  // different one an input gives. Empty: the inputs' own.
+  std::string crs;
   std::string tmp_dir;      // temporary bucket files; empty = beside the archive
   ReaderOptions reader;
   // Called from the ingest's own thread about twice a second and at the end.
