@@ -83,7 +83,9 @@ int run_stream(int argc, char** argv) {
       "  --idle N               batches without new points before a chunk is encoded (default 2)\n"
       "  --max-buffered N       bound on buffered points (default 4000000)\n"
       "  --immediate            encode every batch at once (no buffering)\n"
-      "  --chunk-edge M         chunk edge of a new archive (default 32 cells; 8 in bounded mode)\n\n") +
+      "  --chunk-edge M         chunk edge of a new archive (default 32 cells; 8 in bounded mode)\n"
+      "  --crs CRS              the points' CRS (EPSG:32633, WKT, PROJJSON); an existing archive's\n"
+      "                         must be the same\n\n") +
       kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kStream);
   options.insert(options.end(), {"--format", "--attributes", "--batch", "--idle", "--max-buffered", "--chunk-edge"});

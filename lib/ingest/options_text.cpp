@@ -24,11 +24,11 @@ const std::vector<std::string> kEncodeNames = {
     "cell",    "decomposition", "max-points",        "resolution",  "codec",
     "quality", "color-quality", "intensity-quality", "height-bits", "fill"};
 const std::vector<std::string> kModeNames = {"mode", "tolerance", "color-tolerance"};
-const std::vector<std::string> kRunNames = {"memory", "threads", "tmp", "columns", "pyramid"};
+const std::vector<std::string> kRunNames = {"memory", "threads", "tmp", "columns", "pyramid", "crs"};
 const std::vector<std::string> kCompressOnlyNames = {"chunk-edge", "error-target"};
 // Options of the commands that read input files (not stream, whose
 // --attributes names its binary record's fields).
-const std::vector<std::string> kFileInputNames = {"attributes", "crs"};
+const std::vector<std::string> kFileInputNames = {"attributes"};
 
 std::string canonical(std::string_view name) {
   while (!name.empty() && name.front() == '-') name.remove_prefix(1);
@@ -281,15 +281,15 @@ Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>&
   }
   if (set != IngestOptionSet::kAppend) RELIEF_RETURN_IF_ERROR(apply_mode(g, o));
   RELIEF_RETURN_IF_ERROR(apply_run(g, o));
+  if (const auto crs = g.get("crs")) {
+    if (Result<std::string> wkt = crs_to_wkt2(*crs, g.show("crs")); !wkt) return invalid_argument(wkt.status().message());
+    o.crs = *crs;
+  }
   if (set != IngestOptionSet::kStream) {
     RELIEF_RETURN_IF_ERROR(g.get_flag("assume-crs", o.assume_crs));
     bool drop_extra = false;
     RELIEF_RETURN_IF_ERROR(g.get_flag("no-extra-bytes", drop_extra));
     o.reader.extra_bytes = !drop_extra;
-    if (const auto crs = g.get("crs")) {
-      if (Result<std::string> wkt = crs_to_wkt2(*crs, g.show("crs")); !wkt) return invalid_argument(wkt.status().message());
-      o.crs = *crs;
-    }
     if (const auto list = g.get("attributes")) {
       Result<AttributeSet> keep = parse_attribute_set(*list);
       if (!keep) return invalid_argument(g.show("attributes") + ": " + keep.status().message());

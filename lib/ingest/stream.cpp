@@ -11,6 +11,7 @@
 #include "core/parallel.h"
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
+#include "relief/crs.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
 
@@ -28,7 +29,7 @@ class StreamIngestImpl final : public StreamIngest {
  public:
   StreamIngestImpl(std::unique_ptr<Archive> archive, const ArchiveGrid& grid, const EncodeParams& params,
                    const StreamOptions& options, std::int64_t scan_id, bool colors, bool intensity,
-                   std::uint32_t las, std::uint32_t extra_size, bool created)
+                   std::uint32_t las, std::uint32_t extra_size, bool created, std::string crs)
       : archive_(std::move(archive)),
         path_(archive_->path()),
         created_(created),
@@ -40,6 +41,7 @@ class StreamIngestImpl final : public StreamIngest {
         intensity_(intensity),
         las_(las),
         extra_size_(extra_size),
+        crs_(std::move(crs)),
         pipeline_(*archive_, params, grid, scan_id, resolve_threads(options.ingest.threads), options.ingest.cancel,
                   options.ingest.verify_blobs),
         progress_(options.ingest.progress, 0),
@@ -129,7 +131,7 @@ class StreamIngestImpl final : public StreamIngest {
                             ingest::build_scan_pyramid(*archive_, scan_id_, points_read_, options_.ingest,
                                                        ingest::default_tmp_parent(path_, options_.ingest),
                                                        progress_));
-    RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, ""));
+    RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, crs_));
     finished_ = true;
     if (Status closed = archive_->close(); !closed) {
       if (!created_) return Status(closed.code(), closed.message() + kept_in_wal_note(path_));
@@ -193,6 +195,7 @@ class StreamIngestImpl final : public StreamIngest {
   bool intensity_;
   std::uint32_t las_;  // LasAttributeBits of every batch
   std::uint32_t extra_size_;  // extra bytes a point (kLasExtraBytes)
+  std::string crs_;           // WKT2 of --crs, or empty
   ChunkPipeline pipeline_;
   ingest::Progress progress_;
   std::chrono::steady_clock::time_point start_;
@@ -224,6 +227,10 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
                             las_attribute_list(kLasTextAttributes) + "), not '" +
                             las_attribute_list(las_attributes & ~kLasTextAttributes) + "'");
   }
+  std::string crs;  // WKT2 of --crs
+  if (!options.ingest.crs.empty()) {
+    RELIEF_ASSIGN_OR_RETURN(crs, crs_to_wkt2(options.ingest.crs, "--crs"));
+  }
   struct stat st {};
   std::unique_ptr<Archive> archive;
   ArchiveGrid grid;
@@ -235,6 +242,10 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
     RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
     RELIEF_ASSIGN_OR_RETURN(params, encode_params_from_string(info.codec_params));
     grid = info.grid;
+    if (!crs.empty() && !info.crs.empty() && !ingest::same_crs(crs, info.crs)) {
+      return invalid_argument(archive_path + " has the CRS " + crs_label(info.crs) + " but --crs has " +
+                              crs_label(crs) + "; one archive holds one CRS");
+    }
     if (info.chunk_count > 0 && (info.extra_bytes_size != extra_bytes_size || info.extra_bytes_vlr != extra_bytes_vlr)) {
       return invalid_argument(archive_path + ": the archive's points carry other extra bytes fields (" +
                               std::to_string(info.extra_bytes_size) + " bytes a point) than the stream's (" +
@@ -277,7 +288,9 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   ArchiveSource src;
   src.path = "-";
   src.format = "stream";
+  src.crs = options.ingest.crs;
   ScanAttributes attributes;
+  attributes.crs = crs;
   attributes.has_colors = has_colors;
   attributes.has_intensity = has_intensity;
   // As a CSV's LAS columns: LAS 1.4 point format 6 for LAS output (classes
@@ -296,7 +309,7 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
   }
   return std::unique_ptr<StreamIngest>(
       new StreamIngestImpl(std::move(archive), grid, params, options, *scan_id, has_colors, has_intensity,
-                           las_attributes, extra_bytes_size, created));
+                           las_attributes, extra_bytes_size, created, crs));
 }
 
 }  // namespace relief

@@ -516,7 +516,7 @@ TEST_CASE("query and stats convert an area in another CRS to the archive's", "[c
   CHECK(bad.output.find("not a coordinate reference system PROJ understands") != std::string::npos);
 }
 
-TEST_CASE("compress --crs names the inputs' CRS, append checks it against the archive's", "[crs][cli]") {
+TEST_CASE("compress and stream --crs name the inputs' CRS, append checks it against the archive's", "[crs][cli]") {
   TempDir dir;
   const std::string xyz = dir.file("scan.xyz");
   {
@@ -571,6 +571,18 @@ TEST_CASE("compress --crs names the inputs' CRS, append checks it against the ar
   CHECK(bad.code == 2);
   CHECK(bad.output.find("--crs: not a coordinate reference system PROJ understands") != std::string::npos);
   CHECK_FALSE(std::filesystem::exists(dir.file("e.relief")));
+
+  // A stream names its CRS the same way; one appended to must agree.
+  const std::string s = dir.file("s.relief");
+  const std::string body = dir.file("body.xyz");
+  std::ofstream(body) << "500000 4871800 10\n500001 4871800 10\n500000 4871801 10\n";
+  REQUIRE(cli("stream " + s + " --cell 1 --crs EPSG:32610 --quiet < " + body).code == 0);
+  CHECK(json_crs(s).find("\"epsg\": 32610") != std::string::npos);
+  const auto other = cli("stream " + s + " --crs EPSG:2154 --quiet < " + body);
+  CHECK(other.code == 11);
+  CHECK(other.output.find("but --crs has \"RGF93 v1 / Lambert-93\" (EPSG:2154); one archive holds one CRS") !=
+        std::string::npos);
+  CHECK(cli("stream " + s + " --crs EPSG:32610 --quiet < " + body).code == 0);
 
   // What a CRS is for: an area in longitude/latitude finds the points.
   const auto area = cli("stats " + a + " --polygon \"POLYGON ((-123.0001 43.99, -122.99 43.99, -122.99 44.1, -123.0001 44.1))\" "
