@@ -758,6 +758,16 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
   // only its x, y and z.
   ReaderOptions first_pass = reader_options;
   first_pass.positions_only = extra == nullptr;
+  // This pass comes before the main one, which has its inputs open already:
+  // a pipe, read once, cannot give both (it would wait forever).
+  for (const std::string& path : inputs) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+      return invalid_argument(path + ": not a regular file (a pipe?); the default cell size takes a pass over every "
+                                     "point before the ingest reads them, and a pipe can be read only once: give "
+                                     "--cell (a shard plan needs files), or use 'relief stream'");
+    }
+  }
   std::vector<std::unique_ptr<PointReader>> readers;
   for (const std::string& path : inputs) {
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, first_pass));

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <tuple>
@@ -819,6 +820,35 @@ TEST_CASE("compress reads more input files than the process may hold open at onc
   o.threads = 2;
   CHECK(test::with_open_file_limit(64, [&] { return compress_files(inputs, path, o).status(); }) == 0);
   CHECK(test::decode_archive(path).size() == total);
+}
+
+TEST_CASE("compress refuses a named pipe when the default cell needs a second pass", "[ingest]") {
+  // Without a cell size the ingest reads every point twice (an order-free
+  // sample first); a pipe gives its points once. It used to wait forever.
+  TempDir tmp;
+  const PointCloud in = scene(12, 2000);
+  REQUIRE(write_ply(tmp.file("in.ply"), in).is_ok());
+  const std::string fifo = tmp.file("pipe.ply");
+  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    std::signal(SIGPIPE, SIG_IGN);  // the reader goes away: stop writing
+    std::ifstream src(tmp.file("in.ply"), std::ios::binary);
+    std::ofstream dst(fifo, std::ios::binary);
+    dst << src.rdbuf();
+    ::_exit(0);
+  }
+  IngestOptions o;
+  o.threads = 2;
+  auto r = compress_files({fifo}, tmp.file("p.relief"), o);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().code() == StatusCode::kInvalidArgument);
+  CHECK(r.status().message().find("pipe.ply: not a regular file (a pipe?)") != std::string::npos);
+  CHECK(r.status().message().find("give --cell") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(tmp.file("p.relief")));
 }
 
 TEST_CASE("compress reads a named pipe once, with the grid given", "[ingest]") {
