@@ -64,7 +64,7 @@ relief::Polygon2D star_in(const relief::Box3d& box) {
   return *relief::Polygon2D::from_wkt(wkt, "star");
 }
 
-int decode_subsets(const std::string& path, int repeat, unsigned threads) {
+int decode_subsets(const std::string& path, int repeat, unsigned threads, const std::string& only) {
   auto reader = relief::ArchiveReader::open(path);
   if (!reader) {
     std::fprintf(stderr, "%s\n", reader.status().to_string().c_str());
@@ -82,6 +82,13 @@ int decode_subsets(const std::string& path, int repeat, unsigned threads) {
                            {"classification", {false, false, relief::kLasClassification}, {}},
                            {"gps_time", {false, false, relief::kLasGpsTime}, {}},
                            {"rgb", {true, false, 0}, {}}};
+  if (!only.empty()) {
+    std::erase_if(runs, [&](const Run& r) { return r.name != only; });
+    if (runs.empty()) {
+      std::fprintf(stderr, "--only: no subset '%s' (all, none, classification, gps_time, rgb)\n", only.c_str());
+      return 2;
+    }
+  }
   std::printf("# %s: %llu points, %llu chunks, attributes %s; %u decoder threads, median of %d\n", path.c_str(),
               static_cast<unsigned long long>(info.decoded_points), static_cast<unsigned long long>(info.chunk_count),
               relief::attribute_set_list({info.has_colors, info.has_intensity, info.las_attributes}).c_str(), threads,
@@ -103,7 +110,7 @@ int decode_subsets(const std::string& path, int repeat, unsigned threads) {
       r.points = s->points;
     }
   }
-  const double all = median(runs[0].times);
+  const double all = median(runs[0].times);  // the first run's (all, unless --only)
   for (const Run& r : runs) {
     if (r.times.empty()) continue;
     const double t = median(r.times);
@@ -122,6 +129,7 @@ int main(int argc, char** argv) {
   int repeat = 3;
   double chunk_edge = 24.0;  // 4 cells of the aerial tile's ~6 m default cell
   std::string decode;
+  std::string only;  // --decode: one subset
   unsigned threads = 2;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -136,16 +144,18 @@ int main(int argc, char** argv) {
       chunk_edge = std::atof(value());
     } else if (a == "--decode") {
       decode = value();
+    } else if (a == "--only") {
+      only = value();
     } else if (a == "--threads") {
       threads = static_cast<unsigned>(std::max(1, std::atoi(value())));
     } else {
       std::fprintf(stderr,
                    "usage: query [--data DIR] [--tmp DIR] [--repeat N] [--chunk-edge M]\n"
-                   "       query --decode ARCHIVE [--repeat N] [--threads N]\n");
+                   "       query --decode ARCHIVE [--repeat N] [--threads N] [--only all|none|classification|gps_time|rgb]\n");
       return a == "--help" ? 0 : 2;
     }
   }
-  if (!decode.empty()) return decode_subsets(decode, repeat, threads);
+  if (!decode.empty()) return decode_subsets(decode, repeat, threads, only);
   const std::string input = data + "/medium/fr_aerial_rgb_698k.ply";
   if (!fs::exists(input)) {
     std::printf("# skipped: %s absent\n", input.c_str());
