@@ -309,7 +309,14 @@ class Reader final : public ArchiveReader {
       };
       RELIEF_ASSIGN_OR_RETURN(plan, gather(base, box, choose, cache));
       estimate = 0;
-      for (const ChunkRef& ref : plan.refs) estimate += ref.decoded_points;
+      for (const ChunkRef& ref : plan.refs) {
+        // Rows a polygon leaves out are not read: they do not count.
+        if (options.polygon && (ref.bounds.empty() ||
+                                options.polygon->classify(ref.bounds) == Polygon2D::Overlap::kOutside)) {
+          continue;
+        }
+        estimate += ref.decoded_points;
+      }
       if (estimate <= options.max_points) {
         plan.lods.assign(plan.refs.size(), 1);
         return plan;

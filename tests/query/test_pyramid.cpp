@@ -242,6 +242,39 @@ TEST_CASE("max_points picks the finest level that fits and never exceeds the lim
   CHECK(r.status().code() == StatusCode::kInvalidArgument);
 }
 
+TEST_CASE("max_points within a polygon counts only the rows the polygon reaches", "[pyramid][polygon]") {
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "a", terrain(3, 300000)));
+  REQUIRE(reader.is_ok());
+  const Box3d& b = (*reader)->info().bounds;
+  // A sliver along the diagonal: its bounds hold every row, it reaches few.
+  const double w = b.max.x - b.min.x;
+  char wkt[256];
+  std::snprintf(wkt, sizeof wkt, "POLYGON ((%.9f %.9f, %.9f %.9f, %.9f %.9f))", b.min.x, b.min.y, b.max.x, b.max.y,
+                b.max.x - 0.05 * w, b.max.y);
+  auto area = Polygon2D::from_wkt(wkt, "sliver");
+  REQUIRE(area.is_ok());
+  auto archive = Archive::open(tmp.file("a.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  std::uint64_t reached = 0;
+  for (const ChunkRef& r : *refs) {
+    if (area->classify(r.bounds) != Polygon2D::Overlap::kOutside) reached += r.decoded_points;
+  }
+  REQUIRE(reached < 150000);
+  QueryOptions all;
+  all.polygon = std::make_shared<const Polygon2D>(*area);
+  const std::size_t inside = run_query(**reader, nullptr, nullptr, all).size();
+  // A limit the reached rows meet: every point inside, from the chunks
+  // (counting the rows of the polygon's bounds it went to a coarser level).
+  QueryOptions o = all;
+  o.max_points = reached;
+  QueryStats stats;
+  CHECK(run_query(**reader, nullptr, &stats, o).size() == inside);
+  CHECK(stats.pyramid_level == 0);
+}
+
 TEST_CASE("the pyramid's blobs depend only on the points, not their order, threads or budget", "[pyramid]") {
   TempDir tmp;
   PointCloud cloud = terrain(4, 120000);
