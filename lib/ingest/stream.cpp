@@ -131,6 +131,7 @@ class StreamIngestImpl final : public StreamIngest {
                             ingest::build_scan_pyramid(*archive_, scan_id_, points_read_, options_.ingest,
                                                        ingest::default_tmp_parent(path_, options_.ingest),
                                                        progress_));
+    RELIEF_RETURN_IF_ERROR(archive_->set_source_points(scan_id_, points_read_));
     RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, crs_));
     finished_ = true;
     if (Status closed = archive_->close(); !closed) {

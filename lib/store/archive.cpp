@@ -257,6 +257,7 @@ enum class Sql : std::size_t {
   kScanDelete,
   kSourceInsert,
   kSourceDeleteOfScan,
+  kSourceSetPoints,
   kSourceLasInsert,
   kSourceLasDeleteOfScan,
   kSourceLasAll,
@@ -369,6 +370,10 @@ SqlText sql_text(Sql id) {
               "VALUES(?1, ?2, ?3, ?4, ?5)"};
     case Sql::kSourceDeleteOfScan:
       return {"delete sources", "DELETE FROM relief_source WHERE scan_id = ?1"};
+    case Sql::kSourceSetPoints:
+      return {"record a source's points",
+              "UPDATE relief_source SET point_count = ?2 WHERE scan_id = ?1 AND "
+              "(SELECT count(*) FROM relief_source WHERE scan_id = ?1) = 1"};
     case Sql::kSourceLasInsert:
       return {"insert a LAS source record",
               "INSERT INTO relief_source_las(source_id, kind, user_id, record_id, description, data) "
@@ -782,6 +787,7 @@ class SqliteArchive final : public Archive {
   Status finish_scan(std::int64_t scan_id, bool has_colors, bool has_intensity,
                      const std::string& crs) override;
   Status abort_scan(std::int64_t scan_id) override;
+  Status set_source_points(std::int64_t scan_id, std::uint64_t points) override;
   Result<std::vector<ChunkRef>> find_chunks(const Box3d& box) const override;
   Result<std::vector<ChunkRef>> all_chunks() const override;
   Result<ChunkRow> read_chunk(std::int64_t id) const override;
@@ -1414,6 +1420,23 @@ Status SqliteArchive::finish_scan(std::int64_t scan_id, bool has_colors, bool ha
   }
   RELIEF_RETURN_IF_ERROR(refresh_scan_summary());
   return transaction.commit();
+}
+
+Status SqliteArchive::set_source_points(std::int64_t scan_id, std::uint64_t points) {
+  RELIEF_RETURN_IF_ERROR(require_writable("set_source_points"));
+  if (points > kMaxStoredCount) {
+    return invalid_argument(path_ + ": set_source_points: too many points to record (" + std::to_string(points) + ")");
+  }
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kSourceSetPoints));
+  StatementScope scope(*statement);
+  statement->bind_int64(1, scan_id);
+  statement->bind_int64(2, static_cast<std::int64_t>(points));
+  RELIEF_RETURN_IF_ERROR(statement->run());
+  if (sqlite3_changes(db()) == 0) {
+    return invalid_argument(path_ + ": set_source_points: scan " + std::to_string(scan_id) +
+                            " does not exist or has more than one source");
+  }
+  return Status::ok();
 }
 
 Status SqliteArchive::abort_scan(std::int64_t scan_id) {

@@ -370,6 +370,10 @@ TEST_CASE("relief stream reads a pipe, end of input writes everything", "[ingest
   CHECK_FALSE(info->has_colors);
   REQUIRE(info->scans.size() == 1);
   CHECK(info->scans[0].complete);
+  // The source records the points it gave (known only at the end).
+  REQUIRE(info->sources.size() == 1);
+  CHECK(info->sources[0].path == "-");
+  CHECK(info->sources[0].point_count == a.size());
 }
 
 TEST_CASE("a memory budget far below the input size bounds peak RSS", "[ingest][memory]") {

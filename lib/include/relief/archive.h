@@ -230,6 +230,10 @@ class Archive {
                              const std::string& crs) = 0;
   // Removes every chunk and source of the scan in one transaction (a failed append).
   virtual Status abort_scan(std::int64_t scan_id) = 0;
+  // Records the points read from the scan's one source, known only at its
+  // end (a stream's). kInvalidArgument when the scan does not exist or has
+  // more than one source.
+  virtual Status set_source_points(std::int64_t scan_id, std::uint64_t points) = 0;
 
   // ---- The level-of-detail pyramid (format-spec/archive.md §9).
   // Stores pyramid nodes of `level` (>= 1) in one transaction, like
