@@ -826,23 +826,29 @@ TEST_CASE("compress reads more input files than the process may hold open at onc
   CHECK(test::decode_archive(path).size() == total);
 }
 
-TEST_CASE("compress refuses a named pipe when the default cell needs a second pass", "[ingest]") {
-  // Without a cell size the ingest reads every point twice (an order-free
-  // sample first); a pipe gives its points once. It used to wait forever.
-  TempDir tmp;
-  const PointCloud in = scene(12, 2000);
-  REQUIRE(write_ply(tmp.file("in.ply"), in).is_ok());
-  const std::string fifo = tmp.file("pipe.ply");
+// Writes `points` as PLY into a new named pipe `fifo` from a child process
+// (which stops when the reader goes away); returns its pid for waitpid.
+pid_t feed_fifo(const TempDir& tmp, const PointCloud& points, const std::string& fifo) {
+  REQUIRE(write_ply(tmp.file("in.ply"), points).is_ok());
   REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
   const pid_t pid = ::fork();
   REQUIRE(pid >= 0);
   if (pid == 0) {
-    std::signal(SIGPIPE, SIG_IGN);  // the reader goes away: stop writing
+    std::signal(SIGPIPE, SIG_IGN);
     std::ifstream src(tmp.file("in.ply"), std::ios::binary);
     std::ofstream dst(fifo, std::ios::binary);
     dst << src.rdbuf();
-    ::_exit(0);
+    ::_exit(dst.good() ? 0 : 1);
   }
+  return pid;
+}
+
+TEST_CASE("compress refuses a named pipe when the default cell needs a second pass", "[ingest]") {
+  // Without a cell size the ingest reads every point twice (an order-free
+  // sample first); a pipe gives its points once. It used to wait forever.
+  TempDir tmp;
+  const std::string fifo = tmp.file("pipe.ply");
+  const pid_t pid = feed_fifo(tmp, scene(12, 2000), fifo);
   IngestOptions o;
   o.threads = 2;
   auto r = compress_files({fifo}, tmp.file("p.relief"), o);
@@ -860,17 +866,8 @@ TEST_CASE("compress reads a named pipe once, with the grid given", "[ingest]") {
   // on (only regular files are closed until read).
   TempDir tmp;
   const PointCloud in = scene(11, 4000);
-  REQUIRE(write_ply(tmp.file("in.ply"), in).is_ok());
   const std::string fifo = tmp.file("pipe.ply");
-  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
-  const pid_t pid = ::fork();
-  REQUIRE(pid >= 0);
-  if (pid == 0) {
-    std::ifstream src(tmp.file("in.ply"), std::ios::binary);
-    std::ofstream dst(fifo, std::ios::binary);
-    dst << src.rdbuf();
-    ::_exit(dst.good() ? 0 : 1);
-  }
+  const pid_t pid = feed_fifo(tmp, in, fifo);
   IngestOptions o;
   o.codec.cell_size = 0.25;
   o.chunk_edge = 2.0;
