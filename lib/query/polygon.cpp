@@ -282,9 +282,9 @@ Result<Polygon2D> Polygon2D::from_shapefile(std::span<const std::uint8_t> bytes,
 
 namespace {
 
-// The text of the .prj beside a shapefile (same stem, either case of the
-// extension), or "" when there is none.
-Result<std::string> read_prj(const std::string& shp) {
+// The .prj beside a shapefile (same stem, either case of the extension):
+// its path and text, or "" for both when there is none.
+Result<std::pair<std::string, std::string>> read_prj(const std::string& shp) {
   for (const char* ext : {".prj", ".PRJ"}) {
     const std::filesystem::path prj = std::filesystem::path(shp).replace_extension(ext);
     std::error_code ec;
@@ -299,9 +299,9 @@ Result<std::string> read_prj(const std::string& shp) {
     if (!in || !in.read(text.data(), static_cast<std::streamsize>(text.size()))) return io_error(prj.string() + ": cannot read");
     while (!text.empty() && std::isspace(static_cast<unsigned char>(text.back())) != 0) text.pop_back();
     if (text.empty()) continue;
-    return text;
+    return std::pair{prj.string(), text};
   }
-  return std::string();
+  return std::pair<std::string, std::string>{};
 }
 
 }  // namespace
@@ -322,8 +322,8 @@ Result<Polygon2D> Polygon2D::from_file(const std::string& path) {
   if (static_cast<std::uintmax_t>(in.gcount()) != size) return io_error(path + ": read error");
   if (is_shapefile(bytes)) {
     RELIEF_ASSIGN_OR_RETURN(Polygon2D p, from_shapefile(bytes, path));
-    RELIEF_ASSIGN_OR_RETURN(std::string prj, read_prj(path));
-    if (!prj.empty()) RELIEF_RETURN_IF_ERROR(p.set_crs(prj, std::filesystem::path(path).replace_extension(".prj").string()));
+    RELIEF_ASSIGN_OR_RETURN(const auto prj, read_prj(path));
+    if (!prj.second.empty()) RELIEF_RETURN_IF_ERROR(p.set_crs(prj.second, prj.first));
     return p;
   }
   const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
