@@ -438,7 +438,7 @@ TEST_CASE("query and stats convert an area in another CRS to the archive's", "[c
   const std::string plain = dir.file("plain.relief");
   REQUIRE(cli("compress " + dir.file("utm.las") + " -o " + archive + " --quiet").code == 0);
   REQUIRE(cli("compress " + dir.file("plain.las") + " -o " + plain + " --quiet").code == 0);
-  // A triangle (73 grid points inside by the crossing rule, counted below).
+  // A triangle (186 grid points inside by the crossing rule, counted below).
   const double corners[3][2] = {{500002.25, 4871802.25}, {500012.25, 4871803.25}, {500004.25, 4871811.75}};
   std::size_t want = 0;
   for (int i = 0; i < 1600; ++i) {
