@@ -98,7 +98,7 @@ int run_info(int argc, char** argv) {
   } else {
     std::printf("mode            resample: one point per occupied map pixel\n");
   }
-  std::printf("codec           %s\n", i.codec_params.c_str());
+  std::printf("codec           %s\n", full_params_text(i.codec_params).c_str());
   std::printf("size on disk    %s (%.3f bits/point; blobs %s = %.3f bits/point)\n", format_bytes(i.file_bytes).c_str(),
               bpp, format_bytes(i.blob_bytes).c_str(), blob_bpp);
   std::printf("attributes      %s\n", attributes(i).c_str());

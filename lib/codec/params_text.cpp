@@ -1,5 +1,6 @@
 // EncodeParams <-> "key=value;..." text, as stored in archive metadata.
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <string_view>
@@ -42,35 +43,64 @@ bool parse_vec3(std::string_view s, Vec3d& out) {
          parse_number(s.substr(b + 1), out.z);
 }
 
+// The values a key takes when the text leaves it out: frozen here and in
+// format-spec/archive.md (§2.1.1), never taken from EncodeParams' defaults,
+// which may change while stored texts must keep their meaning.
+EncodeParams text_defaults() {
+  EncodeParams p;
+  p.decomposition = Decomposition::kVoxelGrid;
+  p.cell_size = 0;
+  p.octree_max_points = 1024;
+  p.normal_cone_degrees = 0;
+  p.map_resolution = 16;
+  p.image_codec = ImageCodec::kJpeg;
+  p.height_quality = 75;
+  p.color_quality = 70;
+  p.intensity_quality = 70;
+  p.height_bits = 8;
+  p.fill = FillMethod::kBlockProjection;
+  p.bound.reset();
+  return p;
+}
+
 }  // namespace
 
-std::string encode_params_to_string(const EncodeParams& p) {
+std::string encode_params_to_string(const EncodeParams& p, ParamsText form) {
+  const bool all = form == ParamsText::kFull;
+  const EncodeParams d = text_defaults();
   std::string s;
-  s += "decomposition=";
-  s += decomposition_name(p.decomposition);
-  s += ";cell=" + exact(p.cell_size);
-  s += ";max_points=" + std::to_string(p.octree_max_points);
-  s += ";cone=" + exact(p.normal_cone_degrees);
-  s += ";r=" + std::to_string(p.map_resolution);
-  s += ";image=";
-  s += image_codec_name(p.image_codec);
-  s += ";q=" + std::to_string(p.height_quality);
-  s += ";color_q=" + std::to_string(p.color_quality);
-  s += ";intensity_q=" + std::to_string(p.intensity_quality);
-  s += ";height_bits=" + std::to_string(p.height_bits);
-  s += ";fill=";
-  s += fill_name(p.fill);
+  const auto add = [&s](std::string_view key, const std::string& value) {
+    if (!s.empty()) s += ';';
+    s += key;
+    s += '=';
+    s += value;
+  };
+  if (all || p.decomposition != d.decomposition) add("decomposition", decomposition_name(p.decomposition));
+  add("cell", exact(p.cell_size));
+  if (all || p.octree_max_points != d.octree_max_points) add("max_points", std::to_string(p.octree_max_points));
+  if (all || p.normal_cone_degrees != d.normal_cone_degrees) add("cone", exact(p.normal_cone_degrees));
+  if (all || p.map_resolution != d.map_resolution) add("r", std::to_string(p.map_resolution));
+  if (all || p.image_codec != d.image_codec) add("image", image_codec_name(p.image_codec));
+  if (all || p.height_quality != d.height_quality) add("q", std::to_string(p.height_quality));
+  if (all || p.color_quality != d.color_quality) add("color_q", std::to_string(p.color_quality));
+  if (all || p.intensity_quality != d.intensity_quality) add("intensity_q", std::to_string(p.intensity_quality));
+  if (all || p.height_bits != d.height_bits) add("height_bits", std::to_string(p.height_bits));
+  if (all || p.fill != d.fill) add("fill", fill_name(p.fill));
   if (p.bound) {
+    // "step" is always written: it marks the error-bounded mode.
     const ErrorBound& b = *p.bound;
-    s += ";step=" + exact(b.step.x) + "," + exact(b.step.y) + "," + exact(b.step.z);
-    s += ";origin=" + exact(b.origin.x) + "," + exact(b.origin.y) + "," + exact(b.origin.z);
-    s += ";color_tol=" + std::to_string(b.color_tolerance);
+    add("step", exact(b.step.x) + "," + exact(b.step.y) + "," + exact(b.step.z));
+    if (all || b.origin.x != 0 || b.origin.y != 0 || b.origin.z != 0 || std::signbit(b.origin.x) ||
+        std::signbit(b.origin.y) || std::signbit(b.origin.z)) {
+      add("origin", exact(b.origin.x) + "," + exact(b.origin.y) + "," + exact(b.origin.z));
+    }
+    if (all || b.color_tolerance != 0) add("color_tol", std::to_string(b.color_tolerance));
   }
   return s;
 }
 
 Result<EncodeParams> encode_params_from_string(const std::string& text) {
-  EncodeParams p;
+  EncodeParams p = text_defaults();
   std::string_view rest(text);
   while (!rest.empty()) {
     const std::size_t semi = rest.find(';');
@@ -125,6 +155,11 @@ Result<EncodeParams> encode_params_from_string(const std::string& text) {
     if (!ok) return format_error("codec parameters: bad value '" + std::string(value) + "' for '" + key + "'");
   }
   return p;
+}
+
+std::string full_params_text(const std::string& text) {
+  Result<EncodeParams> p = encode_params_from_string(text);
+  return p ? encode_params_to_string(*p) : text;
 }
 
 }  // namespace relief

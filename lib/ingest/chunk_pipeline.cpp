@@ -31,7 +31,7 @@ ChunkPipeline::ChunkPipeline(Archive& archive, const EncodeParams& params, const
                              std::int64_t scan_id, unsigned threads, const std::atomic<bool>* cancel, bool verify)
     : archive_(archive),
       params_(params),
-      params_text_(encode_params_to_string(params)),
+      params_text_(encode_params_to_string(params, ParamsText::kCompact)),
       grid_(grid),
       scan_id_(scan_id),
       threads_(threads == 0 ? 1 : threads),

@@ -980,7 +980,7 @@ Result<IngestResult> compress_files(const std::vector<std::string>& given, const
   const EncodeParams& params = built.params;
   const ArchiveGrid& grid = built.grid;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
-                          Archive::create(archive_path, grid, encode_params_to_string(params), options.creator,
+                          Archive::create(archive_path, grid, encode_params_to_string(params, ParamsText::kCompact), options.creator,
                                           ingest_page_size(in.estimated_points)));
   auto result = run_ingest(*archive, grid, params, in, std::move(first), options,
                            default_tmp_parent(archive_path, options));

@@ -348,7 +348,7 @@ class Builder {
         node.row.ref.decoded_points = stats.decoded_points;
         node.row.ref.bounds = stats.decoded_bounds;
         node.row.codec = 1;
-        node.row.codec_params = encode_params_to_string(params);
+        node.row.codec_params = encode_params_to_string(params, ParamsText::kCompact);
         node.row.blob = std::move(blob).value();
         nodes[n] = PointCloud();
       });

@@ -283,7 +283,7 @@ Result<std::unique_ptr<StreamIngest>> StreamIngest::open(const std::string& arch
                               std::to_string(params.cell_size));
     }
     RELIEF_RETURN_IF_ERROR(ingest::check_output_directory(archive_path));
-    RELIEF_ASSIGN_OR_RETURN(archive, Archive::create(archive_path, grid, encode_params_to_string(params),
+    RELIEF_ASSIGN_OR_RETURN(archive, Archive::create(archive_path, grid, encode_params_to_string(params, ParamsText::kCompact),
                                                      options.ingest.creator));
   }
   ArchiveSource src;

@@ -8,6 +8,7 @@
 #include <vector>
 #include <string_view>
 
+#include "relief/codec.h"
 #include "relief/crs.h"
 #include "relief/io.h"
 #include "relief/query.h"
@@ -253,8 +254,10 @@ std::string archive_info_json(const ArchiveInfo& i, const std::string& path) {
   appendf(out, "  \"grid\": {\"origin\": [%s, %s, %s], \"chunk_edge\": %s},\n",
           json_number(i.grid.origin.x).c_str(), json_number(i.grid.origin.y).c_str(),
           json_number(i.grid.origin.z).c_str(), json_number(i.grid.chunk_edge).c_str());
-  appendf(out, "  \"codec_params\": %s,\n", json_params(i.codec_params).c_str());
-  appendf(out, "  \"codec_params_text\": %s,\n", json_string(i.codec_params).c_str());
+  // Every key shown, though archives store only those off their defaults.
+  const std::string params = full_params_text(i.codec_params);
+  appendf(out, "  \"codec_params\": %s,\n", json_params(params).c_str());
+  appendf(out, "  \"codec_params_text\": %s,\n", json_string(params).c_str());
   appendf(out, "  \"file_bytes\": %llu,\n", static_cast<unsigned long long>(i.file_bytes));
   appendf(out, "  \"blob_bytes\": %llu,\n", static_cast<unsigned long long>(i.blob_bytes));
   appendf(out, "  \"bits_per_point\": %s,\n", json_number(bpp).c_str());

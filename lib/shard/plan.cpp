@@ -114,7 +114,7 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   }
   plan.attributes.las_colors_8bit = any_rgb && all_8bit;
   plan.creator = o.creator;
-  plan.archive_params = encode_params_to_string(built.params);
+  plan.archive_params = encode_params_to_string(built.params, ParamsText::kCompact);
   plan.grid = built.grid;
   // compress_files' with_intensity_range over the same points.
   const EncodeParams chunk_params =

@@ -249,6 +249,7 @@ enum class Sql : std::size_t {
   kMetaAll,
   kMetaPut,
   kScanInsert,
+  kOtherScanExists,
   kScanExists,
   kScanFinish,
   kScanSummary,
@@ -347,6 +348,8 @@ SqlText sql_text(Sql id) {
               "VALUES(?1, 0, ?2, ?3, ?4)"};
     case Sql::kScanExists:
       return {"find scan", "SELECT 1 FROM relief_scan WHERE id = ?1"};
+    case Sql::kOtherScanExists:
+      return {"find another scan", "SELECT 1 FROM relief_scan WHERE id <> ?1 LIMIT 1"};
     case Sql::kScanFinish:
       return {"finish scan",
               "UPDATE relief_scan SET complete = 1, has_rgb = ?2, has_intensity = ?3, crs = ?4 "
@@ -1226,6 +1229,17 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
     RELIEF_RETURN_IF_ERROR(statement->run());
   }
   const std::int64_t scan_id = sqlite3_last_insert_rowid(db());
+  {
+    // A second scan: from now on one scan's chunks are some of the rows.
+    RELIEF_ASSIGN_OR_RETURN(Statement * others, statement(Sql::kOtherScanExists));
+    StatementScope scope(*others);
+    others->bind_int64(1, scan_id);
+    RELIEF_ASSIGN_OR_RETURN(const bool another, others->step());
+    if (another) {
+      RELIEF_RETURN_IF_ERROR(
+          store::exec(db(), store::kCreateChunkScanIndexSql, path_, "create the index of chunks by scan"));
+    }
+  }
   if (std::any_of(sources.begin(), sources.end(), [](const ArchiveSource& s) { return !s.las.empty(); })) {
     RELIEF_RETURN_IF_ERROR(store::exec(db(), store::compact_sql(store::kCreateSourceLasSql).c_str(), path_,
                                        "create the LAS source table"));

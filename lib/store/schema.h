@@ -17,8 +17,9 @@ inline constexpr std::array<std::string_view, 5> kRequiredTables = {
 // an id a reader saw can never name a different chunk later.
 // relief_meta is keyed by its key alone (WITHOUT ROWID: no second b-tree
 // for the key's uniqueness), and relief_source, a row per input file, has no
-// index on scan_id (archives before 2026-11-27 have one, relief_source_scan):
-// each of those took a page of every archive.
+// index on scan_id (archives before 2026-11-27 have one, relief_source_scan),
+// and relief_chunk's index on scan_id comes with the second scan
+// (kCreateChunkScanIndexSql): each of those took a page of every archive.
 // The blob is the last column of relief_chunk: SQLite stores a row's columns
 // in order and a large blob spills to overflow pages, so index scans and
 // length(blob) read the other columns without touching the blob's pages.
@@ -64,9 +65,15 @@ CREATE TABLE relief_chunk (
   blob           BLOB NOT NULL,
   UNIQUE (ix, iy, iz, seq)
 );
-CREATE INDEX relief_chunk_scan ON relief_chunk(scan_id);
 CREATE VIRTUAL TABLE relief_chunk_index USING rtree(id, min_x, max_x, min_y, max_y, min_z, max_z);
 )sql";
+
+// Chunks by scan, for removing or listing one scan's chunks among others':
+// created when a second scan begins (archives before 2026-11-28 have it from
+// the start). With one scan, those are all the rows and the index would only
+// take a page of every small archive.
+inline constexpr char kCreateChunkScanIndexSql[] =
+    "CREATE INDEX IF NOT EXISTS relief_chunk_scan ON relief_chunk(scan_id)";
 
 // Version 2: a plain b-tree over the exact bounds. Box queries take their
 // candidates from the R*Tree and check them against this index, so a damaged

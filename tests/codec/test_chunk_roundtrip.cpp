@@ -364,6 +364,39 @@ TEST_CASE("encode parameters round-trip through their text form", "[codec]") {
   CHECK_FALSE(encode_params_from_string("cell=abc").is_ok());
   CHECK_FALSE(encode_params_from_string("colour=1").is_ok());
   CHECK_FALSE(encode_params_from_string("decomposition=kd").is_ok());
+  // The compact form names only what differs from the text defaults, which
+  // are frozen (format-spec/archive.md §2.1.1), and reads back the same.
+  const std::string compact = encode_params_to_string(p, ParamsText::kCompact);
+  CHECK(compact == text);  // every key of p is off its default
+  CHECK(full_params_text(compact) == text);
+}
+
+TEST_CASE("archives store encode parameters without the keys at their defaults", "[codec]") {
+  EncodeParams p;
+  p.cell_size = 0.25;
+  CHECK(encode_params_to_string(p, ParamsText::kCompact) == "cell=0.25");
+  CHECK(encode_params_to_string(p) ==
+        "decomposition=voxel;cell=0.25;max_points=1024;cone=0;r=16;image=jpeg;q=75;color_q=70;intensity_q=70;"
+        "height_bits=8;fill=project");
+  p.bound = ErrorBound{};
+  p.bound->step = {0.01, 0.01, 0.02};
+  CHECK(encode_params_to_string(p, ParamsText::kCompact) == "cell=0.25;step=0.01,0.01,0.02");
+  p.bound->origin = {-0.0, 0, 0.5};
+  p.bound->color_tolerance = 3;
+  p.map_resolution = 32;
+  const std::string compact = encode_params_to_string(p, ParamsText::kCompact);
+  CHECK(compact == "cell=0.25;r=32;step=0.01,0.01,0.02;origin=-0,0,0.5;color_tol=3");
+  auto back = encode_params_from_string(compact);
+  REQUIRE(back.is_ok());
+  CHECK(encode_params_to_string(*back) == encode_params_to_string(p));
+  CHECK(std::signbit(back->bound->origin.x));
+  // The defaults of the text, not EncodeParams' own, fill what is left out.
+  auto bare = encode_params_from_string("cell=2");
+  REQUIRE(bare.is_ok());
+  CHECK(bare->map_resolution == 16);
+  CHECK(bare->height_quality == 75);
+  CHECK_FALSE(bare->bound.has_value());
+  CHECK(full_params_text("not params") == "not params");
 }
 
 TEST_CASE("JPEG sections are stored abbreviated at every quality", "[codec][jpeg]") {

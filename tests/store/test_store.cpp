@@ -1291,6 +1291,44 @@ TEST_CASE("create takes the page size it is given and writes the schema compactl
   }
 }
 
+TEST_CASE("the index of chunks by scan comes with the second scan", "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("scans.relief");
+  const auto has_index = [&path] {
+    RawDb raw(path);
+    return raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name = 'relief_chunk_scan'") == 1;
+  };
+  std::vector<ChunkRow> first;
+  {
+    auto archive = Archive::create(path, grid_25m(), "", "", kSmallArchivePageSize);
+    REQUIRE(archive.is_ok());
+    // A first scan that is given up leaves no other scan behind it.
+    const std::int64_t dropped = begin_ok(**archive, {{"x.ply", "ply", 10, "", 0}});
+    std::vector<ChunkRow> gone = {make_row({5, 0, 0}, dropped, cube(126, 127), 10, 50, 9)};
+    put_ok(**archive, gone);
+    REQUIRE((*archive)->abort_scan(dropped).is_ok());
+    const std::int64_t scan = begin_ok(**archive, {{"a.ply", "ply", 100, "", 0}});
+    first = {make_row({0, 0, 0}, scan, cube(1, 2), 40, 300, 1), make_row({1, 0, 0}, scan, cube(26, 27), 50, 3, 2)};
+    put_ok(**archive, first);
+    REQUIRE((*archive)->finish_scan(scan, false, false, "").is_ok());
+  }
+  CHECK_FALSE(has_index());
+  {
+    auto archive = open_ok(path, Archive::Mode::kReadWrite);
+    const std::int64_t second = begin_ok(*archive, {{"b.ply", "ply", 100, "", 0}});
+    std::vector<ChunkRow> rows = {make_row({2, 0, 0}, second, cube(51, 52), 40, 100, 3)};
+    put_ok(*archive, rows);
+    // Removing the second scan keeps the first one's chunks, through the index.
+    REQUIRE(archive->abort_scan(second).is_ok());
+    for (const ChunkRow& row : first) CHECK(read_ok(*archive, row.ref.id).blob == row.blob);
+    CHECK(info_ok(*archive).chunk_count == first.size());
+  }
+  CHECK(has_index());
+  const ArchiveCheck check = check_ok(path);
+  INFO(joined(check.problems));
+  CHECK(check.problems.empty());
+}
+
 }  // namespace
 }  // namespace relief
 

@@ -214,12 +214,21 @@ double cell_size_for_density(const PointCloud& cloud, double points_per_cell);
 const char* decomposition_name(Decomposition d);
 const char* image_codec_name(ImageCodec c);
 
-// Text form of the parameters an archive records, e.g.
+// Text form of the parameters an archive records (format-spec/archive.md
+// §2.1.1), one line, no spaces. kFull names every key, e.g.
 // "decomposition=voxel;cell=0.25;max_points=1024;cone=0;r=16;image=jpeg;q=75;
-//  color_q=70;intensity_q=70;height_bits=8;fill=project" (one line, no spaces).
-// The grid cube is not included (it is per chunk). Doubles round-trip exactly.
-std::string encode_params_to_string(const EncodeParams& params);
-// Parses that form; unknown keys or malformed values -> kFormatError naming the key.
+//  color_q=70;intensity_q=70;height_bits=8;fill=project" (how it is shown);
+// kCompact, what archives store, leaves out the keys at their text defaults
+// ("cell=0.25"; "cell" and, in the error-bounded mode, "step" are always
+// there). The grid cube is not included (it is per chunk). Doubles
+// round-trip exactly.
+enum class ParamsText { kFull, kCompact };
+std::string encode_params_to_string(const EncodeParams& params, ParamsText form = ParamsText::kFull);
+// Parses either form (a missing key takes its text default); unknown keys or
+// malformed values -> kFormatError naming the key.
 Result<EncodeParams> encode_params_from_string(const std::string& text);
+// The kFull form of a stored text, for showing it (the text itself when it
+// does not parse).
+std::string full_params_text(const std::string& text);
 
 }  // namespace relief
