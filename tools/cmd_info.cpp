@@ -2,6 +2,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -20,9 +21,13 @@ namespace {
 
 constexpr const char* kCommand = "info";
 constexpr const char* kUsageText =
-    "usage: relief info ARCHIVE [--json]\n"
+    "usage: relief info ARCHIVE [--json] [--sections [--quiet]]\n"
     "Prints the format version, points, chunks, bounds, grid, codec parameters, size on disk,\n"
-    "bits per point, attributes, CRS, sources and scans of an archive.\n";
+    "bits per point, attributes, CRS, sources and scans of an archive.\n"
+    "  --sections   also where the bytes go: each chunk section (geometry, rgb, gps_time, the\n"
+    "               maps ...) summed over the chunks, the blobs' framing, the pyramid and\n"
+    "               SQLite's share; reads (and checks the CRC of) every blob\n"
+    "  --quiet      no progress line on the terminal while --sections reads\n";
 
 std::string crs_text(const std::string& crs) {
   if (crs.empty()) return "(none)";
@@ -56,24 +61,69 @@ std::string las_text(const ArchiveInfo& i) {
   return out;
 }
 
+// One line per part of the file: bytes, share of the file, bits per input point.
+void print_sections(const ArchiveSections& s) {
+  const auto line = [&s](const std::string& name, std::uint64_t bytes, const std::string& note) {
+    const double share = s.file_bytes > 0 ? 100.0 * static_cast<double>(bytes) / static_cast<double>(s.file_bytes) : 0.0;
+    const double bpp =
+        s.input_points > 0 ? 8.0 * static_cast<double>(bytes) / static_cast<double>(s.input_points) : 0.0;
+    std::printf("  %-20s %14llu  %5.1f %%  %8.3f%s%s\n", name.c_str(), static_cast<unsigned long long>(bytes), share,
+                bpp, note.empty() ? "" : "  ", note.c_str());
+  };
+  std::printf("sections        bytes, share of the file, bits per input point (%llu chunk%s read)\n",
+              static_cast<unsigned long long>(s.chunks), s.chunks == 1 ? "" : "s");
+  bool maps = false;
+  for (const SectionTotal& t : s.sections) {
+    if (!t.maps) line(t.name, t.bytes, "");
+    maps = maps || t.maps;
+  }
+  if (maps) std::printf("  maps (the paper's layer; the base layer of error-bounded chunks):\n");
+  for (const SectionTotal& t : s.sections) {
+    if (t.maps) line("  " + t.name, t.bytes, "");
+  }
+  line("blob framing", s.framing_bytes, "headers, section tables, checksums");
+  if (s.pyramid_chunks > 0) {
+    line("pyramid", s.pyramid_bytes, std::to_string(s.pyramid_chunks) + " nodes of the level-of-detail pyramid");
+  }
+  line("sqlite", s.container_bytes(), "pages, indexes, metadata, scans and sources");
+  line("file", s.file_bytes, "");
+}
+
 }  // namespace
 
 int run_info(int argc, char** argv) {
-  Args args(argc, argv, {"--help", "--json"}, {});
+  Args args(argc, argv, {"--help", "--json", "--sections", "--quiet"}, {});
   if (args.has("--help")) {
     std::cout << kUsageText;
     return kExitOk;
   }
   if (!args.ok()) return usage_error(kCommand, args.error());
   if (args.positional().size() != 1) return usage_error(kCommand, "expected one ARCHIVE");
-  auto reader = ArchiveReader::open(args.positional()[0]);
+  const std::string& path = args.positional()[0];
+  auto reader = ArchiveReader::open(path);
   if (!reader) return fail(kCommand, reader.status());
   const ArchiveInfo& i = (*reader)->info();
+  std::optional<ArchiveSections> sections;
+  if (args.has("--sections")) {
+    auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+    if (!archive) return fail(kCommand, archive.status());
+    QueryProgress progress(path, i.input_points, args.has("--quiet"));
+    auto s = archive_sections(**archive, [&](std::uint64_t n) { progress.count(n); });
+    end_progress_line();
+    if (!s) return fail(kCommand, s.status());
+    sections = std::move(*s);
+  }
   const double bpp = i.input_points > 0 ? 8.0 * static_cast<double>(i.file_bytes) / static_cast<double>(i.input_points) : 0.0;
   const double blob_bpp =
       i.input_points > 0 ? 8.0 * static_cast<double>(i.blob_bytes) / static_cast<double>(i.input_points) : 0.0;
   if (args.has("--json")) {
-    std::fputs(archive_info_json(i, args.positional()[0]).c_str(), stdout);
+    std::string json = archive_info_json(i, path);
+    if (sections) {
+      // One more member of the object: before its closing "}\n".
+      json.resize(json.size() - 2);
+      json += ",\n  \"sections\": " + archive_sections_json(*sections) + "\n}\n";
+    }
+    std::fputs(json.c_str(), stdout);
     return kExitOk;
   }
   std::printf("archive         %s\n", args.positional()[0].c_str());
@@ -127,6 +177,7 @@ int run_info(int argc, char** argv) {
       std::printf("\n");
     }
   }
+  if (sections) print_sections(*sections);
   return kExitOk;
 }
 

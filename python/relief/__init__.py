@@ -317,6 +317,16 @@ class Archive:
         _warn_all(messages)
         return self._with_extra_fields(array)
 
+    def sections(self):
+        """Where the archive's bytes go, as ``relief info --sections --json``
+        gives them under ``"sections"``: ``file_bytes``, ``blob_bytes``,
+        ``framing_bytes``, ``pyramid_bytes``, ``container_bytes`` (SQLite's
+        share) and ``sections``, a list of ``{"id", "name", "maps", "bytes",
+        "chunks"}`` (``maps``: one of the paper's maps, the base layer).
+        Reads every blob and checks its CRC.
+        """
+        return _json.loads(self._reader.sections_json())
+
     def stats(self, box=None, *, attributes=None, threads=0, skip_corrupt=False, polygon=None, polygon_crs=None):
         """What the points (in ``box``, as ``query`` takes it) hold, as ``relief
         stats --json``: a dict with ``points``; ``x``, ``y``, ``z`` and each

@@ -252,6 +252,19 @@ class Reader {
     return archive_info_json(reader().info(), path_);
   }
 
+  // archive_sections as JSON: every blob read, through a connection of its own.
+  std::string sections_json() {
+    reader();  // refuses a closed archive while the GIL is held
+    Result<ArchiveSections> r = Status(internal_error("sections did not run"));
+    {
+      py::gil_scoped_release release;
+      Result<std::unique_ptr<Archive>> archive = Archive::open(path_, Archive::Mode::kReadOnly);
+      r = archive ? archive_sections(**archive) : Result<ArchiveSections>(archive.status());
+    }
+    if (!r) raise_status(r.status());
+    return archive_sections_json(*r);
+  }
+
   // The whole answer as one array, plus the warnings of skipped chunks.
   py::tuple query(const std::optional<std::vector<double>>& box_values, std::uint32_t lod, unsigned threads,
                   bool skip_corrupt, std::uint64_t max_points, const std::string& attributes,
@@ -466,6 +479,7 @@ PYBIND11_MODULE(_relief, m) {
   py::class_<Reader>(m, "Reader")
       .def(py::init<const std::string&>(), py::arg("path"))
       .def("info_json", &Reader::info_json)
+      .def("sections_json", &Reader::sections_json)
       .def("query", &Reader::query, py::arg("box"), py::arg("lod"), py::arg("threads"),
            py::arg("skip_corrupt"), py::arg("max_points"), py::arg("attributes"), py::arg("polygon"),
            py::arg("polygon_crs"))

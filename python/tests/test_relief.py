@@ -54,6 +54,25 @@ def test_info_is_the_clis_json(xyz_archive):
         assert a.info == json.loads(out)
 
 
+def test_sections_account_for_every_blob_byte(xyz_archive):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        s = a.sections()
+        info = a.info
+    assert s["chunks"] == info["chunks"]
+    assert s["file_bytes"] == info["file_bytes"]
+    names = {t["name"]: t for t in s["sections"]}
+    assert {"geometry", "rgb", "intensity", "height map"} <= set(names)
+    assert names["height map"]["maps"] and not names["geometry"]["maps"]
+    assert sum(t["bytes"] for t in s["sections"]) + s["framing_bytes"] == s["blob_bytes"]
+    assert s["container_bytes"] == s["file_bytes"] - s["blob_bytes"] - s["pyramid_bytes"]
+    cli = os.environ.get("RELIEF_CLI")
+    if cli:
+        out = subprocess.run([cli, "info", "--json", "--sections", str(path)], check=True, capture_output=True,
+                             text=True).stdout
+        assert json.loads(out)["sections"] == s
+
+
 def test_query_whole_gives_every_point_back(xyz_archive, scene):
     path, _ = xyz_archive
     with relief.open(path) as a:

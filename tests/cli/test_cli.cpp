@@ -357,6 +357,21 @@ TEST_CASE("query and info: clear errors for bad archives and boxes", "[cli][quer
   CHECK(info.code == 0);
   CHECK(info.output.find("\"format_version\": 2") != std::string::npos);
   CHECK(info.output.find("\"points_in\": 241407") != std::string::npos);
+  // --sections: the bytes of each section, the rest of the file, and the same in the JSON.
+  const Run parts = run("info " + a + " --sections");
+  INFO(parts.output);
+  CHECK(parts.code == 0);
+  CHECK(parts.output.find("\n  geometry ") != std::string::npos);
+  CHECK(parts.output.find("\n  rgb ") != std::string::npos);
+  CHECK(parts.output.find("    height map ") != std::string::npos);
+  CHECK(parts.output.find("\n  file " + std::string(20 - 4, ' ') + std::string(14 - std::to_string(fs::file_size(a)).size(), ' ') +
+                          std::to_string(fs::file_size(a)) + "  100.0 %") != std::string::npos);
+  const Run parts_json = run("info " + a + " --json --sections");
+  CHECK(parts_json.code == 0);
+  CHECK(parts_json.output.find("\"sections\": {\"chunks\": ") != std::string::npos);
+  CHECK(parts_json.output.find("\"name\": \"geometry\"") != std::string::npos);
+  // Still one object: the sections close it.
+  CHECK(parts_json.output.substr(parts_json.output.size() - 5) == "]}\n}\n");
   for (const char* cmd : {"compress", "append", "stream", "query", "decompress", "info", "preview", "check"}) {
     const Run h = run(std::string(cmd) + " --help");
     CHECK(h.code == 0);

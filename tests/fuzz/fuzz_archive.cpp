@@ -63,6 +63,13 @@ void exercise_archive(const std::string& path) {
     box.min = {-1e6, -1e6, -1e6};
     box.max = {1e6, 1e6, 1e6};
   }
+  // Where the bytes go: every blob's section table; when it answers, every
+  // blob byte is a section's or the framing's.
+  if (auto parts = relief::archive_sections(**archive); parts.is_ok()) {
+    std::uint64_t sum = parts->framing_bytes;
+    for (const relief::SectionTotal& t : parts->sections) sum += t.bytes;
+    if (sum != parts->blob_bytes) std::abort();
+  }
   auto refs = (*archive)->find_chunks(box);
   if (!refs.is_ok()) refs = (*archive)->all_chunks();
   if (!refs.is_ok()) return;

@@ -280,6 +280,53 @@ TEST_CASE("level of detail L returns about 1/L of the points, spread uniformly",
   }
 }
 
+TEST_CASE("archive_sections says where every byte of the archive goes", "[query][sections]") {
+  TempDir tmp;
+  const std::string path = build(tmp, "s", 3, 60000);
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  REQUIRE(info.is_ok());
+  std::uint64_t heard = 0;
+  auto s = archive_sections(**archive, [&](std::uint64_t n) { heard += n; });
+  INFO(s.status().to_string());
+  REQUIRE(s.is_ok());
+  CHECK(s->chunks == info->chunk_count);
+  CHECK(s->input_points == info->input_points);
+  CHECK(heard == info->input_points);
+  CHECK(s->file_bytes == info->file_bytes);
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  std::uint64_t blobs = 0;
+  for (const ChunkRef& r : *refs) blobs += r.blob_size;
+  CHECK(s->blob_bytes == blobs);
+  // Every byte of every blob is a section's or the framing's.
+  std::uint64_t sections = 0;
+  std::map<std::string, const SectionTotal*> by_name;
+  for (const SectionTotal& t : s->sections) {
+    sections += t.bytes;
+    by_name[t.name] = &t;
+    CHECK(t.chunks > 0);
+    CHECK(t.chunks <= s->chunks);
+  }
+  CHECK(sections + s->framing_bytes == s->blob_bytes);
+  // Error-bounded chunks with colours: the points' geometry and colours, and
+  // the paper's maps as their base layer.
+  for (const char* name : {"geometry", "rgb", "occupancy map", "height map", "colour map"}) {
+    INFO(name);
+    REQUIRE(by_name.count(name) == 1);
+    CHECK(by_name[name]->chunks == s->chunks);
+    CHECK(by_name[name]->maps == (std::string(name).find("map") != std::string::npos));
+  }
+  CHECK(by_name["geometry"]->id == 7);
+  CHECK(s->framing_bytes >= s->chunks * (176 + 4));
+  CHECK(s->container_bytes() == s->file_bytes - s->blob_bytes - s->pyramid_bytes);
+  const std::string json = archive_sections_json(*s);
+  CHECK(json.find("{\"id\": 7, \"name\": \"geometry\", \"maps\": false, \"bytes\": " +
+                  std::to_string(by_name["geometry"]->bytes)) != std::string::npos);
+  CHECK(json.find("\"container_bytes\": " + std::to_string(s->container_bytes())) != std::string::npos);
+}
+
 TEST_CASE("a corrupted chunk is reported by name, or skipped with a warning", "[query][corrupt]") {
   TempDir tmp;
   const std::string path = build(tmp, "e");
@@ -322,6 +369,14 @@ TEST_CASE("a corrupted chunk is reported by name, or skipped with a warning", "[
   REQUIRE(warnings.size() == 1);
   CHECK(warnings[0].find("checksum") != std::string::npos);
   CHECK(rest.size() > 0);
+  // Summing the sections reads every blob and refuses the damaged one by name.
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto sections = archive_sections(**archive);
+  REQUIRE_FALSE(sections.is_ok());
+  CHECK(sections.status().code() == StatusCode::kCorruptData);
+  CHECK(sections.status().message().find(path) != std::string::npos);
+  CHECK(sections.status().message().find("chunk (") != std::string::npos);
 }
 
 TEST_CASE("readers during an append see a consistent archive", "[query][concurrency]") {

@@ -182,6 +182,43 @@ Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptio
 // Python's Archive.stats returns.
 std::string archive_stats_json(const ArchiveStats& stats);
 
+// ---- Where an archive's bytes go (what `relief info --sections` prints)
+
+// One kind of chunk section (format-spec/chunk.md §3), summed over chunks.
+struct SectionTotal {
+  int id = 0;                 // the section id
+  std::string name;           // "geometry", "rgb", "gps_time", "height map" ...
+  bool maps = false;          // one of the paper's maps: the base layer of error-bounded chunks
+  std::uint64_t bytes = 0;    // coded bytes
+  std::uint64_t chunks = 0;   // chunks that hold it
+};
+
+struct ArchiveSections {
+  std::uint64_t chunks = 0;        // full-resolution chunks (pyramid nodes apart)
+  std::uint64_t input_points = 0;  // their input points
+  std::uint64_t file_bytes = 0;    // the archive file (+ WAL) on disk
+  std::uint64_t blob_bytes = 0;    // the chunks' blobs
+  std::uint64_t framing_bytes = 0; // of which blob headers, section tables and checksums
+  std::uint64_t pyramid_chunks = 0, pyramid_bytes = 0;  // the level-of-detail pyramid's nodes
+  std::vector<SectionTotal> sections;  // by id, those some chunk holds
+  // The rest of the file: SQLite's pages, indexes and free space, the
+  // metadata, scan and source rows.
+  std::uint64_t container_bytes() const {
+    const std::uint64_t stored = blob_bytes + pyramid_bytes;
+    return file_bytes > stored ? file_bytes - stored : 0;
+  }
+};
+
+// Reads every chunk's blob (each checked against its CRC-32, as read_chunk
+// does) and sums its sections' sizes; the pyramid's nodes are counted from
+// the archive's totals, not read. `progress`, when set, hears the input
+// points of each chunk as it is read. A blob whose header or section table is damaged
+// is kCorruptData naming the chunk (relief check lists every such chunk).
+Result<ArchiveSections> archive_sections(const Archive& archive,
+                                         const std::function<void(std::uint64_t points)>& progress = {});
+// As one JSON object (`relief info --sections --json` adds it as "sections").
+std::string archive_sections_json(const ArchiveSections& sections);
+
 // A box for "all heights" from a 2D box: z from -inf to +inf.
 Box3d box_2d(double xmin, double ymin, double xmax, double ymax);
 
