@@ -28,7 +28,9 @@ const char* const kModeOptionsHelp =
     "  --tolerance T          bounded: largest error per coordinate, in coordinate units (default:\n"
     "                         half the LAS scale for LAS input, so its integers come back exactly;\n"
     "                         else 0.0005)\n"
-    "  --color-tolerance C    bounded: largest error per colour channel, 0..127 (default 0 = exact)\n";
+    "  --color-tolerance C    bounded: largest error per colour channel, 0..127 (default 0 = exact)\n"
+    "  --intensity-tolerance I  bounded: largest error of a 16-bit intensity, 0..32767 (default 0 =\n"
+    "                         exact; float intensities stay exact)\n";
 
 std::vector<std::string> ingest_cli_options(IngestOptionSet set) { return cli_names(ingest_option_names(set)); }
 std::vector<std::string> ingest_cli_flags(IngestOptionSet set) { return cli_names(ingest_flag_names(set)); }

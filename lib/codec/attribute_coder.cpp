@@ -235,26 +235,59 @@ Result<std::vector<Rgb8>> decode_colors_near(std::span<const std::uint8_t> data,
   return out;
 }
 
-std::vector<std::uint8_t> encode_values(std::span<const std::int64_t> values) {
+std::vector<std::uint8_t> encode_values(std::span<const std::int64_t> values, int tolerance,
+                                        std::vector<std::int64_t>* reconstructed) {
   RangeEncoder enc;
   auto models = std::make_unique<SIntModel[]>(kValueClasses);
   std::uint64_t prev = 0;
   int cls = 0;
-  for (const std::int64_t v : values) {
-    const auto r = static_cast<std::int64_t>(static_cast<std::uint64_t>(v) - prev);
-    encode_sint(enc, models[cls], r);
-    cls = value_class(r);
-    prev = static_cast<std::uint64_t>(v);
+  if (reconstructed) reconstructed->assign(values.begin(), values.end());
+  if (tolerance == 0) {
+    for (const std::int64_t v : values) {
+      const auto r = static_cast<std::int64_t>(static_cast<std::uint64_t>(v) - prev);
+      encode_sint(enc, models[cls], r);
+      cls = value_class(r);
+      prev = static_cast<std::uint64_t>(v);
+    }
+    return enc.finish();
+  }
+  // 16-bit values within the tolerance (format 12, §11.5): each residual
+  // from the previous *decoded* value in steps of s = 2t + 1, the decoded
+  // value clamped to 0..65535 (toward the input, so still within t).
+  const std::int64_t s = 2 * std::int64_t{tolerance} + 1;
+  std::int64_t last = 0;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const std::int64_t e = values[i] - last;
+    const std::int64_t q = e >= 0 ? (e + tolerance) / s : -((-e + tolerance) / s);
+    encode_sint(enc, models[cls], q);
+    cls = value_class(q);
+    last = std::clamp<std::int64_t>(last + q * s, 0, kMaxUInt16Value);
+    if (reconstructed) (*reconstructed)[i] = last;
   }
   return enc.finish();
 }
 
-Result<std::vector<std::int64_t>> decode_values(std::span<const std::uint8_t> data, std::size_t count) {
+Result<std::vector<std::int64_t>> decode_values(std::span<const std::uint8_t> data, std::size_t count, int tolerance) {
   RangeDecoder dec(data);
   auto models = std::make_unique<SIntModel[]>(kValueClasses);
   std::vector<std::int64_t> out(count);
   std::uint64_t prev = 0;
   int cls = 0;
+  if (tolerance != 0) {
+    const std::int64_t s = 2 * std::int64_t{tolerance} + 1;
+    std::int64_t last = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+      std::int64_t q = 0;
+      if (!decode_sint(dec, models[cls], q) || q < -kMaxUInt16Value || q > kMaxUInt16Value) {
+        return corrupt_data("attribute section: invalid or truncated stream");
+      }
+      last = std::clamp<std::int64_t>(last + q * s, 0, kMaxUInt16Value);
+      out[i] = last;
+      cls = value_class(q);
+    }
+    if (dec.overrun() > 0) return corrupt_data("attribute section: truncated stream");
+    return out;
+  }
   for (std::size_t i = 0; i < count; ++i) {
     std::int64_t r = 0;
     if (!decode_sint(dec, models[cls], r)) return corrupt_data("attribute section: invalid or truncated stream");

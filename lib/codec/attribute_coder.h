@@ -45,8 +45,13 @@ std::vector<std::uint8_t> encode_colors_near(std::span<const Rgb8> colors, std::
 Result<std::vector<Rgb8>> decode_colors_near(std::span<const std::uint8_t> data, std::span<const CellXyz> cells,
                                              int tolerance);
 
-// Exact integer values (e.g. 16-bit intensities, or 32-bit float patterns).
-std::vector<std::uint8_t> encode_values(std::span<const std::int64_t> values);
-Result<std::vector<std::int64_t>> decode_values(std::span<const std::uint8_t> data, std::size_t count);
+// Integer values (16-bit intensities, or 32-bit float patterns), exact; or,
+// with a tolerance t > 0 (format 12), 16-bit values 0..65535 each decoded
+// within t, `reconstructed` receiving what the decoder will return.
+inline constexpr std::int64_t kMaxUInt16Value = 65535;
+std::vector<std::uint8_t> encode_values(std::span<const std::int64_t> values, int tolerance = 0,
+                                        std::vector<std::int64_t>* reconstructed = nullptr);
+Result<std::vector<std::int64_t>> decode_values(std::span<const std::uint8_t> data, std::size_t count,
+                                                int tolerance = 0);
 
 }  // namespace relief::codec

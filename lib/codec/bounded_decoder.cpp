@@ -167,7 +167,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
     if (in_cells(kOrderSlotColors)) to_layer(out.colors);
   }
   if (const SectionEntry* s = want.intensity ? find_section(blob, SectionId::kPointIntensity) : nullptr) {
-    auto values = decode_values(s->payload, n);
+    auto values = decode_values(s->payload, n, h.intensity_tolerance);
     if (!values) return values.status().with_context("chunk blob: point intensity section");
     if (in_cells(kOrderSlotIntensity)) to_layer(*values);
     out.intensities.resize(n);

@@ -39,6 +39,9 @@ Status check_bound(const ErrorBound& b) {
   if (b.color_tolerance < 0 || b.color_tolerance > kMaxColorTolerance) {
     return invalid_argument("colour tolerance must be between 0 and " + std::to_string(kMaxColorTolerance));
   }
+  if (b.intensity_tolerance < 0 || b.intensity_tolerance > kMaxIntensityTolerance) {
+    return invalid_argument("intensity tolerance must be between 0 and " + std::to_string(kMaxIntensityTolerance));
+  }
   return Status::ok();
 }
 
@@ -185,7 +188,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  h.version = kChunkFormatVersion;  // 11: geometry codec 11 or 9 (time order), colour codec 6 or 10, voted LAS bytes
+  // 12: geometry codec 11 or 9 (time order), colour codec 6 or 10, voted LAS
+  // bytes, an intensity tolerance.
+  h.version = kChunkFormatVersion;
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -435,6 +440,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       integral = integral && v >= 0 && v <= 65535 && v == std::floor(v) && !(v == 0 && std::signbit(v));
     }
     h.intensity_coding = integral ? IntensityCoding::kUInt16 : IntensityCoding::kFloatBits;
+    // A tolerance applies to 16-bit intensities only: float ones stay exact.
+    const int tolerance = integral ? bound.intensity_tolerance : 0;
+    h.intensity_tolerance = static_cast<std::uint16_t>(tolerance);
     std::vector<std::int64_t> values(n);
     base.intensities.resize(n);
     for (std::size_t k = 0; k < n; ++k) {
@@ -442,21 +450,36 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       values[k] = integral ? static_cast<std::int64_t>(v) : static_cast<std::int64_t>(float_bits(v));
       base.intensities[k] = v;
     }
+    // With a tolerance the base layer's map is made of what a full decode
+    // returns, as for colours.
+    std::vector<std::int64_t> decoded_layer, decoded_cells;
+    std::vector<std::int64_t>* const want_layer = tolerance != 0 ? &decoded_layer : nullptr;
+    std::vector<std::int64_t>* const want_cells = tolerance != 0 ? &decoded_cells : nullptr;
     std::vector<std::uint8_t> coded;
+    bool cells_kept = false;
     if (cell_pos.empty()) {
-      coded = encode_values(values);
+      coded = encode_values(values, tolerance, want_layer);
     } else {
       // One coder, either order: the values at the positions, in turn.
-      const auto code = [&](std::span<const std::uint32_t> at, bool) {
+      const auto code = [&](std::span<const std::uint32_t> at, bool, std::vector<std::int64_t>* decoded) {
         std::vector<std::int64_t> v(at.size());
         for (std::size_t j = 0; j < at.size(); ++j) v[j] = values[at[j]];
-        return encode_values(v);
+        return encode_values(v, tolerance, decoded);
       };
-      const OrderChoice choice = choose_order(code);
+      const OrderChoice choice =
+          choose_order([&](std::span<const std::uint32_t> at, bool full) { return code(at, full, nullptr); });
       std::vector<std::uint8_t> in_layer, in_cells;
-      if (choice != OrderChoice::kCells) in_layer = encode_values(values);
-      if (choice != OrderChoice::kLayer) in_cells = code(cell_pos, true);
+      if (choice != OrderChoice::kCells) in_layer = encode_values(values, tolerance, want_layer);
+      if (choice != OrderChoice::kLayer) in_cells = code(cell_pos, true, want_cells);
       coded = keep(kOrderSlotIntensity, choice, std::move(in_layer), std::move(in_cells));
+      cells_kept = (order_mask & (1u << kOrderSlotIntensity)) != 0;
+    }
+    if (tolerance != 0) {
+      if (cells_kept) {
+        for (std::size_t j = 0; j < n; ++j) base.intensities[cell_pos[j]] = static_cast<float>(decoded_cells[j]);
+      } else {
+        for (std::size_t k = 0; k < n; ++k) base.intensities[k] = static_cast<float>(decoded_layer[k]);
+      }
     }
     payloads.push_back(std::move(coded));
     refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});

@@ -102,6 +102,10 @@ Status check_bounded_header(const ChunkHeader& h) {
   const auto ic = static_cast<std::uint8_t>(h.intensity_coding);
   if (has_i ? (ic != 1 && ic != 2) : ic != 0) return bad("intensity coding " + std::to_string(ic) + " invalid");
   if ((h.flags & kFlagColors) == 0 && h.color_tolerance != 0) return bad("colour tolerance without colours");
+  if (h.intensity_tolerance > kMaxIntensityTolerance) return bad("intensity tolerance above 32767");
+  if (h.intensity_tolerance != 0 && h.intensity_coding != IntensityCoding::kUInt16) {
+    return bad("intensity tolerance without 16-bit intensities");
+  }
   if (h.input_points == 0 && (h.patch_count != 0 || h.geometry_depth != 0)) return bad("empty chunk with content");
   if (h.input_points > 0 && h.patch_count == 0) return bad("points without a base layer");
   if (has_las_fields(h.version)) {
@@ -265,8 +269,9 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
     w.u8(h.geometry_depth);
     w.u8(h.color_tolerance);
     w.u8(static_cast<std::uint8_t>(h.intensity_coding));
-    w.u8(0);   // reserved
-    w.u32(0);  // reserved
+    w.u8(0);  // reserved
+    w.u16(h.intensity_tolerance);  // reserved (0) before version 12
+    w.u16(0);                      // reserved
   }
   if (has_las_fields(h.version)) {
     w.u32(h.las_attributes);
@@ -343,14 +348,17 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
       b = static_cast<std::int64_t>(v);
     }
     std::uint8_t coding = 0, reserved_b = 0;
-    std::uint32_t reserved_w = 0;
+    std::uint16_t reserved_w = 0;
     RELIEF_RETURN_IF_ERROR(r.u8(h.geometry_depth, "geometry_depth"));
     RELIEF_RETURN_IF_ERROR(r.u8(h.color_tolerance, "color_tolerance"));
     RELIEF_RETURN_IF_ERROR(r.u8(coding, "intensity_coding"));
     RELIEF_RETURN_IF_ERROR(r.u8(reserved_b, "reserved"));
-    RELIEF_RETURN_IF_ERROR(r.u32(reserved_w, "reserved"));
+    RELIEF_RETURN_IF_ERROR(r.u16(h.intensity_tolerance, "intensity_tolerance"));
+    RELIEF_RETURN_IF_ERROR(r.u16(reserved_w, "reserved"));
     h.intensity_coding = static_cast<IntensityCoding>(coding);
-    if (reserved_b != 0 || reserved_w != 0) return corrupt_data("chunk header: reserved bytes are not 0");
+    if (reserved_b != 0 || reserved_w != 0 || (h.version < 12 && h.intensity_tolerance != 0)) {
+      return corrupt_data("chunk header: reserved bytes are not 0");
+    }
     if (has_las_fields(h.version)) {
       RELIEF_RETURN_IF_ERROR(r.u32(h.las_attributes, "las_attributes"));
       RELIEF_RETURN_IF_ERROR(r.u32(h.extra_bytes_size, "extra_bytes_size"));

@@ -130,6 +130,9 @@ struct ChunkHeader {
   std::uint8_t geometry_depth = 0;  // local coordinates < 2^geometry_depth
   std::uint8_t color_tolerance = 0;
   IntensityCoding intensity_coding = IntensityCoding::kNone;
+  // Version 12 on (header bytes 164-165): 0..32767, and 0 unless the
+  // intensities are 16-bit integers.
+  std::uint16_t intensity_tolerance = 0;
   // Versions 3, 5 and 6: the LasAttributeBits the layer carries (non-zero in
   // version 3) and the extra bytes per point (non-zero exactly when
   // kLasExtraBytes is set).

@@ -95,6 +95,7 @@ std::string encode_params_to_string(const EncodeParams& p, ParamsText form) {
       add("origin", exact(b.origin.x) + "," + exact(b.origin.y) + "," + exact(b.origin.z));
     }
     if (all || b.color_tolerance != 0) add("color_tol", std::to_string(b.color_tolerance));
+    if (all || b.intensity_tolerance != 0) add("intensity_tol", std::to_string(b.intensity_tolerance));
   }
   return s;
 }
@@ -149,6 +150,9 @@ Result<EncodeParams> encode_params_from_string(const std::string& text) {
     } else if (key == "color_tol") {
       if (!p.bound) p.bound = ErrorBound{};
       ok = parse_number(value, p.bound->color_tolerance);
+    } else if (key == "intensity_tol") {
+      if (!p.bound) p.bound = ErrorBound{};
+      ok = parse_number(value, p.bound->intensity_tolerance);
     } else {
       return format_error("codec parameters: unknown key '" + key + "'");
     }

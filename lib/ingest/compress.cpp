@@ -690,6 +690,7 @@ std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGr
 ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in) {
   ErrorBound b;
   b.color_tolerance = options.color_tolerance;
+  b.intensity_tolerance = options.intensity_tolerance;
   // The first LAS input's grid, at the finest scale among the LAS inputs.
   bool las = false;
   Vec3d finest{0, 0, 0};

@@ -16,6 +16,7 @@ namespace {
 
 // Colour tolerance range of the bounded mode (levels per 8-bit channel).
 constexpr long long kMaxColorTolerance = 127;
+constexpr long long kMaxIntensityTolerance = 32767;
 // Encoder threads: far more than any machine, so a typo is caught.
 constexpr long long kMaxThreads = 1024;
 constexpr long long kMaxOctreePoints = 1LL << 30;
@@ -23,7 +24,7 @@ constexpr long long kMaxOctreePoints = 1LL << 30;
 const std::vector<std::string> kEncodeNames = {
     "cell",    "decomposition", "max-points",        "resolution",  "codec",
     "quality", "color-quality", "intensity-quality", "height-bits", "fill"};
-const std::vector<std::string> kModeNames = {"mode", "tolerance", "color-tolerance"};
+const std::vector<std::string> kModeNames = {"mode", "tolerance", "color-tolerance", "intensity-tolerance"};
 const std::vector<std::string> kRunNames = {"memory", "threads", "tmp", "columns", "pyramid", "crs"};
 const std::vector<std::string> kCompressOnlyNames = {"chunk-edge", "error-target"};
 // Options of the commands that read input files (not stream, whose
@@ -184,10 +185,14 @@ Status apply_mode(const Given& g, IngestOptions& o) {
     if (!(o.tolerance > 0)) return invalid_argument(g.show("tolerance") + " must be a positive number");
   }
   RELIEF_RETURN_IF_ERROR(g.get_int("color-tolerance", o.color_tolerance, 0, kMaxColorTolerance));
+  RELIEF_RETURN_IF_ERROR(g.get_int("intensity-tolerance", o.intensity_tolerance, 0, kMaxIntensityTolerance));
   const bool bounded_only = g.has("tolerance") || g.has("color-tolerance");
   if (o.mode == IngestMode::kResample && bounded_only) {
     return invalid_argument(g.show("tolerance") + " and " + g.show("color-tolerance") + " apply to " +
                             g.show("mode") + " bounded");
+  }
+  if (o.mode == IngestMode::kResample && g.has("intensity-tolerance")) {
+    return invalid_argument(g.show("intensity-tolerance") + " applies to " + g.show("mode") + " bounded");
   }
   return Status::ok();
 }

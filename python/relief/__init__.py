@@ -150,7 +150,7 @@ def compress(inputs, archive, *, progress=None, **options):
 
     ``inputs``: a path or a list of paths; ``archive``: the new archive's path
     (never overwritten). ``options``: as ``relief compress`` (``mode``,
-    ``tolerance``, ``color_tolerance``, ``cell``, ``chunk_edge``,
+    ``tolerance``, ``color_tolerance``, ``intensity_tolerance``, ``cell``, ``chunk_edge``,
     ``error_target``, ``memory`` ("512M", "2G" or a number of MiB), ``threads``,
     ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs``,
     ``crs`` (the inputs' CRS, e.g. ``"EPSG:32633"``, for files that name

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <tuple>
 
 #include "codec/chunk_format.h"
@@ -207,6 +208,96 @@ TEST_CASE("bounded: colour tolerance bounds every channel", "[codec][bounded]") 
   }
 }
 
+TEST_CASE("bounded: an intensity tolerance bounds every 16-bit intensity, float ones stay exact",
+          "[codec][bounded]") {
+  // Points a cell apart (each alone in its cell, so input and output pair
+  // by position), intensities a noisy field with runs at 0 and 65535.
+  PointCloud in;
+  std::uint64_t state = 7;
+  const auto noise = [&state] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<int>((state >> 33) % 401) - 200;
+  };
+  for (int i = 0; i < 160; ++i) {
+    for (int j = 0; j < 120; ++j) {
+      in.positions.push_back({i * 0.05, j * 0.05, 0.3 * std::sin(i * 0.1) + 0.01 * (j % 7)});
+      const int field = 30000 + static_cast<int>(30000 * std::sin(i * 0.05) * std::cos(j * 0.07)) + noise();
+      const int v = i < 10 ? 0 : i > 150 ? 65535 : std::clamp(field, 0, 65535);
+      in.intensities.push_back(static_cast<float>(v));
+    }
+  }
+  const auto key = [](const Vec3d& p) {
+    return std::make_tuple(std::llround(p.x / 0.01), std::llround(p.y / 0.01), std::llround(p.z / 0.01));
+  };
+  std::map<std::tuple<long long, long long, long long>, float> given;
+  for (std::size_t k = 0; k < in.size(); ++k) given[key(in.positions[k])] = in.intensities[k];
+  REQUIRE(given.size() == in.size());
+  std::size_t previous = 0;
+  for (const int t : {0, 1, 7, 300, kMaxIntensityTolerance}) {
+    INFO("tolerance " << t);
+    EncodeParams p = bounded_params(0.005, 1.0);
+    p.bound->intensity_tolerance = t;
+    auto blob = encode_chunk(in, p);
+    REQUIRE(blob.is_ok());
+    auto info = inspect_chunk(*blob);
+    REQUIRE(info.is_ok());
+    CHECK(info->format_version == 12);
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    REQUIRE(out->size() == in.size());
+    float worst = 0;
+    for (std::size_t k = 0; k < out->size(); ++k) {
+      const float v = out->intensities[k];
+      CHECK(v == std::floor(v));
+      CHECK((v >= 0 && v <= 65535));
+      worst = std::max(worst, std::abs(v - given.at(key(out->positions[k]))));
+    }
+    CHECK(worst <= static_cast<float>(t));
+    if (t == 0) CHECK(worst == 0);
+    if (t == 300) CHECK(worst > 0);  // the bound is used, not just kept
+    if (t > 0) CHECK(blob->size() < previous);  // each tolerance cheaper than the one before
+    previous = blob->size();
+  }
+  // Intensities that are not whole numbers keep their exact float values and
+  // the header says tolerance 0.
+  PointCloud floats = in;
+  for (float& v : floats.intensities) v += 0.25f;
+  EncodeParams p = bounded_params(0.005, 1.0);
+  p.bound->intensity_tolerance = 50;
+  auto blob = encode_chunk(floats, p);
+  REQUIRE(blob.is_ok());
+  auto parsed = codec::parse_blob(*blob, true);
+  REQUIRE(parsed.is_ok());
+  CHECK(parsed->header.intensity_tolerance == 0);
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  for (std::size_t k = 0; k < out->size(); ++k) CHECK(out->intensities[k] == given.at(key(out->positions[k])) + 0.25f);
+  // Headers that claim a tolerance where none can be are corrupt: before
+  // version 12, on float intensities, above 32767.
+  p.bound->intensity_tolerance = 9;
+  blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  parsed = codec::parse_blob(*blob, true);
+  REQUIRE(parsed.is_ok());
+  REQUIRE(parsed->header.intensity_tolerance == 9);
+  const auto refused = [](const codec::ChunkHeader& h, const std::vector<codec::SectionEntry>& sections) {
+    auto r = decode_chunk(codec::write_blob(h, sections));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kCorruptData);
+  };
+  codec::ChunkHeader h = parsed->header;
+  h.version = 11;
+  refused(h, parsed->sections);
+  h = parsed->header;
+  h.intensity_coding = codec::IntensityCoding::kFloatBits;
+  refused(h, parsed->sections);
+  h = parsed->header;
+  h.intensity_tolerance = 40000;
+  refused(h, parsed->sections);
+  p.bound->intensity_tolerance = kMaxIntensityTolerance + 1;
+  CHECK(encode_chunk(in, p).status().code() == StatusCode::kInvalidArgument);
+}
+
 TEST_CASE("bounded: the blob depends only on the multiset of points", "[codec][bounded]") {
   test::SceneOptions o;
   o.seed = 5;
@@ -351,7 +442,7 @@ TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octre
   REQUIRE(blob.is_ok());
   auto parsed = codec::parse_blob(*blob, true);
   REQUIRE(parsed.is_ok());
-  REQUIRE(parsed->header.version == 11);
+  REQUIRE(parsed->header.version == kChunkFormatVersion);
   bool found = false;
   bool chains = false;
   for (const codec::SectionEntry& s : parsed->sections) {

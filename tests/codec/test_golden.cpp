@@ -1,4 +1,4 @@
-// Golden vectors for chunk format versions 1 to 7 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 12 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -54,6 +54,14 @@ PointCloud las_scene_8bit() {
   return c;
 }
 
+// The same with whole-number intensities, as a LAS source's (16-bit):
+// what an intensity tolerance applies to.
+PointCloud las_scene_int() {
+  PointCloud c = las_scene();
+  for (float& v : c.intensities) v = std::round(v * 7.0f);  // 700..7000
+  return c;
+}
+
 // An airborne scan in acquisition order with every LAS attribute: the
 // geometry codes in time order (codec 9, format 8).
 PointCloud las_scan_scene() {
@@ -65,7 +73,9 @@ PointCloud las_scan_scene() {
   return test::make_scan_with_las(o, 40.0, 0xFFF, 5);
 }
 
-bool has_las(PointCloud (*make)()) { return make == las_scene || make == las_scene_8bit || make == las_scan_scene; }
+bool has_las(PointCloud (*make)()) {
+  return make == las_scene || make == las_scene_8bit || make == las_scan_scene || make == las_scene_int;
+}
 
 PointCloud octree_scene() {
   test::SceneOptions o;
@@ -92,6 +102,8 @@ std::vector<Vector> vectors() {
   bounded.bound->origin = {0.003, -0.002, 0.0};
   EncodeParams bounded_lossy = bounded;
   bounded_lossy.bound->color_tolerance = 6;
+  EncodeParams bounded_intensity = bounded;
+  bounded_intensity.bound->intensity_tolerance = 20;
   EncodeParams bounded_geometry = octree;
   bounded_geometry.cell_size = 0.75;
   bounded_geometry.bound = ErrorBound{};
@@ -148,12 +160,21 @@ std::vector<Vector> vectors() {
           // Format 11: voted bytes in the LAS attribute sections (the scenes
           // without LAS attributes differ from format 10 in the version
           // field and checksum alone).
-          {"bounded_rgb_intensity_v11", bounded, voxel_scene, 11},
-          {"bounded_rgb_tolerance6_v11", bounded_lossy, voxel_scene, 11},
-          {"bounded_geometry_octree_v11", bounded_geometry, octree_scene, 11},
-          {"bounded_las_attributes_v11", bounded, las_scene, 11},
-          {"bounded_las_colors8_v11", bounded, las_scene_8bit, 11},
-          {"bounded_las_scan_v11", bounded, las_scan_scene, 11}};
+          {"bounded_rgb_intensity_v11", bounded, voxel_scene, 11, true},
+          {"bounded_rgb_tolerance6_v11", bounded_lossy, voxel_scene, 11, true},
+          {"bounded_geometry_octree_v11", bounded_geometry, octree_scene, 11, true},
+          {"bounded_las_attributes_v11", bounded, las_scene, 11, true},
+          {"bounded_las_colors8_v11", bounded, las_scene_8bit, 11, true},
+          {"bounded_las_scan_v11", bounded, las_scan_scene, 11, true},
+          // Format 12: an intensity tolerance (these differ from format 11
+          // in the version field and checksum alone, but the last).
+          {"bounded_rgb_intensity_v12", bounded, voxel_scene, 12},
+          {"bounded_rgb_tolerance6_v12", bounded_lossy, voxel_scene, 12},
+          {"bounded_geometry_octree_v12", bounded_geometry, octree_scene, 12},
+          {"bounded_las_attributes_v12", bounded, las_scene, 12},
+          {"bounded_las_colors8_v12", bounded, las_scene_8bit, 12},
+          {"bounded_las_scan_v12", bounded, las_scan_scene, 12},
+          {"bounded_intensity_tolerance20_v12", bounded_intensity, las_scene_int, 12}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -196,7 +217,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 11 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 12 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {

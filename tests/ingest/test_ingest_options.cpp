@@ -18,7 +18,8 @@ Status apply(IngestOptionSet set, std::vector<NamedOption> given, IngestOptions&
 TEST_CASE("ingest options: values by the CLI's names reach IngestOptions", "[ingest][options]") {
   IngestOptions o;
   REQUIRE(apply(IngestOptionSet::kCompress,
-                {{"tolerance", "0.01"}, {"color_tolerance", "3"}, {"threads", "2"}, {"memory", "512M"},
+                {{"tolerance", "0.01"}, {"color_tolerance", "3"}, {"intensity-tolerance", "12"}, {"threads", "2"},
+                 {"memory", "512M"},
                  {"chunk-edge", "8"}, {"cell", "0.25"}, {"codec", "jpeg2000"}, {"verify", "true"},
                  {"allow_sparse", ""}, {"columns", "x,y,z"}},
                 o)
@@ -26,6 +27,7 @@ TEST_CASE("ingest options: values by the CLI's names reach IngestOptions", "[ing
   CHECK(o.mode == IngestMode::kBounded);
   CHECK(o.tolerance == 0.01);
   CHECK(o.color_tolerance == 3);
+  CHECK(o.intensity_tolerance == 12);
   CHECK(o.threads == 2);
   CHECK(o.memory_budget == (std::uint64_t{512} << 20));
   CHECK(o.chunk_edge == 8);
@@ -58,6 +60,10 @@ TEST_CASE("ingest options: refused values name the option as the caller spells i
         "option color_tolerance expects a whole number from 0 to 127, got '128'");
   CHECK(refused(IngestOptionSet::kCompress, {{"mode", "resample"}, {"tolerance", "0.1"}}, cli) ==
         "--tolerance and --color-tolerance apply to --mode bounded");
+  CHECK(refused(IngestOptionSet::kCompress, {{"intensity_tolerance", "32768"}}, py) ==
+        "option intensity_tolerance expects a whole number from 0 to 32767, got '32768'");
+  CHECK(refused(IngestOptionSet::kCompress, {{"mode", "resample"}, {"intensity_tolerance", "1"}}, cli) ==
+        "--intensity-tolerance applies to --mode bounded");
   CHECK(refused(IngestOptionSet::kCompress, {{"mode", "lossy"}}, py) ==
         "mode must be bounded or resample, got 'lossy'");
   CHECK(refused(IngestOptionSet::kCompress, {{"memory", "1M"}}, py) ==

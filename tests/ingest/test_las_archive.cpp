@@ -242,6 +242,48 @@ TEST_CASE("LAS -> archive -> LAS keeps every field of every point", "[las][archi
   }
 }
 
+TEST_CASE("compress --intensity-tolerance: every intensity within it, every other field exact",
+          "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  const std::string in = las_file(dir, "in.las", 1, 77);
+  const std::string exact = dir.file("exact.relief");
+  const std::string lossy = dir.file("lossy.relief");
+  REQUIRE(relief::test::run_cli(cli(), "compress " + in + " -o " + exact + " --quiet").code == 0);
+  const auto made = relief::test::run_cli(cli(), "compress " + in + " -o " + lossy + " --quiet --intensity-tolerance 10");
+  INFO(made.output);
+  REQUIRE(made.code == 0);
+  CHECK(std::filesystem::file_size(lossy) < std::filesystem::file_size(exact));
+  const auto info = relief::test::run_cli(cli(), "info " + lossy);
+  CHECK_THAT(info.output, Contains("colour exact, intensity within 10"));
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + lossy + " -o " + dir.file("out.las") + " --quiet").code == 0);
+  // Pair the points by every other field; the intensities of a pair differ by at most 10.
+  const auto split = [](const std::vector<LasRecord>& records) {
+    std::vector<std::pair<LasRecord, int>> v;
+    for (LasRecord r : records) {
+      const int i = r.intensity;
+      r.intensity = 0;
+      v.emplace_back(r, i);
+    }
+    std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) {
+      return a.first < b.first || (a.first == b.first && a.second < b.second);
+    });
+    return v;
+  };
+  const auto want = split(sorted_records(in));
+  const auto got = split(sorted_records(dir.file("out.las")));
+  REQUIRE(got.size() == want.size());
+  int worst = 0;
+  std::size_t changed = 0;
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    REQUIRE(got[k].first == want[k].first);
+    worst = std::max(worst, std::abs(got[k].second - want[k].second));
+    changed += got[k].second != want[k].second ? 1 : 0;
+  }
+  CHECK(worst <= 10);
+  CHECK(changed > 0);
+}
+
 TEST_CASE("PLY and text output name the LAS attributes they cannot carry", "[las][archive]") {
   TempDir dir;
   const std::string in = las_file(dir, "in.las", 3, 7);

@@ -48,8 +48,10 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // octree's one-cell subtrees coded as chains (codec 11: a flag, then each
 // level's child index without mixing). Version 11: version 10 with the LAS
 // attributes' bytes voted (one decision "the byte this tree has coded most"
-// before the byte's tree); the bounded encoder writes it for every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 11;
+// before the byte's tree). Version 12: version 11 with an intensity
+// tolerance (header bytes 164-165): 16-bit intensities quantised so each
+// comes back within it; the bounded encoder writes it for every cloud.
+inline constexpr std::uint16_t kChunkFormatVersion = 12;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
@@ -60,7 +62,12 @@ struct ErrorBound {
   Vec3d origin{0, 0, 0};            // finite
   // Every colour channel within this many levels (0 = exact), 0..127.
   int color_tolerance = 0;
+  // Every 16-bit integer intensity within this many levels (0 = exact),
+  // 0..32767. Intensities that are not all whole numbers 0..65535 in a
+  // chunk (a PLY's float values) stay exact whatever it says.
+  int intensity_tolerance = 0;
 };
+inline constexpr int kMaxIntensityTolerance = 32767;
 
 struct EncodeParams {
   Decomposition decomposition = Decomposition::kVoxelGrid;

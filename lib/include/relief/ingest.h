@@ -92,6 +92,10 @@ struct IngestOptions {
   double tolerance = 0;
   // Bounded mode: every colour channel within this many levels (0 = exact).
   int color_tolerance = 0;
+  // Bounded mode: every 16-bit intensity within this many levels (0 =
+  // exact, up to 32767); float intensities (not whole numbers 0..65535)
+  // stay exact.
+  int intensity_tolerance = 0;
   // Bounded mode: chunks of more points are split into octants (the archive
   // depends on it as on the tolerance; changed only by tests and tuning).
   std::uint64_t split_points = kMaxBoundedChunkPoints;
