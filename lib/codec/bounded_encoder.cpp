@@ -443,6 +443,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     // A tolerance applies to 16-bit intensities only: float ones stay exact.
     const int tolerance = integral ? bound.intensity_tolerance : 0;
     h.intensity_tolerance = static_cast<std::uint16_t>(tolerance);
+    if (stats) stats->intensities_kept_exact = !integral && bound.intensity_tolerance > 0;
     std::vector<std::int64_t> values(n);
     base.intensities.resize(n);
     for (std::size_t k = 0; k < n; ++k) {

@@ -53,6 +53,7 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
                   ? encode_chunk_subset(*task.source, std::span<const std::uint32_t>(task.index, task.count), p, &stats)
                   : encode_chunk(task.points, p, {}, &stats);
   if (!blob) return blob.status();
+  if (stats.intensities_kept_exact) exact_intensity_chunks_.fetch_add(1, std::memory_order_relaxed);
   if (verify_) {
     auto decoded = decode_chunk(*blob);
     if (!decoded) return internal_error("a freshly encoded chunk does not decode: " + decoded.status().message());

@@ -41,6 +41,9 @@ struct PipelineTotals {
   std::uint64_t points_in = 0;
   std::uint64_t points_decoded = 0;
   std::uint64_t blob_bytes = 0;
+  // Chunks whose intensities an asked-for tolerance could not apply to
+  // (EncodeStats::intensities_kept_exact).
+  std::uint64_t exact_intensity_chunks = 0;
 };
 
 class ChunkPipeline {
@@ -66,7 +69,11 @@ class ChunkPipeline {
   // submit + wait(0).
   Status run(std::vector<ChunkTask> tasks, const std::function<void()>& tick);
 
-  const PipelineTotals& totals() const { return totals_; }
+  PipelineTotals totals() const {
+    PipelineTotals t = totals_;
+    t.exact_intensity_chunks = exact_intensity_chunks_.load(std::memory_order_relaxed);
+    return t;
+  }
 
  private:
   struct Item {
@@ -106,6 +113,7 @@ class ChunkPipeline {
   // Test hook: RELIEF_TEST_KILL_AFTER_COMMITS=N makes the process SIGKILL
   // itself right after its N-th committed batch (0 = off), so crash tests
   // kill at a known point instead of racing a sleep.
+  mutable std::atomic<std::uint64_t> exact_intensity_chunks_{0};
   std::uint64_t kill_after_commits_ = 0;
   std::uint64_t commits_ = 0;
 };

@@ -540,6 +540,11 @@ IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read
   r.cell_size = cell_size;
   r.chunk_edge = chunk_edge;
   r.scan_id = scan_id;
+  if (totals.exact_intensity_chunks > 0) {
+    r.warnings.push_back("the intensity tolerance was not applied to " + std::to_string(totals.exact_intensity_chunks) +
+                         " of " + std::to_string(totals.chunks) +
+                         " chunks: their intensities are not all whole numbers 0..65535 (they stay exact)");
+  }
   progress.finish("done", points_read, r.chunks_written, r.blob_bytes);
   return r;
 }

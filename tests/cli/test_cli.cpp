@@ -97,6 +97,31 @@ TEST_CASE("compress and append read LAZ, decompress writes it, info records it a
   CHECK_FALSE(fs::exists(tmp.file("b.relief")));
 }
 
+TEST_CASE("compress --intensity-tolerance says where it could not apply", "[cli]") {
+  TempDir tmp;
+  relief::test::SceneOptions o;
+  o.points = 5000;
+  o.intensity = true;  // a smooth field of fractional values: float intensities
+  const relief::PointCloud cloud = relief::test::make_terrain(o, 10.0, 0.5);
+  REQUIRE(relief::write_ply(tmp.file("f.ply"), cloud).is_ok());
+  const Run r = run("compress " + tmp.file("f.ply") + " -o " + tmp.file("f.relief") + " --intensity-tolerance 3");
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(r.output.find("warning: the intensity tolerance was not applied to 1 of 1 chunks: their intensities are "
+                      "not all whole numbers 0..65535 (they stay exact)") != std::string::npos);
+  // Whole-number intensities take it, without a word.
+  relief::PointCloud whole = cloud;
+  for (float& v : whole.intensities) v = std::round(v);
+  REQUIRE(relief::write_ply(tmp.file("w.ply"), whole).is_ok());
+  const Run w = run("compress " + tmp.file("w.ply") + " -o " + tmp.file("w.relief") + " --intensity-tolerance 3");
+  INFO(w.output);
+  REQUIRE(w.code == 0);
+  CHECK(w.output.find("intensity tolerance") == std::string::npos);
+  CHECK(run("info " + tmp.file("w.relief")).output.find("intensity within 3") != std::string::npos);
+  CHECK(run("compress " + tmp.file("w.ply") + " -o " + tmp.file("r.relief") + " --mode resample --intensity-tolerance 3")
+            .code == 2);
+}
+
 TEST_CASE("encode-chunk and decode-chunk with a level of detail", "[cli]") {
   TempDir tmp;
   REQUIRE(run("encode-chunk " + sample() + " -o " + tmp.file("a.rlfc") + " --quality 50 --codec jpeg2000").code == 0);

@@ -183,6 +183,9 @@ struct ChunkInfo {
 struct EncodeStats {
   std::uint32_t decoded_points = 0;
   Box3d decoded_bounds;  // exact bounds of decode_chunk's points (lod 1)
+  // An intensity tolerance was asked for, but the intensities are not all
+  // whole numbers 0..65535: they were kept exact.
+  bool intensities_kept_exact = false;
 };
 
 // Checks the parameters alone (ranges, combinations such as 16-bit heights
