@@ -26,7 +26,8 @@ constexpr const char* kUsageText =
     "bits per point, attributes, CRS, sources and scans of an archive.\n"
     "  --sections   also where the bytes go: each chunk section (geometry, rgb, gps_time, the\n"
     "               maps ...) summed over the chunks, the blobs' framing, the pyramid and\n"
-    "               SQLite's share; reads (and checks the CRC of) every blob\n"
+    "               SQLite's share; reads each blob's header and section table (relief check\n"
+    "               verifies the blobs)\n"
     "  --quiet      no progress line on the terminal while --sections reads\n";
 
 std::string crs_text(const std::string& crs) {

@@ -289,11 +289,14 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
   return w.take();
 }
 
-Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_checksum) {
-  ByteReader r(blob, "chunk blob");
-  ParsedBlob out;
+namespace {
+
+// The header and section table, checked against a blob of `blob_size` bytes
+// of which `blob` holds at least those two; `r` reads `blob` and is left
+// at the first payload. `payload_total` receives the sections' sizes.
+Status parse_head(ByteReader& r, std::span<const std::uint8_t> blob, std::uint64_t blob_size, ParsedBlob& out) {
   ChunkHeader& h = out.header;
-  if (blob.size() < 6 || std::memcmp(blob.data(), kMagic, 4) != 0) {
+  if (blob.size() < 6 || blob_size < 6 || std::memcmp(blob.data(), kMagic, 4) != 0) {
     return corrupt_data("chunk blob: not a Relief chunk (bad magic)");
   }
   RELIEF_RETURN_IF_ERROR(r.skip(4, "magic"));
@@ -428,10 +431,19 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
     out.sections.push_back(s);
   }
   const std::uint64_t expected_size = r.position() + payload_total + kChecksumSize;
-  if (expected_size != blob.size()) {
-    return corrupt_data("chunk blob: " + std::to_string(blob.size()) + " bytes, header and sections say " +
+  if (expected_size != blob_size) {
+    return corrupt_data("chunk blob: " + std::to_string(blob_size) + " bytes, header and sections say " +
                         std::to_string(expected_size));
   }
+  return Status::ok();
+}
+
+}  // namespace
+
+Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_checksum) {
+  ByteReader r(blob, "chunk blob");
+  ParsedBlob out;
+  RELIEF_RETURN_IF_ERROR(parse_head(r, blob, blob.size(), out));
   for (SectionEntry& s : out.sections) {
     RELIEF_RETURN_IF_ERROR(r.span(s.payload, s.coded_size, "section payload"));
   }
@@ -441,6 +453,14 @@ Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_ch
     const std::uint32_t actual = crc32(blob.first(blob.size() - kChecksumSize));
     if (actual != stored_crc) return corrupt_data("chunk blob: checksum mismatch (the blob is damaged)");
   }
+  return out;
+}
+
+Result<ParsedBlob> parse_blob_head(std::span<const std::uint8_t> head, std::uint64_t blob_size) {
+  if (head.size() > blob_size) return invalid_argument("chunk blob head: longer than the blob");
+  ByteReader r(head, "chunk blob");
+  ParsedBlob out;
+  RELIEF_RETURN_IF_ERROR(parse_head(r, head, blob_size, out));
   return out;
 }
 

@@ -69,8 +69,9 @@ std::vector<std::uint32_t> lod_quota(const std::vector<std::uint32_t>& occupied,
 
 }  // namespace
 
-Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
-  RELIEF_ASSIGN_OR_RETURN(codec::ParsedBlob parsed, codec::parse_blob(blob, true));
+namespace {
+
+ChunkInfo info_of(const codec::ParsedBlob& parsed, std::size_t blob_size) {
   const codec::ChunkHeader& h = parsed.header;
   ChunkInfo info;
   info.format_version = h.version;
@@ -88,7 +89,7 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
   info.atlas_height = static_cast<std::uint32_t>(h.tiles_y) * h.map_resolution;
   info.grid_origin = h.grid_origin;
   info.grid_edge = h.grid_edge;
-  info.blob_size = blob.size();
+  info.blob_size = blob_size;
   if (codec::has_bounded_layer(h.version)) {
     info.error_bounded = true;
     info.base_points = h.decoded_points;
@@ -105,6 +106,18 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
                              s.raw_size, s.coded_size});
   }
   return info;
+}
+
+}  // namespace
+
+Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
+  RELIEF_ASSIGN_OR_RETURN(const codec::ParsedBlob parsed, codec::parse_blob(blob, true));
+  return info_of(parsed, blob.size());
+}
+
+Result<ChunkInfo> inspect_chunk_head(std::span<const std::uint8_t> head, std::uint64_t blob_size) {
+  RELIEF_ASSIGN_OR_RETURN(const codec::ParsedBlob parsed, codec::parse_blob_head(head, blob_size));
+  return info_of(parsed, static_cast<std::size_t>(blob_size));
 }
 
 namespace {

@@ -174,6 +174,10 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& header,
 // Validates magic, version, every header field, the section table and (when
 // asked) the checksum. Payload spans point into `blob`.
 Result<ParsedBlob> parse_blob(std::span<const std::uint8_t> blob, bool verify_checksum);
+// The header and section table alone, from the first bytes of a blob of
+// `blob_size` bytes (payloads left empty, no checksum): every check
+// parse_blob makes of them, sizes included.
+Result<ParsedBlob> parse_blob_head(std::span<const std::uint8_t> head, std::uint64_t blob_size);
 
 // Which sections a header requires, in order.
 std::vector<SectionId> required_sections(const ChunkHeader& header);

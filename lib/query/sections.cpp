@@ -59,15 +59,16 @@ Result<ArchiveSections> archive_sections(const Archive& archive,
   }
   std::array<SectionTotal, kMaxSectionId + 1> totals{};
   for (const ChunkRef& ref : refs) {
-    RELIEF_ASSIGN_OR_RETURN(const ChunkRow row, archive.read_chunk(ref.id));
-    Result<ChunkInfo> chunk = inspect_chunk(row.blob);
+    // The header and section table alone: a few hundred bytes of each blob.
+    RELIEF_ASSIGN_OR_RETURN(const std::vector<std::uint8_t> head, archive.read_chunk_head(ref.id, kChunkHeadBytes));
+    Result<ChunkInfo> chunk = inspect_chunk_head(head, ref.blob_size);
     if (!chunk) {
       return Status(chunk.status().code(),
                     archive.path() + ": " + chunk_name(ref) + ": " + chunk.status().message());
     }
     ++out.chunks;
     out.input_points += ref.input_points;
-    out.blob_bytes += row.blob.size();
+    out.blob_bytes += ref.blob_size;
     std::uint64_t coded = 0;
     for (const ChunkSectionInfo& s : chunk->sections) {
       // inspect_chunk accepts only the ids of the chunk's version.
@@ -77,7 +78,7 @@ Result<ArchiveSections> archive_sections(const Archive& archive,
       ++t.chunks;
       coded += s.coded_size;
     }
-    out.framing_bytes += row.blob.size() - coded;
+    out.framing_bytes += ref.blob_size - coded;
     if (progress) progress(ref.input_points);
   }
   for (int id = 1; id <= kMaxSectionId; ++id) {

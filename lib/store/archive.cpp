@@ -794,6 +794,7 @@ class SqliteArchive final : public Archive {
   Result<std::vector<ChunkRef>> find_chunks(const Box3d& box) const override;
   Result<std::vector<ChunkRef>> all_chunks() const override;
   Result<ChunkRow> read_chunk(std::int64_t id) const override;
+  Result<std::vector<std::uint8_t>> read_chunk_head(std::int64_t id, std::size_t max_bytes) const override;
   Status put_level_chunks(int level, std::vector<ChunkRow>& rows) override;
   Status finish_pyramid(std::int64_t scan_id, std::uint64_t levels) override;
   Status remove_pyramid(std::int64_t scan_id) override;
@@ -1895,6 +1896,25 @@ Result<std::vector<ChunkRef>> SqliteArchive::all_chunks() const {
 
 Result<ChunkRow> SqliteArchive::read_chunk(std::int64_t id) const {
   return read_row(Sql::kReadChunk, id, "chunk");
+}
+
+Result<std::vector<std::uint8_t>> SqliteArchive::read_chunk_head(std::int64_t id, std::size_t max_bytes) const {
+  const std::string what = "read the head of chunk id " + std::to_string(id);
+  sqlite3_blob* blob = nullptr;
+  int rc = sqlite3_blob_open(db(), "main", "relief_chunk", "blob", id, 0, &blob);
+  if (rc != SQLITE_OK) {
+    Status status = store::sqlite_error(db(), rc, path_, what);
+    sqlite3_blob_close(blob);
+    return status;
+  }
+  const auto size = static_cast<std::size_t>(std::max(sqlite3_blob_bytes(blob), 0));
+  std::vector<std::uint8_t> head(std::min(size, max_bytes));
+  rc = head.empty() ? SQLITE_OK : sqlite3_blob_read(blob, head.data(), static_cast<int>(head.size()), 0);
+  Status status = rc == SQLITE_OK ? Status::ok() : store::sqlite_error(db(), rc, path_, what);
+  sqlite3_blob_close(blob);
+  RELIEF_RETURN_IF_ERROR(status);
+  blob_bytes_read_.fetch_add(head.size(), std::memory_order_relaxed);
+  return head;
 }
 
 // The LAS keys of relief_meta (absent: no LAS attributes). A value that does

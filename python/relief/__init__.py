@@ -323,7 +323,8 @@ class Archive:
         ``framing_bytes``, ``pyramid_bytes``, ``container_bytes`` (SQLite's
         share) and ``sections``, a list of ``{"id", "name", "maps", "bytes",
         "chunks"}`` (``maps``: one of the paper's maps, the base layer).
-        Reads every blob and checks its CRC.
+        Reads each blob's header and section table only (``relief check``
+        verifies the blobs).
         """
         return _json.loads(self._reader.sections_json())
 

@@ -3,6 +3,7 @@
 // inspect_chunk. max_points is small so a lying header cannot make a run use
 // much memory; every decode that succeeds must respect it. A decode of some
 // attributes alone (DecodeOptions::attributes) must equal the full decode's.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -20,7 +21,11 @@ constexpr std::uint64_t kMaxPoints = 1 << 16;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::span<const std::uint8_t> blob(data, size);
-  (void)relief::inspect_chunk(blob);
+  // The head alone (what relief info --sections reads) must accept whatever
+  // the whole blob passes, and see the same sections.
+  const auto whole = relief::inspect_chunk(blob);
+  const auto head = relief::inspect_chunk_head(blob.first(std::min(size, relief::kChunkHeadBytes)), size);
+  if (whole.is_ok() && (!head.is_ok() || head->sections.size() != whole->sections.size())) std::abort();
   relief::DecodeOptions options;
   options.verify_checksum = false;
   options.max_points = kMaxPoints;

@@ -264,6 +264,11 @@ class Archive {
   // Reads one blob and verifies its CRC-32: a mismatch is kCorruptData naming
   // the chunk (key, seq, id) and the archive file.
   virtual Result<ChunkRow> read_chunk(std::int64_t id) const = 0;
+  // The first `max_bytes` bytes of a chunk's blob (all of it when shorter),
+  // read without the rest (SQLite's incremental blob I/O: the first pages
+  // of its overflow chain), so not checked against its CRC-32. For a
+  // blob's header and section table (inspect_chunk_head).
+  virtual Result<std::vector<std::uint8_t>> read_chunk_head(std::int64_t id, std::size_t max_bytes) const = 0;
   // Blob bytes read by read_chunk so far (for tests and benchmarks).
   virtual std::uint64_t blob_bytes_read() const = 0;
 };

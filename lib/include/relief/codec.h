@@ -211,6 +211,11 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
 
 // Reads and validates the header and section table only.
 Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob);
+// The same from the first bytes of a blob of `blob_size` bytes: its first
+// kChunkHeadBytes (or all of it, when shorter) hold the header and section
+// table. Nothing after them is read, so the checksum is not verified.
+inline constexpr std::size_t kChunkHeadBytes = 512;
+Result<ChunkInfo> inspect_chunk_head(std::span<const std::uint8_t> head, std::uint64_t blob_size);
 
 // A cell edge from the point density: the median nearest-neighbour spacing of a
 // sample of the points times map_resolution, so one map pixel ~ one point.

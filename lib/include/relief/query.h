@@ -209,11 +209,13 @@ struct ArchiveSections {
   }
 };
 
-// Reads every chunk's blob (each checked against its CRC-32, as read_chunk
-// does) and sums its sections' sizes; the pyramid's nodes are counted from
-// the archive's totals, not read. `progress`, when set, hears the input
-// points of each chunk as it is read. A blob whose header or section table is damaged
-// is kCorruptData naming the chunk (relief check lists every such chunk).
+// Reads every chunk's header and section table (its first bytes,
+// Archive::read_chunk_head: a few pages per chunk whatever the archive's
+// size; the blobs' checksums are not verified, `relief check` does that)
+// and sums the sections' sizes; the pyramid's nodes are counted from the
+// archive's totals, not read. `progress`, when set, hears the input points
+// of each chunk as it is read. A header or section table that is damaged
+// or disagrees with the blob's size is kCorruptData naming the chunk.
 Result<ArchiveSections> archive_sections(const Archive& archive,
                                          const std::function<void(std::uint64_t points)>& progress = {});
 // As one JSON object (`relief info --sections --json` adds it as "sections").
