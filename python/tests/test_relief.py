@@ -366,6 +366,28 @@ def test_corrupt_chunk(tmp_path, scene):
         assert sum(len(p) for p in kept_batches) == total - points
 
 
+def test_intensity_tolerance(tmp_path, scene, xyz_archive):
+    src = tmp_path / "s.xyz"
+    write_xyz(src, scene)
+    out = tmp_path / "t.relief"
+    result = relief.compress([src], out, columns="x,y,z,r,g,b,i", chunk_edge=8, intensity_tolerance=25)
+    assert result["warnings"] == []
+    exact, _ = xyz_archive
+    with relief.open(out) as a, relief.open(exact) as b:
+        assert a.info["codec_params"]["intensity_tol"] == 25
+        assert b.info["codec_params"]["intensity_tol"] == 0
+        assert a.info["file_bytes"] < b.info["file_bytes"]
+        lossy, full = a.query(), b.query()
+    # The same points (paired by every other field); each intensity within 25.
+    def ordered(pts):
+        return pts[np.lexsort([pts[n] for n in reversed(XYZRGBI)])]
+    lossy, full = ordered(lossy), ordered(full)
+    names = [n for n in XYZRGBI if n != "intensity"]
+    assert all(np.array_equal(lossy[n], full[n]) for n in names)
+    error = np.abs(lossy["intensity"] - full["intensity"])
+    assert 0 < error.max() <= 25
+
+
 def test_bad_options(tmp_path, scene):
     src = tmp_path / "s.xyz"
     write_xyz(src, scene)
@@ -373,6 +395,7 @@ def test_bad_options(tmp_path, scene):
     cases = [
         ({"tolerance": -1}, "tolerance must be a positive number"),
         ({"color_tolerance": 500}, "color_tolerance"),
+        ({"intensity_tolerance": 40000}, "intensity_tolerance"),
         ({"mode": "lossy"}, "mode must be bounded or resample"),
         ({"mode": "resample", "tolerance": 0.01}, "tolerance and color_tolerance apply to mode bounded"),
         ({"memory": "1M"}, "below the minimum"),
