@@ -292,8 +292,8 @@ std::vector<std::uint8_t> write_blob(const ChunkHeader& h, const std::vector<Sec
 namespace {
 
 // The header and section table, checked against a blob of `blob_size` bytes
-// of which `blob` holds at least those two; `r` reads `blob` and is left
-// at the first payload. `payload_total` receives the sections' sizes.
+// of which `blob` holds at least those two (their sizes must add up to
+// blob_size); `r` reads `blob` and is left at the first payload.
 Status parse_head(ByteReader& r, std::span<const std::uint8_t> blob, std::uint64_t blob_size, ParsedBlob& out) {
   ChunkHeader& h = out.header;
   if (blob.size() < 6 || blob_size < 6 || std::memcmp(blob.data(), kMagic, 4) != 0) {
