@@ -227,14 +227,6 @@ std::uint64_t spread3(std::uint32_t v) {
   return x;
 }
 
-const char* section_name(int id) {
-  static const char* const kNames[] = {"?", "tree", "patches", "occupancy", "height", "colour map", "intensity map",
-                                       "geometry", "rgb", "intensity", "classification", "class_flags",
-                                       "return_number", "number_of_returns", "scan_flags", "scan_angle", "user_data",
-                                       "point_source_id", "gps_time", "nir", "color_low", "extra_bytes", "classification map (base layer)"};
-  return id >= 0 && id < 23 ? kNames[id] : "?";
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -334,7 +326,7 @@ int main(int argc, char** argv) {
         base += b;
         continue;
       }
-      const std::string part = section_name(id);
+      const std::string part = relief::chunk_section_label(id);
       const auto it = same.count(part) ? layers.find(part) : layers.end();
       if (it != layers.end()) {
         std::printf("%s,%zu,%s,%llu,%.3f,%llu,%.3f\n", name.c_str(), n, part.c_str(), static_cast<unsigned long long>(b),

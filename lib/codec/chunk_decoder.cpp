@@ -115,6 +115,29 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
   return info_of(parsed, blob.size());
 }
 
+std::string chunk_section_label(int id) {
+  switch (id) {
+    case 1: return "tree";
+    case 2: return "patches";
+    case 3: return "occupancy map";
+    case 4: return "height map";
+    case 5: return "colour map";
+    case 6: return "intensity map";
+    case 7: return "geometry";
+    case 8: return "rgb";
+    case 9: return "intensity";
+    case 22: return "classification map";
+    default: break;
+  }
+  constexpr int kFirstLasSection = 10;
+  if (id >= kFirstLasSection && id < kFirstLasSection + static_cast<int>(kLasAttributeCount)) {
+    return kLasAttributeNames[id - kFirstLasSection];
+  }
+  return "section " + std::to_string(id);
+}
+
+bool chunk_section_is_map(int id) { return (id >= 1 && id <= 6) || id == 22; }
+
 Result<ChunkInfo> inspect_chunk_head(std::span<const std::uint8_t> head, std::uint64_t blob_size) {
   RELIEF_ASSIGN_OR_RETURN(const codec::ParsedBlob parsed, codec::parse_blob_head(head, blob_size));
   return info_of(parsed, static_cast<std::size_t>(blob_size));

@@ -16,29 +16,6 @@ namespace {
 
 // Section ids of format-spec/chunk.md §3.
 constexpr int kMaxSectionId = 22;
-constexpr int kFirstLasSection = 10;
-
-std::string section_label(int id) {
-  switch (id) {
-    case 1: return "tree";
-    case 2: return "patches";
-    case 3: return "occupancy map";
-    case 4: return "height map";
-    case 5: return "colour map";
-    case 6: return "intensity map";
-    case 7: return "geometry";
-    case 8: return "rgb";
-    case 9: return "intensity";
-    case 22: return "classification map";
-    default: break;
-  }
-  if (id >= kFirstLasSection && id < kFirstLasSection + static_cast<int>(kLasAttributeCount)) {
-    return kLasAttributeNames[id - kFirstLasSection];
-  }
-  return "section " + std::to_string(id);
-}
-
-bool is_map(int id) { return (id >= 1 && id <= 6) || id == 22; }
 
 std::string chunk_name(const ChunkRef& ref) {
   return "chunk (" + std::to_string(ref.key.ix) + "," + std::to_string(ref.key.iy) + "," + std::to_string(ref.key.iz) +
@@ -85,8 +62,8 @@ Result<ArchiveSections> archive_sections(const Archive& archive,
     SectionTotal& t = totals[static_cast<std::size_t>(id)];
     if (t.chunks == 0) continue;
     t.id = id;
-    t.name = section_label(id);
-    t.maps = is_map(id);
+    t.name = chunk_section_label(id);
+    t.maps = chunk_section_is_map(id);
     out.sections.push_back(t);
   }
   return out;

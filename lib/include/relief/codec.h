@@ -216,6 +216,12 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob);
 // table. Nothing after them is read, so the checksum is not verified.
 inline constexpr std::size_t kChunkHeadBytes = 512;
 Result<ChunkInfo> inspect_chunk_head(std::span<const std::uint8_t> head, std::uint64_t blob_size);
+// What a section id (format-spec/chunk.md §3, ChunkSectionInfo::id) holds,
+// for people: "geometry", "rgb", "intensity", a LAS attribute's name
+// ("gps_time" ...), or one of the paper's maps ("occupancy map", "height
+// map" ...; chunk_section_is_map). "section N" for an id the format lacks.
+std::string chunk_section_label(int id);
+bool chunk_section_is_map(int id);
 
 // A cell edge from the point density: the median nearest-neighbour spacing of a
 // sample of the points times map_resolution, so one map pixel ~ one point.
