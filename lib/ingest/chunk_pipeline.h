@@ -113,9 +113,10 @@ class ChunkPipeline {
   // Test hook: RELIEF_TEST_KILL_AFTER_COMMITS=N makes the process SIGKILL
   // itself right after its N-th committed batch (0 = off), so crash tests
   // kill at a known point instead of racing a sleep.
-  mutable std::atomic<std::uint64_t> exact_intensity_chunks_{0};
   std::uint64_t kill_after_commits_ = 0;
   std::uint64_t commits_ = 0;
+  // Chunks encode_one (on the workers) saw keep their intensities exact.
+  mutable std::atomic<std::uint64_t> exact_intensity_chunks_{0};
 };
 
 }  // namespace relief::ingest

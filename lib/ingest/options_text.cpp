@@ -7,6 +7,7 @@
 #include <map>
 #include <optional>
 
+#include "relief/codec.h"
 #include "relief/crs.h"
 #include "relief/ingest.h"
 
@@ -16,7 +17,6 @@ namespace {
 
 // Colour tolerance range of the bounded mode (levels per 8-bit channel).
 constexpr long long kMaxColorTolerance = 127;
-constexpr long long kMaxIntensityTolerance = 32767;
 // Encoder threads: far more than any machine, so a typo is caught.
 constexpr long long kMaxThreads = 1024;
 constexpr long long kMaxOctreePoints = 1LL << 30;
