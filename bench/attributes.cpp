@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "relief/codec.h"
+#include "relief/types.h"
 
 namespace {
 
@@ -230,6 +231,7 @@ std::uint64_t spread3(std::uint32_t v) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  relief::retain_freed_memory();  // as the relief CLI does (relief/types.h)
   std::size_t chunk = std::size_t{1} << 17;
   fs::path data = RELIEF_BENCH_DATA_DIR;
   bool no_las = false;  // encode without the LAS attributes (for the time they cost)

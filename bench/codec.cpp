@@ -17,6 +17,7 @@
 #include "relief/codec.h"
 #include "relief/io.h"
 #include "relief/metrics.h"
+#include "relief/types.h"
 #include "summary.h"
 
 namespace fs = std::filesystem;
@@ -440,6 +441,7 @@ std::vector<BenchRow> run_draco(const relief::PointCloud& cloud, const std::stri
 }
 
 int main(int argc, char** argv) {
+  relief::retain_freed_memory();  // as the relief CLI does (relief/types.h)
   const auto start = BenchClock::now();
   bool help = false;
   const std::optional<Options> parsed = parse_options(argc, argv, help);

@@ -36,6 +36,7 @@
 #include "relief/io.h"
 #include "relief/metrics.h"
 #include "relief/query.h"
+#include "relief/types.h"
 
 namespace fs = std::filesystem;
 
@@ -249,6 +250,7 @@ std::vector<int> parse_list(const char* s) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  relief::retain_freed_memory();  // as the relief CLI does (relief/types.h)
   Options o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];

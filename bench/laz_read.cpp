@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "relief/io.h"
+#include "relief/types.h"
 
 namespace {
 
@@ -78,6 +79,7 @@ Timing median_read(const std::string& path, int repeat, std::uint64_t& points, b
 }  // namespace
 
 int main(int argc, char** argv) {
+  relief::retain_freed_memory();  // as the relief CLI does (relief/types.h)
   int repeat = 5;
   std::string data = RELIEF_BENCH_DATA_DIR;
   for (int i = 1; i < argc; ++i) {

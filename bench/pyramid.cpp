@@ -23,6 +23,7 @@
 #include "relief/archive.h"
 #include "relief/ingest.h"
 #include "relief/query.h"
+#include "relief/types.h"
 
 namespace {
 
@@ -68,6 +69,7 @@ Measure measure(const std::string& path, const Box3d* box, const QueryOptions& o
 }  // namespace
 
 int main(int argc, char** argv) {
+  relief::retain_freed_memory();  // as the relief CLI does (relief/types.h)
   int repeat = 3;
   unsigned threads = 0;
   bool build = false;

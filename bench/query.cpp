@@ -29,6 +29,7 @@
 #include "relief/io.h"
 #include "relief/polygon.h"
 #include "relief/query.h"
+#include "relief/types.h"
 
 namespace fs = std::filesystem;
 
@@ -123,6 +124,7 @@ int decode_subsets(const std::string& path, int repeat, unsigned threads, const 
 }  // namespace
 
 int main(int argc, char** argv) {
+  relief::retain_freed_memory();  // as the relief CLI does (relief/types.h)
   std::string data = RELIEF_BENCH_DATA_DIR;
   std::string tmp = "/tmp";
   std::string cli = RELIEF_BENCH_CLI;

@@ -1,5 +1,7 @@
 #include "core/memory.h"
 
+#include "relief/types.h"
+
 #include <cstdint>
 #include <cstdio>
 
@@ -49,3 +51,16 @@ void release_free_memory() {
 }
 
 }  // namespace relief::core
+
+namespace relief {
+
+void retain_freed_memory() {
+#ifdef __GLIBC__
+  // Blocks above 32 MiB (glibc's largest allowed threshold on 64-bit: half a
+  // thread arena's heap) are still mapped and unmapped one by one.
+  (void)::mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  (void)::mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
+}
+
+}  // namespace relief
