@@ -35,6 +35,7 @@ __all__ = [
     "append",
     "compress",
     "open",
+    "retain_freed_memory",
     "write",
 ]
 
@@ -603,6 +604,21 @@ def write(path, points, *, crs=None, scale=None):
         extra = np.ascontiguousarray(np.concatenate(extra_parts, axis=1) if len(extra_parts) > 1 else extra_parts[0])
     return _relief.write_points(str(path), columns, extra, b"".join(descriptors), crs or "",
                                 0.0 if scale is None else float(scale))
+
+
+def retain_freed_memory():
+    """Keep freed blocks up to 32 MiB in the C allocator for reuse.
+
+    What the ``relief`` command does first thing (``relief/types.h``): with
+    glibc's defaults each chunk's decoding buffers go back to the kernel when
+    freed and the next chunk faults in fresh zeroed pages, which on some
+    machines is a third of decoding a whole archive. It is a setting of the
+    whole process (glibc ``mallopt``: mmap threshold 32 MiB, trim threshold
+    256 MiB; memory freed after the peak then stays with the process), so
+    importing relief does not make it: call it once in a program that reads
+    or writes many chunks. Does nothing without glibc.
+    """
+    _relief.retain_freed_memory()
 
 
 def open(path):  # noqa: A001 (the package's verb, as relief.open)

@@ -451,6 +451,7 @@ PYBIND11_MODULE(_relief, m) {
     }
     return d;
   });
+  m.def("retain_freed_memory", [] { retain_freed_memory(); });
   m.def("option_names", &option_names, py::arg("command"), py::arg("flags"));
   m.def("ingest", &ingest, py::arg("command"), py::arg("inputs"), py::arg("archive"), py::arg("options"),
         py::arg("progress"));

@@ -781,3 +781,36 @@ def test_preview_image_and_file(xyz_archive, tmp_path):
         subprocess.run([cli, "preview", str(path), "--width", "200", "--quiet", "-o", str(tmp_path / "cli.png")],
                        check=True)
         assert (tmp_path / "cli.png").read_bytes() == (tmp_path / "p.png").read_bytes()
+
+
+_MALLINFO2_SCRIPT = r"""
+import ctypes, sys
+import relief
+libc = ctypes.CDLL(None)
+if not hasattr(libc, "mallinfo2"):
+    sys.exit(3)
+class MallInfo2(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in
+                ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks", "keepcost")]
+libc.mallinfo2.restype = MallInfo2
+libc.malloc.restype = ctypes.c_void_p
+libc.free.argtypes = [ctypes.c_void_p]
+relief.retain_freed_memory()
+size = 8 << 20
+p = libc.malloc(size)
+ctypes.memset(p, 1, size)
+mapped = libc.mallinfo2().hblkhd
+libc.free(p)
+after = libc.mallinfo2().fordblks
+print(mapped < size, after >= size)
+"""
+
+
+def test_retain_freed_memory_keeps_a_freed_block():
+    # In a child process: the setting is the whole process's.
+    r = subprocess.run([os.environ.get("PYTHON", "python3"), "-c", _MALLINFO2_SCRIPT],
+                       capture_output=True, text=True, env=os.environ)
+    if r.returncode == 3:
+        pytest.skip("no glibc mallinfo2 in this C library")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["True", "True"]

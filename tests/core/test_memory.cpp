@@ -1,0 +1,35 @@
+// relief::retain_freed_memory() (relief/types.h).
+#include <catch2/catch.hpp>
+
+#include <cstdlib>
+#include <cstring>
+
+#include "relief/types.h"
+#include "support/skip.h"
+
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
+// relief::retain_freed_memory(): a freed block of a few MB stays in the
+// allocator (free bytes of the arena) instead of going back to the kernel,
+// so the next chunk's buffers reuse its pages.
+TEST_CASE("retain_freed_memory keeps a freed 8 MB block in the allocator", "[memory]") {
+#if !defined(__GLIBC__) || defined(__SANITIZE_ADDRESS__)
+  // AddressSanitizer replaces malloc: mallinfo2 does not describe its heap.
+  WARN("skipped: needs glibc's malloc");
+  relief::test::note_skipped();
+#else
+  relief::retain_freed_memory();
+  constexpr std::size_t kBytes = 8u << 20;
+  void* p = std::malloc(kBytes);
+  REQUIRE(p != nullptr);
+  std::memset(p, 1, kBytes);
+  // Not mapped by itself: with glibc's default threshold (128 KiB, raised
+  // only by freeing a mapped block) an 8 MB block would be.
+  CHECK(mallinfo2().hblkhd < kBytes);
+  std::free(p);
+  // The arena's free bytes (its top included) now hold the whole block.
+  CHECK(mallinfo2().fordblks >= kBytes);
+#endif
+}
