@@ -8,6 +8,7 @@ import os
 import re
 import sqlite3
 import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -808,7 +809,7 @@ print(mapped < size, after >= size)
 
 def test_retain_freed_memory_keeps_a_freed_block():
     # In a child process: the setting is the whole process's.
-    r = subprocess.run([os.environ.get("PYTHON", "python3"), "-c", _MALLINFO2_SCRIPT],
+    r = subprocess.run([sys.executable, "-c", _MALLINFO2_SCRIPT],
                        capture_output=True, text=True, env=os.environ)
     if r.returncode == 3:
         pytest.skip("no glibc mallinfo2 in this C library")
