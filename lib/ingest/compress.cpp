@@ -962,7 +962,8 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
 }  // namespace ingest
 
 std::uint32_t ingest_page_size(std::uint64_t input_points) {
-  return input_points <= kSmallArchiveMaxPoints ? kSmallArchivePageSize : kArchivePageSize;
+  if (input_points <= kSmallArchiveMaxPoints) return kSmallArchivePageSize;
+  return input_points <= kMediumArchiveMaxPoints ? kArchivePageSize : kLargeArchivePageSize;
 }
 
 Result<IngestResult> compress_files(const std::vector<std::string>& given, const std::string& archive_path,

@@ -83,7 +83,8 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   const std::string tmp = shard::temp_name(out);
   remove_archive_files(tmp);
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
-                          Archive::create(tmp, plan.grid, plan.archive_params, plan.creator));
+                          Archive::create(tmp, plan.grid, plan.archive_params, plan.creator,
+                                                  ingest_page_size(plan.points)));
   const auto failed = [&](Status s) -> Result<IngestResult> {
     archive.reset();
     remove_archive_files(tmp);

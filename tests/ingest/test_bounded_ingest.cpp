@@ -168,6 +168,8 @@ TEST_CASE("compress: small inputs get small pages, and every chunk's base layer 
   CHECK(ingest_page_size(0) == kSmallArchivePageSize);
   CHECK(ingest_page_size(kSmallArchiveMaxPoints) == kSmallArchivePageSize);
   CHECK(ingest_page_size(kSmallArchiveMaxPoints + 1) == kArchivePageSize);
+  CHECK(ingest_page_size(kMediumArchiveMaxPoints) == kArchivePageSize);
+  CHECK(ingest_page_size(kMediumArchiveMaxPoints + 1) == kLargeArchivePageSize);
   TempDir dir;
   const PointCloud in = scene(5, 40000);
   REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());

@@ -88,6 +88,15 @@ IngestOptions options_for(const Scene& s) {
 using Row = std::tuple<std::int64_t, std::int64_t, std::int64_t, double, double, double, double, double, double,
                        std::uint64_t, std::uint64_t, std::uint32_t, std::string, std::vector<std::uint8_t>>;
 
+// The SQLite header's page size (big-endian at offset 16; 1 means 65536).
+int page_size_of(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  unsigned char header[18] = {};
+  if (!f.read(reinterpret_cast<char*>(header), sizeof header)) return 0;
+  const int v = (header[16] << 8) | header[17];
+  return v == 1 ? 65536 : v;
+}
+
 std::vector<Row> rows_of(const std::string& path) {
   auto archive = Archive::open(path, Archive::Mode::kReadOnly);
   REQUIRE(archive.is_ok());
@@ -249,6 +258,8 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress", "[shard
       CHECK(merged->chunks == want.size());
       CHECK(rows_of(work + "/merged.relief") == want);
       check_same_metadata(info_of(work + "/merged.relief"), want_info);
+      // The page size a one-box compress of these points takes.
+      CHECK(page_size_of(work + "/merged.relief") == page_size_of(dir.file("one.relief")));
       auto check = check_archive(work + "/merged.relief");
       REQUIRE(check.is_ok());
       CHECK(check->problems.empty());
