@@ -256,13 +256,28 @@ std::string format_bytes(std::uint64_t bytes) {
 
 std::function<void(const IngestProgress&)> progress_printer(bool quiet) {
   if (quiet || !::isatty(STDERR_FILENO)) return {};
-  return [](const IngestProgress& p) {
+  // When the encoding phase began (seconds), for its own rate and ETA.
+  return [encoding_since = -1.0](const IngestProgress& p) mutable {
     const double rate = p.seconds > 0 ? static_cast<double>(p.points_read) / p.seconds : 0;
-    char eta[64] = "";
-    if (p.points_total > 0 && rate > 0 && std::string(p.phase) == "reading") {
+    const std::string phase = p.phase;
+    char eta[96] = "";
+    if (p.points_total > 0 && rate > 0 && phase == "reading") {
       const double left = static_cast<double>(p.points_total - std::min(p.points_total, p.points_read)) / rate;
       std::snprintf(eta, sizeof eta, " (%.0f%%, reading ETA %.0f s)",
                     100.0 * static_cast<double>(p.points_read) / static_cast<double>(p.points_total), left);
+    }
+    if (phase == "encoding" && p.points_read > 0) {
+      // Every point is read before the encoding phase: its total is points_read.
+      if (encoding_since < 0) encoding_since = p.seconds;
+      const double share = static_cast<double>(std::min(p.points_encoded, p.points_read)) /
+                           static_cast<double>(p.points_read);
+      const double spent = p.seconds - encoding_since;
+      if (p.points_encoded > 0 && spent > 0) {
+        std::snprintf(eta, sizeof eta, " (%.0f%% encoded, ETA %.0f s)", 100.0 * share,
+                      spent * (1.0 - share) / share);
+      } else {
+        std::snprintf(eta, sizeof eta, " (%.0f%% encoded)", 100.0 * share);
+      }
     }
     std::fprintf(stderr, "\r\033[K%s: %.2fM points%s, %llu chunks, %s, %.2f M points/s, %.0f s", p.phase,
                  static_cast<double>(p.points_read) * 1e-6, eta, static_cast<unsigned long long>(p.chunks_written),

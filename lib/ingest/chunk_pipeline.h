@@ -69,9 +69,23 @@ class ChunkPipeline {
   // submit + wait(0).
   Status run(std::vector<ChunkTask> tasks, const std::function<void()>& tick);
 
+  // What is committed.
   PipelineTotals totals() const {
     PipelineTotals t = totals_;
     t.exact_intensity_chunks = exact_intensity_chunks_.load(std::memory_order_relaxed);
+    return t;
+  }
+  // What is committed plus the rows encoded and waiting for their batch's
+  // transaction (up to kBatchRows rows or 32 MB): what progress reports.
+  // From the thread that calls wait(), as tick does.
+  PipelineTotals encoded() const {
+    PipelineTotals t = totals();
+    for (const ChunkRow& r : batch_) {
+      ++t.chunks;
+      t.points_in += r.ref.input_points;
+      t.points_decoded += r.ref.decoded_points;
+      t.blob_bytes += r.blob.size();
+    }
     return t;
   }
 

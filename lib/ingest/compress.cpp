@@ -349,7 +349,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   std::unique_ptr<ChunkPipeline> pipeline;
   // Progress while encoding (called between commits, once the pipeline exists).
   const auto tick = [&] {
-    progress.update("encoding", points_read, pipeline->totals().chunks, pipeline->totals().blob_bytes);
+    const PipelineTotals t = pipeline->encoded();
+    progress.update("encoding", points_read, t.chunks, t.blob_bytes, t.points_in);
   };
   Grouping grouping;
   // Without bucket files their buffers' share is free: the whole input may
@@ -516,7 +517,7 @@ Result<PyramidResult> build_scan_pyramid(Archive& archive, std::int64_t scan_id,
   p.memory_budget = options.memory_budget;
   p.tmp_dir = tmp_parent;
   p.cancel = options.cancel;
-  p.progress = [&](int, std::uint64_t nodes) { progress.update("pyramid", points, nodes, 0); };
+  p.progress = [&](int, std::uint64_t nodes) { progress.update("pyramid", points, nodes, 0, points); };
   Result<PyramidResult> built = build_pyramid(archive, scan_id, p);
   const bool cancelled = options.cancel != nullptr && options.cancel->load();
   if (built || options.pyramid != PyramidMode::kAuto || cancelled || built.status().code() == StatusCode::kIoError) {
@@ -545,7 +546,7 @@ IngestResult scan_result(const PipelineTotals& totals, std::uint64_t points_read
                          " of " + std::to_string(totals.chunks) +
                          " chunks: their intensities are not all whole numbers 0..65535 (they stay exact)");
   }
-  progress.finish("done", points_read, r.chunks_written, r.blob_bytes);
+  progress.finish("done", points_read, r.chunks_written, r.blob_bytes, totals.points_in);
   return r;
 }
 

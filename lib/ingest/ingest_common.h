@@ -221,25 +221,28 @@ class Progress {
   Progress(std::function<void(const IngestProgress&)> fn, std::uint64_t total)
       : fn_(std::move(fn)), total_(total), start_(std::chrono::steady_clock::now()) {}
 
-  void update(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes) {
+  void update(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes,
+              std::uint64_t encoded = 0) {
     if (!fn_) return;
     const auto now = std::chrono::steady_clock::now();
     if (now - last_ < std::chrono::milliseconds(kIntervalMs)) return;
     last_ = now;
-    emit(phase, points, chunks, bytes, now);
+    emit(phase, points, chunks, bytes, encoded, now);
   }
-  void finish(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes) {
-    if (fn_) emit(phase, points, chunks, bytes, std::chrono::steady_clock::now());
+  void finish(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes,
+              std::uint64_t encoded = 0) {
+    if (fn_) emit(phase, points, chunks, bytes, encoded, std::chrono::steady_clock::now());
   }
 
  private:
   static constexpr int kIntervalMs = 500;
-  void emit(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes,
+  void emit(const char* phase, std::uint64_t points, std::uint64_t chunks, std::uint64_t bytes, std::uint64_t encoded,
             std::chrono::steady_clock::time_point now) {
     IngestProgress p;
     p.phase = phase;
     p.points_read = points;
     p.points_total = total_;
+    p.points_encoded = encoded;
     p.chunks_written = chunks;
     p.bytes_written = bytes;
     p.seconds = std::chrono::duration<double>(now - start_).count();

@@ -156,8 +156,8 @@ def compress(inputs, archive, *, progress=None, **options):
     ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs``,
     ``crs`` (the inputs' CRS, e.g. ``"EPSG:32633"``, for files that name
     none), ``no_extra_bytes`` and the encoder options). ``progress``: called about twice a second with a dict
-    (points_read, points_total, chunks_written, bytes_written, seconds,
-    phase); an exception it raises (or Ctrl-C) stops the ingest and
+    (points_read, points_total, points_encoded, chunks_written, bytes_written,
+    seconds, phase: "reading", "encoding", "pyramid", "done"); an exception it raises (or Ctrl-C) stops the ingest and
     propagates, and the archive keeps the chunks committed so far (an
     incomplete scan), as after Ctrl-C in the CLI.
 

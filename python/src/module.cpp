@@ -55,6 +55,7 @@ py::dict progress_dict(const IngestProgress& p) {
   py::dict d;
   d["points_read"] = p.points_read;
   d["points_total"] = p.points_total;
+  d["points_encoded"] = p.points_encoded;
   d["chunks_written"] = p.chunks_written;
   d["bytes_written"] = p.bytes_written;
   d["seconds"] = p.seconds;

@@ -232,7 +232,9 @@ def test_ply_with_colour_and_append(tmp_path):
     seen = []
     r1 = relief.compress(str(tmp_path / "a.ply"), str(out), progress=seen.append)
     assert r1["points_read"] == 8000
-    assert seen and {"points_read", "points_total", "chunks_written", "bytes_written", "seconds", "phase"} <= set(seen[-1])
+    assert seen and {"points_read", "points_total", "points_encoded", "chunks_written", "bytes_written", "seconds",
+                     "phase"} <= set(seen[-1])
+    assert seen[-1]["phase"] == "done" and seen[-1]["points_encoded"] == 8000
     r2 = relief.append(out, [tmp_path / "b.ply"], threads=1)
     assert r2["points_read"] == 6000 and r2["scan_id"] != r1["scan_id"]
     names = ("x", "y", "z", "red", "green", "blue")

@@ -91,10 +91,28 @@ TEST_CASE("a multi-chunk scene is ingested, reopened and every chunk decodes wit
   TempDir tmp;
   const PointCloud in = scene(1, 120000);
   REQUIRE(write_ply(tmp.file("scene.ply"), in).is_ok());
-  auto r = compress_files({tmp.file("scene.ply")}, tmp.file("scene.relief"), small_chunks());
+  // Progress: throttled, so which events arrive depends on timing, but the
+  // encoded points never pass the points read nor go back, and "done" has
+  // them all.
+  std::vector<IngestProgress> seen;
+  IngestOptions o = small_chunks();
+  o.progress = [&](const IngestProgress& p) { seen.push_back(p); };
+  auto r = compress_files({tmp.file("scene.ply")}, tmp.file("scene.relief"), o);
   REQUIRE(r.is_ok());
   CHECK(r->points_read == in.size());
   CHECK(r->chunks_written >= 8);
+  REQUIRE(!seen.empty());
+  std::uint64_t encoded = 0;
+  for (const IngestProgress& p : seen) {
+    INFO(p.phase << ": " << p.points_encoded << " of " << p.points_read);
+    if (std::string(p.phase) == "reading") CHECK(p.points_encoded == 0);
+    CHECK(p.points_encoded <= p.points_read);
+    CHECK(p.points_encoded >= encoded);
+    encoded = p.points_encoded;
+  }
+  CHECK(std::string(seen.back().phase) == "done");
+  CHECK(seen.back().points_encoded == in.size());
+  CHECK(seen.back().chunks_written == r->chunks_written);
   auto archive = Archive::open(tmp.file("scene.relief"), Archive::Mode::kReadOnly);
   REQUIRE(archive.is_ok());
   auto info = (*archive)->info();

@@ -20,6 +20,12 @@ namespace relief {
 struct IngestProgress {
   std::uint64_t points_read = 0;
   std::uint64_t points_total = 0;  // 0 when the inputs do not say
+  // Points of the chunks encoded so far (0 while reading; all of them in the
+  // "pyramid" and "done" phases): the encoding phase's progress towards
+  // points_read.
+  std::uint64_t points_encoded = 0;
+  // Chunks and blob bytes encoded so far (committed or in the transaction
+  // about to be; the pyramid's nodes in its phase).
   std::uint64_t chunks_written = 0;
   std::uint64_t bytes_written = 0;
   double seconds = 0;
