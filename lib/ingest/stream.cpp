@@ -181,7 +181,8 @@ class StreamIngestImpl final : public StreamIngest {
 
   Status encode(std::vector<ChunkTask>& tasks) {
     return pipeline_.run(std::move(tasks), [&] {
-      progress_.update("streaming", points_read_, pipeline_.totals().chunks, pipeline_.totals().blob_bytes);
+      const ingest::PipelineTotals t = pipeline_.encoded();
+      progress_.update("streaming", points_read_, t.chunks, t.blob_bytes, t.points_in);
     });
   }
 
