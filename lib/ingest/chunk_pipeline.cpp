@@ -147,12 +147,7 @@ void ChunkPipeline::work() {
 Status ChunkPipeline::commit() {
   if (batch_.empty()) return Status::ok();
   RELIEF_RETURN_IF_ERROR(archive_.put_chunks(batch_));
-  for (const ChunkRow& r : batch_) {
-    ++totals_.chunks;
-    totals_.points_in += r.ref.input_points;
-    totals_.points_decoded += r.ref.decoded_points;
-    totals_.blob_bytes += r.blob.size();
-  }
+  for (const ChunkRow& r : batch_) count_row(totals_, r);
   batch_.clear();
   batch_bytes_ = 0;
   if (kill_after_commits_ != 0 && ++commits_ == kill_after_commits_) std::raise(SIGKILL);

@@ -80,12 +80,7 @@ class ChunkPipeline {
   // From the thread that calls wait(), as tick does.
   PipelineTotals encoded() const {
     PipelineTotals t = totals();
-    for (const ChunkRow& r : batch_) {
-      ++t.chunks;
-      t.points_in += r.ref.input_points;
-      t.points_decoded += r.ref.decoded_points;
-      t.blob_bytes += r.blob.size();
-    }
+    for (const ChunkRow& r : batch_) count_row(t, r);
     return t;
   }
 
@@ -94,6 +89,12 @@ class ChunkPipeline {
     ChunkTask task;
     std::uint64_t submission;
   };
+  static void count_row(PipelineTotals& t, const ChunkRow& r) {
+    ++t.chunks;
+    t.points_in += r.ref.input_points;
+    t.points_decoded += r.ref.decoded_points;
+    t.blob_bytes += r.blob.size();
+  }
   Status encode_one(ChunkTask& task, ChunkRow& row) const;
   void work();
   Status commit();

@@ -84,7 +84,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   remove_archive_files(tmp);
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
                           Archive::create(tmp, plan.grid, plan.archive_params, plan.creator,
-                                                  ingest_page_size(plan.points)));
+                                          ingest_page_size(plan.points)));
   const auto failed = [&](Status s) -> Result<IngestResult> {
     archive.reset();
     remove_archive_files(tmp);

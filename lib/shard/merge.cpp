@@ -141,9 +141,9 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
   // The page size a one-box compress of the same points takes.
   std::uint64_t merged_points = 0;
   for (const Shard& s : opened) merged_points += s.info.input_points;
-  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive, Archive::create(tmp, first.grid, first.codec_params,
-                                                                              first.creator,
-                                                                              ingest_page_size(merged_points)));
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
+                          Archive::create(tmp, first.grid, first.codec_params, first.creator,
+                                          ingest_page_size(merged_points)));
   const auto failed = [&](Status s) -> Result<MergeResult> {
     archive.reset();
     remove_archive_files(tmp);

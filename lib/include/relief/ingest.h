@@ -79,8 +79,9 @@ inline constexpr std::uint64_t kMaxBoundedChunkPoints = std::uint64_t{1} << 22;
 // of the blob bytes); around four million, the ~15 pages of 4 KiB every
 // archive has (~45 KB more than at 1024) are worth the 0.3 % that 4 KiB
 // pages save, and the ingest makes 4x fewer journal and checkpoint calls
-// (the 10 M-point survey: 0.11 % smaller, 5-8 % less wall time). In the bounded mode with the automatic
-// cell and chunk edge, inputs of at most kSmallArchiveMaxPoints points
+// (the 10 M-point survey: 0.11 % smaller, 5-8 % less wall time).
+//
+// In the bounded mode with the automatic cell and chunk edge, inputs of at most kSmallArchiveMaxPoints points
 // (counted exactly by the order-free pass) whose box fits in a chunk of
 // kMaxSmallChunkGrowth times the default edge are also one chunk: the edge
 // doubles until the box fits.
