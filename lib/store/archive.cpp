@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <cerrno>
 #include <charconv>
 #include <chrono>
@@ -26,6 +27,7 @@
 #include <span>
 #include <string_view>
 #include <system_error>
+#include <tuple>
 #include <utility>
 
 #include "core/hex.h"
@@ -34,6 +36,29 @@
 
 namespace relief {
 namespace {
+
+// A double's bits as an unsigned integer in the same order (IEEE 754
+// totalOrder: -0 before +0, NaNs at the ends), so refs of a damaged archive
+// still sort.
+std::uint64_t ordered_bits(double d) {
+  const auto u = std::bit_cast<std::uint64_t>(d);
+  return (u >> 63) != 0 ? ~u : (u | (std::uint64_t{1} << 63));
+}
+
+// Content order (format-spec/archive.md §4): scan, level, chunk key, then
+// the bounds and sizes of the blob, the row id last. Archives holding the
+// same blobs then list them, and a query returns their points, in the same
+// order, whatever order a writer committed them in (its threads, its memory
+// budget). Neither `id` nor `seq` can be part of it before the tie: both
+// follow the commit order.
+void sort_in_content_order(std::vector<ChunkRef>& refs) {
+  const auto rank = [](const ChunkRef& r) {
+    return std::make_tuple(r.scan_id, r.level, r.key, ordered_bits(r.bounds.min.x), ordered_bits(r.bounds.min.y),
+                           ordered_bits(r.bounds.min.z), ordered_bits(r.bounds.max.x), ordered_bits(r.bounds.max.y),
+                           ordered_bits(r.bounds.max.z), r.input_points, r.decoded_points, r.blob_size, r.id);
+  };
+  std::sort(refs.begin(), refs.end(), [&](const ChunkRef& a, const ChunkRef& b) { return rank(a) < rank(b); });
+}
 
 namespace fs = std::filesystem;
 using store::Statement;
@@ -1676,7 +1701,9 @@ Result<std::vector<ChunkRef>> SqliteArchive::scan_chunks(std::int64_t scan_id) c
   RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanChunks));
   StatementScope scope(*statement);
   statement->bind_int64(1, scan_id);
-  return collect_refs(*statement);
+  RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, collect_refs(*statement));
+  sort_in_content_order(refs);
+  return refs;
 }
 
 Result<std::vector<ChunkRef>> SqliteArchive::find_level_chunks(int level, const Box3d& box) const {
@@ -1695,6 +1722,7 @@ Result<std::vector<ChunkRef>> SqliteArchive::find_level_chunks(int level, const 
   statement->bind_int64(7, level);
   RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, collect_refs(*statement));
   for (ChunkRef& ref : refs) ref.level = level;
+  sort_in_content_order(refs);
   return refs;
 }
 
@@ -1885,13 +1913,16 @@ Result<std::vector<ChunkRef>> SqliteArchive::find_chunks(const Box3d& box) const
     }
   }
   RELIEF_RETURN_IF_ERROR(transaction.commit());
+  sort_in_content_order(refs);
   return refs;
 }
 
 Result<std::vector<ChunkRef>> SqliteArchive::all_chunks() const {
   RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kAllChunks));
   StatementScope scope(*statement);
-  return collect_refs(*statement);
+  RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkRef> refs, collect_refs(*statement));
+  sort_in_content_order(refs);
+  return refs;
 }
 
 Result<ChunkRow> SqliteArchive::read_chunk(std::int64_t id) const {

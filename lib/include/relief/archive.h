@@ -253,14 +253,18 @@ class Archive {
   virtual Status remove_pyramid(std::int64_t scan_id) = 0;
 
   // ---- Reading.
+  // Lists of refs come in content order (format-spec/archive.md §4: scan,
+  // level, chunk key, then the blob's bounds and sizes, the id last), not in
+  // id order: archives with the same blobs list them alike whatever order
+  // their writer committed them in.
   // Chunks whose decoded-point bounds intersect `box` (closed boxes), through
-  // the spatial index, ordered by id.
+  // the spatial index.
   virtual Result<std::vector<ChunkRef>> find_chunks(const Box3d& box) const = 0;
   virtual Result<std::vector<ChunkRef>> all_chunks() const = 0;
-  // The scan's chunks (level 0), ordered by id.
+  // The scan's chunks (level 0).
   virtual Result<std::vector<ChunkRef>> scan_chunks(std::int64_t scan_id) const = 0;
   // Pyramid nodes of `level` whose bounds intersect `box`, of scans with a
-  // finished pyramid, ordered by id (refs have `level` set).
+  // finished pyramid (refs have `level` set).
   virtual Result<std::vector<ChunkRef>> find_level_chunks(int level, const Box3d& box) const = 0;
   // Reads one pyramid node's blob, checked like read_chunk.
   virtual Result<ChunkRow> read_level_chunk(std::int64_t id) const = 0;

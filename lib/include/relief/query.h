@@ -80,7 +80,7 @@ struct QueryStats {
 // and for coarse levels of detail read from a chunk's base layer) that
 // QueryOptions::attributes names.
 // Receives the query's points batch by batch (one or more chunks at a time, in
-// chunk id order). Returning an error stops the query with that error.
+// content order: Archive::find_chunks). Returning an error stops the query with that error.
 using PointSink = std::function<Status(const PointCloud& batch)>;
 
 // kInvalidArgument naming `path` when `set` (not AttributeSet::all()) names
