@@ -94,12 +94,17 @@ TEST_CASE("compress refuses a cell far too fine for the data unless --allow-spar
 
 TEST_CASE("compress --allow-sparse overrides the density check", "[cli][ingest]") {
   TempDir tmp;
-  // 20,000 points 1 m apart on a line, 1 cm cells: one point per cell.
+  // 10,000 points (the check's minimum sample) 2 cm apart on a line, 1 cm
+  // cells: one point per cell. 2 m chunks keep them to 100 chunks (20,000
+  // one-point chunks took 4 minutes under AddressSanitizer).
   std::string text;
-  for (int i = 0; i < 20000; ++i) text += std::to_string(i) + " 0 0\n";
+  for (int i = 0; i < 10000; ++i) text += std::to_string(i * 2) + "e-2 0 0\n";
   write_text(tmp.file("line.xyz"), text);
-  const std::string base = "compress " + tmp.file("line.xyz") + " --cell 0.01 --quiet -o ";
-  CHECK(run(base + tmp.file("a.relief")).code == 16);
+  const std::string base = "compress " + tmp.file("line.xyz") + " --cell 0.01 --chunk-edge 2 --quiet -o ";
+  const Run refused = run(base + tmp.file("a.relief"));
+  CHECK(refused.code == 16);
+  CHECK(has(refused, "10000 cells of 0.01 (1 points per cell"));
+  CHECK(has(refused, "--allow-sparse"));
   CHECK(run(base + tmp.file("b.relief") + " --allow-sparse").code == 0);
 }
 
