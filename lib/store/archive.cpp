@@ -495,7 +495,7 @@ SqlText sql_text(Sql id) {
                   " FROM relief_level_chunk INDEXED BY relief_level_chunk_bounds WHERE level = ?7 AND " +
                   std::string(kOverlap) +
                   " AND scan_id IN (SELECT l.scan_id FROM relief_level_scan AS l JOIN relief_scan AS s ON "
-                  "s.id = l.scan_id WHERE (l.levels >> ?7) & 1 = 1) ORDER BY id"};
+                  "s.id = l.scan_id WHERE (l.levels >> ?7) & 1 = 1)"};  // sorted by the caller (content order)
     case Sql::kReadLevelChunk:
       return {"read pyramid node", "SELECT " + ref_columns +
                                        ", codec, codec_params, crc32, blob FROM relief_level_chunk "
