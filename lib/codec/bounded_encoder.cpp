@@ -176,7 +176,7 @@ bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::s
     i = j;
   }
   const std::uint64_t share = std::uint64_t{scan_bytes} * m / n;  // both below 2^32: no overflow
-  return encode_geometry_within(trial, depth, OctreeCoding::kChains, share).has_value();
+  return encode_geometry_within(trial, depth, OctreeCoding::kFacePatterns, share).has_value();
 }
 
 Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
@@ -188,7 +188,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  // 12: geometry codec 11 or 9 (time order), colour codec 6 or 10, voted LAS
+  // 13: geometry codec 12 or 9 (time order), colour codec 6 or 10, voted LAS
   // bytes, an intensity tolerance.
   h.version = kChunkFormatVersion;
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
@@ -284,7 +284,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // smaller of the two codings of geometry and times (the octree when they
   // tie), and stops coding the octree once it is sure to lose.
   std::vector<std::uint8_t> geometry;
-  SectionCodec geometry_codec = SectionCodec::kOctreeChains;
+  SectionCodec geometry_codec = SectionCodec::kOctreeFaces;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
   if ((las_bits & kLasGpsTime) != 0 && n > 1) {
@@ -303,7 +303,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         time_order = las_time_order(cell_las.gps_time);
         gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, h.version, cells_in_order(q, lo, order), time_order);
         if (gps_ranked.size() <= scan_bytes) {
-          octree = encode_geometry_within(cells, depth, OctreeCoding::kChains, scan_bytes - gps_ranked.size());
+          octree = encode_geometry_within(cells, depth, OctreeCoding::kFacePatterns, scan_bytes - gps_ranked.size());
         }
       }
       if (octree) {
@@ -318,8 +318,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       }
     }
   }
-  if (geometry_codec == SectionCodec::kOctreeChains && geometry.empty()) {
-    geometry = encode_geometry(cells, depth, OctreeCoding::kChains);
+  if (geometry_codec == SectionCodec::kOctreeFaces && geometry.empty()) {
+    geometry = encode_geometry(cells, depth, OctreeCoding::kFacePatterns);
   }
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;

@@ -77,6 +77,10 @@ enum class SectionCodec : std::uint8_t {
   // Geometry only (version 10): codec 8 with chains, isolated one-cell
   // subtrees coded without flags or mixing (format-spec/chunk.md §11.3.4).
   kOctreeChains = 11,
+  // Geometry only (version 13): codec 11 with a third model in each mix, by
+  // the minus neighbours' children on the shared faces, and an adaptive
+  // probability map after it (format-spec/chunk.md §11.3.5).
+  kOctreeFaces = 12,
 };
 
 // How the error-bounded layer codes intensity (header byte 162).

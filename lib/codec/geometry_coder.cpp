@@ -12,6 +12,8 @@
 // mixed from two context models (mix_code below). Codec 11 (chunk format 10)
 // is codec 8 with chains: an isolated node's one-cell subtree coded with the
 // plain index models, no flag and no mixing (format-spec/chunk.md §11.3.4).
+// Codec 12 (chunk format 13) is codec 11 with a third model in every mix and
+// an adaptive probability map after it (mix_code_faces, §11.3.5).
 #include "codec/geometry_coder.h"
 
 #include <algorithm>
@@ -157,6 +159,100 @@ template <typename CodeProb>
   return bit;
 }
 
+// ---- Codec 12: a third model in the mix, then an adaptive probability map
+// (APM: a secondary estimate of the mixed probability by its own context,
+// interpolated between 33 knots of the logistic domain; format-spec/chunk.md
+// §11.3.5).
+constexpr int kFaceMixInputs = 5;
+// Each model input starts at ~0.34 (4 inputs: ~1.34 in all, codec 8's 3
+// start at 1.5).
+constexpr std::int32_t kFaceMixInitWeight = 22000;
+
+template <int Sets>
+struct FaceMixer {
+  std::int32_t w[Sets][kFaceMixInputs];
+  FaceMixer() {
+    for (auto& set : w) set[0] = set[1] = set[2] = set[3] = kFaceMixInitWeight, set[4] = 0;
+  }
+};
+
+// Knot i (0..32) stands for x = 128 (i - 16) and starts at squash(x).
+struct Apm {
+  std::uint16_t knot[33];
+  Apm() {
+    for (int i = 0; i < 33; ++i) knot[i] = static_cast<std::uint16_t>(squash(128 * (i - 16)));
+  }
+};
+constexpr int kApmShift = 6;
+
+// As mix_code with a third model `c`, the mixed probability then refined by
+// `apm`: the coder uses (p + 3 p_apm) / 4; the mixer learns from p, the map
+// from the bit at the knot nearest to p's stretch.
+template <typename CodeProb>
+[[gnu::always_inline]] inline int mix_code_faces(BitModel& a, BitModel& b, BitModel& c, std::int32_t* w, Apm& apm,
+                                                 CodeProb& code_prob, int truth_bit) {
+  const std::int32_t s0 = kStretch[a.fast >> 4];
+  const std::int32_t s1 = kStretch[a.slow >> 4];
+  const std::int32_t s2 = kStretchMean[(static_cast<std::uint32_t>(b.fast) + b.slow) >> 5];
+  const std::int32_t s3 = kStretchMean[(static_cast<std::uint32_t>(c.fast) + c.slow) >> 5];
+  const std::int64_t dot = static_cast<std::int64_t>(w[0]) * s0 + static_cast<std::int64_t>(w[1]) * s1 +
+                           static_cast<std::int64_t>(w[2]) * s2 + static_cast<std::int64_t>(w[3]) * s3 +
+                           static_cast<std::int64_t>(w[4]) * kMixBias;
+  // |dot| < 5 * 2^22 * 2^11 < 2^36: dot >> 16 fits an int32.
+  const std::int32_t x = std::clamp(static_cast<std::int32_t>(dot >> 16), -2047, 2047);
+  const auto p = static_cast<std::int32_t>(kSquashTable.data()[2047 + x] & 0xFFFF);
+  const int j = (x + 2048) >> 7, f = (x + 2048) & 127;  // j 0..31
+  const std::int32_t pa = (apm.knot[j] * (128 - f) + apm.knot[j + 1] * f) >> 7;
+  const auto coded = std::clamp(static_cast<std::uint32_t>(p + 3 * pa) >> 2, kProbMin, kProbMax);
+  const int bit = code_prob(coded, truth_bit);
+  a.update(bit);
+  b.update(bit);
+  c.update(bit);
+  std::uint16_t& k = apm.knot[f < 64 ? j : j + 1];
+  k = static_cast<std::uint16_t>(k + (((bit ? 0 : 65535) - static_cast<std::int32_t>(k)) >> kApmShift));
+  const std::int32_t err = (bit ? 0 : 65536) - p;
+  const std::int32_t st[kFaceMixInputs] = {s0, s1, s2, s3, kMixBias};
+  for (int i = 0; i < kFaceMixInputs; ++i) {
+    w[i] = std::clamp(w[i] + ((st[i] * err) >> kMixShift), -kMixMaxWeight, kMixMaxWeight);
+  }
+  return bit;
+}
+
+// Codec 12's third models' context: for each axis a, the children of N's -a
+// face neighbour on the face it shares with N (those with bit a set), in
+// increasing k as 4 bits; by axis and the neighbour's child byte.
+constexpr auto kFacePattern = [] {
+  std::array<std::array<std::uint8_t, 256>, 3> t{};
+  for (int a = 0; a < 3; ++a) {
+    for (int occ = 0; occ < 256; ++occ) {
+      int pattern = 0, j = 0;
+      for (int k = 0; k < 8; ++k) {
+        if (((k >> a) & 1) == 0) continue;
+        pattern |= ((occ >> k) & 1) << j++;
+      }
+      t[static_cast<std::size_t>(a)][static_cast<std::size_t>(occ)] = static_cast<std::uint8_t>(pattern);
+    }
+  }
+  return t;
+}();
+
+// Codec 12's third models (by the face patterns P, 12 bits, and: the child
+// position k for child bits, lone and whether any face neighbour is occupied
+// for flags, the tree position t for index bits), mixers and APMs (by codec
+// 11's child context's low 6 bits and k; by the flag context; by t, the
+// axis's plane prediction and whether its minus neighbour is occupied).
+struct FaceModels {
+  BitModel child_c[8 << 12];
+  BitModel flag_c[4 << 12];
+  BitModel index_c[8 << 12];
+  FaceMixer<32> child_mixer;
+  FaceMixer<8> flag_mixer;
+  FaceMixer<12> index_mixer;
+  Apm child_apm[512];
+  Apm flag_apm[32];
+  Apm index_apm[64];
+};
+
 // Codec 8's second models and mixers (weight sets: child bits by k and the
 // levels to the leaves, flags by lone and the levels to the leaves, index
 // bits by axis and the levels to the leaves), allocated for codec 8 only.
@@ -180,7 +276,8 @@ struct GeometryModels {
   BitModel chain_flag[kChainFlagContexts];
   BitModel duplicate[kCountContexts];
   UIntModel extra;
-  std::unique_ptr<MixedModels> mixed;  // codec 8
+  std::unique_ptr<MixedModels> mixed;  // codecs 8, 11 and 12
+  std::unique_ptr<FaceModels> faces;   // codec 12
 };
 
 // Visits every node of levels 0..depth-1 and codes its 8 child bits through
@@ -369,13 +466,17 @@ constexpr auto kScoreSpread = [] {
 
 // `true_chain(d, i)` (encoder side) is 1 when the subtree of node i of
 // level d holds one cell, for codec 11's chains.
-template <bool kMixedCoding, typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
+// kMixing: 0 for codecs 6 and 7, 1 for codecs 8 and 11 (two models mixed),
+// 2 for codec 12 (three models mixed, then the APM).
+template <int kMixing, typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                       Code& code, CodeProb& code_prob, TrueByte& true_byte, TrueChain& true_chain, Grow& grow) {
-  constexpr bool mixed = kMixedCoding;
-  MixedModels* const mm = models.mixed.get();  // codec 8's, else null
+  constexpr bool mixed = kMixing >= 1;
+  constexpr bool three = kMixing == 2;
+  MixedModels* const mm = models.mixed.get();  // codec 8's, 11's and 12's, else null
+  FaceModels* const fm = models.faces.get();   // codec 12's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
-  const bool chains = coding == OctreeCoding::kChains;
+  const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns;
   // Per node of the current level (codec 11): whether its subtree is known
   // to hold one cell (a chain), known to hold more, or not known.
   enum : std::uint8_t { kUnknown, kChain, kNotChain };
@@ -418,6 +519,13 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
       // Bit q: face neighbour q exists.
       unsigned faces_mask = 0;
       for (int q = 0; q < 6; ++q) faces_mask |= (n6[q] != kMissing ? 1u : 0u) << q;
+      // Codec 12: the face patterns P.
+      unsigned patterns = 0;
+      if constexpr (three) {
+        patterns = static_cast<unsigned>(kFacePattern[0][minus_occ[0]]) |
+                   static_cast<unsigned>(kFacePattern[1][minus_occ[1]]) << 4 |
+                   static_cast<unsigned>(kFacePattern[2][minus_occ[2]]) << 8;
+      }
       const std::array<std::uint32_t, 3> xyz = xyz_of[i];
       int plane_pred[3];
       for (int a = 0; a < 3; ++a) plane_pred[a] = planes->predict(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3]);
@@ -462,8 +570,14 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           // The minus neighbours' child counts (0 missing, 1 one child, 2 more).
           const int nbc = 9 * kCountClass[minus_occ[0]] + 3 * kCountClass[minus_occ[1]] + kCountClass[minus_occ[2]];
           BitModel& mb = mm->flag_b[((faces_mask * 27 + static_cast<unsigned>(nbc)) << 2) | static_cast<unsigned>(to_leaves)];
-          single = mix_code(models.single_flag[flag_ctx], mb, mm->flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
-                            truth_single) != 0;
+          if constexpr (three) {
+            BitModel& mc = fm->flag_c[patterns | static_cast<unsigned>(lone[i]) << 12 | (faces_mask != 0 ? 1u : 0u) << 13];
+            single = mix_code_faces(models.single_flag[flag_ctx], mb, mc, fm->flag_mixer.w[(lone[i] << 2) | to_leaves],
+                                    fm->flag_apm[flag_ctx], code_prob, truth_single) != 0;
+          } else {
+            single = mix_code(models.single_flag[flag_ctx], mb, mm->flag_mixer.w[(lone[i] << 2) | to_leaves], code_prob,
+                              truth_single) != 0;
+          }
         }
       }
       if (single) {
@@ -484,8 +598,15 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             const std::uint8_t* const halves = kIndexHalves[static_cast<std::size_t>(t)].data();
             const int hv = 25 * halves[minus_occ[0]] + 5 * halves[minus_occ[1]] + halves[minus_occ[2]];
             BitModel& mb = mm->index_b[((t * 125 + hv) << 2) | to_leaves];
-            t = 2 * t + mix_code(models.single_index[ctx], mb, mm->index_mixer.w[a * 4 + to_leaves], code_prob,
-                                 (truth_k >> a) & 1);
+            if constexpr (three) {
+              BitModel& mc = fm->index_c[patterns | static_cast<unsigned>(t) << 12];
+              Apm& apm = fm->index_apm[t << 3 | (plane_pred[a] + 1) << 1 | (minus_occ[a] != 0 ? 1 : 0)];
+              t = 2 * t + mix_code_faces(models.single_index[ctx], mb, mc, fm->index_mixer.w[a * 4 + to_leaves], apm,
+                                         code_prob, (truth_k >> a) & 1);
+            } else {
+              t = 2 * t + mix_code(models.single_index[ctx], mb, mm->index_mixer.w[a * 4 + to_leaves], code_prob,
+                                   (truth_k >> a) & 1);
+            }
           }
         }
         const int k = t - 8;
@@ -518,8 +639,14 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             bit = code(models.occupancy[ctx], (truth >> k) & 1);
           } else {
             BitModel& mb = child_b[tree];
-            bit = mix_code(models.occupancy[ctx], mb, mm->child_mixer.w[(k << 2) | to_leaves], code_prob,
-                           (truth >> k) & 1);
+            if constexpr (three) {
+              BitModel& mc = fm->child_c[patterns | static_cast<unsigned>(k) << 12];
+              bit = mix_code_faces(models.occupancy[ctx], mb, mc, fm->child_mixer.w[(k << 2) | to_leaves],
+                                   fm->child_apm[(ctx & 63) | k << 6], code_prob, (truth >> k) & 1);
+            } else {
+              bit = mix_code(models.occupancy[ctx], mb, mm->child_mixer.w[(k << 2) | to_leaves], code_prob,
+                             (truth >> k) & 1);
+            }
           }
           // Written in any case, kept when the bit is set (the branch would
           // be as unpredictable as the bit).
@@ -577,16 +704,21 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
   return true;
 }
 
-// The traversal, instantiated apart for codecs 8 and 11 (their extra work
-// stays out of the older codecs' loop).
+// The traversal, instantiated apart for codecs 8 and 11 and for codec 12
+// (their extra work stays out of the older codecs' loop).
 template <typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                  Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, TrueChain&& true_chain, Grow&& grow) {
+  if (coding == OctreeCoding::kFacePatterns) {
+    models.mixed = std::make_unique<MixedModels>();
+    models.faces = std::make_unique<FaceModels>();
+    return code_octree_impl<2>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
+  }
   if (coding == OctreeCoding::kMixed || coding == OctreeCoding::kChains) {
     models.mixed = std::make_unique<MixedModels>();
-    return code_octree_impl<true>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
+    return code_octree_impl<1>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
   }
-  return code_octree_impl<false>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
+  return code_octree_impl<0>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
 }
 
 }  // namespace
@@ -605,7 +737,7 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
   // Codec 11: per level, the index of each node's first cell, and the cell
   // count after the last node (a node holds one cell when the next node's
   // first cell follows its own).
-  const bool chains = coding == OctreeCoding::kChains;
+  const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns;
   std::vector<std::vector<std::uint32_t>> first_cell(chains ? static_cast<std::size_t>(depth) : 0);
   {
     std::vector<std::uint64_t> level = cells.keys;

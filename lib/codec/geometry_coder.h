@@ -38,6 +38,11 @@ enum class OctreeCoding {
   // subtree holds one cell; if so, it and its descendants code their one
   // child's index with 3 plain decisions instead of a flag and 3 mixed ones.
   kChains,
+  // Codec 12 (format 13): codec 11 with a third model for every mixed
+  // decision, selected by the patterns of the minus face neighbours'
+  // children on the faces they share with the node, and each mixed
+  // probability refined by an adaptive probability map.
+  kFacePatterns,
 };
 
 // `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.

@@ -1,7 +1,8 @@
-// A/B tool (not a test; bench/README.md): geometry section bytes and CPU time of codec 8 vs
-// codec 11 (direct leaves) on whole files at G-PCC's grids (step = max extent / 2^g), one
-// chunk per file. Usage: geometry_ab FILE.ply... [--grids 10,11,12,13,14] [--repeat N]
-// (Until chunk format 10 it compared codec 7 with codec 8: bench/README.md keeps those figures.)
+// A/B tool (not a test; bench/README.md): geometry section bytes and CPU time of codec 11
+// (chains) vs codec 12 (face patterns and APMs) on whole files at G-PCC's grids (step = max
+// extent / 2^g), one chunk per file. Usage: geometry_ab FILE.ply... [--grids 10,11,12,13,14]
+// [--repeat N] (Until chunk format 10 it compared codec 7 with codec 8, until format 13 codec 8
+// with codec 11: bench/README.md keeps those figures.)
 #include <time.h>
 
 #include <algorithm>
@@ -87,13 +88,13 @@ int main(int argc, char** argv) {
       std::vector<std::uint8_t> a, bb;
       for (int r = 0; r < repeat; ++r) {
         double t0 = cpu_now();
-        a = encode_geometry(cells, depth, OctreeCoding::kMixed);
+        a = encode_geometry(cells, depth, OctreeCoding::kChains);
         double t1 = cpu_now();
-        bb = encode_geometry(cells, depth, OctreeCoding::kChains);
+        bb = encode_geometry(cells, depth, OctreeCoding::kFacePatterns);
         double t2 = cpu_now();
-        auto da = decode_geometry(a, depth, keys.size(), OctreeCoding::kMixed);
+        auto da = decode_geometry(a, depth, keys.size(), OctreeCoding::kChains);
         double t3 = cpu_now();
-        auto db = decode_geometry(bb, depth, keys.size(), OctreeCoding::kChains);
+        auto db = decode_geometry(bb, depth, keys.size(), OctreeCoding::kFacePatterns);
         double t4 = cpu_now();
         if (!da || !db || da->keys != cells.keys || db->keys != cells.keys || db->counts != cells.counts) {
           std::fprintf(stderr, "%s g=%d: round trip FAILED\n", stem.c_str(), g);

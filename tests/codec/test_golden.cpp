@@ -1,4 +1,4 @@
-// Golden vectors for chunk format versions 1 to 12 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 13 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -168,13 +168,23 @@ std::vector<Vector> vectors() {
           {"bounded_las_scan_v11", bounded, las_scan_scene, 11, true},
           // Format 12: an intensity tolerance (these differ from format 11
           // in the version field and checksum alone, but the last).
-          {"bounded_rgb_intensity_v12", bounded, voxel_scene, 12},
-          {"bounded_rgb_tolerance6_v12", bounded_lossy, voxel_scene, 12},
-          {"bounded_geometry_octree_v12", bounded_geometry, octree_scene, 12},
-          {"bounded_las_attributes_v12", bounded, las_scene, 12},
-          {"bounded_las_colors8_v12", bounded, las_scene_8bit, 12},
-          {"bounded_las_scan_v12", bounded, las_scan_scene, 12},
-          {"bounded_intensity_tolerance20_v12", bounded_intensity, las_scene_int, 12}};
+          {"bounded_rgb_intensity_v12", bounded, voxel_scene, 12, true},
+          {"bounded_rgb_tolerance6_v12", bounded_lossy, voxel_scene, 12, true},
+          {"bounded_geometry_octree_v12", bounded_geometry, octree_scene, 12, true},
+          {"bounded_las_attributes_v12", bounded, las_scene, 12, true},
+          {"bounded_las_colors8_v12", bounded, las_scene_8bit, 12, true},
+          {"bounded_las_scan_v12", bounded, las_scan_scene, 12, true},
+          {"bounded_intensity_tolerance20_v12", bounded_intensity, las_scene_int, 12, true},
+          // Format 13: the octree with face patterns and APMs (codec 12; the
+          // scan scene keeps its geometry in time order, so it differs from
+          // format 12 in the version field and checksum alone).
+          {"bounded_rgb_intensity_v13", bounded, voxel_scene, 13},
+          {"bounded_rgb_tolerance6_v13", bounded_lossy, voxel_scene, 13},
+          {"bounded_geometry_octree_v13", bounded_geometry, octree_scene, 13},
+          {"bounded_las_attributes_v13", bounded, las_scene, 13},
+          {"bounded_las_colors8_v13", bounded, las_scene_8bit, 13},
+          {"bounded_las_scan_v13", bounded, las_scan_scene, 13},
+          {"bounded_intensity_tolerance20_v13", bounded_intensity, las_scene_int, 13}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -217,7 +227,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 12 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 13 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
@@ -244,7 +254,9 @@ TEST_CASE("golden chunk blobs of format versions 1 to 12 decode (and the current
     CHECK(info->format_version == v.version);
     // The geometry's codec: 9 (time order) for the scan, the octree for the others.
     for (const ChunkSectionInfo& s : info->sections) {
-      if (s.id == 7 && v.version >= 8) CHECK(s.codec == (v.make == las_scan_scene ? 9 : v.version >= 10 ? 11 : 8));
+      if (s.id == 7 && v.version >= 8) {
+        CHECK(s.codec == (v.make == las_scan_scene ? 9 : v.version >= 13 ? 12 : v.version >= 10 ? 11 : 8));
+      }
       // Format 9: colours in cell order (every octree layer) are predicted from neighbours.
       if (s.id == 8 && v.version >= 9 && v.make != las_scan_scene) CHECK(s.codec == 10);
     }

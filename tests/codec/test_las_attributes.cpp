@@ -536,9 +536,9 @@ TEST_CASE("LAS attributes: truncated and lying attribute sections are refused", 
 
 // Not run by default: writes the chunk fuzz target's seeds with LAS attributes,
 //   RELIEF_FUZZ_SEED_DIR=tests/fuzz/corpus/chunk ./test_codec "[.seed]"
-// The encoder writes the current format (12) for the error-bounded layer and
+// The encoder writes the current format (13) for the error-bounded layer and
 // format 4 for resampling with a classification; the format-3 and format-6
-// to format-11 seeds in the corpus (seed-v3-las-attributes.rlfc,
+// to format-12 seeds in the corpus (seed-v3-las-attributes.rlfc,
 // seed-v6-las-*.rlfc, ...) were written by this test before later formats and
 // are kept as they are. Seeds stay under the fuzz target's max_len
 // (4096, scripts/fuzz.sh), else libFuzzer cuts them.
@@ -553,7 +553,7 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
     std::ofstream(std::string(dir) + "/" + name, std::ios::binary)
         .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
   };
-  // Format 12, a scan: the geometry and GPS times in time order (codec 9),
+  // Format 13, a scan: the geometry and GPS times in time order (codec 9),
   // pulses with their returns, scan flags, angles, user data and point
   // source IDs in acquisition order, plus a classification (and so the
   // classification map) and intensities.
@@ -563,27 +563,27 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
     timed.las.classification.push_back(static_cast<std::uint8_t>(timed.las.return_number[i] == 1 ? 2 : 5));
     timed.intensities.push_back(static_cast<float>(rng.next() % 4096));
   }
-  auto v12 = encode_chunk(timed, params_for(0.005, 1.0));
-  REQUIRE(v12.is_ok());
-  CHECK(inspect_chunk(*v12)->las_attributes ==
+  auto v13 = encode_chunk(timed, params_for(0.005, 1.0));
+  REQUIRE(v13.is_ok());
+  CHECK(inspect_chunk(*v13)->las_attributes ==
         (kLasClassification | kLasReturnNumber | kLasNumberOfReturns | kLasScanFlags | kLasScanAngle | kLasUserData |
          kLasPointSourceId | kLasGpsTime));
-  for (const ChunkSectionInfo& s : inspect_chunk(*v12)->sections) {
+  for (const ChunkSectionInfo& s : inspect_chunk(*v13)->sections) {
     if (s.id == 7) CHECK(s.codec == 9);  // the geometry in time order
   }
-  write("seed-v12-las-scan-time-order.rlfc", *v12, 12);
+  write("seed-v13-las-scan-time-order.rlfc", *v13, 13);
   // The same scan with an intensity tolerance (header bytes 164-165): the
-  // intensities as quantised residuals (format 12, §11.5).
+  // intensities as quantised residuals (from format 12, §11.5).
   EncodeParams tolerant = params_for(0.005, 1.0);
   tolerant.bound->intensity_tolerance = 20;
   auto quantised = encode_chunk(timed, tolerant);
   REQUIRE(quantised.is_ok());
   REQUIRE(quantised->size() > 165);
   CHECK(((*quantised)[164] | (*quantised)[165] << 8) == 20);
-  write("seed-v12-intensity-tolerance.rlfc", *quantised, 12);
-  // Format 12 with every attribute (NIR, colour low bytes, extra bytes too),
-  // the colours predicted from neighbours (codec 10), the octree with chains
-  // (codec 11).
+  write("seed-v13-intensity-tolerance.rlfc", *quantised, 13);
+  // Format 13 with every attribute (NIR, colour low bytes, extra bytes too),
+  // the colours predicted from neighbours (codec 10), the octree with chains,
+  // face patterns and APMs (codec 12).
   PointCloud in = scene(12, 120, true);
   test::add_las_attributes(in, 0xFFF, 3, 12, false);
   EncodeParams p = params_for(0.005, 2.0);
@@ -591,7 +591,17 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
   auto all = encode_chunk(in, p);
   REQUIRE(all.is_ok());
   CHECK(inspect_chunk(*all)->las_attributes == 0xFFF);
-  write("seed-v12-las-attributes.rlfc", *all, 12);
+  write("seed-v13-las-attributes.rlfc", *all, 13);
+  // Format 13, geometry alone on a dense terrain: most of the octree's
+  // decisions are codec 12's mixed ones (child bits, flags, index bits).
+  PointCloud dense = scene(13, 900, false);
+  dense.intensities.clear();
+  auto octree = encode_chunk(dense, params_for(0.02, 2.0));
+  REQUIRE(octree.is_ok());
+  for (const ChunkSectionInfo& s : inspect_chunk(*octree)->sections) {
+    if (s.id == 7) CHECK(s.codec == 12);
+  }
+  write("seed-v13-octree.rlfc", *octree, 13);
   EncodeParams resample;
   resample.cell_size = 0.5;
   resample.map_resolution = 8;

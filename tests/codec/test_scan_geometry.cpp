@@ -101,7 +101,7 @@ void check_octree_with_shuffled_times(const PointCloud& in, const EncodeParams& 
   }
   auto octree = encode_chunk(shuffled, p);
   REQUIRE(octree.is_ok());
-  CHECK(geometry_codec(*octree) == 11);  // the octree (codec 11 from format 10)
+  CHECK(geometry_codec(*octree) == 12);  // the octree (codec 12 from format 13)
   auto back = decode_chunk(*octree);
   REQUIRE(back.is_ok());
   CHECK(records(*back) == snapped_records(shuffled, 0.01));

@@ -50,8 +50,11 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // attributes' bytes voted (one decision "the byte this tree has coded most"
 // before the byte's tree). Version 12: version 11 with an intensity
 // tolerance (header bytes 164-165): 16-bit intensities quantised so each
-// comes back within it; the bounded encoder writes it for every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 12;
+// comes back within it. Version 13: version 12 with the octree coded by codec
+// 12 (codec 11 plus a third model per decision, by the minus neighbours'
+// children on the shared faces, and an adaptive probability map); the bounded
+// encoder writes it for every cloud.
+inline constexpr std::uint16_t kChunkFormatVersion = 13;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
