@@ -255,7 +255,7 @@ struct FaceModels {
 
 // Codec 8's second models and mixers (weight sets: child bits by k and the
 // levels to the leaves, flags by lone and the levels to the leaves, index
-// bits by axis and the levels to the leaves), allocated for codec 8 only.
+// bits by axis and the levels to the leaves), allocated for codecs 8, 11 and 12.
 struct MixedModels {
   BitModel child_b[kChildBContexts];
   BitModel flag_b[kFlagBContexts];
