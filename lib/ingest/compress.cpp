@@ -55,6 +55,12 @@ constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
 // shares) above which the allocator's free memory is given back between
 // slices.
 constexpr std::uint64_t kTrimAboveThirds = 2;
+// An encoding thread's own high-water mark beside its share of the points:
+// its allocator arena, coder models, maps and images (14-18 MiB measured per
+// extra thread on 14 k-point chunks, 2026-11-29). The threads that encode are
+// as many as the encoders' third of the budget holds (one at the 64 MiB
+// minimum; two from 96 MiB; every core at the 1 GiB default).
+constexpr std::uint64_t kEncoderThreadBytes = std::uint64_t{16} << 20;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
 // Cell when the inputs hold no point to measure a density from (1 unit,
@@ -259,6 +265,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   }
   const unsigned threads = resolve_threads(options.threads);
   const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget);
+  const auto encode_threads =
+      static_cast<unsigned>(std::clamp<std::uint64_t>((budget / 3) / kEncoderThreadBytes, 1, threads));
 
   // Budget while reading: 1/8 for bucket staging buffers, 3/16 for batches in flight (plus, without bucket
   // files, the whole input in half the budget). While encoding: 1/3 for two
@@ -426,7 +434,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     }
     all.resize_points(static_cast<std::size_t>(points_read));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
-    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, encode_threads, options.cancel,
                                                options.verify_blobs);
     RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, task_points, grouping, split_grid), tick));
   } else {
@@ -445,7 +453,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
-    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, threads, options.cancel,
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, encode_threads, options.cancel,
                                                options.verify_blobs);
     // The next slice loads while the workers encode the current one; each
     // slice goes back to the pool (or, larger than its share, is freed) as
