@@ -5,6 +5,11 @@
 //                      [--tmp DIR] [--no-shared] [--no-chunk-sweep]
 //   build/bench/ingest --laz-vs-las [--threads 2] [--repeat 3] [--data DIR]
 //   build/bench/ingest --billion [--sizes 10M,100M[,1G]] [--repeat 3] [--tmp DIR] [--keep DIR]
+//   build/bench/ingest --dense [--memory 128M,256M,1G] [--repeat 3] [--tmp DIR] [--cli RELIEF]
+//
+// --dense compresses a generated terrestrial scan (chunks of 1.7 M points
+// beside the scanner) and a 4 M-point single chunk at each budget
+// (bench/dense.h); --cli runs another build of relief, to compare.
 //
 // --billion feeds `relief compress` a generated aerial survey (bench/scene.h)
 // through a named pipe, at a fixed density so the extent grows with the
@@ -31,6 +36,7 @@
 #include <vector>
 
 #include "billion.h"
+#include "dense.h"
 #include "run_child.h"
 #include "relief/archive.h"
 #include "relief/io.h"
@@ -55,6 +61,8 @@ struct Options {
   bool laz_vs_las = false;
   bool billion = false;
   std::string keep;  // --billion --keep DIR: keep each size's archive there
+  bool dense = false;
+  std::string memory_text;  // --dense --memory 128M,256M,1G
   std::string sizes_text;  // --sizes as given (--billion reads it with suffixes)
   bool repeat_given = false;
 };
@@ -279,18 +287,44 @@ int main(int argc, char** argv) {
       o.billion = true;
     } else if (a == "--keep") {
       o.keep = value();
+    } else if (a == "--dense") {
+      o.dense = true;
+    } else if (a == "--memory") {
+      o.memory_text = value();
+    } else if (a == "--cli") {
+      o.cli = value();
     } else {
       std::fprintf(stderr,
                    "usage: ingest [--sizes 1,10,100] [--threads 1,2] [--repeat N] [--data DIR] [--tmp DIR]\n"
                    "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n"
                    "       ingest --laz-vs-las [--threads 2] [--repeat N] [--data DIR] [--tmp DIR]\n"
-                   "       ingest --billion [--sizes 10M,100M[,1G]] [--repeat N] [--tmp DIR] [--keep DIR]\n");
+                   "       ingest --billion [--sizes 10M,100M[,1G]] [--repeat N] [--tmp DIR] [--keep DIR]\n"
+                   "       ingest --dense [--memory 128M,256M,1G] [--repeat N] [--tmp DIR] [--cli RELIEF]\n");
       return a == "--help" ? 0 : 2;
     }
   }
   if (o.laz_vs_las) {
     measure_laz_vs_las(o);
     return 0;
+  }
+  if (o.dense) {
+    relief::bench::DenseOptions d;
+    if (!o.memory_text.empty()) {
+      d.budgets.clear();
+      std::string item;
+      for (char ch : o.memory_text + ",") {
+        if (ch != ',') {
+          item += ch;
+        } else if (!item.empty()) {
+          d.budgets.push_back(item);
+          item.clear();
+        }
+      }
+    }
+    if (o.repeat_given) d.repeat = o.repeat;
+    d.tmp = o.tmp;
+    d.cli = o.cli;
+    return relief::bench::run_dense(d);
   }
   if (o.billion) {
     relief::bench::BillionOptions b;

@@ -1,5 +1,7 @@
 #include "ingest/chunk_pipeline.h"
 
+#include "core/memory.h"
+
 #include <cmath>
 #include <csignal>
 #include <cstdlib>
@@ -28,7 +30,8 @@ std::uint64_t kill_after_commits_from_env() {
 }  // namespace
 
 ChunkPipeline::ChunkPipeline(Archive& archive, const EncodeParams& params, const ArchiveGrid& grid,
-                             std::int64_t scan_id, unsigned threads, const std::atomic<bool>* cancel, bool verify)
+                             std::int64_t scan_id, unsigned threads, const std::atomic<bool>* cancel, bool verify,
+                             EncodeMemory memory)
     : archive_(archive),
       params_(params),
       params_text_(encode_params_to_string(params, ParamsText::kCompact)),
@@ -37,6 +40,7 @@ ChunkPipeline::ChunkPipeline(Archive& archive, const EncodeParams& params, const
       threads_(threads == 0 ? 1 : threads),
       cancel_(cancel),
       verify_(verify),
+      memory_(memory),
       kill_after_commits_(kill_after_commits_from_env()) {}
 
 Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
@@ -108,22 +112,30 @@ void ChunkPipeline::work() {
     Item item;
     {
       std::unique_lock<std::mutex> lock(mu_);
-      work_cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+      work_cv_.wait(lock, [&] { return stop_ || may_start(); });
       if (stop_) return;
       item = std::move(queue_.front());
       queue_.pop_front();
       ++running_;
+      running_bytes_ += estimate(item.task);
     }
+    const std::uint64_t item_bytes = estimate(item.task);
     ChunkRow row;
     // After Ctrl-C the remaining tasks are skipped; wait() reports it.
     const bool skip = cancel_ != nullptr && cancel_->load();
     Status s = skip ? Status::ok() : encode_one(item.task, row);
     const ChunkKey k = item.task.key;
     item.task = ChunkTask();
+    // Only after a large task: trimming costs a walk of every arena and the
+    // page faults of memory taken again, too much after every small chunk.
+    if (memory_.trim_above != 0 && item_bytes >= memory_.bytes / 4 && core::resident_bytes() > memory_.trim_above) {
+      core::release_free_memory();
+    }
     std::shared_ptr<const void> release;
     {
       std::lock_guard<std::mutex> lock(mu_);
       --running_;
+      running_bytes_ -= item_bytes;
       if (!s) {
         if (!failed_) {
           failed_ = true;
@@ -140,6 +152,8 @@ void ChunkPipeline::work() {
       }
     }
     done_cv_.notify_all();
+    // A task waiting for memory may fit now.
+    if (memory_.bytes != 0) work_cv_.notify_all();
     release.reset();  // frees the submission's memory outside the lock
   }
 }

@@ -46,10 +46,24 @@ struct PipelineTotals {
   std::uint64_t exact_intensity_chunks = 0;
 };
 
+// How much encoding may run at once: a task of n points is estimated to take
+// n * bytes_per_point while it encodes, and a worker starts a task only when
+// the running tasks' estimates and its own stay within `bytes` (or nothing
+// else runs: a task larger than the limit runs alone). bytes = 0: no limit.
+// Blobs never depend on it. A worker that finishes a task while the process
+// holds more than `trim_above` bytes gives the allocator's free memory back
+// (each thread's malloc arena keeps what its last task freed, which another
+// thread cannot reuse); 0: never.
+struct EncodeMemory {
+  std::uint64_t bytes = 0;
+  std::uint64_t bytes_per_point = 0;
+  std::uint64_t trim_above = 0;
+};
+
 class ChunkPipeline {
  public:
   ChunkPipeline(Archive& archive, const EncodeParams& params, const ArchiveGrid& grid, std::int64_t scan_id,
-                unsigned threads, const std::atomic<bool>* cancel, bool verify);
+                unsigned threads, const std::atomic<bool>* cancel, bool verify, EncodeMemory memory = {});
   // Stops the workers; tasks not yet started are dropped.
   ~ChunkPipeline();
   ChunkPipeline(const ChunkPipeline&) = delete;
@@ -89,6 +103,16 @@ class ChunkPipeline {
     ChunkTask task;
     std::uint64_t submission;
   };
+  // The memory estimate of a task (EncodeMemory).
+  std::uint64_t estimate(const ChunkTask& t) const {
+    const std::uint64_t n = t.source != nullptr ? t.count : t.points.size();
+    return n * memory_.bytes_per_point;
+  }
+  // Whether the task at the queue's front may start now (under mu_).
+  bool may_start() const {
+    return !queue_.empty() && (memory_.bytes == 0 || running_ == 0 ||
+                               running_bytes_ + estimate(queue_.front().task) <= memory_.bytes);
+  }
   static void count_row(PipelineTotals& t, const ChunkRow& r) {
     ++t.chunks;
     t.points_in += r.ref.input_points;
@@ -107,6 +131,7 @@ class ChunkPipeline {
   unsigned threads_;
   const std::atomic<bool>* cancel_;
   bool verify_;
+  EncodeMemory memory_;
   PipelineTotals totals_;
 
   std::mutex mu_;
@@ -118,6 +143,7 @@ class ChunkPipeline {
   std::map<std::uint64_t, std::pair<std::size_t, std::shared_ptr<const void>>> pending_;
   std::uint64_t next_submission_ = 0;
   std::size_t running_ = 0;  // tasks being encoded
+  std::uint64_t running_bytes_ = 0;  // their memory estimates
   bool failed_ = false;
   bool stop_ = false;
   Status first_error_;

@@ -38,8 +38,10 @@ namespace {
 // record (positions, colour, intensity) plus its key and sort entry.
 constexpr std::uint64_t kGroupBytesPerPoint = 24 + 3 + 4 + 4 + 4;
 // Memory per point of a chunk being encoded: the worker's gathered copy (31)
-// plus encoder scratch and the decode check, measured at ~62 bytes per point
-// on dense data; sparse data adds atlas pixels, hence the headroom.
+// plus encoder scratch and the decode check. Error-bounded blobs of x y z
+// measured ~125 bytes a point at 400 k points (heaptrack, 2026-11-29) and
+// ~100 at 1 M; sparse data adds atlas pixels. Also the estimate by which
+// ChunkPipeline admits tasks (plus the LAS record).
 constexpr std::uint64_t kEncodeBytesPerPoint = 128;
 constexpr std::uint32_t kMinBuckets = 4;
 constexpr std::uint32_t kMaxBuckets = 4096;
@@ -280,6 +282,10 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const std::uint64_t group_bytes = kGroupBytesPerPoint + las_bytes;
   const std::uint64_t slice_points = std::max<std::uint64_t>(1, (budget / 6) / group_bytes);
   const std::uint64_t part_points = std::max<std::uint64_t>(1024, (budget / 3) / (threads * kEncodeBytesPerPoint));
+  // Tasks start while their estimates fit the encoders' third and half the
+  // headroom (a larger task alone), so dense chunks do not encode side by
+  // side past the budget.
+  const EncodeMemory encode_memory{budget / 2, kEncodeBytesPerPoint + las_bytes, kTrimAboveThirds * (budget / 3)};
   // Error-bounded archives must not depend on the budget: chunks are encoded
   // whole (bucket slices hold whole buckets) and split by a fixed rule.
   const bool bounded = params.bound.has_value();
@@ -435,7 +441,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     all.resize_points(static_cast<std::size_t>(points_read));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, encode_threads, options.cancel,
-                                               options.verify_blobs);
+                                               options.verify_blobs, encode_memory);
     RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, task_points, grouping, split_grid), tick));
   } else {
     // ---- External distribution sort: every point into its chunk's bucket
@@ -454,7 +460,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, encode_threads, options.cancel,
-                                               options.verify_blobs);
+                                               options.verify_blobs, encode_memory);
     // The next slice loads while the workers encode the current one; each
     // slice goes back to the pool (or, larger than its share, is freed) as
     // soon as its last chunk is encoded.

@@ -131,11 +131,11 @@ std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_po
 // points, so that one chunk's LAS attributes (las_record_bytes of the
 // archive's set) stay within kMaxChunkAttributeBytes, keeping a chunk's
 // encoder near its share of the memory budget. Every LAS point format with up
-// to 7 extra bytes keeps the 2^22-point split; a PLY with 200 bytes of
-// properties splits at 671,088. The rule depends on the archive's attributes
+// to 7 extra bytes keeps the 2^20-point split; a PLY with 200 bytes of
+// properties splits at 167,772. The rule depends on the archive's attributes
 // alone, never on --memory, so blobs stay deterministic; at least
 // kMinSplitPoints.
-inline constexpr std::uint64_t kMaxChunkAttributeBytes = std::uint64_t{1} << 27;
+inline constexpr std::uint64_t kMaxChunkAttributeBytes = std::uint64_t{1} << 25;
 inline constexpr std::uint64_t kMinSplitPoints = 4096;
 std::uint64_t bounded_split_points(std::uint64_t split_points, std::uint32_t las_attributes,
                                    std::uint32_t extra_bytes_size);

@@ -319,11 +319,11 @@ TEST_CASE("bounded chunks split sooner for wide points, by their attributes alon
   using relief::ingest::bounded_split_points;
   constexpr std::uint64_t kSplit = kMaxBoundedChunkPoints;
   // No LAS attributes, and every LAS point format with up to 7 extra bytes
-  // (format 8 with every field: 25 bytes + 7): the 2^22-point split.
+  // (format 8 with every field: 25 bytes + 7): the 2^20-point split.
   CHECK(bounded_split_points(kSplit, 0, 0) == kSplit);
   CHECK(bounded_split_points(kSplit, 0xFFF, 7) == kSplit);
   // A PLY with 200 bytes of properties per point.
-  CHECK(bounded_split_points(kSplit, kLasExtraBytes, 200) == (std::uint64_t{1} << 27) / 200);
+  CHECK(bounded_split_points(kSplit, kLasExtraBytes, 200) == (std::uint64_t{1} << 25) / 200);
   // The widest LAS records still give chunks of some thousands of points.
   CHECK(bounded_split_points(kSplit, 0xFFF, 65535) == relief::ingest::kMinSplitPoints);
   // A smaller requested split wins (tests and tuning), and never 0.

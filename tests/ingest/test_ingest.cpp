@@ -15,6 +15,8 @@
 #include <tuple>
 #include <fstream>
 #include <iterator>
+#include <map>
+#include <random>
 #include <set>
 #include <thread>
 
@@ -416,6 +418,62 @@ TEST_CASE("a memory budget far below the input size bounds peak RSS", "[ingest][
 #endif
   auto archive = Archive::open(tmp.file("big.relief"), Archive::Mode::kReadOnly);
   CHECK((*archive)->info()->input_points == 3000000);
+}
+
+TEST_CASE("dense chunks encode one at a time within a small memory budget", "[ingest][memory]") {
+  TempDir tmp;
+  // 1.6 M points on a 2 x 2 m surface, 1 m chunks at a 1 mm tolerance: four
+  // chunks of ~400 k points (each encoder ~50 MB) and a few slivers. At --memory 128M two of
+  // them side by side (what the encoders did before tasks were admitted by
+  // their memory estimate) peaked at ~212 MiB; one at a time at ~157 MiB.
+  {
+    PointCloud dense;
+    std::mt19937_64 rng(2026);
+    std::uniform_real_distribution<double> u(0.0, 2.0);
+    std::normal_distribution<double> noise(0.0, 0.002);
+    dense.positions.resize(1600000);
+    for (Vec3d& p : dense.positions) {
+      p.x = u(rng);
+      p.y = u(rng);
+      p.z = 0.3 + 0.2 * std::sin(3 * p.x) + 0.1 * std::cos(2 * p.y) + noise(rng);
+    }
+    REQUIRE(write_ply(tmp.file("dense.ply"), dense).is_ok());
+  }
+  const auto compress = [&](const std::string& out, const char* memory) {
+    return run_measured({cli(), "compress", tmp.file("dense.ply"), "-o", tmp.file(out), "--tolerance", "0.001",
+                         "--chunk-edge", "1", "--memory", memory, "--threads", "2", "--quiet"});
+  };
+  const auto [code, rss_kib] = compress("small.relief", "128M");
+  REQUIRE(code == 0);
+  INFO("peak RSS " << rss_kib / 1024 << " MiB");
+#if defined(__SANITIZE_ADDRESS__)
+  WARN("peak RSS bound not checked under AddressSanitizer (" << rss_kib / 1024 << " MiB)");
+#else
+  // The budget, the process's baseline and one chunk's slice beyond its share.
+  CHECK(rss_kib < (128 + 48) * 1024);
+#endif
+  // The same blobs as with the default budget, where they encode side by side.
+  REQUIRE(compress("large.relief", "1G").first == 0);
+  const auto blobs = [&](const std::string& name) {
+    auto archive = Archive::open(tmp.file(name), Archive::Mode::kReadOnly);
+    REQUIRE(archive.is_ok());
+    auto refs = (*archive)->all_chunks();
+    REQUIRE(refs.is_ok());
+    std::map<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> out;
+    std::uint64_t points = 0, dense = 0;
+    for (const ChunkRef& ref : *refs) {
+      if (ref.input_points > 300000) ++dense;
+      auto row = (*archive)->read_chunk(ref.id);
+      REQUIRE(row.is_ok());
+      out[{ref.key.ix, ref.key.iy, ref.key.iz}] = row->blob;
+      points += ref.input_points;
+    }
+    CHECK(points == 1600000);
+    CHECK(dense == 4);  // (and slivers where the grid's origin cuts the square)
+    return out;
+  };
+  const auto a = blobs("small.relief");
+  CHECK(a == blobs("large.relief"));
 }
 
 // Runs `relief compress` in a child that kills itself (SIGKILL) right after

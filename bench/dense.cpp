@@ -1,0 +1,158 @@
+#include "dense.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+
+#include "relief/archive.h"
+#include "run_child.h"
+
+namespace fs = std::filesystem;
+
+namespace relief::bench {
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+// A binary little-endian PLY of float x y z.
+bool write_xyz_ply(const std::string& path, const std::vector<float>& xyz) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr) return false;
+  const std::size_t n = xyz.size() / 3;
+  std::fprintf(f,
+               "ply\nformat binary_little_endian 1.0\nelement vertex %zu\nproperty float x\nproperty float y\n"
+               "property float z\nend_header\n",
+               n);
+  const bool ok = std::fwrite(xyz.data(), sizeof(float), xyz.size(), f) == xyz.size();
+  return std::fclose(f) == 0 && ok;
+}
+
+// A terrestrial scan of flat ground from 1.5 m: uniform in azimuth and in the
+// cosine of the angle below the horizon, so the density falls as 1/r^2 and
+// the chunks beside the scanner hold ~1.7 M points each at 12 M.
+std::vector<float> scanner_scene(std::uint64_t points, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.003);
+  std::vector<float> xyz(3 * points);
+  for (std::uint64_t i = 0; i < points; ++i) {
+    const double az = u(rng) * 2 * M_PI;
+    const double below = std::clamp(std::acos(u(rng) * 0.999), 0.015, 1.5);
+    const double r = 1.5 / std::sin(below);
+    const double x = r * std::cos(az), y = r * std::sin(az);
+    xyz[3 * i] = static_cast<float>(x);
+    xyz[3 * i + 1] = static_cast<float>(y);
+    xyz[3 * i + 2] = static_cast<float>(-1.5 + noise(rng) + 0.05 * std::sin(x));
+  }
+  return xyz;
+}
+
+// A wavy 10 x 10 m surface: with --chunk-edge 100 one chunk of every point.
+std::vector<float> surface_scene(std::uint64_t points, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 10.0);
+  std::normal_distribution<double> noise(0.0, 0.002);
+  std::vector<float> xyz(3 * points);
+  for (std::uint64_t i = 0; i < points; ++i) {
+    const double x = u(rng), y = u(rng);
+    xyz[3 * i] = static_cast<float>(x);
+    xyz[3 * i + 1] = static_cast<float>(y);
+    xyz[3 * i + 2] = static_cast<float>(std::sin(x) * 0.5 + std::cos(y) * 0.3 + noise(rng));
+  }
+  return xyz;
+}
+
+struct Blobs {
+  std::uint64_t chunks = 0, largest = 0, bytes = 0;
+  std::uint64_t hash = 1469598103934665603ull;  // FNV-1a of the blobs in content order
+};
+
+Blobs blobs_of(const std::string& path) {
+  Blobs b;
+  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
+  if (!archive) return b;
+  auto refs = (*archive)->all_chunks();  // content order: the same blobs list alike
+  if (!refs) return b;
+  for (const ChunkRef& ref : *refs) {
+    auto row = (*archive)->read_chunk(ref.id);
+    if (!row) return Blobs{};
+    ++b.chunks;
+    b.largest = std::max<std::uint64_t>(b.largest, ref.input_points);
+    b.bytes += row->blob.size();
+    for (std::uint8_t c : row->blob) b.hash = (b.hash ^ c) * 1099511628211ull;
+  }
+  return b;
+}
+
+}  // namespace
+
+int run_dense(const DenseOptions& o) {
+  struct Case {
+    const char* name;
+    std::uint64_t points;
+    std::vector<std::string> extra;
+  };
+  const Case cases[] = {{"scanner-12M", 12'000'000, {}}, {"one-chunk-4M", 4'000'000, {"--chunk-edge", "100"}}};
+  std::printf("# bench/ingest --dense: relief compress --tolerance 0.001 (2 threads), median of %d runs\n", o.repeat);
+  std::printf("case,memory,seconds,mpts_s,peak_rss_mib,peak_rss_over_budget,chunks,largest_chunk_points,blob_bytes,"
+              "archive_bytes,blobs_fnv\n");
+  int status = 0;
+  for (const Case& c : cases) {
+    const std::string in = o.tmp + "/relief-bench-dense-" + c.name + ".ply";
+    std::fprintf(stderr, "generating %s -> %s\n", c.name, in.c_str());
+    const std::vector<float> xyz = c.points == 12'000'000 ? scanner_scene(c.points, o.seed) : surface_scene(c.points, o.seed);
+    if (!write_xyz_ply(in, xyz)) {
+      std::fprintf(stderr, "error: cannot write %s\n", in.c_str());
+      return 1;
+    }
+    std::uint64_t first_hash = 0;
+    for (const std::string& memory : o.budgets) {
+      std::vector<double> secs;
+      long rss = 0;
+      Blobs b;
+      std::uintmax_t archive_bytes = 0;
+      for (int r = 0; r < o.repeat; ++r) {
+        const std::string out = o.tmp + "/relief-bench-dense.relief";
+        fs::remove(out);
+        std::vector<std::string> argv = {o.cli, "compress", in, "-o", out, "--tolerance", "0.001", "--memory", memory,
+                                         "--threads", "2", "--quiet"};
+        argv.insert(argv.end(), c.extra.begin(), c.extra.end());
+        const ChildRun run = run_child(argv);
+        if (run.code != 0) {
+          std::fprintf(stderr, "error: relief compress exited with %d (%s, --memory %s)\n", run.code, c.name,
+                       memory.c_str());
+          status = 1;
+          break;
+        }
+        secs.push_back(run.seconds);
+        rss = std::max(rss, run.peak_rss_kib);
+        if (r == 0) {
+          b = blobs_of(out);
+          archive_bytes = fs::file_size(out);
+        }
+        fs::remove(out);
+      }
+      if (secs.empty()) continue;
+      if (first_hash == 0) first_hash = b.hash;
+      const double s = median(secs);
+      const double budget_mib = std::strtod(memory.c_str(), nullptr) * (memory.back() == 'G' ? 1024.0 : 1.0);
+      std::printf("%s,%s,%.2f,%.2f,%ld,%.2f,%llu,%llu,%llu,%llu,%016llx%s\n", c.name, memory.c_str(), s,
+                  static_cast<double>(c.points) / s / 1e6, rss / 1024, static_cast<double>(rss) / 1024.0 / budget_mib,
+                  static_cast<unsigned long long>(b.chunks), static_cast<unsigned long long>(b.largest),
+                  static_cast<unsigned long long>(b.bytes), static_cast<unsigned long long>(archive_bytes),
+                  static_cast<unsigned long long>(b.hash), b.hash == first_hash ? "" : " BLOBS DIFFER");
+      if (b.hash != first_hash) status = 1;
+      std::fflush(stdout);
+    }
+    fs::remove(in);
+  }
+  return status;
+}
+
+}  // namespace relief::bench

@@ -1,0 +1,24 @@
+// bench/ingest --dense: `relief compress` of inputs whose chunks are dense (a
+// terrestrial scan's chunks beside the scanner, one chunk much larger than
+// the memory budget's share) at several --memory budgets: wall time, peak
+// RSS and the blobs, which must not change with the budget.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace relief::bench {
+
+struct DenseOptions {
+  int repeat = 3;
+  std::string tmp = "/tmp";
+  std::string cli;  // the relief binary (--cli: another build, to compare)
+  std::vector<std::string> budgets = {"128M", "256M", "1G"};
+  std::uint64_t seed = 1;
+};
+
+// Runs the measurements and prints the table; returns the exit code.
+int run_dense(const DenseOptions& options);
+
+}  // namespace relief::bench
