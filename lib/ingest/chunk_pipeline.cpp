@@ -110,6 +110,7 @@ void ChunkPipeline::submit(std::vector<ChunkTask> tasks, std::shared_ptr<const v
 void ChunkPipeline::work() {
   for (;;) {
     Item item;
+    std::uint64_t item_bytes = 0;  // its memory estimate
     {
       std::unique_lock<std::mutex> lock(mu_);
       work_cv_.wait(lock, [&] { return stop_ || may_start(); });
@@ -117,9 +118,9 @@ void ChunkPipeline::work() {
       item = std::move(queue_.front());
       queue_.pop_front();
       ++running_;
-      running_bytes_ += estimate(item.task);
+      item_bytes = estimate(item.task);
+      running_bytes_ += item_bytes;
     }
-    const std::uint64_t item_bytes = estimate(item.task);
     ChunkRow row;
     // After Ctrl-C the remaining tasks are skipped; wait() reports it.
     const bool skip = cancel_ != nullptr && cancel_->load();
