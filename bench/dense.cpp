@@ -1,6 +1,7 @@
 #include "dense.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -33,39 +34,43 @@ bool write_xyz_ply(const std::string& path, const std::vector<float>& xyz) {
   return std::fclose(f) == 0 && ok;
 }
 
-// A terrestrial scan of flat ground from 1.5 m: uniform in azimuth and in the
-// cosine of the angle below the horizon, so the density falls as 1/r^2 and
-// the chunks beside the scanner hold ~1.7 M points each at 12 M.
-std::vector<float> scanner_scene(std::uint64_t points, std::uint64_t seed) {
+// `points` points of float x y z, point i from `point(rng)`.
+template <typename Point>
+std::vector<float> generate(std::uint64_t points, std::uint64_t seed, Point&& point) {
   std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::normal_distribution<double> noise(0.0, 0.003);
   std::vector<float> xyz(3 * points);
   for (std::uint64_t i = 0; i < points; ++i) {
-    const double az = u(rng) * 2 * M_PI;
-    const double below = std::clamp(std::acos(u(rng) * 0.999), 0.015, 1.5);
-    const double r = 1.5 / std::sin(below);
-    const double x = r * std::cos(az), y = r * std::sin(az);
+    const auto [x, y, z] = point(rng);
     xyz[3 * i] = static_cast<float>(x);
     xyz[3 * i + 1] = static_cast<float>(y);
-    xyz[3 * i + 2] = static_cast<float>(-1.5 + noise(rng) + 0.05 * std::sin(x));
+    xyz[3 * i + 2] = static_cast<float>(z);
   }
   return xyz;
 }
 
+// A terrestrial scan of flat ground from 1.5 m: uniform in azimuth and in the
+// cosine of the angle below the horizon, so the density falls as 1/r^2 and
+// the chunks beside the scanner hold ~1.7 M points each at 12 M.
+std::vector<float> scanner_scene(std::uint64_t points, std::uint64_t seed) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.003);
+  return generate(points, seed, [&](std::mt19937_64& rng) {
+    const double az = u(rng) * 2 * M_PI;
+    const double below = std::clamp(std::acos(u(rng) * 0.999), 0.015, 1.5);
+    const double r = 1.5 / std::sin(below);
+    const double x = r * std::cos(az), y = r * std::sin(az);
+    return std::array<double, 3>{x, y, -1.5 + noise(rng) + 0.05 * std::sin(x)};
+  });
+}
+
 // A wavy 10 x 10 m surface: with --chunk-edge 100 one chunk of every point.
 std::vector<float> surface_scene(std::uint64_t points, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 10.0);
   std::normal_distribution<double> noise(0.0, 0.002);
-  std::vector<float> xyz(3 * points);
-  for (std::uint64_t i = 0; i < points; ++i) {
+  return generate(points, seed, [&](std::mt19937_64& rng) {
     const double x = u(rng), y = u(rng);
-    xyz[3 * i] = static_cast<float>(x);
-    xyz[3 * i + 1] = static_cast<float>(y);
-    xyz[3 * i + 2] = static_cast<float>(std::sin(x) * 0.5 + std::cos(y) * 0.3 + noise(rng));
-  }
-  return xyz;
+    return std::array<double, 3>{x, y, std::sin(x) * 0.5 + std::cos(y) * 0.3 + noise(rng)};
+  });
 }
 
 struct Blobs {
