@@ -60,6 +60,15 @@ void retain_freed_memory() {
   // thread arena's heap) are still mapped and unmapped one by one.
   (void)::mallopt(M_MMAP_THRESHOLD, 32 << 20);
   (void)::mallopt(M_TRIM_THRESHOLD, 256 << 20);
+  // One arena for every thread. A worker thread's own arena grows by 64 MiB
+  // heaps and unmaps a heap as soon as it is wholly free, whatever the trim
+  // threshold, so each large chunk an encoder took faulted its memory in
+  // again; and what one thread's arena kept, another could not reuse. The
+  // encoders allocate a few dozen blocks a chunk, so the shared lock costs
+  // nothing measurable (10 M-point survey, 2 threads: 251,717 page faults,
+  // 2.3 s system time, 740 MiB -> 163,191, 1.5 s, 572 MiB, 11 % less wall
+  // time; a 4 M-point input in 500 k-point chunks: 25 % less).
+  (void)::mallopt(M_ARENA_MAX, 1);
 #endif
 }
 

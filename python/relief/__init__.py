@@ -614,7 +614,8 @@ def retain_freed_memory():
     freed and the next chunk faults in fresh zeroed pages, which on some
     machines is a third of decoding a whole archive. It is a setting of the
     whole process (glibc ``mallopt``: mmap threshold 32 MiB, trim threshold
-    256 MiB; memory freed after the peak then stays with the process), so
+    256 MiB, one arena for every thread; memory freed after the peak then
+    stays with the process), so
     importing relief does not make it: call it once in a program that reads
     or writes many chunks. Does nothing without glibc.
     """

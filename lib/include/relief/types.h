@@ -281,8 +281,10 @@ struct PointCloud {
 // thresholds), so the next chunk's buffers fault in fresh zeroed pages: on
 // this project's 2-core VM that was a third of a whole-archive decode's time.
 // This keeps freed blocks up to 32 MiB in the allocator for reuse (glibc
-// mallopt M_MMAP_THRESHOLD 32 MiB, M_TRIM_THRESHOLD 256 MiB). Peak memory is
-// unchanged; memory freed after the peak stays with the process until it
+// mallopt M_MMAP_THRESHOLD 32 MiB, M_TRIM_THRESHOLD 256 MiB), and has every
+// thread allocate from one arena (M_ARENA_MAX 1: a thread's own arena unmaps
+// its extra heaps whenever they empty, and keeps memory other threads cannot
+// reuse). Peak memory is lower; memory freed after the peak stays with the process until it
 // ends or the ingest's own trimming returns it. Global to the process, which
 // is why the library never calls it itself: a host program (Python, say)
 // decides. A no-op without glibc.
