@@ -14,6 +14,9 @@
 #include <malloc.h>
 #endif
 
+// A block of a few MB, below the mmap threshold retain_freed_memory sets.
+constexpr std::size_t kBytes = 8u << 20;
+
 // relief::retain_freed_memory(): a freed block of a few MB stays in the
 // allocator (free bytes of the arena) instead of going back to the kernel,
 // so the next chunk's buffers reuse its pages.
@@ -24,7 +27,6 @@ TEST_CASE("retain_freed_memory keeps a freed 8 MB block in the allocator", "[mem
   relief::test::note_skipped();
 #else
   relief::retain_freed_memory();
-  constexpr std::size_t kBytes = 8u << 20;
   void* p = std::malloc(kBytes);
   REQUIRE(p != nullptr);
   std::memset(p, 1, kBytes);
@@ -47,7 +49,6 @@ TEST_CASE("retain_freed_memory has threads share one malloc arena", "[memory]") 
   relief::test::note_skipped();
 #else
   relief::retain_freed_memory();
-  constexpr std::size_t kBytes = 8u << 20;
   std::mutex mu;
   std::condition_variable cv;
   bool freed = false, done = false;
