@@ -57,37 +57,6 @@ PointCloud shuffled(const PointCloud& in, std::uint64_t seed) {
 
 PointCloud decode_all(const std::string& path) { return test::decode_archive(path); }
 
-// Every blob of an archive, keyed by voxel and content (seq may differ).
-std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> blobs(
-    const std::string& path) {
-  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
-  REQUIRE(archive.is_ok());
-  auto refs = (*archive)->all_chunks();
-  REQUIRE(refs.is_ok());
-  std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> out;
-  for (const ChunkRef& ref : *refs) {
-    auto row = (*archive)->read_chunk(ref.id);
-    REQUIRE(row.is_ok());
-    out.emplace(std::make_tuple(ref.key.ix, ref.key.iy, ref.key.iz), row->blob);
-  }
-  // Sort the blobs of one voxel by content, so split parts compare as sets.
-  std::multimap<std::tuple<std::int64_t, std::int64_t, std::int64_t>, std::vector<std::uint8_t>> sorted;
-  for (auto it = out.begin(); it != out.end();) {
-    auto range = out.equal_range(it->first);
-    std::vector<std::vector<std::uint8_t>> v;
-    for (auto j = range.first; j != range.second; ++j) v.push_back(j->second);
-    // (Compared as string views: GCC 12 with LTO warns, wrongly, about the
-    // memcmp of vector<uint8_t>'s operator< inside std::sort.)
-    const auto bytes = [](const std::vector<std::uint8_t>& b) {
-      return std::string_view(reinterpret_cast<const char*>(b.data()), b.size());
-    };
-    std::sort(v.begin(), v.end(), [&](const auto& a, const auto& b) { return bytes(a) < bytes(b); });
-    for (auto& b : v) sorted.emplace(it->first, std::move(b));
-    it = range.second;
-  }
-  return sorted;
-}
-
 }  // namespace
 
 TEST_CASE("bounded compress: every point back within the tolerance, attributes exact", "[ingest][bounded]") {
@@ -152,8 +121,8 @@ TEST_CASE("bounded compress: the same blobs whatever --memory, --threads and poi
   REQUIRE(b.is_ok());
   CHECK(a->cell_size == b->cell_size);
   CHECK(a->chunk_edge == b->chunk_edge);
-  const auto ba = blobs(dir.file("a.relief"));
-  const auto bb = blobs(dir.file("b.relief"));
+  const auto ba = test::archive_blobs(dir.file("a.relief"));
+  const auto bb = test::archive_blobs(dir.file("b.relief"));
   CHECK(ba.size() > 8);
   CHECK(ba == bb);
   // Parts of split chunks are each below the split size.
@@ -339,7 +308,7 @@ TEST_CASE("bounded compress of an organised PCD: no-depth pixels skipped, fields
   auto b = compress_files({dir.file("same.ply")}, dir.file("ply.relief"), o);
   REQUIRE(b.is_ok());
   // The values, not the file they came from, make the blobs.
-  CHECK(blobs(dir.file("pcd.relief")) == blobs(dir.file("ply.relief")));
+  CHECK(test::archive_blobs(dir.file("pcd.relief")) == test::archive_blobs(dir.file("ply.relief")));
 
   // Every kept pixel comes back once, with its colour and fields exactly.
   auto source = read_point_file(dir.file("same.ply"));
