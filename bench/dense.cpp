@@ -103,15 +103,19 @@ int run_dense(const DenseOptions& o) {
     std::uint64_t points;
     std::vector<std::string> extra;
   };
-  const Case cases[] = {{"scanner-12M", 12'000'000, {}}, {"one-chunk-4M", 4'000'000, {"--chunk-edge", "100"}}};
+  const Case cases[] = {{"scanner-12M", 12'000'000, {}},
+                        {"one-chunk-4M", 4'000'000, {"--chunk-edge", "100"}},
+                        {"one-chunk-16M", 16'000'000, {"--chunk-edge", "100"}}};
   std::printf("# bench/ingest --dense: relief compress --tolerance 0.001 (2 threads), median of %d runs\n", o.repeat);
   std::printf("case,memory,seconds,mpts_s,peak_rss_mib,peak_rss_over_budget,chunks,largest_chunk_points,blob_bytes,"
               "archive_bytes,blobs_fnv\n");
   int status = 0;
   for (const Case& c : cases) {
+    if (!o.cases.empty() && std::find(o.cases.begin(), o.cases.end(), c.name) == o.cases.end()) continue;
     const std::string in = o.tmp + "/relief-bench-dense-" + c.name + ".ply";
     std::fprintf(stderr, "generating %s -> %s\n", c.name, in.c_str());
-    const std::vector<float> xyz = c.points == 12'000'000 ? scanner_scene(c.points, o.seed) : surface_scene(c.points, o.seed);
+    const std::vector<float> xyz =
+        std::string(c.name).rfind("scanner", 0) == 0 ? scanner_scene(c.points, o.seed) : surface_scene(c.points, o.seed);
     if (!write_xyz_ply(in, xyz)) {
       std::fprintf(stderr, "error: cannot write %s\n", in.c_str());
       return 1;

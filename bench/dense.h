@@ -1,6 +1,7 @@
 // bench/ingest --dense: `relief compress` of inputs whose chunks are dense (a
 // terrestrial scan's chunks beside the scanner, one chunk much larger than
-// the memory budget's share) at several --memory budgets: wall time, peak
+// the memory budget's share, one larger than a slice of the 1 GiB default
+// can hold) at several --memory budgets: wall time, peak
 // RSS and the blobs, which must not change with the budget.
 #pragma once
 
@@ -15,6 +16,8 @@ struct DenseOptions {
   std::string tmp = "/tmp";
   std::string cli;  // the relief binary (--cli: another build, to compare)
   std::vector<std::string> budgets = {"128M", "256M", "1G"};
+  // Case names (empty: all): scanner-12M, one-chunk-4M, one-chunk-16M.
+  std::vector<std::string> cases;
   std::uint64_t seed = 1;
 };
 

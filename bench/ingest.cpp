@@ -5,11 +5,11 @@
 //                      [--tmp DIR] [--no-shared] [--no-chunk-sweep]
 //   build/bench/ingest --laz-vs-las [--threads 2] [--repeat 3] [--data DIR]
 //   build/bench/ingest --billion [--sizes 10M,100M[,1G]] [--repeat 3] [--tmp DIR] [--keep DIR]
-//   build/bench/ingest --dense [--memory 128M,256M,1G] [--repeat 3] [--tmp DIR] [--cli RELIEF]
+//   build/bench/ingest --dense [--memory 128M,256M,1G] [--cases A,B] [--repeat 3] [--tmp DIR] [--cli RELIEF]
 //
 // --dense compresses a generated terrestrial scan (chunks of 1.7 M points
-// beside the scanner) and a 4 M-point single chunk at each budget
-// (bench/dense.h); --cli runs another build of relief, to compare.
+// beside the scanner) and single chunks of 4 M and 16 M points at each budget
+// (bench/dense.h); --cases picks some; --cli runs another build of relief, to compare.
 //
 // --billion feeds `relief compress` a generated aerial survey (bench/scene.h)
 // through a named pipe, at a fixed density so the extent grows with the
@@ -63,6 +63,7 @@ struct Options {
   std::string keep;  // --billion --keep DIR: keep each size's archive there
   bool dense = false;
   std::string memory_text;  // --dense --memory 128M,256M,1G
+  std::string cases_text;   // --dense --cases scanner-12M,one-chunk-4M
   std::string sizes_text;  // --sizes as given (--billion reads it with suffixes)
   bool repeat_given = false;
 };
@@ -291,6 +292,8 @@ int main(int argc, char** argv) {
       o.dense = true;
     } else if (a == "--memory") {
       o.memory_text = value();
+    } else if (a == "--cases") {
+      o.cases_text = value();
     } else if (a == "--cli") {
       o.cli = value();
     } else {
@@ -299,7 +302,7 @@ int main(int argc, char** argv) {
                    "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n"
                    "       ingest --laz-vs-las [--threads 2] [--repeat N] [--data DIR] [--tmp DIR]\n"
                    "       ingest --billion [--sizes 10M,100M[,1G]] [--repeat N] [--tmp DIR] [--keep DIR]\n"
-                   "       ingest --dense [--memory 128M,256M,1G] [--repeat N] [--tmp DIR] [--cli RELIEF]\n");
+                   "       ingest --dense [--memory 128M,256M,1G] [--cases A,B] [--repeat N] [--tmp DIR] [--cli RELIEF]\n");
       return a == "--help" ? 0 : 2;
     }
   }
@@ -309,18 +312,21 @@ int main(int argc, char** argv) {
   }
   if (o.dense) {
     relief::bench::DenseOptions d;
-    if (!o.memory_text.empty()) {
-      d.budgets.clear();
+    const auto split_list = [](const std::string& text) {
+      std::vector<std::string> items;
       std::string item;
-      for (char ch : o.memory_text + ",") {
+      for (char ch : text + ",") {
         if (ch != ',') {
           item += ch;
         } else if (!item.empty()) {
-          d.budgets.push_back(item);
+          items.push_back(item);
           item.clear();
         }
       }
-    }
+      return items;
+    };
+    if (!o.memory_text.empty()) d.budgets = split_list(o.memory_text);
+    d.cases = split_list(o.cases_text);
     if (o.repeat_given) d.repeat = o.repeat;
     d.tmp = o.tmp;
     d.cli = o.cli;

@@ -168,6 +168,7 @@ Result<BucketFiles> BucketFiles::create(const std::string& parent, std::uint32_t
   }
   b.dir_ = templ.data();
   b.grid_ = grid;
+  b.step_ = grid.chunk_edge / kScale;
   b.colors_ = colors;
   b.intensity_ = intensity;
   b.las_ = las_attributes;
@@ -222,6 +223,8 @@ BucketFiles& BucketFiles::operator=(BucketFiles&& o) noexcept {
     staging_target_ = o.staging_target_;
     direct_ = o.direct_;
     grid_ = o.grid_;
+    step_ = o.step_;
+    explicit_buckets_ = o.explicit_buckets_;
     colors_ = o.colors_;
     intensity_ = o.intensity_;
     las_ = o.las_;
@@ -255,6 +258,32 @@ std::uint32_t BucketFiles::bucket_of(const ChunkKey& key) const {
   return static_cast<std::uint32_t>(h % files_.size());
 }
 
+Result<std::uint8_t*> BucketFiles::stage_block(std::uint32_t bucket, std::size_t size) {
+  if (staged_[bucket] + size > staging_target_) RELIEF_RETURN_IF_ERROR(flush(bucket, false));
+  AlignedBuffer& buf = staging_[bucket];
+  buf.reserve(std::max(staging_target_, staged_[bucket] + size), staged_[bucket]);
+  std::uint8_t* h = buf.data() + staged_[bucket];
+  staged_[bucket] += size;
+  bytes_[bucket] += size;
+  return h;
+}
+
+// A block larger than a bucket's staging share (a batch falling into few
+// chunks, as scan-ordered inputs do) grew that bucket's buffer: write it out
+// now and give the memory back. Otherwise every bucket would keep the largest
+// block it ever received, and the staging memory would grow with the input
+// (872 buckets x ~9 MB on a 1 G-point aerial scan) instead of staying at its
+// share of the budget plus one batch.
+Status BucketFiles::shrink_staging(std::uint32_t bucket) {
+  if (staging_[bucket].capacity() <= staging_target_) return Status::ok();
+  RELIEF_RETURN_IF_ERROR(flush(bucket, false));
+  AlignedBuffer fresh;
+  fresh.reserve(staging_target_, 0);
+  std::memcpy(fresh.data(), staging_[bucket].data(), staged_[bucket]);  // under one page
+  staging_[bucket] = std::move(fresh);
+  return Status::ok();
+}
+
 Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
   const std::size_t n = points.size();
   if (n == 0) return Status::ok();
@@ -279,10 +308,7 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
     std::uint32_t block_points = 0;
     while (j < chunks && by_bucket[j].first == bucket) block_points += chunk_counts_[by_bucket[j++].second];
     const std::size_t size = kBlockHeader + (j - i) * kChunkEntry + static_cast<std::size_t>(block_points) * record_;
-    if (staged_[bucket] + size > staging_target_) RELIEF_RETURN_IF_ERROR(flush(bucket, false));
-    AlignedBuffer& buf = staging_[bucket];
-    buf.reserve(std::max(staging_target_, staged_[bucket] + size), staged_[bucket]);
-    std::uint8_t* h = buf.data() + staged_[bucket];
+    RELIEF_ASSIGN_OR_RETURN(std::uint8_t* const h, stage_block(bucket, size));
     put_u32(h, block_points);
     put_u32(h + 4, static_cast<std::uint32_t>(j - i));
     std::uint8_t* rec = h + kBlockHeader + (j - i) * kChunkEntry;
@@ -296,9 +322,7 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
       chunk_cursor_[id] = rec;
       rec += static_cast<std::size_t>(chunk_counts_[id]) * record_;
     }
-    staged_[bucket] += size;
     counts_[bucket] += block_points;
-    bytes_[bucket] += size;
     i = j;
   }
   // Records, each to its chunk's next slot.
@@ -325,23 +349,32 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
     }
     if (las_ != 0) put_las_record(r + off, points.las, i, las_);
   }
-  // A block larger than a bucket's staging share (a batch falling into few
-  // chunks, as scan-ordered inputs do) grew that bucket's buffer: write it out
-  // now and give the memory back. Otherwise every bucket would keep the
-  // largest block it ever received, and the staging memory would grow with
-  // the input (872 buckets x ~9 MB on a 1 G-point aerial scan) instead of
-  // staying at its share of the budget plus one batch.
   for (std::size_t i = 0; i < chunks; ++i) {
     const std::uint32_t bucket = by_bucket[i].first;
     if (i > 0 && by_bucket[i - 1].first == bucket) continue;
-    if (staging_[bucket].capacity() <= staging_target_) continue;
-    RELIEF_RETURN_IF_ERROR(flush(bucket, false));
-    AlignedBuffer fresh;
-    fresh.reserve(staging_target_, 0);
-    std::memcpy(fresh.data(), staging_[bucket].data(), staged_[bucket]);  // under one page
-    staging_[bucket] = std::move(fresh);
+    RELIEF_RETURN_IF_ERROR(shrink_staging(bucket));
   }
   return Status::ok();
+}
+
+Status BucketFiles::append_block(std::uint32_t bucket, const std::vector<std::pair<ChunkKey, std::uint32_t>>& runs,
+                                 const std::uint8_t* records, std::uint32_t points) {
+  if (runs.empty()) return Status::ok();
+  const std::size_t size = kBlockHeader + runs.size() * kChunkEntry + static_cast<std::size_t>(points) * record_;
+  RELIEF_ASSIGN_OR_RETURN(std::uint8_t* const h, stage_block(bucket, size));
+  put_u32(h, points);
+  put_u32(h + 4, static_cast<std::uint32_t>(runs.size()));
+  std::uint8_t* e = h + kBlockHeader;
+  for (const auto& [key, count] : runs) {
+    put_i64(e, key.ix);
+    put_i64(e + 8, key.iy);
+    put_i64(e + 16, key.iz);
+    put_u32(e + 24, count);
+    e += kChunkEntry;
+  }
+  std::memcpy(e, records, static_cast<std::size_t>(points) * record_);
+  counts_[bucket] += points;
+  return shrink_staging(bucket);
 }
 
 std::size_t BucketFiles::staging_capacity() const {
@@ -403,6 +436,62 @@ Status BucketFiles::read_range(std::uint32_t bucket, std::uint64_t from, std::si
   return Status::ok();
 }
 
+Vec3d BucketFiles::position(const Vec3d& cube_min, const std::uint8_t* r) const {
+  return {cube_min.x + (get_u32(r) + 0.5) * step_, cube_min.y + (get_u32(r + 4) + 0.5) * step_,
+          cube_min.z + (get_u32(r + 8) + 0.5) * step_};
+}
+
+Status BucketFiles::peek_block(std::uint32_t bucket, std::uint64_t offset, AlignedBuffer& buf, Window& w,
+                               Block& block, std::uint64_t max_points) const {
+  const auto damaged = [&](const std::string& what) {
+    return corrupt_data(paths_[bucket] + ": temporary file damaged at byte " + std::to_string(offset) + ": " + what);
+  };
+  // Windows of at least kWindow bytes: blocks are often small.
+  constexpr std::size_t kWindow = 2u << 20;
+  const auto load = [&](std::uint64_t from, std::size_t n) -> Status {
+    const std::uint64_t end = std::min<std::uint64_t>(bytes_[bucket], from + std::max(n, kWindow));
+    RELIEF_RETURN_IF_ERROR(read_range(bucket, from, static_cast<std::size_t>(end - from), buf));
+    w = {from, end, static_cast<std::size_t>(from % AlignedBuffer::kAlign)};
+    return Status::ok();
+  };
+  const auto view = [&](std::uint64_t at) { return buf.data() + w.skip + (at - w.from); };
+  if (bytes_[bucket] - offset < kBlockHeader) return damaged("truncated block header");
+  if (offset < w.from || offset + kBlockHeader > w.to) RELIEF_RETURN_IF_ERROR(load(offset, kBlockHeader));
+  block.points = get_u32(view(offset));
+  block.chunks = get_u32(view(offset) + 4);
+  block.entries = nullptr;
+  if (block.points > max_points) return Status::ok();
+  block.size = kBlockHeader + static_cast<std::uint64_t>(block.chunks) * kChunkEntry +
+               static_cast<std::uint64_t>(block.points) * record_;
+  if (block.chunks == 0 || block.chunks > block.points || block.size > bytes_[bucket] - offset) {
+    return damaged("block overruns the file");
+  }
+  if (offset + block.size > w.to) RELIEF_RETURN_IF_ERROR(load(offset, static_cast<std::size_t>(block.size)));
+  block.entries = view(offset) + kBlockHeader;
+  return Status::ok();
+}
+
+Status BucketFiles::each_run(std::uint32_t bucket, std::uint64_t offset, const Block& block,
+                             const std::function<void(const ChunkKey&, std::uint32_t, const std::uint8_t*)>& fn) const {
+  const auto damaged = [&](const std::string& what) {
+    return corrupt_data(paths_[bucket] + ": temporary file damaged at byte " + std::to_string(offset) + ": " + what);
+  };
+  const std::uint8_t* r = block.entries + static_cast<std::size_t>(block.chunks) * kChunkEntry;
+  std::uint64_t listed = 0;
+  for (std::uint32_t c = 0; c < block.chunks; ++c) {
+    const std::uint8_t* e = block.entries + static_cast<std::size_t>(c) * kChunkEntry;
+    const ChunkKey key{get_i64(e), get_i64(e + 8), get_i64(e + 16)};
+    const std::uint32_t count = get_u32(e + 24);
+    listed += count;
+    if (listed > block.points) return damaged("chunk counts exceed the block's points");
+    if (!explicit_buckets_ && bucket_of(key) != bucket) return damaged("a chunk in the wrong bucket");
+    fn(key, count, r);
+    r += static_cast<std::size_t>(count) * record_;
+  }
+  if (listed != block.points) return damaged("chunk counts do not add up to the block's points");
+  return Status::ok();
+}
+
 Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std::uint64_t max_points,
                                PointCloud& out, Grouping& g, AlignedBuffer& buf) const {
   out.clear_points();
@@ -413,55 +502,26 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
   out.reserve(cap, colors_, intensity_);
   if (las_ != 0) reserve_las(out.las, cap, las_, extra_size_);
   g.ids.reserve(cap);
-  const std::string& path = paths_[bucket];
-  const auto damaged = [&](const std::string& what) {
-    return corrupt_data(path + ": temporary file damaged at byte " + std::to_string(*offset) + ": " + what);
-  };
-  const double step = grid_.chunk_edge / kScale;
-  // A window of file bytes [win_from, win_to) in buf at win_skip.
-  constexpr std::size_t kWindow = 2u << 20;
-  std::uint64_t win_from = 0, win_to = 0;
-  std::size_t win_skip = 0;
-  const auto load = [&](std::uint64_t from, std::size_t n) -> Status {
-    const std::uint64_t end = std::min<std::uint64_t>(bytes_[bucket], from + std::max(n, kWindow));
-    RELIEF_RETURN_IF_ERROR(read_range(bucket, from, static_cast<std::size_t>(end - from), buf));
-    win_from = from;
-    win_to = end;
-    win_skip = static_cast<std::size_t>(from % AlignedBuffer::kAlign);
-    return Status::ok();
-  };
-  const auto view = [&](std::uint64_t at) { return buf.data() + win_skip + (at - win_from); };
+  Window w;
+  Block block;
   while (*offset < bytes_[bucket]) {
-    if (bytes_[bucket] - *offset < kBlockHeader) return damaged("truncated block header");
-    if (*offset < win_from || *offset + kBlockHeader > win_to) RELIEF_RETURN_IF_ERROR(load(*offset, kBlockHeader));
-    const std::uint32_t points = get_u32(view(*offset));
-    const std::uint32_t chunks = get_u32(view(*offset) + 4);
-    if (!out.empty() && out.size() + points > max_points) break;
-    const std::uint64_t size = kBlockHeader + static_cast<std::uint64_t>(chunks) * kChunkEntry +
-                               static_cast<std::uint64_t>(points) * record_;
-    if (chunks == 0 || chunks > points || size > bytes_[bucket] - *offset) return damaged("block overruns the file");
-    if (*offset + size > win_to) RELIEF_RETURN_IF_ERROR(load(*offset, static_cast<std::size_t>(size)));
-    const std::uint8_t* block = view(*offset) + kBlockHeader;
+    // At least one block, then whole blocks while they fit.
+    const std::uint64_t room = out.empty() ? ~std::uint64_t{0} : max_points - std::min<std::uint64_t>(max_points, out.size());
+    RELIEF_RETURN_IF_ERROR(peek_block(bucket, *offset, buf, w, block, room));
+    if (block.entries == nullptr) break;
     const std::size_t at = out.size();
+    const std::size_t points = block.points;
     out.positions.resize(at + points);
     if (colors_) out.colors.resize(at + points);
     if (intensity_) out.intensities.resize(at + points);
     if (las_ != 0) resize_las(out.las, at + points, las_, extra_size_);
-    const std::uint8_t* r = block + static_cast<std::size_t>(chunks) * kChunkEntry;
     std::size_t k = at;
-    std::uint64_t listed = 0;
-    for (std::uint32_t c = 0; c < chunks; ++c) {
-      const std::uint8_t* e = block + static_cast<std::size_t>(c) * kChunkEntry;
-      const ChunkKey key{get_i64(e), get_i64(e + 8), get_i64(e + 16)};
-      const std::uint32_t count = get_u32(e + 24);
-      listed += count;
-      if (listed > points) return damaged("chunk counts exceed the block's points");
-      if (bucket_of(key) != bucket) return damaged("a chunk in the wrong bucket");
+    RELIEF_RETURN_IF_ERROR(each_run(bucket, *offset, block, [&](const ChunkKey& key, std::uint32_t count,
+                                                                 const std::uint8_t* r) {
       g.add_run(key, count);
-      const Box3d cube = grid_.chunk_box(key);
+      const Vec3d lo = grid_.chunk_box(key).min;
       for (std::uint32_t i = 0; i < count; ++i, ++k, r += record_) {
-        out.positions[k] = {cube.min.x + (get_u32(r) + 0.5) * step, cube.min.y + (get_u32(r + 4) + 0.5) * step,
-                            cube.min.z + (get_u32(r + 8) + 0.5) * step};
+        out.positions[k] = position(lo, r);
         std::size_t off = 12;
         if (colors_) {
           out.colors[k] = {r[off], r[off + 1], r[off + 2]};
@@ -473,9 +533,23 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
         }
         if (las_ != 0) get_las_record(r + off, out.las, k, las_);
       }
-    }
-    if (listed != points) return damaged("chunk counts do not add up to the block's points");
-    *offset += size;
+    }));
+    *offset += block.size;
+  }
+  return Status::ok();
+}
+
+Status BucketFiles::scan(std::uint32_t bucket, AlignedBuffer& buf, const RunVisitor& visit) const {
+  Window w;
+  Block block;
+  Status status = Status::ok();
+  for (std::uint64_t offset = 0; offset < bytes_[bucket]; offset += block.size) {
+    RELIEF_RETURN_IF_ERROR(peek_block(bucket, offset, buf, w, block, ~std::uint64_t{0}));
+    RELIEF_RETURN_IF_ERROR(each_run(bucket, offset, block, [&](const ChunkKey& key, std::uint32_t count,
+                                                                const std::uint8_t* r) {
+      if (status.is_ok()) status = visit(key, grid_.chunk_box(key).min, r, count);
+    }));
+    RELIEF_RETURN_IF_ERROR(status);
   }
   return Status::ok();
 }

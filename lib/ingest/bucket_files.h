@@ -22,7 +22,9 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ingest/ingest_common.h"
@@ -86,6 +88,24 @@ class BucketFiles {
   // Advances `*offset`; the bucket is done when it reaches bucket_bytes().
   Status read_slice(std::uint32_t bucket, std::uint64_t* offset, std::uint64_t max_points, PointCloud& out,
                     Grouping& g, AlignedBuffer& buf) const;
+
+  // The raw records, for passes that only route points (bucket_split.h):
+  // visit(key, cube_min, records, count) for every chunk run of every block
+  // of the bucket, in file order. record_bytes() apart; position() decodes a
+  // record's x y z exactly as read_slice does.
+  using RunVisitor =
+      std::function<Status(const ChunkKey& key, const Vec3d& cube_min, const std::uint8_t* records, std::uint32_t n)>;
+  Status scan(std::uint32_t bucket, AlignedBuffer& buf, const RunVisitor& visit) const;
+  std::size_t record_bytes() const { return record_; }
+  Vec3d position(const Vec3d& cube_min, const std::uint8_t* record) const;
+  // Appends one block of raw records (runs: chunk key and record count, the
+  // records in that order) to a bucket. The records keep their fixed-point
+  // positions, so a point read back is the same double as where it came from.
+  Status append_block(std::uint32_t bucket, const std::vector<std::pair<ChunkKey, std::uint32_t>>& runs,
+                      const std::uint8_t* records, std::uint32_t points);
+  // Buckets chosen by the caller (append_block), not by the keys' hash:
+  // read_slice then accepts any key in any bucket.
+  void set_explicit_buckets() { explicit_buckets_ = true; }
   std::uint64_t bucket_bytes(std::uint32_t bucket) const { return bytes_[bucket]; }
   // Deletes one bucket's file early (frees disk as the ingest proceeds).
   void discard(std::uint32_t bucket);
@@ -103,6 +123,31 @@ class BucketFiles {
   // Reads file bytes [from, from + n) into buf, which then holds them at
   // offset `from % kAlign`.
   Status read_range(std::uint32_t bucket, std::uint64_t from, std::size_t n, AlignedBuffer& buf) const;
+  // Room for a block of `size` bytes at the end of a bucket's staging buffer
+  // (flushing whole pages first when it would overflow its share).
+  Result<std::uint8_t*> stage_block(std::uint32_t bucket, std::size_t size);
+  // A window of a bucket file's bytes, and the next block in it.
+  struct Window {
+    std::uint64_t from = 0, to = 0;
+    std::size_t skip = 0;
+  };
+  struct Block {
+    std::uint32_t points = 0, chunks = 0;
+    std::uint64_t size = 0;
+    const std::uint8_t* entries = nullptr;  // chunks x kChunkEntry bytes, then the records
+  };
+  // Reads the block at *offset into the window (`max_points`: stop, with
+  // block.points set and nothing loaded, when the block holds more than
+  // that), checking its header against the file. Advances nothing.
+  Status peek_block(std::uint32_t bucket, std::uint64_t offset, AlignedBuffer& buf, Window& w, Block& block,
+                    std::uint64_t max_points) const;
+  // Checks a loaded block's chunk entries and calls fn(key, count, records)
+  // for each run.
+  Status each_run(std::uint32_t bucket, std::uint64_t offset, const Block& block,
+                  const std::function<void(const ChunkKey&, std::uint32_t, const std::uint8_t*)>& fn) const;
+  // Writes out a staging buffer that a large block grew past its share and
+  // gives the memory back.
+  Status shrink_staging(std::uint32_t bucket);
 
   std::string dir_;
   std::vector<std::string> paths_;
@@ -114,12 +159,14 @@ class BucketFiles {
   std::vector<std::uint64_t> file_pos_;    // bytes on disk per bucket (page multiple)
   std::size_t staging_target_ = 0;         // flush a bucket's pages at this fill
   bool direct_ = false;
+  bool explicit_buckets_ = false;
   // append() scratch.
   Grouping batch_;  // chunk ids of the batch being appended
   std::vector<Vec3d> chunk_min_;
   std::vector<std::uint32_t> chunk_counts_;
   std::vector<std::uint8_t*> chunk_cursor_;
   ArchiveGrid grid_;
+  double step_ = 0;  // a record's fixed-point unit: chunk edge / 2^32
   bool colors_ = false;
   bool intensity_ = false;
   std::uint32_t las_ = 0;  // LasAttributeBits in every record

@@ -18,6 +18,7 @@
 #include "core/memory.h"
 #include "core/parallel.h"
 #include "ingest/bucket_files.h"
+#include "ingest/bucket_split.h"
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
 #include "ingest/las_columns.h"
@@ -466,33 +467,63 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     // soon as its last chunk is encoded.
     AlignedBuffer read_buffer;  // only this thread reads the bucket files
     std::uint64_t encoding_points = 0;  // points of the slice still encoding
+    // The next slice's tasks go to the workers; at most one slice stays
+    // encoding while the next one loads.
+    const auto encode_slice = [&](std::vector<ChunkTask> tasks, std::shared_ptr<Slice> slice) -> Status {
+      encoding_points = slice->points.size();
+      pipeline->submit(std::move(tasks), std::move(slice));
+      RELIEF_RETURN_IF_ERROR(pipeline->wait(1, tick));
+      // The encoders' scratch follows the chunks' sizes, and the threads'
+      // malloc arenas keep what they freed: resident memory would climb to
+      // the largest chunks' high-water mark and stay there. Given back
+      // whenever the process holds more than the slices' and encoders'
+      // shares (so it costs nothing while memory is plentiful).
+      if (core::resident_bytes() > kTrimAboveThirds * (budget / 3)) core::release_free_memory();
+      return Status::ok();
+    };
+    // A slice of `points` loads alone when it would not fit beside the one
+    // still encoding: that one finishes first, and the pool's idle slices go.
+    const auto make_room = [&](std::uint64_t points) -> Status {
+      if (encoding_points + points <= 2 * slice_points) return Status::ok();
+      RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
+      encoding_points = 0;
+      slices.clear();
+      return Status::ok();
+    };
     for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
-      if (bounded && encoding_points + files.bucket_points(b) > 2 * slice_points) {
-        // A bucket larger than its share of the two slices' third of the
-        // budget (the bounded mode reads buckets whole): the slice still
-        // encoding finishes first, and the pool's idle slices go, so it
-        // loads alone.
-        RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
-        encoding_points = 0;
-        slices.clear();
+      if (bounded && files.bucket_points(b) > 2 * slice_points) {
+        // Too large to read whole (the bounded mode's slices are whole
+        // buckets): its points go to loads of at most a slice, each holding
+        // whole parts of the chunks' octant split (bucket_split.h).
+        BucketSplitOptions split_options;
+        split_options.split_points = task_points;
+        split_options.load_points = slice_points;
+        split_options.tmp_parent = tmp_parent;
+        split_options.staging_bytes = staging_bytes;
+        split_options.colors = in.colors;
+        split_options.intensity = in.intensity;
+        split_options.las_attributes = in.las_attributes;
+        split_options.extra_bytes_size = in.extra_bytes_size;
+        RELIEF_ASSIGN_OR_RETURN(BucketSplit split, BucketSplit::create(files, b, grid, split_options, read_buffer));
+        files.discard(b);
+        for (std::uint32_t load = 0; load < split.load_count(); ++load) {
+          RELIEF_RETURN_IF_ERROR(make_room(split.load_points(load)));
+          std::shared_ptr<Slice> slice = slices.acquire();
+          RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkTask> tasks,
+                                  split.read_load(load, slice->points, slice->grouping, read_buffer));
+          split.discard(load);
+          RELIEF_RETURN_IF_ERROR(encode_slice(std::move(tasks), std::move(slice)));
+        }
+        continue;
       }
+      if (bounded) RELIEF_RETURN_IF_ERROR(make_room(files.bucket_points(b)));
       std::uint64_t offset = 0;
       while (offset < files.bucket_bytes(b)) {
         std::shared_ptr<Slice> slice = slices.acquire();
         RELIEF_RETURN_IF_ERROR(files.read_slice(b, &offset, bounded ? ~std::uint64_t{0} : slice_points, slice->points,
                                                 slice->grouping, read_buffer));
         std::vector<ChunkTask> tasks = make_tasks(slice->points, task_points, slice->grouping, split_grid);
-        encoding_points = slice->points.size();
-        pipeline->submit(std::move(tasks), slice);
-        slice.reset();
-        // At most this slice still encoding while the next one loads.
-        RELIEF_RETURN_IF_ERROR(pipeline->wait(1, tick));
-        // The encoders' scratch follows the chunks' sizes, and the threads'
-        // malloc arenas keep what they freed: resident memory would climb to
-        // the largest chunks' high-water mark and stay there. Given back
-        // whenever the process holds more than the slices' and encoders'
-        // shares (so it costs nothing while memory is plentiful).
-        if (core::resident_bytes() > kTrimAboveThirds * (budget / 3)) core::release_free_memory();
+        RELIEF_RETURN_IF_ERROR(encode_slice(std::move(tasks), std::move(slice)));
       }
       files.discard(b);
     }
@@ -621,8 +652,8 @@ namespace {
 // Splits the points idx[0..n) of a chunk into the octants of the sub-cube
 // (origin, edge) until each part holds at most `limit` points (or the cube is
 // 2^kMaxSplitDepth times smaller than the chunk: identical points). Appends a
-// task per non-empty part.
-constexpr int kMaxSplitDepth = 10;
+// task per non-empty part. bucket_split.cpp routes points to the same parts
+// without loading them: the two must compute the octants alike.
 
 void split_octants(const PointCloud& cloud, std::uint32_t* idx, std::size_t n, const ChunkKey& key, const Vec3d& origin,
                    double edge, int depth, const std::uint32_t sub[3], std::uint64_t limit, std::vector<std::uint32_t>& scratch,

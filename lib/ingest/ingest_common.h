@@ -126,6 +126,9 @@ struct Grouping {
 // `cloud` and `g` must outlive the tasks.
 std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_points, Grouping& g,
                                   const ArchiveGrid* split_grid = nullptr);
+// The deepest octant split (a sub-cube 2^10 times smaller than its chunk
+// holds only points too close to tell apart at any useful tolerance).
+inline constexpr int kMaxSplitDepth = 10;
 
 // The error-bounded mode's split size: `split_points`, or fewer for wide
 // points, so that one chunk's LAS attributes (las_record_bytes of the

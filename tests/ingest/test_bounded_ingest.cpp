@@ -9,6 +9,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <random>
 #include <string_view>
 #include <tuple>
 
@@ -49,8 +50,8 @@ PointCloud shuffled(const PointCloud& in, std::uint64_t seed) {
   PointCloud out;
   for (std::size_t i : perm) {
     out.positions.push_back(in.positions[i]);
-    out.colors.push_back(in.colors[i]);
-    out.intensities.push_back(in.intensities[i]);
+    if (in.has_colors()) out.colors.push_back(in.colors[i]);
+    if (in.has_intensity()) out.intensities.push_back(in.intensities[i]);
   }
   return out;
 }
@@ -131,6 +132,61 @@ TEST_CASE("bounded compress: the same blobs whatever --memory, --threads and poi
   auto refs = (*archive)->all_chunks();
   REQUIRE(refs.is_ok());
   for (const ChunkRef& ref : *refs) CHECK(ref.input_points <= 20000);
+}
+
+TEST_CASE("bounded compress: a chunk larger than the budget's slices is read in loads, with the same blobs",
+          "[ingest][bounded][split]") {
+  TempDir dir;
+  // 800 k points on a 2 x 2 m surface, all in one 4 m chunk. As XYZ text (no
+  // count in a header: the external sort) at the 64 MiB budget, a slice holds
+  // ~286 k points (64 MiB / 6 over 39 bytes a point), so the chunk's bucket
+  // is more than the two slices may hold and is routed to loads of whole
+  // octant parts (ingest/bucket_split.h) instead of being read whole. The
+  // PLY at 1 GiB is split in memory.
+  PointCloud dense;
+  {
+    std::mt19937_64 rng(4);
+    std::uniform_real_distribution<double> u(0.0, 2.0);
+    std::normal_distribution<double> noise(0.0, 0.002);
+    dense.positions.resize(800000);
+    for (Vec3d& p : dense.positions) {
+      p.x = u(rng) * u(rng) / 2 + 0.5 * u(rng);  // denser towards x = 0
+      p.y = u(rng);
+      p.z = 0.3 + 0.2 * std::sin(3 * p.x) + 0.1 * std::cos(2 * p.y) + noise(rng);
+    }
+  }
+  REQUIRE(write_ply(dir.file("in.ply"), dense).is_ok());
+  {
+    auto writer = open_point_writer(dir.file("dense.xyz"), WriterOptions{});
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(shuffled(dense, 5)).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  }
+  IngestOptions o;
+  o.tolerance = 0.001;
+  o.chunk_edge = 4;
+  o.split_points = 1u << 16;  // parts at several depths
+  o.threads = 2;
+  REQUIRE(compress_files({dir.file("in.ply")}, dir.file("a.relief"), o).is_ok());
+  IngestOptions small = o;
+  small.memory_budget = 64u << 20;
+  auto b = compress_files({dir.file("dense.xyz")}, dir.file("b.relief"), small);
+  INFO((b ? std::string() : b.status().to_string()));
+  REQUIRE(b.is_ok());
+  CHECK(b->points_read == 800000);
+  const auto blobs = test::archive_blobs(dir.file("a.relief"));
+  CHECK(blobs.size() > 12);
+  CHECK(blobs == test::archive_blobs(dir.file("b.relief")));
+  auto archive = Archive::open(dir.file("b.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto refs = (*archive)->all_chunks();
+  REQUIRE(refs.is_ok());
+  std::uint64_t points = 0;
+  for (const ChunkRef& ref : *refs) {
+    CHECK(ref.input_points <= (1u << 16));
+    points += ref.input_points;
+  }
+  CHECK(points == 800000);
 }
 
 TEST_CASE("compress: small inputs get small pages, and every chunk's base layer serves lod 16", "[ingest][bounded]") {

@@ -10,10 +10,13 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include "ingest/bucket_files.h"
+#include "ingest/bucket_split.h"
 #include "ingest/ingest_common.h"
 #include "relief/archive.h"
 #include "support/temp_dir.h"
@@ -329,4 +332,115 @@ TEST_CASE("bounded chunks split sooner for wide points, by their attributes alon
   // A smaller requested split wins (tests and tuning), and never 0.
   CHECK(bounded_split_points(1000, kLasExtraBytes, 200) == 1000);
   CHECK(bounded_split_points(0, 0, 0) == 1);
+}
+
+TEST_CASE("a bucket too large to load is cut into loads that give the tasks the whole bucket gives",
+          "[ingest][buckets][split]") {
+  using relief::ingest::BucketSplit;
+  using relief::ingest::BucketSplitOptions;
+  using relief::ingest::ChunkTask;
+  TempDir tmp;
+  ArchiveGrid grid;
+  grid.origin = {484000.25, 6632000.5, -12.0};
+  grid.chunk_edge = 7.5;
+  // Most points in one chunk, denser towards a corner (octants of very
+  // different sizes, so parts end at several depths), some on the octant
+  // mid-planes, 2,500 copies of one point (a
+  // part no split can make smaller), and a few other chunks. (In a bucket a
+  // point is half a fixed-point step above the plane it was on.)
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  PointCloud pts;
+  const auto add = [&](const Vec3d& p) {
+    pts.positions.push_back(p);
+    const auto i = static_cast<std::uint32_t>(pts.positions.size() - 1);
+    pts.colors.push_back({static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(i >> 8), 0});
+    pts.intensities.push_back(static_cast<float>(i));
+  };
+  const Vec3d lo = grid.origin;
+  const double e = grid.chunk_edge;
+  for (int i = 0; i < 50000; ++i) {
+    const double r = u(rng) * u(rng);
+    Vec3d p{lo.x + r * e * u(rng), lo.y + r * e * u(rng), lo.z + e * (0.4 + 0.1 * u(rng))};
+    if (i % 101 == 0) p.x = lo.x + e / 2;
+    if (i % 103 == 0) p.y = lo.y + e / 4;
+    add(p);
+  }
+  for (int i = 0; i < 2500; ++i) add({lo.x + 0.3, lo.y + 0.2, lo.z + 3.1});
+  for (int i = 0; i < 3000; ++i) add({lo.x + (1 + 2 * u(rng)) * e, lo.y - u(rng) * e, lo.z + u(rng)});
+  // Shuffled, as input order is arbitrary.
+  std::vector<std::size_t> perm(pts.size());
+  for (std::size_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  std::shuffle(perm.begin(), perm.end(), rng);
+  PointCloud shuffled;
+  for (const std::size_t i : perm) {
+    shuffled.positions.push_back(pts.positions[i]);
+    shuffled.colors.push_back(pts.colors[i]);
+    shuffled.intensities.push_back(pts.intensities[i]);
+  }
+  auto files = BucketFiles::create(tmp.path().string(), 1, grid, true, true, 1u << 20);
+  REQUIRE(files.is_ok());
+  for (std::size_t first = 0; first < shuffled.size(); first += 7000) {
+    const std::size_t n = std::min<std::size_t>(7000, shuffled.size() - first);
+    PointCloud batch;
+    batch.positions.assign(shuffled.positions.begin() + first, shuffled.positions.begin() + first + n);
+    batch.colors.assign(shuffled.colors.begin() + first, shuffled.colors.begin() + first + n);
+    batch.intensities.assign(shuffled.intensities.begin() + first, shuffled.intensities.begin() + first + n);
+    std::vector<ChunkKey> keys(n);
+    grid.keys_of(batch.positions.data(), n, keys.data());
+    REQUIRE(files->append(batch, keys.data()).is_ok());
+  }
+  REQUIRE(files->finish_writing().is_ok());
+
+  // A task as (key, depth, sub-cube) -> its points' ids, sorted.
+  using TaskId = std::tuple<std::int64_t, std::int64_t, std::int64_t, int, std::uint32_t, std::uint32_t, std::uint32_t>;
+  const auto collect = [](const std::vector<ChunkTask>& tasks, std::map<TaskId, std::vector<float>>& out) {
+    for (const ChunkTask& t : tasks) {
+      std::vector<float> ids;
+      for (std::size_t k = 0; k < t.count; ++k) ids.push_back(t.source->intensities[t.index[k]]);
+      std::sort(ids.begin(), ids.end());
+      const TaskId id{t.key.ix, t.key.iy, t.key.iz, t.split_depth, t.sub[0], t.sub[1], t.sub[2]};
+      CHECK(out.emplace(id, std::move(ids)).second);
+    }
+  };
+  constexpr std::uint64_t kSplit = 2000;
+  AlignedBuffer buf;
+  std::map<TaskId, std::vector<float>> whole;
+  {
+    PointCloud cloud;
+    Grouping g;
+    std::uint64_t offset = 0;
+    REQUIRE(files->read_slice(0, &offset, ~std::uint64_t{0}, cloud, g, buf).is_ok());
+    collect(relief::ingest::make_tasks(cloud, kSplit, g, &grid), whole);
+  }
+  BucketSplitOptions o;
+  o.split_points = kSplit;
+  o.load_points = 7000;
+  o.tmp_parent = tmp.path().string();
+  o.staging_bytes = 1u << 20;
+  o.colors = true;
+  o.intensity = true;
+  auto split = BucketSplit::create(*files, 0, grid, o, buf);
+  REQUIRE(split.is_ok());
+  CHECK(split->load_count() > 8);
+  CHECK(split->passes() >= 4);  // counts, two double levels at least, routing
+  std::map<TaskId, std::vector<float>> loaded;
+  std::uint64_t points = 0;
+  for (std::uint32_t l = 0; l < split->load_count(); ++l) {
+    PointCloud cloud;
+    Grouping g;
+    auto tasks = split->read_load(l, cloud, g, buf);
+    REQUIRE(tasks.is_ok());
+    points += cloud.size();
+    // A load holds whole parts within its size, or one part alone.
+    CHECK((cloud.size() <= o.load_points || tasks->size() == 1));
+    for (const ChunkTask& t : *tasks) {
+      CHECK((t.count <= kSplit || t.split_depth == relief::ingest::kMaxSplitDepth));
+    }
+    collect(*tasks, loaded);
+    split->discard(l);
+  }
+  CHECK(points == pts.size());
+  CHECK(whole.size() > 20);
+  CHECK(loaded == whole);
 }
