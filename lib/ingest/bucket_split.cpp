@@ -35,7 +35,14 @@ std::uint32_t BucketSplit::leaf(const std::vector<Node>& nodes, std::uint32_t ro
 }
 
 Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t bucket, const ArchiveGrid& grid,
-                                        const BucketSplitOptions& o, AlignedBuffer& buf) {
+                                        const BucketSplitOptions& o, AlignedBuffer& buf,
+                                        const std::function<void()>& tick) {
+  std::uint64_t seen = 0;
+  const auto progress = [&](std::uint32_t n) {
+    const std::uint64_t before = seen;
+    seen += n;
+    if (tick && (before >> 16) != (seen >> 16)) tick();
+  };
   std::vector<Node> nodes;
   std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> roots;
   int passes = 0;
@@ -50,6 +57,7 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
       nodes.push_back(root);
     }
     nodes[it->second].count += n;
+    progress(n);
     return Status::ok();
   }));
   ++passes;
@@ -97,6 +105,7 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
         const auto up = static_cast<std::uint32_t>(nodes[l].parent);
         if (up >= first_new) ++nodes[up].count;
       }
+      progress(n);
       return Status::ok();
     });
     RELIEF_RETURN_IF_ERROR(counted);
@@ -170,6 +179,7 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
         q.points = 0;
       }
     }
+    progress(n);
     return Status::ok();
   });
   RELIEF_RETURN_IF_ERROR(routed);

@@ -8,9 +8,10 @@
 // becomes its own blob. Those parts depend on the points alone, so they can
 // be found by streaming: passes over the bucket file count the points per
 // chunk, then per octant of each part still too large, two levels per pass
-// (at most 6 passes; a 16 M-point chunk of a surface split at 2^20 takes
-// three, a 200 M-point one four). A last pass copies every record, byte for byte, into the
-// temporary file of its load: parts packed whole into loads of at most
+// (kMaxSplitDepth / 2 passes at most; a 16 M-point chunk of a 10 m surface in
+// a 100 m chunk takes three, its octants dividing the points only from depth
+// 3 on). A last pass copies every record, byte for byte, into the temporary
+// file of its load: parts packed whole into loads of at most
 // `load_points` points (a part larger than that is a load alone). Each load is
 // then read and encoded as a bucket slice would be, and gives the same tasks,
 // hence the same blobs, as the whole bucket would have given. Internal to
@@ -18,6 +19,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -43,9 +45,11 @@ struct BucketSplitOptions {
 
 class BucketSplit {
  public:
-  // Routes every point of `bucket` to its load; `buf` is scratch.
+  // Routes every point of `bucket` to its load; `buf` is scratch. `tick`
+  // (may be empty) is called every 65,536 points of each pass, for progress.
   static Result<BucketSplit> create(const BucketFiles& files, std::uint32_t bucket, const ArchiveGrid& grid,
-                                    const BucketSplitOptions& options, AlignedBuffer& buf);
+                                    const BucketSplitOptions& options, AlignedBuffer& buf,
+                                    const std::function<void()>& tick = {});
 
   std::uint32_t load_count() const { return static_cast<std::uint32_t>(load_first_part_.size()) - 1; }
   std::uint64_t load_points(std::uint32_t load) const { return loads_.bucket_points(load); }

@@ -45,6 +45,9 @@ constexpr std::uint64_t kGroupBytesPerPoint = 24 + 3 + 4 + 4 + 4;
 // ChunkPipeline admits tasks (plus the LAS record).
 constexpr std::uint64_t kEncodeBytesPerPoint = 128;
 constexpr std::uint32_t kMinBuckets = 4;
+// Write buffers of a bucket split into loads (bucket_split.h): its records
+// are written in blocks of 64 KiB or more, which direct I/O takes as fast.
+constexpr std::size_t kSplitStagingBytes = std::size_t{4} << 20;
 constexpr std::uint32_t kMaxBuckets = 4096;
 // Memory per point of a batch on its way from a reader: the decoded points
 // (31) and their chunk keys (24); the bucket writer's scratch (4). Up to three
@@ -469,8 +472,11 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     std::uint64_t encoding_points = 0;  // points of the slice still encoding
     // The next slice's tasks go to the workers; at most one slice stays
     // encoding while the next one loads.
-    const auto encode_slice = [&](std::vector<ChunkTask> tasks, std::shared_ptr<Slice> slice) -> Status {
-      encoding_points = slice->points.size();
+    // `alone`: nothing loads beside it while it encodes (its points count as
+    // both slices).
+    const auto encode_slice = [&](std::vector<ChunkTask> tasks, std::shared_ptr<Slice> slice,
+                                  bool alone = false) -> Status {
+      encoding_points = alone ? 2 * slice_points : slice->points.size();
       pipeline->submit(std::move(tasks), std::move(slice));
       RELIEF_RETURN_IF_ERROR(pipeline->wait(1, tick));
       // The encoders' scratch follows the chunks' sizes, and the threads'
@@ -495,16 +501,19 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
         // Too large to read whole (the bounded mode's slices are whole
         // buckets): its points go to loads of at most a slice, each holding
         // whole parts of the chunks' octant split (bucket_split.h).
+        // It starts once the slices before it are encoded, as a bucket that
+        // loads alone does: its passes' buffers do not stack on their encoders.
+        RELIEF_RETURN_IF_ERROR(make_room(2 * slice_points + 1));
         BucketSplitOptions split_options;
         split_options.split_points = task_points;
         split_options.load_points = slice_points;
         split_options.tmp_parent = tmp_parent;
-        split_options.staging_bytes = staging_bytes;
+        split_options.staging_bytes = std::min<std::size_t>(staging_bytes, kSplitStagingBytes);
         split_options.colors = in.colors;
         split_options.intensity = in.intensity;
         split_options.las_attributes = in.las_attributes;
         split_options.extra_bytes_size = in.extra_bytes_size;
-        RELIEF_ASSIGN_OR_RETURN(BucketSplit split, BucketSplit::create(files, b, grid, split_options, read_buffer));
+        RELIEF_ASSIGN_OR_RETURN(BucketSplit split, BucketSplit::create(files, b, grid, split_options, read_buffer, tick));
         files.discard(b);
         for (std::uint32_t load = 0; load < split.load_count(); ++load) {
           RELIEF_RETURN_IF_ERROR(make_room(split.load_points(load)));
@@ -512,7 +521,11 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
           RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkTask> tasks,
                                   split.read_load(load, slice->points, slice->grouping, read_buffer));
           split.discard(load);
-          RELIEF_RETURN_IF_ERROR(encode_slice(std::move(tasks), std::move(slice)));
+          // A part larger than a slice is a load of its own, and its
+          // encoder runs alone (EncodeMemory): so does its load, as a bucket
+          // of that size would.
+          const bool alone = split.load_points(load) > slice_points;
+          RELIEF_RETURN_IF_ERROR(encode_slice(std::move(tasks), std::move(slice), alone));
         }
         continue;
       }

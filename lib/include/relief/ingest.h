@@ -125,8 +125,9 @@ struct IngestOptions {
   // When > 0: choose codec.cell_size for this RMSE_SNN (coordinate units) by
   // encoding a sample of the first input at trial cell sizes (choose_cell_for_error).
   double error_target = 0;
-  // Upper bound for the process's working memory (buffers, one bucket, the
-  // encoders' scratch). Peak RSS stays near it whatever the input size.
+  // Upper bound for the process's working memory (buffers, two bucket
+  // slices, the encoders' scratch). Peak RSS stays near it whatever the input
+  // size or density, above a floor of one blob's encoder (README, Limits).
   std::uint64_t memory_budget = std::uint64_t{1} << 30;
   unsigned threads = 0;     // encoder threads; 0 = all cores
   // Decode every blob completely before committing it and compare with what
