@@ -36,12 +36,15 @@ std::uint32_t BucketSplit::leaf(const std::vector<Node>& nodes, std::uint32_t ro
 
 Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t bucket, const ArchiveGrid& grid,
                                         const BucketSplitOptions& o, AlignedBuffer& buf,
-                                        const std::function<void()>& tick) {
+                                        const std::function<void()>& tick, const std::atomic<bool>* cancel) {
   std::uint64_t seen = 0;
-  const auto progress = [&](std::uint32_t n) {
+  const auto progress = [&](std::uint32_t n) -> Status {
     const std::uint64_t before = seen;
     seen += n;
-    if (tick && (before >> 16) != (seen >> 16)) tick();
+    if ((before >> 16) == (seen >> 16)) return Status::ok();
+    if (tick) tick();
+    if (cancel != nullptr && cancel->load()) return io_error("interrupted");
+    return Status::ok();
   };
   std::vector<Node> nodes;
   std::unordered_map<ChunkKey, std::uint32_t, ChunkKeyHash> roots;
@@ -57,8 +60,7 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
       nodes.push_back(root);
     }
     nodes[it->second].count += n;
-    progress(n);
-    return Status::ok();
+    return progress(n);
   }));
   ++passes;
   // Then the octants of every part still too large, two levels per pass:
@@ -105,8 +107,7 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
         const auto up = static_cast<std::uint32_t>(nodes[l].parent);
         if (up >= first_new) ++nodes[up].count;
       }
-      progress(n);
-      return Status::ok();
+      return progress(n);
     });
     RELIEF_RETURN_IF_ERROR(counted);
     ++passes;
@@ -179,8 +180,7 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
         q.points = 0;
       }
     }
-    progress(n);
-    return Status::ok();
+    return progress(n);
   });
   RELIEF_RETURN_IF_ERROR(routed);
   ++passes;

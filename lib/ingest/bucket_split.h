@@ -18,6 +18,7 @@
 // ingest.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -45,11 +46,13 @@ struct BucketSplitOptions {
 
 class BucketSplit {
  public:
-  // Routes every point of `bucket` to its load; `buf` is scratch. `tick`
-  // (may be empty) is called every 65,536 points of each pass, for progress.
+  // Routes every point of `bucket` to its load; `buf` is scratch. Every
+  // 65,536 points of each pass, `tick` (may be empty) is called, for
+  // progress, and a set `*cancel` stops the work ("interrupted", as ingest).
   static Result<BucketSplit> create(const BucketFiles& files, std::uint32_t bucket, const ArchiveGrid& grid,
                                     const BucketSplitOptions& options, AlignedBuffer& buf,
-                                    const std::function<void()>& tick = {});
+                                    const std::function<void()>& tick = {},
+                                    const std::atomic<bool>* cancel = nullptr);
 
   std::uint32_t load_count() const { return static_cast<std::uint32_t>(load_first_part_.size()) - 1; }
   std::uint64_t load_points(std::uint32_t load) const { return loads_.bucket_points(load); }

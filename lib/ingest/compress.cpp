@@ -513,7 +513,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
         split_options.intensity = in.intensity;
         split_options.las_attributes = in.las_attributes;
         split_options.extra_bytes_size = in.extra_bytes_size;
-        RELIEF_ASSIGN_OR_RETURN(BucketSplit split, BucketSplit::create(files, b, grid, split_options, read_buffer, tick));
+        RELIEF_ASSIGN_OR_RETURN(BucketSplit split, BucketSplit::create(files, b, grid, split_options, read_buffer, tick,
+                                                                       options.cancel));
         files.discard(b);
         for (std::uint32_t load = 0; load < split.load_count(); ++load) {
           RELIEF_RETURN_IF_ERROR(make_room(split.load_points(load)));
