@@ -9,7 +9,6 @@
 #include <cstring>
 #include <fstream>
 #include <map>
-#include <random>
 #include <string_view>
 #include <tuple>
 
@@ -18,6 +17,7 @@
 #include "relief/ingest.h"
 #include "relief/io.h"
 #include "support/decode_archive.h"
+#include "support/dense_surface.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -143,18 +143,7 @@ TEST_CASE("bounded compress: a chunk larger than the budget's slices is read in 
   // is more than the two slices may hold and is routed to loads of whole
   // octant parts (ingest/bucket_split.h) instead of being read whole. The
   // PLY at 1 GiB is split in memory.
-  PointCloud dense;
-  {
-    std::mt19937_64 rng(4);
-    std::uniform_real_distribution<double> u(0.0, 2.0);
-    std::normal_distribution<double> noise(0.0, 0.002);
-    dense.positions.resize(800000);
-    for (Vec3d& p : dense.positions) {
-      p.x = u(rng) * u(rng) / 2 + 0.5 * u(rng);  // denser towards x = 0
-      p.y = u(rng);
-      p.z = 0.3 + 0.2 * std::sin(3 * p.x) + 0.1 * std::cos(2 * p.y) + noise(rng);
-    }
-  }
+  const PointCloud dense = test::dense_surface(800000, 4, true);
   REQUIRE(write_ply(dir.file("in.ply"), dense).is_ok());
   {
     auto writer = open_point_writer(dir.file("dense.xyz"), WriterOptions{});

@@ -15,7 +15,6 @@
 #include <tuple>
 #include <fstream>
 #include <iterator>
-#include <random>
 #include <set>
 #include <thread>
 
@@ -25,6 +24,7 @@
 #include "relief/io.h"
 #include "relief/metrics.h"
 #include "support/decode_archive.h"
+#include "support/dense_surface.h"
 #include "support/limited_vfs.h"
 #include "support/open_file_limit.h"
 #include "support/synthetic.h"
@@ -426,19 +426,7 @@ TEST_CASE("dense chunks encode one at a time within a small memory budget", "[in
   // --memory 128M two of them side by side (what the encoders did before
   // tasks were admitted by their memory estimate) peaked at ~212 MiB; one at
   // a time at ~157 MiB.
-  {
-    PointCloud dense;
-    std::mt19937_64 rng(2026);
-    std::uniform_real_distribution<double> u(0.0, 2.0);
-    std::normal_distribution<double> noise(0.0, 0.002);
-    dense.positions.resize(1600000);
-    for (Vec3d& p : dense.positions) {
-      p.x = u(rng);
-      p.y = u(rng);
-      p.z = 0.3 + 0.2 * std::sin(3 * p.x) + 0.1 * std::cos(2 * p.y) + noise(rng);
-    }
-    REQUIRE(write_ply(tmp.file("dense.ply"), dense).is_ok());
-  }
+  REQUIRE(write_ply(tmp.file("dense.ply"), test::dense_surface(1600000, 2026)).is_ok());
   const auto compress = [&](const std::string& out, const char* memory) {
     return run_measured({cli(), "compress", tmp.file("dense.ply"), "-o", tmp.file(out), "--tolerance", "0.001",
                          "--chunk-edge", "1", "--memory", memory, "--threads", "2", "--quiet"});
