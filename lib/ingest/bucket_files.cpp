@@ -472,7 +472,7 @@ Status BucketFiles::peek_block(std::uint32_t bucket, std::uint64_t offset, Align
 }
 
 Status BucketFiles::each_run(std::uint32_t bucket, std::uint64_t offset, const Block& block,
-                             const std::function<void(const ChunkKey&, std::uint32_t, const std::uint8_t*)>& fn) const {
+                             const std::function<Status(const ChunkKey&, std::uint32_t, const std::uint8_t*)>& fn) const {
   const auto damaged = [&](const std::string& what) {
     return corrupt_data(paths_[bucket] + ": temporary file damaged at byte " + std::to_string(offset) + ": " + what);
   };
@@ -485,7 +485,7 @@ Status BucketFiles::each_run(std::uint32_t bucket, std::uint64_t offset, const B
     listed += count;
     if (listed > block.points) return damaged("chunk counts exceed the block's points");
     if (!explicit_buckets_ && bucket_of(key) != bucket) return damaged("a chunk in the wrong bucket");
-    fn(key, count, r);
+    if (Status s = fn(key, count, r); !s) return s;
     r += static_cast<std::size_t>(count) * record_;
   }
   if (listed != block.points) return damaged("chunk counts do not add up to the block's points");
@@ -533,6 +533,7 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
         }
         if (las_ != 0) get_las_record(r + off, out.las, k, las_);
       }
+      return Status::ok();
     }));
     *offset += block.size;
   }
@@ -542,14 +543,12 @@ Status BucketFiles::read_slice(std::uint32_t bucket, std::uint64_t* offset, std:
 Status BucketFiles::scan(std::uint32_t bucket, AlignedBuffer& buf, const RunVisitor& visit) const {
   Window w;
   Block block;
-  Status status = Status::ok();
   for (std::uint64_t offset = 0; offset < bytes_[bucket]; offset += block.size) {
     RELIEF_RETURN_IF_ERROR(peek_block(bucket, offset, buf, w, block, ~std::uint64_t{0}));
     RELIEF_RETURN_IF_ERROR(each_run(bucket, offset, block, [&](const ChunkKey& key, std::uint32_t count,
                                                                 const std::uint8_t* r) {
-      if (status.is_ok()) status = visit(key, grid_.chunk_box(key).min, r, count);
+      return visit(key, grid_.chunk_box(key).min, r, count);
     }));
-    RELIEF_RETURN_IF_ERROR(status);
   }
   return Status::ok();
 }

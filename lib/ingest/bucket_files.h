@@ -142,9 +142,9 @@ class BucketFiles {
   Status peek_block(std::uint32_t bucket, std::uint64_t offset, AlignedBuffer& buf, Window& w, Block& block,
                     std::uint64_t max_points) const;
   // Checks a loaded block's chunk entries and calls fn(key, count, records)
-  // for each run.
+  // for each run, up to the first error it returns.
   Status each_run(std::uint32_t bucket, std::uint64_t offset, const Block& block,
-                  const std::function<void(const ChunkKey&, std::uint32_t, const std::uint8_t*)>& fn) const;
+                  const std::function<Status(const ChunkKey&, std::uint32_t, const std::uint8_t*)>& fn) const;
   // Writes out a staging buffer that a large block grew past its share and
   // gives the memory back.
   Status shrink_staging(std::uint32_t bucket);

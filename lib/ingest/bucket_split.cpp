@@ -24,12 +24,8 @@ std::uint32_t BucketSplit::leaf(const std::vector<Node>& nodes, std::uint32_t ro
   std::uint32_t n = root;
   while (nodes[n].first_child >= 0) {
     const Node& d = nodes[n];
-    // As split_octants (compress.cpp): mid = origin + edge / 2, and a point
-    // on the mid-plane goes to the upper octant.
-    const double half = d.edge / 2;
-    const int o = (p.x >= d.origin.x + half ? 1 : 0) | (p.y >= d.origin.y + half ? 2 : 0) |
-                  (p.z >= d.origin.z + half ? 4 : 0);
-    n = static_cast<std::uint32_t>(d.first_child + o);
+    const Octants octants{d.origin, d.edge / 2};
+    n = static_cast<std::uint32_t>(d.first_child + octants.of(p, octants.mid()));
   }
   return n;
 }
@@ -69,18 +65,15 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
   const std::size_t record = files.record_bytes();
   const auto add_children = [&](std::uint32_t i) {
     const Node parent = nodes[i];
-    const double half = parent.edge / 2;
-    const Vec3d mid{parent.origin.x + half, parent.origin.y + half, parent.origin.z + half};
+    const Octants octants{parent.origin, parent.edge / 2};
+    const Vec3d mid = octants.mid();
     nodes[i].first_child = static_cast<std::int32_t>(nodes.size());
     for (int c = 0; c < 8; ++c) {
       Node child;
-      child.origin = {(c & 1) ? mid.x : parent.origin.x, (c & 2) ? mid.y : parent.origin.y,
-                      (c & 4) ? mid.z : parent.origin.z};
-      child.edge = half;
+      child.origin = octants.origin_of(c, mid);
+      child.edge = octants.half;
       child.depth = static_cast<std::uint8_t>(parent.depth + 1);
-      child.sub[0] = 2 * parent.sub[0] + static_cast<std::uint32_t>(c & 1);
-      child.sub[1] = 2 * parent.sub[1] + static_cast<std::uint32_t>((c >> 1) & 1);
-      child.sub[2] = 2 * parent.sub[2] + static_cast<std::uint32_t>((c >> 2) & 1);
+      Octants::sub_of(parent.sub, c, child.sub);
       child.parent = static_cast<std::int32_t>(i);
       nodes.push_back(child);
     }

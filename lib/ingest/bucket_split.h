@@ -82,7 +82,7 @@ class BucketSplit {
   };
 
   explicit BucketSplit(BucketFiles loads) : loads_(std::move(loads)) {}
-  // The leaf of `root`'s tree that holds p (split_octants' arithmetic).
+  // The leaf of `root`'s tree that holds p (by Octants, as make_tasks splits).
   static std::uint32_t leaf(const std::vector<Node>& nodes, std::uint32_t root, const Vec3d& p);
 
   BucketFiles loads_;

@@ -666,8 +666,7 @@ namespace {
 // Splits the points idx[0..n) of a chunk into the octants of the sub-cube
 // (origin, edge) until each part holds at most `limit` points (or the cube is
 // 2^kMaxSplitDepth times smaller than the chunk: identical points). Appends a
-// task per non-empty part. bucket_split.cpp routes points to the same parts
-// without loading them: the two must compute the octants alike.
+// task per non-empty part (the octants as Octants defines them).
 
 void split_octants(const PointCloud& cloud, std::uint32_t* idx, std::size_t n, const ChunkKey& key, const Vec3d& origin,
                    double edge, int depth, const std::uint32_t sub[3], std::uint64_t limit, std::vector<std::uint32_t>& scratch,
@@ -683,12 +682,9 @@ void split_octants(const PointCloud& cloud, std::uint32_t* idx, std::size_t n, c
     tasks.push_back(std::move(t));
     return;
   }
-  const double half = edge / 2;
-  const Vec3d mid{origin.x + half, origin.y + half, origin.z + half};
-  const auto octant = [&](std::uint32_t i) {
-    const Vec3d& p = cloud.positions[i];
-    return (p.x >= mid.x ? 1 : 0) | (p.y >= mid.y ? 2 : 0) | (p.z >= mid.z ? 4 : 0);
-  };
+  const Octants octants{origin, edge / 2};
+  const Vec3d mid = octants.mid();
+  const auto octant = [&](std::uint32_t i) { return octants.of(cloud.positions[i], mid); };
   std::size_t start[9] = {};
   for (std::size_t k = 0; k < n; ++k) ++start[octant(idx[k]) + 1];
   for (int o = 0; o < 8; ++o) start[o + 1] += start[o];
@@ -699,10 +695,10 @@ void split_octants(const PointCloud& cloud, std::uint32_t* idx, std::size_t n, c
   std::copy(scratch.begin(), scratch.begin() + static_cast<std::ptrdiff_t>(n), idx);
   for (int o = 0; o < 8; ++o) {
     if (start[o + 1] == start[o]) continue;
-    const std::uint32_t child[3] = {2 * sub[0] + (o & 1), 2 * sub[1] + ((o >> 1) & 1), 2 * sub[2] + ((o >> 2) & 1)};
-    const Vec3d child_origin{(o & 1) ? mid.x : origin.x, (o & 2) ? mid.y : origin.y, (o & 4) ? mid.z : origin.z};
-    split_octants(cloud, idx + start[o], start[o + 1] - start[o], key, child_origin, half, depth + 1, child, limit,
-                  scratch, tasks);
+    std::uint32_t child[3];
+    Octants::sub_of(sub, o, child);
+    split_octants(cloud, idx + start[o], start[o + 1] - start[o], key, octants.origin_of(o, mid), octants.half,
+                  depth + 1, child, limit, scratch, tasks);
   }
 }
 

@@ -130,6 +130,26 @@ std::vector<ChunkTask> make_tasks(const PointCloud& cloud, std::uint64_t part_po
 // holds only points too close to tell apart at any useful tolerance).
 inline constexpr int kMaxSplitDepth = 10;
 
+// The octants of a sub-cube (corner `origin`, edge 2 * half), as make_tasks
+// splits chunks and bucket_split.cpp routes points to the same parts without
+// loading them: one definition, so the two agree bit for bit. A point on a
+// mid-plane belongs to the upper octant.
+struct Octants {
+  Vec3d origin;
+  double half = 0;
+  Vec3d mid() const { return {origin.x + half, origin.y + half, origin.z + half}; }
+  int of(const Vec3d& p, const Vec3d& m) const {
+    return (p.x >= m.x ? 1 : 0) | (p.y >= m.y ? 2 : 0) | (p.z >= m.z ? 4 : 0);
+  }
+  Vec3d origin_of(int o, const Vec3d& m) const {
+    return {(o & 1) ? m.x : origin.x, (o & 2) ? m.y : origin.y, (o & 4) ? m.z : origin.z};
+  }
+  // Octant o's integer position one level down from `sub`.
+  static void sub_of(const std::uint32_t sub[3], int o, std::uint32_t out[3]) {
+    for (int a = 0; a < 3; ++a) out[a] = 2 * sub[a] + static_cast<std::uint32_t>((o >> a) & 1);
+  }
+};
+
 // The error-bounded mode's split size: `split_points`, or fewer for wide
 // points, so that one chunk's LAS attributes (las_record_bytes of the
 // archive's set) stay within kMaxChunkAttributeBytes, keeping a chunk's
