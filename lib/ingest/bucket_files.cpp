@@ -62,6 +62,14 @@ void put_f32(std::uint8_t* p, float v) {
   put_u32(p, b);
 }
 
+// A block's chunk entry: the key, then its record count.
+void put_entry(std::uint8_t* e, const ChunkKey& key, std::uint32_t count) {
+  put_i64(e, key.ix);
+  put_i64(e + 8, key.iy);
+  put_i64(e + 16, key.iz);
+  put_u32(e + 24, count);
+}
+
 float get_f32(const std::uint8_t* p) {
   const std::uint32_t b = get_u32(p);
   float v;
@@ -315,10 +323,7 @@ Status BucketFiles::append(const PointCloud& points, const ChunkKey* keys) {
     for (std::size_t k = i; k < j; ++k) {
       const std::uint32_t id = by_bucket[k].second;
       std::uint8_t* e = h + kBlockHeader + (k - i) * kChunkEntry;
-      put_i64(e, chunk_keys[id].ix);
-      put_i64(e + 8, chunk_keys[id].iy);
-      put_i64(e + 16, chunk_keys[id].iz);
-      put_u32(e + 24, chunk_counts_[id]);
+      put_entry(e, chunk_keys[id], chunk_counts_[id]);
       chunk_cursor_[id] = rec;
       rec += static_cast<std::size_t>(chunk_counts_[id]) * record_;
     }
@@ -366,10 +371,7 @@ Status BucketFiles::append_block(std::uint32_t bucket, const std::vector<std::pa
   put_u32(h + 4, static_cast<std::uint32_t>(runs.size()));
   std::uint8_t* e = h + kBlockHeader;
   for (const auto& [key, count] : runs) {
-    put_i64(e, key.ix);
-    put_i64(e + 8, key.iy);
-    put_i64(e + 16, key.iz);
-    put_u32(e + 24, count);
+    put_entry(e, key, count);
     e += kChunkEntry;
   }
   std::memcpy(e, records, static_cast<std::size_t>(points) * record_);
@@ -441,11 +443,13 @@ Vec3d BucketFiles::position(const Vec3d& cube_min, const std::uint8_t* r) const 
           cube_min.z + (get_u32(r + 8) + 0.5) * step_};
 }
 
+Status BucketFiles::damaged_at(std::uint32_t bucket, std::uint64_t offset, const std::string& what) const {
+  return corrupt_data(paths_[bucket] + ": temporary file damaged at byte " + std::to_string(offset) + ": " + what);
+}
+
 Status BucketFiles::peek_block(std::uint32_t bucket, std::uint64_t offset, AlignedBuffer& buf, Window& w,
                                Block& block, std::uint64_t max_points) const {
-  const auto damaged = [&](const std::string& what) {
-    return corrupt_data(paths_[bucket] + ": temporary file damaged at byte " + std::to_string(offset) + ": " + what);
-  };
+  const auto damaged = [&](const std::string& what) { return damaged_at(bucket, offset, what); };
   // Windows of at least kWindow bytes: blocks are often small.
   constexpr std::size_t kWindow = 2u << 20;
   const auto load = [&](std::uint64_t from, std::size_t n) -> Status {
@@ -473,9 +477,7 @@ Status BucketFiles::peek_block(std::uint32_t bucket, std::uint64_t offset, Align
 
 Status BucketFiles::each_run(std::uint32_t bucket, std::uint64_t offset, const Block& block,
                              const std::function<Status(const ChunkKey&, std::uint32_t, const std::uint8_t*)>& fn) const {
-  const auto damaged = [&](const std::string& what) {
-    return corrupt_data(paths_[bucket] + ": temporary file damaged at byte " + std::to_string(offset) + ": " + what);
-  };
+  const auto damaged = [&](const std::string& what) { return damaged_at(bucket, offset, what); };
   const std::uint8_t* r = block.entries + static_cast<std::size_t>(block.chunks) * kChunkEntry;
   std::uint64_t listed = 0;
   for (std::uint32_t c = 0; c < block.chunks; ++c) {

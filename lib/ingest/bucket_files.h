@@ -141,6 +141,8 @@ class BucketFiles {
   // that), checking its header against the file. Advances nothing.
   Status peek_block(std::uint32_t bucket, std::uint64_t offset, AlignedBuffer& buf, Window& w, Block& block,
                     std::uint64_t max_points) const;
+  // The error for a damaged temporary file: its path and the block's offset.
+  Status damaged_at(std::uint32_t bucket, std::uint64_t offset, const std::string& what) const;
   // Checks a loaded block's chunk entries and calls fn(key, count, records)
   // for each run, up to the first error it returns.
   Status each_run(std::uint32_t bucket, std::uint64_t offset, const Block& block,
