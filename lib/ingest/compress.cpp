@@ -17,8 +17,8 @@
 
 #include "core/memory.h"
 #include "core/parallel.h"
+#include "ingest/bucket_encode.h"
 #include "ingest/bucket_files.h"
-#include "ingest/bucket_split.h"
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
 #include "ingest/las_columns.h"
@@ -35,38 +35,10 @@ namespace ingest {
 
 namespace {
 
-// Working memory per point while a bucket slice is grouped: the decoded
-// record (positions, colour, intensity) plus its key and sort entry.
-constexpr std::uint64_t kGroupBytesPerPoint = 24 + 3 + 4 + 4 + 4;
-// Memory per point of a chunk being encoded: the worker's gathered copy (31)
-// plus encoder scratch and the decode check. Error-bounded blobs of x y z
-// measured ~125 bytes a point at 400 k points (heaptrack, 2026-11-29) and
-// ~100 at 1 M; sparse data adds atlas pixels. Also the estimate by which
-// ChunkPipeline admits tasks (plus the LAS record).
-constexpr std::uint64_t kEncodeBytesPerPoint = 128;
-constexpr std::uint32_t kMinBuckets = 4;
-// Write buffers of a bucket split into loads (bucket_split.h): its records
-// are written in blocks of 64 KiB or more, which direct I/O takes as fast.
-constexpr std::size_t kSplitStagingBytes = std::size_t{4} << 20;
-constexpr std::uint32_t kMaxBuckets = 4096;
-// Memory per point of a batch on its way from a reader: the decoded points
-// (31) and their chunk keys (24); the bucket writer's scratch (4). Up to three
-// batches are alive (being read, queued, consumed).
-constexpr std::uint64_t kBatchBytesPerPoint = 31 + 24 + 4;
 // Memory per point of the first batch, read before the archive exists to derive
 // the cell size: the points (31) and suggest_cell_size's keys and radix
 // scratch (32).
 constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
-// Resident memory (in thirds of the budget: the slices' and the encoders'
-// shares) above which the allocator's free memory is given back between
-// slices.
-constexpr std::uint64_t kTrimAboveThirds = 2;
-// An encoding thread's own high-water mark beside its share of the points:
-// its allocator arena, coder models, maps and images (14-18 MiB measured per
-// extra thread on 14 k-point chunks, 2026-11-29). The threads that encode are
-// as many as the encoders' third of the budget holds (one at the 64 MiB
-// minimum; two from 96 MiB; every core at the 1 GiB default).
-constexpr std::uint64_t kEncoderThreadBytes = std::uint64_t{16} << 20;
 // Points per read from an input.
 constexpr std::size_t kReadBatch = 1u << 20;
 // Cell when the inputs hold no point to measure a density from (1 unit,
@@ -270,39 +242,14 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     in.extra_bytes_vlr.clear();
   }
   const unsigned threads = resolve_threads(options.threads);
-  const std::uint64_t budget = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget);
-  const auto encode_threads =
-      static_cast<unsigned>(std::clamp<std::uint64_t>((budget / 3) / kEncoderThreadBytes, 1, threads));
-
-  // Budget while reading: 1/8 for bucket staging buffers, 3/16 for batches in flight (plus, without bucket
-  // files, the whole input in half the budget). While encoding: 1/3 for two
-  // bucket slices (one encoding, the next loading; the bounded mode reads a bucket whole, and one
-  // larger than that loads alone and its slice is freed, not recycled), 1/3 for the encoders; the
-  // rest is headroom (SQLite cache, allocator slack, which is given back above 2/3).
-  // The LAS attributes travel with every point (up to 25 bytes, plus extra
-  // bytes; 23 for LAS 1.2 format 3) beside the constants' x y z,
-  // colour and intensity: left out, slices of LAS input overran their share.
   const std::uint64_t las_bytes = las_record_bytes(in.las_attributes, in.extra_bytes_size);
-  const std::uint64_t group_bytes = kGroupBytesPerPoint + las_bytes;
-  const std::uint64_t slice_points = std::max<std::uint64_t>(1, (budget / 6) / group_bytes);
-  const std::uint64_t part_points = std::max<std::uint64_t>(1024, (budget / 3) / (threads * kEncodeBytesPerPoint));
-  // Tasks start while their estimates fit the encoders' third and half the
-  // headroom (a larger task alone), so dense chunks do not encode side by
-  // side past the budget.
-  const EncodeMemory encode_memory{budget / 2, kEncodeBytesPerPoint + las_bytes, kTrimAboveThirds * (budget / 3)};
   // Error-bounded archives must not depend on the budget: chunks are encoded
   // whole (bucket slices hold whole buckets) and split by a fixed rule.
   const bool bounded = params.bound.has_value();
+  const IngestBudget plan = plan_ingest_budget(options.memory_budget, threads, las_bytes, in.estimated_points, bounded);
   const ArchiveGrid* split_grid = bounded ? &grid : nullptr;
   const std::uint64_t task_points =
-      bounded ? bounded_split_points(options.split_points, in.las_attributes, in.extra_bytes_size) : part_points;
-  const std::uint64_t read_batch = std::max<std::uint64_t>(
-      1024, std::min<std::uint64_t>(kReadBatch, (budget / 16) / (kBatchBytesPerPoint + las_bytes)));
-  // Enough buckets that a bucket usually fits one slice (x2 for skew; x4 when
-  // buckets are read whole).
-  const std::uint64_t want = ((bounded ? 4 : 2) * std::max<std::uint64_t>(1, in.estimated_points)) / slice_points + 1;
-  const auto buckets = static_cast<std::uint32_t>(std::clamp<std::uint64_t>(want, kMinBuckets, kMaxBuckets));
-  const auto staging_bytes = static_cast<std::size_t>(std::min<std::uint64_t>(budget / 8, 256u << 20));
+      bounded ? bounded_split_points(options.split_points, in.las_attributes, in.extra_bytes_size) : plan.part_points;
 
   Progress progress(options.progress, in.all_counts_known ? in.known_total : 0);
   const auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
@@ -348,7 +295,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       first = batch.points.size();
       batch = ReadBatch();  // larger than the batches to come: not recycled
     }
-    Prefetcher prefetch(in.readers, static_cast<std::size_t>(read_batch), 1, first, full_stage);
+    Prefetcher prefetch(in.readers, static_cast<std::size_t>(plan.read_batch), 1, first, full_stage);
     for (;;) {
       RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(batch));
       if (!more) break;
@@ -363,7 +310,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   const auto with_ranges = [&] { return with_intensity_range(params, in.intensity, intensity_lo, intensity_hi); };
   std::int64_t scan_id = 0;
   // Declared before the pipeline: its workers return slices here.
-  SlicePool slices(slice_points);
+  SlicePool slices(plan.slice_points);
   std::unique_ptr<ChunkPipeline> pipeline;
   // Progress while encoding (called between commits, once the pipeline exists).
   const auto tick = [&] {
@@ -371,10 +318,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     progress.update("encoding", points_read, t.chunks, t.blob_bytes, t.points_in);
   };
   Grouping grouping;
-  // Without bucket files their buffers' share is free: the whole input may
-  // take half the budget, the encoders keep their third.
-  const std::uint64_t in_memory_points = (budget / 2) / group_bytes;
-  if (in.all_counts_known && in.known_total <= in_memory_points) {
+  if (in.all_counts_known && in.known_total <= plan.in_memory_points) {
     // The whole input fits in memory: no temporary files.
     const auto total = static_cast<std::size_t>(in.known_total);
     PointCloud all;
@@ -424,9 +368,9 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       if (in.las_attributes != 0) copy_las(batch.las, all.las, b.first);
       return Status::ok();
     };
-    cover(pending.size() + 2 * read_batch);
+    cover(pending.size() + 2 * plan.read_batch);
     RELIEF_RETURN_IF_ERROR(read_all(copy_in, [&](ReadBatch& b) -> Status {
-      cover(b.first + b.points.size() + 2 * read_batch);
+      cover(b.first + b.points.size() + 2 * plan.read_batch);
       grouping.add(b.points.positions.data(), b.points.size(), grid);
       return Status::ok();
     }));
@@ -444,14 +388,14 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     }
     all.resize_points(static_cast<std::size_t>(points_read));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
-    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, encode_threads, options.cancel,
-                                               options.verify_blobs, encode_memory);
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, plan.encode_threads,
+                                               options.cancel, options.verify_blobs, plan.encode_memory);
     RELIEF_RETURN_IF_ERROR(pipeline->run(make_tasks(all, task_points, grouping, split_grid), tick));
   } else {
     // ---- External distribution sort: every point into its chunk's bucket
     // file. The reading thread keys each batch; this one packs and writes.
-    RELIEF_ASSIGN_OR_RETURN(BucketFiles files, BucketFiles::create(tmp_parent, buckets, grid, in.colors,
-                                                                   in.intensity, staging_bytes, in.las_attributes,
+    RELIEF_ASSIGN_OR_RETURN(BucketFiles files, BucketFiles::create(tmp_parent, plan.buckets, grid, in.colors,
+                                                                   in.intensity, plan.staging_bytes, in.las_attributes,
                                                                    in.extra_bytes_size));
     const auto key_batch = [&](ReadBatch& b) -> Status {
       b.keys.resize(b.points.size());
@@ -463,85 +407,19 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
-    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, encode_threads, options.cancel,
-                                               options.verify_blobs, encode_memory);
-    // The next slice loads while the workers encode the current one; each
-    // slice goes back to the pool (or, larger than its share, is freed) as
-    // soon as its last chunk is encoded.
-    AlignedBuffer read_buffer;  // only this thread reads the bucket files
-    std::uint64_t encoding_points = 0;  // points of the slice still encoding
-    // The next slice's tasks go to the workers; at most one slice stays
-    // encoding while the next one loads.
-    // `alone`: nothing loads beside it while it encodes (its points count as
-    // both slices).
-    const auto encode_slice = [&](std::vector<ChunkTask> tasks, std::shared_ptr<Slice> slice,
-                                  bool alone = false) -> Status {
-      encoding_points = alone ? 2 * slice_points : slice->points.size();
-      pipeline->submit(std::move(tasks), std::move(slice));
-      RELIEF_RETURN_IF_ERROR(pipeline->wait(1, tick));
-      // The encoders' scratch follows the chunks' sizes, and the threads'
-      // malloc arenas keep what they freed: resident memory would climb to
-      // the largest chunks' high-water mark and stay there. Given back
-      // whenever the process holds more than the slices' and encoders'
-      // shares (so it costs nothing while memory is plentiful).
-      if (core::resident_bytes() > kTrimAboveThirds * (budget / 3)) core::release_free_memory();
-      return Status::ok();
-    };
-    // A slice of `points` loads alone when it would not fit beside the one
-    // still encoding: that one finishes first, and the pool's idle slices go.
-    const auto make_room = [&](std::uint64_t points) -> Status {
-      if (encoding_points + points <= 2 * slice_points) return Status::ok();
-      RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
-      encoding_points = 0;
-      slices.clear();
-      return Status::ok();
-    };
-    for (std::uint32_t b = 0; b < files.bucket_count(); ++b) {
-      if (bounded && files.bucket_points(b) > 2 * slice_points) {
-        // Too large to read whole (the bounded mode's slices are whole
-        // buckets): its points go to loads of at most a slice, each holding
-        // whole parts of the chunks' octant split (bucket_split.h).
-        // It starts once the slices before it are encoded, as a bucket that
-        // loads alone does: its passes' buffers do not stack on their encoders.
-        RELIEF_RETURN_IF_ERROR(make_room(2 * slice_points + 1));
-        BucketSplitOptions split_options;
-        split_options.split_points = task_points;
-        split_options.load_points = slice_points;
-        split_options.tmp_parent = tmp_parent;
-        split_options.staging_bytes = std::min<std::size_t>(staging_bytes, kSplitStagingBytes);
-        split_options.colors = in.colors;
-        split_options.intensity = in.intensity;
-        split_options.las_attributes = in.las_attributes;
-        split_options.extra_bytes_size = in.extra_bytes_size;
-        RELIEF_ASSIGN_OR_RETURN(BucketSplit split, BucketSplit::create(files, b, grid, split_options, read_buffer, tick,
-                                                                       options.cancel));
-        files.discard(b);
-        for (std::uint32_t load = 0; load < split.load_count(); ++load) {
-          RELIEF_RETURN_IF_ERROR(make_room(split.load_points(load)));
-          std::shared_ptr<Slice> slice = slices.acquire();
-          RELIEF_ASSIGN_OR_RETURN(std::vector<ChunkTask> tasks,
-                                  split.read_load(load, slice->points, slice->grouping, read_buffer));
-          split.discard(load);
-          // A part larger than a slice is a load of its own, and its
-          // encoder runs alone (EncodeMemory): so does its load, as a bucket
-          // of that size would.
-          const bool alone = split.load_points(load) > slice_points;
-          RELIEF_RETURN_IF_ERROR(encode_slice(std::move(tasks), std::move(slice), alone));
-        }
-        continue;
-      }
-      if (bounded) RELIEF_RETURN_IF_ERROR(make_room(files.bucket_points(b)));
-      std::uint64_t offset = 0;
-      while (offset < files.bucket_bytes(b)) {
-        std::shared_ptr<Slice> slice = slices.acquire();
-        RELIEF_RETURN_IF_ERROR(files.read_slice(b, &offset, bounded ? ~std::uint64_t{0} : slice_points, slice->points,
-                                                slice->grouping, read_buffer));
-        std::vector<ChunkTask> tasks = make_tasks(slice->points, task_points, slice->grouping, split_grid);
-        RELIEF_RETURN_IF_ERROR(encode_slice(std::move(tasks), std::move(slice)));
-      }
-      files.discard(b);
-    }
-    RELIEF_RETURN_IF_ERROR(pipeline->wait(0, tick));
+    pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, plan.encode_threads,
+                                               options.cancel, options.verify_blobs, plan.encode_memory);
+    BucketEncodeOptions encode;
+    encode.whole_chunks = bounded;
+    encode.task_points = task_points;
+    encode.split_grid = split_grid;
+    encode.colors = in.colors;
+    encode.intensity = in.intensity;
+    encode.las_attributes = in.las_attributes;
+    encode.extra_bytes_size = in.extra_bytes_size;
+    encode.tmp_parent = tmp_parent;
+    encode.cancel = options.cancel;
+    RELIEF_RETURN_IF_ERROR(encode_bucket_files(files, grid, *pipeline, slices, plan, encode, tick));
   }
   // The encoders' threads and the recycled slices go before the pyramid is
   // built, so its memory does not stack on theirs.
