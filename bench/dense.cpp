@@ -95,6 +95,70 @@ Blobs blobs_of(const std::string& path) {
   return b;
 }
 
+// Stage 2 of a sharded build with every point in one key range: the scan
+// planned with --ranges 1 and partitioned once, then `relief shard-encode` of
+// that range at each budget (plus a run without --memory, the default 1 GiB,
+// which older builds also accept).
+int run_shard_range(const DenseOptions& o, const std::string& name, const std::string& in, std::uint64_t points) {
+  const std::string work = o.tmp + "/relief-bench-shard";
+  fs::remove_all(work);
+  fs::create_directories(work + "/parts");
+  const std::string plan = work + "/plan.txt";
+  if (run_child({o.cli, "shard-plan", in, "-o", plan, "--tolerance", "0.001", "--ranges", "1", "--quiet"}).code != 0 ||
+      run_child({o.cli, "shard-partition", plan, "--input", "0", "--dir", work + "/parts", "--quiet"}).code != 0) {
+    std::fprintf(stderr, "error: shard-plan or shard-partition failed (%s)\n", name.c_str());
+    return 1;
+  }
+  int status = 0;
+  std::uint64_t first_hash = 0;
+  std::vector<std::string> budgets = o.budgets;
+  budgets.push_back("default");
+  for (const std::string& memory : budgets) {
+    std::vector<double> secs;
+    long rss = 0;
+    Blobs b;
+    std::uintmax_t archive_bytes = 0;
+    for (int r = 0; r < o.repeat; ++r) {
+      const std::string out = work + "/shard.relief";
+      fs::remove(out);
+      std::vector<std::string> argv = {o.cli, "shard-encode", plan, "--range", "0", "--dir", work + "/parts", "-o",
+                                       out, "--threads", "2", "--quiet"};
+      if (memory != "default") {
+        argv.push_back("--memory");
+        argv.push_back(memory);
+      }
+      const ChildRun run = run_child(argv);
+      if (run.code != 0) {
+        std::fprintf(stderr, "error: relief shard-encode exited with %d (%s, --memory %s)\n", run.code, name.c_str(),
+                     memory.c_str());
+        status = 1;
+        break;
+      }
+      secs.push_back(run.seconds);
+      rss = std::max(rss, run.peak_rss_kib);
+      if (r == 0) {
+        b = blobs_of(out);
+        archive_bytes = fs::file_size(out);
+      }
+      fs::remove(out);
+    }
+    if (secs.empty()) continue;
+    if (first_hash == 0) first_hash = b.hash;
+    const double s = median(secs);
+    const std::string shown = memory == "default" ? "1G" : memory;
+    const double budget_mib = std::strtod(shown.c_str(), nullptr) * (shown.back() == 'G' ? 1024.0 : 1.0);
+    std::printf("%s,%s,%.2f,%.2f,%ld,%.2f,%llu,%llu,%llu,%llu,%016llx%s\n", name.c_str(), memory.c_str(), s,
+                static_cast<double>(points) / s / 1e6, rss / 1024, static_cast<double>(rss) / 1024.0 / budget_mib,
+                static_cast<unsigned long long>(b.chunks), static_cast<unsigned long long>(b.largest),
+                static_cast<unsigned long long>(b.bytes), static_cast<unsigned long long>(archive_bytes),
+                static_cast<unsigned long long>(b.hash), b.hash == first_hash ? "" : " BLOBS DIFFER");
+    if (b.hash != first_hash) status = 1;
+    std::fflush(stdout);
+  }
+  fs::remove_all(work);
+  return status;
+}
+
 }  // namespace
 
 int run_dense(const DenseOptions& o) {
@@ -105,7 +169,9 @@ int run_dense(const DenseOptions& o) {
   };
   const Case cases[] = {{"scanner-12M", 12'000'000, {}},
                         {"one-chunk-4M", 4'000'000, {"--chunk-edge", "100"}},
-                        {"one-chunk-16M", 16'000'000, {"--chunk-edge", "100"}}};
+                        {"one-chunk-16M", 16'000'000, {"--chunk-edge", "100"}},
+                        // The scanner scene as one key range of a sharded build (stage 2).
+                        {"shard-range-12M", 12'000'000, {}}};
   std::printf("# bench/ingest --dense: relief compress --tolerance 0.001 (2 threads), median of %d runs\n", o.repeat);
   std::printf("case,memory,seconds,mpts_s,peak_rss_mib,peak_rss_over_budget,chunks,largest_chunk_points,blob_bytes,"
               "archive_bytes,blobs_fnv\n");
@@ -115,10 +181,15 @@ int run_dense(const DenseOptions& o) {
     const std::string in = o.tmp + "/relief-bench-dense-" + c.name + ".ply";
     std::fprintf(stderr, "generating %s -> %s\n", c.name, in.c_str());
     const std::vector<float> xyz =
-        std::string(c.name).rfind("scanner", 0) == 0 ? scanner_scene(c.points, o.seed) : surface_scene(c.points, o.seed);
+        std::string(c.name).rfind("one-chunk", 0) != 0 ? scanner_scene(c.points, o.seed) : surface_scene(c.points, o.seed);
     if (!write_xyz_ply(in, xyz)) {
       std::fprintf(stderr, "error: cannot write %s\n", in.c_str());
       return 1;
+    }
+    if (std::string(c.name).rfind("shard", 0) == 0) {
+      status |= run_shard_range(o, c.name, in, c.points);
+      fs::remove(in);
+      continue;
     }
     std::uint64_t first_hash = 0;
     for (const std::string& memory : o.budgets) {

@@ -5,6 +5,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "ingest_options.h"
+#include "relief/ingest.h"
 #include "relief/shard.h"
 
 namespace relief::cli {
@@ -17,12 +18,17 @@ constexpr const char* kCommand = "shard-encode";
 
 int run_shard_encode(int argc, char** argv) {
   static const std::string usage =
-      "usage: relief shard-encode PLAN --range R --dir DIR -o SHARD.relief [--threads N] [--verify] [--quiet]\n"
+      "usage: relief shard-encode PLAN --range R --dir DIR -o SHARD.relief [--threads N] [--memory SIZE]\n"
+      "                           [--tmp DIR] [--verify] [--quiet]\n"
       "Stage 2 of a sharded build: encodes key range R from every input's partition file in DIR\n"
       "(all stage-1 tasks must have finished) into the shard archive SHARD.relief, which is\n"
       "written under a temporary name and renamed when complete (replacing an earlier one: safe\n"
-      "to retry). Join the shards with 'relief merge'.\n";
-  Args args(argc, argv, {"--help", "--quiet", "--verify"}, {"--range", "--dir", "-o", "--threads"});
+      "to retry). Join the shards with 'relief merge'.\n"
+      "  --memory SIZE   working-memory budget, e.g. 512M, 2G (default 1G, minimum 64M; plain\n"
+      "                  number = MiB): a range larger than half of it is sorted through temporary\n"
+      "                  files, as 'relief compress' sorts its inputs; the blobs are the same\n"
+      "  --tmp DIR       directory for those files (default: beside SHARD)\n";
+  Args args(argc, argv, {"--help", "--quiet", "--verify"}, {"--range", "--dir", "-o", "--threads", "--memory", "--tmp"});
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -36,6 +42,15 @@ int run_shard_encode(int argc, char** argv) {
   EncodeShardOptions o;
   o.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   o.verify_blobs = args.has("--verify");
+  if (const auto m = args.get("--memory")) {
+    o.memory_budget = parse_byte_size(*m);
+    if (o.memory_budget == 0) return usage_error(kCommand, "--memory expects a size such as 512M or 2G, got '" + *m + "'");
+    if (o.memory_budget < kMinMemoryBudget) {
+      return usage_error(kCommand, "--memory " + *m + " is below the minimum of " +
+                                       std::to_string(kMinMemoryBudget >> 20) + "M");
+    }
+  }
+  if (const auto t = args.get("--tmp")) o.tmp_dir = *t;
   if (!args.ok()) return usage_error(kCommand, args.error());
   auto plan = read_shard_plan(args.positional()[0]);
   if (!plan) return fail(kCommand, plan.status());

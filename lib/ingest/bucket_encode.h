@@ -66,7 +66,8 @@ struct BucketEncodeOptions {
 };
 
 // Encodes every bucket of `files` (written and finished) into `pipeline`,
-// slices recycled through `slices`, and waits for the last chunk. `tick` is
+// slices recycled through `slices` (which must outlive the pipeline: its
+// workers hand slices back until they stop), and waits for the last chunk. `tick` is
 // called while waiting (progress). Buckets are deleted as they are done.
 Status encode_bucket_files(BucketFiles& files, const ArchiveGrid& grid, ChunkPipeline& pipeline, SlicePool& slices,
                            const IngestBudget& budget, const BucketEncodeOptions& options,

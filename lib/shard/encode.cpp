@@ -8,9 +8,12 @@
 #include <memory>
 
 #include "core/parallel.h"
+#include "ingest/bucket_encode.h"
+#include "ingest/bucket_files.h"
 #include "ingest/chunk_pipeline.h"
 #include "ingest/ingest_common.h"
 #include "ingest/las_columns.h"
+#include "ingest/slice_pool.h"
 #include "relief/codec.h"
 #include "relief/shard.h"
 #include "shard/partition_file.h"
@@ -56,29 +59,22 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     return invalid_argument(base + ": stage 1 read " + std::to_string(read) + " points where the plan read " +
                             std::to_string(plan.points) + ": the inputs changed since the plan (make a new plan)");
   }
-  // In input order, each file in read order: the order compress_files sees.
-  PointCloud points;
-  points.reserve(static_cast<std::size_t>(total), layout.colors, layout.intensity);
-  reserve_las(points.las, static_cast<std::size_t>(total), layout.las, layout.extra_size);
-  for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
-    RELIEF_RETURN_IF_ERROR(shard::read_partition_file(base + "/" + partition_file_name(i, range), plan_id, i, range,
-                                                      layout, points)
-                               .status());
-  }
   const std::string where = base + "/" + "range " + std::to_string(range);
-  RELIEF_RETURN_IF_ERROR(check_coordinates(points, max_coordinate_magnitude(params.cell_size, plan.grid.chunk_edge),
-                                           where, 0));
-  Grouping grouping;
-  grouping.add(points.positions.data(), points.size(), plan.grid);
-  for (const ChunkKey& k : grouping.keys) {
-    if (plan.range_of(k) != range) {
-      std::string chunk = where;
-      chunk += ": holds a point of chunk ";
-      chunk += std::to_string(k.ix) + "," + std::to_string(k.iy) + "," + std::to_string(k.iz);
-      return corrupt_data(chunk + ", which belongs to range " + std::to_string(plan.range_of(k)));
-    }
-  }
-  std::vector<ChunkTask> tasks = make_tasks(points, plan.split_points, grouping, &plan.grid);
+  const double coordinate_limit = max_coordinate_magnitude(params.cell_size, plan.grid.chunk_edge);
+  // A point outside the range is a damaged or foreign partition file.
+  const auto outside = [&](const ChunkKey& k) {
+    std::string chunk = where;
+    chunk += ": holds a point of chunk ";
+    chunk += std::to_string(k.ix) + "," + std::to_string(k.iy) + "," + std::to_string(k.iz);
+    return corrupt_data(chunk + ", which belongs to range " + std::to_string(plan.range_of(k)));
+  };
+  // The budget as compress shares it, over this range's points.
+  const std::uint64_t las_bytes = las_record_bytes(layout.las, layout.extra_size);
+  const IngestBudget budget =
+      plan_ingest_budget(options.memory_budget, resolve_threads(options.threads), las_bytes, total, true);
+  IngestOptions tmp_choice;
+  tmp_choice.tmp_dir = options.tmp_dir;
+  const std::string tmp_parent = default_tmp_parent(out, tmp_choice);
 
   const std::string tmp = shard::temp_name(out);
   remove_archive_files(tmp);
@@ -94,12 +90,72 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   auto scan_id = archive->begin_scan(sources, plan.attributes);
   if (!scan_id) return failed(scan_id.status());
   PipelineTotals totals;
-  {
-    ChunkPipeline pipeline(*archive, chunk_params, plan.grid, *scan_id, resolve_threads(options.threads), nullptr,
-                           options.verify_blobs);
-    if (Status s = pipeline.run(std::move(tasks), nullptr); !s) return failed(s);
+  // Both ways give the same blobs, as compress's two ways do: chunks whole,
+  // cut by the plan's octant rule.
+  const auto encode = [&]() -> Status {
+    // Before the pipeline: its workers hand slices back to the pool until
+    // they stop, so the pool must outlive them.
+    SlicePool slices(budget.slice_points);
+    // A range read whole: also before the pipeline, whose tasks point into them.
+    PointCloud points;
+    Grouping grouping;
+    ChunkPipeline pipeline(*archive, chunk_params, plan.grid, *scan_id, budget.encode_threads, nullptr,
+                           options.verify_blobs, budget.encode_memory);
+    if (total <= budget.in_memory_points) {
+      // In input order, each file in read order: the order compress_files sees.
+      points.reserve(static_cast<std::size_t>(total), layout.colors, layout.intensity);
+      reserve_las(points.las, static_cast<std::size_t>(total), layout.las, layout.extra_size);
+      for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
+        RELIEF_RETURN_IF_ERROR(shard::read_partition_file(base + "/" + partition_file_name(i, range), plan_id, i,
+                                                          range, layout, points)
+                                   .status());
+      }
+      RELIEF_RETURN_IF_ERROR(check_coordinates(points, coordinate_limit, where, 0));
+      grouping.add(points.positions.data(), points.size(), plan.grid);
+      for (const ChunkKey& k : grouping.keys) {
+        if (plan.range_of(k) != range) return outside(k);
+      }
+      RELIEF_RETURN_IF_ERROR(pipeline.run(make_tasks(points, plan.split_points, grouping, &plan.grid), nullptr));
+    } else {
+      // Larger than half the budget: the external sort of compress, its
+      // bucket files beside the shard (or in --tmp), read back in slices.
+      RELIEF_ASSIGN_OR_RETURN(BucketFiles files,
+                              BucketFiles::create(tmp_parent, budget.buckets, plan.grid, layout.colors,
+                                                  layout.intensity, budget.staging_bytes, layout.las,
+                                                  layout.extra_size));
+      std::vector<ChunkKey> keys;
+      std::uint64_t first = 0;
+      for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
+        const Result<std::uint64_t> got = shard::read_partition_batches(
+            base + "/" + partition_file_name(i, range), plan_id, i, range, layout, budget.read_batch,
+            [&](PointCloud& batch) -> Status {
+              RELIEF_RETURN_IF_ERROR(check_coordinates(batch, coordinate_limit, where, first));
+              first += batch.size();
+              keys.resize(batch.size());
+              plan.grid.keys_of(batch.positions.data(), batch.size(), keys.data());
+              for (std::size_t j = 0; j < keys.size(); ++j) {
+                if ((j == 0 || !(keys[j] == keys[j - 1])) && plan.range_of(keys[j]) != range) return outside(keys[j]);
+              }
+              return files.append(batch, keys.data());
+            });
+        if (!got) return got.status();
+      }
+      RELIEF_RETURN_IF_ERROR(files.finish_writing());
+      BucketEncodeOptions how;
+      how.whole_chunks = true;
+      how.task_points = plan.split_points;
+      how.split_grid = &plan.grid;
+      how.colors = layout.colors;
+      how.intensity = layout.intensity;
+      how.las_attributes = layout.las;
+      how.extra_bytes_size = layout.extra_size;
+      how.tmp_parent = tmp_parent;
+      RELIEF_RETURN_IF_ERROR(encode_bucket_files(files, plan.grid, pipeline, slices, budget, how, nullptr));
+    }
     totals = pipeline.totals();
-  }
+    return Status::ok();
+  };
+  if (Status s = encode(); !s) return failed(s);
   const ScanAttributes& attributes = plan.attributes;
   if (Status s = finish_scan(*archive, *scan_id, attributes.has_colors, attributes.has_intensity, attributes.crs);
       !s) {
@@ -116,7 +172,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     return io_error(out + ": cannot rename the finished shard into place");
   }
   IngestResult r;
-  r.points_read = points.size();
+  r.points_read = total;
   r.points_decoded = totals.points_decoded;
   r.chunks_written = totals.chunks;
   r.blob_bytes = totals.blob_bytes;

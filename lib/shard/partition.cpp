@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -232,48 +233,68 @@ Result<std::uint64_t> partition_file_points(const std::string& path, std::uint64
   return opened.second;
 }
 
-Result<std::uint64_t> read_partition_file(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
-                                          std::uint32_t range, const PartitionLayout& layout, PointCloud& out) {
+Result<std::uint64_t> read_partition_batches(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
+                                             std::uint32_t range, const PartitionLayout& layout,
+                                             std::uint64_t batch_points,
+                                             const std::function<Status(PointCloud&)>& take) {
   RELIEF_ASSIGN_OR_RETURN(const auto opened, open_partition(path, plan_id, input, range, layout));
   const int fd = opened.first;
   const std::uint64_t count = opened.second;
   const std::size_t record = layout.record_bytes();
   const bool extra = (layout.las & kLasExtraBytes) != 0;
+  const std::uint64_t per_batch = std::max<std::uint64_t>(1, batch_points);
+  PointCloud out;
   if (extra) out.las.extra_bytes_size = layout.extra_size;
   std::vector<std::uint8_t> block;
   std::uint64_t done = 0;
+  const auto failed = [fd](Status s) -> Result<std::uint64_t> {
+    ::close(fd);
+    return s;
+  };
   while (done < count) {
-    const auto n = static_cast<std::size_t>(std::min(kReadBlockPoints, count - done));
-    block.resize(n * record);
-    if (Status s = read_all(fd, block.data(), block.size(), path); !s) {
-      ::close(fd);
-      return s;
-    }
-    const std::uint8_t* p = block.data();
-    for (std::size_t i = 0; i < n; ++i) {
-      const double x = get_value<double>(p);
-      const double y = get_value<double>(p);
-      const double z = get_value<double>(p);
-      out.positions.push_back(Vec3d{x, y, z});
-      if (layout.colors) out.colors.push_back(get_value<Rgb8>(p));
-      if (layout.intensity) {
-        const auto bits = static_cast<std::uint32_t>(get_le(p, 4));
-        float v = 0;
-        std::memcpy(&v, &bits, sizeof v);
-        out.intensities.push_back(v);
+    // A batch: blocks of the file until it holds batch_points (or the rest).
+    out.clear_points();
+    const std::uint64_t batch_end = done + std::min(per_batch, count - done);
+    while (done < batch_end) {
+      const auto n = static_cast<std::size_t>(std::min(kReadBlockPoints, batch_end - done));
+      block.resize(n * record);
+      if (Status s = read_all(fd, block.data(), block.size(), path); !s) return failed(s);
+      const std::uint8_t* p = block.data();
+      for (std::size_t i = 0; i < n; ++i) {
+        const double x = get_value<double>(p);
+        const double y = get_value<double>(p);
+        const double z = get_value<double>(p);
+        out.positions.push_back(Vec3d{x, y, z});
+        if (layout.colors) out.colors.push_back(get_value<Rgb8>(p));
+        if (layout.intensity) {
+          const auto bits = static_cast<std::uint32_t>(get_le(p, 4));
+          float v = 0;
+          std::memcpy(&v, &bits, sizeof v);
+          out.intensities.push_back(v);
+        }
+        out.las.for_each_vector([&](auto& v, std::uint32_t bit) {
+          if ((layout.las & bit) != 0) v.push_back(get_value<typename std::decay_t<decltype(v)>::value_type>(p));
+        });
+        if (extra) {
+          out.las.extra_bytes.insert(out.las.extra_bytes.end(), p, p + layout.extra_size);
+          p += layout.extra_size;
+        }
       }
-      out.las.for_each_vector([&](auto& v, std::uint32_t bit) {
-        if ((layout.las & bit) != 0) v.push_back(get_value<typename std::decay_t<decltype(v)>::value_type>(p));
-      });
-      if (extra) {
-        out.las.extra_bytes.insert(out.las.extra_bytes.end(), p, p + layout.extra_size);
-        p += layout.extra_size;
-      }
+      done += n;
     }
-    done += n;
+    if (Status s = take(out); !s) return failed(s);
   }
   ::close(fd);
   return count;
+}
+
+Result<std::uint64_t> read_partition_file(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
+                                          std::uint32_t range, const PartitionLayout& layout, PointCloud& out) {
+  if ((layout.las & kLasExtraBytes) != 0) out.las.extra_bytes_size = layout.extra_size;
+  return read_partition_batches(path, plan_id, input, range, layout, kReadBlockPoints, [&](PointCloud& batch) {
+    out.append_points(batch);
+    return Status::ok();
+  });
 }
 
 Result<Manifest> read_manifest(const std::string& path, std::uint64_t plan_id, std::uint32_t input) {

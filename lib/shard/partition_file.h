@@ -22,6 +22,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include "relief/shard.h"
@@ -54,6 +55,14 @@ struct PartitionLayout {
 // Returns the number of points appended.
 Result<std::uint64_t> read_partition_file(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
                                           std::uint32_t range, const PartitionLayout& layout, PointCloud& out);
+// The same points in batches: take(batch) for each run of at most
+// `batch_points` of them in file order (the batch is reused: take moves or
+// copies what it keeps). The header and size are checked before any point is
+// read, so a batch never holds more than the file does.
+Result<std::uint64_t> read_partition_batches(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
+                                             std::uint32_t range, const PartitionLayout& layout,
+                                             std::uint64_t batch_points,
+                                             const std::function<Status(PointCloud&)>& take);
 // The header's point count alone (checked like read_partition_file).
 Result<std::uint64_t> partition_file_points(const std::string& path, std::uint64_t plan_id, std::uint32_t input,
                                             std::uint32_t range, const PartitionLayout& layout);

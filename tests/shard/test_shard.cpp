@@ -16,6 +16,7 @@
 #include "relief/io.h"
 #include "relief/query.h"
 #include "relief/shard.h"
+#include "support/dense_surface.h"
 #include "support/las_records.h"
 #include "support/open_file_limit.h"
 #include "support/run_cli.h"
@@ -287,6 +288,61 @@ TEST_CASE("sharded build: the merged archive equals a one-box compress", "[shard
       for (const std::string& name : TempDir::list(work)) CHECK(name.find(".tmp-") == std::string::npos);
     }
   }
+}
+
+TEST_CASE("sharded build: a range larger than the stage-2 budget is sorted through files, with the same blobs",
+          "[shard][split]") {
+  TempDir dir;
+  // 950 k points in one key range: a 650 k-point chunk (more than the two
+  // slices of the 64 MiB budget, ~287 k points each: split into loads,
+  // ingest/bucket_split.h) and a 300 k-point one. More than half the budget
+  // holds (~860 k points), so encode_shard takes compress's external sort at
+  // 64 MiB and reads the range whole at the default 1 GiB: the same rows.
+  PointCloud all = test::dense_surface(650000, 7, true);
+  PointCloud other = test::dense_surface(300000, 8);
+  for (Vec3d& p : other.positions) p.x += 4;
+  all.append_points(other);
+  std::vector<std::string> inputs;
+  for (int k = 0; k < 2; ++k) {
+    PointCloud part;
+    for (std::size_t i = static_cast<std::size_t>(k); i < all.size(); i += 2) part.positions.push_back(all.positions[i]);
+    inputs.push_back(dir.file("in" + std::to_string(k) + ".ply"));
+    REQUIRE(write_ply(inputs.back(), part).is_ok());
+  }
+  IngestOptions o;
+  o.tolerance = 0.001;
+  o.chunk_edge = 4;
+  o.split_points = 1u << 16;
+  o.threads = 2;
+  ShardPlan plan;
+  const std::vector<std::string> shards = build_shards(inputs, o, 1, dir.file("work"), &plan);
+  REQUIRE(shards.size() == 1);
+  const std::vector<Row> want = rows_of(shards[0]);
+  CHECK(want.size() > 14);  // parts of at most 2^16 points
+  EncodeShardOptions small;
+  small.threads = 2;
+  small.memory_budget = 64u << 20;
+  small.tmp_dir = dir.file("tmp");
+  std::filesystem::create_directories(small.tmp_dir);
+  auto e = encode_shard(plan, 0, dir.file("work/parts"), dir.file("small.relief"), small);
+  INFO((e ? std::string() : e.status().to_string()));
+  REQUIRE(e.is_ok());
+  CHECK(e->points_read == 950000);
+  CHECK(rows_of(dir.file("small.relief")) == want);
+  // The bucket files went, with their directory.
+  CHECK(TempDir::list(dir.file("tmp")).empty());
+  // A tmp directory that is not there is an error naming it, and no shard.
+  small.tmp_dir = dir.file("missing");
+  auto bad = encode_shard(plan, 0, dir.file("work/parts"), dir.file("bad.relief"), small);
+  REQUIRE_FALSE(bad.is_ok());
+  CHECK(bad.status().message().find("missing") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(dir.file("bad.relief")));
+  // The CLI takes the budget and refuses one below the minimum.
+  const auto cli = test::run_cli(RELIEF_CLI, "shard-encode " + dir.file("work/plan.txt") + " --range 0 --dir " +
+                                                 dir.file("work/parts") + " -o " + dir.file("cli.relief") +
+                                                 " --memory 8M");
+  CHECK(cli.code == 2);
+  CHECK(cli.output.find("minimum") != std::string::npos);
 }
 
 TEST_CASE("sharded build: merge takes more shards than the process may hold open at once", "[shard]") {

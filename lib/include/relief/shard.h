@@ -119,6 +119,11 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
 struct EncodeShardOptions {
   unsigned threads = 0;  // 0 = all cores
   bool verify_blobs = false;
+  // Working memory, shared as compress shares it (IngestOptions): a range of
+  // more points than half of it fits goes through temporary bucket files in
+  // `tmp_dir` (empty: beside the shard) and is encoded slice by slice.
+  std::uint64_t memory_budget = std::uint64_t{1} << 30;
+  std::string tmp_dir;
 };
 
 // Stage 2: reads range `range`'s partition file of every input from `dir`
