@@ -95,6 +95,51 @@ Blobs blobs_of(const std::string& path) {
   return b;
 }
 
+// Runs `argv` (which writes the archive `out`) o.repeat times and prints its
+// row: median time, largest peak RSS and its ratio to `budget_mib`, and the
+// blobs of the first run against `first_hash` (set by the first row).
+// Returns 1 when a run failed or the blobs differ.
+int measure_row(const DenseOptions& o, const std::string& name, const std::string& memory, double budget_mib,
+                std::uint64_t points, const std::vector<std::string>& argv, const std::string& out,
+                std::uint64_t& first_hash) {
+  std::vector<double> secs;
+  long rss = 0;
+  Blobs b;
+  std::uintmax_t archive_bytes = 0;
+  int status = 0;
+  for (int r = 0; r < o.repeat; ++r) {
+    fs::remove(out);
+    const ChildRun run = run_child(argv);
+    if (run.code != 0) {
+      std::fprintf(stderr, "error: relief %s exited with %d (%s, --memory %s)\n", argv[1].c_str(), run.code,
+                   name.c_str(), memory.c_str());
+      status = 1;
+      break;
+    }
+    secs.push_back(run.seconds);
+    rss = std::max(rss, run.peak_rss_kib);
+    if (r == 0) {
+      b = blobs_of(out);
+      archive_bytes = fs::file_size(out);
+    }
+    fs::remove(out);
+  }
+  if (secs.empty()) return status;
+  if (first_hash == 0) first_hash = b.hash;
+  const double s = median(secs);
+  std::printf("%s,%s,%.2f,%.2f,%ld,%.2f,%llu,%llu,%llu,%llu,%016llx%s\n", name.c_str(), memory.c_str(), s,
+              static_cast<double>(points) / s / 1e6, rss / 1024, static_cast<double>(rss) / 1024.0 / budget_mib,
+              static_cast<unsigned long long>(b.chunks), static_cast<unsigned long long>(b.largest),
+              static_cast<unsigned long long>(b.bytes), static_cast<unsigned long long>(archive_bytes),
+              static_cast<unsigned long long>(b.hash), b.hash == first_hash ? "" : " BLOBS DIFFER");
+  std::fflush(stdout);
+  return b.hash == first_hash ? status : 1;
+}
+
+double budget_mib_of(const std::string& memory) {
+  return std::strtod(memory.c_str(), nullptr) * (memory.back() == 'G' ? 1024.0 : 1.0);
+}
+
 // Stage 2 of a sharded build with every point in one key range: the scan
 // planned with --ranges 1 and partitioned once, then `relief shard-encode` of
 // that range at each budget (plus a run without --memory, the default 1 GiB,
@@ -114,46 +159,15 @@ int run_shard_range(const DenseOptions& o, const std::string& name, const std::s
   std::vector<std::string> budgets = o.budgets;
   budgets.push_back("default");
   for (const std::string& memory : budgets) {
-    std::vector<double> secs;
-    long rss = 0;
-    Blobs b;
-    std::uintmax_t archive_bytes = 0;
-    for (int r = 0; r < o.repeat; ++r) {
-      const std::string out = work + "/shard.relief";
-      fs::remove(out);
-      std::vector<std::string> argv = {o.cli, "shard-encode", plan, "--range", "0", "--dir", work + "/parts", "-o",
-                                       out, "--threads", "2", "--quiet"};
-      if (memory != "default") {
-        argv.push_back("--memory");
-        argv.push_back(memory);
-      }
-      const ChildRun run = run_child(argv);
-      if (run.code != 0) {
-        std::fprintf(stderr, "error: relief shard-encode exited with %d (%s, --memory %s)\n", run.code, name.c_str(),
-                     memory.c_str());
-        status = 1;
-        break;
-      }
-      secs.push_back(run.seconds);
-      rss = std::max(rss, run.peak_rss_kib);
-      if (r == 0) {
-        b = blobs_of(out);
-        archive_bytes = fs::file_size(out);
-      }
-      fs::remove(out);
+    const std::string out = work + "/shard.relief";
+    std::vector<std::string> argv = {o.cli, "shard-encode", plan, "--range", "0", "--dir", work + "/parts", "-o",
+                                     out, "--threads", "2", "--quiet"};
+    if (memory != "default") {
+      argv.push_back("--memory");
+      argv.push_back(memory);
     }
-    if (secs.empty()) continue;
-    if (first_hash == 0) first_hash = b.hash;
-    const double s = median(secs);
-    const std::string shown = memory == "default" ? "1G" : memory;
-    const double budget_mib = std::strtod(shown.c_str(), nullptr) * (shown.back() == 'G' ? 1024.0 : 1.0);
-    std::printf("%s,%s,%.2f,%.2f,%ld,%.2f,%llu,%llu,%llu,%llu,%016llx%s\n", name.c_str(), memory.c_str(), s,
-                static_cast<double>(points) / s / 1e6, rss / 1024, static_cast<double>(rss) / 1024.0 / budget_mib,
-                static_cast<unsigned long long>(b.chunks), static_cast<unsigned long long>(b.largest),
-                static_cast<unsigned long long>(b.bytes), static_cast<unsigned long long>(archive_bytes),
-                static_cast<unsigned long long>(b.hash), b.hash == first_hash ? "" : " BLOBS DIFFER");
-    if (b.hash != first_hash) status = 1;
-    std::fflush(stdout);
+    status |= measure_row(o, name, memory, budget_mib_of(memory == "default" ? "1G" : memory), points, argv, out,
+                          first_hash);
   }
   fs::remove_all(work);
   return status;
@@ -193,42 +207,11 @@ int run_dense(const DenseOptions& o) {
     }
     std::uint64_t first_hash = 0;
     for (const std::string& memory : o.budgets) {
-      std::vector<double> secs;
-      long rss = 0;
-      Blobs b;
-      std::uintmax_t archive_bytes = 0;
-      for (int r = 0; r < o.repeat; ++r) {
-        const std::string out = o.tmp + "/relief-bench-dense.relief";
-        fs::remove(out);
-        std::vector<std::string> argv = {o.cli, "compress", in, "-o", out, "--tolerance", "0.001", "--memory", memory,
-                                         "--threads", "2", "--quiet"};
-        argv.insert(argv.end(), c.extra.begin(), c.extra.end());
-        const ChildRun run = run_child(argv);
-        if (run.code != 0) {
-          std::fprintf(stderr, "error: relief compress exited with %d (%s, --memory %s)\n", run.code, c.name,
-                       memory.c_str());
-          status = 1;
-          break;
-        }
-        secs.push_back(run.seconds);
-        rss = std::max(rss, run.peak_rss_kib);
-        if (r == 0) {
-          b = blobs_of(out);
-          archive_bytes = fs::file_size(out);
-        }
-        fs::remove(out);
-      }
-      if (secs.empty()) continue;
-      if (first_hash == 0) first_hash = b.hash;
-      const double s = median(secs);
-      const double budget_mib = std::strtod(memory.c_str(), nullptr) * (memory.back() == 'G' ? 1024.0 : 1.0);
-      std::printf("%s,%s,%.2f,%.2f,%ld,%.2f,%llu,%llu,%llu,%llu,%016llx%s\n", c.name, memory.c_str(), s,
-                  static_cast<double>(c.points) / s / 1e6, rss / 1024, static_cast<double>(rss) / 1024.0 / budget_mib,
-                  static_cast<unsigned long long>(b.chunks), static_cast<unsigned long long>(b.largest),
-                  static_cast<unsigned long long>(b.bytes), static_cast<unsigned long long>(archive_bytes),
-                  static_cast<unsigned long long>(b.hash), b.hash == first_hash ? "" : " BLOBS DIFFER");
-      if (b.hash != first_hash) status = 1;
-      std::fflush(stdout);
+      const std::string out = o.tmp + "/relief-bench-dense.relief";
+      std::vector<std::string> argv = {o.cli, "compress", in, "-o", out, "--tolerance", "0.001", "--memory", memory,
+                                       "--threads", "2", "--quiet"};
+      argv.insert(argv.end(), c.extra.begin(), c.extra.end());
+      status |= measure_row(o, c.name, memory, budget_mib_of(memory), c.points, argv, out, first_hash);
     }
     fs::remove(in);
   }
