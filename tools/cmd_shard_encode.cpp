@@ -55,8 +55,15 @@ int run_shard_encode(int argc, char** argv) {
   auto plan = read_shard_plan(args.positional()[0]);
   if (!plan) return fail(kCommand, plan.status());
   const std::string out = *args.get("-o");
+  o.cancel = install_interrupt_flag();
   auto r = encode_shard(*plan, range, *args.get("--dir"), out, o);
-  if (!r) return fail(kCommand, r.status());
+  if (!r) {
+    if (o.cancel->load()) {
+      std::cerr << "relief shard-encode: interrupted; no shard written (nothing of it is left)\n";
+      return 130;
+    }
+    return fail(kCommand, r.status());
+  }
   if (!args.has("--quiet")) print_ingest_summary(out, *r);
   return kExitOk;
 }

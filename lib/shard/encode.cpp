@@ -75,6 +75,10 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   IngestOptions tmp_choice;
   tmp_choice.tmp_dir = options.tmp_dir;
   const std::string tmp_parent = default_tmp_parent(out, tmp_choice);
+  const auto interrupted = [&]() -> Status {
+    if (options.cancel != nullptr && options.cancel->load()) return io_error(out + ": interrupted");
+    return Status::ok();
+  };
 
   const std::string tmp = shard::temp_name(out);
   remove_archive_files(tmp);
@@ -99,13 +103,14 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     // A range read whole: also before the pipeline, whose tasks point into them.
     PointCloud points;
     Grouping grouping;
-    ChunkPipeline pipeline(*archive, chunk_params, plan.grid, *scan_id, budget.encode_threads, nullptr,
+    ChunkPipeline pipeline(*archive, chunk_params, plan.grid, *scan_id, budget.encode_threads, options.cancel,
                            options.verify_blobs, budget.encode_memory);
     if (total <= budget.in_memory_points) {
       // In input order, each file in read order: the order compress_files sees.
       points.reserve(static_cast<std::size_t>(total), layout.colors, layout.intensity);
       reserve_las(points.las, static_cast<std::size_t>(total), layout.las, layout.extra_size);
       for (std::uint32_t i = 0; i < plan.input_count(); ++i) {
+        RELIEF_RETURN_IF_ERROR(interrupted());
         RELIEF_RETURN_IF_ERROR(shard::read_partition_file(base + "/" + partition_file_name(i, range), plan_id, i,
                                                           range, layout, points)
                                    .status());
@@ -129,6 +134,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
         const Result<std::uint64_t> got = shard::read_partition_batches(
             base + "/" + partition_file_name(i, range), plan_id, i, range, layout, budget.read_batch,
             [&](PointCloud& batch) -> Status {
+              RELIEF_RETURN_IF_ERROR(interrupted());
               RELIEF_RETURN_IF_ERROR(check_coordinates(batch, coordinate_limit, where, first));
               first += batch.size();
               keys.resize(batch.size());
@@ -150,12 +156,17 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
       how.las_attributes = layout.las;
       how.extra_bytes_size = layout.extra_size;
       how.tmp_parent = tmp_parent;
+      how.cancel = options.cancel;
       RELIEF_RETURN_IF_ERROR(encode_bucket_files(files, plan.grid, pipeline, slices, budget, how, nullptr));
     }
     totals = pipeline.totals();
     return Status::ok();
   };
-  if (Status s = encode(); !s) return failed(s);
+  if (Status s = encode(); !s) {
+    // The pipeline reports a cancellation as its own error: say it plainly.
+    if (options.cancel != nullptr && options.cancel->load()) return failed(io_error(out + ": interrupted"));
+    return failed(s);
+  }
   const ScanAttributes& attributes = plan.attributes;
   if (Status s = finish_scan(*archive, *scan_id, attributes.has_colors, attributes.has_intensity, attributes.crs);
       !s) {

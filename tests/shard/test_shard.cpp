@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <limits>
 #include <filesystem>
 #include <fstream>
@@ -331,6 +332,20 @@ TEST_CASE("sharded build: a range larger than the stage-2 budget is sorted throu
   CHECK(rows_of(dir.file("small.relief")) == want);
   // The bucket files went, with their directory.
   CHECK(TempDir::list(dir.file("tmp")).empty());
+  // Interrupted (Ctrl-C, SIGTERM: the CLI sets the flag), either way: an
+  // error saying so, and neither the shard nor its bucket files are left.
+  std::atomic<bool> stop{true};
+  for (const std::uint64_t budget : {std::uint64_t{64} << 20, std::uint64_t{1} << 30}) {
+    EncodeShardOptions cancelled = small;
+    cancelled.memory_budget = budget;
+    cancelled.cancel = &stop;
+    auto c = encode_shard(plan, 0, dir.file("work/parts"), dir.file("cancelled.relief"), cancelled);
+    REQUIRE_FALSE(c.is_ok());
+    CHECK(c.status().message().find("interrupted") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("cancelled.relief")));
+    CHECK(TempDir::list(dir.file("tmp")).empty());
+  }
+  for (const std::string& name : TempDir::list(dir.path().string())) CHECK(name.find(".tmp-") == std::string::npos);
   // A tmp directory that is not there is an error naming it, and no shard.
   small.tmp_dir = dir.file("missing");
   auto bad = encode_shard(plan, 0, dir.file("work/parts"), dir.file("bad.relief"), small);

@@ -15,6 +15,7 @@
 // The files are described in format-spec/shard.md.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -124,6 +125,9 @@ struct EncodeShardOptions {
   // `tmp_dir` (empty: beside the shard) and is encoded slice by slice.
   std::uint64_t memory_budget = std::uint64_t{1} << 30;
   std::string tmp_dir;
+  // Set (from any thread) to stop: encode_shard returns kIoError
+  // "interrupted", having removed its temporary shard and bucket files.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 // Stage 2: reads range `range`'s partition file of every input from `dir`
