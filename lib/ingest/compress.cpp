@@ -765,7 +765,11 @@ void remove_archive_files(const std::string& path) {
 }
 
 std::string default_tmp_parent(const std::string& archive_path, const IngestOptions& options) {
-  if (!options.tmp_dir.empty()) return options.tmp_dir;
+  return default_tmp_parent(archive_path, options.tmp_dir);
+}
+
+std::string default_tmp_parent(const std::string& archive_path, const std::string& tmp_dir) {
+  if (!tmp_dir.empty()) return tmp_dir;
   const std::filesystem::path p(archive_path);
   const std::string parent = p.parent_path().string();
   return parent.empty() ? "." : parent;

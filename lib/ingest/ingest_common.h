@@ -237,6 +237,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
 
 void remove_archive_files(const std::string& path);
 std::string default_tmp_parent(const std::string& archive_path, const IngestOptions& options);
+// The same for a directory given as such (empty: beside the archive).
+std::string default_tmp_parent(const std::string& archive_path, const std::string& tmp_dir);
 
 // Throttles progress callbacks to a few per second.
 class Progress {

@@ -72,9 +72,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   const std::uint64_t las_bytes = las_record_bytes(layout.las, layout.extra_size);
   const IngestBudget budget =
       plan_ingest_budget(options.memory_budget, resolve_threads(options.threads), las_bytes, total, true);
-  IngestOptions tmp_choice;
-  tmp_choice.tmp_dir = options.tmp_dir;
-  const std::string tmp_parent = default_tmp_parent(out, tmp_choice);
+  const std::string tmp_parent = default_tmp_parent(out, options.tmp_dir);
   const auto interrupted = [&]() -> Status {
     if (options.cancel != nullptr && options.cancel->load()) return io_error(out + ": interrupted");
     return Status::ok();
