@@ -33,8 +33,15 @@ int run_shard_partition(int argc, char** argv) {
   if (!args.ok()) return usage_error(kCommand, args.error());
   auto plan = read_shard_plan(args.positional()[0]);
   if (!plan) return fail(kCommand, plan.status());
-  auto r = partition_input(*plan, input, *args.get("--dir"));
-  if (!r) return fail(kCommand, r.status());
+  const std::atomic<bool>* interrupted = install_interrupt_flag();
+  auto r = partition_input(*plan, input, *args.get("--dir"), interrupted);
+  if (!r) {
+    if (interrupted->load()) {
+      std::cerr << "relief shard-partition: interrupted; nothing of input " << input << " is left\n";
+      return 130;
+    }
+    return fail(kCommand, r.status());
+  }
   for (const std::string& w : r->warnings) std::fprintf(stderr, "relief %s: warning: %s\n", kCommand, w.c_str());
   if (!args.has("--quiet")) {
     std::printf("input %u (%s): %llu points into %u ranges\n", input, plan->sources[input].path.c_str(),

@@ -358,7 +358,8 @@ std::string partition_manifest_name(std::uint32_t input) {
   return buf;
 }
 
-Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t input, const std::string& dir) {
+Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t input, const std::string& dir,
+                                        const std::atomic<bool>* cancel) {
   using namespace ingest;
   if (input >= plan.input_count()) {
     return invalid_argument("input " + std::to_string(input) + " of a plan of " + std::to_string(plan.input_count()) +
@@ -404,6 +405,7 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
   std::vector<ChunkKey> keys;
   std::uint64_t read = 0;
   for (;;) {
+    if (cancel != nullptr && cancel->load()) return io_error(path + ": interrupted");
     RELIEF_ASSIGN_OR_RETURN(const std::size_t got, reader->read(batch, kReadBatch));
     if (got == 0) break;
     RELIEF_RETURN_IF_ERROR(stage_points(batch, limit, path, read, a.has_colors, a.has_intensity, params));

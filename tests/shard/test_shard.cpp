@@ -346,6 +346,12 @@ TEST_CASE("sharded build: a range larger than the stage-2 budget is sorted throu
     CHECK(TempDir::list(dir.file("tmp")).empty());
   }
   for (const std::string& name : TempDir::list(dir.path().string())) CHECK(name.find(".tmp-") == std::string::npos);
+  // Stage 1 too: no partition file, no manifest.
+  std::filesystem::create_directories(dir.file("parts2"));
+  auto p = partition_input(plan, 0, dir.file("parts2"), &stop);
+  REQUIRE_FALSE(p.is_ok());
+  CHECK(p.status().message().find("interrupted") != std::string::npos);
+  CHECK(TempDir::list(dir.file("parts2")).empty());
   // A tmp directory that is not there is an error naming it, and no shard.
   small.tmp_dir = dir.file("missing");
   auto bad = encode_shard(plan, 0, dir.file("work/parts"), dir.file("bad.relief"), small);

@@ -115,7 +115,10 @@ struct PartitionResult {
 // Stage 1: reads input `input` of the plan, snaps its points to the plan's
 // grid and writes one partition file per range into `dir` (which must
 // exist), then the input's manifest. Safe to re-run; writes the same bytes.
-Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t input, const std::string& dir);
+// A set `*cancel` (from any thread) stops it between batches: kIoError
+// "interrupted", its temporary files removed and no manifest written.
+Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t input, const std::string& dir,
+                                        const std::atomic<bool>* cancel = nullptr);
 
 struct EncodeShardOptions {
   unsigned threads = 0;  // 0 = all cores
