@@ -137,11 +137,13 @@ def _partition_task(cli, plan_path, parts_dir, index, kill_once, _plan):
     return index
 
 
-def _encode_task(cli, plan_path, parts_dir, shard_path, index, threads, memory, kill_once, _partitions):
+def _encode_task(cli, plan_path, parts_dir, shard_path, index, threads, memory, tmp, kill_once, _partitions):
     cli = find_cli(cli)
     args = [plan_path, "--range", str(index), "--dir", parts_dir, "-o", shard_path, "--threads", str(threads)]
     if memory is not None:
         args += ["--memory", str(memory)]
+    if tmp is not None:
+        args += ["--tmp", os.path.expandvars(str(tmp))]
     _run(cli, "shard-encode", args)
     _maybe_die(kill_once, "encode", index)
     return shard_path
@@ -179,7 +181,8 @@ def read_plan_counts(plan_path):
 
 
 def compress(inputs, archive, client=None, *, ranges=None, work_dir=None, keep_work=False,
-             relief_cli=None, threads_per_task=1, memory_per_task=None, workers=None, _test_kill_once=None,
+             relief_cli=None, threads_per_task=1, memory_per_task=None, tmp_per_task=None, workers=None,
+             _test_kill_once=None,
              _raw_plan_args=None, **options):
     """Builds ``archive`` from ``inputs`` on a Dask cluster.
 
@@ -194,7 +197,9 @@ def compress(inputs, archive, client=None, *, ranges=None, work_dir=None, keep_w
     memory_per_task: working memory of each stage-2 task, as ``relief
         shard-encode --memory`` takes it (e.g. "2G"); None = its default (1G).
         A key range larger than half of it is sorted through temporary files
-        beside its shard, with the same blobs.
+        beside its shard (or in ``tmp_per_task``), with the same blobs.
+    tmp_per_task: a directory on each worker for those files, e.g. local
+        scratch ("$TMPDIR" is expanded on the worker); None = beside the shard.
     options: ``relief compress`` options as keywords (plan_options), e.g.
         tolerance=0.002, chunk_edge=10, columns="x,y,z,i".
 
@@ -233,7 +238,8 @@ def compress(inputs, archive, client=None, *, ranges=None, work_dir=None, keep_w
                                      key="relief-partition-%d-%s" % (i, tag)) for i in range(n_inputs)]
         shards = [client.submit(_encode_task, relief_cli, plan_path, parts,
                                 os.path.join(work, "shard-%04d.relief" % r), r, threads_per_task,
-                                memory_per_task, _test_kill_once, partitioned, key="relief-encode-%d-%s" % (r, tag))
+                                memory_per_task, tmp_per_task, _test_kill_once, partitioned,
+                                key="relief-encode-%d-%s" % (r, tag))
                   for r in range(n_ranges)]
         merged_path = os.path.join(work, "merged.relief")
         merged = client.submit(_merge_task, relief_cli, shards, merged_path, _test_kill_once,
@@ -272,6 +278,9 @@ def main(argv=None):
     c.add_argument("--memory-per-task", metavar="SIZE",
                    help="working memory of each encoding task, e.g. 2G (default 1G; larger key ranges "
                         "are sorted through temporary files)")
+    c.add_argument("--tmp-per-task", metavar="DIR",
+                   help="where an encoding task puts those files, e.g. local scratch (default: beside its "
+                        "shard, in the work directory; $VARS are expanded on the worker)")
     args, plan_args = parser.parse_known_args(argv)
     client = None
     if args.scheduler:
@@ -282,7 +291,7 @@ def main(argv=None):
         result = compress(args.inputs, args.output, client=client, ranges=args.ranges,
                           work_dir=args.work_dir, keep_work=args.keep_work,
                           relief_cli=args.relief_cli, threads_per_task=args.threads_per_task,
-                          memory_per_task=args.memory_per_task,
+                          memory_per_task=args.memory_per_task, tmp_per_task=args.tmp_per_task,
                           workers=args.workers, _raw_plan_args=plan_args)
     except (ReliefCliError, FileExistsError, FileNotFoundError, ValueError) as e:
         print("relief.distributed: %s" % e, file=sys.stderr)

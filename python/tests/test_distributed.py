@@ -180,9 +180,13 @@ def test_las_same_archive_as_one_box(cluster, tmp_path):
     assert len(want[0]) >= 12
     out = str(tmp_path / "dask.relief")
     # The stage-2 budget is passed on (the C++ tests cover a range larger than it).
-    result = rd.compress(inputs, out, client=cluster, ranges=3, memory_per_task="64M", **OPTIONS)
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    result = rd.compress(inputs, out, client=cluster, ranges=3, memory_per_task="64M",
+                         tmp_per_task=str(scratch), **OPTIONS)
     assert result["ranges"] == 3
     assert archive_content(out) == want
+    assert os.listdir(str(scratch)) == []
 
 
 def test_failed_stage_names_the_problem(cluster, tmp_path):
