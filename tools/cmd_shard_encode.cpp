@@ -43,12 +43,13 @@ int run_shard_encode(int argc, char** argv) {
   o.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   o.verify_blobs = args.has("--verify");
   if (const auto m = args.get("--memory")) {
-    o.memory_budget = parse_byte_size(*m);
-    if (o.memory_budget == 0) return usage_error(kCommand, "--memory expects a size such as 512M or 2G, got '" + *m + "'");
-    if (o.memory_budget < kMinMemoryBudget) {
-      return usage_error(kCommand, "--memory " + *m + " is below the minimum of " +
-                                       std::to_string(kMinMemoryBudget >> 20) + "M");
+    // Read and checked as compress reads it (same rules, same messages).
+    IngestOptions parsed;
+    if (Status st = apply_ingest_options(IngestOptionSet::kAppend, {{"memory", *m}}, OptionSpelling::kCli, parsed);
+        !st) {
+      return usage_error(kCommand, st.message());
     }
+    o.memory_budget = parsed.memory_budget;
   }
   if (const auto t = args.get("--tmp")) o.tmp_dir = *t;
   if (!args.ok()) return usage_error(kCommand, args.error());

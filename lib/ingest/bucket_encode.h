@@ -56,11 +56,6 @@ struct BucketEncodeOptions {
   bool whole_chunks = true;
   std::uint64_t task_points = 0;
   const ArchiveGrid* split_grid = nullptr;
-  // The attributes every record carries, as the files were created with.
-  bool colors = false;
-  bool intensity = false;
-  std::uint32_t las_attributes = 0;
-  std::uint32_t extra_bytes_size = 0;
   std::string tmp_parent;  // where a split bucket's loads are written
   const std::atomic<bool>* cancel = nullptr;
 };

@@ -97,6 +97,11 @@ class BucketFiles {
       std::function<Status(const ChunkKey& key, const Vec3d& cube_min, const std::uint8_t* records, std::uint32_t n)>;
   Status scan(std::uint32_t bucket, AlignedBuffer& buf, const RunVisitor& visit) const;
   std::size_t record_bytes() const { return record_; }
+  // What every record carries, as created.
+  bool colors() const { return colors_; }
+  bool intensity() const { return intensity_; }
+  std::uint32_t las_attributes() const { return las_; }
+  std::uint32_t extra_bytes_size() const { return extra_size_; }
   Vec3d position(const Vec3d& cube_min, const std::uint8_t* record) const;
   // Appends one block of raw records (runs: chunk key and record count, the
   // records in that order) to a bucket. The records keep their fixed-point

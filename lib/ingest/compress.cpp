@@ -413,10 +413,6 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     encode.whole_chunks = bounded;
     encode.task_points = task_points;
     encode.split_grid = split_grid;
-    encode.colors = in.colors;
-    encode.intensity = in.intensity;
-    encode.las_attributes = in.las_attributes;
-    encode.extra_bytes_size = in.extra_bytes_size;
     encode.tmp_parent = tmp_parent;
     encode.cancel = options.cancel;
     RELIEF_RETURN_IF_ERROR(encode_bucket_files(files, grid, *pipeline, slices, plan, encode, tick));

@@ -149,10 +149,6 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
       how.whole_chunks = true;
       how.task_points = plan.split_points;
       how.split_grid = &plan.grid;
-      how.colors = layout.colors;
-      how.intensity = layout.intensity;
-      how.las_attributes = layout.las;
-      how.extra_bytes_size = layout.extra_size;
       how.tmp_parent = tmp_parent;
       how.cancel = options.cancel;
       RELIEF_RETURN_IF_ERROR(encode_bucket_files(files, plan.grid, pipeline, slices, budget, how, nullptr));
