@@ -41,8 +41,6 @@ constexpr std::uint64_t kTrimAboveThirds = 2;
 // as many as the encoders' third of the budget holds (one at the 64 MiB
 // minimum; two from 96 MiB; every core at the 1 GiB default).
 constexpr std::uint64_t kEncoderThreadBytes = std::uint64_t{16} << 20;
-// Points per read from an input.
-constexpr std::uint64_t kReadBatch = std::uint64_t{1} << 20;
 
 }  // namespace
 
@@ -61,7 +59,7 @@ IngestBudget plan_ingest_budget(std::uint64_t memory_budget, unsigned threads, s
   // take half the budget, the encoders keep their third.
   b.in_memory_points = (b.budget / 2) / b.group_bytes;
   b.read_batch = std::max<std::uint64_t>(
-      1024, std::min<std::uint64_t>(kReadBatch, (b.budget / 16) / (kBatchBytesPerPoint + las_bytes)));
+      1024, std::min<std::uint64_t>(kReadBatchPoints, (b.budget / 16) / (kBatchBytesPerPoint + las_bytes)));
   // Enough buckets that a bucket usually fits one slice (x2 for skew; x4 when
   // buckets are read whole).
   const std::uint64_t want = ((whole_chunks ? 4 : 2) * std::max<std::uint64_t>(1, estimated_points)) / b.slice_points + 1;

@@ -18,6 +18,9 @@
 
 namespace relief::ingest {
 
+// Points per read from an input (at most; a small budget reads fewer).
+inline constexpr std::size_t kReadBatchPoints = std::size_t{1} << 20;
+
 // The shares of one budget (bytes; at least kMinMemoryBudget).
 //
 // While reading: 1/8 for bucket staging buffers, 3/16 for batches in flight

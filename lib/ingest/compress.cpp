@@ -39,8 +39,6 @@ namespace {
 // the cell size: the points (31) and suggest_cell_size's keys and radix
 // scratch (32).
 constexpr std::uint64_t kFirstBatchBytesPerPoint = 31 + 32;
-// Points per read from an input.
-constexpr std::size_t kReadBatch = 1u << 20;
 // Cell when the inputs hold no point to measure a density from (1 unit,
 // metres for most data; the bounded mode's base layer multiplies it by
 // kBaseCellFactor); the chunk edge follows as for any cell. README "Inputs".
@@ -710,7 +708,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
     readers.push_back(std::move(reader));
   }
   {
-    Prefetcher prefetch(readers, kReadBatch, 1, 0, nullptr);  // one batch ahead, as the main pass
+    Prefetcher prefetch(readers, kReadBatchPoints, 1, 0, nullptr);  // one batch ahead, as the main pass
     ReadBatch read;
     for (;;) {
       RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(read));
@@ -803,7 +801,7 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   // Otherwise only the coordinate and density checks need them: read no
   // more, so the reading thread takes over sooner.
   const auto first_points = static_cast<std::size_t>(std::min<std::uint64_t>(
-      derive_from_first ? kReadBatch : kDensitySamplePoints, (budget / 4) / kFirstBatchBytesPerPoint));
+      derive_from_first ? kReadBatchPoints : kDensitySamplePoints, (budget / 4) / kFirstBatchBytesPerPoint));
   RELIEF_ASSIGN_OR_RETURN(std::size_t got, in.readers[0]->read(first, first_points));
   conform_attributes(first, in);
   // The absolute bound first, so no absurd coordinate reaches the cell-size
