@@ -57,7 +57,9 @@ int run_shard_encode(int argc, char** argv) {
   if (!plan) return fail(kCommand, plan.status());
   const std::string out = *args.get("-o");
   o.cancel = install_interrupt_flag();
+  o.progress = progress_printer(args.has("--quiet"));
   auto r = encode_shard(*plan, range, *args.get("--dir"), out, o);
+  end_progress_line();
   if (!r) {
     if (o.cancel->load()) {
       std::cerr << "relief shard-encode: interrupted; no shard written (nothing of it is left)\n";

@@ -92,6 +92,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   auto scan_id = archive->begin_scan(sources, plan.attributes);
   if (!scan_id) return failed(scan_id.status());
   PipelineTotals totals;
+  Progress progress(options.progress, total);
   // Both ways give the same blobs, as compress's two ways do: chunks whole,
   // cut by the plan's octant rule.
   const auto encode = [&]() -> Status {
@@ -103,6 +104,10 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     Grouping grouping;
     ChunkPipeline pipeline(*archive, chunk_params, plan.grid, *scan_id, budget.encode_threads, options.cancel,
                            options.verify_blobs, budget.encode_memory);
+    const std::function<void()> tick = [&] {
+      const PipelineTotals t = pipeline.encoded();
+      progress.update("encoding", total, t.chunks, t.blob_bytes, t.points_in);
+    };
     if (total <= budget.in_memory_points) {
       // In input order, each file in read order: the order compress_files sees.
       points.reserve(static_cast<std::size_t>(total), layout.colors, layout.intensity);
@@ -112,13 +117,14 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
         RELIEF_RETURN_IF_ERROR(shard::read_partition_file(base + "/" + partition_file_name(i, range), plan_id, i,
                                                           range, layout, points)
                                    .status());
+        progress.update("reading", points.size(), 0, 0);
       }
       RELIEF_RETURN_IF_ERROR(check_coordinates(points, coordinate_limit, where, 0));
       grouping.add(points.positions.data(), points.size(), plan.grid);
       for (const ChunkKey& k : grouping.keys) {
         if (plan.range_of(k) != range) return outside(k);
       }
-      RELIEF_RETURN_IF_ERROR(pipeline.run(make_tasks(points, plan.split_points, grouping, &plan.grid), nullptr));
+      RELIEF_RETURN_IF_ERROR(pipeline.run(make_tasks(points, plan.split_points, grouping, &plan.grid), tick));
     } else {
       // Larger than half the budget: the external sort of compress, its
       // bucket files beside the shard (or in --tmp), read back in slices.
@@ -135,6 +141,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
               RELIEF_RETURN_IF_ERROR(interrupted());
               RELIEF_RETURN_IF_ERROR(check_coordinates(batch, coordinate_limit, where, first));
               first += batch.size();
+              progress.update("reading", first, 0, 0);
               keys.resize(batch.size());
               plan.grid.keys_of(batch.positions.data(), batch.size(), keys.data());
               for (std::size_t j = 0; j < keys.size(); ++j) {
@@ -151,7 +158,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
       how.split_grid = &plan.grid;
       how.tmp_parent = tmp_parent;
       how.cancel = options.cancel;
-      RELIEF_RETURN_IF_ERROR(encode_bucket_files(files, plan.grid, pipeline, slices, budget, how, nullptr));
+      RELIEF_RETURN_IF_ERROR(encode_bucket_files(files, plan.grid, pipeline, slices, budget, how, tick));
     }
     totals = pipeline.totals();
     return Status::ok();
@@ -176,6 +183,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     remove_archive_files(tmp);
     return io_error(out + ": cannot rename the finished shard into place");
   }
+  progress.finish("done", total, totals.chunks, totals.blob_bytes, totals.points_in);
   IngestResult r;
   r.points_read = total;
   r.points_decoded = totals.points_decoded;

@@ -325,10 +325,18 @@ TEST_CASE("sharded build: a range larger than the stage-2 budget is sorted throu
   small.memory_budget = 64u << 20;
   small.tmp_dir = dir.file("tmp");
   std::filesystem::create_directories(small.tmp_dir);
+  std::vector<IngestProgress> seen;
+  small.progress = [&](const IngestProgress& p) { seen.push_back(p); };
   auto e = encode_shard(plan, 0, dir.file("work/parts"), dir.file("small.relief"), small);
   INFO((e ? std::string() : e.status().to_string()));
   REQUIRE(e.is_ok());
   CHECK(e->points_read == 950000);
+  // Progress ends with "done" and every point (the others are rate-limited).
+  REQUIRE_FALSE(seen.empty());
+  CHECK(std::string(seen.back().phase) == "done");
+  CHECK(seen.back().points_read == 950000);
+  CHECK(seen.back().chunks_written == e->chunks_written);
+  small.progress = nullptr;
   CHECK(rows_of(dir.file("small.relief")) == want);
   // The bucket files went, with their directory.
   CHECK(TempDir::list(dir.file("tmp")).empty());

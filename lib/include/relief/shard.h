@@ -17,6 +17,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -131,6 +132,9 @@ struct EncodeShardOptions {
   // Set (from any thread) to stop: encode_shard returns kIoError
   // "interrupted", having removed its temporary shard and bucket files.
   const std::atomic<bool>* cancel = nullptr;
+  // Called at most every half second from the calling thread ("reading",
+  // "encoding", then "done"), as compress_files' IngestOptions::progress.
+  std::function<void(const IngestProgress&)> progress;
 };
 
 // Stage 2: reads range `range`'s partition file of every input from `dir`
