@@ -122,10 +122,6 @@ Status encode_bucket_files(BucketFiles& files, const ArchiveGrid& grid, ChunkPip
       split_options.load_points = slice_points;
       split_options.tmp_parent = options.tmp_parent;
       split_options.staging_bytes = std::min<std::size_t>(budget.staging_bytes, kSplitStagingBytes);
-      split_options.colors = files.colors();
-      split_options.intensity = files.intensity();
-      split_options.las_attributes = files.las_attributes();
-      split_options.extra_bytes_size = files.extra_bytes_size();
       RELIEF_ASSIGN_OR_RETURN(BucketSplit split,
                               BucketSplit::create(files, b, grid, split_options, read_buffer, tick, options.cancel));
       files.discard(b);

@@ -147,8 +147,8 @@ Result<BucketSplit> BucketSplit::create(const BucketFiles& files, std::uint32_t 
 
   // The last pass: every record, as it is, to its load's file.
   RELIEF_ASSIGN_OR_RETURN(BucketFiles load_files,
-                          BucketFiles::create(o.tmp_parent, loads, grid, o.colors, o.intensity, o.staging_bytes / 2,
-                                              o.las_attributes, o.extra_bytes_size));
+                          BucketFiles::create(o.tmp_parent, loads, grid, files.colors(), files.intensity(),
+                                              o.staging_bytes / 2, files.las_attributes(), files.extra_bytes_size()));
   load_files.set_explicit_buckets();
   const std::size_t flush_at = std::clamp<std::size_t>(o.staging_bytes / 2 / loads, std::size_t{64} << 10,
                                                        std::size_t{8} << 20);

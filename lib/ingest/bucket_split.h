@@ -38,10 +38,8 @@ struct BucketSplitOptions {
   std::uint64_t load_points = 0;   // points a load may hold
   std::string tmp_parent;          // where the loads' temporary files go
   std::size_t staging_bytes = 0;   // write buffers, in all
-  bool colors = false;
-  bool intensity = false;
-  std::uint32_t las_attributes = 0;
-  std::uint32_t extra_bytes_size = 0;
+  // The loads' records are the bucket's, copied byte for byte: their
+  // attributes are the bucket files' own (BucketFiles::colors() ...).
 };
 
 class BucketSplit {

@@ -418,8 +418,6 @@ TEST_CASE("a bucket too large to load is cut into loads that give the tasks the 
   o.load_points = 7000;
   o.tmp_parent = tmp.path().string();
   o.staging_bytes = 1u << 20;
-  o.colors = true;
-  o.intensity = true;
   auto split = BucketSplit::create(*files, 0, grid, o, buf);
   REQUIRE(split.is_ok());
   CHECK(split->load_count() > 8);
