@@ -159,6 +159,7 @@ class BucketFiles {
   std::string dir_;
   std::vector<std::string> paths_;
   std::vector<int> files_;  // file descriptors, -1 when closed
+  int lock_fd_ = -1;        // holds the directory's lock file locked (bucket_files.cpp)
   std::vector<std::uint64_t> counts_;
   std::vector<std::uint64_t> bytes_;       // logical bytes written per bucket
   std::vector<AlignedBuffer> staging_;

@@ -1,5 +1,7 @@
 #include "shard/shard_files.h"
 
+#include "core/host.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -84,12 +86,7 @@ Result<std::string> read_text(const std::string& path, std::uint64_t max_bytes) 
 }
 
 std::string temp_name(const std::string& path) {
-  char host[256] = {};
-  if (::gethostname(host, sizeof host - 1) != 0) std::strcpy(host, "host");
-  for (char* c = host; *c != '\0'; ++c) {
-    if (*c == '/') *c = '_';
-  }
-  return path + ".tmp-" + host + "-" + std::to_string(::getpid());
+  return path + ".tmp-" + core::host_tag() + "-" + std::to_string(::getpid());
 }
 
 Status sync_and_rename(int fd, const std::string& from, const std::string& to) {

@@ -3,6 +3,7 @@
 // bound, and a damaged file is an error, not a crash.
 #include <catch2/catch.hpp>
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,6 +16,7 @@
 #include <tuple>
 #include <vector>
 
+#include "core/host.h"
 #include "ingest/bucket_files.h"
 #include "ingest/bucket_split.h"
 #include "ingest/ingest_common.h"
@@ -224,31 +226,72 @@ TEST_CASE("a temporary directory left by a killed ingest is removed by the next 
   REQUIRE(::waitpid(child, nullptr, 0) == child);
   const std::string dead = std::to_string(child);
   const std::string alive = std::to_string(::getppid());  // the process that runs this test
+  const std::string here = core::host_tag();
+  const std::string other = here == "other-host" ? "another-host" : "other-host";
   const auto make_dir = [&](const std::string& name) {
     fs::create_directories(tmp.path() / name);
     std::ofstream(tmp.path() / name / "bucket-0") << "left over";
   };
-  make_dir("relief-ingest-" + dead + "-Ab12Cd");    // stale: removed
-  make_dir("relief-ingest-" + alive + "-Ab12Cd");   // its owner runs: kept
-  make_dir("relief-ingest-" + dead + "-Ab12");      // not our pattern: kept
-  make_dir("relief-ingest-Ab12Cd");                 // no owner recorded: kept
-  make_dir("other-" + dead + "-Ab12Cd");            // not ours: kept
-  std::ofstream(tmp.path() / ("relief-ingest-" + dead + "-Zz99Yy")) << "a file, not a directory";  // kept
+  const auto make_lock = [&](const std::string& name) {
+    const std::string lock = (tmp.path() / name / "lock").string();
+    const int fd = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
+    REQUIRE(fd >= 0);
+    return fd;
+  };
+  // Owners on this host without a lock file: the pid decides.
+  make_dir("relief-ingest-" + here + "-" + dead + "-Ab12Cd");   // stale: removed
+  make_dir("relief-ingest-" + here + "-" + alive + "-Ab12Cd");  // its owner runs: kept
+  // An owner on another machine sharing the directory: its pid means nothing
+  // here, only its lock does.
+  make_dir("relief-ingest-" + other + "-" + dead + "-Ab12Cd");  // no lock (yet): kept
+  make_dir("relief-ingest-" + other + "-" + alive + "-Zz99Yy");  // lock free, owner gone: removed
+  ::close(make_lock("relief-ingest-" + other + "-" + alive + "-Zz99Yy"));
+  make_dir("relief-ingest-" + other + "-" + dead + "-Qq77Rr");  // lock held: kept
+  const int held = make_lock("relief-ingest-" + other + "-" + dead + "-Qq77Rr");
+  REQUIRE(::flock(held, LOCK_EX | LOCK_NB) == 0);
+  make_dir("relief-ingest-" + here + "-" + alive + "-Qq77Rr");  // lock free, pid alive: the lock decides, removed
+  ::close(make_lock("relief-ingest-" + here + "-" + alive + "-Qq77Rr"));
+  // Not ours.
+  make_dir("relief-ingest-" + dead + "-Ab12Cd");                // before host tags: no host, kept
+  make_dir("relief-ingest-" + here + "-" + dead + "-Ab12");     // not our pattern: kept
+  make_dir("relief-ingest-Ab12Cd");                             // no owner recorded: kept
+  make_dir("other-" + dead + "-Ab12Cd");                        // not ours: kept
+  std::ofstream(tmp.path() / ("relief-ingest-" + here + "-" + dead + "-Zz99Yy")) << "a file, not a directory";
 
   ArchiveGrid grid;
   grid.chunk_edge = 2.0;
-  auto files = BucketFiles::create(tmp.path(), 2, grid, false, false, 1 << 16);
-  REQUIRE(files.is_ok());
-  const std::string own = fs::path(files->directory()).filename().string();
-  CHECK(own.rfind("relief-ingest-" + std::to_string(::getpid()) + "-", 0) == 0);
-  std::vector<std::string> expected = {"other-" + dead + "-Ab12Cd",
-                                       "relief-ingest-" + alive + "-Ab12Cd",
-                                       "relief-ingest-" + dead + "-Ab12",
-                                       "relief-ingest-" + dead + "-Zz99Yy",
-                                       "relief-ingest-Ab12Cd",
-                                       own};
-  std::sort(expected.begin(), expected.end());
-  CHECK(tmp.entries() == expected);
+  std::string own;
+  {
+    auto files = BucketFiles::create(tmp.path(), 2, grid, false, false, 1 << 16);
+    REQUIRE(files.is_ok());
+    own = fs::path(files->directory()).filename().string();
+    CHECK(own.rfind("relief-ingest-" + here + "-" + std::to_string(::getpid()) + "-", 0) == 0);
+    // Its own lock file is held while it lives: another sweep keeps it.
+    const int probe = ::open((files->directory() + "/lock").c_str(), O_RDWR | O_CLOEXEC);
+    REQUIRE(probe >= 0);
+    CHECK(::flock(probe, LOCK_EX | LOCK_NB) != 0);
+    ::close(probe);
+    CHECK_FALSE(fs::exists(files->directory() + "/lock.new"));
+
+    std::vector<std::string> expected = {"other-" + dead + "-Ab12Cd",
+                                         "relief-ingest-" + dead + "-Ab12Cd",
+                                         "relief-ingest-" + here + "-" + alive + "-Ab12Cd",
+                                         "relief-ingest-" + here + "-" + dead + "-Ab12",
+                                         "relief-ingest-" + here + "-" + dead + "-Zz99Yy",
+                                         "relief-ingest-" + other + "-" + dead + "-Ab12Cd",
+                                         "relief-ingest-" + other + "-" + dead + "-Qq77Rr",
+                                         "relief-ingest-Ab12Cd",
+                                         own};
+    std::sort(expected.begin(), expected.end());
+    CHECK(tmp.entries() == expected);
+  }
+  CHECK_FALSE(fs::exists(tmp.path() / own));  // removed with its lock file
+  // The held lock released (its owner gone): the next run removes it.
+  ::close(held);
+  auto again = BucketFiles::create(tmp.path(), 1, grid, false, false, 1 << 16);
+  REQUIRE(again.is_ok());
+  CHECK_FALSE(fs::exists(tmp.path() / ("relief-ingest-" + other + "-" + dead + "-Qq77Rr")));
+  CHECK(fs::exists(tmp.path() / ("relief-ingest-" + other + "-" + dead + "-Ab12Cd")));
 }
 
 TEST_CASE("bucket records carry every LAS attribute", "[ingest][buckets][las]") {
