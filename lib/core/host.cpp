@@ -16,4 +16,8 @@ std::string host_tag() {
   return tag.empty() ? std::string("host") : tag;
 }
 
+std::string temp_path_beside(const std::string& path) {
+  return path + ".tmp-" + host_tag() + "-" + std::to_string(::getpid());
+}
+
 }  // namespace relief::core

@@ -11,4 +11,9 @@ namespace relief::core {
 // share a directory never take each other's files for their own.
 std::string host_tag();
 
+// path + ".tmp-<host>-<pid>": the temporary name a file is written under
+// beside its destination. Two processes writing the same destination, even on
+// two hosts sharing the directory (where pids repeat), never share it.
+std::string temp_path_beside(const std::string& path);
+
 }  // namespace relief::core

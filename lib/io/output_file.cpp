@@ -1,5 +1,7 @@
 #include "io/output_file.h"
 
+#include "core/host.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -31,7 +33,7 @@ Result<std::unique_ptr<OutputFile>> OutputFile::create(const std::string& path) 
   if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
     return io_error(path + ": is a directory");
   }
-  std::string tmp_path = path + ".tmp-" + std::to_string(::getpid());
+  std::string tmp_path = core::temp_path_beside(path);
   // O_NOFOLLOW: a symlink planted under the predictable temporary name must
   // not redirect (and truncate) some other file.
   // Read and write: the LAS writer reads records back to rewrite them (read_at).

@@ -1,5 +1,5 @@
 // Buffered output for the streaming point writers. A file destination is
-// written under a temporary name beside it (`<path>.tmp-<pid>`, same directory
+// written under a temporary name beside it (`<path>.tmp-<host>-<pid>`, same directory
 // so the final rename() cannot be a cross-device move) and renamed into place
 // by commit(); until then readers never see a half-written file, and
 // discarding (explicitly or by destruction) removes the temporary file and

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "core/host.h"
 #include "io/ply_format.h"
 #include "relief/io.h"
 
@@ -201,7 +202,7 @@ Status write_ply(const std::string& path, const PointCloud& cloud, const PlyWrit
   }
 
   // Same directory as the target so that rename() is atomic (no cross-device move).
-  const std::string tmp_path = path + ".tmp-" + std::to_string(::getpid());
+  const std::string tmp_path = core::temp_path_beside(path);
   const int fd = ::open(tmp_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (fd < 0) {
     return io_error(path + ": cannot create temporary file '" + tmp_path + "': " + errno_text(errno));

@@ -86,7 +86,7 @@ Result<std::string> read_text(const std::string& path, std::uint64_t max_bytes) 
 }
 
 std::string temp_name(const std::string& path) {
-  return path + ".tmp-" + core::host_tag() + "-" + std::to_string(::getpid());
+  return core::temp_path_beside(path);
 }
 
 Status sync_and_rename(int fd, const std::string& from, const std::string& to) {

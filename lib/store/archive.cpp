@@ -31,6 +31,7 @@
 #include <utility>
 
 #include "core/hex.h"
+#include "core/host.h"
 #include "store/schema.h"
 #include "store/sqlite_util.h"
 
@@ -2117,8 +2118,8 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
   // Built beside the target and renamed into place when complete: a crash
   // during creation leaves at most a temporary file, never a half-made
   // archive under the real name.
-  const std::string temp = path + ".tmp-" + std::to_string(::getpid());
-  remove_database_files(temp);  // left by a crashed process that had our pid
+  const std::string temp = core::temp_path_beside(path);
+  remove_database_files(temp);  // left by a crashed process of this host that had our pid
   Status status = write_new_archive(temp, path, grid, codec_params, creator, page_size);
   if (status.is_ok()) status = move_into_place(temp, path);
   if (!status.is_ok()) {
