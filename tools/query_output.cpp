@@ -111,11 +111,12 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   auto writer = open_point_writer(out_path, w);
   if (!writer) return fail(command, writer.status());
   // What the output format cannot hold is said, not dropped silently: LAS and
-  // LAZ carry every LAS attribute, PLY and text every one but the colour low
-  // bytes (their colours are 8-bit): a property or column each.
+  // LAZ carry every LAS attribute, PLY too (16-bit colours as ushort
+  // properties), text every one but the colour low bytes (its colours are
+  // 8-bit): a property or column each.
   std::string ext = std::filesystem::path(out_path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (ext != ".las" && ext != ".laz") {
+  if (ext != ".las" && ext != ".laz" && ext != ".ply") {
     const std::uint32_t dropped = las_kept & kLasColorLow;
     if (dropped != 0) {
       std::string names = las_attribute_list(dropped);

@@ -853,6 +853,7 @@ class PlyPointReader final : public BatchPointReader {
   // sized before they are read.
   bool backed_ = false;
   std::uint64_t done_ = 0;  // vertices delivered so far
+  std::vector<std::uint16_t> levels_;  // wide colours' levels of a batch (read_into)
 };
 
 Status PlyPointReader::start() {
@@ -901,6 +902,13 @@ Status PlyPointReader::start() {
   }
   info_.warnings = plan_.warnings;
   wide_colors_ = plan_.wide_color;
+  // Colour properties wider than 8 bits (ushort, as PDAL writes them) keep
+  // each level's low byte beside the narrowed level, as LAS colours do
+  // (LasAttributes::color_low): the 16-bit levels come back exactly.
+  if (plan_.has_color && plan_.wide_color) {
+    color_low_ = true;
+    info_.las_attributes |= kLasColorLow;
+  }
   return Status::ok();
 }
 
@@ -914,11 +922,38 @@ Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::
                                               std::size_t at, std::size_t max_points) {
   const std::uint64_t left = vertex().count - done_;
   const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(max_points, left));
+  // Wide colours once the shift is known: the levels are decoded, then
+  // narrowed here with their low bytes kept (BatchPointReader::read does
+  // the same for the batch that decides the shift).
+  const bool keep_low = color_low_ && wide == nullptr;
+  std::vector<Rgb8> colors_before, low_before;
+  if (keep_low && at > 0) {
+    colors_before.assign(out.colors.begin(), out.colors.begin() + static_cast<std::ptrdiff_t>(std::min(at, out.colors.size())));
+    low_before.assign(out.las.color_low.begin(),
+                      out.las.color_low.begin() + static_cast<std::ptrdiff_t>(std::min(at, out.las.color_low.size())));
+  }
+  std::vector<std::uint16_t>* levels = keep_low ? &levels_ : wide;
+  if (keep_low) levels_.clear();
   std::size_t got = 0;
   if (fixed_binary_) {
-    RELIEF_ASSIGN_OR_RETURN(got, read_fixed(out, wide, at, want));
+    RELIEF_ASSIGN_OR_RETURN(got, read_fixed(out, levels, at, want));
   } else {
-    RELIEF_ASSIGN_OR_RETURN(got, read_records(out, wide, at, want));
+    RELIEF_ASSIGN_OR_RETURN(got, read_records(out, levels, at, want));
+  }
+  if (keep_low) {
+    colors_before.resize(at);
+    low_before.resize(at);
+    out.colors = std::move(colors_before);
+    out.las.color_low = std::move(low_before);
+    out.colors.resize(at + got);
+    out.las.color_low.resize(at + got);
+    for (std::size_t i = at; i < at + got; ++i) {
+      const std::uint16_t* v = levels_.data() + 3 * i;
+      out.colors[i] = Rgb8{narrow_level(v[0], color_shift_), narrow_level(v[1], color_shift_),
+                           narrow_level(v[2], color_shift_)};
+      out.las.color_low[i] =
+          Rgb8{low_level(v[0], color_shift_), low_level(v[1], color_shift_), low_level(v[2], color_shift_)};
+    }
   }
   done_ += got;
   if (done_ == vertex().count && !trailing_checked_) {
@@ -1134,6 +1169,12 @@ Result<PointCloud> read_ply_input(const InputSpec& input) {
     const int shift = color_shift_for(max_level(wide.data(), wide.size()));
     cloud.colors.resize(cloud.size());
     narrow_colors(wide.data(), cloud.size(), shift, cloud.colors.data());
+    // Each level's low byte too, as the streaming reader keeps it.
+    cloud.las.color_low.resize(cloud.size());
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      const std::uint16_t* v = wide.data() + 3 * i;
+      cloud.las.color_low[i] = Rgb8{low_level(v[0], shift), low_level(v[1], shift), low_level(v[2], shift)};
+    }
   }
   return cloud;
 }

@@ -3,7 +3,8 @@
 // zero-padded digits (enough for any 64-bit count), which finish() overwrites
 // in place. A zero-padded decimal is still a plain decimal integer, so every
 // PLY reader accepts it. Properties: double x y z, then uchar red green blue
-// and float intensity when the options ask for them, then one property per
+// (ushort when the points carry 16-bit colours: kLasColorLow, not
+// las_colors_8bit) and float intensity when the options ask for them, then one property per
 // LAS dimension the points carry, under LAS's names, which
 // the PLY reader maps back (io/text_columns.h): uchar classification,
 // synthetic, key_point, withheld, overlap, return_number, number_of_returns,
@@ -56,6 +57,8 @@ T byte_swapped(T v) {
     std::memcpy(&u, &v, 8);
     u = __builtin_bswap64(u);
     std::memcpy(&v, &u, 8);
+  } else if constexpr (sizeof(T) == 2) {
+    v = static_cast<T>(__builtin_bswap16(static_cast<std::uint16_t>(v)));
   } else {
     static_assert(sizeof(T) == 4);
     std::uint32_t u;
@@ -75,7 +78,7 @@ std::uint8_t* put(std::uint8_t* p, T v) {
 
 // Encodes points [first, first + n) of `batch` as binary records at `dst`,
 // `stride` bytes apart (the core properties; extra bytes follow them).
-template <bool kSwap, bool kColors, bool kIntensity>
+template <bool kSwap, bool kColors, bool kIntensity, bool kColors16>
 void encode_binary(const PointCloud& batch, std::size_t first, std::size_t n, std::size_t stride,
                    std::uint8_t* records) {
   const Vec3d* pos = batch.positions.data() + first;
@@ -84,7 +87,13 @@ void encode_binary(const PointCloud& batch, std::size_t first, std::size_t n, st
     dst = put<kSwap>(dst, pos[i].x);
     dst = put<kSwap>(dst, pos[i].y);
     dst = put<kSwap>(dst, pos[i].z);
-    if constexpr (kColors) {
+    if constexpr (kColors && kColors16) {
+      const Rgb8& c = batch.colors[first + i];
+      const Rgb8& low = batch.las.color_low[first + i];
+      dst = put<kSwap>(dst, static_cast<std::uint16_t>(c.r << 8 | low.r));
+      dst = put<kSwap>(dst, static_cast<std::uint16_t>(c.g << 8 | low.g));
+      dst = put<kSwap>(dst, static_cast<std::uint16_t>(c.b << 8 | low.b));
+    } else if constexpr (kColors) {
       const Rgb8& c = batch.colors[first + i];
       dst[0] = c.r;
       dst[1] = c.g;
@@ -177,18 +186,25 @@ std::uint8_t* put_las_value(std::uint8_t* dst, double v, ply::ScalarType t, bool
 }
 
 template <bool kSwap>
-EncodeFn pick_encoder(bool colors, bool intensity) {
-  if (colors) {
-    return intensity ? &encode_binary<kSwap, true, true> : &encode_binary<kSwap, true, false>;
+EncodeFn pick_encoder(bool colors, bool intensity, bool colors16) {
+  if (colors && colors16) {
+    return intensity ? &encode_binary<kSwap, true, true, true> : &encode_binary<kSwap, true, false, true>;
   }
-  return intensity ? &encode_binary<kSwap, false, true> : &encode_binary<kSwap, false, false>;
+  if (colors) {
+    return intensity ? &encode_binary<kSwap, true, true, false> : &encode_binary<kSwap, true, false, false>;
+  }
+  return intensity ? &encode_binary<kSwap, false, true, false> : &encode_binary<kSwap, false, false, false>;
 }
 
 class PlyStreamWriter final : public StreamPointWriter {
  public:
   PlyStreamWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options)
       : StreamPointWriter(std::move(out), options) {
-    core_size_ = 3 * sizeof(double) + (options.colors ? 3 : 0) + (options.intensity ? sizeof(float) : 0);
+    // 16-bit colours (the points carry the levels' low bytes, and they are
+    // not 8-bit levels stored in 16-bit fields) are written as ushort.
+    colors16_ = options.colors && (options.las_attributes & kLasColorLow) != 0 && !options.las_colors_8bit;
+    core_size_ = 3 * sizeof(double) + (options.colors ? (colors16_ ? 6 : 3) : 0) +
+                 (options.intensity ? sizeof(float) : 0);
     std::vector<std::string> taken = {"x", "y", "z"};
     if (options.colors) taken.insert(taken.end(), {"red", "green", "blue"});
     if (options.intensity) taken.emplace_back("intensity");
@@ -207,8 +223,8 @@ class PlyStreamWriter final : public StreamPointWriter {
     const bool little = options.ply_encoding == PlyEncoding::kBinaryLittleEndian;
     const bool swap = little != (std::endian::native == std::endian::little);
     big_endian_ = !little;
-    encode_ = swap ? pick_encoder<true>(options.colors, options.intensity)
-                   : pick_encoder<false>(options.colors, options.intensity);
+    encode_ = swap ? pick_encoder<true>(options.colors, options.intensity, colors16_)
+                   : pick_encoder<false>(options.colors, options.intensity, colors16_);
     // The positions array is already the record layout.
     copy_positions_ = !swap && !options.colors && !options.intensity && las_size_ == 0 && extra_size_ == 0;
   }
@@ -221,7 +237,10 @@ class PlyStreamWriter final : public StreamPointWriter {
     h += kCountLine;
     h += std::string(kCountDigits, '0');
     h += "\nproperty double x\nproperty double y\nproperty double z\n";
-    if (options_.colors) h += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    if (options_.colors) {
+      h += colors16_ ? "property ushort red\nproperty ushort green\nproperty ushort blue\n"
+                     : "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    }
     if (options_.intensity) h += "property float intensity\n";
     for (const LasTextColumn* c : las_) {
       h += std::string("property ") + ply::scalar_name(las_property_type(c->column)) + " " + c->snake + "\n";
@@ -235,6 +254,10 @@ class PlyStreamWriter final : public StreamPointWriter {
   Status write_points(const PointCloud& batch) override {
     const std::size_t n = batch.size();
     RELIEF_RETURN_IF_ERROR(check_batch_columns(batch.las, las_bits_, extra_size_, n, out_->path()));
+    if (colors16_ && batch.las.color_low.size() != n) {
+      return invalid_argument(out_->path() + ": a batch of " + std::to_string(n) + " points has " +
+                              std::to_string(batch.las.color_low.size()) + " colour low bytes");
+    }
     if (options_.ply_encoding == PlyEncoding::kAscii) return write_ascii(batch);
     if (copy_positions_) return out_->append(batch.positions.data(), batch.size() * sizeof(Vec3d));
     std::size_t i = 0;
@@ -298,7 +321,7 @@ class PlyStreamWriter final : public StreamPointWriter {
         v += ply::scalar_size(e.type);
       }
       return p;
-    });
+    }, colors16_);
   }
 
   // The little-endian value of PLY type `t` at `v` as ASCII PLY text.
@@ -336,6 +359,7 @@ class PlyStreamWriter final : public StreamPointWriter {
   std::vector<ExtraProperty> extras_;
   std::size_t record_size_ = 0;
   bool big_endian_ = false;
+  bool colors16_ = false;  // colours as ushort levels (see the constructor)
   EncodeFn encode_ = nullptr;
   bool copy_positions_ = false;
   std::uint64_t count_offset_ = 0;

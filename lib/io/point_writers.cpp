@@ -95,14 +95,21 @@ Status StreamPointWriter::finish() {
 }
 
 std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size_t i, const WriterOptions& options,
-                             std::uint8_t sep) {
+                             std::uint8_t sep, bool colors16) {
   const Vec3d& v = batch.positions[i];
   p = put_shortest(p, v.x);
   *p++ = sep;
   p = put_shortest(p, v.y);
   *p++ = sep;
   p = put_shortest(p, v.z);
-  if (options.colors) {
+  if (options.colors && colors16) {
+    const Rgb8& c = batch.colors[i];
+    const Rgb8& low = batch.las.color_low[i];
+    for (const auto& [hi, lo] : {std::pair{c.r, low.r}, std::pair{c.g, low.g}, std::pair{c.b, low.b}}) {
+      *p++ = sep;
+      p = put_integer(p, static_cast<unsigned>(hi) << 8 | lo);
+    }
+  } else if (options.colors) {
     const Rgb8& c = batch.colors[i];
     *p++ = sep;
     p = put_level(p, c.r);

@@ -89,9 +89,10 @@ std::uint8_t* put_shortest(std::uint8_t* p, T v) {
 
 // Point i of `batch` as "x y z [r g b] [i]" (colours and intensity when the
 // options say) at `p`, columns separated by `sep`, no newline; returns the
-// end. At most kMaxTextRecord - 1 bytes.
+// end. At most kMaxTextRecord - 1 bytes. With `colors16` the colours are the
+// 16-bit levels (colors << 8 | las.color_low), else the 8-bit ones.
 std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size_t i, const WriterOptions& options,
-                             std::uint8_t sep);
+                             std::uint8_t sep, bool colors16 = false);
 
 // Lines "x y z [r g b] [i]" (colours and intensity when the options say),
 // columns separated by `separator`.
@@ -124,7 +125,7 @@ T load_le_value(const std::uint8_t* p) {
 // each after a separator, at most `tail_room` bytes; it returns the end).
 template <typename PutTail>
 Status write_text_lines(OutputFile& out, const PointCloud& batch, const WriterOptions& options, char separator,
-                        std::size_t tail_room, PutTail&& put_tail) {
+                        std::size_t tail_room, PutTail&& put_tail, bool colors16 = false) {
   const auto sep = static_cast<std::uint8_t>(separator);
   const std::size_t max_line = kMaxTextRecord + tail_room;
   const std::size_t n = batch.size();
@@ -137,7 +138,7 @@ Status write_text_lines(OutputFile& out, const PointCloud& batch, const WriterOp
     // Lines until the block may not hold another one.
     std::uint8_t* const last = begin + room.size() - max_line;
     for (; i < n && p <= last; ++i) {
-      p = put_tail(put_text_point(p, batch, i, options, sep), i);
+      p = put_tail(put_text_point(p, batch, i, options, sep, colors16), i);
       *p++ = '\n';
     }
     out.advance(static_cast<std::size_t>(p - begin));

@@ -284,7 +284,7 @@ TEST_CASE("compress --intensity-tolerance: every intensity within it, every othe
   CHECK(changed > 0);
 }
 
-TEST_CASE("PLY and text output name the LAS attributes they cannot carry", "[las][archive]") {
+TEST_CASE("text output names the LAS attributes it cannot carry, PLY carries 16-bit colours", "[las][archive]") {
   TempDir dir;
   const std::string in = las_file(dir, "in.las", 3, 7);
   const std::string archive = dir.file("a.relief");
@@ -294,12 +294,35 @@ TEST_CASE("PLY and text output name the LAS attributes they cannot carry", "[las
     CHECK(run.code == 0);
     return run.output;
   };
-  // PLY and text carry every LAS attribute, as a property or column, but the
-  // colours' low bytes.
-  CHECK_THAT(to("out.ply"), Contains("out.ply: this format does not carry the archive's color_low (write"));
+  // Text carries every LAS attribute, as a column, but the colours' low
+  // bytes; PLY every one, its colours as ushort levels.
   CHECK_THAT(to("out.xyz"), Contains("out.xyz: this format does not carry the archive's color_low (write"));
+  CHECK(to("out.ply").find("warning") == std::string::npos);
   CHECK(to("out.las").find("warning") == std::string::npos);
   CHECK(to("out.laz").find("warning") == std::string::npos);
+  // The PLY's 16-bit levels are the LAS file's.
+  auto ply = relief::open_point_reader(dir.file("out.ply"));
+  REQUIRE(ply.is_ok());
+  CHECK(((*ply)->info().las_attributes & relief::kLasColorLow) != 0);
+  relief::PointCloud from_ply, batch;
+  for (;;) {
+    auto n = (*ply)->read(batch, 1 << 20);
+    REQUIRE(n.is_ok());
+    if (*n == 0) break;
+    for (std::size_t i = 0; i < *n; ++i) from_ply.push_back_from(batch, i);
+  }
+  std::vector<std::array<std::uint16_t, 3>> got, want;
+  for (std::size_t i = 0; i < from_ply.size(); ++i) {
+    const relief::Rgb8 c = from_ply.colors[i], l = from_ply.las.color_low[i];
+    got.push_back({static_cast<std::uint16_t>(c.r << 8 | l.r), static_cast<std::uint16_t>(c.g << 8 | l.g),
+                   static_cast<std::uint16_t>(c.b << 8 | l.b)});
+  }
+  for (const LasRecord& p : sorted_records(in)) want.push_back({p.red, p.green, p.blue});
+  std::sort(got.begin(), got.end());
+  std::sort(want.begin(), want.end());
+  CHECK(got == want);
+  // The file's levels are 16-bit ones (not 8-bit levels scaled by 257).
+  CHECK(std::any_of(want.begin(), want.end(), [](const auto& c) { return (c[0] & 0xFF) != (c[0] >> 8); }));
 }
 
 TEST_CASE("query filters: --class, --first-returns, --last-returns", "[las][archive][needs-codec-attrs]") {

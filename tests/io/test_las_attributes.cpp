@@ -4,6 +4,8 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <array>
+#include <iterator>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -354,6 +356,7 @@ TEST_CASE("LAS attributes without a source format give LAS 1.4 format 6", "[las]
 TEST_CASE("PLY and text output carry every LAS attribute and the PLY and text readers take each back",
           "[xyz][ply][attributes]") {
   TempDir dir;
+  int ply_colors16 = 0;  // PLY outputs of 16-bit colours (ushort properties)
   for (const int format : {1, 3, 6, 7, 8}) {
     CAPTURE(format);
     TestLasOptions o;
@@ -384,10 +387,19 @@ TEST_CASE("PLY and text output carry every LAS attribute and the PLY and text re
       CHECK(b.positions == a.positions);
       CHECK(b.colors == a.colors);
       CHECK(b.intensities == a.intensities);
-      // Every attribute but the colours' low bytes, which both leave out.
-      CHECK(b.las.carried() == (a.las.carried() & ~std::uint32_t{relief::kLasColorLow}));
+      // Every attribute; text leaves out the colours' low bytes (its colours
+      // are 8-bit), PLY carries 16-bit colours as ushort properties.
+      const bool ply = std::string(name).ends_with(".ply");
+      const bool colors16 = (a.las.carried() & relief::kLasColorLow) != 0 && !src.info.las_colors_8bit;
+      const std::uint32_t low = ply && colors16 ? 0u : std::uint32_t{relief::kLasColorLow};
+      CHECK(b.las.carried() == (a.las.carried() & ~low));
       relief::test::check_same_las(b.las, a.las);
-      if (std::string(name).ends_with(".ply")) {
+      if (ply && colors16) {
+        ++ply_colors16;
+        CHECK(b.las.color_low == a.las.color_low);
+        CHECK_FALSE(back.info.las_colors_8bit);
+      }
+      if (ply) {
         // PLY keeps the extra bytes' types: the same bytes.
         CHECK(b.las.extra_bytes_size == 3);
         CHECK(b.las.extra_bytes == a.las.extra_bytes);
@@ -405,6 +417,7 @@ TEST_CASE("PLY and text output carry every LAS attribute and the PLY and text re
       CHECK(same == a.size());
     }
   }
+  CHECK(ply_colors16 == 9);  // formats 3, 7, 8: three PLY encodings each
 }
 
 TEST_CASE("PLY vertex properties named as LAS dimensions fill the LAS attributes", "[ply][attributes]") {
@@ -461,5 +474,86 @@ TEST_CASE("PLY and text writers refuse a batch without the LAS attributes they w
     CHECK(s.code() == relief::StatusCode::kInvalidArgument);
     CHECK(s.message().find("lacks a LAS attribute or extra bytes the writer was opened with") != std::string::npos);
     CHECK_FALSE(std::filesystem::exists(dir.file(name)));
+  }
+}
+
+TEST_CASE("PLY colours wider than 8 bits come back as the same 16-bit levels", "[ply][attributes]") {
+  TempDir dir;
+  // ushort red green blue (as PDAL writes them): true 16-bit levels, and
+  // 8-bit levels stored in ushort fields (every level <= 255).
+  for (const bool sixteen : {true, false}) {
+    for (const char* encoding : {"binary_little_endian", "binary_big_endian", "ascii"}) {
+      CAPTURE(sixteen, encoding);
+      const bool ascii = std::string(encoding) == "ascii";
+      const bool big = std::string(encoding) == "binary_big_endian";
+      const std::size_t n = 2000;  // beyond the 777-point batches of read_all
+      std::vector<std::array<std::uint16_t, 3>> levels(n);
+      std::uint32_t state = 12345;
+      const auto next = [&] {
+        state = state * 1664525u + 1013904223u;
+        return static_cast<std::uint16_t>(state >> 16);
+      };
+      for (auto& l : levels) {
+        for (auto& v : l) v = sixteen ? next() : static_cast<std::uint16_t>(next() & 0xFF);
+      }
+      const std::string in = dir.file(std::string("in-") + (sixteen ? "16" : "8") + "-" + encoding + ".ply");
+      {
+        std::ofstream f(in, std::ios::binary);
+        f << "ply\nformat " << encoding << " 1.0\nelement vertex " << n
+          << "\nproperty float x\nproperty float y\nproperty float z\n"
+             "property ushort red\nproperty ushort green\nproperty ushort blue\nend_header\n";
+        for (std::size_t i = 0; i < n; ++i) {
+          const float xyz[3] = {static_cast<float>(i), 1.5f, -2.0f};
+          if (ascii) {
+            f << xyz[0] << ' ' << xyz[1] << ' ' << xyz[2] << ' ' << levels[i][0] << ' ' << levels[i][1] << ' '
+              << levels[i][2] << '\n';
+            continue;
+          }
+          for (const float v : xyz) {
+            std::uint8_t b[4];
+            std::memcpy(b, &v, 4);
+            if (big) std::reverse(b, b + 4);
+            f.write(reinterpret_cast<const char*>(b), 4);
+          }
+          for (const std::uint16_t v : levels[i]) {
+            const std::uint8_t b[2] = {static_cast<std::uint8_t>(big ? v >> 8 : v & 0xFF),
+                                       static_cast<std::uint8_t>(big ? v & 0xFF : v >> 8)};
+            f.write(reinterpret_cast<const char*>(b), 2);
+          }
+        }
+      }
+      const auto levels_of = [](const relief::PointCloud& c, bool low) {
+        std::vector<std::array<std::uint16_t, 3>> out;
+        for (std::size_t i = 0; i < c.size(); ++i) {
+          const relief::Rgb8 h = c.colors[i];
+          const relief::Rgb8 l = low ? c.las.color_low[i] : relief::Rgb8{};
+          out.push_back({static_cast<std::uint16_t>(low ? h.r << 8 | l.r : h.r),
+                         static_cast<std::uint16_t>(low ? h.g << 8 | l.g : h.g),
+                         static_cast<std::uint16_t>(low ? h.b << 8 | l.b : h.b)});
+        }
+        return out;
+      };
+      const ReadBack got = read_all(in);
+      REQUIRE(got.cloud.size() == n);
+      CHECK((got.info.las_attributes & relief::kLasColorLow) != 0);
+      CHECK(got.info.las_colors_8bit == !sixteen);
+      // 16-bit: narrowed level and low byte give the level back; 8-bit
+      // levels in 16-bit fields: the levels themselves (low byte = level).
+      CHECK(levels_of(got.cloud, sixteen) == levels);
+      // Written back as PLY: ushort for 16-bit levels, uchar for 8-bit ones,
+      // and read again, the same levels.
+      const std::string out = dir.file("out.ply");
+      std::filesystem::remove(out);
+      auto writer = relief::open_point_writer(out, options_from(got.info, 0));
+      REQUIRE(writer.is_ok());
+      REQUIRE((*writer)->write(got.cloud).to_string() == "ok");
+      REQUIRE((*writer)->finish().is_ok());
+      std::ifstream header(out);
+      std::string text((std::istreambuf_iterator<char>(header)), {});
+      CHECK(text.find(sixteen ? "property ushort red" : "property uchar red") != std::string::npos);
+      const ReadBack again = read_all(out);
+      REQUIRE(again.cloud.size() == n);
+      CHECK(levels_of(again.cloud, sixteen) == levels);
+    }
   }
 }
