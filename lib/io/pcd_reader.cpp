@@ -14,7 +14,8 @@
 // Separate colour fields follow their declared type, so the rule does not
 // depend on the values or their order: SIZE 2 integers are 16-bit levels
 // (shifted right by 8, as the LAS and wide PLY colours that use the full
-// range); every other type holds 8-bit levels (0..255; floats are rounded and
+// range, with each level's low byte kept as LasAttributes::color_low when
+// all three are); every other type holds 8-bit levels (0..255; floats are rounded and
 // everything saturates at 0 and 255).
 //
 // binary_compressed (PCL's writer): after the header, u32 compressed size,
@@ -274,6 +275,13 @@ std::uint8_t color_level(double v, const PcdField& f) {
   return static_cast<std::uint8_t>(std::lround(v));
 }
 
+// The low byte of a 16-bit level (a SIZE 2 integer colour value; negative
+// ones, which color_level makes 0, give 0).
+std::uint8_t low_byte16(double v) {
+  if (!(v > 0)) return 0;
+  return static_cast<std::uint8_t>(static_cast<std::uint32_t>(std::min(v, 65535.0)) & 0xFF);
+}
+
 // Any PCD scalar as a double (64-bit integers may round; they never hold
 // coordinates here).
 double load_value(const std::uint8_t* p, char type, std::size_t size) {
@@ -393,12 +401,18 @@ class PcdPointReader final : public PointReader {
         }
       }
     }
+    // 16-bit levels (SIZE 2 integers, all three) keep their low bytes
+    // (LasAttributes::color_low), so they come back exactly.
+    wide_split_ = split_[0] != nullptr && std::all_of(split_.begin(), split_.end(), [](const PcdField* f) {
+                    return f->type != 'F' && f->size == 2;
+                  });
     intensity_ = find_field(header_, "intensity");
     info_.path = std::move(name);
     info_.format = "pcd";
     info_.point_count = header_.point_count;
     info_.has_colors = rgb_ != nullptr || split_[0] != nullptr;
     info_.has_intensity = intensity_ != nullptr;
+    if (wide_split_) info_.las_attributes |= kLasColorLow;
     roles_.assign(header_.columns, kSkip);
     roles_[x_->column] = kX;
     roles_[y_->column] = kY;
@@ -442,7 +456,7 @@ class PcdPointReader final : public PointReader {
     }
     if (kept.empty()) return Status::ok();
     RELIEF_ASSIGN_OR_RETURN(info_.extra_bytes_vlr, kept_fields_vlr(kept, name(), "field", "PCD field", info_.warnings));
-    info_.las_attributes = kLasExtraBytes;
+    info_.las_attributes |= kLasExtraBytes;
     info_.extra_bytes_size = static_cast<std::uint32_t>(extra_size_);
     scratch_.assign(extra_size_, 0);
     return Status::ok();
@@ -535,6 +549,7 @@ class PcdPointReader final : public PointReader {
   const PcdField* rgb_ = nullptr;
   const PcdField* intensity_ = nullptr;
   std::array<const PcdField*, 3> split_{};  // separate r g b, when no packed rgb
+  bool wide_split_ = false;                  // ... each a SIZE 2 integer: 16-bit levels
   std::vector<std::uint8_t> roles_;
   std::vector<Extra> extras_;
   std::vector<std::uint32_t> extra_of_column_;  // index into extras_ where roles_ is kExtra
@@ -615,6 +630,9 @@ Status PcdPointReader::accept(const Values& v, std::uint64_t index, PointCloud& 
   } else if (split_[0] != nullptr) {
     batch.colors.push_back({color_level(v.levels[0], *split_[0]), color_level(v.levels[1], *split_[1]),
                             color_level(v.levels[2], *split_[2])});
+    if (wide_split_) {
+      batch.las.color_low.push_back({low_byte16(v.levels[0]), low_byte16(v.levels[1]), low_byte16(v.levels[2])});
+    }
   }
   if (intensity_ != nullptr) batch.intensities.push_back(intensity);
   if (alpha_at_ != kNoAlpha) scratch_[alpha_at_] = static_cast<std::uint8_t>(v.rgb >> 24);
@@ -626,6 +644,7 @@ Status PcdPointReader::accept(const Values& v, std::uint64_t index, PointCloud& 
 Result<std::size_t> PcdPointReader::read(PointCloud& batch, std::size_t max_points) {
   size_batch(batch, 0, info_.has_colors, intensity_ != nullptr);  // keeps the capacity
   batch.las.extra_bytes.clear();
+  batch.las.color_low.clear();
   if (extra_size_ > 0) batch.las.extra_bytes_size = static_cast<std::uint32_t>(extra_size_);
   std::size_t got = 0;
   const std::size_t stride = header_.point_size;

@@ -43,7 +43,9 @@ Result<PointCloud> read_all(const std::string& path, std::size_t batch_size, con
     REQUIRE(batch.size() == *n);
     REQUIRE(batch.colors.size() == (reader.info().has_colors ? *n : 0));
     REQUIRE(batch.intensities.size() == (reader.info().has_intensity ? *n : 0));
+    REQUIRE(batch.las.color_low.size() == ((reader.info().las_attributes & kLasColorLow) != 0 ? *n : 0));
     if (*n == 0) break;
+    all.las.color_low.insert(all.las.color_low.end(), batch.las.color_low.begin(), batch.las.color_low.end());
     all.positions.insert(all.positions.end(), batch.positions.begin(), batch.positions.end());
     all.colors.insert(all.colors.end(), batch.colors.begin(), batch.colors.end());
     all.intensities.insert(all.intensities.end(), batch.intensities.begin(), batch.intensities.end());
@@ -114,6 +116,14 @@ TEST_CASE("PCD separate r g b fields follow their declared type", "[io][pcd]") {
     INFO(got.status().to_string());
     REQUIRE(got.is_ok());
     CHECK(got->colors == std::vector<Rgb8>{{255, 1, 0}, {128, 0, 18}});
+    // Each level's low byte is kept beside it: the 16-bit levels come back.
+    CHECK(got->las.color_low == std::vector<Rgb8>{{255, 0, 255}, {0, 0, 0x34}});
+    {
+      Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+      REQUIRE(r.is_ok());
+      CHECK(((*r)->info().las_attributes & kLasColorLow) != 0);
+      CHECK_FALSE((*r)->info().las_colors_8bit);
+    }
     write_file(path,
                "FIELDS x y z r g b\nSIZE 4 4 4 4 4 4\nTYPE F F F F I U\nWIDTH 2\nDATA ascii\n"
                "0 0 0 12.6 -5 300\n1 1 1 nan 255 7\n");
@@ -121,6 +131,7 @@ TEST_CASE("PCD separate r g b fields follow their declared type", "[io][pcd]") {
     INFO(got.status().to_string());
     REQUIRE(got.is_ok());
     CHECK(got->colors == std::vector<Rgb8>{{13, 0, 255}, {0, 255, 7}});
+    CHECK(got->las.color_low.empty());  // 8-bit levels: nothing below them
   }
   SECTION("a partial set is not colour") {
     write_file(path, "FIELDS x y z r g\nSIZE 4 4 4 1 1\nTYPE F F F U U\nWIDTH 1\nDATA ascii\n0 0 0 1 2\n");
