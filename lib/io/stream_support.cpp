@@ -20,6 +20,16 @@ Result<std::uint16_t> BatchPointReader::sample_max_level(std::uint64_t sample) {
   return max;
 }
 
+Result<bool> BatchPointReader::decide_color_shift_now() {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<BatchPointReader> probe, reopen());
+  if (!probe) return false;
+  const std::uint64_t sample = std::min(info_.point_count.value_or(kColorSamplePoints), kColorSamplePoints);
+  RELIEF_ASSIGN_OR_RETURN(const std::uint16_t max, probe->sample_max_level(sample));
+  color_shift_ = color_shift_for(max);
+  shift_known_ = true;
+  return true;
+}
+
 Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_points) {
   if (!wide_colors_ || shift_known_) return read_into(batch, nullptr, 0, max_points);
 

@@ -118,6 +118,12 @@ class BatchPointReader : public PointReader {
   // input cannot be read twice (a pipe).
   virtual Result<std::unique_ptr<BatchPointReader>> reopen() const = 0;
 
+  // Decides the 16-bit rule now, from the sample read through reopen(), for
+  // a reader that must say at open whether it keeps the levels' low bytes
+  // (text declares no type). False, deciding nothing, when the input cannot
+  // be read twice: read() then decides from its first batch.
+  Result<bool> decide_color_shift_now();
+
   PointStreamInfo info_;
   bool wide_colors_ = false;  // colours need the 16-bit rule
   bool color_low_ = false;    // also fill las.color_low (LAS colours, low_level)

@@ -512,7 +512,10 @@ std::string typed_value_problem(std::string_view tok, int type, std::uint64_t& b
 class XyzPointReader final : public BatchPointReader {
  public:
   // Reads up to the first data line and settles the columns.
-  static Result<std::unique_ptr<XyzPointReader>> open(const InputSpec& input, const ReaderOptions& options) {
+  // `probe`: a second reader that only samples the colour levels for the
+  // first (reopen()), which decides nothing itself.
+  static Result<std::unique_ptr<XyzPointReader>> open(const InputSpec& input, const ReaderOptions& options,
+                                                      bool probe = false) {
     std::optional<ColumnPlan> explicit_plan;
     if (options.xyz_columns) {
       RELIEF_ASSIGN_OR_RETURN(ColumnPlan p, parse_columns(*options.xyz_columns, input.name));
@@ -520,6 +523,7 @@ class XyzPointReader final : public BatchPointReader {
     }
     RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
     std::unique_ptr<XyzPointReader> r(new XyzPointReader(input, options, std::move(src)));
+    r->probe_ = probe;
     RELIEF_RETURN_IF_ERROR(r->start(std::move(explicit_plan)));
     return r;
   }
@@ -531,7 +535,7 @@ class XyzPointReader final : public BatchPointReader {
   Result<std::unique_ptr<BatchPointReader>> reopen() const override {
     // A pipe cannot be read twice; a regular file or memory can.
     if (!input_.memory && !src_.size()) return std::unique_ptr<BatchPointReader>();
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<XyzPointReader> again, open(input_, options_));
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<XyzPointReader> again, open(input_, options_, true));
     return std::unique_ptr<BatchPointReader>(std::move(again));
   }
 
@@ -569,6 +573,7 @@ class XyzPointReader final : public BatchPointReader {
   std::uint64_t pending_line_no_ = 0;
   bool has_pending_ = false;
   bool explicit_columns_ = false;  // ReaderOptions::xyz_columns, not a header, gave the plan
+  bool probe_ = false;             // samples colour levels for another reader (open)
   char delimiter_ = ' ';  // ' ' means blanks only
 };
 
@@ -687,6 +692,15 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   info_.has_intensity = plan_.intensity;
   info_.las_attributes = plan_.las | (plan_.extra_names.empty() ? 0u : std::uint32_t{kLasExtraBytes});
   wide_colors_ = plan_.colors;  // levels may be 16-bit (see the top of the file)
+  if (plan_.colors && !probe_) {
+    // Decided now (a file read twice, a pipe later): 16-bit levels keep
+    // their low bytes (LasAttributes::color_low), which info() must name.
+    RELIEF_ASSIGN_OR_RETURN(const bool decided, decide_color_shift_now());
+    if (decided && color_shift_ != 0) {
+      color_low_ = true;
+      info_.las_attributes |= kLasColorLow;
+    }
+  }
   return Status::ok();
 }
 
@@ -752,6 +766,10 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     } else {
       out.colors.push_back({narrow_level(levels[0], color_shift_), narrow_level(levels[1], color_shift_),
                             narrow_level(levels[2], color_shift_)});
+      if (color_low_) {
+        out.las.color_low.push_back(
+            {low_level(levels[0], color_shift_), low_level(levels[1], color_shift_), low_level(levels[2], color_shift_)});
+      }
     }
   }
   if (plan_.intensity) out.intensities.push_back(intensity);
@@ -765,6 +783,7 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
   out.colors.resize(plan_.colors && !to_wide ? at : 0);
   out.intensities.resize(plan_.intensity ? at : 0);
   size_las_columns(out.las, plan_.las, at);
+  out.las.color_low.resize(color_low_ && !to_wide ? at : 0);
   out.las.extra_bytes_size = info_.extra_bytes_size;
   out.las.extra_bytes.resize(at * info_.extra_bytes_size);
   if (to_wide) wide->resize(3 * at);

@@ -314,12 +314,23 @@ TEST_CASE("CSV 16-bit colours are narrowed by one rule for the whole file", "[io
     REQUIRE(got->size() == 3001);
     CHECK(got->colors.front() == Rgb8{0, 0, 0});
     CHECK(got->colors.back() == Rgb8{255, 18, 1});
+    // Each level's low byte is kept beside it (a file decided at open).
+    REQUIRE(got->las.color_low.size() == 3001);
+    CHECK(got->las.color_low.front() == Rgb8{200, 255, 1});
+    CHECK(got->las.color_low.back() == Rgb8{255, 0x34, 0});
   }
-  // Without a level above 255 the levels are 8-bit and kept.
+  {
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    REQUIRE(r.is_ok());
+    CHECK(((*r)->info().las_attributes & kLasColorLow) != 0);
+  }
+  // Without a level above 255 the levels are 8-bit and kept, with nothing
+  // below them.
   write_file(path, "x,y,z,red,green,blue\n0,0,0,200,255,1\n");
   const Result<PointCloud> got = read_all(path, 1);
   REQUIRE(got.is_ok());
   CHECK(got->colors == std::vector<Rgb8>{{200, 255, 1}});
+  CHECK(got->las.color_low.empty());
 }
 
 // ---------------------------------------------------------------- float intensities
