@@ -926,11 +926,13 @@ Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::
   // narrowed here with their low bytes kept (BatchPointReader::read does
   // the same for the batch that decides the shift).
   const bool keep_low = color_low_ && wide == nullptr;
+  // The points before `at` keep their colours (reading levels empties them).
   std::vector<Rgb8> colors_before, low_before;
   if (keep_low && at > 0) {
-    colors_before.assign(out.colors.begin(), out.colors.begin() + static_cast<std::ptrdiff_t>(std::min(at, out.colors.size())));
-    low_before.assign(out.las.color_low.begin(),
-                      out.las.color_low.begin() + static_cast<std::ptrdiff_t>(std::min(at, out.las.color_low.size())));
+    colors_before = out.colors;
+    low_before = out.las.color_low;
+    colors_before.resize(at);
+    low_before.resize(at);
   }
   std::vector<std::uint16_t>* levels = keep_low ? &levels_ : wide;
   if (keep_low) levels_.clear();
@@ -941,19 +943,13 @@ Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::
     RELIEF_ASSIGN_OR_RETURN(got, read_records(out, levels, at, want));
   }
   if (keep_low) {
-    colors_before.resize(at);
-    low_before.resize(at);
-    out.colors = std::move(colors_before);
-    out.las.color_low = std::move(low_before);
+    if (at > 0) {
+      out.colors = std::move(colors_before);
+      out.las.color_low = std::move(low_before);
+    }
     out.colors.resize(at + got);
     out.las.color_low.resize(at + got);
-    for (std::size_t i = at; i < at + got; ++i) {
-      const std::uint16_t* v = levels_.data() + 3 * i;
-      out.colors[i] = Rgb8{narrow_level(v[0], color_shift_), narrow_level(v[1], color_shift_),
-                           narrow_level(v[2], color_shift_)};
-      out.las.color_low[i] =
-          Rgb8{low_level(v[0], color_shift_), low_level(v[1], color_shift_), low_level(v[2], color_shift_)};
-    }
+    narrow_colors(levels_.data() + 3 * at, got, color_shift_, out.colors.data() + at, out.las.color_low.data() + at);
   }
   done_ += got;
   if (done_ == vertex().count && !trailing_checked_) {
@@ -1167,14 +1163,10 @@ Result<PointCloud> read_ply_input(const InputSpec& input) {
     // The whole file is at hand, so the 16-bit rule uses every level rather
     // than a sample.
     const int shift = color_shift_for(max_level(wide.data(), wide.size()));
-    cloud.colors.resize(cloud.size());
-    narrow_colors(wide.data(), cloud.size(), shift, cloud.colors.data());
     // Each level's low byte too, as the streaming reader keeps it.
+    cloud.colors.resize(cloud.size());
     cloud.las.color_low.resize(cloud.size());
-    for (std::size_t i = 0; i < cloud.size(); ++i) {
-      const std::uint16_t* v = wide.data() + 3 * i;
-      cloud.las.color_low[i] = Rgb8{low_level(v[0], shift), low_level(v[1], shift), low_level(v[2], shift)};
-    }
+    narrow_colors(wide.data(), cloud.size(), shift, cloud.colors.data(), cloud.las.color_low.data());
   }
   return cloud;
 }

@@ -52,13 +52,11 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
   shift_known_ = true;
   info_.las_colors_8bit = color_low_ && color_shift_ == 0;
   batch.colors.resize(n);
-  narrow_colors(wide.data(), n, color_shift_, batch.colors.data());
   if (color_low_) {
     batch.las.color_low.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      batch.las.color_low[i] = Rgb8{low_level(wide[3 * i], color_shift_), low_level(wide[3 * i + 1], color_shift_),
-                                    low_level(wide[3 * i + 2], color_shift_)};
-    }
+    narrow_colors(wide.data(), n, color_shift_, batch.colors.data(), batch.las.color_low.data());
+  } else {
+    narrow_colors(wide.data(), n, color_shift_, batch.colors.data());
   }
   return n;
 }

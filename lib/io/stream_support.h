@@ -97,6 +97,14 @@ inline void narrow_colors(const std::uint16_t* wide, std::size_t n, int shift, R
   }
 }
 
+// The same, with each level's low byte (low_level) in `low`.
+inline void narrow_colors(const std::uint16_t* wide, std::size_t n, int shift, Rgb8* out, Rgb8* low) {
+  narrow_colors(wide, n, shift, out);
+  for (std::size_t i = 0; i < n; ++i) {
+    low[i] = Rgb8{low_level(wide[3 * i], shift), low_level(wide[3 * i + 1], shift), low_level(wide[3 * i + 2], shift)};
+  }
+}
+
 // Base of the readers that may see 16-bit colours (PLY, LAS): implements
 // read() on top of read_into() and applies the colour rule above.
 class BatchPointReader : public PointReader {
