@@ -2,6 +2,8 @@
 // names and sizes, and the parsed header. Internal to lib/io.
 #pragma once
 
+#include <algorithm>
+#include <cctype>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -142,6 +144,20 @@ struct Element {
   std::optional<std::size_t> find(std::string_view prop_name) const {
     for (std::size_t i = 0; i < properties.size(); ++i) {
       if (properties[i].name == prop_name) return i;
+    }
+    return std::nullopt;
+  }
+  // The same name in any case when no property has it exactly (writers
+  // spell them X, Red, Intensity, CloudCompare's scalar_Intensity ...).
+  std::optional<std::size_t> find_any_case(std::string_view prop_name) const {
+    if (const auto exact = find(prop_name)) return exact;
+    const auto lower = [](char c) { return static_cast<char>(std::tolower(static_cast<unsigned char>(c))); };
+    for (std::size_t i = 0; i < properties.size(); ++i) {
+      const std::string& n = properties[i].name;
+      if (n.size() == prop_name.size() &&
+          std::equal(n.begin(), n.end(), prop_name.begin(), [&](char a, char b) { return lower(a) == lower(b); })) {
+        return i;
+      }
     }
     return std::nullopt;
   }

@@ -227,20 +227,20 @@ Result<VertexPlan> make_plan(const Element& vertex, const std::string& name, boo
   plan.prop.fill(VertexPlan::kNone);
   // A scalar (non-list) property called `prop_name`, if any.
   auto scalar = [&](std::string_view prop_name) -> std::optional<std::size_t> {
-    const auto i = vertex.find(prop_name);
+    const auto i = vertex.find_any_case(prop_name);
     if (!i || vertex.properties[*i].is_list) return std::nullopt;
     return i;
   };
   for (const char* axis : {"x", "y", "z"}) {
-    const auto i = vertex.find(axis);
+    const auto i = vertex.find_any_case(axis);
     if (!i) return format_error(name + ": the vertex element has no '" + axis + "' property");
     if (vertex.properties[*i].is_list) {
       return format_error(name + ": vertex property '" + axis + "' is a list, not a number");
     }
   }
-  plan.prop[kX] = *vertex.find("x");
-  plan.prop[kY] = *vertex.find("y");
-  plan.prop[kZ] = *vertex.find("z");
+  plan.prop[kX] = *vertex.find_any_case("x");
+  plan.prop[kY] = *vertex.find_any_case("y");
+  plan.prop[kZ] = *vertex.find_any_case("z");
 
   // Colour names used by common writers, most common first; a partial set is ignored.
   static constexpr std::array<std::array<const char*, 3>, 3> kColorNames = {{

@@ -406,6 +406,25 @@ TEST_CASE("PLY colour and intensity property names", "[io]") {
     CHECK_FALSE(r->has_colors());
     CHECK(r->intensities.at(0) == 0.125f);
   }
+  SECTION("names in any case: X Y Z, Red Green Blue, CloudCompare's scalar_Intensity") {
+    const Result<PointCloud> r = parse(
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty double X\nproperty double Y\nproperty double Z\n"
+        "property uchar Red\nproperty uchar Green\nproperty uchar Blue\nproperty float scalar_Intensity\n"
+        "end_header\n1 2 3 4 5 6 0.5\n");
+    INFO(r.status().to_string());
+    REQUIRE(r.is_ok());
+    CHECK(r->positions.at(0).x == 1.0);
+    CHECK(r->positions.at(0).z == 3.0);
+    CHECK(r->colors.at(0) == Rgb8{4, 5, 6});
+    CHECK(r->intensities.at(0) == 0.5f);
+    CHECK(r->las.extra_bytes.empty());  // none of them left over as extra bytes
+  }
+  SECTION("an exact name wins over another case") {
+    const Result<PointCloud> r =
+        parse(header_start + "property float Intensity\nproperty float intensity\nend_header\n0 0 0 7 9\n");
+    REQUIRE(r.is_ok());
+    CHECK(r->intensities.at(0) == 9.0f);
+  }
   SECTION("an incomplete colour set is ignored") {
     const Result<PointCloud> r =
         parse(header_start + "property uchar red\nproperty uchar green\nend_header\n0 0 0 1 2\n");
