@@ -2,30 +2,35 @@
 
 namespace relief {
 
-Result<std::uint16_t> BatchPointReader::sample_max_level(std::uint64_t sample) {
+Result<BatchPointReader::LevelSample> BatchPointReader::sample_levels(std::uint64_t sample, bool stop_when_wide) {
   // Decoding whole points is more work than the colours need, but only runs
   // when the caller's first batch is smaller than the sample.
   constexpr std::size_t kStep = std::size_t{1} << 16;
   PointCloud scratch;
   std::vector<std::uint16_t> wide;
-  std::uint16_t max = 0;
-  std::uint64_t seen = 0;
-  while (seen < sample) {
-    const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(kStep, sample - seen));
+  LevelSample s;
+  while (s.points < sample && !(stop_when_wide && s.max > 255)) {
+    const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(kStep, sample - s.points));
     RELIEF_ASSIGN_OR_RETURN(const std::size_t n, read_into(scratch, &wide, 0, want));
-    if (n == 0) break;
-    max = std::max(max, max_level(wide.data(), 3 * n));
-    seen += n;
+    if (n == 0) {
+      s.whole = true;
+      break;
+    }
+    s.max = std::max(s.max, max_level(wide.data(), 3 * n));
+    s.points += n;
   }
-  return max;
+  return s;
 }
 
-Result<bool> BatchPointReader::decide_color_shift_now() {
+Result<bool> BatchPointReader::decide_color_shift_now(std::uint64_t within) {
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<BatchPointReader> probe, reopen());
   if (!probe) return false;
   const std::uint64_t sample = std::min(info_.point_count.value_or(kColorSamplePoints), kColorSamplePoints);
-  RELIEF_ASSIGN_OR_RETURN(const std::uint16_t max, probe->sample_max_level(sample));
-  color_shift_ = color_shift_for(max);
+  RELIEF_ASSIGN_OR_RETURN(const LevelSample s, probe->sample_levels(std::min(within, sample), true));
+  // A level above 255 decides for 16 bits whatever follows; none decides
+  // for 8 only when the rule's whole sample was seen.
+  if (s.max <= 255 && !s.whole && s.points < sample) return false;
+  color_shift_ = color_shift_for(s.max);
   shift_known_ = true;
   return true;
 }
@@ -37,8 +42,8 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
   if (max_points < sample) {
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<BatchPointReader> probe, reopen());
     if (probe) {
-      RELIEF_ASSIGN_OR_RETURN(const std::uint16_t max, probe->sample_max_level(sample));
-      color_shift_ = color_shift_for(max);
+      RELIEF_ASSIGN_OR_RETURN(const LevelSample s, probe->sample_levels(sample, false));
+      color_shift_ = color_shift_for(s.max);
       shift_known_ = true;
       info_.las_colors_8bit = color_low_ && color_shift_ == 0;
       return read_into(batch, nullptr, 0, max_points);

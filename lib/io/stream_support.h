@@ -126,11 +126,13 @@ class BatchPointReader : public PointReader {
   // input cannot be read twice (a pipe).
   virtual Result<std::unique_ptr<BatchPointReader>> reopen() const = 0;
 
-  // Decides the 16-bit rule now, from the sample read through reopen(), for
-  // a reader that must say at open whether it keeps the levels' low bytes
-  // (text declares no type). False, deciding nothing, when the input cannot
+  // Decides the 16-bit rule now, from at most `within` points read through
+  // reopen(), for a reader that must say at open whether it keeps the
+  // levels' low bytes (text declares no type): decided when a level above
+  // 255 shows up among them (16-bit) or they are the rule's whole sample
+  // (8-bit). False, deciding nothing, when neither holds or the input cannot
   // be read twice: read() then decides from its first batch.
-  Result<bool> decide_color_shift_now();
+  Result<bool> decide_color_shift_now(std::uint64_t within);
 
   PointStreamInfo info_;
   bool wide_colors_ = false;  // colours need the 16-bit rule
@@ -138,7 +140,15 @@ class BatchPointReader : public PointReader {
   int color_shift_ = 0;       // valid once decided
 
  private:
-  Result<std::uint16_t> sample_max_level(std::uint64_t sample);
+  // The largest colour level of up to `sample` points from the current one
+  // (stopping early at a level above 255 when `stop_when_wide`), how many
+  // were read, and whether that was the whole input.
+  struct LevelSample {
+    std::uint16_t max = 0;
+    std::uint64_t points = 0;
+    bool whole = false;
+  };
+  Result<LevelSample> sample_levels(std::uint64_t sample, bool stop_when_wide);
 
   bool shift_known_ = false;
 };

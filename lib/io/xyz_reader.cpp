@@ -509,6 +509,9 @@ std::string typed_value_problem(std::string_view tok, int type, std::uint64_t& b
   return "";
 }
 
+// Points a text reader looks at when it opens a file with colours (above).
+constexpr std::uint64_t kOpenColorSample = std::uint64_t{1} << 16;
+
 class XyzPointReader final : public BatchPointReader {
  public:
   // Reads up to the first data line and settles the columns.
@@ -693,9 +696,12 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
   info_.las_attributes = plan_.las | (plan_.extra_names.empty() ? 0u : std::uint32_t{kLasExtraBytes});
   wide_colors_ = plan_.colors;  // levels may be 16-bit (see the top of the file)
   if (plan_.colors && !probe_) {
-    // Decided now (a file read twice, a pipe later): 16-bit levels keep
-    // their low bytes (LasAttributes::color_low), which info() must name.
-    RELIEF_ASSIGN_OR_RETURN(const bool decided, decide_color_shift_now());
+    // 16-bit levels keep their low bytes (LasAttributes::color_low), which
+    // info() must name, so the rule is decided now where a short look
+    // settles it: a level above 255 among the first kOpenColorSample points
+    // (a 16-bit file shows one at once), or a file no longer than that.
+    // Otherwise (or from a pipe) the first read decides, keeping no low bytes.
+    RELIEF_ASSIGN_OR_RETURN(const bool decided, decide_color_shift_now(kOpenColorSample));
     if (decided && color_shift_ != 0) {
       color_low_ = true;
       info_.las_attributes |= kLasColorLow;

@@ -324,6 +324,21 @@ TEST_CASE("CSV 16-bit colours are narrowed by one rule for the whole file", "[io
     REQUIRE(r.is_ok());
     CHECK(((*r)->info().las_attributes & kLasColorLow) != 0);
   }
+  // A first level above 255 after the first 2^16 points (but within the
+  // rule's 2^20): the file is 16-bit all the same, decided by the first read,
+  // but its low bytes are not kept (the open looks at 2^16 points only).
+  {
+    std::string late = "x,y,z,red,green,blue\n";
+    for (int i = 0; i < 70000; ++i) late += std::to_string(i) + ",0,0,200,255,1\n";
+    late += "9,9,9,65535,4660,256\n";
+    write_file(path, late);
+    const Result<PointCloud> all = read_all(path, 100000);
+    REQUIRE(all.is_ok());
+    REQUIRE(all->size() == 70001);
+    CHECK(all->colors.front() == Rgb8{0, 0, 0});
+    CHECK(all->colors.back() == Rgb8{255, 18, 1});
+    CHECK(all->las.color_low.empty());
+  }
   // Without a level above 255 the levels are 8-bit and kept, with nothing
   // below them.
   write_file(path, "x,y,z,red,green,blue\n0,0,0,200,255,1\n");
