@@ -18,6 +18,7 @@ library code checks them for both. Every failure the library reports raises
 import builtins as _builtins
 import json as _json
 import os as _os
+import socket as _socket
 import warnings as _warnings
 
 from . import _relief
@@ -414,7 +415,10 @@ class Archive:
                                                     float(azimuth), float(elevation), int(threads), encoding)
         self.last_preview = figures
         if data is not None:
-            tmp = f"{path}.tmp-{_os.getpid()}"
+            # Beside the image, named after this host and process (as the
+            # library names its temporary files: hosts may share the directory).
+            host = "".join(c if (c.isascii() and c.isalnum()) or c in "._-" else "_" for c in _socket.gethostname())[:64] or "host"
+            tmp = f"{path}.tmp-{host}-{_os.getpid()}"
             try:
                 with _builtins.open(tmp, "wb") as f:
                     f.write(data)
