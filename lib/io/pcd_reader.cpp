@@ -412,6 +412,13 @@ class PcdPointReader final : public PointReader {
     info_.point_count = header_.point_count;
     info_.has_colors = rgb_ != nullptr || split_[0] != nullptr;
     info_.has_intensity = intensity_ != nullptr;
+    if (intensity_ != nullptr && intensity_->size >= 4 && !(intensity_->type == 'F' && intensity_->size == 4)) {
+      // Intensities are 32-bit floats: say so when the field can hold more.
+      info_.warnings.push_back(info_.path + ": field " + quoted(intensity_->name) + " is " + intensity_->type + " " +
+                               std::to_string(intensity_->size) +
+                               "; intensities are kept as 32-bit floats (about 7 significant digits, integers "
+                               "exact up to 2^24)");
+    }
     if (wide_split_) info_.las_attributes |= kLasColorLow;
     roles_.assign(header_.columns, kSkip);
     roles_[x_->column] = kX;

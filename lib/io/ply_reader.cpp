@@ -268,6 +268,15 @@ Result<VertexPlan> make_plan(const Element& vertex, const std::string& name, boo
     if (const auto i = scalar(intensity_name)) {
       plan.prop[kIntensity] = *i;
       plan.has_intensity = true;
+      // Intensities are 32-bit floats (exact for every LAS intensity and
+      // every float): say so when the property's type can hold more.
+      const ScalarType t = vertex.properties[*i].type;
+      if (t == ScalarType::kFloat64 || t == ScalarType::kInt32 || t == ScalarType::kUint32) {
+        plan.warnings.push_back(name + ": vertex property " + quoted(vertex.properties[*i].name) + " is " +
+                                ply::scalar_name(t) +
+                                "; intensities are kept as 32-bit floats (about 7 significant digits, "
+                                "integers exact up to 2^24)");
+      }
       break;
     }
   }

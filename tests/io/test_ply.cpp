@@ -419,6 +419,21 @@ TEST_CASE("PLY colour and intensity property names", "[io]") {
     CHECK(r->intensities.at(0) == 0.5f);
     CHECK(r->las.extra_bytes.empty());  // none of them left over as extra bytes
   }
+  SECTION("a double or 32-bit integer intensity is kept as a float, with a warning") {
+    TempDir dir;
+    for (const char* type : {"double", "int", "uint", "float", "ushort"}) {
+      CAPTURE(type);
+      const std::string path = dir.file(std::string(type) + ".ply");
+      write_text(path, header_start + "property " + type + " intensity\nend_header\n0 0 0 7\n");
+      auto reader = open_point_reader(path);
+      REQUIRE(reader.is_ok());
+      const auto& w = (*reader)->info().warnings;
+      const bool wide = std::string(type) == "double" || std::string(type) == "int" || std::string(type) == "uint";
+      CHECK(std::any_of(w.begin(), w.end(), [](const std::string& m) {
+              return m.find("kept as 32-bit floats") != std::string::npos;
+            }) == wide);
+    }
+  }
   SECTION("an exact name wins over another case") {
     const Result<PointCloud> r =
         parse(header_start + "property float Intensity\nproperty float intensity\nend_header\n0 0 0 7 9\n");

@@ -133,6 +133,20 @@ TEST_CASE("PCD separate r g b fields follow their declared type", "[io][pcd]") {
     CHECK(got->colors == std::vector<Rgb8>{{13, 0, 255}, {0, 255, 7}});
     CHECK(got->las.color_low.empty());  // 8-bit levels: nothing below them
   }
+  SECTION("an intensity field wider than a float is kept as one, with a warning") {
+    for (const char* field : {"8\nTYPE F F F F", "4\nTYPE F F F U", "4\nTYPE F F F F", "2\nTYPE F F F U"}) {
+      CAPTURE(field);
+      write_file(path, std::string("FIELDS x y z intensity\nSIZE 4 4 4 ") + field +
+                           "\nWIDTH 1\nDATA ascii\n0 0 0 7\n");
+      Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+      REQUIRE(r.is_ok());
+      const auto& w = (*r)->info().warnings;
+      const bool wide = std::string(field).rfind("2", 0) != 0 && std::string(field) != "4\nTYPE F F F F";
+      CHECK(std::any_of(w.begin(), w.end(), [](const std::string& m) {
+              return m.find("kept as 32-bit floats") != std::string::npos;
+            }) == wide);
+    }
+  }
   SECTION("a partial set is not colour") {
     write_file(path, "FIELDS x y z r g\nSIZE 4 4 4 1 1\nTYPE F F F U U\nWIDTH 1\nDATA ascii\n0 0 0 1 2\n");
     Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
