@@ -41,8 +41,24 @@ Args::Args(int argc, char** argv, std::vector<std::string> flags, std::vector<st
     }
     return false;
   };
+  // A number right after an option's numeric value is the user's second
+  // number for it (`--box 1 2 3 4`): said as such, not as a stray argument.
+  const auto is_number = [](const std::string& t) {
+    double v = 0;
+    const char* end = t.data() + t.size();
+    const auto [p, ec] = std::from_chars(t.data(), end, v);
+    return !t.empty() && ec == std::errc() && p == end;
+  };
+  std::string numeric_option;  // the option whose numeric value came last
   for (int i = 0; i < argc; ++i) {
     std::string a = argv[i];
+    const std::string after = numeric_option;
+    numeric_option.clear();
+    if (!after.empty() && is_number(a)) {
+      error_ = "option " + after + " takes one value, but '" + a +
+               "' follows it: separate several numbers with commas (" + after + " 1,2,3,4)";
+      return;
+    }
     if (a.size() > 1 && a[0] == '-' && !(a.size() > 1 && (std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.'))) {
       std::string name = a, value;
       bool has_value = false;
@@ -65,6 +81,7 @@ Args::Args(int argc, char** argv, std::vector<std::string> flags, std::vector<st
             return;
           }
           value = argv[++i];
+          if (is_number(value)) numeric_option = name;
         }
         values_[name] = value;
       } else {

@@ -201,6 +201,11 @@ TEST_CASE("usage errors exit 2 and --help exits 0", "[cli]") {
   CHECK(q.code == 2);
   CHECK(q.output.find("--quality") != std::string::npos);
   CHECK(run("roundtrip " + sample() + " --resolution 12").code == 2);
+  // Numbers for one option written apart: said as such, not "expected one ARCHIVE".
+  const Run box = run("query a.relief --box 1 2 3 4 -o out.las");
+  CHECK(box.code == 2);
+  CHECK(box.output.find("option --box takes one value, but '2' follows it: separate several numbers with commas") !=
+        std::string::npos);
   for (const char* cmd : {"roundtrip", "encode-chunk", "decode-chunk", "eval"}) {
     const Run h = run(std::string(cmd) + " --help");
     CHECK(h.code == 0);
