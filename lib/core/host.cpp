@@ -1,6 +1,11 @@
 #include "core/host.h"
 
+#include <signal.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstdint>
+#include <filesystem>
 
 namespace relief::core {
 
@@ -18,6 +23,33 @@ std::string host_tag() {
 
 std::string temp_path_beside(const std::string& path) {
   return path + ".tmp-" + host_tag() + "-" + std::to_string(::getpid());
+}
+
+void remove_stale_temps_beside(const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  const std::string prefix = target.filename().string() + ".tmp-" + host_tag() + "-";
+  std::error_code ec;
+  fs::directory_iterator it(dir, ec);
+  if (ec) return;
+  for (; it != fs::directory_iterator(); it.increment(ec)) {
+    if (ec) return;
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    std::uint64_t pid = 0;
+    std::size_t k = prefix.size();
+    for (; k < name.size() && name[k] >= '0' && name[k] <= '9' && pid < (1u << 30); ++k) {
+      pid = pid * 10 + static_cast<std::uint64_t>(name[k] - '0');
+    }
+    if (k == prefix.size() || (k < name.size() && name[k] != '.' && name[k] != '-')) continue;
+    if (pid == 0 || pid >= (1u << 30) || static_cast<pid_t>(pid) == ::getpid()) continue;
+    if (!fs::is_regular_file(it->symlink_status(ec)) || ec) continue;
+    // EPERM means a process we may not signal: alive.
+    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+    std::error_code ignored;
+    fs::remove(it->path(), ignored);
+  }
 }
 
 }  // namespace relief::core

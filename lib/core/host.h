@@ -16,4 +16,14 @@ std::string host_tag();
 // two hosts sharing the directory (where pids repeat), never share it.
 std::string temp_path_beside(const std::string& path);
 
+// Removes what a process of this host killed while writing `path` left
+// beside it: files named temp_path_beside(path) for another pid, followed by
+// nothing or by '.' or '-' and more (SQLite's -journal and -wal, a temporary
+// name made from a temporary name), whose pid no longer runs here. Names of
+// other hosts are left alone (their pids mean nothing here), and so is
+// anything not a regular file. Best effort: errors are ignored. One listing
+// of the directory, so not for directories written file by file by the
+// thousand.
+void remove_stale_temps_beside(const std::string& path);
+
 }  // namespace relief::core

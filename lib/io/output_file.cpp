@@ -33,6 +33,7 @@ Result<std::unique_ptr<OutputFile>> OutputFile::create(const std::string& path) 
   if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) {
     return io_error(path + ": is a directory");
   }
+  core::remove_stale_temps_beside(path);  // left by a killed writer of this path
   std::string tmp_path = core::temp_path_beside(path);
   // O_NOFOLLOW: a symlink planted under the predictable temporary name must
   // not redirect (and truncate) some other file.

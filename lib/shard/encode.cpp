@@ -17,6 +17,7 @@
 #include "relief/codec.h"
 #include "relief/shard.h"
 #include "shard/partition_file.h"
+#include "core/host.h"
 #include "shard/shard_files.h"
 
 namespace relief {
@@ -78,6 +79,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
     return Status::ok();
   };
 
+  core::remove_stale_temps_beside(out);  // left by killed tasks of this host writing `out`
   const std::string tmp = shard::temp_name(out);
   remove_archive_files(tmp);
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,

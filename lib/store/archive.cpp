@@ -2118,6 +2118,7 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
   // Built beside the target and renamed into place when complete: a crash
   // during creation leaves at most a temporary file, never a half-made
   // archive under the real name.
+  core::remove_stale_temps_beside(path);  // left by killed writers of this path, on this host
   const std::string temp = core::temp_path_beside(path);
   remove_database_files(temp);  // left by a crashed process of this host that had our pid
   Status status = write_new_archive(temp, path, grid, codec_params, creator, page_size);

@@ -1,0 +1,66 @@
+// core/host.h: temporary names carry the host, and what a killed writer of
+// this host left beside a destination is removed, nothing else.
+#include <catch2/catch.hpp>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "core/host.h"
+#include "support/temp_dir.h"
+
+namespace fs = std::filesystem;
+using relief::test::TempDir;
+
+TEST_CASE("host_tag and temp_path_beside", "[core][host]") {
+  const std::string tag = relief::core::host_tag();
+  REQUIRE_FALSE(tag.empty());
+  CHECK(tag.size() <= 64);
+  CHECK(std::all_of(tag.begin(), tag.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' ||
+           c == '-';
+  }));
+  CHECK(relief::core::temp_path_beside("d/out.las") ==
+        "d/out.las.tmp-" + tag + "-" + std::to_string(::getpid()));
+}
+
+TEST_CASE("remove_stale_temps_beside removes a killed writer's files of this host only", "[core][host]") {
+  TempDir dir;
+  // A pid that no longer exists: a child that has exited and been reaped.
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) ::_exit(0);
+  REQUIRE(::waitpid(child, nullptr, 0) == child);
+  const std::string dead = std::to_string(child);
+  const std::string alive = std::to_string(::getppid());
+  const std::string own = std::to_string(::getpid());
+  const std::string here = relief::core::host_tag();
+  const std::string other = here == "other-host" ? "another-host" : "other-host";
+  const std::string out = dir.file("out.relief");
+  const std::vector<std::string> removed = {
+      "out.relief.tmp-" + here + "-" + dead,
+      "out.relief.tmp-" + here + "-" + dead + "-journal",
+      "out.relief.tmp-" + here + "-" + dead + ".tmp-" + here + "-" + dead + "-wal",
+  };
+  const std::vector<std::string> kept = {
+      "out.relief",                                        // the destination itself
+      "out.relief.tmp-" + here + "-" + alive,              // its writer runs
+      "out.relief.tmp-" + here + "-" + own,                // ours
+      "out.relief.tmp-" + other + "-" + dead,              // another host's pid means nothing here
+      "out.relief.tmp-" + here + "-" + dead + "x",         // not our pattern
+      "out.relief.tmp-" + here + "-",                      // no pid
+      "other.relief.tmp-" + here + "-" + dead,             // another destination
+  };
+  for (const auto& n : removed) std::ofstream(dir.file(n)) << "partial";
+  for (const auto& n : kept) std::ofstream(dir.file(n)) << "keep";
+  // A directory under a stale name is not a file we wrote: kept.
+  fs::create_directory(dir.file("out.relief.tmp-" + here + "-" + dead + ".d"));
+  relief::core::remove_stale_temps_beside(out);
+  for (const auto& n : removed) CHECK_FALSE(fs::exists(dir.file(n)));
+  for (const auto& n : kept) CHECK(fs::exists(dir.file(n)));
+  CHECK(fs::is_directory(dir.file("out.relief.tmp-" + here + "-" + dead + ".d")));
+}
