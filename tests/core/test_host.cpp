@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/host.h"
+#include "support/dead_pid.h"
 #include "support/temp_dir.h"
 
 namespace fs = std::filesystem;
@@ -30,12 +31,8 @@ TEST_CASE("host_tag and temp_path_beside", "[core][host]") {
 
 TEST_CASE("remove_stale_temps_beside removes a killed writer's files of this host only", "[core][host]") {
   TempDir dir;
-  // A pid that no longer exists: a child that has exited and been reaped.
-  const pid_t child = ::fork();
-  REQUIRE(child >= 0);
-  if (child == 0) ::_exit(0);
-  REQUIRE(::waitpid(child, nullptr, 0) == child);
-  const std::string dead = std::to_string(child);
+  const std::string dead = relief::test::dead_pid();
+  REQUIRE_FALSE(dead.empty());
   const std::string alive = std::to_string(::getppid());
   const std::string own = std::to_string(::getpid());
   const std::string here = relief::core::host_tag();

@@ -21,6 +21,7 @@
 #include "ingest/bucket_split.h"
 #include "ingest/ingest_common.h"
 #include "relief/archive.h"
+#include "support/dead_pid.h"
 #include "support/temp_dir.h"
 
 using namespace relief;
@@ -219,12 +220,8 @@ TEST_CASE("a damaged bucket file is reported, not decoded", "[ingest][buckets]")
 
 TEST_CASE("a temporary directory left by a killed ingest is removed by the next one", "[ingest][buckets]") {
   TempDir tmp;
-  // A pid that no longer exists: a child that has exited and been reaped.
-  const pid_t child = ::fork();
-  REQUIRE(child >= 0);
-  if (child == 0) ::_exit(0);
-  REQUIRE(::waitpid(child, nullptr, 0) == child);
-  const std::string dead = std::to_string(child);
+  const std::string dead = relief::test::dead_pid();
+  REQUIRE_FALSE(dead.empty());
   const std::string alive = std::to_string(::getppid());  // the process that runs this test
   const std::string here = core::host_tag();
   const std::string other = here == "other-host" ? "another-host" : "other-host";
