@@ -1,7 +1,6 @@
 // core/host.h: temporary names carry the host, and what a killed writer of
 // this host left beside a destination is removed, nothing else.
 #include <catch2/catch.hpp>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>

@@ -4,7 +4,6 @@
 #include <catch2/catch.hpp>
 #include <fcntl.h>
 #include <sys/file.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
