@@ -25,6 +25,8 @@ std::string temp_path_beside(const std::string& path) {
   return path + ".tmp-" + host_tag() + "-" + std::to_string(::getpid());
 }
 
+bool pid_gone(pid_t pid) { return ::kill(pid, 0) != 0 && errno == ESRCH; }
+
 void remove_stale_temps_beside(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path target(path);
@@ -45,8 +47,7 @@ void remove_stale_temps_beside(const std::string& path) {
     if (k == prefix.size() || (k < name.size() && name[k] != '.' && name[k] != '-')) continue;
     if (pid == 0 || pid >= (1u << 30) || static_cast<pid_t>(pid) == ::getpid()) continue;
     if (!fs::is_regular_file(it->symlink_status(ec)) || ec) continue;
-    // EPERM means a process we may not signal: alive.
-    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+    if (!pid_gone(static_cast<pid_t>(pid))) continue;
     std::error_code ignored;
     fs::remove(it->path(), ignored);
   }

@@ -1,6 +1,8 @@
 // The name of the machine, as it goes into temporary file names. Internal.
 #pragma once
 
+#include <sys/types.h>
+
 #include <string>
 
 namespace relief::core {
@@ -15,6 +17,10 @@ std::string host_tag();
 // beside its destination. Two processes writing the same destination, even on
 // two hosts sharing the directory (where pids repeat), never share it.
 std::string temp_path_beside(const std::string& path);
+
+// True when no process `pid` runs on this host (kill(pid, 0) says ESRCH; a
+// process we may not signal, EPERM, is alive).
+bool pid_gone(pid_t pid);
 
 // Removes what a process of this host killed while writing `path` left
 // beside it: files named temp_path_beside(path) for another pid, followed by

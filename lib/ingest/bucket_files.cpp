@@ -166,8 +166,7 @@ bool owner_gone(const std::string& dir, const TempDirOwner& owner, const std::st
   const int fd = ::open(lock.c_str(), O_RDWR | O_CLOEXEC | O_NOFOLLOW);
   if (fd < 0) {
     if (errno != ENOENT || owner.host != host) return false;
-    // EPERM means a process we may not signal: alive.
-    return ::kill(owner.pid, 0) != 0 && errno == ESRCH;
+    return core::pid_gone(owner.pid);
   }
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     ::close(fd);

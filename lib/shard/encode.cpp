@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "core/host.h"
 #include "core/parallel.h"
 #include "ingest/bucket_encode.h"
 #include "ingest/bucket_files.h"
@@ -17,7 +18,6 @@
 #include "relief/codec.h"
 #include "relief/shard.h"
 #include "shard/partition_file.h"
-#include "core/host.h"
 #include "shard/shard_files.h"
 
 namespace relief {
@@ -80,7 +80,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   };
 
   core::remove_stale_temps_beside(out);  // left by killed tasks of this host writing `out`
-  const std::string tmp = shard::temp_name(out);
+  const std::string tmp = core::temp_path_beside(out);
   remove_archive_files(tmp);
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,
                           Archive::create(tmp, plan.grid, plan.archive_params, plan.creator,

@@ -9,9 +9,9 @@
 #include <memory>
 #include <tuple>
 
+#include "core/host.h"
 #include "ingest/ingest_common.h"
 #include "relief/shard.h"
-#include "core/host.h"
 #include "shard/shard_files.h"
 
 namespace relief {
@@ -138,7 +138,7 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
 
   const ArchiveInfo& first = opened[0].info;
   core::remove_stale_temps_beside(out);  // left by killed tasks of this host writing `out`
-  const std::string tmp = shard::temp_name(out);
+  const std::string tmp = core::temp_path_beside(out);
   remove_archive_files(tmp);
   // The page size a one-box compress of the same points takes.
   std::uint64_t merged_points = 0;

@@ -12,6 +12,7 @@
 #include <type_traits>
 
 #include "core/byte_io.h"
+#include "core/host.h"
 #include "ingest/ingest_common.h"
 #include "ingest/las_columns.h"
 #include "relief/codec.h"
@@ -390,7 +391,7 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
   std::vector<std::uint64_t> counts(ranges, 0);
   for (std::uint32_t r = 0; r < ranges; ++r) {
     finals[r] = base + "/" + partition_file_name(input, r);
-    files.tmp.push_back(shard::temp_name(finals[r]));
+    files.tmp.push_back(core::temp_path_beside(finals[r]));
     const int fd = ::open(files.tmp.back().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0) {
       files.tmp.pop_back();

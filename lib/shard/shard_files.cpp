@@ -85,10 +85,6 @@ Result<std::string> read_text(const std::string& path, std::uint64_t max_bytes) 
   return text;
 }
 
-std::string temp_name(const std::string& path) {
-  return core::temp_path_beside(path);
-}
-
 Status sync_and_rename(int fd, const std::string& from, const std::string& to) {
   if (::fsync(fd) != 0) {
     const int err = errno;
@@ -110,7 +106,7 @@ Status sync_and_rename(int fd, const std::string& from, const std::string& to) {
 }
 
 Status write_text_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = temp_name(path);
+  const std::string tmp = core::temp_path_beside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) return io_error(path + ": cannot create: " + std::strerror(errno));
   std::size_t done = 0;

@@ -25,11 +25,10 @@ Result<std::vector<TextLine>> split_lines(const std::string& path, const std::st
 
 // The whole file, refused (kLimitExceeded) when larger than `max_bytes`.
 Result<std::string> read_text(const std::string& path, std::uint64_t max_bytes);
-// Writes to temp_name(path), flushes it to disk and renames it into place.
+// Writes to core::temp_path_beside(path) (path + ".tmp-<host>-<pid>": two
+// tasks writing the same file, even on two hosts sharing the directory, never
+// write the same temporary file), flushes it to disk and renames it into place.
 Status write_text_atomic(const std::string& path, const std::string& text);
-// path + ".tmp-<host>-<pid>": two tasks writing the same file, even on two
-// hosts sharing the directory, never write the same temporary file.
-std::string temp_name(const std::string& path);
 // fsync(2) of a file, then a rename that replaces `to`.
 Status sync_and_rename(int fd, const std::string& from, const std::string& to);
 
