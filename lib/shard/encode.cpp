@@ -167,7 +167,7 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   };
   if (Status s = encode(); !s) {
     // The pipeline reports a cancellation as its own error: say it plainly.
-    if (options.cancel != nullptr && options.cancel->load()) return failed(io_error(out + ": interrupted"));
+    if (Status stopped = interrupted(); !stopped) return failed(stopped);
     return failed(s);
   }
   const ScanAttributes& attributes = plan.attributes;
