@@ -72,7 +72,7 @@ double max_axis_error(const relief::PointCloud& in, const relief::PointCloud& ou
 }
 
 std::optional<Run> run_once(const std::string& input, const relief::PointCloud& cloud, double tolerance, int ctol,
-                            const fs::path& tmp, unsigned threads) {
+                            const fs::path& tmp, unsigned threads, bool keep_order = false) {
   Run r;
   r.tolerance = tolerance;
   r.color_tolerance = ctol;
@@ -82,6 +82,7 @@ std::optional<Run> run_once(const std::string& input, const relief::PointCloud& 
   o.tolerance = tolerance;
   o.color_tolerance = ctol;
   o.threads = threads;
+  o.keep_order = keep_order;
   const auto t0 = Clock::now();
   auto res = relief::compress_files({input}, archive, o);
   const auto t1 = Clock::now();
@@ -194,9 +195,16 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
     const double extent = std::max({e.x, e.y, e.z});
     // Geometry alone (against G-PCC's geometry-only rows where they exist),
     // then with colour at the tolerances of the sweep.
-    std::vector<std::pair<std::string, int>> variants = {{"xyz", 0}};
+    // Last, both with --keep-order (the file's own point order kept, as LAZ
+    // keeps it; exact colour).
+    struct Variant {
+      std::string attrs;
+      int ctol;
+      bool keep_order;
+    };
+    std::vector<Variant> variants = {{"xyz", 0, false}};
     if (full.has_colors()) {
-      for (int c : opt.color_tolerances) variants.push_back({"xyz+rgb", c});
+      for (int c : opt.color_tolerances) variants.push_back({"xyz+rgb", c, false});
     }
     // Peers: G-PCC keeping every point (geometry-only rows for "xyz" where
     // measured), LAZ and Draco (with colour on coloured files).
@@ -211,8 +219,10 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
       }
       return std::numeric_limits<double>::quiet_NaN();
     };
-    if (full.has_colors() && !gpcc_rgb.empty()) variants.push_back({"xyz+rgb", kMatchedTolerance});
-    for (const auto& [attrs, sweep_ctol] : variants) {
+    if (full.has_colors() && !gpcc_rgb.empty()) variants.push_back({"xyz+rgb", kMatchedTolerance, false});
+    variants.push_back({"xyz", 0, true});
+    if (full.has_colors()) variants.push_back({"xyz+rgb", 0, true});
+    for (const auto& [attrs, sweep_ctol, keep_order] : variants) {
       relief::PointCloud cloud = full;
       if (attrs == "xyz") cloud.colors.clear();
       const fs::path input = tmp / (stem + "_" + attrs + ".ply");
@@ -248,7 +258,7 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
           if (best) runs.push_back(*best);
         } else {
           for (int k = 0; k < opt.repeat; ++k) {
-            auto r = run_once(input.string(), cloud, tol, ctol, tmp, opt.threads);
+            auto r = run_once(input.string(), cloud, tol, ctol, tmp, opt.threads, keep_order);
             if (r) runs.push_back(*r);
           }
         }
@@ -260,7 +270,10 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
         r.dec_mpts = runs[runs.size() / 2].dec_mpts;
         r.base_dec_mpts = runs[runs.size() / 2].base_dec_mpts;
         out.linef("%s,%s,%s,%.6g,%d,%zu,%zu,%llu,%.4f,%.6g,%.6g,%.6g,%s,%.3f,%.3f,%.3f",
-                  sweep_ctol == kMatchedTolerance ? "bounded_matched" : "bounded", stem.c_str(), attrs.c_str(),
+                  sweep_ctol == kMatchedTolerance ? "bounded_matched"
+                  : keep_order                    ? "bounded_keep_order"
+                                                  : "bounded",
+                  stem.c_str(), attrs.c_str(),
                   tol, ctol, cloud.size(), r.points_out, static_cast<unsigned long long>(r.bytes), r.bpp,
                   r.m.rmse_snn, r.m.hausdorff, r.max_axis_error,
                   r.m.has_rgb ? format_number(r.m.rmse_rgb_snn).c_str() : "", r.enc_mpts, r.dec_mpts,
@@ -281,8 +294,9 @@ void run_bounded_bench(Output& out, const std::vector<fs::path>& files, const st
       const std::vector<CurvePoint> laz = anchor_rows(main_csv, "laz", false);
       const std::vector<CurvePoint> draco = anchor_rows(main_csv, "draco", false);
       char line[512];
-      const std::string ctol_text =
-          sweep_ctol == kMatchedTolerance ? "matched" : "ctol " + std::to_string(sweep_ctol);
+      const std::string ctol_text = sweep_ctol == kMatchedTolerance ? "matched"
+                                    : keep_order                    ? "ctol 0, keep-order"
+                                                                    : "ctol " + std::to_string(sweep_ctol);
       // The issue's own range for the G-PCC target: its fine grids, g = 11…14,
       // both curves restricted to them (the sweep's g = 10 is the coarsest).
       const auto fine = [](const std::vector<CurvePoint>& c) {

@@ -30,7 +30,11 @@ const char* const kModeOptionsHelp =
     "                         else 0.0005)\n"
     "  --color-tolerance C    bounded: largest error per colour channel, 0..127 (default 0 = exact)\n"
     "  --intensity-tolerance I  bounded: largest error of a 16-bit intensity, 0..32767 (default 0 =\n"
-    "                         exact; float intensities stay exact)\n";
+    "                         exact; float intensities stay exact)\n"
+    "  --keep-order           bounded: each chunk gives its points back in the order they were read\n"
+    "                         (as LAZ does), their geometry coded in that order: smaller for files in\n"
+    "                         scan order without GPS times, larger for others; the archive then\n"
+    "                         depends on the input order (default: cell order, an order-free archive)\n";
 
 std::vector<std::string> ingest_cli_options(IngestOptionSet set) { return cli_names(ingest_option_names(set)); }
 std::vector<std::string> ingest_cli_flags(IngestOptionSet set) { return cli_names(ingest_flag_names(set)); }

@@ -23,8 +23,9 @@ const SectionEntry* find_section(const ParsedBlob& blob, SectionId id) {
 }
 
 // The sections of a format-8 blob whose geometry is in time order (§11.3.3):
-// the GPS times (18), return numbers (12) and numbers of returns (13), which
-// the geometry uses as context, then the geometry. The layer is in time
+// the GPS times (18; from format 14 possibly absent), return numbers (12) and
+// numbers of returns (13), which the geometry uses as context, then the
+// geometry. The layer is in time
 // order: `out` gets the positions and those attributes, `time_order` the
 // identity.
 // `cell_pos` gets, when the order mask sets a bit of `slots` (those of the
@@ -35,19 +36,28 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, std::uint8_t slots, Poi
                                  std::vector<std::uint32_t>& cell_pos, std::vector<CellXyz>& layer_cells) {
   const ChunkHeader& h = blob.header;
   const std::size_t n = h.input_points;
+  // Format 14: without GPS times the layer is in the order the encoder was
+  // given (ErrorBound::keep_order), the geometry without pulse context.
   const SectionEntry* gps = find_section(blob, las_section_id(kLasGpsTime));
-  if (gps == nullptr) return corrupt_data("chunk blob: geometry in time order without a GPS time section");
+  if (gps == nullptr && h.version < 14) {
+    return corrupt_data("chunk blob: geometry in time order without a GPS time section");
+  }
   LasAttributes timed;
-  RELIEF_RETURN_IF_ERROR(decode_gps_in_order(gps->payload, n, timed).with_context("chunk blob"));
+  if (gps != nullptr) RELIEF_RETURN_IF_ERROR(decode_gps_in_order(gps->payload, n, timed).with_context("chunk blob"));
   std::vector<std::uint32_t> identity(n);
   for (std::size_t k = 0; k < n; ++k) identity[k] = static_cast<std::uint32_t>(k);
+  // Without GPS times sections 12-17 have their plain coding in the layer's
+  // order (§11.7.2 needs the times).
+  const std::span<const std::uint32_t> timed_order =
+      gps != nullptr ? std::span<const std::uint32_t>(identity) : std::span<const std::uint32_t>{};
   for (const std::uint32_t bit : {kLasReturnNumber, kLasNumberOfReturns}) {
     if (const SectionEntry* s = find_section(blob, las_section_id(bit))) {
       RELIEF_RETURN_IF_ERROR(
-          decode_las_attribute(bit, s->payload, n, timed, h.version, {}, identity).with_context("chunk blob"));
+          decode_las_attribute(bit, s->payload, n, timed, h.version, {}, timed_order).with_context("chunk blob"));
     }
   }
-  const std::vector<std::uint8_t> kinds = las_pulse_kinds(timed.gps_time, identity);
+  const std::vector<std::uint8_t> kinds =
+      gps != nullptr ? las_pulse_kinds(timed.gps_time, identity) : std::vector<std::uint8_t>{};
   const std::vector<std::uint8_t> multiples = scan_pulse_multiples(timed.gps_time);
   const SectionEntry* geometry = find_section(blob, SectionId::kGeometry);
   if (geometry->payload.empty()) return corrupt_data("chunk blob: geometry section: no order mask");
@@ -74,7 +84,7 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, std::uint8_t slots, Poi
                         dequantise(h.quant_origin.y, h.quant_base[1], c[1], h.quant_step.y),
                         dequantise(h.quant_origin.z, h.quant_base[2], c[2], h.quant_step.z)};
   }
-  time_order = std::move(identity);
+  if (gps != nullptr) time_order = std::move(identity);
   layer_cells = std::move(cells).value();
   out.las.gps_time = std::move(timed.gps_time);
   out.las.return_number = std::move(timed.return_number);

@@ -89,52 +89,62 @@ struct ScanCoding {
 
 // The time order: GPS time (bit pattern), return number, cell, then
 // `attr_less` (the attributes, as within a cell), so that it depends only on
-// the multiset of points.
+// the multiset of points. Or, `given_order`, the order of `cloud` itself
+// (ErrorBound::keep_order), GPS times or not.
 template <typename Less>
 ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::int64_t>& q, const std::int64_t lo[3],
-                                int depth, const Less& attr_less) {
+                                int depth, const Less& attr_less, bool given_order = false) {
   const std::size_t n = cloud.size();
   const LasAttributes& las = cloud.las;
   const bool has_rn = !las.return_number.empty(), has_nr = !las.number_of_returns.empty();
-  // By time first (a radix sort on the bit patterns), then each run of
-  // equal times (a pulse's returns) by the rest.
-  const std::vector<std::uint32_t> by_time = las_time_order(las.gps_time);
+  const bool has_time = !las.gps_time.empty();
   std::vector<KeyedIndex> t(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    const CellXyz c = cell_of(q, lo, by_time[k]);
-    t[k] = {morton_encode(c[0], c[1], c[2]), by_time[k]};
-  }
-  const auto rest_less = [&](const KeyedIndex& a, const KeyedIndex& b) {
-    if (has_rn && las.return_number[a.index] != las.return_number[b.index]) {
-      return las.return_number[a.index] < las.return_number[b.index];
+  if (given_order) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const CellXyz c = cell_of(q, lo, k);
+      t[k] = {morton_encode(c[0], c[1], c[2]), static_cast<std::uint32_t>(k)};
     }
-    if (a.key != b.key) return a.key < b.key;
-    return attr_less(a, b);
-  };
-  const auto time_of = [&](const KeyedIndex& e) { return std::bit_cast<std::uint64_t>(las.gps_time[e.index]); };
-  for (std::size_t i = 0; i < n;) {
-    std::size_t j = i + 1;
-    while (j < n && time_of(t[j]) == time_of(t[i])) ++j;
-    if (j - i > 1) std::sort(t.begin() + static_cast<std::ptrdiff_t>(i), t.begin() + static_cast<std::ptrdiff_t>(j), rest_less);
-    i = j;
+  } else {
+    // By time first (a radix sort on the bit patterns), then each run of
+    // equal times (a pulse's returns) by the rest.
+    const std::vector<std::uint32_t> by_time = las_time_order(las.gps_time);
+    for (std::size_t k = 0; k < n; ++k) {
+      const CellXyz c = cell_of(q, lo, by_time[k]);
+      t[k] = {morton_encode(c[0], c[1], c[2]), by_time[k]};
+    }
+    const auto rest_less = [&](const KeyedIndex& a, const KeyedIndex& b) {
+      if (has_rn && las.return_number[a.index] != las.return_number[b.index]) {
+        return las.return_number[a.index] < las.return_number[b.index];
+      }
+      if (a.key != b.key) return a.key < b.key;
+      return attr_less(a, b);
+    };
+    const auto time_of = [&](const KeyedIndex& e) { return std::bit_cast<std::uint64_t>(las.gps_time[e.index]); };
+    for (std::size_t i = 0; i < n;) {
+      std::size_t j = i + 1;
+      while (j < n && time_of(t[j]) == time_of(t[i])) ++j;
+      if (j - i > 1) std::sort(t.begin() + static_cast<std::ptrdiff_t>(i), t.begin() + static_cast<std::ptrdiff_t>(j), rest_less);
+      i = j;
+    }
   }
   std::vector<CellXyz> cells(n);
-  std::vector<double> times(n);
+  std::vector<double> times(has_time ? n : 0);
   std::vector<std::uint8_t> rn(has_rn ? n : 0), nr(has_nr ? n : 0);
   std::vector<std::uint32_t> identity(n);
   for (std::size_t k = 0; k < n; ++k) {
     const std::size_t i = t[k].index;
     cells[k] = cell_of(q, lo, i);
-    times[k] = las.gps_time[i];
+    if (has_time) times[k] = las.gps_time[i];
     if (has_rn) rn[k] = las.return_number[i];
     if (has_nr) nr[k] = las.number_of_returns[i];
     identity[k] = static_cast<std::uint32_t>(k);
   }
-  const std::vector<std::uint8_t> kinds = las_pulse_kinds(times, identity);
+  // Without GPS times (format 14) the geometry has no pulse context.
+  const std::vector<std::uint8_t> kinds = has_time ? las_pulse_kinds(times, identity) : std::vector<std::uint8_t>{};
   const std::vector<std::uint8_t> multiples = scan_pulse_multiples(times);
   ScanCoding out;
   out.geometry = encode_scan_geometry(cells, depth, ScanContext{kinds, multiples, rn, nr});
-  out.gps = encode_gps_in_order(times);
+  if (has_time) out.gps = encode_gps_in_order(times);
   // The layer is in time order too.
   out.order = std::move(t);
   out.time_order = std::move(identity);
@@ -189,8 +199,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
 
   ChunkHeader h;
   // 13: geometry codec 12 or 9 (time order), colour codec 6 or 10, voted LAS
-  // bytes, an intensity tolerance.
-  h.version = kChunkFormatVersion;
+  // bytes, an intensity tolerance; 14 (below) for the scan order without GPS
+  // times of keep_order.
+  h.version = kOrderFreeFormatVersion;
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
   h.image_codec = params.image_codec;
@@ -287,7 +298,23 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   SectionCodec geometry_codec = SectionCodec::kOctreeFaces;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
-  if ((las_bits & kLasGpsTime) != 0 && n > 1) {
+  if (bound.keep_order && n > 1) {
+    // The points' own order (ErrorBound::keep_order): the geometry in scan
+    // order whatever it costs, GPS times (if any) in that order too. Without
+    // GPS times the blob is format 14.
+    ScanCoding scan = encode_in_time_order(cloud, q, lo, depth, attr_less, true);
+    geometry = std::move(scan.geometry);
+    geometry_codec = SectionCodec::kScanOrder;
+    order = std::move(scan.order);
+    time_order = std::move(scan.time_order);
+    gps_payload = std::move(scan.gps);
+    if ((las_bits & kLasGpsTime) == 0) {
+      // Sections 12-17 then follow the layer's order with their plain
+      // coding (§11.7.2 needs the times).
+      h.version = kChunkFormatVersion;
+      time_order.clear();
+    }
+  } else if ((las_bits & kLasGpsTime) != 0 && n > 1) {
     LasAttributes cell_las;  // the times in cell order
     cell_las.gps_time.resize(n);
     for (std::size_t k = 0; k < n; ++k) cell_las.gps_time[k] = cloud.las.gps_time[order[k].index];

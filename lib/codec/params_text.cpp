@@ -96,6 +96,7 @@ std::string encode_params_to_string(const EncodeParams& p, ParamsText form) {
     }
     if (all || b.color_tolerance != 0) add("color_tol", std::to_string(b.color_tolerance));
     if (all || b.intensity_tolerance != 0) add("intensity_tol", std::to_string(b.intensity_tolerance));
+    if (all || b.keep_order) add("order", b.keep_order ? "input" : "any");
   }
   return s;
 }
@@ -153,6 +154,10 @@ Result<EncodeParams> encode_params_from_string(const std::string& text) {
     } else if (key == "intensity_tol") {
       if (!p.bound) p.bound = ErrorBound{};
       ok = parse_number(value, p.bound->intensity_tolerance);
+    } else if (key == "order") {
+      if (!p.bound) p.bound = ErrorBound{};
+      ok = value == "input" || value == "any";
+      p.bound->keep_order = value == "input";
     } else {
       return format_error("codec parameters: unknown key '" + key + "'");
     }

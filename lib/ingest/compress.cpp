@@ -624,6 +624,7 @@ ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in)
   ErrorBound b;
   b.color_tolerance = options.color_tolerance;
   b.intensity_tolerance = options.intensity_tolerance;
+  b.keep_order = options.keep_order;
   // The first LAS input's grid, at the finest scale among the LAS inputs.
   bool las = false;
   Vec3d finest{0, 0, 0};

@@ -194,6 +194,10 @@ Status apply_mode(const Given& g, IngestOptions& o) {
   if (o.mode == IngestMode::kResample && g.has("intensity-tolerance")) {
     return invalid_argument(g.show("intensity-tolerance") + " applies to " + g.show("mode") + " bounded");
   }
+  RELIEF_RETURN_IF_ERROR(g.get_flag("keep-order", o.keep_order));
+  if (o.mode == IngestMode::kResample && o.keep_order) {
+    return invalid_argument(g.show("keep-order") + " applies to " + g.show("mode") + " bounded");
+  }
   return Status::ok();
 }
 
@@ -248,11 +252,11 @@ std::vector<std::string> ingest_option_names(IngestOptionSet set) {
 std::vector<std::string> ingest_flag_names(IngestOptionSet set) {
   switch (set) {
     case IngestOptionSet::kCompress:
-      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes"};
+      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes", "keep-order"};
     case IngestOptionSet::kAppend:
       return {"verify", "assume-crs", "no-extra-bytes"};
     case IngestOptionSet::kStream:
-      return {"verify"};
+      return {"verify", "keep-order"};
   }
   return {};
 }

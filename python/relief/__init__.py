@@ -154,8 +154,8 @@ def compress(inputs, archive, *, progress=None, **options):
     (never overwritten). ``options``: as ``relief compress`` (``mode``,
     ``tolerance``, ``color_tolerance``, ``intensity_tolerance``, ``cell``, ``chunk_edge``,
     ``error_target``, ``memory`` ("512M", "2G" or a number of MiB), ``threads``,
-    ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs``,
-    ``crs`` (the inputs' CRS, e.g. ``"EPSG:32633"``, for files that name
+    ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs``, ``keep_order``
+    (each chunk's points back in the order they were read), ``crs`` (the inputs' CRS, e.g. ``"EPSG:32633"``, for files that name
     none), ``no_extra_bytes`` and the encoder options). ``progress``: called about twice a second with a dict
     (points_read, points_total, points_encoded, chunks_written, bytes_written,
     seconds, phase: "reading", "encoding", "pyramid", "done"); an exception it raises (or Ctrl-C) stops the ingest and

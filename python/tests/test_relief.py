@@ -249,6 +249,25 @@ def test_ply_with_colour_and_append(tmp_path):
         assert len(a.query((40, 0, 80, 40))) == 6000
 
 
+def test_keep_order_gives_the_points_back_in_file_order(tmp_path):
+    s = make_scene(n=8000, seed=5)
+    write_ply(tmp_path / "a.ply", s)
+    names = ("x", "y", "z", "red", "green", "blue")
+    in_order = lambda arr: np.column_stack(
+        [np.round(arr[k] / GRID).astype(np.int64) if k in ("x", "y", "z") else arr[k].astype(np.int64) for k in names])
+    relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "k.relief"), keep_order=True)
+    relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "c.relief"))
+    with relief.open(tmp_path / "k.relief") as k, relief.open(tmp_path / "c.relief") as c:
+        assert k.info["codec_params"]["order"] == "input"
+        assert c.info["codec_params"]["order"] == "any"
+        # One chunk: every point in the file's order; the default gives the same set in cell order.
+        assert np.array_equal(in_order(k.query()), in_order(s))
+        assert not np.array_equal(in_order(c.query()), in_order(s))
+        assert np.array_equal(as_rows(c.query(), names), as_rows(s, names))
+    with pytest.raises(relief.InvalidArgumentError, match="keep_order applies to mode bounded"):
+        relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "r.relief"), mode="resample", keep_order=True)
+
+
 def test_las_input(tmp_path):
     s = make_scene(n=6000, seed=3)
     classification = (np.arange(6000) % 7).astype(np.uint8)

@@ -97,7 +97,7 @@ TEST_CASE("bounded: every point comes back within the tolerance, attributes exac
     }
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kChunkFormatVersion);
+    CHECK(info->format_version == kOrderFreeFormatVersion);
     CHECK(info->error_bounded);
     CHECK(info->decoded_points == in.size());
   }
@@ -241,7 +241,7 @@ TEST_CASE("bounded: an intensity tolerance bounds every 16-bit intensity, float 
     REQUIRE(blob.is_ok());
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kChunkFormatVersion);
+    CHECK(info->format_version == kOrderFreeFormatVersion);
     auto out = decode_chunk(*blob);
     REQUIRE(out.is_ok());
     REQUIRE(out->size() == in.size());
@@ -442,7 +442,7 @@ TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octre
   REQUIRE(blob.is_ok());
   auto parsed = codec::parse_blob(*blob, true);
   REQUIRE(parsed.is_ok());
-  REQUIRE(parsed->header.version == kChunkFormatVersion);
+  REQUIRE(parsed->header.version == kOrderFreeFormatVersion);
   bool found = false;
   bool chains = false;
   for (const codec::SectionEntry& s : parsed->sections) {

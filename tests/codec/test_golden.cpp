@@ -1,4 +1,4 @@
-// Golden vectors for chunk format versions 1 to 13 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 14 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -73,9 +73,21 @@ PointCloud las_scan_scene() {
   return test::make_scan_with_las(o, 40.0, 0xFFF, 5);
 }
 
-bool has_las(PointCloud (*make)()) {
-  return make == las_scene || make == las_scene_8bit || make == las_scan_scene || make == las_scene_int;
+// Every LAS attribute but the GPS time, the points in the order a
+// generator made them: with keep_order the geometry codes in that order
+// without pulse context (codec 9, format 14).
+PointCloud las_scene_untimed() {
+  PointCloud c = voxel_scene();
+  test::add_las_attributes(c, 0xFFF & ~kLasGpsTime, 5, 2028, false);
+  return c;
 }
+
+bool has_las(PointCloud (*make)()) {
+  return make == las_scene || make == las_scene_8bit || make == las_scan_scene || make == las_scene_int ||
+         make == las_scene_untimed;
+}
+
+bool keeps_order(const EncodeParams& p) { return p.bound && p.bound->keep_order; }
 
 PointCloud octree_scene() {
   test::SceneOptions o;
@@ -104,6 +116,8 @@ std::vector<Vector> vectors() {
   bounded_lossy.bound->color_tolerance = 6;
   EncodeParams bounded_intensity = bounded;
   bounded_intensity.bound->intensity_tolerance = 20;
+  EncodeParams bounded_keep_order = bounded;
+  bounded_keep_order.bound->keep_order = true;
   EncodeParams bounded_geometry = octree;
   bounded_geometry.cell_size = 0.75;
   bounded_geometry.bound = ErrorBound{};
@@ -184,7 +198,13 @@ std::vector<Vector> vectors() {
           {"bounded_las_attributes_v13", bounded, las_scene, 13},
           {"bounded_las_colors8_v13", bounded, las_scene_8bit, 13},
           {"bounded_las_scan_v13", bounded, las_scan_scene, 13},
-          {"bounded_intensity_tolerance20_v13", bounded_intensity, las_scene_int, 13}};
+          {"bounded_intensity_tolerance20_v13", bounded_intensity, las_scene_int, 13},
+          // Keeping the points' order (ErrorBound::keep_order): the geometry
+          // in the given order (codec 9), with GPS times format 13, without
+          // them format 14 (no pulse context).
+          {"bounded_keep_order_las_scan_v13", bounded_keep_order, las_scan_scene, 13},
+          {"bounded_keep_order_rgb_intensity_v14", bounded_keep_order, voxel_scene, 14},
+          {"bounded_keep_order_las_untimed_v14", bounded_keep_order, las_scene_untimed, 14}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -205,7 +225,7 @@ std::string las_text(const PointCloud& c) {
       continue;
     }
     std::uint64_t g = 0;
-    std::memcpy(&g, &a.gps_time[i], 8);
+    if (!a.gps_time.empty()) std::memcpy(&g, &a.gps_time[i], 8);
     std::snprintf(buf, sizeof buf, "%u %u %u %u %u %d %u %u %016llx %u %u %u %u ", a.classification[i],
                   a.class_flags[i], a.return_number[i], a.number_of_returns[i], a.scan_flags[i], a.scan_angle[i],
                   a.user_data[i], a.point_source_id[i], static_cast<unsigned long long>(g), a.nir[i],
@@ -227,7 +247,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 13 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 14 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
@@ -255,10 +275,13 @@ TEST_CASE("golden chunk blobs of format versions 1 to 13 decode (and the current
     // The geometry's codec: 9 (time order) for the scan, the octree for the others.
     for (const ChunkSectionInfo& s : info->sections) {
       if (s.id == 7 && v.version >= 8) {
-        CHECK(s.codec == (v.make == las_scan_scene ? 9 : v.version >= 13 ? 12 : v.version >= 10 ? 11 : 8));
+        CHECK(s.codec == (v.make == las_scan_scene || keeps_order(v.params) ? 9
+                          : v.version >= 13                                  ? 12
+                          : v.version >= 10                                  ? 11
+                                                                             : 8));
       }
       // Format 9: colours in cell order (every octree layer) are predicted from neighbours.
-      if (s.id == 8 && v.version >= 9 && v.make != las_scan_scene) CHECK(s.codec == 10);
+      if (s.id == 8 && v.version >= 9 && v.make != las_scan_scene && !keeps_order(v.params)) CHECK(s.codec == 10);
     }
     // Encoder stability: the same input and parameters give the same bytes.
     if (!v.frozen) CHECK(*blob == golden);
@@ -276,11 +299,25 @@ TEST_CASE("golden chunk blobs of format versions 1 to 13 decode (and the current
       worst = std::max({worst, std::abs(a.x - b.x), std::abs(a.y - b.y), std::abs(a.z - b.z)});
     }
     CHECK(worst < 1e-9);
+    if (keeps_order(v.params)) {
+      // Point i is input point i, within half a step, with its own colour.
+      const Vec3d step = v.params.bound->step;
+      const auto within = [](double a, double b, double s) { return std::abs(a - b) <= s * 0.5 * (1 + 1e-9); };
+      bool in_order = decoded->size() == in.size();
+      for (std::size_t i = 0; in_order && i < in.size(); ++i) {
+        const Vec3d a = decoded->positions[i], b = in.positions[i];
+        in_order = within(a.x, b.x, step.x) && within(a.y, b.y, step.y) && within(a.z, b.z, step.z) &&
+                   (!in.has_colors() || decoded->colors[i] == in.colors[i]);
+      }
+      CHECK(in_order);
+    }
     if (decoded->has_colors()) CHECK(decoded->colors == expected->colors);
     if (decoded->has_intensity()) CHECK(decoded->intensities == expected->intensities);
     if (has_las(v.make)) {
       // Bounded blobs keep every LAS attribute; resampled ones the classification.
-      REQUIRE(decoded->las.carried() == (v.params.bound ? 0xFFFu : kLasClassification));
+      REQUIRE(decoded->las.carried() == (!v.params.bound              ? kLasClassification
+                                         : v.make == las_scene_untimed ? (0xFFFu & ~kLasGpsTime)
+                                                                       : 0xFFFu));
       const std::vector<std::uint8_t> text = slurp(vector_path(v.name, ".decoded.las.txt"));
       CHECK(las_text(*decoded) == std::string(text.begin(), text.end()));
       if (v.make == las_scene_8bit) CHECK(decoded->las.color_low == decoded->colors);

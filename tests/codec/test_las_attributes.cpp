@@ -72,7 +72,7 @@ TEST_CASE("LAS attributes: every combination of carried attributes round-trips e
     REQUIRE(blob.is_ok());
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kChunkFormatVersion);
+    CHECK(info->format_version == kOrderFreeFormatVersion);
     CHECK(info->las_attributes == bits);
     CHECK(info->extra_bytes_size == ((bits & kLasExtraBytes) ? 1 + bits % 64 : 0));
     auto out = decode_chunk(*blob);
@@ -108,7 +108,7 @@ TEST_CASE("LAS attributes: 0 and 1 points, duplicates with differing attributes"
     REQUIRE(blob.is_ok());
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kChunkFormatVersion);
+    CHECK(info->format_version == kOrderFreeFormatVersion);
     CHECK(info->las_attributes == 0);
     auto out = decode_chunk(*blob);
     REQUIRE(out.is_ok());
@@ -536,7 +536,8 @@ TEST_CASE("LAS attributes: truncated and lying attribute sections are refused", 
 
 // Not run by default: writes the chunk fuzz target's seeds with LAS attributes,
 //   RELIEF_FUZZ_SEED_DIR=tests/fuzz/corpus/chunk ./test_codec "[.seed]"
-// The encoder writes the current format (13) for the error-bounded layer and
+// The encoder writes format 13 for the error-bounded layer (14 with keep_order
+// and no GPS times) and
 // format 4 for resampling with a classification; the format-3 and format-6
 // to format-12 seeds in the corpus (seed-v3-las-attributes.rlfc,
 // seed-v6-las-*.rlfc, ...) were written by this test before later formats and
@@ -602,6 +603,21 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
     if (s.id == 7) CHECK(s.codec == 12);
   }
   write("seed-v13-octree.rlfc", *octree, 13);
+  // Format 14: keep_order without GPS times, the geometry in the given order
+  // with no pulse context (codec 9), the scan's returns, flags, angles, user
+  // data and source IDs with their plain coding in that order; and colours
+  // and intensities in it (or in cell order, as the order mask says).
+  PointCloud untimed = timed;
+  untimed.las.gps_time.clear();
+  EncodeParams keep = params_for(0.005, 1.0);
+  keep.bound->keep_order = true;
+  auto v14 = encode_chunk(untimed, keep);
+  REQUIRE(v14.is_ok());
+  write("seed-v14-keep-order-untimed.rlfc", *v14, 14);
+  PointCloud colored = scene(14, 150, true);
+  auto v14rgb = encode_chunk(colored, keep);
+  REQUIRE(v14rgb.is_ok());
+  write("seed-v14-keep-order-rgb.rlfc", *v14rgb, 14);
   EncodeParams resample;
   resample.cell_size = 0.5;
   resample.map_resolution = 8;
@@ -674,7 +690,7 @@ TEST_CASE("classification map: lying flags and sections are refused", "[codec][l
   EncodeParams bounded = params_for(0.002, 0.5);
   auto v3 = encode_chunk(in, bounded);
   REQUIRE(v3.is_ok());
-  REQUIRE(inspect_chunk(*v3)->format_version == kChunkFormatVersion);
+  REQUIRE(inspect_chunk(*v3)->format_version == kOrderFreeFormatVersion);
   DecodeOptions nocrc;
   nocrc.verify_checksum = false;
   const auto corrupt = [&](std::vector<std::uint8_t> b) {

@@ -385,3 +385,65 @@ TEST_CASE("bounded compress of an organised PCD: no-depth pixels skipped, fields
   CHECK(same_keys);
   CHECK(worst <= 0.0005 * (1 + 1e-9));
 }
+
+TEST_CASE("bounded compress --keep-order: each chunk gives its points back in input order, whatever --memory",
+          "[ingest][bounded]") {
+  TempDir dir;
+  PointCloud in = scene(12, 60000);
+  // Each point's intensity is its input index (exact as a float).
+  for (std::size_t i = 0; i < in.size(); ++i) in.intensities[i] = static_cast<float>(i);
+  REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
+  {
+    WriterOptions w;
+    w.colors = true;
+    w.intensity = true;
+    auto writer = open_point_writer(dir.file("in.xyz"), w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(in).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  }
+  IngestOptions o;
+  o.tolerance = 0.002;
+  o.threads = 2;
+  o.split_points = 20000;
+  o.keep_order = true;
+  auto a = compress_files({dir.file("in.ply")}, dir.file("a.relief"), o);
+  REQUIRE(a.is_ok());
+  // Text input takes the external sort (bucket files): the same blobs.
+  IngestOptions text = o;
+  text.memory_budget = 64u << 20;
+  text.reader.xyz_columns = "x,y,z,r,g,b,i";
+  auto b = compress_files({dir.file("in.xyz")}, dir.file("b.relief"), text);
+  REQUIRE(b.is_ok());
+  const auto blobs = test::archive_blobs(dir.file("a.relief"));
+  CHECK(blobs.size() > 4);
+  CHECK(blobs == test::archive_blobs(dir.file("b.relief")));
+  auto archive = Archive::open(dir.file("a.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  REQUIRE(info.is_ok());
+  CHECK(info->codec_params.find("order=input") != std::string::npos);
+  // The points of each chunk are a run of increasing input indices, each
+  // within the tolerance of its input point with its colour.
+  const auto runs = [](const PointCloud& c) {
+    std::size_t r = c.empty() ? 0 : 1;
+    for (std::size_t i = 1; i < c.size(); ++i) r += c.intensities[i] < c.intensities[i - 1] ? 1 : 0;
+    return r;
+  };
+  const PointCloud out = decode_all(dir.file("a.relief"));
+  REQUIRE(out.size() == in.size());
+  bool exact = true;
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const auto i = static_cast<std::size_t>(out.intensities[k]);
+    const Vec3d p = out.positions[k], q = in.positions[i];
+    exact = exact && std::fabs(p.x - q.x) <= 0.002 * (1 + 1e-9) && std::fabs(p.y - q.y) <= 0.002 * (1 + 1e-9) &&
+            std::fabs(p.z - q.z) <= 0.002 * (1 + 1e-9) && out.colors[k] == in.colors[i];
+  }
+  CHECK(exact);
+  CHECK(runs(out) <= blobs.size());
+  // Without it the points come back in cell order.
+  IngestOptions any = o;
+  any.keep_order = false;
+  REQUIRE(compress_files({dir.file("in.ply")}, dir.file("c.relief"), any).is_ok());
+  CHECK(runs(decode_all(dir.file("c.relief"))) > 100 * blobs.size());
+}

@@ -42,6 +42,15 @@ TEST_CASE("ingest options: values by the CLI's names reach IngestOptions", "[ing
   REQUIRE(apply(IngestOptionSet::kCompress, {{"error-target", "0.02"}}, r).is_ok());
   CHECK(r.mode == IngestMode::kResample);
   CHECK(r.error_target == 0.02);
+
+  // --keep-order: a new archive's property (compress and stream).
+  IngestOptions k;
+  CHECK_FALSE(k.keep_order);
+  REQUIRE(apply(IngestOptionSet::kCompress, {{"keep_order", ""}}, k).is_ok());
+  CHECK(k.keep_order);
+  IngestOptions ks;
+  REQUIRE(apply(IngestOptionSet::kStream, {{"keep-order", "true"}}, ks).is_ok());
+  CHECK(ks.keep_order);
 }
 
 TEST_CASE("ingest options: refused values name the option as the caller spells it", "[ingest][options]") {
@@ -79,6 +88,12 @@ TEST_CASE("ingest options: refused values name the option as the caller spells i
   CHECK(refused(IngestOptionSet::kCompress, {{"error-target", "1"}, {"mode", "bounded"}}, cli) ==
         "--error-target needs --mode resample");
   CHECK(refused(IngestOptionSet::kCompress, {{"speed", "11"}}, py) == "unknown option speed");
+  CHECK(refused(IngestOptionSet::kCompress, {{"mode", "resample"}, {"keep-order", ""}}, cli) ==
+        "--keep-order applies to --mode bounded");
+  CHECK(refused(IngestOptionSet::kCompress, {{"error_target", "1"}, {"keep_order", "true"}}, py) ==
+        "keep_order applies to mode bounded");
+  // The archive fixes it for what is appended.
+  CHECK(refused(IngestOptionSet::kAppend, {{"keep_order", ""}}, py) == "unknown option keep_order");
   // Append takes only the run's own options: the archive fixes the rest.
   CHECK(refused(IngestOptionSet::kAppend, {{"tolerance", "0.1"}}, py) == "unknown option tolerance");
   CHECK(refused(IngestOptionSet::kStream, {{"assume_crs", ""}}, py) == "unknown option assume_crs");

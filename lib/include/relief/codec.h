@@ -53,8 +53,13 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // comes back within it. Version 13: version 12 with the octree coded by codec
 // 12 (codec 11 plus a third model per decision, by the minus neighbours'
 // children on the shared faces, and an adaptive probability map); the bounded
-// encoder writes it for every cloud.
-inline constexpr std::uint16_t kChunkFormatVersion = 13;
+// encoder writes it for every cloud. Version 14: version 13 whose geometry
+// may be in scan order without GPS times, the points then in the order the
+// encoder was given them (ErrorBound::keep_order); the encoder writes it for
+// those blobs alone, 13 for every other.
+inline constexpr std::uint16_t kChunkFormatVersion = 14;
+// What the error-bounded encoder writes for every other blob.
+inline constexpr std::uint16_t kOrderFreeFormatVersion = 13;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
@@ -69,6 +74,13 @@ struct ErrorBound {
   // 0..32767. Intensities that are not all whole numbers 0..65535 in a
   // chunk (a PLY's float values) stay exact whatever it says.
   int intensity_tolerance = 0;
+  // Keep the order the points were given in: the decoder returns them in
+  // that order, and the geometry is coded in it, as scan order (chunk format
+  // 14 when the points carry no GPS time; format-spec/chunk.md §11.3.3).
+  // Smaller than the order-free octree on points in acquisition order
+  // without GPS times (an airborne survey's PLY, an organized depth image),
+  // larger on others; the blobs then depend on the input order.
+  bool keep_order = false;
 };
 inline constexpr int kMaxIntensityTolerance = 32767;
 

@@ -112,6 +112,12 @@ struct IngestOptions {
   // exact, up to 32767); float intensities (not whole numbers 0..65535)
   // stay exact.
   int intensity_tolerance = 0;
+  // Bounded mode: the points of each chunk come back in the order they were
+  // read (the inputs in turn, each file's points in its order), their
+  // geometry coded in that order (ErrorBound::keep_order). The archive then
+  // depends on the input order; smaller on files in acquisition order
+  // without GPS times, larger on others.
+  bool keep_order = false;
   // Bounded mode: chunks of more points are split into octants (the archive
   // depends on it as on the tolerance; changed only by tests and tuning).
   std::uint64_t split_points = kMaxBoundedChunkPoints;
