@@ -43,7 +43,10 @@ Status decode_time_ordered_layer(const ParsedBlob& blob, std::uint8_t slots, Poi
     return corrupt_data("chunk blob: geometry in time order without a GPS time section");
   }
   LasAttributes timed;
-  if (gps != nullptr) RELIEF_RETURN_IF_ERROR(decode_gps_in_order(gps->payload, n, timed).with_context("chunk blob"));
+  // From format 14 the times may decrease in the layer's order.
+  if (gps != nullptr) {
+    RELIEF_RETURN_IF_ERROR(decode_gps_in_order(gps->payload, n, timed, h.version >= 14).with_context("chunk blob"));
+  }
   std::vector<std::uint32_t> identity(n);
   for (std::size_t k = 0; k < n; ++k) identity[k] = static_cast<std::uint32_t>(k);
   // Without GPS times sections 12-17 have their plain coding in the layer's

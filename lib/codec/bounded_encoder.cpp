@@ -85,6 +85,9 @@ struct ScanCoding {
   std::vector<KeyedIndex> order;
   // The identity: the time-ordered sections (§11.7.2) follow the layer.
   std::vector<std::uint32_t> time_order;
+  // The times step back somewhere in the layer's order (only in a given
+  // order): the GPS section needs format 14.
+  bool times_step_back = false;
 };
 
 // The time order: GPS time (bit pattern), return number, cell, then
@@ -144,7 +147,10 @@ ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::
   const std::vector<std::uint8_t> multiples = scan_pulse_multiples(times);
   ScanCoding out;
   out.geometry = encode_scan_geometry(cells, depth, ScanContext{kinds, multiples, rn, nr});
-  if (has_time) out.gps = encode_gps_in_order(times);
+  for (std::size_t k = 1; k < times.size() && !out.times_step_back; ++k) {
+    out.times_step_back = std::bit_cast<std::uint64_t>(times[k]) < std::bit_cast<std::uint64_t>(times[k - 1]);
+  }
+  if (has_time) out.gps = encode_gps_in_order(times, out.times_step_back);
   // The layer is in time order too.
   out.order = std::move(t);
   out.time_order = std::move(identity);
@@ -313,6 +319,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       // coding (§11.7.2 needs the times).
       h.version = kChunkFormatVersion;
       time_order.clear();
+    } else if (scan.times_step_back) {
+      h.version = kChunkFormatVersion;  // times that decrease in the layer's order
     }
   } else if ((las_bits & kLasGpsTime) != 0 && n > 1) {
     LasAttributes cell_las;  // the times in cell order

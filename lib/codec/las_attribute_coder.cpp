@@ -235,7 +235,7 @@ int pick_bucket_shift(std::span<const CellXyz> cells) {
 // and the decoder fills bits[k] with the k-th time (order[k] = k).
 template <typename C>
 bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std::uint32_t>& order,
-                         std::span<const CellXyz> cells, int shift_in, bool ranks = true) {
+                         std::span<const CellXyz> cells, int shift_in, bool ranks = true, bool any_order = false) {
   const std::size_t n = bits.size();
   if ((ranks && cells.size() != n) || order.size() != n) return false;
   struct Models {
@@ -313,7 +313,10 @@ bool code_gps_time_order(C& c, std::vector<std::uint64_t>& bits, std::vector<std
       step_cls = delta_class(r);
     }
     const std::uint64_t time = last + d;
-    if (time < last || !std::isfinite(std::bit_cast<double>(time))) return false;
+    // In time order the bit patterns never decrease; a layer in the
+    // encoder's own order (format 14, any_order) may step back (the step
+    // then wraps modulo 2^64).
+    if ((time < last && !any_order) || !std::isfinite(std::bit_cast<double>(time))) return false;
     if (d != 0) {
       for (std::size_t j = slot; j > 0; --j) steps[j] = steps[j - 1];
       steps[0] = d;
@@ -999,7 +1002,7 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
   return Status::ok();
 }
 
-std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times) {
+std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times, bool any_order) {
   const std::size_t n = times.size();
   LasAttributes las;
   las.gps_time.assign(times.begin(), times.end());
@@ -1015,11 +1018,11 @@ std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times) {
     bits[k] = double_bits(times[k]);
     order[k] = static_cast<std::uint32_t>(k);
   }
-  code_gps_time_order(c, bits, order, {}, 0, false);
+  code_gps_time_order(c, bits, order, {}, 0, false, any_order);
   return enc.finish();
 }
 
-Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las) {
+Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las, bool any_order) {
   if (n == 0) return decode_las_attribute(kLasGpsTime, data, n, las, 8);
   {
     RangeDecoder peek(data);
@@ -1036,7 +1039,7 @@ Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, La
   c.bit(constant_flag, 0);  // 0: read above
   std::vector<std::uint64_t> bits(n);
   std::vector<std::uint32_t> order(n);
-  if (!code_gps_time_order(c, bits, order, {}, 0, false) || dec.overrun() > 0) {
+  if (!code_gps_time_order(c, bits, order, {}, 0, false, any_order) || dec.overrun() > 0) {
     return corrupt_data("GPS time section: invalid or truncated stream");
   }
   las.gps_time.resize(n);

@@ -76,8 +76,11 @@ std::vector<std::uint8_t> las_pulse_kinds(const std::vector<double>& gps, std::s
 // section holds the times alone, in that order (§11.7.1 without the ranks).
 // `times` are the points' times in the geometry's order, non-decreasing by
 // bit pattern. The decoder fills las.gps_time in the same order.
-std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times);
-Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las);
+// `any_order` (format 14, a layer in the encoder's own order): the times may
+// decrease from one point to the next; else they must not (time order).
+std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times, bool any_order = false);
+Status decode_gps_in_order(std::span<const std::uint8_t> data, std::size_t n, LasAttributes& las,
+                           bool any_order = false);
 
 // Attribute `bit` of `from` copied to `to` in another order: kGather makes
 // point j of `to` point positions[j] of `from` (any points of `from`, so a

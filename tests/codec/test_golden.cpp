@@ -82,9 +82,20 @@ PointCloud las_scene_untimed() {
   return c;
 }
 
+// The scan's points in a shuffled order: with keep_order their GPS times
+// step back in the layer's order (format 14).
+PointCloud las_scan_shuffled() {
+  const PointCloud scan = las_scan_scene();
+  std::vector<std::uint32_t> perm(scan.size());
+  for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  test::Rng rng(2029);
+  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+  return scan.gathered(perm);
+}
+
 bool has_las(PointCloud (*make)()) {
   return make == las_scene || make == las_scene_8bit || make == las_scan_scene || make == las_scene_int ||
-         make == las_scene_untimed;
+         make == las_scene_untimed || make == las_scan_shuffled;
 }
 
 bool keeps_order(const EncodeParams& p) { return p.bound && p.bound->keep_order; }
@@ -200,11 +211,13 @@ std::vector<Vector> vectors() {
           {"bounded_las_scan_v13", bounded, las_scan_scene, 13},
           {"bounded_intensity_tolerance20_v13", bounded_intensity, las_scene_int, 13},
           // Keeping the points' order (ErrorBound::keep_order): the geometry
-          // in the given order (codec 9), with GPS times format 13, without
-          // them format 14 (no pulse context).
+          // in the given order (codec 9), with GPS times that never step back
+          // format 13; without them (no pulse context), or with times that
+          // step back, format 14.
           {"bounded_keep_order_las_scan_v13", bounded_keep_order, las_scan_scene, 13},
           {"bounded_keep_order_rgb_intensity_v14", bounded_keep_order, voxel_scene, 14},
-          {"bounded_keep_order_las_untimed_v14", bounded_keep_order, las_scene_untimed, 14}};
+          {"bounded_keep_order_las_untimed_v14", bounded_keep_order, las_scene_untimed, 14},
+          {"bounded_keep_order_las_shuffled_v14", bounded_keep_order, las_scan_shuffled, 14}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {

@@ -388,3 +388,60 @@ TEST_CASE("median_of_five equals sorting, for every ordering with ties", "[codec
     REQUIRE(codec::median_of_five(v) == sorted[2]);
   }
 }
+
+TEST_CASE("format 14: keep_order gives the points back in the given order, GPS times stepping back or not",
+          "[codec][scan][las]") {
+  const PointCloud scan = scan_scene(27, 4000, 0xFFF);
+  // The scan in time order, the same points in a shuffled order (times
+  // stepping back), and without GPS times.
+  PointCloud shuffled = scan;
+  {
+    std::vector<std::uint32_t> perm(scan.size());
+    for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
+    test::Rng rng(28);
+    for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
+    shuffled = scan.gathered(perm);
+  }
+  PointCloud untimed = shuffled;
+  untimed.las.gps_time.clear();
+  EncodeParams p = las_scale(0.01, 4.0);
+  p.bound->keep_order = true;
+  const struct {
+    const PointCloud* in;
+    int version;
+  } cases[] = {{&scan, 13}, {&shuffled, 14}, {&untimed, 14}};
+  for (const auto& c : cases) {
+    INFO("version " << c.version << ", " << (c.in->las.gps_time.empty() ? "no times" : "times"));
+    auto blob = encode_chunk(*c.in, p);
+    REQUIRE(blob.is_ok());
+    CHECK(inspect_chunk(*blob)->format_version == c.version);
+    CHECK(geometry_codec(*blob) == 9);
+    auto out = decode_chunk(*blob);
+    REQUIRE(out.is_ok());
+    REQUIRE(out->size() == c.in->size());
+    // Point by point: the input's, snapped, with every attribute.
+    PointCloud want = *c.in;
+    for (Vec3d& q : want.positions) {
+      q = {std::llround(q.x / 0.01) * 0.01, std::llround(q.y / 0.01) * 0.01, std::llround(q.z / 0.01) * 0.01};
+    }
+    bool same = out->colors == want.colors && out->intensities == want.intensities;
+    for (std::size_t i = 0; i < want.size(); ++i) {
+      const Vec3d d{out->positions[i].x - want.positions[i].x, out->positions[i].y - want.positions[i].y,
+                    out->positions[i].z - want.positions[i].z};
+      same = same && std::fabs(d.x) < 1e-9 && std::fabs(d.y) < 1e-9 && std::fabs(d.z) < 1e-9;
+    }
+    LasAttributes::for_each_vector_pair(out->las, want.las,
+                                        [&](const auto& a, const auto& b, std::uint32_t) { same = same && a == b; });
+    CHECK(same);
+    // A version-13 reader's rule (times never step back) refuses the shuffled one.
+    if (c.in == &shuffled) {
+      auto parsed = codec::parse_blob(*blob, true);
+      REQUIRE(parsed.is_ok());
+      codec::ChunkHeader v13 = parsed->header;
+      v13.version = 13;
+      auto r = decode_chunk(codec::write_blob(v13, parsed->sections));
+      REQUIRE_FALSE(r.is_ok());
+      CHECK(r.status().code() == StatusCode::kCorruptData);
+    }
+  }
+}
