@@ -58,6 +58,18 @@ PointCloud shuffled(const PointCloud& in, std::uint64_t seed) {
 
 PointCloud decode_all(const std::string& path) { return test::decode_archive(path); }
 
+// XYZ text with colour and intensity: no point count in a header, so the
+// ingest takes the external sort (bucket files) whatever the budget.
+void write_xyz(const std::string& path, const PointCloud& c) {
+  WriterOptions w;
+  w.colors = true;
+  w.intensity = true;
+  auto writer = open_point_writer(path, w);
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(c).is_ok());
+  REQUIRE((*writer)->finish().is_ok());
+}
+
 }  // namespace
 
 TEST_CASE("bounded compress: every point back within the tolerance, attributes exact", "[ingest][bounded]") {
@@ -100,15 +112,7 @@ TEST_CASE("bounded compress: the same blobs whatever --memory, --threads and poi
   REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
   // The shuffled copy as XYZ text: no point count in a header, so the ingest
   // takes the external sort (bucket files) whatever the budget.
-  {
-    WriterOptions w;
-    w.colors = true;
-    w.intensity = true;
-    auto writer = open_point_writer(dir.file("shuffled.xyz"), w);
-    REQUIRE(writer.is_ok());
-    REQUIRE((*writer)->write(shuffled(in, 77)).is_ok());
-    REQUIRE((*writer)->finish().is_ok());
-  }
+  write_xyz(dir.file("shuffled.xyz"), shuffled(in, 77));
   IngestOptions o;
   o.threads = 1;
   o.split_points = 20000;  // some chunks split into octants
@@ -393,15 +397,7 @@ TEST_CASE("bounded compress --keep-order: each chunk gives its points back in in
   // Each point's intensity is its input index (exact as a float).
   for (std::size_t i = 0; i < in.size(); ++i) in.intensities[i] = static_cast<float>(i);
   REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
-  {
-    WriterOptions w;
-    w.colors = true;
-    w.intensity = true;
-    auto writer = open_point_writer(dir.file("in.xyz"), w);
-    REQUIRE(writer.is_ok());
-    REQUIRE((*writer)->write(in).is_ok());
-    REQUIRE((*writer)->finish().is_ok());
-  }
+  write_xyz(dir.file("in.xyz"), in);
   IngestOptions o;
   o.tolerance = 0.002;
   o.threads = 2;
