@@ -205,8 +205,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
 
   ChunkHeader h;
   // 13: geometry codec 12 or 9 (time order), colour codec 6 or 10, voted LAS
-  // bytes, an intensity tolerance; 14 (below) for the scan order without GPS
-  // times of keep_order.
+  // bytes, an intensity tolerance; 14 (below) for keep_order's scan order
+  // without GPS times or with times that step back.
   h.version = kOrderFreeFormatVersion;
   h.flags = static_cast<std::uint8_t>((has_rgb ? kFlagColors : 0) | (has_i ? kFlagIntensity : 0));
   h.decomposition = params.decomposition;
@@ -307,7 +307,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (bound.keep_order && n > 1) {
     // The points' own order (ErrorBound::keep_order): the geometry in scan
     // order whatever it costs, GPS times (if any) in that order too. Without
-    // GPS times the blob is format 14.
+    // GPS times, or with times that step back, the blob is format 14.
     ScanCoding scan = encode_in_time_order(cloud, q, lo, depth, attr_less, true);
     geometry = std::move(scan.geometry);
     geometry_codec = SectionCodec::kScanOrder;

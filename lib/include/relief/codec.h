@@ -54,9 +54,9 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // 12 (codec 11 plus a third model per decision, by the minus neighbours'
 // children on the shared faces, and an adaptive probability map); the bounded
 // encoder writes it for every cloud. Version 14: version 13 whose geometry
-// may be in scan order without GPS times, the points then in the order the
-// encoder was given them (ErrorBound::keep_order); the encoder writes it for
-// those blobs alone, 13 for every other.
+// may be in scan order without GPS times, or with times that step back, the
+// points then in the order the encoder was given them (ErrorBound::keep_order);
+// the encoder writes it for those blobs alone, 13 for every other.
 inline constexpr std::uint16_t kChunkFormatVersion = 14;
 // What the error-bounded encoder writes for every other blob.
 inline constexpr std::uint16_t kOrderFreeFormatVersion = 13;
@@ -76,7 +76,8 @@ struct ErrorBound {
   int intensity_tolerance = 0;
   // Keep the order the points were given in: the decoder returns them in
   // that order, and the geometry is coded in it, as scan order (chunk format
-  // 14 when the points carry no GPS time; format-spec/chunk.md §11.3.3).
+  // 14 when the points carry no GPS time or their times step back in that
+  // order; format-spec/chunk.md §11.3.3).
   // Smaller than the order-free octree on points in acquisition order
   // without GPS times (an airborne survey's PLY, an organized depth image),
   // larger on others; the blobs then depend on the input order.
