@@ -591,6 +591,15 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
                          static_cast<std::uint32_t>(n), 0, {}});
     }
   }
+  // A coder that refused its input (a broken precondition: never for valid
+  // points) left its section empty; a range-coded section of n > 0 points
+  // never is. Report it rather than store a stream that cannot decode.
+  for (std::size_t k = 0; k < payloads.size(); ++k) {
+    if (payloads[k].empty()) {
+      return internal_error("chunk: the " + chunk_section_label(static_cast<int>(refined[k].id)) +
+                            " section could not be coded (" + std::to_string(n) + " points)");
+    }
+  }
   if (geometry_codec == SectionCodec::kScanOrder) payloads[0].insert(payloads[0].begin(), order_mask);
   if (las_bits & kLasClassification) {
     // The base layer's classification map: the majority class per pixel.

@@ -871,7 +871,9 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     for (std::size_t i = 0; i < n; ++i) bits[i] = double_bits(work.gps_time[i]);
     std::vector<std::uint32_t> order = time_order.size() == n ? std::vector<std::uint32_t>(time_order.begin(), time_order.end())
                                                               : las_time_order(work.gps_time);
-    code_gps_time_order(c, bits, order, cells, pick_bucket_shift(cells));
+    // An empty result: the coder refused its input (a broken precondition),
+    // which the chunk encoder reports rather than store a cut stream.
+    if (!code_gps_time_order(c, bits, order, cells, pick_bucket_shift(cells))) return {};
     return enc.finish();
   }
   if ((bit & kLasTimeOrdered) != 0 && version >= 6 && n > 0 && !constant && time_order.size() == n &&
@@ -879,7 +881,9 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     LasAttributes ordered;
     gather_time_ordered(bit, las, ordered, time_order);
     std::uint64_t unit = bit == kLasScanAngle ? common_unit(ordered.scan_angle) : 1;
-    code_time_ordered(c, bit, ordered, n, unit, las_pulse_kinds(las.gps_time, time_order), byte_hits(version));
+    if (!code_time_ordered(c, bit, ordered, n, unit, las_pulse_kinds(las.gps_time, time_order), byte_hits(version))) {
+      return {};
+    }
     return enc.finish();
   }
   std::size_t coded = n;
@@ -892,7 +896,7 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
   std::uint64_t unit = 1;
   if (bit == kLasScanAngle) unit = common_unit(work.scan_angle);
   if (bit == kLasNir) unit = common_unit(work.nir);
-  code_attribute(c, bit, work, coded, unit, byte_hits(version));
+  if (!code_attribute(c, bit, work, coded, unit, byte_hits(version))) return {};
   return enc.finish();
 }
 
@@ -1018,7 +1022,7 @@ std::vector<std::uint8_t> encode_gps_in_order(std::span<const double> times, boo
     bits[k] = double_bits(times[k]);
     order[k] = static_cast<std::uint32_t>(k);
   }
-  code_gps_time_order(c, bits, order, {}, 0, false, any_order);
+  if (!code_gps_time_order(c, bits, order, {}, 0, false, any_order)) return {};
   return enc.finish();
 }
 

@@ -197,7 +197,9 @@ std::vector<std::uint8_t> encode_scan_geometry(std::span<const CellXyz> cells, i
   RangeEncoder enc;
   EncCoder c(enc);
   std::vector<CellXyz> work(cells.begin(), cells.end());
-  if (context_fits(context, work.size())) code_scan(c, work, depth, context);
+  // Empty: the input broke a precondition (a cell of 2^depth or more, a
+  // context of another size), which the chunk encoder reports.
+  if (!context_fits(context, work.size()) || !code_scan(c, work, depth, context)) return {};
   return enc.finish();
 }
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "codec/chunk_format.h"
+#include "codec/las_attribute_coder.h"
 #include "codec/scan_geometry_coder.h"
 #include "relief/codec.h"
 #include "support/las_attributes.h"
@@ -444,4 +445,23 @@ TEST_CASE("format 14: keep_order gives the points back in the given order, GPS t
       CHECK(r.status().code() == StatusCode::kCorruptData);
     }
   }
+}
+
+TEST_CASE("coders refuse input that breaks their preconditions with an empty section, never a cut stream",
+          "[codec][scan]") {
+  // A cell of 2^depth or more; a context of another size.
+  const std::vector<CellXyz> cells = {{1, 2, 3}, {9, 2, 3}};
+  CHECK_FALSE(codec::encode_scan_geometry(cells, 4, ScanContext{}).empty());
+  CHECK(codec::encode_scan_geometry(cells, 3, ScanContext{}).empty());
+  const std::vector<std::uint8_t> one_kind = {0};
+  CHECK(codec::encode_scan_geometry(cells, 4, ScanContext{one_kind, {}, {}, {}}).empty());
+  // Times in the layer's order that step back: only format 14 codes them.
+  const std::vector<double> times = {10.0, 12.0, 11.0};
+  CHECK(codec::encode_gps_in_order(times).empty());
+  const std::vector<std::uint8_t> back = codec::encode_gps_in_order(times, true);
+  REQUIRE_FALSE(back.empty());
+  LasAttributes las;
+  REQUIRE(codec::decode_gps_in_order(back, times.size(), las, true).is_ok());
+  CHECK(las.gps_time == times);
+  CHECK_FALSE(codec::decode_gps_in_order(back, times.size(), las, false).is_ok());
 }
