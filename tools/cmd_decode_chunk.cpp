@@ -12,7 +12,9 @@ namespace {
 constexpr const char* kCommand = "decode-chunk";
 constexpr const char* kUsageText =
     "usage: relief decode-chunk IN.rlfc -o OUT.ply [--lod L] [--ascii] [--quiet]\n"
-    "Decompresses a chunk blob to PLY (binary little endian, double x y z; --ascii for text).\n"
+    "Decompresses a chunk blob to PLY (binary little endian, double x y z; --ascii for text) with\n"
+    "every attribute it holds (colour, intensity, LAS attributes as properties); OUT.las, .laz or\n"
+    ".xyz/.csv write those formats instead.\n"
     "  --lod L   level of detail: keep a spatially uniform ~1/L of the points (1..1024, default 1)\n";
 }  // namespace
 
@@ -35,9 +37,18 @@ int run_decode_chunk(int argc, char** argv) {
   auto cloud = decode_chunk(*blob, options);
   if (!cloud) return fail(kCommand, cloud.status().with_context(in_path));
   const double secs = seconds_since(t0);
-  PlyWriteOptions w;
-  if (args.has("--ascii")) w.encoding = PlyEncoding::kAscii;
-  if (Status s = write_ply(*out_path, *cloud, w); !s) return fail(kCommand, s);
+  // The streaming writer: every attribute the blob holds (the whole-cloud
+  // write_ply keeps colour and intensity alone).
+  WriterOptions w;
+  w.colors = cloud->has_colors();
+  w.intensity = cloud->has_intensity();
+  w.las_attributes = cloud->las.carried();
+  w.extra_bytes_size = cloud->las.extra_bytes_size;
+  if (args.has("--ascii")) w.ply_encoding = PlyEncoding::kAscii;
+  auto writer = open_point_writer(*out_path, w);
+  if (!writer) return fail(kCommand, writer.status());
+  if (Status s = (*writer)->write(*cloud); !s) return fail(kCommand, s);
+  if (Status s = (*writer)->finish(); !s) return fail(kCommand, s);
   if (!args.has("--quiet")) {
     std::printf("%s: %zu points, %.2f M points/s\n", out_path->c_str(), cloud->size(),
                 secs > 0 ? static_cast<double>(cloud->size()) / secs * 1e-6 : 0.0);

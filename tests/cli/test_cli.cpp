@@ -133,6 +133,31 @@ TEST_CASE("encode-chunk and decode-chunk with a level of detail", "[cli]") {
   CHECK(lod->size() < full->size() / 4);
 }
 
+TEST_CASE("decode-chunk writes every attribute a blob holds, to PLY or LAS", "[cli]") {
+  TempDir tmp;
+  const std::string blob_path = std::string(RELIEF_SOURCE_DIR) + "/format-spec/vectors/bounded_las_attributes_v13.rlfc";
+  std::ifstream f(blob_path, std::ios::binary);
+  const std::vector<std::uint8_t> blob{std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+  auto want = relief::decode_chunk(blob);
+  REQUIRE(want.is_ok());
+  REQUIRE(want->las.carried() == 0xFFFu);
+  REQUIRE(run("decode-chunk " + blob_path + " -o " + tmp.file("d.ply") + " --quiet").code == 0);
+  std::ifstream ply(tmp.file("d.ply"), std::ios::binary);
+  std::string header(4096, '\0');
+  ply.read(header.data(), static_cast<std::streamsize>(header.size()));
+  for (const char* p : {"property ushort red", "property uchar classification", "property double gps_time",
+                        "property uchar extra_4"}) {
+    CHECK(header.find(p) != std::string::npos);
+  }
+  REQUIRE(run("decode-chunk " + blob_path + " -o " + tmp.file("d.las") + " --quiet").code == 0);
+  auto las = relief::read_point_file(tmp.file("d.las"));
+  REQUIRE(las.is_ok());
+  REQUIRE(las->size() == want->size());
+  CHECK(las->las.classification == want->las.classification);
+  CHECK(las->las.gps_time == want->las.gps_time);
+  CHECK(las->las.color_low == want->las.color_low);
+}
+
 TEST_CASE("bad input gives a clear error, a documented exit code and no output file", "[cli]") {
   TempDir tmp;
   SECTION("missing input file: I/O error naming it") {
