@@ -86,11 +86,7 @@ PointCloud las_scene_untimed() {
 // step back in the layer's order (format 14).
 PointCloud las_scan_shuffled() {
   const PointCloud scan = las_scan_scene();
-  std::vector<std::uint32_t> perm(scan.size());
-  for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-  test::Rng rng(2029);
-  for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
-  return scan.gathered(perm);
+  return scan.gathered(test::Rng(2029).permutation(scan.size()));
 }
 
 bool has_las(PointCloud (*make)()) {

@@ -395,14 +395,7 @@ TEST_CASE("format 14: keep_order gives the points back in the given order, GPS t
   const PointCloud scan = scan_scene(27, 4000, 0xFFF);
   // The scan in time order, the same points in a shuffled order (times
   // stepping back), and without GPS times.
-  PointCloud shuffled = scan;
-  {
-    std::vector<std::uint32_t> perm(scan.size());
-    for (std::uint32_t i = 0; i < perm.size(); ++i) perm[i] = i;
-    test::Rng rng(28);
-    for (std::size_t i = perm.size() - 1; i > 0; --i) std::swap(perm[i], perm[rng.next() % (i + 1)]);
-    shuffled = scan.gathered(perm);
-  }
+  const PointCloud shuffled = scan.gathered(test::Rng(28).permutation(scan.size()));
   PointCloud untimed = shuffled;
   untimed.las.gps_time.clear();
   EncodeParams p = las_scale(0.01, 4.0);
