@@ -242,6 +242,27 @@ TEST_CASE("LAS -> archive -> LAS keeps every field of every point", "[las][archi
   }
 }
 
+TEST_CASE("LAS -> archive --keep-order -> LAS gives every record back in the file's order", "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  for (const int format : {1, 3, 6, 8}) {
+    CAPTURE(format);
+    const std::string in = las_file(dir, "in" + std::to_string(format) + ".las", format, 60 + format);
+    const std::string archive = dir.file("k" + std::to_string(format) + ".relief");
+    const std::string out = dir.file("k" + std::to_string(format) + ".las");
+    REQUIRE(relief::test::run_cli(cli(), "compress " + in + " -o " + archive + " --keep-order --quiet").code == 0);
+    REQUIRE(archive_info(archive).codec_params.find("order=input") != std::string::npos);
+    REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+    const auto want = read_las_records(in);
+    const auto back = read_las_records(out);
+    REQUIRE(want);
+    REQUIRE(back);
+    CHECK(back->format == format);
+    // One chunk: record i is input record i, every field (as LAZ keeps them).
+    REQUIRE(relief::test::first_difference(back->records, want->records) == "");
+  }
+}
+
 TEST_CASE("compress --intensity-tolerance: every intensity within it, every other field exact",
           "[las][archive][needs-codec-attrs]") {
   if (!need_codec_attributes()) return;
