@@ -31,8 +31,11 @@ Result<PointCloud> read_ply(const std::string& path);
 // The same from memory; `name` is used in error messages.
 Result<PointCloud> read_ply_memory(std::span<const std::uint8_t> data, const std::string& name);
 
-// Writes `cloud` as PLY. The file appears atomically: it is written beside the
-// target and renamed, and nothing is left behind on failure.
+// Writes `cloud` as PLY: x y z, and red green blue (uchar) and intensity
+// (float) when it carries them; its LAS attributes and colour low bytes are
+// not written (open_point_writer writes every attribute). The file appears
+// atomically: it is written beside the target and renamed, and nothing is
+// left behind on failure.
 Status write_ply(const std::string& path, const PointCloud& cloud, const PlyWriteOptions& options = {});
 
 // Reads any supported point file, chosen by extension (see open_point_reader).
