@@ -25,6 +25,16 @@ std::string temp_path_beside(const std::string& path) {
   return path + ".tmp-" + host_tag() + "-" + std::to_string(::getpid());
 }
 
+LeadingPid leading_pid(std::string_view text) {
+  std::uint64_t pid = 0;
+  std::size_t k = 0;
+  for (; k < text.size() && text[k] >= '0' && text[k] <= '9'; ++k) {
+    pid = pid * 10 + static_cast<std::uint64_t>(text[k] - '0');
+    if (pid >= (1u << 30)) return {0, k + 1};
+  }
+  return {static_cast<pid_t>(pid), k};
+}
+
 bool pid_gone(pid_t pid) { return ::kill(pid, 0) != 0 && errno == ESRCH; }
 
 void remove_stale_temps_beside(const std::string& path) {
@@ -39,15 +49,12 @@ void remove_stale_temps_beside(const std::string& path) {
     if (ec) return;
     const std::string name = it->path().filename().string();
     if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
-    std::uint64_t pid = 0;
-    std::size_t k = prefix.size();
-    for (; k < name.size() && name[k] >= '0' && name[k] <= '9' && pid < (1u << 30); ++k) {
-      pid = pid * 10 + static_cast<std::uint64_t>(name[k] - '0');
-    }
-    if (k == prefix.size() || (k < name.size() && name[k] != '.' && name[k] != '-')) continue;
-    if (pid == 0 || pid >= (1u << 30) || static_cast<pid_t>(pid) == ::getpid()) continue;
+    const LeadingPid owner = leading_pid(std::string_view(name).substr(prefix.size()));
+    const std::size_t k = prefix.size() + owner.digits;
+    if (owner.pid == 0 || (k < name.size() && name[k] != '.' && name[k] != '-')) continue;
+    if (owner.pid == ::getpid()) continue;
     if (!fs::is_regular_file(it->symlink_status(ec)) || ec) continue;
-    if (!pid_gone(static_cast<pid_t>(pid))) continue;
+    if (!pid_gone(owner.pid)) continue;
     std::error_code ignored;
     fs::remove(it->path(), ignored);
   }

@@ -3,7 +3,9 @@
 
 #include <sys/types.h>
 
+#include <cstddef>
 #include <string>
+#include <string_view>
 
 namespace relief::core {
 
@@ -17,6 +19,16 @@ std::string host_tag();
 // beside its destination. Two processes writing the same destination, even on
 // two hosts sharing the directory (where pids repeat), never share it.
 std::string temp_path_beside(const std::string& path);
+
+// The decimal process id that `text` starts with: its value (below 2^30,
+// past which no pid runs here) and how many digits it took; {0, 0} when
+// `text` does not start with a digit, a value of 0 when the digits spell 0 or
+// run on past 2^30.
+struct LeadingPid {
+  pid_t pid = 0;
+  std::size_t digits = 0;
+};
+LeadingPid leading_pid(std::string_view text);
 
 // True when no process `pid` runs on this host (kill(pid, 0) says ESRCH; a
 // process we may not signal, EPERM, is alive).

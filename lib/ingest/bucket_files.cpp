@@ -148,12 +148,9 @@ TempDirOwner temp_dir_owner(std::string_view name) {
   name.remove_suffix(kTempSuffixLength + 1);
   const std::size_t dash = name.rfind('-');
   if (dash == 0 || dash == std::string_view::npos || dash + 1 == name.size()) return {};
-  std::uint64_t pid = 0;
-  for (const char c : name.substr(dash + 1)) {
-    if (c < '0' || c > '9' || pid > 1u << 30) return {};
-    pid = pid * 10 + static_cast<std::uint64_t>(c - '0');
-  }
-  return {std::string(name.substr(0, dash)), static_cast<pid_t>(pid)};
+  const core::LeadingPid owner = core::leading_pid(name.substr(dash + 1));
+  if (owner.digits != name.size() - dash - 1) return {};
+  return {std::string(name.substr(0, dash)), owner.pid};
 }
 
 // True when the directory's owner is gone. With a lock file, exactly when its

@@ -28,6 +28,19 @@ TEST_CASE("host_tag and temp_path_beside", "[core][host]") {
         "d/out.las.tmp-" + tag + "-" + std::to_string(::getpid()));
 }
 
+TEST_CASE("leading_pid reads the decimal pid a name starts with", "[core][host]") {
+  using relief::core::leading_pid;
+  CHECK(leading_pid("4321-journal").pid == 4321);
+  CHECK(leading_pid("4321-journal").digits == 4);
+  CHECK(leading_pid("77").pid == 77);
+  CHECK(leading_pid("x12").digits == 0);
+  CHECK(leading_pid("").pid == 0);
+  CHECK(leading_pid("0").pid == 0);
+  CHECK(leading_pid("1073741823").pid == 1073741823);  // 2^30 - 1
+  CHECK(leading_pid("1073741824").pid == 0);           // 2^30: no pid here
+  CHECK(leading_pid("99999999999999999999").pid == 0);
+}
+
 TEST_CASE("remove_stale_temps_beside removes a killed writer's files of this host only", "[core][host]") {
   TempDir dir;
   const std::string dead = relief::test::dead_pid();
