@@ -724,11 +724,33 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
 }  // namespace
 
 std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth, OctreeCoding coding) {
-  return *encode_geometry_within(cells, depth, coding, SIZE_MAX);
+  // Without a budget, only a refused input makes no stream.
+  std::optional<std::vector<std::uint8_t>> out = encode_geometry_within(cells, depth, coding, SIZE_MAX);
+  return out ? std::move(*out) : std::vector<std::uint8_t>{};
 }
+
+namespace {
+
+// encode_geometry's preconditions: depth 0..kMaxGeometryDepth, keys strictly
+// increasing and below 8^depth, one count >= 1 per key, at least one cell.
+bool valid_cells(const OccupiedCells& cells, int depth) {
+  if (depth < 0 || depth > kMaxGeometryDepth || cells.keys.empty() || cells.counts.size() != cells.keys.size()) {
+    return false;
+  }
+  if ((cells.keys.back() >> (3 * depth)) != 0) return false;
+  for (std::size_t j = 0; j < cells.keys.size(); ++j) {
+    if (cells.counts[j] == 0 || (j > 0 && cells.keys[j] <= cells.keys[j - 1])) return false;
+  }
+  return true;
+}
+
+}  // namespace
 
 std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCells& cells, int depth,
                                                                 OctreeCoding coding, std::size_t max_bytes) {
+  // A broken precondition would code another octree (or none): an empty
+  // stream says so, which no valid input gives (callers report it).
+  if (!valid_cells(cells, depth)) return std::vector<std::uint8_t>{};
   // The finished stream is longer than any enc.bytes() on the way.
   RangeEncoder enc;
   auto models = std::make_unique<GeometryModels>();

@@ -45,13 +45,16 @@ enum class OctreeCoding {
   kFacePatterns,
 };
 
-// `cells.keys` must be strictly increasing and below 8^depth; depth <= 21.
+// `cells.keys` must be strictly increasing and below 8^depth, with a count
+// >= 1 each (at least one cell); depth <= 21. Input that breaks this gives an
+// empty stream (no valid input does), never a stream of another octree.
 std::vector<std::uint8_t> encode_geometry(const OccupiedCells& cells, int depth,
                                           OctreeCoding coding = OctreeCoding::kMixed);
 
 // As encode_geometry, but gives up (nullopt) as soon as the stream is sure to
 // exceed `max_bytes`: the encoder's way of trying the octree against a
-// smaller alternative without paying for all of it.
+// smaller alternative without paying for all of it. Refused input: an empty
+// stream, as encode_geometry.
 std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCells& cells, int depth,
                                                                 OctreeCoding coding, std::size_t max_bytes);
 

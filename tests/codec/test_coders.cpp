@@ -1071,3 +1071,41 @@ TEST_CASE("octree geometry streams of the other coding, truncated or flipped fai
     }
   }
 }
+
+TEST_CASE("the octree encoder refuses cells that break its preconditions with an empty stream", "[coders][geometry]") {
+  using relief::codec::OctreeCoding;
+  const relief::codec::OccupiedCells good{{1, 9, 40}, {1, 2, 1}};
+  for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed,
+                                    OctreeCoding::kChains, OctreeCoding::kFacePatterns}) {
+    INFO("coding " << static_cast<int>(coding));
+    const auto stream = relief::codec::encode_geometry(good, 2, coding);
+    REQUIRE_FALSE(stream.empty());
+    auto back = relief::codec::decode_geometry(stream, 2, 4, coding);
+    REQUIRE(back.is_ok());
+    CHECK(back->keys == good.keys);
+    CHECK(back->counts == good.counts);
+    // One cell at depth 0 (every point in one cell): counts alone.
+    const auto one = relief::codec::encode_geometry({{0}, {5}}, 0, coding);
+    REQUIRE_FALSE(one.empty());
+    CHECK(relief::codec::decode_geometry(one, 0, 5, coding).is_ok());
+    // A key of 8^depth or more (it would code another octree), keys out of
+    // order or repeated, a count of 0, counts of another length, no cell,
+    // a depth beyond 21: no stream, from both entry points.
+    const std::vector<std::pair<relief::codec::OccupiedCells, int>> bad = {
+        {good, 1},
+        {{{9, 1, 40}, {1, 2, 1}}, 2},
+        {{{1, 9, 9}, {1, 2, 1}}, 2},
+        {{{1, 9, 40}, {1, 0, 1}}, 2},
+        {{{1, 9, 40}, {1, 2}}, 2},
+        {{{}, {}}, 2},
+        {good, 22},
+    };
+    for (std::size_t i = 0; i < bad.size(); ++i) {
+      INFO("case " << i);
+      CHECK(relief::codec::encode_geometry(bad[i].first, bad[i].second, coding).empty());
+      const auto within = relief::codec::encode_geometry_within(bad[i].first, bad[i].second, coding, SIZE_MAX);
+      REQUIRE(within.has_value());
+      CHECK(within->empty());
+    }
+  }
+}
