@@ -147,6 +147,38 @@ const char* const kEncodeOptionsHelp =
 
 std::vector<std::string> encode_option_names() { return cli_names(relief::encode_option_names()); }
 
+const char* const kBoundOptionsHelp =
+    "Error-bounded blob (without --tolerance: the paper's maps alone, as above):\n"
+    "  --tolerance T          every point back within T per coordinate (grid step 2T)\n"
+    "  --color-tolerance C    largest error per colour channel, 0..127 (default 0 = exact)\n"
+    "  --intensity-tolerance I  largest error of a 16-bit intensity, 0..32767 (default 0 = exact)\n"
+    "  --keep-order           code and return the points in the order they were read\n";
+
+std::vector<std::string> bound_option_names() {
+  return {"--tolerance", "--color-tolerance", "--intensity-tolerance"};
+}
+
+std::string parse_bound_options(Args& args, EncodeParams& params) {
+  const bool bounded = args.get("--tolerance").has_value();
+  if (!bounded) {
+    for (const char* name : {"--color-tolerance", "--intensity-tolerance"}) {
+      if (args.get(name)) return std::string(name) + " applies only with --tolerance";
+    }
+    return args.has(kKeepOrderFlag) ? std::string(kKeepOrderFlag) + " applies only with --tolerance" : "";
+  }
+  const double t = args.get_double("--tolerance", 0);
+  ErrorBound b;
+  b.color_tolerance = static_cast<int>(args.get_int("--color-tolerance", 0, 0, 127));  // ErrorBound's range
+  b.intensity_tolerance = static_cast<int>(args.get_int("--intensity-tolerance", 0, 0, kMaxIntensityTolerance));
+  b.keep_order = args.has(kKeepOrderFlag);
+  if (!args.ok()) return args.error();
+  // 2T must be a positive finite step.
+  if (!(t > 0) || !std::isfinite(2 * t)) return "--tolerance must be a positive number";
+  b.step = {2 * t, 2 * t, 2 * t};
+  params.bound = b;
+  return "";
+}
+
 std::string parse_encode_params(Args& args, EncodeParams& p) {
   const Status s = apply_encode_options(given_options(args, relief::encode_option_names()), OptionSpelling::kCli, p);
   return s.is_ok() ? "" : s.message();
@@ -193,6 +225,19 @@ Result<std::vector<std::uint8_t>> read_file(const std::string& path) {
   std::fclose(f);
   if (failed) return io_error(path + ": read error");
   return data;
+}
+
+Status write_decoded_cloud(const std::string& path, const PointCloud& cloud, bool ascii_ply) {
+  WriterOptions w;
+  w.colors = cloud.has_colors();
+  w.intensity = cloud.has_intensity();
+  w.las_attributes = cloud.las.carried();
+  w.extra_bytes_size = cloud.las.extra_bytes_size;
+  if (ascii_ply) w.ply_encoding = PlyEncoding::kAscii;
+  auto writer = open_point_writer(path, w);
+  if (!writer) return writer.status();
+  RELIEF_RETURN_IF_ERROR((*writer)->write(cloud));
+  return (*writer)->finish();
 }
 
 Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data) {

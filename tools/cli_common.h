@@ -60,6 +60,14 @@ inline constexpr long long kMaxLod = kMaxQueryLod;
 // Encoder options shared by encode-chunk and roundtrip.
 extern const char* const kEncodeOptionsHelp;
 std::vector<std::string> encode_option_names();
+// encode-chunk and roundtrip: --tolerance T makes an error-bounded blob (every
+// point back within T per coordinate, on a grid of step 2T from the origin),
+// with --color-tolerance, --intensity-tolerance and the flag --keep-order.
+extern const char* const kBoundOptionsHelp;
+inline constexpr const char* kKeepOrderFlag = "--keep-order";
+std::vector<std::string> bound_option_names();
+// Sets params.bound when --tolerance is given; "" or the error.
+std::string parse_bound_options(Args& args, EncodeParams& params);
 // Fills params from args (relief::apply_encode_options); returns an error message or "".
 std::string parse_encode_params(Args& args, EncodeParams& params);
 // "--" before each library option name (relief::ingest_option_names ...).
@@ -76,6 +84,12 @@ Status check_chunk_coordinates(const PointCloud& cloud, const std::string& path)
 Result<std::vector<std::uint8_t>> read_file(const std::string& path);
 // Writes beside the target and renames, so a failure never leaves a partial file.
 Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data);
+
+// Writes a decoded cloud with every attribute it holds (colours with their
+// low bytes, intensity, LAS attributes, extra bytes) through the streaming
+// writer: PLY, or LAS/LAZ/XYZ/CSV by `path`'s extension (decode-chunk,
+// roundtrip; the whole-cloud write_ply keeps colour and intensity alone).
+Status write_decoded_cloud(const std::string& path, const PointCloud& cloud, bool ascii_ply = false);
 
 double seconds_since(std::int64_t start_ns);
 std::int64_t now_ns();

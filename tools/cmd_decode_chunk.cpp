@@ -37,18 +37,7 @@ int run_decode_chunk(int argc, char** argv) {
   auto cloud = decode_chunk(*blob, options);
   if (!cloud) return fail(kCommand, cloud.status().with_context(in_path));
   const double secs = seconds_since(t0);
-  // The streaming writer: every attribute the blob holds (the whole-cloud
-  // write_ply keeps colour and intensity alone).
-  WriterOptions w;
-  w.colors = cloud->has_colors();
-  w.intensity = cloud->has_intensity();
-  w.las_attributes = cloud->las.carried();
-  w.extra_bytes_size = cloud->las.extra_bytes_size;
-  if (args.has("--ascii")) w.ply_encoding = PlyEncoding::kAscii;
-  auto writer = open_point_writer(*out_path, w);
-  if (!writer) return fail(kCommand, writer.status());
-  if (Status s = (*writer)->write(*cloud); !s) return fail(kCommand, s);
-  if (Status s = (*writer)->finish(); !s) return fail(kCommand, s);
+  if (Status s = write_decoded_cloud(*out_path, *cloud, args.has("--ascii")); !s) return fail(kCommand, s);
   if (!args.has("--quiet")) {
     std::printf("%s: %zu points, %.2f M points/s\n", out_path->c_str(), cloud->size(),
                 secs > 0 ? static_cast<double>(cloud->size()) / secs * 1e-6 : 0.0);

@@ -15,10 +15,12 @@ constexpr const char* kCommand = "encode-chunk";
 int run_encode_chunk(int argc, char** argv) {
   static const std::string usage = std::string(
       "usage: relief encode-chunk IN.ply -o OUT.rlfc [options]\n"
-      "Compresses every point of IN as one chunk blob (format-spec/chunk.md).\n\n") + kEncodeOptionsHelp;
+      "Compresses every point of IN as one chunk blob (format-spec/chunk.md).\n\n") + kEncodeOptionsHelp +
+      kBoundOptionsHelp;
   std::vector<std::string> options = encode_option_names();
   options.push_back("-o");
-  Args args(argc, argv, {"--help", "--quiet"}, options);
+  for (const std::string& name : bound_option_names()) options.push_back(name);
+  Args args(argc, argv, {"--help", "--quiet", kKeepOrderFlag}, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -31,6 +33,7 @@ int run_encode_chunk(int argc, char** argv) {
   if (const std::string err = parse_encode_params(args, params); !err.empty()) {
     return usage_error(kCommand, err);
   }
+  if (const std::string err = parse_bound_options(args, params); !err.empty()) return usage_error(kCommand, err);
   const std::string& in_path = args.positional()[0];
   auto cloud = read_point_file(in_path);
   if (!cloud) return fail(kCommand, cloud.status());

@@ -12,21 +12,7 @@
 namespace relief::cli {
 
 namespace {
-
 constexpr const char* kCommand = "roundtrip";
-
-const char* section_label(std::uint8_t id) {
-  switch (id) {
-    case 1: return "tree";
-    case 2: return "patches";
-    case 3: return "occupancy";
-    case 4: return "height";
-    case 5: return "colour";
-    case 6: return "intensity";
-    default: return "?";
-  }
-}
-
 }  // namespace
 
 int run_roundtrip(int argc, char** argv) {
@@ -34,10 +20,11 @@ int run_roundtrip(int argc, char** argv) {
       "usage: relief roundtrip IN.ply [-o RECONSTRUCTED.ply] [--blob OUT.rlfc] [--lod L] [options]\n"
       "Compresses IN as one chunk, decompresses it and prints size, bits per point, speed and the\n"
       "error measures (RMSE_SNN, PSNR, colour RMSE, Hausdorff) with points in and out.\n\n") +
-      kEncodeOptionsHelp;
+      kEncodeOptionsHelp + kBoundOptionsHelp;
   std::vector<std::string> options = encode_option_names();
   options.insert(options.end(), {"-o", "--blob", "--lod", "--threads"});
-  Args args(argc, argv, {"--help", "--json"}, options);
+  for (const std::string& name : bound_option_names()) options.push_back(name);
+  Args args(argc, argv, {"--help", "--json", kKeepOrderFlag}, options);
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -48,6 +35,7 @@ int run_roundtrip(int argc, char** argv) {
   if (const std::string err = parse_encode_params(args, params); !err.empty()) {
     return usage_error(kCommand, err);
   }
+  if (const std::string err = parse_bound_options(args, params); !err.empty()) return usage_error(kCommand, err);
   DecodeOptions dec;
   dec.lod = static_cast<std::uint32_t>(args.get_int("--lod", 1, 1, kMaxLod));
   MetricsOptions mopt;
@@ -73,7 +61,7 @@ int run_roundtrip(int argc, char** argv) {
     if (Status s = write_file_atomic(*blob_path, *blob); !s) return fail(kCommand, s);
   }
   if (auto out = args.get("-o")) {
-    if (Status s = write_ply(*out, *recon); !s) return fail(kCommand, s);
+    if (Status s = write_decoded_cloud(*out, *recon); !s) return fail(kCommand, s);
   }
   auto info = inspect_chunk(*blob);
   if (!info) return fail(kCommand, info.status());
@@ -87,7 +75,7 @@ int run_roundtrip(int argc, char** argv) {
   std::printf("size            %zu bytes = %.4f bits/point\n", blob->size(),
               n > 0 ? 8.0 * static_cast<double>(blob->size()) / n : 0.0);
   for (const ChunkSectionInfo& s : info->sections) {
-    std::printf("  %-10s    %9u bytes (%.4f bits/point)\n", section_label(s.id), s.coded_size,
+    std::printf("  %-18s %9u bytes (%.4f bits/point)\n", chunk_section_label(s.id).c_str(), s.coded_size,
                 n > 0 ? 8.0 * s.coded_size / n : 0.0);
   }
   std::printf("encode          %.3f s = %.2f M points/s (1 thread)\n", enc_s, n / enc_s * 1e-6);

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <tuple>
 
 #include "relief/codec.h"
 #include "relief/io.h"
@@ -131,6 +132,62 @@ TEST_CASE("encode-chunk and decode-chunk with a level of detail", "[cli]") {
   auto lod = relief::read_ply(tmp.file("a4.ply"));
   REQUIRE(lod.is_ok());
   CHECK(lod->size() < full->size() / 4);
+}
+
+TEST_CASE("encode-chunk and roundtrip make an error-bounded blob with --tolerance", "[cli]") {
+  TempDir tmp;
+  const std::string las = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las";
+  // Half the file's 0.01 scale: every point back, its attributes exact.
+  const Run r = run("roundtrip " + las + " --tolerance 0.005 -o " + tmp.file("r.las") + " --blob " + tmp.file("r.rlfc"));
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(r.output.find("points out (reconstructed)  1065") != std::string::npos);
+  // The bounded sections by name (they printed as "?" before).
+  CHECK(r.output.find("  geometry ") != std::string::npos);
+  CHECK(r.output.find("  classification ") != std::string::npos);
+  CHECK(r.output.find("  ? ") == std::string::npos);
+  auto in = relief::read_point_file(las);
+  auto out = relief::read_point_file(tmp.file("r.las"));
+  REQUIRE(in.is_ok());
+  REQUIRE(out.is_ok());
+  REQUIRE(out->size() == in->size());
+  CHECK(out->las.classification.size() == in->size());
+  auto sorted = [](std::vector<relief::Vec3d> v) {
+    std::sort(v.begin(), v.end(), [](const relief::Vec3d& a, const relief::Vec3d& b) {
+      return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
+    });
+    return v;
+  };
+  const auto a = sorted(in->positions), b = sorted(out->positions);
+  double worst = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    worst = std::max({worst, std::abs(a[i].x - b[i].x), std::abs(a[i].y - b[i].y), std::abs(a[i].z - b[i].z)});
+  }
+  CHECK(worst <= 0.005 + 1e-9);
+  // encode-chunk makes the same blob; decode-chunk reads it back whole.
+  REQUIRE(run("encode-chunk " + las + " --tolerance 0.005 -o " + tmp.file("e.rlfc") + " --quiet").code == 0);
+  CHECK(fs::file_size(tmp.file("e.rlfc")) == fs::file_size(tmp.file("r.rlfc")));
+  REQUIRE(run("decode-chunk " + tmp.file("e.rlfc") + " -o " + tmp.file("e.ply") + " --quiet").code == 0);
+  CHECK(relief::read_ply(tmp.file("e.ply"))->size() == in->size());
+  // --keep-order: the points in the file's order.
+  REQUIRE(run("encode-chunk " + las + " --tolerance 0.005 --keep-order -o " + tmp.file("k.rlfc") + " --quiet").code == 0);
+  REQUIRE(run("decode-chunk " + tmp.file("k.rlfc") + " -o " + tmp.file("k.ply") + " --quiet").code == 0);
+  auto kept = relief::read_ply(tmp.file("k.ply"));
+  REQUIRE(kept.is_ok());
+  REQUIRE(kept->size() == in->size());
+  double order_err = 0;
+  for (std::size_t i = 0; i < in->size(); ++i) {
+    order_err = std::max(order_err, std::abs(kept->positions[i].x - in->positions[i].x));
+  }
+  CHECK(order_err <= 0.005 + 1e-9);
+  // Options of the bounded mode need --tolerance; a tolerance must be positive.
+  for (const char* bad : {" --keep-order", " --color-tolerance 2", " --intensity-tolerance 2", " --tolerance 0",
+                          " --tolerance -1", " --tolerance nan", " --tolerance 0.01 --color-tolerance 128"}) {
+    INFO(bad);
+    const Run e = run("encode-chunk " + las + " -o " + tmp.file("x.rlfc") + bad);
+    CHECK(e.code == 2);
+    CHECK_FALSE(fs::exists(tmp.file("x.rlfc")));
+  }
 }
 
 TEST_CASE("decode-chunk writes every attribute a blob holds, to PLY or LAS", "[cli]") {
