@@ -240,31 +240,6 @@ Status write_decoded_cloud(const std::string& path, const PointCloud& cloud, boo
   return (*writer)->finish();
 }
 
-Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data) {
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) {
-    const int err = errno;
-    const std::string dir = std::filesystem::path(path).parent_path().string();
-    if (err == ENOENT && !dir.empty() && !std::filesystem::exists(dir)) {
-      return io_error(path + ": cannot create: the directory " + dir + " does not exist");
-    }
-    return io_error(path + ": cannot create: " + std::strerror(err));
-  }
-  const bool wrote = std::fwrite(data.data(), 1, data.size(), f) == data.size();
-  const bool closed = std::fclose(f) == 0;
-  if (!wrote || !closed) {
-    std::remove(tmp.c_str());
-    return io_error(path + ": write failed (disk full?)");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    std::remove(tmp.c_str());
-    return io_error(path + ": cannot rename into place: " + std::strerror(err));
-  }
-  return Status::ok();
-}
-
 std::int64_t now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::steady_clock::now().time_since_epoch())

@@ -82,8 +82,6 @@ std::vector<NamedOption> given_options(const Args& args, const std::vector<std::
 Status check_chunk_coordinates(const PointCloud& cloud, const std::string& path);
 
 Result<std::vector<std::uint8_t>> read_file(const std::string& path);
-// Writes beside the target and renames, so a failure never leaves a partial file.
-Status write_file_atomic(const std::string& path, const std::vector<std::uint8_t>& data);
 
 // Writes a decoded cloud with every attribute it holds (colours with their
 // low bytes, intensity, LAS attributes, extra bytes) through the streaming

@@ -43,7 +43,7 @@ int run_encode_chunk(int argc, char** argv) {
   auto blob = encode_chunk(*cloud, params);
   if (!blob) return fail(kCommand, blob.status().with_context(in_path));
   const double secs = seconds_since(t0);
-  if (Status s = write_file_atomic(*out_path, *blob); !s) return fail(kCommand, s);
+  if (Status s = write_file(*out_path, *blob); !s) return fail(kCommand, s);
   if (!args.has("--quiet")) {
     const double n = static_cast<double>(cloud->size());
     std::printf("%s: %zu points -> %zu bytes (%.3f bits/point), cell %.6g, %.2f M points/s\n",

@@ -128,7 +128,7 @@ int run_preview(int argc, char** argv) {
   auto png = jpeg ? encode_jpeg_rgb(image.rgb, image.width, image.height, kPreviewJpegQuality)
                   : encode_png(image, image.rgb.size() > (std::size_t{48} << 20) ? 1 : 3);
   if (!png) return fail(kCommand, png.status().with_context(*out_path));
-  if (Status s = write_file_atomic(*out_path, *png); !s) return fail(kCommand, s);
+  if (Status s = write_file(*out_path, *png); !s) return fail(kCommand, s);
   const double png_s = seconds_since(t1);
 
   if (r.points_drawn == 0) {

@@ -58,7 +58,7 @@ int run_roundtrip(int argc, char** argv) {
   const double dec_s = seconds_since(t0);
 
   if (auto blob_path = args.get("--blob")) {
-    if (Status s = write_file_atomic(*blob_path, *blob); !s) return fail(kCommand, s);
+    if (Status s = write_file(*blob_path, *blob); !s) return fail(kCommand, s);
   }
   if (auto out = args.get("-o")) {
     if (Status s = write_decoded_cloud(*out, *recon); !s) return fail(kCommand, s);

@@ -179,4 +179,11 @@ void OutputFile::discard() {
   ::unlink(tmp_path_.c_str());
 }
 
+Status write_file(const std::string& path, std::span<const std::uint8_t> data) {
+  auto out = OutputFile::create(path);
+  if (!out) return out.status();
+  RELIEF_RETURN_IF_ERROR((*out)->append(data.data(), data.size()));
+  return (*out)->commit();
+}
+
 }  // namespace relief

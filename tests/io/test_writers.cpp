@@ -948,5 +948,25 @@ TEST_CASE("real LAS files survive a read and write round trip", "[io][shared-dat
   }
 }
 
+TEST_CASE("write_file puts bytes in place whole, or fails naming the path and leaves nothing", "[io][writers]") {
+  TempDir dir;
+  const std::vector<std::uint8_t> data = {1, 2, 3, 0, 255};
+  const std::string path = dir.file("blob.bin");
+  REQUIRE(relief::write_file(path, data).is_ok());
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<std::uint8_t> back{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  CHECK(back == data);
+  // Replacing it: the new bytes, nothing else beside it.
+  REQUIRE(relief::write_file(path, std::vector<std::uint8_t>{7}).is_ok());
+  CHECK(std::filesystem::file_size(path) == 1);
+  const auto missing = relief::write_file(dir.file("no/such/dir/x.bin"), data);
+  CHECK(missing.code() == relief::StatusCode::kIoError);
+  CHECK(missing.message().find("does not exist") != std::string::npos);
+  const auto onto_dir = relief::write_file(dir.path().string(), data);
+  CHECK(onto_dir.code() == relief::StatusCode::kIoError);
+  CHECK(onto_dir.message().find("is a directory") != std::string::npos);
+  CHECK(dir.entries() == std::vector<std::string>{"blob.bin"});  // no temporary left
+}
+
 }  // namespace
 }  // namespace relief

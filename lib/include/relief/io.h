@@ -38,6 +38,12 @@ Result<PointCloud> read_ply_memory(std::span<const std::uint8_t> data, const std
 // left behind on failure.
 Status write_ply(const std::string& path, const PointCloud& cloud, const PlyWriteOptions& options = {});
 
+// Writes `data` (a chunk blob, a PNG ...) to `path` as every writer here
+// writes its file: under a temporary name of this host and process beside
+// the target, then renamed, so the file appears whole or not at all, even
+// when several hosts write into one shared directory ("-": standard output).
+Status write_file(const std::string& path, std::span<const std::uint8_t> data);
+
 // Reads any supported point file, chosen by extension (see open_point_reader).
 Result<PointCloud> read_point_file(const std::string& path);
 
