@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cstdint>
 #include <filesystem>
+#include <string>
+#include <unordered_set>
 
 namespace relief::core {
 
@@ -37,27 +39,38 @@ LeadingPid leading_pid(std::string_view text) {
 
 bool pid_gone(pid_t pid) { return ::kill(pid, 0) != 0 && errno == ESRCH; }
 
-void remove_stale_temps_beside(const std::string& path) {
+void remove_stale_temps_in(const std::string& directory, const std::unordered_set<std::string>& names) {
   namespace fs = std::filesystem;
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  const std::string prefix = target.filename().string() + ".tmp-" + host_tag() + "-";
+  if (names.empty()) return;
+  const fs::path dir = directory.empty() ? fs::path(".") : fs::path(directory);
+  const std::string marker = ".tmp-" + host_tag() + "-";
   std::error_code ec;
   fs::directory_iterator it(dir, ec);
   if (ec) return;
   for (; it != fs::directory_iterator(); it.increment(ec)) {
     if (ec) return;
     const std::string name = it->path().filename().string();
-    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
-    const LeadingPid owner = leading_pid(std::string_view(name).substr(prefix.size()));
-    const std::size_t k = prefix.size() + owner.digits;
-    if (owner.pid == 0 || (k < name.size() && name[k] != '.' && name[k] != '-')) continue;
-    if (owner.pid == ::getpid()) continue;
-    if (!fs::is_regular_file(it->symlink_status(ec)) || ec) continue;
-    if (!pid_gone(owner.pid)) continue;
+    // NAME.tmp-HOST-PID[(.|-)...] for a NAME of the set: every place the
+    // marker occurs may end NAME (a name may hold the marker itself).
+    bool stale = false;
+    for (std::size_t at = name.find(marker); at != std::string::npos && !stale; at = name.find(marker, at + 1)) {
+      if (at == 0 || names.count(name.substr(0, at)) == 0) continue;
+      const std::size_t start = at + marker.size();
+      const LeadingPid owner = leading_pid(std::string_view(name).substr(start));
+      const std::size_t k = start + owner.digits;
+      if (owner.pid == 0 || (k < name.size() && name[k] != '.' && name[k] != '-')) continue;
+      stale = owner.pid != ::getpid() && pid_gone(owner.pid);
+    }
+    if (!stale || !fs::is_regular_file(it->symlink_status(ec)) || ec) continue;
     std::error_code ignored;
     fs::remove(it->path(), ignored);
   }
+}
+
+void remove_stale_temps_beside(const std::string& path) {
+  const std::filesystem::path target(path);
+  remove_stale_temps_in(target.has_parent_path() ? target.parent_path().string() : std::string("."),
+                        {target.filename().string()});
 }
 
 }  // namespace relief::core

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <string>
 #include <string_view>
+#include <unordered_set>
 
 namespace relief::core {
 
@@ -43,5 +44,11 @@ bool pid_gone(pid_t pid);
 // of the directory, so not for directories written file by file by the
 // thousand.
 void remove_stale_temps_beside(const std::string& path);
+
+// The same for many destinations in one directory, with one listing: what a
+// killed process of this host left there while writing any of `names` (file
+// names, without the directory). For directories a task writes file by file
+// (a shard partition's files).
+void remove_stale_temps_in(const std::string& directory, const std::unordered_set<std::string>& names);
 
 }  // namespace relief::core

@@ -9,7 +9,9 @@
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <string>
 #include <type_traits>
+#include <unordered_set>
 
 #include "core/byte_io.h"
 #include "core/host.h"
@@ -389,6 +391,11 @@ Result<PartitionResult> partition_input(const ShardPlan& plan, std::uint32_t inp
   std::vector<std::string> finals(ranges);
   std::vector<ByteWriter> staged(ranges);
   std::vector<std::uint64_t> counts(ranges, 0);
+  // What a killed task of this host left while writing these files: one
+  // listing of the (shared) work directory for all of them.
+  std::unordered_set<std::string> names;
+  for (std::uint32_t r = 0; r < ranges; ++r) names.insert(partition_file_name(input, r));
+  core::remove_stale_temps_in(base, names);
   for (std::uint32_t r = 0; r < ranges; ++r) {
     finals[r] = base + "/" + partition_file_name(input, r);
     files.tmp.push_back(core::temp_path_beside(finals[r]));

@@ -73,3 +73,36 @@ TEST_CASE("remove_stale_temps_beside removes a killed writer's files of this hos
   for (const auto& n : kept) CHECK(fs::exists(dir.file(n)));
   CHECK(fs::is_directory(dir.file("out.relief.tmp-" + here + "-" + dead + ".d")));
 }
+
+TEST_CASE("remove_stale_temps_in sweeps the stale temporaries of many destinations with one listing", "[core][host]") {
+  TempDir dir;
+  const std::string dead = relief::test::dead_pid();
+  REQUIRE_FALSE(dead.empty());
+  const std::string alive = std::to_string(::getppid());
+  const std::string here = relief::core::host_tag();
+  const std::string marker = ".tmp-" + here + "-";
+  const std::vector<std::string> removed = {
+      "a.rpart" + marker + dead,
+      "b.rpart" + marker + dead,
+      "b.rpart" + marker + dead + "-journal",
+      // A destination whose own name holds the marker.
+      "c" + marker + "7.rpart" + marker + dead,
+  };
+  const std::vector<std::string> kept = {
+      "a.rpart",                             // a destination
+      "a.rpart" + marker + alive,            // its writer runs
+      "z.rpart" + marker + dead,             // not one of the names
+      "c" + marker + "7.rpart",              // a destination, though it looks like a temporary
+      "a.rpart.tmp-other-host-" + dead,      // another host
+      marker + dead,                         // no destination name before the marker
+  };
+  for (const auto& n : removed) std::ofstream(dir.file(n)) << "partial";
+  for (const auto& n : kept) std::ofstream(dir.file(n)) << "keep";
+  relief::core::remove_stale_temps_in(dir.path().string(), {"a.rpart", "b.rpart", "c" + marker + "7.rpart"});
+  for (const auto& n : removed) CHECK_FALSE(fs::exists(dir.file(n)));
+  for (const auto& n : kept) CHECK(fs::exists(dir.file(n)));
+  // No names, or a directory that is not there: nothing happens.
+  relief::core::remove_stale_temps_in(dir.path().string(), {});
+  relief::core::remove_stale_temps_in(dir.file("missing"), {"a.rpart"});
+  for (const auto& n : kept) CHECK(fs::exists(dir.file(n)));
+}

@@ -12,11 +12,13 @@
 #include <iterator>
 #include <tuple>
 
+#include "core/host.h"
 #include "relief/archive.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
 #include "relief/query.h"
 #include "relief/shard.h"
+#include "support/dead_pid.h"
 #include "support/dense_surface.h"
 #include "support/las_records.h"
 #include "support/open_file_limit.h"
@@ -531,10 +533,18 @@ TEST_CASE("sharded build: a stage run again writes the same files", "[shard]") {
   std::vector<std::vector<std::uint8_t>> before;
   for (const std::string& name : TempDir::list(parts)) before.push_back(file_bytes(parts + "/" + name));
   const std::vector<Row> shard_rows = rows_of(shards[1]);
-  // A killed task's leftovers (a temporary file) do not disturb the retry.
+  // A killed task's leftovers (a temporary file) do not disturb the retry;
+  // those of a dead process of this host are swept by it, another host's
+  // are left alone (its pids mean nothing here).
   { std::ofstream(parts + "/" + partition_file_name(1, 0) + ".tmp-deadhost-1") << "partial"; }
+  const std::string dead = relief::test::dead_pid();
+  REQUIRE_FALSE(dead.empty());
+  const std::string stale = parts + "/" + partition_file_name(1, 2) + ".tmp-" + relief::core::host_tag() + "-" + dead;
+  { std::ofstream(stale) << "partial"; }
   // The retries: input 1 partitioned again, range 1 encoded again.
   REQUIRE(partition_input(plan, 1, parts).is_ok());
+  CHECK_FALSE(std::filesystem::exists(stale));
+  REQUIRE(std::filesystem::exists(parts + "/" + partition_file_name(1, 0) + ".tmp-deadhost-1"));
   std::filesystem::remove(parts + "/" + partition_file_name(1, 0) + ".tmp-deadhost-1");
   std::vector<std::vector<std::uint8_t>> after;
   for (const std::string& name : TempDir::list(parts)) after.push_back(file_bytes(parts + "/" + name));
