@@ -44,7 +44,7 @@ int run_encode_chunk(int argc, char** argv) {
   if (!blob) return fail(kCommand, blob.status().with_context(in_path));
   const double secs = seconds_since(t0);
   if (Status s = write_file(*out_path, *blob); !s) return fail(kCommand, s);
-  if (!args.has("--quiet")) {
+  if (!args.has("--quiet") && *out_path != "-") {  // "-": standard output carries the blob
     const double n = static_cast<double>(cloud->size());
     std::printf("%s: %zu points -> %zu bytes (%.3f bits/point), cell %.6g, %.2f M points/s\n",
                 out_path->c_str(), cloud->size(), blob->size(),

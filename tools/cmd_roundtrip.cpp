@@ -42,6 +42,9 @@ int run_roundtrip(int argc, char** argv) {
   mopt.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   if (!args.ok()) return usage_error(kCommand, args.error());
 
+  for (const char* name : {"-o", "--blob"}) {
+    if (args.get(name) == "-") return usage_error(kCommand, std::string(name) + " - : standard output carries the report");
+  }
   const std::string& in_path = args.positional()[0];
   auto cloud = read_point_file(in_path);
   if (!cloud) return fail(kCommand, cloud.status());

@@ -35,6 +35,11 @@ std::string sample() { return std::string(RELIEF_SOURCE_DIR) + "/tests/data/kine
 
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
+std::string file_bytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+}
+
 }  // namespace
 
 TEST_CASE("relief roundtrip on the bundled sample prints size, bits per point and error", "[cli]") {
@@ -169,6 +174,15 @@ TEST_CASE("encode-chunk and roundtrip make an error-bounded blob with --toleranc
   CHECK(fs::file_size(tmp.file("e.rlfc")) == fs::file_size(tmp.file("r.rlfc")));
   REQUIRE(run("decode-chunk " + tmp.file("e.rlfc") + " -o " + tmp.file("e.ply") + " --quiet").code == 0);
   CHECK(relief::read_ply(tmp.file("e.ply"))->size() == in->size());
+  // "-o -": the blob alone on standard output (no report mixed in), the
+  // same bytes; decode-chunk reads it and writes text there too.
+  REQUIRE(run("encode-chunk " + las + " --tolerance 0.005 -o - > " + tmp.file("piped.rlfc")).code == 0);
+  CHECK(file_bytes(tmp.file("piped.rlfc")) == file_bytes(tmp.file("e.rlfc")));
+  const Run text = run("decode-chunk " + tmp.file("piped.rlfc") + " -o -");
+  REQUIRE(text.code == 0);
+  CHECK(std::count(text.output.begin(), text.output.end(), '\n') == 1066);  // a header line and the points
+  CHECK(text.output.find("M points/s") == std::string::npos);
+  CHECK(run("roundtrip " + las + " --tolerance 0.005 --blob -").code == 2);
   // --keep-order: the points in the file's order.
   REQUIRE(run("encode-chunk " + las + " --tolerance 0.005 --keep-order -o " + tmp.file("k.rlfc") + " --quiet").code == 0);
   REQUIRE(run("decode-chunk " + tmp.file("k.rlfc") + " -o " + tmp.file("k.ply") + " --quiet").code == 0);
