@@ -154,29 +154,13 @@ const char* const kBoundOptionsHelp =
     "  --intensity-tolerance I  largest error of a 16-bit intensity, 0..32767 (default 0 = exact)\n"
     "  --keep-order           code and return the points in the order they were read\n";
 
-std::vector<std::string> bound_option_names() {
-  return {"--tolerance", "--color-tolerance", "--intensity-tolerance"};
-}
+std::vector<std::string> bound_option_names() { return cli_names(relief::bound_option_names()); }
 
 std::string parse_bound_options(Args& args, EncodeParams& params) {
-  const bool bounded = args.get("--tolerance").has_value();
-  if (!bounded) {
-    for (const char* name : {"--color-tolerance", "--intensity-tolerance"}) {
-      if (args.get(name)) return std::string(name) + " applies only with --tolerance";
-    }
-    return args.has(kKeepOrderFlag) ? std::string(kKeepOrderFlag) + " applies only with --tolerance" : "";
-  }
-  const double t = args.get_double("--tolerance", 0);
-  ErrorBound b;
-  b.color_tolerance = static_cast<int>(args.get_int("--color-tolerance", 0, 0, 127));  // ErrorBound's range
-  b.intensity_tolerance = static_cast<int>(args.get_int("--intensity-tolerance", 0, 0, kMaxIntensityTolerance));
-  b.keep_order = args.has(kKeepOrderFlag);
-  if (!args.ok()) return args.error();
-  // 2T must be a positive finite step.
-  if (!(t > 0) || !std::isfinite(2 * t)) return "--tolerance must be a positive number";
-  b.step = {2 * t, 2 * t, 2 * t};
-  params.bound = b;
-  return "";
+  std::vector<std::string> names = relief::bound_option_names();
+  for (const std::string& f : relief::bound_flag_names()) names.push_back(f);
+  const Status s = apply_bound_options(given_options(args, names), OptionSpelling::kCli, params);
+  return s.is_ok() ? "" : s.message();
 }
 
 std::string parse_encode_params(Args& args, EncodeParams& p) {

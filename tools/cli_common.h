@@ -65,8 +65,9 @@ std::vector<std::string> encode_option_names();
 // with --color-tolerance, --intensity-tolerance and the flag --keep-order.
 extern const char* const kBoundOptionsHelp;
 inline constexpr const char* kKeepOrderFlag = "--keep-order";
+// relief::bound_option_names with dashes (the flag --keep-order apart).
 std::vector<std::string> bound_option_names();
-// Sets params.bound when --tolerance is given; "" or the error.
+// relief::apply_bound_options: sets params.bound when --tolerance is given; "" or the error.
 std::string parse_bound_options(Args& args, EncodeParams& params);
 // Fills params from args (relief::apply_encode_options); returns an error message or "".
 std::string parse_encode_params(Args& args, EncodeParams& params);

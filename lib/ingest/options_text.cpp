@@ -268,6 +268,33 @@ Status apply_encode_options(const std::vector<NamedOption>& given, OptionSpellin
   return apply_encode(g, params);
 }
 
+std::vector<std::string> bound_option_names() { return {"tolerance", "color-tolerance", "intensity-tolerance"}; }
+std::vector<std::string> bound_flag_names() { return {"keep-order"}; }
+
+Status apply_bound_options(const std::vector<NamedOption>& given, OptionSpelling spelling, EncodeParams& params) {
+  const Given g(given, spelling);
+  RELIEF_RETURN_IF_ERROR(g.check_names(bound_option_names(), bound_flag_names()));
+  if (!g.has("tolerance")) {
+    for (const std::string& name : {std::string("color-tolerance"), std::string("intensity-tolerance"),
+                                    std::string("keep-order")}) {
+      if (g.has(name)) return invalid_argument(g.show(name) + " applies only with " + g.show("tolerance"));
+    }
+    return Status::ok();
+  }
+  // The ingest's own checks of these options (mode bounded, as given).
+  IngestOptions o;
+  RELIEF_RETURN_IF_ERROR(apply_mode(g, o));
+  const double step = 2 * o.tolerance;
+  if (!std::isfinite(step)) return invalid_argument(g.show("tolerance") + " is too large");
+  ErrorBound b;
+  b.step = {step, step, step};
+  b.color_tolerance = o.color_tolerance;
+  b.intensity_tolerance = o.intensity_tolerance;
+  b.keep_order = o.keep_order;
+  params.bound = b;
+  return Status::ok();
+}
+
 Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>& given,
                             OptionSpelling spelling, IngestOptions& o) {
   const Given g(given, spelling);

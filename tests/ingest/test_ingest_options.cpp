@@ -108,3 +108,37 @@ TEST_CASE("ingest options: byte sizes", "[ingest][options]") {
   CHECK(parse_byte_size("5Q") == 0);
   CHECK(parse_byte_size("1e30T") == 0);
 }
+
+TEST_CASE("bound options: a single chunk's error bound, checked as the ingest checks it", "[ingest][options]") {
+  EncodeParams p;
+  REQUIRE(apply_bound_options({{"tolerance", "0.005"}, {"color-tolerance", "3"}, {"keep-order", ""}},
+                              OptionSpelling::kCli, p)
+              .is_ok());
+  REQUIRE(p.bound.has_value());
+  CHECK(p.bound->step.x == 0.01);
+  CHECK(p.bound->step.z == 0.01);
+  CHECK(p.bound->color_tolerance == 3);
+  CHECK(p.bound->intensity_tolerance == 0);
+  CHECK(p.bound->keep_order);
+  // Without a tolerance: nothing set, the others refused.
+  EncodeParams maps;
+  REQUIRE(apply_bound_options({}, OptionSpelling::kCli, maps).is_ok());
+  CHECK_FALSE(maps.bound.has_value());
+  for (const char* name : {"color-tolerance", "intensity-tolerance", "keep-order"}) {
+    INFO(name);
+    const Status s = apply_bound_options({{name, std::string(name) == "keep-order" ? "" : "2"}}, OptionSpelling::kCli, maps);
+    CHECK(s.code() == StatusCode::kInvalidArgument);
+    CHECK(s.message().find("applies only with --tolerance") != std::string::npos);
+  }
+  // Refused values: the ingest's messages; nothing set.
+  for (const auto& [name, value] : {std::pair<const char*, const char*>{"tolerance", "0"}, {"tolerance", "-1"},
+                                    {"tolerance", "1e308"}, {"tolerance", "x"}, {"color-tolerance", "128"},
+                                    {"intensity-tolerance", "32768"}, {"cell", "1"}}) {
+    INFO(name << " " << value);
+    EncodeParams q;
+    std::vector<NamedOption> given = {{name, value}};
+    if (std::string(name) != "tolerance") given.push_back({"tolerance", "0.01"});
+    CHECK(apply_bound_options(given, OptionSpelling::kCli, q).code() == StatusCode::kInvalidArgument);
+    CHECK_FALSE(q.bound.has_value());
+  }
+}

@@ -286,6 +286,14 @@ Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>&
 // commands that encode single chunks; apply_ingest_options includes them.
 std::vector<std::string> encode_option_names();
 Status apply_encode_options(const std::vector<NamedOption>& given, OptionSpelling spelling, EncodeParams& params);
+// The error bound of a single chunk (tolerance, color-tolerance,
+// intensity-tolerance; the flag keep-order), checked as apply_ingest_options
+// checks them: with `tolerance` T, params.bound becomes every point within T
+// (grid step 2T from the origin); without it, the others are refused and
+// params stays as it is (the paper's maps alone).
+std::vector<std::string> bound_option_names();
+std::vector<std::string> bound_flag_names();
+Status apply_bound_options(const std::vector<NamedOption>& given, OptionSpelling spelling, EncodeParams& params);
 // "1G", "512M", "64K", "2GiB" (binary units) or a plain number of MiB; 0 when
 // the text is none of these.
 std::uint64_t parse_byte_size(std::string_view text);
