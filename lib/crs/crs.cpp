@@ -31,6 +31,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cctype>
 #include <type_traits>
 #include <cmath>
 #include <cstdint>
@@ -40,9 +41,9 @@
 #include <initializer_list>
 #include <memory>
 #include <mutex>
+#include <string_view>
 #include <optional>
 #include <string>
-#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -589,6 +590,21 @@ bool parse_legacy_keys(std::string_view text, GeoTiffRecords& out) {
   return true;
 }
 
+// WKT: a bracket anywhere outside PROJJSON (PROJ strings, "AUTH:CODE", URNs
+// and CRS names hold none), or at the start a keyword, '(' and a quote (WKT
+// allows either delimiter, and every CRS keyword's first value is its quoted
+// name; CRS names hold parentheses, as "NAD83(HARN)", but no quotes).
+bool looks_like_wkt(std::string_view text) {
+  std::size_t i = 0;
+  while (i < text.size() && std::isspace(static_cast<unsigned char>(text[i]))) ++i;
+  if (i < text.size() && text[i] == '{') return false;
+  if (text.find('[') != std::string_view::npos) return true;
+  const std::size_t word = i;
+  while (i < text.size() && (std::isalnum(static_cast<unsigned char>(text[i])) || text[i] == '_')) ++i;
+  return i > word && std::isalpha(static_cast<unsigned char>(text[word])) && i + 1 < text.size() &&
+         text[i] == '(' && text[i + 1] == '"';
+}
+
 Result<Pj> parse_any(PJ_CONTEXT* ctx, const std::string& text, const std::string& where) {
   if (text.empty()) return invalid_argument(where + ": no CRS");
   GeoTiffRecords records;
@@ -599,6 +615,23 @@ Result<Pj> parse_any(PJ_CONTEXT* ctx, const std::string& text, const std::string
     if (d.wkt.empty()) return format_error(where + ": the GeoTIFF keys name no CRS");
     Pj p(proj_create(ctx, d.wkt.c_str()));
     if (!p) return internal_error(where + ": PROJ cannot read its own WKT2: " + last_error(ctx));
+    return p;
+  }
+  // WKT-shaped text (a keyword and a bracket: a LAS WKT VLR, an archive's
+  // CRS) goes to PROJ's WKT parser alone. proj_create() would take text its
+  // parser rejects for a name and search PROJ's database for it, which takes
+  // ~1 s for a damaged WKT of a few KB (a LAS file whose VLR lost its first
+  // bytes, found by fuzzing) and can match an unrelated CRS by name.
+  if (looks_like_wkt(text)) {
+    PROJ_STRING_LIST errors = nullptr;
+    Pj p(proj_create_from_wkt(ctx, text.c_str(), nullptr, nullptr, &errors));
+    // PROJ's first complaint (where the WKT goes wrong), or the context's.
+    std::string why = errors != nullptr && errors[0] != nullptr ? std::string(errors[0]) : last_error(ctx);
+    proj_string_list_destroy(errors);
+    if (!p || !proj_is_crs(p.get())) {
+      return format_error(where + ": not a WKT coordinate reference system PROJ understands" +
+                          (p ? std::string() : ": " + why));
+    }
     return p;
   }
   Pj p(proj_create(ctx, text.c_str()));

@@ -291,6 +291,39 @@ TEST_CASE("WKT 1 and 2 through LAS: read as WKT2, written back as given", "[crs]
   }
 }
 
+TEST_CASE("damaged WKT goes to PROJ's WKT parser, names and codes to its lookup", "[crs]") {
+  // A WKT VLR that lost bytes in its first keyword (as fuzzing made one):
+  // refused by the WKT parser with its complaint, not searched for by name
+  // in PROJ's database (which took ~1 s for such a text and can match an
+  // unrelated CRS).
+  const std::string damaged = "PRO\xf9\xff\xff\xff" + std::string(kWkt1Lambert93).substr(3);
+  auto bad = crs_to_wkt2(damaged, "x.las: WKT VLR");
+  REQUIRE_FALSE(bad.is_ok());
+  CHECK(bad.status().code() == StatusCode::kFormatError);
+  CHECK_THAT(bad.status().message(),
+             Catch::Contains("x.las: WKT VLR: not a WKT coordinate reference system PROJ understands: "));
+  // Whole WKT with a damaged value inside, and WKT 1 with parentheses.
+  std::string inner(kWkt1Lambert93);
+  inner.replace(inner.find("GEOGCS["), 7, "GEOGCS[[");
+  CHECK_FALSE(crs_to_wkt2(inner, "inner").is_ok());
+  std::string parens(kWkt1Lambert93);
+  for (char& c : parens) c = c == '[' ? '(' : c == ']' ? ')' : c;
+  auto p = describe_crs(parens, "parentheses");
+  REQUIRE(p.is_ok());
+  CHECK(p->epsg == 2154);
+  // Names (parentheses inside), codes and PROJJSON still reach proj_create.
+  auto csrs = describe_crs("NAD83(CSRS) / UTM zone 10N", "name");
+  REQUIRE(csrs.is_ok());
+  CHECK(csrs->epsg == 3157);
+  auto wgs = describe_crs("WGS 84", "name");
+  REQUIRE(wgs.is_ok());
+  CHECK(wgs->epsg == 4326);
+  auto harn = describe_crs("NAD83(HARN)", "name");
+  REQUIRE(harn.is_ok());
+  CHECK(harn->name == "NAD83(HARN)");
+  CHECK(describe_crs("urn:ogc:def:crs:EPSG::2154", "urn")->epsg == 2154);
+}
+
 TEST_CASE("GeoTIFF records through LAS come back verbatim", "[crs]") {
   TempDir dir;
   const GeoTiffRecords lcc = user_defined_lcc();
