@@ -4,7 +4,9 @@
 #include "io/point_writers.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
+#include <cstring>
 #include <span>
 #include <string>
 
@@ -94,14 +96,65 @@ Status StreamPointWriter::finish() {
   return Status::ok();
 }
 
+int grid_decimals(double step, double origin) {
+  if (!std::isfinite(step) || !std::isfinite(origin) || step <= 0) return -1;
+  double ten = 1;  // 10^k
+  for (int k = 0; k <= 9; ++k, ten *= 10) {
+    if (std::fabs(step * ten - 1) > 1e-9) continue;
+    const double o = origin * ten;  // the origin in steps
+    if (!(std::fabs(o) < 0x1p52)) return -1;
+    return std::fabs(o - std::nearbyint(o)) <= 1e-6 ? k : -1;
+  }
+  return -1;
+}
+
+CoordinateText coordinate_text(const WriterOptions& options) {
+  CoordinateText t;
+  if (!options.grid_scale) return t;
+  const Vec3d& s = *options.grid_scale;
+  const Vec3d o = options.grid_offset.value_or(Vec3d{0, 0, 0});
+  t.decimals[0] = grid_decimals(s.x, o.x);
+  t.decimals[1] = grid_decimals(s.y, o.y);
+  t.decimals[2] = grid_decimals(s.z, o.z);
+  return t;
+}
+
+std::uint8_t* put_coordinate(std::uint8_t* p, double v, int decimals) {
+  static constexpr double kPow10[10] = {1, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9};
+  if (decimals < 0 || decimals > 9) return put_shortest(p, v);
+  const double scaled = std::nearbyint(v * kPow10[decimals]);
+  if (!(std::fabs(scaled) < 0x1p53)) return put_shortest(p, v);  // NaN, Inf, beyond the digits
+  const auto n = static_cast<std::int64_t>(scaled);
+  // |n| < 2^53 has at most 16 digits: with a sign, a point and leading zeros
+  // below 1 (0.000000001) at most 19 characters.
+  if (n < 0) *p++ = '-';
+  const std::uint64_t m = n < 0 ? std::uint64_t{0} - static_cast<std::uint64_t>(n) : static_cast<std::uint64_t>(n);
+  char digits[24];
+  const int len = static_cast<int>(std::to_chars(digits, digits + sizeof digits, m).ptr - digits);
+  // The integer part: the digits above the last `decimals`, or 0.
+  const int whole = len - decimals;
+  if (whole <= 0) {
+    *p++ = '0';
+  } else {
+    std::memcpy(p, digits, static_cast<std::size_t>(whole));
+    p += whole;
+  }
+  if (decimals == 0) return p;
+  *p++ = '.';
+  for (int z = whole; z < 0; ++z) *p++ = '0';
+  const int from = whole < 0 ? 0 : whole;
+  std::memcpy(p, digits + from, static_cast<std::size_t>(len - from));
+  return p + (len - from);
+}
+
 std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size_t i, const WriterOptions& options,
-                             std::uint8_t sep, bool colors16) {
+                             const CoordinateText& coords, std::uint8_t sep, bool colors16) {
   const Vec3d& v = batch.positions[i];
-  p = put_shortest(p, v.x);
+  p = put_coordinate(p, v.x, coords.decimals[0]);
   *p++ = sep;
-  p = put_shortest(p, v.y);
+  p = put_coordinate(p, v.y, coords.decimals[1]);
   *p++ = sep;
-  p = put_shortest(p, v.z);
+  p = put_coordinate(p, v.z, coords.decimals[2]);
   if (options.colors && colors16) {
     const Rgb8& c = batch.colors[i];
     const Rgb8& low = batch.las.color_low[i];

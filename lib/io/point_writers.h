@@ -87,12 +87,35 @@ std::uint8_t* put_shortest(std::uint8_t* p, T v) {
       (fixed ? std::to_chars(c, c + 32, v, std::chars_format::fixed) : std::to_chars(c, c + 32, v)).ptr);
 }
 
+// How text output prints each axis's coordinates: with `decimals[a]` digits
+// after the point (0..9), or, when -1, as the shortest text that reads back
+// to the same double. An error-bounded archive's grid whose step is 10^-k
+// and whose origin is a multiple of it (a LAS source's scale and offset:
+// 0.01 and 849000) gets k decimals, as las2txt prints LAS coordinates:
+// 849017.32, not 849017.3200000001 (the double X * 0.01 + 849000 that every
+// LAS reader computes). The text then reads back to the double nearest that
+// decimal, which snaps to the same grid integer (README, "Output formats").
+struct CoordinateText {
+  int decimals[3] = {-1, -1, -1};
+};
+
+// k when `step` is 10^-k (k = 0..9, to 1e-9 relative) and `origin` a whole
+// multiple of it (to 1e-6 of a step, below 2^52 steps); else -1.
+int grid_decimals(double step, double origin);
+// The options' grid (WriterOptions::grid_scale / grid_offset) per axis; all
+// -1 without one.
+CoordinateText coordinate_text(const WriterOptions& options);
+// `v` with `decimals` digits after the point (-1: put_shortest), rounded to
+// the nearest; a value too large for the digits (|v| * 10^decimals >= 2^53)
+// or not finite prints as put_shortest. At most 24 characters.
+std::uint8_t* put_coordinate(std::uint8_t* p, double v, int decimals);
+
 // Point i of `batch` as "x y z [r g b] [i]" (colours and intensity when the
 // options say) at `p`, columns separated by `sep`, no newline; returns the
 // end. At most kMaxTextRecord - 1 bytes. With `colors16` the colours are the
 // 16-bit levels (colors << 8 | las.color_low), else the 8-bit ones.
 std::uint8_t* put_text_point(std::uint8_t* p, const PointCloud& batch, std::size_t i, const WriterOptions& options,
-                             std::uint8_t sep, bool colors16 = false);
+                             const CoordinateText& coords, std::uint8_t sep, bool colors16 = false);
 
 // Lines "x y z [r g b] [i]" (colours and intensity when the options say),
 // columns separated by `separator`.
@@ -129,6 +152,7 @@ Status write_text_lines(OutputFile& out, const PointCloud& batch, const WriterOp
   const auto sep = static_cast<std::uint8_t>(separator);
   const std::size_t max_line = kMaxTextRecord + tail_room;
   const std::size_t n = batch.size();
+  const CoordinateText coords = coordinate_text(options);
   std::size_t i = 0;
   while (i < n) {
     std::span<std::uint8_t> room;
@@ -138,7 +162,7 @@ Status write_text_lines(OutputFile& out, const PointCloud& batch, const WriterOp
     // Lines until the block may not hold another one.
     std::uint8_t* const last = begin + room.size() - max_line;
     for (; i < n && p <= last; ++i) {
-      p = put_tail(put_text_point(p, batch, i, options, sep, colors16), i);
+      p = put_tail(put_text_point(p, batch, i, options, coords, sep, colors16), i);
       *p++ = '\n';
     }
     out.advance(static_cast<std::size_t>(p - begin));

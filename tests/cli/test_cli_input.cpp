@@ -347,9 +347,9 @@ TEST_CASE("stream reads LAS dimensions by name and gives them back", "[cli][inge
   REQUIRE(lines.size() == 4);
   CHECK(lines[0] == "X,Y,Z,Classification,ReturnNumber,GpsTime");
   std::sort(lines.begin() + 1, lines.end());
-  CHECK(lines[1] == "1,2,3,7,2,100.25");
-  CHECK(lines[2] == "1.5,2,3,31,1,100.5");
-  CHECK(lines[3] == "2,2,3,2,3,100.75");
+  CHECK(lines[1] == "1.000,2.000,3.000,7,2,100.25");
+  CHECK(lines[2] == "1.500,2.000,3.000,31,1,100.5");
+  CHECK(lines[3] == "2.000,2.000,3.000,2,3,100.75");
   // A value out of its dimension's range, or an unknown name, is refused.
   write_text(tmp.file("bad.txt"), "1 2 3 16\n");
   const Run bad = run("stream " + tmp.file("b.relief") + " --columns x,y,z,return_number --cell 1 --quiet < " +
@@ -436,9 +436,9 @@ TEST_CASE("stream and compress keep name:type text columns as extra bytes", "[cl
     REQUIRE(lines.size() == 4);
     CHECK(lines[0] == "X,Y,Z,amplitude,ring");
     std::sort(lines.begin() + 1, lines.end());
-    CHECK(lines[1] == "1,2,3,0.5,40");
-    CHECK(lines[2] == "1.5,2,3,0.25,41");
-    CHECK(lines[3] == "2,2,3,-1,65535");
+    CHECK(lines[1] == "1.000,2.000,3.000,0.5,40");
+    CHECK(lines[2] == "1.500,2.000,3.000,0.25,41");
+    CHECK(lines[3] == "2.000,2.000,3.000,-1,65535");
   }
   // A stream of other extra fields does not append; a value that does not fit
   // its type names the line and writes nothing.
@@ -484,9 +484,9 @@ TEST_CASE("stream --format binary reads typed LAS fields and gives them back", "
   REQUIRE(lines.size() == 4);
   CHECK(lines[0] == "X,Y,Z,Red,Green,Blue,Intensity,ReturnNumber,PointSourceId,GpsTime");
   std::sort(lines.begin() + 1, lines.end());
-  CHECK(lines[1] == "1,2,3,10,0,9,5,2,7,100.25");
-  CHECK(lines[2] == "1.5,2,3,11,0,9,6,1,65535,100.5");
-  CHECK(lines[3] == "2,2,3,12,0,9,7,3,0,100.75");
+  CHECK(lines[1] == "1.000,2.000,3.000,10,0,9,5,2,7,100.25");
+  CHECK(lines[2] == "1.500,2.000,3.000,11,0,9,6,1,65535,100.5");
+  CHECK(lines[3] == "2.000,2.000,3.000,12,0,9,7,3,0,100.75");
   // Fields of other kinds as extra bytes, named and typed.
   {
     std::ofstream f(tmp.file("extra.bin"), std::ios::binary);
@@ -510,8 +510,8 @@ TEST_CASE("stream --format binary reads typed LAS fields and gives them back", "
     REQUIRE(rows.size() == 4);
     CHECK(rows[0] == "X,Y,Z,amplitude,ring");
     std::sort(rows.begin() + 1, rows.end());
-    CHECK(rows[1] == "1,2,3,0,40");
-    CHECK(rows[3] == "3,2,3,1,42");
+    CHECK(rows[1] == "1.000,2.000,3.000,0,40");
+    CHECK(rows[3] == "3.000,2.000,3.000,1,42");
   }
   // Appending other extra fields to that archive is refused.
   const Run other = run("stream " + extra + " --format binary --attributes amplitude:f64,ring:u16 --quiet < " +

@@ -26,6 +26,7 @@
 
 #include "relief/crs.h"
 #include "relief/io.h"
+#include "io/point_writers.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 #include "support/shared_data.h"
@@ -970,3 +971,44 @@ TEST_CASE("write_file puts bytes in place whole, or fails naming the path and le
 
 }  // namespace
 }  // namespace relief
+
+TEST_CASE("text coordinates of a decimal grid print its decimals, others the shortest exact text", "[io][xyz]") {
+  using relief::grid_decimals;
+  // A LAS grid: scale 10^-k and an offset on it.
+  CHECK(grid_decimals(0.01, 849000) == 2);
+  CHECK(grid_decimals(0.001, -0.0) == 3);
+  CHECK(grid_decimals(1, 500000) == 0);
+  CHECK(grid_decimals(1e-9, 0) == 9);
+  CHECK(grid_decimals(0.01, 0.005) == -1);    // an offset between the decimals
+  CHECK(grid_decimals(0.0199, 0) == -1);      // an error-bounded grid of 2T
+  CHECK(grid_decimals(0.25, 0) == -1);        // binary steps print exactly anyway
+  CHECK(grid_decimals(1e-10, 0) == -1);       // beyond nine decimals
+  CHECK(grid_decimals(0.01, 1e300) == -1);    // an offset beyond 2^52 steps
+  CHECK(grid_decimals(std::nan(""), 0) == -1);
+  CHECK(grid_decimals(0, 0) == -1);
+  const auto text = [](double v, int k) {
+    std::uint8_t buf[64];
+    const std::uint8_t* end = relief::put_coordinate(buf, v, k);
+    return std::string(reinterpret_cast<const char*>(buf), static_cast<std::size_t>(end - buf));
+  };
+  // 84901732 * 0.01 + 0 is the double 849017.3200000001 (what LAS readers compute).
+  const double x = 84901732 * 0.01;
+  CHECK(text(x, -1) == "849017.3200000001");
+  CHECK(text(x, 2) == "849017.32");
+  CHECK(std::llround(std::stod(text(x, 2)) / 0.01) == 84901732);
+  CHECK(text(849050, 2) == "849050.00");
+  CHECK(text(-3.5, 3) == "-3.500");
+  CHECK(text(0.004, 2) == "0.00");
+  CHECK(text(-0.004, 2) == "0.00");  // no "-0.00"
+  CHECK(text(-0.005001, 2) == "-0.01");
+  CHECK(text(0.005, 3) == "0.005");
+  CHECK(text(1e-9, 9) == "0.000000001");
+  CHECK(text(-1e-9, 9) == "-0.000000001");
+  CHECK(text(12.5, 0) == "12");  // to the nearest, ties to even (nearbyint)
+  CHECK(text(13.5, 0) == "14");
+  CHECK(text(4503599627370495.0, 0) == "4503599627370495");
+  // Beyond 2^53 digits, or not finite: the shortest text.
+  CHECK(text(1e10, 9) == "10000000000");
+  CHECK(text(std::numeric_limits<double>::infinity(), 2) == "inf");
+  CHECK(text(std::nan(""), 2) == "nan");
+}
