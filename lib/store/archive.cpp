@@ -253,6 +253,18 @@ Result<std::uint32_t> compute_meta_checksum(sqlite3* db, const std::string& path
 
 std::string checksum_text(std::uint32_t crc) { return hex32(crc).substr(2); }
 
+// crs_crc32 (version 3): the CRC-32 of the CRS and its source form, each as
+// a u32 little-endian byte count and its bytes (as meta_crc32 lays out a value).
+std::uint32_t crs_checksum(const std::string& crs, const std::string& crs_source) {
+  std::vector<std::uint8_t> bytes;
+  bytes.reserve(8 + crs.size() + crs_source.size());
+  for (const std::string* text : {&crs, &crs_source}) {
+    put_u32_le(bytes, static_cast<std::uint32_t>(text->size()));
+    bytes.insert(bytes.end(), text->begin(), text->end());
+  }
+  return lzma_crc32(bytes.data(), bytes.size(), 0);
+}
+
 Status append_detail(const Status& status, const std::string& detail) {
   return Status(status.code(), status.message() + " " + detail);
 }
@@ -694,7 +706,7 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
     const std::string bounds_index = store::compact_sql(store::kCreateBoundsIndexSql);
     RELIEF_RETURN_IF_ERROR(store::exec(db, bounds_index.c_str(), path, "create the schema"));
 
-    const std::array<std::pair<const char*, std::string>, 11> meta = {{
+    const std::array<std::pair<const char*, std::string>, 10> meta = {{
         {store::kMetaFormatVersion, std::to_string(kArchiveFormatVersion)},
         {store::kMetaOriginX, format_double(grid.origin.x)},
         {store::kMetaOriginY, format_double(grid.origin.y)},
@@ -703,8 +715,7 @@ Status write_new_archive(const std::string& temp, const std::string& path, const
         {store::kMetaCodecParams, codec_params},
         {store::kMetaCreator, creator},
         {store::kMetaCreatedAt, utc_now_iso8601()},
-        {store::kMetaCrs, ""},
-        {store::kMetaCrsSource, ""},
+        {store::kMetaCrsChecksum, checksum_text(crs_checksum("", ""))},
         {store::kMetaAttributes, ""},
     }};
     const SqlText put = sql_text(Sql::kMetaPut);
@@ -843,6 +854,9 @@ class SqliteArchive final : public Archive {
   Status check_room(const std::vector<ChunkRow>& rows) const;
   Result<bool> scan_exists(std::int64_t scan_id);
   Status refresh_scan_summary();
+  // The archive's CRS and its source form, from relief_scan and relief_source
+  // (what relief_meta's crs and crs_source summarised up to version 2).
+  Result<std::pair<std::string, std::string>> scans_crs() const;
   Result<std::vector<ChunkRef>> collect_refs(Statement& statement) const;
   // Whether the optional pyramid tables exist (asked of the file each time:
   // another writer may have created them since this handle opened).
@@ -977,17 +991,44 @@ Status SqliteArchive::verify_meta_checksum() const {
   return transaction.commit();
 }
 
-// Version 1 lacks the bounds index and the metadata checksum; everything else
-// is the same, so a writer adds both and moves the version, in one
+// Version 1 lacks the bounds index and the metadata checksum, and versions 1
+// and 2 copy the CRS texts into relief_meta where version 3 keeps their
+// checksum; everything else is the same, so a writer adds the index, drops
+// the copies, writes both checksums and moves the version, in one
 // transaction (format-spec/archive.md, section 1).
 Status SqliteArchive::upgrade_to_current_version() {
+  static constexpr char kWhat[] = "upgrade to format version 3";
   Transaction transaction(db(), path_);
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kWrite));
-  RELIEF_RETURN_IF_ERROR(store::exec(db(), store::kCreateBoundsIndexSql, path_, "upgrade to format version 2"));
+  RELIEF_RETURN_IF_ERROR(store::exec(db(), store::kCreateBoundsIndexSql, path_, kWhat));
+  // A scan that began before version 2 recorded its CRS only when it
+  // finished, so a killed one may have none: when no scan names the CRS the
+  // metadata names, the earliest scan and its first source take it.
+  RELIEF_ASSIGN_OR_RETURN(const std::optional<std::string> meta_crs, meta_value(store::kMetaCrs));
+  RELIEF_ASSIGN_OR_RETURN(const std::optional<std::string> meta_source, meta_value(store::kMetaCrsSource));
+  RELIEF_ASSIGN_OR_RETURN(const auto scans, scans_crs());
+  if (scans.first.empty() && meta_crs && !meta_crs->empty()) {
+    const char* const moves[2][2] = {
+        {"UPDATE relief_scan SET crs = ?1 WHERE id = (SELECT MIN(id) FROM relief_scan)", "move the CRS to its scan"},
+        {"UPDATE relief_source SET crs = ?1 WHERE crs = '' AND id = (SELECT MIN(id) FROM relief_source WHERE "
+         "scan_id = (SELECT MIN(id) FROM relief_scan))",
+         "move the CRS source form to its source"}};
+    const std::string* const values[2] = {&*meta_crs, meta_source ? &*meta_source : nullptr};
+    for (int k = 0; k < 2; ++k) {
+      if (values[k] == nullptr || values[k]->empty()) continue;
+      RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> move, Statement::prepare(db(), moves[k][0], path_, moves[k][1]));
+      StatementScope scope(*move);
+      move->bind_text(1, *values[k]);
+      RELIEF_RETURN_IF_ERROR(move->run());
+    }
+  }
+  RELIEF_RETURN_IF_ERROR(store::exec(db(), "DELETE FROM relief_meta WHERE key IN ('crs', 'crs_source')", path_, kWhat));
+  RELIEF_ASSIGN_OR_RETURN(const auto crs, scans_crs());
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaCrsChecksum, checksum_text(crs_checksum(crs.first, crs.second))));
   RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaFormatVersion, std::to_string(kArchiveFormatVersion)));
   RELIEF_RETURN_IF_ERROR(write_meta_checksum());
   const std::string version = "PRAGMA user_version = " + std::to_string(kArchiveFormatVersion);
-  RELIEF_RETURN_IF_ERROR(store::exec(db(), version.c_str(), path_, "upgrade to format version 2"));
+  RELIEF_RETURN_IF_ERROR(store::exec(db(), version.c_str(), path_, kWhat));
   RELIEF_RETURN_IF_ERROR(transaction.commit());
   format_version_ = kArchiveFormatVersion;
   return Status::ok();
@@ -1154,24 +1195,29 @@ Status SqliteArchive::refresh_scan_summary() {
       attributes += store::kAttributeIntensity;
     }
   }
-  std::string crs;
+  RELIEF_ASSIGN_OR_RETURN(const auto crs, scans_crs());
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaAttributes, attributes));
+  // Version 3 keeps the CRS texts in their rows alone and their checksum
+  // here (a writer has upgraded the file before it changes anything).
+  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaCrsChecksum, checksum_text(crs_checksum(crs.first, crs.second))));
+  return write_meta_checksum();
+}
+
+Result<std::pair<std::string, std::string>> SqliteArchive::scans_crs() const {
+  std::pair<std::string, std::string> crs;
   {
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanFirstCrs));
     StatementScope scope(*statement);
     RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
-    if (row) crs = statement->column_text(0);
+    if (row) crs.first = statement->column_text(0);
   }
-  std::string crs_source;
-  if (!crs.empty()) {
+  if (!crs.first.empty()) {
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kScanFirstCrsSource));
     StatementScope scope(*statement);
     RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
-    if (row) crs_source = statement->column_text(0);
+    if (row) crs.second = statement->column_text(0);
   }
-  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaAttributes, attributes));
-  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaCrs, crs));
-  RELIEF_RETURN_IF_ERROR(put_meta(store::kMetaCrsSource, crs_source));
-  return write_meta_checksum();
+  return crs;
 }
 
 // The archive's LAS attributes are the union over its scans, kept in
@@ -2008,8 +2054,24 @@ Result<ArchiveInfo> SqliteArchive::info() const {
     }
     info.codec_params = meta[store::kMetaCodecParams];
     info.creator = meta[store::kMetaCreator];
-    info.crs = meta[store::kMetaCrs];
-    info.crs_source = meta[store::kMetaCrsSource];
+    if (format_version_ >= 3) {
+      // The texts live in relief_scan and relief_source, which no other
+      // checksum covers: crs_crc32 (under meta_crc32) vouches for them.
+      RELIEF_ASSIGN_OR_RETURN(auto crs, scans_crs());
+      const auto stored = meta.find(store::kMetaCrsChecksum);
+      const std::string computed = checksum_text(crs_checksum(crs.first, crs.second));
+      if (stored == meta.end() || stored->second != computed) {
+        return corrupt_data(path_ + ": CRS checksum " +
+                            (stored == meta.end() ? std::string("missing") : "mismatch (stored " + stored->second +
+                                                                                 ", computed " + computed + ")") +
+                            ": the CRS text of relief_scan or relief_source is damaged");
+      }
+      info.crs = std::move(crs.first);
+      info.crs_source = std::move(crs.second);
+    } else {
+      info.crs = meta[store::kMetaCrs];
+      info.crs_source = meta[store::kMetaCrsSource];
+    }
     // "rgb,intensity": names separated by commas; unknown names are ignored.
     const std::string& attributes = meta[store::kMetaAttributes];
     std::size_t start = 0;
@@ -2388,7 +2450,9 @@ Result<ArchiveCheck> check_archive(const std::string& path) {
     if (init_status) {
       // Scans and sources, the LAS headers and records of sources included.
       attempt(archive->info().status(), "the scans and sources");
-      report.checked("scans and sources (their LAS headers and records)");
+      report.checked(archive->format_version() >= 3
+                         ? "scans and sources (their LAS headers and records, the CRS checksum relief_meta crs_crc32)"
+                         : "scans and sources (their LAS headers and records)");
       attempt(archive->check_chunks(report), "the chunks");
     } else {
       report.checked("chunks and spatial index: not checked (the archive's schema or grid is unusable)");

@@ -149,10 +149,15 @@ inline constexpr char kMetaChunkEdge[] = "chunk_edge";
 inline constexpr char kMetaCodecParams[] = "codec_params";
 inline constexpr char kMetaCreator[] = "creator";
 inline constexpr char kMetaCreatedAt[] = "created_at";
+// Versions 1 and 2: the archive's CRS (that of the earliest scan with one).
 inline constexpr char kMetaCrs[] = "crs";
-// How the first source with the archive's CRS gave it (relief/crs.h "source
-// form"): its relief_source.crs. Absent in archives written before it.
+// Version 2: how the first source with the archive's CRS gave it (relief/crs.h
+// "source form"): its relief_source.crs. Absent in archives written before it.
 inline constexpr char kMetaCrsSource[] = "crs_source";
+// Version 3, in place of the two: the CRC-32 of the CRS and its source form as
+// read from relief_scan and relief_source (format-spec/archive.md, section
+// 2.1), as 8 upper-case hexadecimal digits.
+inline constexpr char kMetaCrsChecksum[] = "crs_crc32";
 inline constexpr char kMetaAttributes[] = "attributes";
 // Version 2: CRC-32 of every other relief_meta row (format-spec/archive.md,
 // section 2.1), as 8 upper-case hexadecimal digits.

@@ -481,7 +481,7 @@ TEST_CASE("query and info: clear errors for bad archives and boxes", "[cli][quer
   CHECK_FALSE(fs::exists(tmp.file("o.ply")));
   const Run info = run("info " + a + " --json");
   CHECK(info.code == 0);
-  CHECK(info.output.find("\"format_version\": 2") != std::string::npos);
+  CHECK(info.output.find("\"format_version\": 3") != std::string::npos);
   CHECK(info.output.find("\"points_in\": 241407") != std::string::npos);
   // --sections: the bytes of each section, the rest of the file, and the same in the JSON.
   const Run parts = run("info " + a + " --sections");

@@ -225,13 +225,24 @@ std::vector<std::int64_t> ids_of(const std::vector<ChunkRef>& refs) {
 
 bool starts_with(const std::string& text, const std::string& prefix) { return text.rfind(prefix, 0) == 0; }
 
-// Turns an archive into what format version 1 wrote: version 2 only added the
-// bounds index and the metadata checksum (format-spec/archive.md, version log).
+// The CRS copies versions 1 and 2 keep in relief_meta, from the scans as
+// version 3 reads them, in place of crs_crc32.
+const char kCrsCopiesSql[] =
+    "DELETE FROM relief_meta WHERE key = 'crs_crc32'; "
+    "INSERT INTO relief_meta(key, value) VALUES('crs', COALESCE((SELECT crs FROM relief_scan WHERE crs <> '' "
+    "ORDER BY id LIMIT 1), '')); "
+    "INSERT INTO relief_meta(key, value) VALUES('crs_source', COALESCE((SELECT crs FROM relief_source WHERE crs "
+    "<> '' AND scan_id = (SELECT id FROM relief_scan WHERE crs <> '' ORDER BY id LIMIT 1) ORDER BY id LIMIT 1), "
+    "'')); ";
+
+// Turns an archive into what format version 1 wrote: version 2 added the
+// bounds index and the metadata checksum, version 3 replaced the CRS copies
+// with their checksum (format-spec/archive.md, version log).
 void downgrade_to_v1(const std::string& path) {
   RawDb raw(path);
-  raw.exec(
-      "DROP INDEX relief_chunk_bounds; DELETE FROM relief_meta WHERE key = 'meta_crc32'; "
-      "UPDATE relief_meta SET value = '1' WHERE key = 'format_version'; PRAGMA user_version = 1");
+  raw.exec(std::string(kCrsCopiesSql) +
+           "DROP INDEX relief_chunk_bounds; DELETE FROM relief_meta WHERE key = 'meta_crc32'; "
+           "UPDATE relief_meta SET value = '1' WHERE key = 'format_version'; PRAGMA user_version = 1");
 }
 
 // ---- Grid
@@ -277,7 +288,7 @@ TEST_CASE("create then open round-trips the metadata", "[store]") {
     auto archive = create_ok(path, grid);
     CHECK(archive->path() == path);
     const ArchiveInfo info = info_ok(*archive);
-    CHECK(info.format_version == 2);
+    CHECK(info.format_version == 3);
     CHECK(info.grid.origin == grid.origin);
     CHECK(info.grid.chunk_edge == grid.chunk_edge);
     CHECK(info.codec_params == "grid=voxel;cell=0.5");
@@ -299,11 +310,14 @@ TEST_CASE("create then open round-trips the metadata", "[store]") {
   {
     RawDb raw(path);
     CHECK(raw.integer("PRAGMA application_id") == 0x524C4946);
-    CHECK(raw.integer("PRAGMA user_version") == 2);
+    CHECK(raw.integer("PRAGMA user_version") == 3);
     CHECK(raw.text("PRAGMA journal_mode") == "delete");
     CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'grid_origin_y'") == "10000000.3");
     CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'chunk_edge'") == "0.7");
-    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "2");
+    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "3");
+    // Version 3 keeps no copy of the CRS texts, only their checksum (of two empty texts here).
+    CHECK(raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key IN ('crs', 'crs_source')") == 0);
+    CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'crs_crc32'").size() == 8);
     const std::string created = raw.text("SELECT value FROM relief_meta WHERE key = 'created_at'");
     CHECK(created.size() == 20);
     CHECK(created.back() == 'Z');
@@ -444,11 +458,11 @@ TEST_CASE("open rejects what is not an archive of a known version", "[store]") {
 
   SECTION("a newer format version") {
     create_ok(path);
-    RawDb(path).exec("PRAGMA user_version = 3");
+    RawDb(path).exec("PRAGMA user_version = 4");
     for (const Archive::Mode mode : {Archive::Mode::kReadOnly, Archive::Mode::kReadWrite}) {
       const Status status = open_status(mode);
       CHECK(status.code() == StatusCode::kUnsupported);
-      CHECK(status.message() == path + ": archive format version 3 is newer than this build supports (2)");
+      CHECK(status.message() == path + ": archive format version 4 is newer than this build supports (3)");
     }
   }
 
@@ -1115,10 +1129,11 @@ TEST_CASE("an intact archive passes check_archive", "[store][check]") {
   const ArchiveCheck check = check_ok(path);
   INFO(joined(check.problems));
   CHECK(check.problems.empty());
-  CHECK(check.format_version == 2);
+  CHECK(check.format_version == 3);
   CHECK_THAT(joined(check.checked), Catch::Contains("150 chunk blobs"));
   CHECK_THAT(joined(check.checked), Catch::Contains("integrity_check"));
   CHECK_THAT(joined(check.checked), Catch::Contains("metadata checksum"));
+  CHECK_THAT(joined(check.checked), Catch::Contains("the CRS checksum relief_meta crs_crc32"));
 }
 
 TEST_CASE("a damaged R*Tree leaf entry makes a query fail naming the chunk, and check report it", "[store][check]") {
@@ -1243,11 +1258,12 @@ TEST_CASE("version-1 archives still read, check without a checksum, and are upgr
   }
   {
     auto writer = open_ok(path, Archive::Mode::kReadWrite);
-    CHECK(info_ok(*writer).format_version == 2);
+    CHECK(info_ok(*writer).format_version == 3);
   }
   RawDb raw(path);
-  CHECK(raw.integer("PRAGMA user_version") == 2);
-  CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "2");
+  CHECK(raw.integer("PRAGMA user_version") == 3);
+  CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'format_version'") == "3");
+  CHECK(raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key IN ('crs', 'crs_source')") == 0);
   CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name = 'relief_chunk_bounds'") == 1);
   CHECK(check_ok(path).problems.empty());
 }
@@ -1382,6 +1398,112 @@ TEST_CASE("meta_crc32 is the CRC-32 of the other rows as format-spec/archive.md 
     put_field(bytes, raw.text("SELECT value" + where));
   }
   CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'meta_crc32'") == hex8(reference_crc32(bytes)));
+}
+
+// Turns a version-3 archive into what version 2 wrote: the CRS copies in
+// place of crs_crc32, and meta_crc32 over them.
+void downgrade_to_v2(const std::string& path) {
+  RawDb raw(path);
+  raw.exec(std::string(kCrsCopiesSql) +
+           "UPDATE relief_meta SET value = '2' WHERE key = 'format_version'; PRAGMA user_version = 2");
+  const std::int64_t rows = raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key <> 'meta_crc32'");
+  std::vector<std::uint8_t> bytes;
+  for (std::int64_t i = 0; i < rows; ++i) {
+    const std::string where =
+        " FROM relief_meta WHERE key <> 'meta_crc32' ORDER BY key LIMIT 1 OFFSET " + std::to_string(i);
+    put_field(bytes, raw.text("SELECT key" + where));
+    put_field(bytes, raw.text("SELECT value" + where));
+  }
+  raw.exec("UPDATE relief_meta SET value = '" + hex8(reference_crc32(bytes)) + "' WHERE key = 'meta_crc32'");
+}
+
+// An archive of two finished scans, the first with a CRS its first source gave in another form.
+std::string archive_with_crs(TempDir& dir) {
+  const std::string path = dir.file("crs.relief");
+  auto archive = create_ok(path);
+  const std::int64_t first = begin_ok(*archive, {{"one.las", "las", 10, "SOURCE FORM", 0}, {"two.las", "las", 5, "", 0}});
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, first, cube(1, 2), 10, 64, 1)};
+  put_ok(*archive, rows);
+  REQUIRE(archive->finish_scan(first, false, false, "EPSG:25832").is_ok());
+  const std::int64_t second = begin_ok(*archive, {{"three.las", "las", 5, "OTHER", 0}});
+  REQUIRE(archive->finish_scan(second, false, false, "EPSG:4326").is_ok());
+  return path;
+}
+
+TEST_CASE("crs_crc32 is the CRC-32 of the CRS and its source form as format-spec/archive.md 2.1 lays them out",
+          "[store][check]") {
+  TempDir dir;
+  const std::string path = archive_with_crs(dir);
+  CHECK(info_ok(*open_ok(path, Archive::Mode::kReadOnly)).crs == "EPSG:25832");
+  CHECK(info_ok(*open_ok(path, Archive::Mode::kReadOnly)).crs_source == "SOURCE FORM");
+  std::vector<std::uint8_t> bytes;
+  put_field(bytes, "EPSG:25832");
+  put_field(bytes, "SOURCE FORM");
+  RawDb raw(path);
+  CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'crs_crc32'") == hex8(reference_crc32(bytes)));
+  // The worked example of the spec: no CRS.
+  CHECK(hex8(reference_crc32(std::vector<std::uint8_t>(8, 0))) == "6522DF69");
+}
+
+TEST_CASE("a damaged CRS text is corrupt data, for info and check", "[store][check]") {
+  TempDir dir;
+  const std::string path = archive_with_crs(dir);
+  RawDb(path).exec("UPDATE relief_scan SET crs = 'EPSG:25833' WHERE crs = 'EPSG:25832'");
+  const auto archive = open_ok(path, Archive::Mode::kReadOnly);
+  const Result<ArchiveInfo> info = archive->info();
+  REQUIRE_FALSE(info.is_ok());
+  CHECK(info.status().code() == StatusCode::kCorruptData);
+  CHECK_THAT(info.status().message(), Catch::StartsWith(path + ": CRS checksum mismatch (stored "));
+  CHECK_THAT(info.status().message(), Catch::EndsWith("the CRS text of relief_scan or relief_source is damaged"));
+  const ArchiveCheck check = check_ok(path);
+  REQUIRE(check.problems.size() == 1);
+  CHECK_THAT(check.problems[0], Catch::Contains("CRS checksum mismatch"));
+  // A source form changed is caught alike; a missing checksum too.
+  RawDb raw(path);
+  raw.exec("UPDATE relief_scan SET crs = 'EPSG:25832' WHERE crs = 'EPSG:25833'");
+  REQUIRE(open_ok(path, Archive::Mode::kReadOnly)->info().is_ok());
+  raw.exec("UPDATE relief_source SET crs = 'SOURCE FORN' WHERE crs = 'SOURCE FORM'");
+  CHECK(open_ok(path, Archive::Mode::kReadOnly)->info().status().code() == StatusCode::kCorruptData);
+}
+
+TEST_CASE("version-2 archives read their CRS from relief_meta and are upgraded by a writer", "[store]") {
+  TempDir dir;
+  const std::string path = archive_with_crs(dir);
+  downgrade_to_v2(path);
+  // What a scan killed before version 2 recorded its CRS left: none in the
+  // scan rows; the metadata's copy is the archive's CRS.
+  RawDb(path).exec("UPDATE relief_scan SET crs = ''; UPDATE relief_source SET crs = ''");
+  {
+    auto archive = open_ok(path, Archive::Mode::kReadOnly);
+    const ArchiveInfo info = info_ok(*archive);
+    CHECK(info.format_version == 2);
+    CHECK(info.crs == "EPSG:25832");
+    CHECK(info.crs_source == "SOURCE FORM");
+    CHECK(check_ok(path).problems.empty());
+  }
+  {
+    auto writer = open_ok(path, Archive::Mode::kReadWrite);
+    const ArchiveInfo info = info_ok(*writer);
+    CHECK(info.format_version == 3);
+    CHECK(info.crs == "EPSG:25832");  // moved to the earliest scan and its first source
+    CHECK(info.crs_source == "SOURCE FORM");
+  }
+  RawDb raw(path);
+  CHECK(raw.integer("PRAGMA user_version") == 3);
+  CHECK(raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key IN ('crs', 'crs_source')") == 0);
+  CHECK(raw.text("SELECT crs FROM relief_scan ORDER BY id LIMIT 1") == "EPSG:25832");
+  CHECK(raw.text("SELECT crs FROM relief_source ORDER BY id LIMIT 1") == "SOURCE FORM");
+  CHECK(raw.text("SELECT crs FROM relief_source ORDER BY id LIMIT 1 OFFSET 1") == "");
+  CHECK(check_ok(path).problems.empty());
+  // A version-2 archive whose scans hold the CRS keeps them as they are.
+  TempDir other;
+  const std::string kept = archive_with_crs(other);
+  downgrade_to_v2(kept);
+  { open_ok(kept, Archive::Mode::kReadWrite); }
+  RawDb k(kept);
+  CHECK(k.text("SELECT group_concat(crs, '|') FROM (SELECT crs FROM relief_scan ORDER BY id)") == "EPSG:25832|EPSG:4326");
+  CHECK(k.text("SELECT group_concat(crs, '|') FROM (SELECT crs FROM relief_source ORDER BY id)") == "SOURCE FORM||OTHER");
+  CHECK(info_ok(*open_ok(kept, Archive::Mode::kReadOnly)).crs == "EPSG:25832");
 }
 
 }  // namespace

@@ -17,8 +17,9 @@ namespace relief {
 inline constexpr std::int32_t kArchiveApplicationId = 0x524C4946;
 // PRAGMA user_version: the archive format version this build writes. It reads
 // every version from 1 on; version 1 lacks the metadata checksum and the
-// bounds index (format-spec/archive.md, version log).
-inline constexpr int kArchiveFormatVersion = 2;
+// bounds index, versions 1 and 2 keep a copy of the CRS texts in relief_meta
+// where version 3 keeps their checksum (format-spec/archive.md, version log).
+inline constexpr int kArchiveFormatVersion = 3;
 
 // Pyramid levels are 1..kMaxPyramidLevel (a node of level L spans 2^L chunks
 // per axis; 40 levels cover any grid a 64-bit key can address in practice).
