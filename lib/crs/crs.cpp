@@ -605,6 +605,20 @@ bool looks_like_wkt(std::string_view text) {
          text[i] == '(' && text[i + 1] == '"';
 }
 
+// PROJ's WKT parser (WKT 1 or 2, lenient), nothing else.
+Result<Pj> parse_wkt(PJ_CONTEXT* ctx, const std::string& text, const std::string& where) {
+  PROJ_STRING_LIST errors = nullptr;
+  Pj p(proj_create_from_wkt(ctx, text.c_str(), nullptr, nullptr, &errors));
+  // PROJ's first complaint (where the WKT goes wrong), or the context's.
+  const std::string why = errors != nullptr && errors[0] != nullptr ? std::string(errors[0]) : last_error(ctx);
+  proj_string_list_destroy(errors);
+  if (!p || !proj_is_crs(p.get())) {
+    return format_error(where + ": not a WKT coordinate reference system PROJ understands" +
+                        (p ? std::string() : ": " + why));
+  }
+  return p;
+}
+
 Result<Pj> parse_any(PJ_CONTEXT* ctx, const std::string& text, const std::string& where) {
   if (text.empty()) return invalid_argument(where + ": no CRS");
   GeoTiffRecords records;
@@ -622,18 +636,7 @@ Result<Pj> parse_any(PJ_CONTEXT* ctx, const std::string& text, const std::string
   // parser rejects for a name and search PROJ's database for it, which takes
   // ~1 s for a damaged WKT of a few KB (a LAS file whose VLR lost its first
   // bytes, found by fuzzing) and can match an unrelated CRS by name.
-  if (looks_like_wkt(text)) {
-    PROJ_STRING_LIST errors = nullptr;
-    Pj p(proj_create_from_wkt(ctx, text.c_str(), nullptr, nullptr, &errors));
-    // PROJ's first complaint (where the WKT goes wrong), or the context's.
-    std::string why = errors != nullptr && errors[0] != nullptr ? std::string(errors[0]) : last_error(ctx);
-    proj_string_list_destroy(errors);
-    if (!p || !proj_is_crs(p.get())) {
-      return format_error(where + ": not a WKT coordinate reference system PROJ understands" +
-                          (p ? std::string() : ": " + why));
-    }
-    return p;
-  }
+  if (looks_like_wkt(text)) return parse_wkt(ctx, text, where);
   Pj p(proj_create(ctx, text.c_str()));
   if (!p || !proj_is_crs(p.get())) {
     return format_error(where + ": not a coordinate reference system PROJ understands" +
@@ -720,6 +723,14 @@ Result<CrsDefinition> crs_from_geotiff(const GeoTiffRecords& records, const std:
   Context ctx = new_context();
   if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
   return geotiff_to_wkt2(ctx.get(), records, where);
+}
+
+Result<std::string> wkt_to_wkt2(const std::string& wkt, const std::string& where) {
+  Context ctx = new_context();
+  if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
+  if (wkt.empty()) return invalid_argument(where + ": no CRS");
+  RELIEF_ASSIGN_OR_RETURN(Pj crs, parse_wkt(ctx.get(), wkt, where));
+  return as_wkt2(ctx.get(), crs.get(), where);
 }
 
 Result<std::string> crs_to_wkt2(const std::string& text, const std::string& where) {

@@ -334,7 +334,7 @@ Status take_crs(const ProjectionRecords& records, int version_minor, const std::
   const bool use_wkt = records.wkt && (version_minor >= 4 || records.geotiff.keys.empty());
   if (use_wkt) {
     info.crs_source = *records.wkt;
-    Result<std::string> wkt2 = crs_to_wkt2(*records.wkt, name + ": WKT VLR");
+    Result<std::string> wkt2 = wkt_to_wkt2(*records.wkt, name + ": WKT VLR");
     if (wkt2.is_ok()) {
       info.crs = *wkt2;
     } else {

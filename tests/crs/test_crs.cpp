@@ -322,6 +322,16 @@ TEST_CASE("damaged WKT goes to PROJ's WKT parser, names and codes to its lookup"
   REQUIRE(harn.is_ok());
   CHECK(harn->name == "NAD83(HARN)");
   CHECK(describe_crs("urn:ogc:def:crs:EPSG::2154", "urn")->epsg == 2154);
+  // A LAS WKT VLR is WKT by definition: wkt_to_wkt2 never looks a text up by
+  // name (fuzzing made one of GeoTIFF citation text, which took 0.5 s).
+  CHECK(crs_to_wkt2("EPSG:2154", "any").is_ok());
+  auto code = wkt_to_wkt2("EPSG:2154", "x.las: WKT VLR");
+  REQUIRE_FALSE(code.is_ok());
+  CHECK_THAT(code.status().message(), Catch::StartsWith("x.las: WKT VLR: not a WKT coordinate reference system"));
+  CHECK_FALSE(wkt_to_wkt2("proCS_North_American_1983|Datum = D_North_American_1983|", "x.las: WKT VLR").is_ok());
+  auto good = wkt_to_wkt2(kWkt1Lambert93, "x.las: WKT VLR");
+  REQUIRE(good.is_ok());
+  CHECK(equivalent(*good, "EPSG:2154"));
 }
 
 TEST_CASE("GeoTIFF records through LAS come back verbatim", "[crs]") {

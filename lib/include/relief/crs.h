@@ -51,6 +51,11 @@ Result<CrsDefinition> crs_from_geotiff(const GeoTiffRecords& records, const std:
 // "EPSG:<code>", the two GeoTIFF forms above) into WKT2. kFormatError naming
 // `where` when it is not a CRS.
 Result<std::string> crs_to_wkt2(const std::string& text, const std::string& where);
+// The same for text that is meant to be WKT (a LAS WKT VLR, which the LAS
+// specification defines as OGC WKT): PROJ's WKT parser alone, never a search
+// of PROJ's database for the text as a name (~0.5-1 s for a few hundred bytes
+// of damage, and it can match an unrelated CRS). So "EPSG:4326" is refused here.
+Result<std::string> wkt_to_wkt2(const std::string& wkt, const std::string& where);
 
 // The GeoTIFF source form of `records`, and back (false when `text` is not
 // that form or its hexadecimal is broken).
