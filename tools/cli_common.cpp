@@ -331,6 +331,30 @@ void QueryProgress::count(std::uint64_t points) {
   g_progress_drawn = true;
 }
 
+CheckProgress check_progress_printer(const std::string& archive, bool quiet) {
+  if (quiet || !::isatty(STDERR_FILENO)) return {};
+  return [archive, start = now_ns(), drawn = std::int64_t{0}, last = std::string()](
+             const char* stage, std::uint64_t done, std::uint64_t total) mutable {
+    constexpr std::int64_t kRedrawNs = 250'000'000;
+    const std::int64_t t = now_ns();
+    if (stage == last && t - drawn < kRedrawNs) return;
+    drawn = t;
+    last = stage;
+    char count[64] = "";
+    if (total > 0) {
+      std::snprintf(count, sizeof count, " %llu/%llu (%.0f%%)", static_cast<unsigned long long>(done),
+                    static_cast<unsigned long long>(total),
+                    100.0 * static_cast<double>(std::min(done, total)) / static_cast<double>(total));
+    } else if (done > 0) {
+      std::snprintf(count, sizeof count, " %llu", static_cast<unsigned long long>(done));
+    }
+    std::fprintf(stderr, "\r\033[K%s: %s%s, %.0f s", archive.c_str(), stage, count,
+                 static_cast<double>(t - start) * 1e-9);
+    std::fflush(stderr);
+    g_progress_drawn = true;
+  };
+}
+
 void end_progress_line() {
   if (g_progress_drawn) std::fputc('\n', stderr);
   g_progress_drawn = false;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "relief/codec.h"
+#include "relief/archive.h"
 #include "relief/ingest.h"
 #include "relief/query.h"
 #include "relief/status.h"
@@ -105,6 +106,10 @@ const std::atomic<bool>* install_interrupt_flag();
 std::function<void(const IngestProgress&)> progress_printer(bool quiet);
 // Ends the progress line (newline) if one was drawn.
 void end_progress_line();
+// A progress line for `relief check` on a terminal (nothing when `quiet` or
+// stderr is not one): "ARCHIVE: chunk blobs 120/5000 (2%), 3 s",
+// redrawn at most 4 times a second and at each new stage.
+CheckProgress check_progress_printer(const std::string& archive, bool quiet);
 // A progress line for queries and decompression on a terminal (nothing
 // when `quiet` or stderr is not one): count(points) after each batch
 // redraws "OUT: 12.34M points (41%), 3.20 M points/s, 4 s" at most 4 times

@@ -14,10 +14,12 @@ namespace {
 
 constexpr const char* kCommand = "check";
 constexpr const char* kUsageText =
-    "usage: relief check ARCHIVE [--fold-log]\n"
+    "usage: relief check ARCHIVE [--fold-log] [--quiet]\n"
     "Verifies the whole archive without trusting any part of it: SQLite's integrity check, the\n"
-    "metadata checksum, every chunk blob's CRC-32, and the spatial index against the chunk table.\n"
-    "Prints what it checked and every damage found. Exit 0 when intact, 14 when damaged.\n\n"
+    "metadata and CRS checksums, every chunk blob's CRC-32, and the spatial index against the\n"
+    "chunk table. Prints what it checked and every damage found. Exit 0 when intact, 14 when\n"
+    "damaged.\n\n"
+    "  --quiet      no progress line on the terminal while it reads\n"
     "  --fold-log   first fold a write-ahead log left beside the archive (ARCHIVE-wal, kept when\n"
     "               the disk filled up as a writer finished) into the file, so that the archive\n"
     "               is one file again; needs write access and room on the disk\n";
@@ -25,7 +27,7 @@ constexpr const char* kUsageText =
 }  // namespace
 
 int run_check(int argc, char** argv) {
-  Args args(argc, argv, {"--help", "--fold-log"}, {});
+  Args args(argc, argv, {"--help", "--fold-log", "--quiet"}, {});
   if (args.has("--help")) {
     std::cout << kUsageText;
     return kExitOk;
@@ -42,7 +44,8 @@ int run_check(int argc, char** argv) {
     if (!writer) return fail(kCommand, writer.status());
     if (Status closed = (*writer)->close(); !closed) return fail(kCommand, closed);
   }
-  const Result<ArchiveCheck> result = check_archive(path);
+  const Result<ArchiveCheck> result = check_archive(path, check_progress_printer(path, args.has("--quiet")));
+  end_progress_line();
   if (!result) return fail(kCommand, result.status());
   std::printf("archive   %s (format version %d)\n", path.c_str(), result->format_version);
   if (args.has("--fold-log") && had_log) std::printf("folded    the write-ahead log %s into the file\n", wal.c_str());

@@ -2264,7 +2264,10 @@ constexpr std::size_t kMaxProblems = 1000;
 
 class CheckReport {
  public:
-  explicit CheckReport(ArchiveCheck& out) : out_(out) {}
+  CheckReport(ArchiveCheck& out, const CheckProgress& progress) : out_(out), progress_(progress) {}
+  void stage(const char* name, std::uint64_t done = 0, std::uint64_t total = 0) const {
+    if (progress_) progress_(name, done, total);
+  }
   ~CheckReport() {
     if (dropped_ > 0) out_.problems.push_back("... and " + std::to_string(dropped_) + " more");
   }
@@ -2279,6 +2282,7 @@ class CheckReport {
 
  private:
   ArchiveCheck& out_;
+  const CheckProgress& progress_;
   std::uint64_t dropped_ = 0;
 };
 
@@ -2314,9 +2318,12 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kRead));
   RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> refs, all_chunks());
   // Blobs: read_chunk verifies each CRC-32.
-  for (const ChunkRef& ref : refs) {
-    const Result<ChunkRow> row = read_chunk(ref.id);
+  const std::uint64_t total = refs.size();
+  report.stage("chunk blobs", 0, total);
+  for (std::uint64_t i = 0; i < total; ++i) {
+    const Result<ChunkRow> row = read_chunk(refs[i].id);
     if (!row) report.problem(row.status().message());
+    report.stage("chunk blobs", i + 1, total);
   }
   report.checked(std::to_string(refs.size()) + " chunk blobs against their CRC-32");
   RELIEF_ASSIGN_OR_RETURN(const bool pyramid, pyramid_tables_exist());
@@ -2328,10 +2335,12 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
                             Statement::prepare(db(), "SELECT id FROM relief_level_chunk ORDER BY id", path_,
                                                "list pyramid nodes"));
     std::uint64_t nodes = 0;
+    report.stage("pyramid nodes");
     for (;;) {
       RELIEF_ASSIGN_OR_RETURN(const bool row, ids->step());
       if (!row) break;
       ++nodes;
+      report.stage("pyramid nodes", nodes);
       const Result<ChunkRow> node = read_level_chunk(ids->column_int64(0));
       if (!node) report.problem(node.status().message());
     }
@@ -2359,7 +2368,9 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
                          path_, "read the spatial index"));
   RELIEF_ASSIGN_OR_RETURN(Statement * box_ids, statement(Sql::kIndexBoxIds));
   std::uint64_t indexed = 0;
+  std::uint64_t done = 0;
   for (const ChunkRef& ref : refs) {
+    report.stage("spatial index", done++, total);
     std::optional<std::array<double, 6>> found;
     {
       StatementScope scope(*entry);
@@ -2418,23 +2429,26 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
   report.checked("the spatial index against " + std::to_string(refs.size()) + " chunk rows (" +
                  std::to_string(indexed) + " with bounds): one matching entry each, found by a box query, "
                  "and no entry without its chunk");
+  report.stage("spatial index", total, total);
+  report.stage("spatial index tree");
   RELIEF_RETURN_IF_ERROR(text_rows_problems(db(), "SELECT rtreecheck('relief_chunk_index')", path_,
                                             path_ + ": spatial index structure (rtreecheck)", report));
   report.checked("the spatial index's tree structure (rtreecheck)");
   return transaction.commit();
 }
 
-Result<ArchiveCheck> check_archive(const std::string& path) {
+Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress) {
   Status init_status;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<SqliteArchive> archive,
                           open_sqlite(path, Archive::Mode::kReadOnly, false, &init_status));
   ArchiveCheck result;
   result.format_version = archive->format_version();
   {
-    CheckReport report(result);
+    CheckReport report(result, progress);
     const auto attempt = [&](const Status& status, const std::string& what) {
       if (!status) report.problem(status.message() + " (while checking " + what + ")");
     };
+    report.stage("SQLite integrity check");
     attempt(text_rows_problems(archive->connection(), "PRAGMA integrity_check", path,
                                path + ": SQLite integrity check", report),
             "the SQLite structure");

@@ -688,6 +688,10 @@ TEST_CASE("relief check passes an intact archive and lists damage with exit 14",
   CHECK(run("check " + out, &text) == 0);
   CHECK_THAT(text, Catch::Contains("result    intact"));
   CHECK_THAT(text, Catch::Contains("chunk blobs against their CRC-32"));
+  // --quiet (no progress line on a terminal) is taken; the report is the same.
+  std::string quiet;
+  CHECK(run("check --quiet " + out, &quiet) == 0);
+  CHECK(quiet == text);
 
   SECTION("a flipped byte in a blob") {
     std::int64_t id = 0;

@@ -17,6 +17,7 @@
 #include <iterator>
 #include <limits>
 #include <memory>
+#include <map>
 #include <string>
 #include <thread>
 #include <vector>
@@ -1134,6 +1135,24 @@ TEST_CASE("an intact archive passes check_archive", "[store][check]") {
   CHECK_THAT(joined(check.checked), Catch::Contains("integrity_check"));
   CHECK_THAT(joined(check.checked), Catch::Contains("metadata checksum"));
   CHECK_THAT(joined(check.checked), Catch::Contains("the CRS checksum relief_meta crs_crc32"));
+
+  // Progress: each stage in order, the chunk-by-chunk ones counted to their total.
+  std::vector<std::string> stages;
+  std::map<std::string, std::pair<std::uint64_t, std::uint64_t>> last;  // stage -> (done, total)
+  bool monotonic = true;
+  auto with_progress = check_archive(path, [&](const char* stage, std::uint64_t done, std::uint64_t total) {
+    if (stages.empty() || stages.back() != stage) stages.push_back(stage);
+    auto& [d, t] = last[stage];
+    monotonic = monotonic && done >= d && (total == 0 || done <= total);
+    d = done;
+    t = total;
+  });
+  REQUIRE(with_progress.is_ok());
+  CHECK(with_progress->problems.empty());
+  CHECK(monotonic);
+  CHECK(stages == std::vector<std::string>{"SQLite integrity check", "chunk blobs", "spatial index", "spatial index tree"});
+  CHECK(last["chunk blobs"] == std::pair<std::uint64_t, std::uint64_t>{150, 150});
+  CHECK(last["spatial index"] == std::pair<std::uint64_t, std::uint64_t>{150, 150});
 }
 
 TEST_CASE("a damaged R*Tree leaf entry makes a query fail naming the chunk, and check report it", "[store][check]") {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -288,13 +289,20 @@ struct ArchiveCheck {
   std::vector<std::string> problems;  // one line per damage found; empty = intact
 };
 
+// What check_archive is doing, for a progress display: the stage (a short
+// text: "SQLite integrity check", "chunk blobs", "pyramid nodes", "spatial
+// index", "spatial index tree") and, in the stages that go chunk by chunk,
+// how many of `total` are done (total 0: a stage that is not counted). Called
+// on the caller's thread, at each stage's start and after every chunk.
+using CheckProgress = std::function<void(const char* stage, std::uint64_t done, std::uint64_t total)>;
+
 // Checks a whole archive without trusting any part of it: SQLite's own
-// integrity check, the metadata checksum (absent in version 1), every blob's
-// CRC-32, and the spatial index against the chunk table (every chunk with
-// bounds has exactly one index entry with those bounds, found by a box query;
-// every entry names a chunk). Damage goes to `problems`; an error is returned
-// only when the file cannot be checked at all (missing, not an archive, newer
-// version). Reads only.
-Result<ArchiveCheck> check_archive(const std::string& path);
+// integrity check, the metadata checksum (absent in version 1), the CRS
+// checksum (from version 3), every blob's CRC-32, and the spatial index
+// against the chunk table (every chunk with bounds has exactly one index
+// entry with those bounds, found by a box query; every entry names a chunk).
+// Damage goes to `problems`; an error is returned only when the file cannot
+// be checked at all (missing, not an archive, newer version). Reads only.
+Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress = nullptr);
 
 }  // namespace relief
