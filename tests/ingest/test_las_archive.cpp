@@ -774,3 +774,47 @@ TEST_CASE("archive_stats summarises every attribute as the input holds it, only 
   CHECK(relief::archive_stats_json(*direct) == relief::archive_stats_json(s));
   CHECK(relief::test::run_cli(cli(), "stats " + in + " --box 0,0,1,1").code == 2);
 }
+
+TEST_CASE("an archive of format version 2 (a committed file) reads, and a writer upgrades it to 3",
+          "[las][archive][compat]") {
+  TempDir dir;
+  // tests/fuzz/corpus/archive/seed_bounded_simple_las.relief: tests/data/simple.las compressed
+  // by an early format-2 build (chunk format 2: x y z at the LAS scale, intensity and 8-bit
+  // colours exact, no other LAS attribute).
+  const std::string source = std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las";
+  const std::string archive = dir.file("v2.relief");
+  std::filesystem::copy_file(std::string(RELIEF_SOURCE_DIR) + "/tests/fuzz/corpus/archive/seed_bounded_simple_las.relief",
+                             archive);
+  std::filesystem::permissions(archive, std::filesystem::perms::owner_write, std::filesystem::perm_options::add);
+  CHECK(archive_info(archive).format_version == 2);
+  // What that build kept of each record: the LAS integers, intensity and the 8-bit colour
+  // levels (simple.las stores them as they are in its 16-bit fields; that build wrote them
+  // back as 16-bit levels, level * 257).
+  using Kept = std::array<std::int64_t, 7>;
+  const auto kept = [](const std::string& path) {
+    const auto level = [](std::uint16_t c) { return c > 255 ? c >> 8 : c; };
+    std::vector<Kept> v;
+    for (const LasRecord& r : sorted_records(path)) {
+      v.push_back({r.x, r.y, r.z, r.intensity, level(r.red), level(r.green), level(r.blue)});
+    }
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  const std::vector<Kept> want = kept(source);
+  REQUIRE(want.size() == 1065);
+  const std::string out = dir.file("v2.las");
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+  CHECK(kept(out) == want);
+  // A writer (append) upgrades it in place; both scans then read back.
+  REQUIRE(relief::test::run_cli(cli(), "append " + archive + " " + source + " --quiet").code == 0);
+  const relief::ArchiveInfo info = archive_info(archive);
+  CHECK(info.format_version == 3);
+  CHECK(info.input_points == 2 * 1065);
+  CHECK(relief::test::run_cli(cli(), "check " + archive).code == 0);
+  const std::string both = dir.file("both.las");
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + both + " --quiet").code == 0);
+  std::vector<Kept> twice = want;
+  twice.insert(twice.end(), want.begin(), want.end());
+  std::sort(twice.begin(), twice.end());
+  CHECK(kept(both) == twice);
+}
