@@ -34,6 +34,7 @@ __all__ = [
     "LimitExceededError",
     "UnsupportedError",
     "append",
+    "check",
     "compress",
     "open",
     "retain_freed_memory",
@@ -514,6 +515,16 @@ def _checked(name, values, target):
         raise _invalid(
             f"write(): field '{name}' has {values[at]} at point {at}, outside {info.min}..{info.max}")
     return np.ascontiguousarray(values, dtype=t)
+
+
+def check(path):
+    """Verifies a whole archive as ``relief check`` does, trusting no part of
+    it: SQLite's integrity check, the metadata and CRS checksums, every chunk
+    and pyramid blob's CRC-32, and the spatial index against the chunk table.
+    Returns ``{"format_version", "intact", "checked", "problems"}`` (a line
+    per check made and per damage found); raises only when the file cannot be
+    checked at all (missing, not an archive, a newer format)."""
+    return _relief.check(str(path))
 
 
 def stats(path, *, attributes=None):

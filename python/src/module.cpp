@@ -20,6 +20,7 @@
 #include "arrays.h"
 #include "batch_stream.h"
 #include "writer.h"
+#include "relief/archive.h"
 #include "relief/ingest.h"
 #include "relief/image.h"
 #include "relief/polygon.h"
@@ -472,6 +473,24 @@ PYBIND11_MODULE(_relief, m) {
         return archive_stats_json(*r);
       },
       py::arg("path"), py::arg("attributes"));
+
+  m.def(
+      "check",
+      [](const std::string& path) {
+        Result<ArchiveCheck> r = Status(internal_error("check did not run"));
+        {
+          py::gil_scoped_release release;
+          r = check_archive(path);
+        }
+        if (!r) raise_status(r.status());
+        py::dict d;
+        d["format_version"] = r->format_version;
+        d["intact"] = r->problems.empty();
+        d["checked"] = r->checked;
+        d["problems"] = r->problems;
+        return d;
+      },
+      py::arg("path"));
 
   py::class_<BatchIterator>(m, "BatchIterator")
       .def("__iter__", [](BatchIterator& it) -> BatchIterator& { return it; })

@@ -836,3 +836,30 @@ def test_retain_freed_memory_keeps_a_freed_block():
         pytest.skip("no glibc mallinfo2 in this C library")
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["True", "True"]
+
+
+def test_check_an_intact_and_a_damaged_archive(tmp_path, scene):
+    write_xyz(tmp_path / "s.xyz", scene)
+    out = tmp_path / "s.relief"
+    relief.compress([tmp_path / "s.xyz"], out, columns="x,y,z,r,g,b,i", chunk_edge=8)
+    report = relief.check(out)
+    assert report["intact"] and report["problems"] == []
+    assert report["format_version"] == 3
+    assert any("against their CRC-32" in line for line in report["checked"])
+    assert any("crs_crc32" in line for line in report["checked"])
+    # One flipped byte in one blob: damage named, not an exception.
+    db = sqlite3.connect(out)
+    cid, blob = db.execute("SELECT id, blob FROM relief_chunk ORDER BY id LIMIT 1").fetchone()
+    blob = bytearray(blob)
+    blob[len(blob) // 2] ^= 0x10
+    db.execute("UPDATE relief_chunk SET blob = ? WHERE id = ?", (bytes(blob), cid))
+    db.commit()
+    db.close()
+    damaged = relief.check(out)
+    assert not damaged["intact"]
+    assert any("checksum mismatch" in p for p in damaged["problems"])
+    with pytest.raises(relief.IoError):
+        relief.check(tmp_path / "missing.relief")
+    (tmp_path / "not.relief").write_bytes(b"hello")
+    with pytest.raises(relief.FormatError):
+        relief.check(tmp_path / "not.relief")
