@@ -1394,6 +1394,19 @@ std::string hex8(std::uint32_t value) {
   return buffer;
 }
 
+// meta_crc32 as format-spec/archive.md 2.1 lays it out, computed here from the rows.
+std::string reference_meta_checksum(RawDb& raw) {
+  const std::int64_t rows = raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key <> 'meta_crc32'");
+  std::vector<std::uint8_t> bytes;
+  for (std::int64_t i = 0; i < rows; ++i) {
+    const std::string where =
+        " FROM relief_meta WHERE key <> 'meta_crc32' ORDER BY key LIMIT 1 OFFSET " + std::to_string(i);
+    put_field(bytes, raw.text("SELECT key" + where));
+    put_field(bytes, raw.text("SELECT value" + where));
+  }
+  return hex8(reference_crc32(bytes));
+}
+
 TEST_CASE("meta_crc32 is the CRC-32 of the other rows as format-spec/archive.md 2.1 lays them out", "[store][check]") {
   // The worked example of the spec.
   std::vector<std::uint8_t> example;
@@ -1408,15 +1421,7 @@ TEST_CASE("meta_crc32 is the CRC-32 of the other rows as format-spec/archive.md 
   const std::string path = dir.file("a.relief");
   fill_row_of_chunks(path, 2);
   RawDb raw(path);
-  const std::int64_t rows = raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key <> 'meta_crc32'");
-  std::vector<std::uint8_t> bytes;
-  for (std::int64_t i = 0; i < rows; ++i) {
-    const std::string where = " FROM relief_meta WHERE key <> 'meta_crc32' ORDER BY key LIMIT 1 OFFSET " +
-                              std::to_string(i);
-    put_field(bytes, raw.text("SELECT key" + where));
-    put_field(bytes, raw.text("SELECT value" + where));
-  }
-  CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'meta_crc32'") == hex8(reference_crc32(bytes)));
+  CHECK(raw.text("SELECT value FROM relief_meta WHERE key = 'meta_crc32'") == reference_meta_checksum(raw));
 }
 
 // Turns a version-3 archive into what version 2 wrote: the CRS copies in
@@ -1425,15 +1430,7 @@ void downgrade_to_v2(const std::string& path) {
   RawDb raw(path);
   raw.exec(std::string(kCrsCopiesSql) +
            "UPDATE relief_meta SET value = '2' WHERE key = 'format_version'; PRAGMA user_version = 2");
-  const std::int64_t rows = raw.integer("SELECT COUNT(*) FROM relief_meta WHERE key <> 'meta_crc32'");
-  std::vector<std::uint8_t> bytes;
-  for (std::int64_t i = 0; i < rows; ++i) {
-    const std::string where =
-        " FROM relief_meta WHERE key <> 'meta_crc32' ORDER BY key LIMIT 1 OFFSET " + std::to_string(i);
-    put_field(bytes, raw.text("SELECT key" + where));
-    put_field(bytes, raw.text("SELECT value" + where));
-  }
-  raw.exec("UPDATE relief_meta SET value = '" + hex8(reference_crc32(bytes)) + "' WHERE key = 'meta_crc32'");
+  raw.exec("UPDATE relief_meta SET value = '" + reference_meta_checksum(raw) + "' WHERE key = 'meta_crc32'");
 }
 
 // An archive of two finished scans, the first with a CRS its first source gave in another form.
