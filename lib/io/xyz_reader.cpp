@@ -564,6 +564,12 @@ class XyzPointReader final : public BatchPointReader {
                      std::vector<std::uint16_t>* wide);
   // Reads kept column `extra` (column c of the line) into extra_values_.
   Status parse_extra(std::string_view tok, std::size_t c, std::size_t extra, std::uint64_t line_no);
+  // Intensities are 32-bit floats. The first one whose text the float does
+  // not give back (more than about 7 significant digits: 1234.5678901 comes
+  // back as 1234.5679) becomes a warning in info().warnings, read when the
+  // input is done (as the PLY reader's extra vertices); PLY and PCD say it
+  // from their header's types.
+  void note_intensity_rounding(double text_value, float kept, std::uint64_t line_no);
 
   InputSpec input_;
   ReaderOptions options_;
@@ -575,6 +581,7 @@ class XyzPointReader final : public BatchPointReader {
   std::string pending_;  // the first data line, read by start()
   std::uint64_t pending_line_no_ = 0;
   bool has_pending_ = false;
+  bool intensity_rounding_noted_ = false;
   bool explicit_columns_ = false;  // ReaderOptions::xyz_columns, not a header, gave the plan
   bool probe_ = false;             // samples colour levels for another reader (open)
   char delimiter_ = ' ';  // ' ' means blanks only
@@ -724,6 +731,22 @@ Status XyzPointReader::parse_extra(std::string_view tok, std::size_t c, std::siz
   return line_error(line_no, "column " + std::to_string(c + 1) + " " + problem + why);
 }
 
+void XyzPointReader::note_intensity_rounding(double text_value, float kept, std::uint64_t line_no) {
+  // Whole numbers up to 2^24 (every LAS intensity) are exact: no text to compare.
+  if (std::fabs(text_value) <= 16777216.0 && text_value == std::nearbyint(text_value)) return;
+  // The float's shortest text, read back as a double, against the input's.
+  char text[32];
+  const auto printed = std::to_chars(text, text + sizeof text, kept);
+  double back = 0;
+  std::from_chars(text, printed.ptr, back);
+  if (back == text_value) return;
+  intensity_rounding_noted_ = true;
+  info_.warnings.push_back(name() + ": line " + std::to_string(line_no) + ": intensity " + format_double(text_value) +
+                           " is kept as the 32-bit float " + std::string(text, printed.ptr) +
+                           " (intensities are 32-bit floats: about 7 significant digits, integers exact up to "
+                           "2^24); later ones are not listed");
+}
+
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
                                    std::vector<std::uint16_t>* wide) {
   double v[kRoleCount] = {};
@@ -761,6 +784,7 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     for (int k = 0; k < 3; ++k) levels[k] = static_cast<std::uint16_t>(std::lround(v[at_role(roles[k])]));
   }
   const float intensity = plan_.intensity ? static_cast<float>(v[at_role(Role::kIntensity)]) : 0.0f;
+  if (plan_.intensity && !intensity_rounding_noted_) note_intensity_rounding(v[at_role(Role::kIntensity)], intensity, line_no);
   out.positions.push_back(p);
   push_las_columns(v, plan_.las, out.las);
   for (std::size_t e = 0; e < extra_values_.size(); ++e) {

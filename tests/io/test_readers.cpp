@@ -675,6 +675,31 @@ TEST_CASE("XYZ default columns, comments, blank lines and a header", "[io]") {
                xyz_cloud({{1.5, 2.25, -3}, {484649.36, 6632629.73, 99.65}, {7, 800, -0.0}, {6.1, 6.2, 6.3}}));
 }
 
+TEST_CASE("XYZ intensities a 32-bit float cannot give back are named once, when read", "[io]") {
+  TempDir dir;
+  ReaderOptions options;
+  options.xyz_columns = "x,y,z,i";
+  // Whole numbers, short decimals and values beyond float precision.
+  const std::string exact = dir.file("exact.xyz");
+  write_file(exact, "1 2 3 153\n2 3 4 0.1\n3 4 5 0.12345\n4 5 6 65535\n5 6 7 16777216\n");
+  auto fine = open_point_reader(exact, options);
+  REQUIRE(fine.is_ok());
+  REQUIRE(read_stream(**fine, 2).is_ok());
+  CHECK((*fine)->info().warnings.empty());
+  const std::string rounded = dir.file("rounded.xyz");
+  write_file(rounded, "1 2 3 153\n2 3 4 1234.5678901\n3 4 5 16777217\n");
+  auto r = open_point_reader(rounded, options);
+  REQUIRE(r.is_ok());
+  CHECK((*r)->info().warnings.empty());  // known only once the line is read
+  const Result<PointCloud> got = read_stream(**r, 2);
+  REQUIRE(got.is_ok());
+  CHECK(got->intensities[1] == 1234.5679f);
+  REQUIRE((*r)->info().warnings.size() == 1);
+  CHECK((*r)->info().warnings[0] == rounded + ": line 2: intensity 1234.5678901 is kept as the 32-bit float 1234.5679 "
+                                              "(intensities are 32-bit floats: about 7 significant digits, integers "
+                                              "exact up to 2^24); later ones are not listed");
+}
+
 TEST_CASE("XYZ column specs and delimiters", "[io]") {
   TempDir dir;
   PointCloud want = xyz_cloud({{1, 2, 3}, {4.5, -5.5, 6e-3}});
