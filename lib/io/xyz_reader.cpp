@@ -731,6 +731,19 @@ Status XyzPointReader::parse_extra(std::string_view tok, std::size_t c, std::siz
   return line_error(line_no, "column " + std::to_string(c + 1) + " " + problem + why);
 }
 
+// Significant digits of a number's text: the mantissa's digits after any
+// leading zeros, the exponent not counted ("0.1234": 4, "1234.5678901": 11;
+// trailing zeros count, which only errs towards comparing).
+int significant_digits(std::string_view text) {
+  int n = 0;
+  for (const char c : text) {
+    if (c == 'e' || c == 'E') break;
+    if (c < '0' || c > '9' || (n == 0 && c == '0')) continue;
+    ++n;
+  }
+  return n;
+}
+
 void XyzPointReader::note_intensity_rounding(double text_value, float kept, std::uint64_t line_no) {
   // Whole numbers up to 2^24 (every LAS intensity) are exact: no text to compare.
   if (std::fabs(text_value) <= 16777216.0 && text_value == std::nearbyint(text_value)) return;
@@ -751,6 +764,7 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
                                    std::vector<std::uint16_t>* wide) {
   double v[kRoleCount] = {};
   std::size_t extra = 0;
+  int intensity_digits = 0;  // significant digits of the intensity's text
   std::size_t pos = skip_blanks(line);
   const std::size_t columns = plan_.roles.size();
   bool more = pos < line.size();
@@ -773,6 +787,7 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
                                      (tok.empty() ? std::string("is empty") : quoted(tok) + " is not a number"));
     }
     v[at_role(role)] = value;
+    if (role == Role::kIntensity) intensity_digits = significant_digits(tok);
   }
   if (const std::string problem = text_point_problem(v, plan_, las_columns_, kMaxWideLevel); !problem.empty()) {
     return line_error(line_no, problem);
@@ -784,7 +799,11 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     for (int k = 0; k < 3; ++k) levels[k] = static_cast<std::uint16_t>(std::lround(v[at_role(roles[k])]));
   }
   const float intensity = plan_.intensity ? static_cast<float>(v[at_role(Role::kIntensity)]) : 0.0f;
-  if (plan_.intensity && !intensity_rounding_noted_) note_intensity_rounding(v[at_role(Role::kIntensity)], intensity, line_no);
+  // A decimal of at most 6 significant digits always comes back from a
+  // float (FLT_DIG): only longer ones are compared.
+  if (plan_.intensity && !intensity_rounding_noted_ && intensity_digits > 6) {
+    note_intensity_rounding(v[at_role(Role::kIntensity)], intensity, line_no);
+  }
   out.positions.push_back(p);
   push_las_columns(v, plan_.las, out.las);
   for (std::size_t e = 0; e < extra_values_.size(); ++e) {
