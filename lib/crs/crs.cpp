@@ -41,9 +41,9 @@
 #include <initializer_list>
 #include <memory>
 #include <mutex>
-#include <string_view>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 

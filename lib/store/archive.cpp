@@ -227,6 +227,13 @@ void put_u32_le(std::vector<std::uint8_t>& out, std::uint32_t value) {
 // CRC-32 over every relief_meta row but the checksum's own, in key order
 // (SQLite's BINARY collation: bytewise): u32 key length, key, u32 value
 // length, value. Lengths make the boundaries part of what is checked.
+// One field of the checksummed byte strings (meta_crc32, crs_crc32): u32
+// little-endian byte count, then the bytes. `n` is below 2^32 (callers check).
+void put_checksum_field(std::vector<std::uint8_t>& bytes, const std::uint8_t* data, std::size_t n) {
+  put_u32_le(bytes, static_cast<std::uint32_t>(n));
+  bytes.insert(bytes.end(), data, data + n);
+}
+
 Result<std::uint32_t> compute_meta_checksum(sqlite3* db, const std::string& path) {
   RELIEF_ASSIGN_OR_RETURN(
       std::unique_ptr<Statement> statement,
@@ -244,8 +251,7 @@ Result<std::uint32_t> compute_meta_checksum(sqlite3* db, const std::string& path
       if (field.size() > std::numeric_limits<std::uint32_t>::max()) {
         return limit_exceeded(path + ": a metadata value is too long");
       }
-      put_u32_le(bytes, static_cast<std::uint32_t>(field.size()));
-      bytes.insert(bytes.end(), field.begin(), field.end());
+      put_checksum_field(bytes, field.data(), field.size());
     }
   }
   return lzma_crc32(bytes.data(), bytes.size(), 0);
@@ -253,14 +259,13 @@ Result<std::uint32_t> compute_meta_checksum(sqlite3* db, const std::string& path
 
 std::string checksum_text(std::uint32_t crc) { return hex32(crc).substr(2); }
 
-// crs_crc32 (version 3): the CRC-32 of the CRS and its source form, each as
-// a u32 little-endian byte count and its bytes (as meta_crc32 lays out a value).
+// crs_crc32 (version 3): the CRC-32 of the CRS and its source form, each a
+// field as meta_crc32 lays out a value. (SQLite holds no text of 2^32 bytes.)
 std::uint32_t crs_checksum(const std::string& crs, const std::string& crs_source) {
   std::vector<std::uint8_t> bytes;
   bytes.reserve(8 + crs.size() + crs_source.size());
   for (const std::string* text : {&crs, &crs_source}) {
-    put_u32_le(bytes, static_cast<std::uint32_t>(text->size()));
-    bytes.insert(bytes.end(), text->begin(), text->end());
+    put_checksum_field(bytes, reinterpret_cast<const std::uint8_t*>(text->data()), text->size());
   }
   return lzma_crc32(bytes.data(), bytes.size(), 0);
 }
