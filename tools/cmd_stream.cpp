@@ -224,6 +224,10 @@ int run_stream(int argc, char** argv) {
   auto done = (*stream)->finish();
   end_progress_line();
   if (!done) return give_up(done.status());
+  // After the progress line, as compress prints its readers' warnings.
+  if (layout.text) {
+    for (const std::string& w : layout.text->take_warnings()) std::cerr << "relief stream: warning: " << w << "\n";
+  }
   if (!quiet) {
     if (interrupted->load()) std::cerr << "relief stream: interrupted; everything received is in " << archive << "\n";
     print_ingest_summary(archive, *done);

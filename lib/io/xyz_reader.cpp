@@ -58,6 +58,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <cctype>
@@ -569,7 +570,7 @@ class XyzPointReader final : public BatchPointReader {
   // back as 1234.5679) becomes a warning in info().warnings, read when the
   // input is done (as the PLY reader's extra vertices); PLY and PCD say it
   // from their header's types.
-  void note_intensity_rounding(double text_value, float kept, std::uint64_t line_no);
+  void note_intensity_rounding(double text_value, int digits, std::uint64_t line_no);
 
   InputSpec input_;
   ReaderOptions options_;
@@ -744,20 +745,32 @@ int significant_digits(std::string_view text) {
   return n;
 }
 
-void XyzPointReader::note_intensity_rounding(double text_value, float kept, std::uint64_t line_no) {
-  // Whole numbers up to 2^24 (every LAS intensity) are exact: no text to compare.
-  if (std::fabs(text_value) <= 16777216.0 && text_value == std::nearbyint(text_value)) return;
+// The warning for the first intensity whose text (of significant_digits
+// `digits`) a 32-bit float does not give back, or "" when it does. A decimal
+// of at most 6 significant digits always comes back (FLT_DIG), and so do
+// whole numbers up to 2^24 (every LAS intensity): neither costs a comparison.
+std::string intensity_rounding_warning(const std::string& input, double text_value, int digits,
+                                       std::uint64_t line_no) {
+  if (digits <= 6) return {};
+  if (std::fabs(text_value) <= 16777216.0 && text_value == std::nearbyint(text_value)) return {};
   // The float's shortest text, read back as a double, against the input's.
+  const float kept = static_cast<float>(text_value);
   char text[32];
   const auto printed = std::to_chars(text, text + sizeof text, kept);
   double back = 0;
   std::from_chars(text, printed.ptr, back);
-  if (back == text_value) return;
+  if (back == text_value) return {};
+  return input + ": line " + std::to_string(line_no) + ": intensity " + format_double(text_value) +
+         " is kept as the 32-bit float " + std::string(text, printed.ptr) +
+         " (intensities are 32-bit floats: about 7 significant digits, integers exact up to 2^24); later ones are "
+         "not listed";
+}
+
+void XyzPointReader::note_intensity_rounding(double text_value, int digits, std::uint64_t line_no) {
+  std::string warning = intensity_rounding_warning(name(), text_value, digits, line_no);
+  if (warning.empty()) return;
   intensity_rounding_noted_ = true;
-  info_.warnings.push_back(name() + ": line " + std::to_string(line_no) + ": intensity " + format_double(text_value) +
-                           " is kept as the 32-bit float " + std::string(text, printed.ptr) +
-                           " (intensities are 32-bit floats: about 7 significant digits, integers exact up to "
-                           "2^24); later ones are not listed");
+  info_.warnings.push_back(std::move(warning));
 }
 
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
@@ -799,10 +812,8 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     for (int k = 0; k < 3; ++k) levels[k] = static_cast<std::uint16_t>(std::lround(v[at_role(roles[k])]));
   }
   const float intensity = plan_.intensity ? static_cast<float>(v[at_role(Role::kIntensity)]) : 0.0f;
-  // A decimal of at most 6 significant digits always comes back from a
-  // float (FLT_DIG): only longer ones are compared.
-  if (plan_.intensity && !intensity_rounding_noted_ && intensity_digits > 6) {
-    note_intensity_rounding(v[at_role(Role::kIntensity)], intensity, line_no);
+  if (plan_.intensity && !intensity_rounding_noted_) {
+    note_intensity_rounding(v[at_role(Role::kIntensity)], intensity_digits, line_no);
   }
   out.positions.push_back(p);
   push_las_columns(v, plan_.las, out.las);
@@ -911,6 +922,7 @@ class TextLineParserImpl final : public StreamFields<TextLineParser> {
     // The extra fields' bytes, in the order listed (at most 8 each).
     std::uint8_t extra[8 * kMaxExtraColumns];
     std::size_t extra_at = 0, e = 0;
+    int intensity_digits = 0;  // significant digits of the intensity's text
     std::size_t pos = 0;
     for (std::size_t c = 0; c < plan_.roles.size(); ++c) {
       while (pos < line.size() && separator(line[pos])) ++pos;
@@ -936,9 +948,17 @@ class TextLineParserImpl final : public StreamFields<TextLineParser> {
       double value = 0;
       if (!parse_number(tok, value)) return error("column " + std::to_string(c + 1) + " " + quoted(tok) + " is not a number");
       v[at_role(role)] = value;
+      if (role == Role::kIntensity) intensity_digits = significant_digits(tok);
     }
     if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
       return error(problem);
+    }
+    if (plan_.intensity && !intensity_rounding_noted_) {
+      std::string warning = intensity_rounding_warning(name_, v[at_role(Role::kIntensity)], intensity_digits, line_no);
+      if (!warning.empty()) {
+        intensity_rounding_noted_ = true;
+        warnings_.push_back(std::move(warning));
+      }
     }
     append_point(v, plan_, batch);
     if (extra_size_ > 0) {
@@ -947,6 +967,14 @@ class TextLineParserImpl final : public StreamFields<TextLineParser> {
     }
     return Status::ok();
   }
+
+  std::vector<std::string> take_warnings() override { return std::exchange(warnings_, {}); }
+
+ private:
+  // parse() is const to its callers (a refused line changes nothing they
+  // see); what it notes for take_warnings() is bookkeeping beside the batch.
+  mutable bool intensity_rounding_noted_ = false;
+  mutable std::vector<std::string> warnings_;
 };
 
 }  // namespace

@@ -330,6 +330,23 @@ TEST_CASE("stream refuses a colour level outside 0..255 instead of clamping it",
             .code == 0);
 }
 
+TEST_CASE("stream warns of a text intensity a float does not give back, as compress does", "[cli][ingest]") {
+  TempDir tmp;
+  write_text(tmp.file("in.txt"), "1 2 3 10\n2 3 4 1234.5678901\n3 4 5 1234.5678902\n");
+  const std::string warning =
+      ": line 2: intensity 1234.5678901 is kept as the 32-bit float 1234.5679 (intensities are 32-bit floats";
+  const Run streamed = run("stream " + tmp.file("s.relief") + " --columns x,y,z,i --cell 1 --quiet < " +
+                           tmp.file("in.txt"));
+  CHECK(streamed.code == 0);
+  CHECK(has(streamed, "relief stream: warning: stdin" + warning));
+  const Run compressed = run("compress " + tmp.file("in.txt") + " --columns x,y,z,i --cell 1 --quiet -o " +
+                             tmp.file("c.relief"));
+  CHECK(compressed.code == 0);
+  CHECK(has(compressed, "relief compress: warning: " + tmp.file("in.txt") + warning));
+  // Once: the later line is not listed.
+  CHECK_FALSE(has(streamed, "line 3"));
+}
+
 TEST_CASE("stream reads LAS dimensions by name and gives them back", "[cli][ingest]") {
   TempDir tmp;
   write_text(tmp.file("in.txt"),

@@ -1122,6 +1122,32 @@ TEST_CASE("TextLineParser: one line at a time, LAS dimensions by name, checked v
   CHECK_FALSE(relief::TextLineParser::create("x,y,z,r,g", "stdin").is_ok());
 }
 
+TEST_CASE("TextLineParser names the first intensity a float does not give back, once", "[io][stream]") {
+  auto parser = relief::TextLineParser::create("x,y,z,i", "stdin");
+  REQUIRE(parser.is_ok());
+  relief::TextLineParser& p = **parser;
+  relief::PointCloud batch;
+  // Whole numbers up to 2^24 and decimals of up to 6 significant digits come back.
+  REQUIRE(p.parse("1 2 3 153", 1, batch).is_ok());
+  REQUIRE(p.parse("1 2 3 0.12345", 2, batch).is_ok());
+  REQUIRE(p.parse("1 2 3 16777216", 3, batch).is_ok());
+  CHECK(p.take_warnings().empty());
+  // A refused line says nothing of its intensity.
+  CHECK_FALSE(p.parse("1 2 nan 1234.5678901", 4, batch).is_ok());
+  CHECK(p.take_warnings().empty());
+  REQUIRE(p.parse("1 2 3 1234.5678901", 5, batch).is_ok());
+  REQUIRE(p.parse("1 2 3 16777217", 6, batch).is_ok());
+  CHECK(batch.intensities[3] == 1234.5679f);
+  const std::vector<std::string> warnings = p.take_warnings();
+  REQUIRE(warnings.size() == 1);
+  CHECK(warnings[0] ==
+        "stdin: line 5: intensity 1234.5678901 is kept as the 32-bit float 1234.5679 (intensities are 32-bit floats: "
+        "about 7 significant digits, integers exact up to 2^24); later ones are not listed");
+  CHECK(p.take_warnings().empty());  // taken out, and later ones not listed
+  REQUIRE(p.parse("1 2 3 0.123456789", 7, batch).is_ok());
+  CHECK(p.take_warnings().empty());
+}
+
 
 namespace {
 

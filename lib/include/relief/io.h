@@ -196,6 +196,10 @@ class TextLineParser {
   // number or is out of its range is an error naming the input and line_no,
   // and `batch` is unchanged.
   virtual Status parse(std::string_view line, std::uint64_t line_no, PointCloud& batch) const = 0;
+  // What the lines parsed since the last call gave a warning for, once each
+  // (the first intensity a 32-bit float does not give back, as the XYZ
+  // reader's info().warnings), taken out.
+  virtual std::vector<std::string> take_warnings() = 0;
 };
 
 // Fixed-size little-endian binary records, one point each: what `relief
