@@ -317,10 +317,10 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     if ((las_bits & kLasGpsTime) == 0) {
       // Sections 12-17 then follow the layer's order with their plain
       // coding (§11.7.2 needs the times).
-      h.version = kChunkFormatVersion;
+      h.version = kKeptOrderFormatVersion;
       time_order.clear();
     } else if (scan.times_step_back) {
-      h.version = kChunkFormatVersion;  // times that decrease in the layer's order
+      h.version = kKeptOrderFormatVersion;  // times that decrease in the layer's order
     }
   } else if ((las_bits & kLasGpsTime) != 0 && n > 1) {
     LasAttributes cell_las;  // the times in cell order
@@ -520,6 +520,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     payloads.push_back(std::move(coded));
     refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
   }
+  bool scan_angle_successors = false;  // format 15: the scan angle section coded by successors
   if (las_bits != 0) {
     // (Gathering the whole cloud costs less than copying its LAS attributes
     // out first: positions, colours and intensities are a few bytes a point.
@@ -547,7 +548,17 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       } else {
         const int slot = order_slot(bit);
         if (cell_pos.empty() || slot < 0) {
-          payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors));
+          std::vector<std::uint8_t> coded = encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors);
+          if (bit == kLasScanAngle && !time_order.empty()) {
+            // Format 15's coding by successors, where it is smaller (§11.7.2).
+            std::vector<std::uint8_t> by_successors =
+                encode_las_attribute(bit, ordered, n, kScanAngleSuccessorFormatVersion, {}, time_order, base.colors);
+            if (!by_successors.empty() && by_successors.size() < coded.size()) {
+              coded = std::move(by_successors);
+              scan_angle_successors = true;
+            }
+          }
+          payloads.push_back(std::move(coded));
         } else {
           // In cell order: this attribute alone (no context from the others).
           const auto in_cell_order = [&](std::span<const std::uint32_t> at) {
@@ -591,6 +602,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
                          static_cast<std::uint32_t>(n), 0, {}});
     }
   }
+  if (scan_angle_successors) h.version = std::max(h.version, kScanAngleSuccessorFormatVersion);
   // A coder that refused its input (a broken precondition: never for valid
   // points) left its section empty; a range-coded section of n > 0 points
   // never is. Report it rather than store a stream that cannot decode.

@@ -514,6 +514,8 @@ constexpr int kMaxReturnContext = 15;
 
 // Format 11 codes bytes with a hit flag first (code_byte).
 bool byte_hits(int version) { return version >= 11; }
+// Format 15: the scan angle in time order by what followed the same values (§11.7.2).
+bool scan_angle_successors(int version) { return version >= 15; }
 
 // Codes attribute `bit` of las (every vector already sized to n points).
 // `unit` is the common unit of scan angles or NIR (encoder: computed by
@@ -606,6 +608,100 @@ std::vector<std::uint8_t> las_pulse_kinds(const std::vector<double>& gps, std::s
 
 namespace {
 
+// A map from 64-bit keys to the last residual stored under them: open
+// addressing, linear probing, doubled at half load. Only lookups and stores
+// are used, so its behaviour is that of any map (format-spec/chunk.md
+// §11.7.2, version 15); at most one entry per point is added.
+class SuccessorMap {
+ public:
+  SuccessorMap() : keys_(kFirstCapacity), values_(kFirstCapacity), used_(kFirstCapacity, 0) {}
+
+  const std::int64_t* find(std::uint64_t key) const {
+    for (std::size_t i = slot(key);; i = (i + 1) & (keys_.size() - 1)) {
+      if (!used_[i]) return nullptr;
+      if (keys_[i] == key) return &values_[i];
+    }
+  }
+  void store(std::uint64_t key, std::int64_t value) {
+    std::size_t i = slot(key);
+    while (used_[i] && keys_[i] != key) i = (i + 1) & (keys_.size() - 1);
+    if (used_[i]) {
+      values_[i] = value;
+      return;
+    }
+    keys_[i] = key;
+    values_[i] = value;
+    used_[i] = 1;
+    if (2 * ++size_ > keys_.size()) grow();
+  }
+
+ private:
+  static constexpr std::size_t kFirstCapacity = 1024;
+  std::size_t slot(std::uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> (64 - std::countr_zero(keys_.size())));
+  }
+  void grow() {
+    std::vector<std::uint64_t> keys(2 * keys_.size());
+    std::vector<std::int64_t> values(keys.size());
+    std::vector<std::uint8_t> used(keys.size(), 0);
+    keys.swap(keys_);
+    values.swap(values_);
+    used.swap(used_);
+    size_ = 0;
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+      if (used[i]) store(keys[i], values[i]);
+    }
+  }
+
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::int64_t> values_;
+  std::vector<std::uint8_t> used_;
+  std::size_t size_ = 0;
+};
+
+// Version 15 (§11.7.2): each scan angle step between pulses with the model
+// set of what followed the same two values (else the same value) the last
+// time, which a scanner's fixed angular sampling repeats line after line.
+// `q` is the value / unit sequence; returns false on a stream or value the
+// section cannot hold.
+constexpr std::int64_t kSuccessorReach = 64;  // predicted steps -64..64 have sets of their own
+constexpr std::size_t kSuccessorClasses = 2 * kSuccessorReach + 2;  // + "nothing stored"
+
+template <typename C>
+bool code_scan_angle_successors(C& c, LasAttributes& las, std::size_t n, std::int64_t u,
+                                const std::vector<std::uint8_t>& kind) {
+  // Set 0: points of the same pulse; then by (gap?, order) × predicted class.
+  auto models = std::make_unique<SIntModel[]>(1 + 2 * 2 * kSuccessorClasses);
+  SuccessorMap pairs, singles;
+  std::uint64_t prev = 0, before = 0;  // q_{k-1}, and q_{k-1} as it was at the last step between pulses
+  for (std::size_t k = 0; k < n; ++k) {
+    std::int64_t r = static_cast<std::int64_t>(static_cast<std::uint64_t>(static_cast<std::int64_t>(las.scan_angle[k]) / u) - prev);
+    std::size_t ctx = 0;
+    const bool step = kind[k] != kPulseSame;
+    // Every q fits 32 bits (checked below), so the pair packs into one key.
+    const std::uint64_t pair_key = ((before & 0xFFFFFFFFu) << 32) | (prev & 0xFFFFFFFFu);
+    if (step) {
+      const std::int64_t* s = pairs.find(pair_key);
+      const std::size_t order = s != nullptr ? 1 : 0;
+      if (s == nullptr) s = singles.find(prev);
+      const std::size_t cls =
+          s == nullptr ? 0 : static_cast<std::size_t>(std::clamp(*s, -kSuccessorReach, kSuccessorReach) + kSuccessorReach + 1);
+      ctx = 1 + ((kind[k] == kPulseGap ? 2 : 0) + order) * kSuccessorClasses + cls;
+    }
+    if (!c.sint(models[ctx], r) || !c.ok()) return false;
+    if (step) {
+      pairs.store(pair_key, r);
+      singles.store(prev, r);
+      before = prev;
+    }
+    prev += static_cast<std::uint64_t>(r);
+    const auto q = static_cast<std::int64_t>(prev);
+    if (q < INT32_MIN / u || q > INT32_MAX / u) return false;
+    las.scan_angle[k] = static_cast<std::int32_t>(q * u);
+  }
+  return true;
+}
+
 // An attribute of kLasTimeOrdered with its points in time order (las's
 // vectors hold them so), where consecutive points are consecutive returns
 // and pulses as LAZ codes them; `kind` from las_pulse_kinds. A pulse's returns
@@ -613,7 +709,7 @@ namespace {
 // up; the scan angle moves slowly along a line.
 template <typename C>
 bool code_time_ordered(C& c, std::uint32_t bit, LasAttributes& las, std::size_t n, std::uint64_t unit,
-                       const std::vector<std::uint8_t>& kind, bool hits) {
+                       const std::vector<std::uint8_t>& kind, bool hits, bool successors) {
   if (kind.size() < n) return false;
   switch (bit) {
     case kLasReturnNumber:
@@ -655,6 +751,7 @@ bool code_time_ordered(C& c, std::uint32_t bit, LasAttributes& las, std::size_t 
       constexpr std::uint64_t kMaxUnit = std::uint64_t{1} << 31;
       if (!code_unit(c, unit, kMaxUnit)) return false;
       const auto u = static_cast<std::int64_t>(unit);
+      if (successors) return code_scan_angle_successors(c, las, n, u, kind);
       constexpr std::size_t kBefore = 3;
       auto models = std::make_unique<SIntModel[]>(kPulseKinds * kDeltaClasses * kBefore * 2);
       std::uint64_t prev = 0;
@@ -881,7 +978,8 @@ std::vector<std::uint8_t> encode_las_attribute(std::uint32_t bit, const LasAttri
     LasAttributes ordered;
     gather_time_ordered(bit, las, ordered, time_order);
     std::uint64_t unit = bit == kLasScanAngle ? common_unit(ordered.scan_angle) : 1;
-    if (!code_time_ordered(c, bit, ordered, n, unit, las_pulse_kinds(las.gps_time, time_order), byte_hits(version))) {
+    if (!code_time_ordered(c, bit, ordered, n, unit, las_pulse_kinds(las.gps_time, time_order), byte_hits(version),
+                           scan_angle_successors(version))) {
       return {};
     }
     return enc.finish();
@@ -980,7 +1078,8 @@ Status decode_las_attribute(std::uint32_t bit, std::span<const std::uint8_t> dat
     DecCoder c(dec);
     BitModel constant_flag;
     c.bit(constant_flag, 0);  // 0: read above
-    if (!code_time_ordered(c, bit, ordered, n, 1, las_pulse_kinds(las.gps_time, time_order), byte_hits(version)) ||
+    if (!code_time_ordered(c, bit, ordered, n, 1, las_pulse_kinds(las.gps_time, time_order), byte_hits(version),
+                           scan_angle_successors(version)) ||
         dec.overrun() > 0) {
       return corrupt_data(std::string(las_attribute_name(bit)) + " section: invalid or truncated stream");
     }

@@ -1,4 +1,4 @@
-// Golden vectors for chunk format versions 1 to 14 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 15 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -6,6 +6,7 @@
 // Vectors of a version the encoder no longer writes are frozen: regeneration
 // leaves them alone and only their decoding is checked.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -89,10 +90,30 @@ PointCloud las_scan_shuffled() {
   return scan.gathered(test::Rng(2029).permutation(scan.size()));
 }
 
+// The scan with a scanner's scan angles: the same irregular sequence of
+// quantised angles (0.006 degree units) on every line of 50 pulses, back and
+// forth, which format 15 codes by their successors (chunk.md §11.7.2).
+PointCloud las_scan_repeating() {
+  PointCloud scan = las_scan_scene();
+  std::vector<double> times = scan.las.gps_time;
+  std::sort(times.begin(), times.end());
+  times.erase(std::unique(times.begin(), times.end()), times.end());
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    const auto pulse = static_cast<std::size_t>(
+        std::lower_bound(times.begin(), times.end(), scan.las.gps_time[i]) - times.begin());
+    const std::size_t line = pulse / 50, along = pulse % 50;
+    const double a = static_cast<double>(line % 2 == 0 ? along : 49 - along);
+    scan.las.scan_angle[i] = 6 * static_cast<std::int32_t>(std::lround(a * 19.7 + 7 * std::sin(a * 0.37))) - 3000;
+  }
+  return scan;
+}
+
 bool has_las(PointCloud (*make)()) {
   return make == las_scene || make == las_scene_8bit || make == las_scan_scene || make == las_scene_int ||
-         make == las_scene_untimed || make == las_scan_shuffled;
+         make == las_scene_untimed || make == las_scan_shuffled || make == las_scan_repeating;
 }
+
+bool is_scan(PointCloud (*make)()) { return make == las_scan_scene || make == las_scan_repeating; }
 
 bool keeps_order(const EncodeParams& p) { return p.bound && p.bound->keep_order; }
 
@@ -213,7 +234,12 @@ std::vector<Vector> vectors() {
           {"bounded_keep_order_las_scan_v13", bounded_keep_order, las_scan_scene, 13},
           {"bounded_keep_order_rgb_intensity_v14", bounded_keep_order, voxel_scene, 14},
           {"bounded_keep_order_las_untimed_v14", bounded_keep_order, las_scene_untimed, 14},
-          {"bounded_keep_order_las_shuffled_v14", bounded_keep_order, las_scan_shuffled, 14}};
+          {"bounded_keep_order_las_shuffled_v14", bounded_keep_order, las_scan_shuffled, 14},
+          // Format 15: scan angles in time order coded by their successors
+          // (§11.7.2), written where that is smaller: angles that repeat line
+          // after line, as a scanner's do.
+          {"bounded_las_scan_repeating_v15", bounded, las_scan_repeating, 15},
+          {"bounded_keep_order_las_scan_repeating_v15", bounded_keep_order, las_scan_repeating, 15}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -256,7 +282,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 14 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 15 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
@@ -284,13 +310,13 @@ TEST_CASE("golden chunk blobs of format versions 1 to 14 decode (and the current
     // The geometry's codec: 9 (time order) for the scan, the octree for the others.
     for (const ChunkSectionInfo& s : info->sections) {
       if (s.id == 7 && v.version >= 8) {
-        CHECK(s.codec == (v.make == las_scan_scene || keeps_order(v.params) ? 9
+        CHECK(s.codec == (is_scan(v.make) || keeps_order(v.params) ? 9
                           : v.version >= 13                                  ? 12
                           : v.version >= 10                                  ? 11
                                                                              : 8));
       }
       // Format 9: colours in cell order (every octree layer) are predicted from neighbours.
-      if (s.id == 8 && v.version >= 9 && v.make != las_scan_scene && !keeps_order(v.params)) CHECK(s.codec == 10);
+      if (s.id == 8 && v.version >= 9 && !is_scan(v.make) && !keeps_order(v.params)) CHECK(s.codec == 10);
     }
     // Encoder stability: the same input and parameters give the same bytes.
     if (!v.frozen) CHECK(*blob == golden);

@@ -56,10 +56,17 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // encoder writes it for every cloud. Version 14: version 13 whose geometry
 // may be in scan order without GPS times, or with times that step back, the
 // points then in the order the encoder was given them (ErrorBound::keep_order);
-// the encoder writes it for those blobs alone, 13 for every other.
-inline constexpr std::uint16_t kChunkFormatVersion = 14;
+// the encoder writes it for those blobs alone, 13 for every other. Version
+// 15: version 14 whose scan angles in time order are coded with the model set
+// of what followed the same values before (a scanner's angular sampling
+// repeats line after line); the encoder writes it where that is smaller.
+inline constexpr std::uint16_t kChunkFormatVersion = 15;
 // What the error-bounded encoder writes for every other blob.
 inline constexpr std::uint16_t kOrderFreeFormatVersion = 13;
+// Geometry in the given order without GPS times, or with times that step back.
+inline constexpr std::uint16_t kKeptOrderFormatVersion = 14;
+// Scan angles in time order by their successors (format-spec/chunk.md §11.7.2).
+inline constexpr std::uint16_t kScanAngleSuccessorFormatVersion = 15;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
