@@ -109,7 +109,11 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
   std::uint32_t las = want.las_kept();
   if ((las & kLasNumberOfReturns) != 0) las |= kLasReturnNumber;
   if ((las & kLasTimeOrdered) != 0 && h.version >= 6) las |= kLasGpsTime;
-  const bool with_colors = want.colors;
+  // From format 15 NIR is coded against the colours (§11.7): they are
+  // decoded for it, and dropped again unless wanted.
+  const bool nir_needs_colors = (las & kLasNir) != 0 && h.version >= kLasCodingFormatVersion &&
+                                (h.flags & kFlagColors) != 0 && (h.las_attributes & kLasNir) != 0;
+  const bool with_colors = want.colors || nir_needs_colors;
   // The order mask's slots (§11.3.3) of the sections decoded.
   std::uint8_t slots = 0;
   if (with_colors) slots |= 1u << kOrderSlotColors;
@@ -225,8 +229,8 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
     if (in_cells(order_slot(bit))) {
       LasAttributes by_cell;
       by_cell.extra_bytes_size = h.extra_bytes_size;
-      std::vector<Rgb8> colors;  // the colour low bytes' "equal" decision compares in cell order
-      if (bit == kLasColorLow) {
+      std::vector<Rgb8> colors;  // the colour low bytes' "equal" decision, and NIR, in cell order
+      if (bit == kLasColorLow || bit == kLasNir) {
         colors.resize(out.colors.size());
         for (std::size_t j = 0; j < colors.size(); ++j) colors[j] = out.colors[cell_pos[j]];
       }
@@ -239,6 +243,7 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
         decode_las_attribute(bit, s.payload, n, out.las, h.version, point_cells, time_order, out.colors)
             .with_context("chunk blob"));
   }
+  if (!want.colors) out.colors.clear();
   return out;
 }
 

@@ -520,7 +520,14 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     payloads.push_back(std::move(coded));
     refined.push_back({SectionId::kPointIntensity, SectionCodec::kArithmetic, static_cast<std::uint32_t>(n), 0, {}});
   }
-  bool scan_angle_successors = false;  // format 15: the scan angle section coded by successors
+  // Format 15's codings of the sections it codes otherwise (§11.7: NIR
+  // against the colours, the scan angle in time order by successors), by
+  // index in payloads: the blob is format 15 when together they are smaller.
+  struct Format15Coding {
+    std::size_t index;
+    std::vector<std::uint8_t> payload;
+  };
+  std::vector<Format15Coding> format15;
   if (las_bits != 0) {
     // (Gathering the whole cloud costs less than copying its LAS attributes
     // out first: positions, colours and intensities are a few bytes a point.
@@ -547,33 +554,31 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         payloads.push_back(std::move(gps_payload));
       } else {
         const int slot = order_slot(bit);
+        // The section's format-15 coding, where it differs (§11.7, §11.7.2):
+        // the scan angle in time order, NIR with colours.
+        const bool v15_differs =
+            (bit == kLasScanAngle && !time_order.empty()) || (bit == kLasNir && !base.colors.empty());
         if (cell_pos.empty() || slot < 0) {
-          std::vector<std::uint8_t> coded = encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors);
-          if (bit == kLasScanAngle && !time_order.empty()) {
-            // Format 15's coding by successors, where it is smaller (§11.7.2).
-            std::vector<std::uint8_t> by_successors =
-                encode_las_attribute(bit, ordered, n, kScanAngleSuccessorFormatVersion, {}, time_order, base.colors);
-            if (!by_successors.empty() && by_successors.size() < coded.size()) {
-              coded = std::move(by_successors);
-              scan_angle_successors = true;
-            }
+          payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors));
+          if (v15_differs) {
+            format15.push_back({payloads.size() - 1, encode_las_attribute(bit, ordered, n, kLasCodingFormatVersion, {},
+                                                                          time_order, base.colors)});
           }
-          payloads.push_back(std::move(coded));
         } else {
           // In cell order: this attribute alone (no context from the others).
-          const auto in_cell_order = [&](std::span<const std::uint32_t> at) {
+          const auto in_cell_order = [&](std::span<const std::uint32_t> at, int version) {
             LasAttributes by_cell;
             by_cell.extra_bytes_size = ordered.extra_bytes_size;
             permute_las_attribute(bit, ordered, by_cell, at, Permute::kGather);
             std::vector<Rgb8> colors;  // the decoded colours, in that order
-            if (bit == kLasColorLow) {
-              colors.resize(at.size());
-              for (std::size_t j = 0; j < at.size(); ++j) colors[j] = base.colors[at[j]];
+            if (bit == kLasColorLow || bit == kLasNir) {
+              colors.resize(base.colors.empty() ? 0 : at.size());
+              for (std::size_t j = 0; j < colors.size(); ++j) colors[j] = base.colors[at[j]];
             }
-            return encode_las_attribute(bit, by_cell, at.size(), h.version, {}, {}, colors);
+            return encode_las_attribute(bit, by_cell, at.size(), version, {}, {}, colors);
           };
           const OrderChoice choice = choose_order([&](std::span<const std::uint32_t> at, bool in_cells) {
-            if (in_cells) return in_cell_order(at);
+            if (in_cells) return in_cell_order(at, h.version);
             // In the layer's (time) order: every attribute at those points
             // (`at` is sample_layer), the lower bits being context, gathered
             // once for every section.
@@ -594,15 +599,34 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
           if (choice != OrderChoice::kCells) {
             in_layer = encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors);
           }
-          if (choice != OrderChoice::kLayer) in_cells = in_cell_order(cell_pos);
+          if (choice != OrderChoice::kLayer) in_cells = in_cell_order(cell_pos, h.version);
           payloads.push_back(keep(slot, choice, std::move(in_layer), std::move(in_cells)));
+          if (v15_differs) {
+            // In the order kept (the order trial's codings are format 13's).
+            const bool cells_kept = (order_mask & (1u << slot)) != 0;
+            format15.push_back({payloads.size() - 1,
+                                cells_kept ? in_cell_order(cell_pos, kLasCodingFormatVersion)
+                                           : encode_las_attribute(bit, ordered, n, kLasCodingFormatVersion, {},
+                                                                  time_order, base.colors)});
+          }
         }
       }
       refined.push_back({static_cast<SectionId>(kFirstLasSection + b), SectionCodec::kArithmetic,
                          static_cast<std::uint32_t>(n), 0, {}});
     }
   }
-  if (scan_angle_successors) h.version = std::max(h.version, kScanAngleSuccessorFormatVersion);
+  if (!format15.empty()) {
+    std::int64_t saved = 0;  // bytes format 15 saves over the codings above
+    bool coded = true;
+    for (const Format15Coding& f : format15) {
+      coded = coded && !f.payload.empty();
+      saved += static_cast<std::int64_t>(payloads[f.index].size()) - static_cast<std::int64_t>(f.payload.size());
+    }
+    if (coded && saved > 0) {
+      for (Format15Coding& f : format15) payloads[f.index] = std::move(f.payload);
+      h.version = std::max(h.version, kLasCodingFormatVersion);
+    }
+  }
   // A coder that refused its input (a broken precondition: never for valid
   // points) left its section empty; a range-coded section of n > 0 points
   // never is. Report it rather than store a stream that cannot decode.

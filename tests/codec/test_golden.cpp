@@ -92,7 +92,8 @@ PointCloud las_scan_shuffled() {
 
 // The scan with a scanner's scan angles: the same irregular sequence of
 // quantised angles (0.006 degree units) on every line of 50 pulses, back and
-// forth, which format 15 codes by their successors (chunk.md §11.7.2).
+// forth, which format 15 codes by their successors (chunk.md §11.7.2), and a
+// NIR band that follows the green one (§11.7).
 PointCloud las_scan_repeating() {
   PointCloud scan = las_scan_scene();
   std::vector<double> times = scan.las.gps_time;
@@ -104,6 +105,10 @@ PointCloud las_scan_repeating() {
     const std::size_t line = pulse / 50, along = pulse % 50;
     const double a = static_cast<double>(line % 2 == 0 ? along : 49 - along);
     scan.las.scan_angle[i] = 6 * static_cast<std::int32_t>(std::lround(a * 19.7 + 7 * std::sin(a * 0.37))) - 3000;
+    // An 8-bit NIR band (stored x 256) that moves with the green one, which
+    // format 15 codes NIR against.
+    const int nir = scan.colors[i].g / 2 + 60 + static_cast<int>(i * 7 % 5);
+    scan.las.nir[i] = static_cast<std::uint16_t>(std::min(nir, 255) * 256);
   }
   return scan;
 }

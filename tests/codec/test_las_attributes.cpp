@@ -74,7 +74,7 @@ TEST_CASE("LAS attributes: every combination of carried attributes round-trips e
     REQUIRE(info.is_ok());
     // 15 where the scan angles in time order code smaller by their successors.
     CHECK((info->format_version == kOrderFreeFormatVersion ||
-           (info->format_version == kScanAngleSuccessorFormatVersion && (bits & kLasScanAngle) != 0 &&
+           (info->format_version == kLasCodingFormatVersion && (bits & kLasScanAngle) != 0 &&
             (bits & kLasGpsTime) != 0)));
     CHECK(info->las_attributes == bits);
     CHECK(info->extra_bytes_size == ((bits & kLasExtraBytes) ? 1 + bits % 64 : 0));
@@ -399,7 +399,7 @@ TEST_CASE("format 15: scan angles that repeat line after line are coded by their
   REQUIRE(blob.is_ok());
   auto info = inspect_chunk(*blob);
   REQUIRE(info.is_ok());
-  CHECK(info->format_version == kScanAngleSuccessorFormatVersion);
+  CHECK(info->format_version == kLasCodingFormatVersion);
   auto out = decode_chunk(*blob);
   REQUIRE(out.is_ok());
   CHECK(records(*out) == expected_records(in, *p.bound));
@@ -455,6 +455,45 @@ TEST_CASE("format 15: scan angles that repeat line after line are coded by their
   auto flat = encode_chunk(in, p);
   REQUIRE(flat.is_ok());
   CHECK(inspect_chunk(*flat)->format_version == kOrderFreeFormatVersion);
+}
+
+TEST_CASE("format 15: NIR that moves with the green band is coded against the colours, exactly and cheaper",
+          "[codec][las]") {
+  PointCloud in = scene(17, 4000, true);
+  test::add_las_attributes(in, kLasNir, 0, 17, false);
+  const std::size_t n = in.size();
+  test::Rng rng(9);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int nir = in.colors[i].g * 3 / 4 + 20 + static_cast<int>(rng.next() % 7);
+    in.las.nir[i] = static_cast<std::uint16_t>(std::min(nir, 255) * 256);
+  }
+  const std::vector<std::uint8_t> v13 = codec::encode_las_attribute(kLasNir, in.las, n, 13, {}, {}, in.colors);
+  const std::vector<std::uint8_t> v15 = codec::encode_las_attribute(kLasNir, in.las, n, 15, {}, {}, in.colors);
+  INFO("format 13: " << v13.size() << " bytes, format 15: " << v15.size());
+  CHECK(v15.size() < v13.size());
+  LasAttributes back;
+  REQUIRE(codec::decode_las_attribute(kLasNir, v15, n, back, 15, {}, {}, in.colors).is_ok());
+  CHECK(back.nir == in.las.nir);
+  // The colours it was coded against must all be there.
+  LasAttributes short_colors;
+  CHECK(codec::decode_las_attribute(kLasNir, v15, n, short_colors, 15, {}, {}, std::span(in.colors).first(n - 1))
+            .code() == StatusCode::kCorruptData);
+  // Through the chunk codec: format 15, exact, and NIR alone decodes (the
+  // colours decoded for it, not returned).
+  const EncodeParams p = params_for(0.002, 1.0);
+  auto blob = encode_chunk(in, p);
+  REQUIRE(blob.is_ok());
+  CHECK(inspect_chunk(*blob)->format_version == kLasCodingFormatVersion);
+  auto out = decode_chunk(*blob);
+  REQUIRE(out.is_ok());
+  CHECK(records(*out) == expected_records(in, *p.bound));
+  DecodeOptions nir_only;
+  nir_only.attributes = AttributeSet::none();
+  nir_only.attributes.las = kLasNir;
+  auto alone = decode_chunk(*blob, nir_only);
+  REQUIRE(alone.is_ok());
+  CHECK(alone->colors.empty());
+  CHECK(alone->las.nir == out->las.nir);
 }
 
 TEST_CASE("LAS attributes: time-ordered attributes with one time for all, and shared times, are exact", "[codec][las]") {

@@ -59,14 +59,17 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // the encoder writes it for those blobs alone, 13 for every other. Version
 // 15: version 14 whose scan angles in time order are coded with the model set
 // of what followed the same values before (a scanner's angular sampling
-// repeats line after line); the encoder writes it where that is smaller.
+// repeats line after line), and whose NIR values are coded in the context of
+// the green level's change at the same points (the bands move together); the
+// encoder writes it where those two sections are smaller so.
 inline constexpr std::uint16_t kChunkFormatVersion = 15;
 // What the error-bounded encoder writes for every other blob.
 inline constexpr std::uint16_t kOrderFreeFormatVersion = 13;
 // Geometry in the given order without GPS times, or with times that step back.
 inline constexpr std::uint16_t kKeptOrderFormatVersion = 14;
-// Scan angles in time order by their successors (format-spec/chunk.md §11.7.2).
-inline constexpr std::uint16_t kScanAngleSuccessorFormatVersion = 15;
+// Scan angles in time order by their successors, NIR against the colours
+// (format-spec/chunk.md §11.7, §11.7.2).
+inline constexpr std::uint16_t kLasCodingFormatVersion = 15;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
