@@ -218,6 +218,48 @@ std::size_t section_offset(const std::vector<std::uint8_t>& blob, const ChunkInf
   return blob.size();
 }
 
+std::uint32_t section_size(const ChunkInfo& info, int id) {
+  for (const ChunkSectionInfo& s : info.sections) {
+    if (s.id == id) return s.coded_size;
+  }
+  return 0;
+}
+
+// Damages section `id` of `blob` `trials` times, every `whole`-th time all
+// its bytes at random, else one byte, and decodes each without the checksum:
+// a refusal must be corrupt data, a decode goes to `check`. Returns how many
+// were refused.
+template <typename Check>
+int damage_section(const std::vector<std::uint8_t>& blob, int id, int trials, int whole, test::Rng& rng,
+                   Check&& check) {
+  auto info = inspect_chunk(blob);
+  REQUIRE(info.is_ok());
+  const std::size_t at = section_offset(blob, *info, id);
+  const std::uint32_t size = section_size(*info, id);
+  REQUIRE(size > 0);
+  REQUIRE(at + size <= blob.size());
+  DecodeOptions nocrc;
+  nocrc.verify_checksum = false;
+  int refused = 0;
+  for (int t = 0; t < trials; ++t) {
+    std::vector<std::uint8_t> bad = blob;
+    if (t % whole == 0) {
+      for (std::size_t k = 0; k < size; ++k) bad[at + k] = static_cast<std::uint8_t>(rng.next());
+    } else {
+      const std::size_t k = at + rng.next() % size;
+      bad[k] = static_cast<std::uint8_t>(bad[k] ^ (1u + rng.next() % 255));
+    }
+    auto r = decode_chunk(bad, nocrc);
+    if (!r.is_ok()) {
+      ++refused;
+      CHECK(r.status().code() == StatusCode::kCorruptData);
+    } else {
+      check(*r);
+    }
+  }
+  return refused;
+}
+
 }  // namespace
 
 TEST_CASE("LAS attributes: GPS times in time order (formats 6 and 7) are exact and cheap for a scan", "[codec][las]") {
@@ -255,35 +297,14 @@ TEST_CASE("LAS attributes: a hostile format-6 GPS time section is refused or dec
   REQUIRE(blob.is_ok());
   auto info = inspect_chunk(*blob);
   REQUIRE(info.is_ok());
-  const std::size_t at = section_offset(*blob, *info, 18);
-  std::uint32_t size = 0;
-  for (const ChunkSectionInfo& s : info->sections) {
-    if (s.id == 18) size = s.coded_size;
-  }
-  REQUIRE(size > 8);
-  REQUIRE(at + size + 4 <= blob->size());
-  DecodeOptions nocrc;
-  nocrc.verify_checksum = false;
+  REQUIRE(section_size(*info, 18) > 8);
+  REQUIRE(section_offset(*blob, *info, 18) + section_size(*info, 18) + 4 <= blob->size());
+  // Random bytes (every third time): any bucket shift, ranks and escapes.
   test::Rng rng(21);
-  int refused = 0;
-  for (int t = 0; t < 300; ++t) {
-    std::vector<std::uint8_t> bad = *blob;
-    if (t % 3 == 0) {
-      // Random bytes: any bucket shift, ranks and escapes.
-      for (std::size_t k = 0; k < size; ++k) bad[at + k] = static_cast<std::uint8_t>(rng.next());
-    } else {
-      const std::size_t k = at + rng.next() % size;
-      bad[k] = static_cast<std::uint8_t>(bad[k] ^ (1u + rng.next() % 255));
-    }
-    auto r = decode_chunk(bad, nocrc);
-    if (!r.is_ok()) {
-      ++refused;
-      CHECK(r.status().code() == StatusCode::kCorruptData);
-    } else {
-      CHECK(r->size() == in.size());
-      for (const double g : r->las.gps_time) CHECK(std::isfinite(g));
-    }
-  }
+  const int refused = damage_section(*blob, 18, 300, 3, rng, [&](const PointCloud& r) {
+    CHECK(r.size() == in.size());
+    for (const double g : r.las.gps_time) CHECK(std::isfinite(g));
+  });
   CHECK(refused > 0);
 }
 
@@ -423,33 +444,8 @@ TEST_CASE("format 15: scan angles that repeat line after line are coded by their
   CHECK((!misread.is_ok() || other.scan_angle != in.las.scan_angle));
   // Damaged successor sections are refused as corrupt data or decode to as
   // many points, in bounded time.
-  const std::size_t at = section_offset(*blob, *info, 15);
-  std::uint32_t size = 0;
-  for (const ChunkSectionInfo& s : info->sections) {
-    if (s.id == 15) size = s.coded_size;
-  }
-  REQUIRE(size > 0);
-  DecodeOptions nocrc;
-  nocrc.verify_checksum = false;
   test::Rng rng(5);
-  int refused = 0;
-  for (int t = 0; t < 80; ++t) {
-    std::vector<std::uint8_t> bad = *blob;
-    if (t % 4 == 0) {
-      for (std::size_t k = 0; k < size; ++k) bad[at + k] = static_cast<std::uint8_t>(rng.next());
-    } else {
-      const std::size_t k = at + rng.next() % size;
-      bad[k] = static_cast<std::uint8_t>(bad[k] ^ (1u + rng.next() % 255));
-    }
-    auto r = decode_chunk(bad, nocrc);
-    if (!r.is_ok()) {
-      ++refused;
-      CHECK(r.status().code() == StatusCode::kCorruptData);
-    } else {
-      CHECK(r->las.scan_angle.size() == n);
-    }
-  }
-  CHECK(refused > 0);
+  CHECK(damage_section(*blob, 15, 80, 4, rng, [&](const PointCloud& r) { CHECK(r.las.scan_angle.size() == n); }) > 0);
   // Constant angles code the same either way: the blob stays format 13.
   for (std::int32_t& a : in.las.scan_angle) a = 600;
   auto flat = encode_chunk(in, p);
@@ -520,37 +516,13 @@ TEST_CASE("LAS attributes: hostile time-ordered sections are refused or decode, 
   const PointCloud in = scan_with_pulses(16, 10, 40);
   auto blob = encode_chunk(in, params_for(0.005, 1.0));
   REQUIRE(blob.is_ok());
-  auto info = inspect_chunk(*blob);
-  REQUIRE(info.is_ok());
-  DecodeOptions nocrc;
-  nocrc.verify_checksum = false;
   test::Rng rng(23);
   int refused = 0;
   for (const int id : {12, 13, 14, 15, 16, 17, 18}) {
-    const std::size_t at = section_offset(*blob, *info, id);
-    std::uint32_t size = 0;
-    for (const ChunkSectionInfo& s : info->sections) {
-      if (s.id == id) size = s.coded_size;
-    }
-    REQUIRE(size > 0);
-    REQUIRE(at + size <= blob->size());
-    for (int t = 0; t < 60; ++t) {
-      std::vector<std::uint8_t> bad = *blob;
-      if (t % 3 == 0) {
-        for (std::size_t k = 0; k < size; ++k) bad[at + k] = static_cast<std::uint8_t>(rng.next());
-      } else {
-        const std::size_t k = at + rng.next() % size;
-        bad[k] = static_cast<std::uint8_t>(bad[k] ^ (1u + rng.next() % 255));
-      }
-      auto r = decode_chunk(bad, nocrc);
-      if (!r.is_ok()) {
-        ++refused;
-        CHECK(r.status().code() == StatusCode::kCorruptData);
-      } else {
-        CHECK(r->size() == in.size());
-        CHECK(r->las.scan_angle.size() == in.size());
-      }
-    }
+    refused += damage_section(*blob, id, 60, 3, rng, [&](const PointCloud& r) {
+      CHECK(r.size() == in.size());
+      CHECK(r.las.scan_angle.size() == in.size());
+    });
   }
   CHECK(refused > 0);
 }
