@@ -115,7 +115,8 @@ bool code_deltas(C& c, std::size_t n, Get&& get, Put&& put) {
 // level's change between the same two points (clamped to ±12) and of the
 // class of the previous difference. The NIR band moves with the visible ones
 // (shadows, roofs, vegetation edges), green most closely: on the aerial tile
-// of the shared files NIR costs 4.11 bits a point with code_deltas, 3.27 so.
+// of the shared files NIR costs 4.12 bits a point with code_deltas, 3.35 so
+// (bench/attributes).
 constexpr std::int64_t kGreenReach = 12;
 
 template <typename C, typename Get, typename Put>
@@ -692,7 +693,7 @@ class SuccessorMap {
 // Version 15 (§11.7.2): each scan angle step between pulses with the model
 // set of what followed the same two values (else the same value) the last
 // time, which a scanner's fixed angular sampling repeats line after line.
-// `q` is the value / unit sequence; returns false on a stream or value the
+// Values are coded as q = angle / u; returns false on a stream or value the
 // section cannot hold.
 constexpr std::int64_t kSuccessorReach = 64;  // predicted steps -64..64 have sets of their own
 constexpr std::size_t kSuccessorClasses = 2 * kSuccessorReach + 2;  // + "nothing stored"
