@@ -565,12 +565,6 @@ class XyzPointReader final : public BatchPointReader {
                      std::vector<std::uint16_t>* wide);
   // Reads kept column `extra` (column c of the line) into extra_values_.
   Status parse_extra(std::string_view tok, std::size_t c, std::size_t extra, std::uint64_t line_no);
-  // Intensities are 32-bit floats. The first one whose text the float does
-  // not give back (more than about 7 significant digits: 1234.5678901 comes
-  // back as 1234.5679) becomes a warning in info().warnings, read when the
-  // input is done (as the PLY reader's extra vertices); PLY and PCD say it
-  // from their header's types.
-  void note_intensity_rounding(double text_value, int digits, std::uint64_t line_no);
 
   InputSpec input_;
   ReaderOptions options_;
@@ -582,6 +576,11 @@ class XyzPointReader final : public BatchPointReader {
   std::string pending_;  // the first data line, read by start()
   std::uint64_t pending_line_no_ = 0;
   bool has_pending_ = false;
+  // Intensities are 32-bit floats. The first one whose text the float does
+  // not give back (more than about 7 significant digits: 1234.5678901 comes
+  // back as 1234.5679) becomes a warning in info().warnings, read when the
+  // input is done (as the PLY reader's extra vertices); PLY and PCD say it
+  // from their header's types.
   bool intensity_rounding_noted_ = false;
   bool explicit_columns_ = false;  // ReaderOptions::xyz_columns, not a header, gave the plan
   bool probe_ = false;             // samples colour levels for another reader (open)
@@ -766,11 +765,14 @@ std::string intensity_rounding_warning(const std::string& input, double text_val
          "not listed";
 }
 
-void XyzPointReader::note_intensity_rounding(double text_value, int digits, std::uint64_t line_no) {
-  std::string warning = intensity_rounding_warning(name(), text_value, digits, line_no);
+// Adds that warning to `warnings` once per input: `noted` says it was.
+void note_intensity_rounding(const std::string& input, double text_value, int digits, std::uint64_t line_no,
+                             bool& noted, std::vector<std::string>& warnings) {
+  if (noted) return;
+  std::string warning = intensity_rounding_warning(input, text_value, digits, line_no);
   if (warning.empty()) return;
-  intensity_rounding_noted_ = true;
-  info_.warnings.push_back(std::move(warning));
+  noted = true;
+  warnings.push_back(std::move(warning));
 }
 
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
@@ -812,8 +814,9 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     for (int k = 0; k < 3; ++k) levels[k] = static_cast<std::uint16_t>(std::lround(v[at_role(roles[k])]));
   }
   const float intensity = plan_.intensity ? static_cast<float>(v[at_role(Role::kIntensity)]) : 0.0f;
-  if (plan_.intensity && !intensity_rounding_noted_) {
-    note_intensity_rounding(v[at_role(Role::kIntensity)], intensity_digits, line_no);
+  if (plan_.intensity) {
+    note_intensity_rounding(name(), v[at_role(Role::kIntensity)], intensity_digits, line_no, intensity_rounding_noted_,
+                            info_.warnings);
   }
   out.positions.push_back(p);
   push_las_columns(v, plan_.las, out.las);
@@ -953,12 +956,9 @@ class TextLineParserImpl final : public StreamFields<TextLineParser> {
     if (const std::string problem = text_point_problem(v, plan_, las_columns_, 255); !problem.empty()) {
       return error(problem);
     }
-    if (plan_.intensity && !intensity_rounding_noted_) {
-      std::string warning = intensity_rounding_warning(name_, v[at_role(Role::kIntensity)], intensity_digits, line_no);
-      if (!warning.empty()) {
-        intensity_rounding_noted_ = true;
-        warnings_.push_back(std::move(warning));
-      }
+    if (plan_.intensity) {
+      note_intensity_rounding(name_, v[at_role(Role::kIntensity)], intensity_digits, line_no, intensity_rounding_noted_,
+                              warnings_);
     }
     append_point(v, plan_, batch);
     if (extra_size_ > 0) {
