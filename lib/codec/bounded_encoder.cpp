@@ -535,6 +535,22 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     // samples are gathered from.)
     PointCloud gathered;
     gathered.las = cloud.gathered(order_indices(order)).las;
+    // With a colour tolerance, a low byte equal to its channel's input colour
+    // (a source of 8-bit levels, whose low bytes repeat them, or a 16-bit
+    // level v * 257) becomes the decoded colour: the level then comes back
+    // as the decoded colour says (c' * 257, or c'), within the tolerance,
+    // and a section of such bytes is one decision rather than the exact
+    // levels over again (format-spec/chunk.md §11.7, colour low bytes).
+    if (h.color_tolerance > 0 && gathered.las.color_low.size() == n && base.colors.size() == n) {
+      for (std::size_t k = 0; k < n; ++k) {
+        const Rgb8& in = cloud.colors[order[k].index];
+        const Rgb8& out = base.colors[k];
+        Rgb8& low = gathered.las.color_low[k];
+        if (low.r == in.r) low.r = out.r;
+        if (low.g == in.g) low.g = out.g;
+        if (low.b == in.b) low.b = out.b;
+      }
+    }
     const LasAttributes& ordered = gathered.las;
     // The order trials' sample in the layer's order (made when first needed).
     struct LayerSample {

@@ -378,6 +378,9 @@ struct LasTargets {
   std::uint16_t* wide = nullptr;
   LasAttributes* las = nullptr;
   std::size_t at = 0;
+  // With col and color_shift 0: set to the first of the n points with a
+  // level above 255 (left alone when there is none).
+  std::size_t* above_255 = nullptr;
 };
 
 // Decodes the fields every format has, and the colour. One loop per format
@@ -440,12 +443,13 @@ void decode_las(const std::uint8_t* src, std::size_t n, const LasLayout& lay, co
         t.wide[3 * i + 1] = g;
         t.wide[3 * i + 2] = b;
       } else {
-        t.col[i] = Rgb8{narrow_level(r, lay.color_shift), narrow_level(g, lay.color_shift),
-                        narrow_level(b, lay.color_shift)};
         if (t.low != nullptr) {
-          t.low[i] = Rgb8{low_level(r, lay.color_shift), low_level(g, lay.color_shift),
-                          low_level(b, lay.color_shift)};
+          t.col[i] = split_levels(r, g, b, lay.color_shift, t.low[i]);
+        } else {
+          t.col[i] = Rgb8{narrow_level(r, lay.color_shift), narrow_level(g, lay.color_shift),
+                          narrow_level(b, lay.color_shift)};
         }
+        if (lay.color_shift == 0 && (r | g | b) > 255 && *t.above_255 > i) *t.above_255 = i;
       }
     }
   }
@@ -945,7 +949,14 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
     t.wide = to_wide ? wide->data() + 3 * i0 : nullptr;
     t.las = &out.las;
     t.at = i0;
+    std::size_t above_255 = n;
+    t.above_255 = &above_255;
     decode(view.data(), n, layout_, t);
+    if (above_255 < n) {
+      const std::uint8_t* c = view.data() + above_255 * stride + layout_.rgb_offset;
+      note_level_above_255(done_ + got + above_255, std::max({load_le<std::uint16_t>(c), load_le<std::uint16_t>(c + 2),
+                                                             load_le<std::uint16_t>(c + 4)}));
+    }
     decode_las_optional(view.data(), n, layout_, t);
     consume_points(n * stride);
     got += n;

@@ -27,7 +27,9 @@
 // 8-bit colour levels become 16-bit ones by (v << 8) | low with the colour
 // low bytes (LasAttributes::color_low), else by v * 257 (0 -> 0, 255 -> 65535);
 // with WriterOptions::las_colors_8bit (a source that stored 8-bit levels in
-// its 16-bit fields) they are written as they are.
+// its 16-bit fields) they are written as they are, but where a low byte
+// differs from its colour (a level above 255 after the source's sample:
+// las_color_level).
 //
 // The sources' own header fields and records (WriterOptions::las_sources,
 // format-spec/archive.md §2.3.1) follow Relief's VLRs: the identity fields all
@@ -612,10 +614,13 @@ std::size_t encode_attributes(const PointCloud& batch, std::size_t first, std::s
     if (plan.gps != 0 && has(kLasGpsTime)) store_le(dst + plan.gps, a.gps_time[k]);
     if (plan.nir != 0 && has(kLasNir)) store_le(dst + plan.nir, a.nir[k]);
     if (plan.rgb != 0 && plan.colors_8bit) {
+      // The levels themselves; a low byte that differs from its colour marks
+      // a level above 255 (las_color_level).
       const Rgb8& c = batch.colors[k];
-      store_le(dst + plan.rgb, std::uint16_t{c.r});
-      store_le(dst + plan.rgb + 2, std::uint16_t{c.g});
-      store_le(dst + plan.rgb + 4, std::uint16_t{c.b});
+      const Rgb8& l = has(kLasColorLow) ? a.color_low[k] : c;
+      store_le(dst + plan.rgb, las_color_level(c.r, l.r, true));
+      store_le(dst + plan.rgb + 2, las_color_level(c.g, l.g, true));
+      store_le(dst + plan.rgb + 4, las_color_level(c.b, l.b, true));
     } else if (plan.rgb != 0 && has(kLasColorLow)) {
       const Rgb8& c = batch.colors[k];
       const Rgb8& l = a.color_low[k];

@@ -959,6 +959,7 @@ Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::
     out.colors.resize(at + got);
     out.las.color_low.resize(at + got);
     narrow_colors(levels_.data() + 3 * at, got, color_shift_, out.colors.data() + at, out.las.color_low.data() + at);
+    note_levels_above_255(levels_.data() + 3 * at, got, done_);
   }
   done_ += got;
   if (done_ == vertex().count && !trailing_checked_) {

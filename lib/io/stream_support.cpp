@@ -35,6 +35,41 @@ Result<bool> BatchPointReader::decide_color_shift_now(std::uint64_t within) {
   return true;
 }
 
+void BatchPointReader::note_level_above_255(std::uint64_t point, std::uint16_t level, const char* label) {
+  if (level_above_255_noted_ || color_shift_ != 0 || level <= 255) return;
+  level_above_255_noted_ = true;
+  const std::uint64_t sample = std::min(info_.point_count.value_or(kColorSamplePoints), kColorSamplePoints);
+  std::string what = info_.path + ": " + label + " " + std::to_string(point) + " has the colour level " +
+                     std::to_string(level) + " but the first " + std::to_string(sample) +
+                     " points held none above 255, so the file is read as 8-bit levels";
+  if (color_low_) {
+    what += " stored in 16-bit fields";
+    std::uint8_t colour = 0, low = 0;
+    split_8bit_level(level, colour, low);
+    what += ": such a level is kept exactly beside the 8-bit colour " + std::to_string(colour) +
+            " (about level / 256), and LAS and LAZ output give it back when colour is exact (with a " +
+            "colour tolerance, that colour)";
+  } else {
+    what += ": such a level is kept as 255";
+  }
+  info_.warnings.push_back(std::move(what));
+}
+
+void BatchPointReader::note_lost_low_bytes() {
+  if (color_shift_ == 0 || color_low_) return;
+  const std::uint64_t sample = std::min(info_.point_count.value_or(kColorSamplePoints), kColorSamplePoints);
+  info_.warnings.push_back(info_.path + ": its colour levels are 16-bit (a level above 255 within its first " +
+                           std::to_string(sample) + " points), but none came early enough for their low bytes to be " +
+                           "kept: each level keeps its high byte (level >> 8)");
+}
+
+void BatchPointReader::note_levels_above_255(const std::uint16_t* wide, std::size_t n, std::uint64_t first) {
+  if (level_above_255_noted_ || color_shift_ != 0) return;
+  const std::size_t i = first_level_above_255(wide, n);
+  if (i == n) return;
+  note_level_above_255(first + i, std::max({wide[3 * i], wide[3 * i + 1], wide[3 * i + 2]}));
+}
+
 Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_points) {
   if (!wide_colors_ || shift_known_) return read_into(batch, nullptr, 0, max_points);
 
@@ -46,6 +81,7 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
       color_shift_ = color_shift_for(s.max);
       shift_known_ = true;
       info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+      note_lost_low_bytes();
       return read_into(batch, nullptr, 0, max_points);
     }
   }
@@ -56,6 +92,9 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
   color_shift_ = color_shift_for(max_level(wide.data(), 3 * sampled));
   shift_known_ = true;
   info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+  // Levels above 255 after the sample, in this first batch.
+  note_levels_above_255(wide.data() + 3 * sampled, n - sampled, sampled);
+  note_lost_low_bytes();
   batch.colors.resize(n);
   if (color_low_) {
     batch.las.color_low.resize(n);

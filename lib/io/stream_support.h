@@ -65,7 +65,9 @@ inline void size_batch(PointCloud& out, std::size_t n, bool colors, bool intensi
 // is smaller than the sample, the reader reads the sample through a second
 // reader over the same input (only a pipe, which cannot be read twice, falls
 // back to the first batch). When the sample decided "keep", a later level
-// above 255 saturates at 255.
+// above 255 is split by split_8bit_level (relief/types.h) where the low bytes
+// are kept (LAS, wide PLY colours: exact), and saturates at 255 where they are
+// not; either way the reader warns once (note_level_above_255).
 inline constexpr std::uint64_t kColorSamplePoints = std::uint64_t{1} << 20;
 
 inline int color_shift_for(std::uint16_t max_level) { return max_level > 255 ? 8 : 0; }
@@ -74,13 +76,24 @@ inline std::uint8_t narrow_level(std::uint16_t v, int shift) {
   return static_cast<std::uint8_t>(std::min(v >> shift, 255));
 }
 
-// The low byte kept beside a narrowed LAS colour (LasAttributes::color_low),
-// so that (narrow << 8) | low gives the 16-bit level back: with shift 8 the
-// level's own low byte (exact), with shift 0 (8-bit levels stored in the
-// 16-bit fields) the narrowed level itself, so the level comes back as
-// v * 257, the standard 8- to 16-bit scaling.
-inline std::uint8_t low_level(std::uint16_t v, int shift) {
-  return shift != 0 ? static_cast<std::uint8_t>(v & 0xFF) : narrow_level(v, 0);
+// A level's colour and the low byte kept beside it (LasAttributes::color_low)
+// so that las_color_level (relief/types.h) gives the level back exactly: with
+// shift 8 its two bytes, with shift 0 (8-bit levels stored in the 16-bit
+// fields) split_8bit_level: the level itself twice when it is at most 255.
+inline void split_level(std::uint16_t v, int shift, std::uint8_t& colour, std::uint8_t& low) {
+  if (shift != 0) {
+    colour = static_cast<std::uint8_t>(v >> 8);
+    low = static_cast<std::uint8_t>(v & 0xFF);
+  } else {
+    split_8bit_level(v, colour, low);
+  }
+}
+inline Rgb8 split_levels(std::uint16_t r, std::uint16_t g, std::uint16_t b, int shift, Rgb8& low) {
+  Rgb8 c;
+  split_level(r, shift, c.r, low.r);
+  split_level(g, shift, c.g, low.g);
+  split_level(b, shift, c.b, low.b);
+  return c;
 }
 
 inline std::uint16_t max_level(const std::uint16_t* levels, std::size_t count) {
@@ -97,12 +110,17 @@ inline void narrow_colors(const std::uint16_t* wide, std::size_t n, int shift, R
   }
 }
 
-// The same, with each level's low byte (low_level) in `low`.
+// The same, each level split with its low byte in `low` (split_level).
 inline void narrow_colors(const std::uint16_t* wide, std::size_t n, int shift, Rgb8* out, Rgb8* low) {
-  narrow_colors(wide, n, shift, out);
+  for (std::size_t i = 0; i < n; ++i) out[i] = split_levels(wide[3 * i], wide[3 * i + 1], wide[3 * i + 2], shift, low[i]);
+}
+
+// The first of `n` points (r, g, b each) with a level above 255, or n.
+inline std::size_t first_level_above_255(const std::uint16_t* wide, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) {
-    low[i] = Rgb8{low_level(wide[3 * i], shift), low_level(wide[3 * i + 1], shift), low_level(wide[3 * i + 2], shift)};
+    if ((wide[3 * i] | wide[3 * i + 1] | wide[3 * i + 2]) > 255) return i;
   }
+  return n;
 }
 
 // Base of the readers that may see 16-bit colours (PLY, LAS): implements
@@ -134,6 +152,18 @@ class BatchPointReader : public PointReader {
   // be read twice: read() then decides from its first batch.
   Result<bool> decide_color_shift_now(std::uint64_t within);
 
+  // Once per input: a warning that point `point` (from 0; `label` "point" or
+  // "line", numbered as the reader numbers them) has colour level `level`
+  // above 255 although the rule's sample held none, saying what became of it
+  // (kept exactly with the low bytes, else 255). Levels of points [0, n) of
+  // `wide` (r, g, b each; point `first` is the first) are checked at once by
+  // the second form. Both do nothing unless the rule decided 8-bit levels.
+  void note_level_above_255(std::uint64_t point, std::uint16_t level, const char* label = "point");
+  void note_levels_above_255(const std::uint16_t* wide, std::size_t n, std::uint64_t first);
+  // A warning when the rule decided 16-bit levels for a reader that keeps no
+  // low bytes (text whose first levels above 255 came after the look at open).
+  void note_lost_low_bytes();
+
   PointStreamInfo info_;
   bool wide_colors_ = false;  // colours need the 16-bit rule
   bool color_low_ = false;    // also fill las.color_low (LAS colours, low_level)
@@ -151,6 +181,7 @@ class BatchPointReader : public PointReader {
   Result<LevelSample> sample_levels(std::uint64_t sample, bool stop_when_wide);
 
   bool shift_known_ = false;
+  bool level_above_255_noted_ = false;
 };
 
 }  // namespace relief

@@ -827,11 +827,14 @@ Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no,
     if (wide != nullptr) {
       wide->insert(wide->end(), levels, levels + 3);
     } else {
-      out.colors.push_back({narrow_level(levels[0], color_shift_), narrow_level(levels[1], color_shift_),
-                            narrow_level(levels[2], color_shift_)});
       if (color_low_) {
-        out.las.color_low.push_back(
-            {low_level(levels[0], color_shift_), low_level(levels[1], color_shift_), low_level(levels[2], color_shift_)});
+        Rgb8 low;
+        out.colors.push_back(split_levels(levels[0], levels[1], levels[2], color_shift_, low));
+        out.las.color_low.push_back(low);
+      } else {
+        out.colors.push_back({narrow_level(levels[0], color_shift_), narrow_level(levels[1], color_shift_),
+                              narrow_level(levels[2], color_shift_)});
+        note_level_above_255(line_no, std::max({levels[0], levels[1], levels[2]}), "line");
       }
     }
   }

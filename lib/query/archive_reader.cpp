@@ -123,7 +123,16 @@ void clip(PointCloud& cloud, const Box3d& box) {
 
 class Reader final : public ArchiveReader {
  public:
-  Reader(std::unique_ptr<Archive> archive, ArchiveInfo info) : archive_(std::move(archive)), info_(std::move(info)) {}
+  Reader(std::unique_ptr<Archive> archive, ArchiveInfo info) : archive_(std::move(archive)), info_(std::move(info)) {
+    // An archive of 8-bit colour levels with a colour tolerance: the low
+    // bytes are the levels as read, which the decoded colours approximate;
+    // the colours are what comes back (format-spec/archive.md §2.1,
+    // las_colors_8bit), so each low byte becomes its colour.
+    if (info_.las_colors_8bit) {
+      const Result<EncodeParams> params = encode_params_from_string(info_.codec_params);
+      lows_are_colors_ = params && params->bound && params->bound->color_tolerance > 0;
+    }
+  }
 
   const std::string& path() const override { return archive_->path(); }
   const ArchiveInfo& info() const override { return info_; }
@@ -413,6 +422,7 @@ class Reader final : public ArchiveReader {
       // Every batch carries the archive's LAS attributes, whatever the
       // chunk's scan or layer had.
       conform_las_attributes(s.points, info_.las_attributes & decoded.las, info_.extra_bytes_size);
+      if (lows_are_colors_ && !s.points.las.color_low.empty()) s.points.las.color_low = s.points.colors;
       if (filter.any() || s.crossed) {
         select(s.points, box, !contains(box, s.ref.bounds), filter, every, s.crossed ? options.polygon.get() : nullptr);
       } else if (!contains(box, s.ref.bounds)) {
@@ -447,6 +457,7 @@ class Reader final : public ArchiveReader {
 
   std::unique_ptr<Archive> archive_;
   ArchiveInfo info_;
+  bool lows_are_colors_ = false;
 };
 
 }  // namespace

@@ -91,10 +91,12 @@ void fill_cloud(const PointCloud& c, const FieldSet& fields, const std::vector<F
         if (!wide_colors) {
           put(base + i * stride, o, hi);
         } else {
-          // Without stored low bytes the colour was 8-bit: hi * 257 spans
-          // the 16-bit range as the LAS convention scales 8-bit colours.
+          // The LAS value, as LAS output writes it. Without stored low bytes
+          // the colour was 8-bit: hi * 257 spans the 16-bit range as the LAS
+          // convention scales 8-bit colours (hi itself in an archive of 8-bit
+          // levels).
           const std::uint8_t lo = has_low ? channel(las.color_low[i]) : hi;
-          put(base + i * stride, o, static_cast<std::uint16_t>((hi << 8) | lo));
+          put(base + i * stride, o, las_color_level(hi, lo, fields.levels_8bit));
         }
       }
     } else if (f.name == "intensity") {

@@ -19,6 +19,10 @@ struct FieldSet {
   bool intensity = false;
   std::uint32_t las = 0;  // LasAttributeBits
   std::uint32_t extra_bytes_size = 0;
+  // The archive's colours are 8-bit levels stored in 16-bit LAS fields
+  // (ArchiveInfo::las_colors_8bit): uint16 colour fields hold them as LAS
+  // output writes them (las_color_level).
+  bool levels_8bit = false;
 
   // The fields of `cloud` added to this set.
   void add(const PointCloud& cloud);

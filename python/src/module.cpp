@@ -187,6 +187,7 @@ FieldSet archive_fields(const ArchiveInfo& info, const AttributeSet& asked) {
   FieldSet f;
   f.colors = info.has_colors && asked.colors;
   f.intensity = info.has_intensity && asked.intensity;
+  f.levels_8bit = info.las_colors_8bit;
   return f;
 }
 

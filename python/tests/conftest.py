@@ -55,8 +55,10 @@ def write_ply(path, s):
 LAS_SCALE = 0.001
 
 
-def write_las(path, s, classification):
-    """LAS 1.2, point format 2 (XYZ, intensity, returns, class, RGB), scale 1 mm."""
+def write_las(path, s, classification, levels_8bit=False):
+    """LAS 1.2, point format 2 (XYZ, intensity, returns, class, RGB), scale 1 mm.
+    Colours as 16-bit levels v * 257, or with ``levels_8bit`` as the 8-bit
+    levels themselves (what many writers put in the 16-bit fields)."""
     n = len(s["x"])
     offset = (float(np.floor(s["x"].min())), float(np.floor(s["y"].min())), 0.0)
     rec = np.zeros(
@@ -75,8 +77,9 @@ def write_las(path, s, classification):
     rec["returns"] = 1 | (1 << 3)  # return 1 of 1
     rec["classification"] = classification
     rec["point_source_id"] = 7
-    # 8-bit colours as 16-bit LAS values (v * 257: the high byte is v).
-    rec["R"], rec["G"], rec["B"] = (s[c].astype(np.uint16) * 257 for c in ("red", "green", "blue"))
+    # 8-bit colours as 16-bit LAS values (v * 257: the high byte is v), or as they are.
+    scale = 1 if levels_8bit else 257
+    rec["R"], rec["G"], rec["B"] = (s[c].astype(np.uint16) * scale for c in ("red", "green", "blue"))
     header_size = 227
     header = b"LASF" + struct.pack("<HH16sBB32s32sHHHIIBHI5I", 0, 0, b"\0" * 16, 1, 2, b"relief tests", b"relief tests",
                                     1, 2024, header_size, header_size, 0, 2, 26, n, n, 0, 0, 0, 0)

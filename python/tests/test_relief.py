@@ -288,6 +288,20 @@ def test_las_input(tmp_path):
     assert np.array_equal(np.sort(pts["classification"]), np.sort(classification))
 
 
+def test_las_input_with_8bit_levels(tmp_path):
+    # A file that stores 8-bit levels in its 16-bit colour fields: the uint16
+    # fields hold the file's values, as LAS output writes them (not v * 257).
+    s = make_scene(n=3000, seed=4)
+    write_las(tmp_path / "s8.las", s, np.zeros(3000, np.uint8), levels_8bit=True)
+    out = tmp_path / "s8.relief"
+    relief.compress([tmp_path / "s8.las"], out)
+    with relief.open(out) as a:
+        pts = a.query()
+    assert pts["red"].dtype == np.uint16
+    assert np.array_equal(np.sort(pts["red"]), np.sort(s["red"].astype(np.uint16)))
+    assert np.array_equal(np.sort(pts["blue"]), np.sort(s["blue"].astype(np.uint16)))
+
+
 def test_las_attributes_in_archive(tmp_path):
     s = make_scene(n=6000, seed=3)
     classification = (np.arange(6000) % 7).astype(np.uint8)

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <cstdint>
+#include <cstdlib>
 #include <vector>
 
 #include "relief/types.h"
@@ -74,3 +75,22 @@ TEST_CASE("PointCloud gathers, appends and copies a point with every LAS attribu
 }
 
 }  // namespace relief
+
+TEST_CASE("las_color_level inverts split_8bit_level for every level, and keeps the 16-bit rule", "[core]") {
+  std::uint32_t above_255_with_equal_bytes = 0;
+  for (std::uint32_t v = 0; v <= 65535; ++v) {
+    std::uint8_t colour = 0, low = 0;
+    relief::split_8bit_level(static_cast<std::uint16_t>(v), colour, low);
+    if (relief::las_color_level(colour, low, true) != v) FAIL("level " << v << " split as " << int{colour} << "/" << int{low});
+    // Levels up to 255 are the colour twice (what archives of 8-bit levels
+    // always held); levels above never are, and their colour is about v / 256.
+    if ((v <= 255) != (colour == low)) ++above_255_with_equal_bytes;
+    if (v <= 255 && colour != v) FAIL("level " << v << " has colour " << int{colour});
+    if (v > 255 && std::abs(static_cast<int>(colour) - static_cast<int>(v / 256)) > 1) FAIL("level " << v << " has colour " << int{colour});
+  }
+  CHECK(above_255_with_equal_bytes == 0);
+  // 16-bit levels: the high byte and the low byte.
+  CHECK(relief::las_color_level(0x12, 0x34, false) == 0x1234);
+  CHECK(relief::las_color_level(200, 200, false) == 200 * 257);
+  CHECK(relief::las_color_level(200, 200, true) == 200);
+}

@@ -818,3 +818,174 @@ TEST_CASE("an archive of format version 2 (a committed file) reads, and a writer
   std::sort(twice.begin(), twice.end());
   CHECK(kept(both) == twice);
 }
+
+namespace {
+
+// Colour low bytes' share of an archive (0 when it has none).
+std::uint64_t color_low_bytes(const std::string& path) {
+  auto a = relief::Archive::open(path, relief::Archive::Mode::kReadOnly);
+  REQUIRE(a.is_ok());
+  auto s = relief::archive_sections(**a);
+  REQUIRE(s.is_ok());
+  for (const relief::SectionTotal& t : s->sections) {
+    if (t.name == "color_low") return t.bytes;
+  }
+  return 0;
+}
+
+// Sets point `i`'s colour channel `channel` (0 red, 1 green, 2 blue) of a
+// LAS 1.2 file of point format 2 or 3 to `level`.
+void set_las_level(const std::string& path, std::size_t i, int channel, std::uint16_t level) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  REQUIRE(f);
+  unsigned char h[107];
+  f.read(reinterpret_cast<char*>(h), sizeof h);
+  const std::uint32_t offset = h[96] | h[97] << 8 | h[98] << 16 | static_cast<std::uint32_t>(h[99]) << 24;
+  const int format = h[104] & 0x3F;
+  const std::size_t length = h[105] | h[106] << 8;
+  REQUIRE((format == 2 || format == 3));
+  const std::size_t rgb = format == 2 ? 20 : 28;
+  f.seekp(static_cast<std::streamoff>(offset + i * length + rgb + 2 * static_cast<std::size_t>(channel)));
+  const char b[2] = {static_cast<char>(level & 0xFF), static_cast<char>(level >> 8)};
+  f.write(b, 2);
+  REQUIRE(f);
+}
+
+}  // namespace
+
+TEST_CASE("colour levels above 255 after a sample of 8-bit levels come back exactly, with a warning",
+          "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  // 2^20 + 64 points on a 1 cm grid whose levels are 0..255 (8-bit levels in
+  // the 16-bit fields; a smooth pattern, so the archive is quick to make),
+  // then three levels above 255 after the rule's sample.
+  const std::size_t points = (std::size_t{1} << 20) + 64;
+  const std::string in = dir.file("late.las");
+  {
+    relief::PointCloud c;
+    for (std::size_t i = 0; i < points; ++i) {
+      c.positions.push_back({0.01 * static_cast<double>(i % 1024), 0.01 * static_cast<double>(i / 1024), 0});
+      c.colors.push_back({static_cast<std::uint8_t>(i / 4096), static_cast<std::uint8_t>((i % 1024) / 4),
+                          static_cast<std::uint8_t>(i % 7)});
+    }
+    relief::WriterOptions w;
+    w.colors = true;
+    w.scale = 0.01;
+    w.las_point_format = 2;
+    w.las_colors_8bit = true;
+    auto writer = relief::open_point_writer(in, w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(c).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  }
+  const std::size_t first_late = (std::size_t{1} << 20) + 10;
+  set_las_level(in, first_late, 0, 1000);
+  set_las_level(in, first_late + 10, 1, 65535);
+  set_las_level(in, first_late + 20, 2, 256);
+
+  // The reader, in small batches and in one: the split levels give every
+  // level back, and one warning names the first.
+  const auto want = read_las_records(in);
+  REQUIRE(want);
+  for (const std::size_t batch_size : {std::size_t{50000}, std::size_t{1} << 21}) {
+    CAPTURE(batch_size);
+    auto reader = relief::open_point_reader(in);
+    REQUIRE(reader.is_ok());
+    relief::PointCloud batch;
+    std::size_t at = 0;
+    for (;;) {
+      auto n = (*reader)->read(batch, batch_size);
+      REQUIRE(n.is_ok());
+      if (*n == 0) break;
+      for (std::size_t i = 0; i < *n; ++i, ++at) {
+        const relief::Rgb8 c = batch.colors[i], l = batch.las.color_low[i];
+        const relief::test::LasRecord& r = want->records[at];
+        if (relief::las_color_level(c.r, l.r, true) != r.red || relief::las_color_level(c.g, l.g, true) != r.green ||
+            relief::las_color_level(c.b, l.b, true) != r.blue) {
+          FAIL("point " << at << ": levels " << r.red << " " << r.green << " " << r.blue << " read as " << int{c.r}
+                        << "/" << int{l.r} << " " << int{c.g} << "/" << int{l.g} << " " << int{c.b} << "/" << int{l.b});
+        }
+      }
+    }
+    CHECK(at == points);
+    CHECK((*reader)->info().las_colors_8bit);
+    const std::vector<std::string>& warnings = (*reader)->info().warnings;
+    REQUIRE(warnings.size() == 1);
+    CHECK_THAT(warnings[0], Contains("point 1048586 has the colour level 1000") &&
+                                Contains("the first 1048576 points held none above 255") &&
+                                Contains("kept exactly"));
+  }
+
+  // Through an archive: LAS output gives every record back.
+  const std::string archive = dir.file("late.relief");
+  const std::string out = dir.file("late-out.las");
+  const auto made = relief::test::run_cli(cli(), "compress " + in + " -o " + archive + " --quiet");
+  REQUIRE(made.code == 0);
+  CHECK_THAT(made.output, Contains("warning: " + in + ": point 1048586 has the colour level 1000"));
+  CHECK(archive_info(archive).las_colors_8bit);
+  REQUIRE(relief::test::run_cli(cli(), "decompress " + archive + " -o " + out + " --quiet").code == 0);
+  REQUIRE(relief::test::first_difference(sorted_records(out), sorted_records(in)) == "");
+}
+
+TEST_CASE("a colour tolerance on 8-bit levels: the low bytes cost nothing, LAS output is within it",
+          "[las][archive][needs-codec-attrs]") {
+  if (!need_codec_attributes()) return;
+  TempDir dir;
+  for (const bool wide : {false, true}) {
+    CAPTURE(wide);
+    // 8-bit levels in the 16-bit fields, or 16-bit levels v * 257 (low byte = high byte).
+    TestLasOptions o;
+    o.format = 3;
+    o.points = 6000;
+    o.seed = 5;
+    o.wide_colors = false;
+    const std::string in = dir.file(wide ? "w.las" : "n.las");
+    REQUIRE(write_test_las(in, o));
+    if (wide) {
+      const auto records = read_las_records(in);
+      REQUIRE(records);
+      for (std::size_t i = 0; i < records->records.size(); ++i) {
+        const relief::test::LasRecord& r = records->records[i];
+        set_las_level(in, i, 0, static_cast<std::uint16_t>(r.red * 257));
+        set_las_level(in, i, 1, static_cast<std::uint16_t>(r.green * 257));
+        set_las_level(in, i, 2, static_cast<std::uint16_t>(r.blue * 257));
+      }
+    }
+    const std::string exact = dir.file(wide ? "we.relief" : "ne.relief");
+    const std::string lossy = dir.file(wide ? "wl.relief" : "nl.relief");
+    REQUIRE(relief::test::run_cli(cli(), "compress " + in + " -o " + exact + " --quiet").code == 0);
+    REQUIRE(relief::test::run_cli(cli(), "compress " + in + " -o " + lossy + " --quiet --color-tolerance 4").code == 0);
+    CHECK(archive_info(lossy).las_colors_8bit == !wide);
+    // Before, the low bytes kept the exact levels: the lossy archive was the larger.
+    CHECK(color_low_bytes(lossy) < 16);
+    CHECK(std::filesystem::file_size(lossy) < std::filesystem::file_size(exact));
+    const std::string out = dir.file(wide ? "w-out.las" : "n-out.las");
+    REQUIRE(relief::test::run_cli(cli(), "decompress " + lossy + " -o " + out + " --quiet").code == 0);
+    // Pair the points by every other field; each level within 4 levels of 8 bits.
+    const auto split = [](const std::vector<LasRecord>& records) {
+      std::vector<std::pair<LasRecord, std::array<int, 3>>> v;
+      for (LasRecord r : records) {
+        const std::array<int, 3> levels = {r.red, r.green, r.blue};
+        r.red = r.green = r.blue = 0;
+        v.emplace_back(r, levels);
+      }
+      std::sort(v.begin(), v.end());
+      return v;
+    };
+    const auto want = split(sorted_records(in));
+    const auto got = split(sorted_records(out));
+    REQUIRE(got.size() == want.size());
+    const int unit = wide ? 257 : 1;
+    int worst = 0;
+    for (std::size_t k = 0; k < got.size(); ++k) {
+      REQUIRE(got[k].first == want[k].first);
+      for (int c = 0; c < 3; ++c) {
+        REQUIRE(got[k].second[static_cast<std::size_t>(c)] % unit == 0);
+        worst = std::max(worst, std::abs(got[k].second[static_cast<std::size_t>(c)] - want[k].second[static_cast<std::size_t>(c)]) / unit);
+      }
+    }
+    CHECK(worst <= 4);
+    CHECK(worst > 0);
+  }
+}

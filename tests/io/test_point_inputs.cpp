@@ -352,6 +352,18 @@ TEST_CASE("CSV 16-bit colours are narrowed by one rule for the whole file", "[io
     CHECK(all->colors.front() == Rgb8{0, 0, 0});
     CHECK(all->colors.back() == Rgb8{255, 18, 1});
     CHECK(all->las.color_low.empty());
+    // ... which the reader says.
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    REQUIRE(r.is_ok());
+    PointCloud batch;
+    while (true) {
+      const Result<std::size_t> n = (*r)->read(batch, 100000);
+      REQUIRE(n.is_ok());
+      if (*n == 0) break;
+    }
+    REQUIRE((*r)->info().warnings.size() == 1);
+    CHECK_THAT((*r)->info().warnings[0], Catch::Matchers::Contains("colour levels are 16-bit") &&
+                                             Catch::Matchers::Contains("keeps its high byte"));
   }
   // Without a level above 255 the levels are 8-bit and kept, with nothing
   // below them.
@@ -360,6 +372,38 @@ TEST_CASE("CSV 16-bit colours are narrowed by one rule for the whole file", "[io
   REQUIRE(got.is_ok());
   CHECK(got->colors == std::vector<Rgb8>{{200, 255, 1}});
   CHECK(got->las.color_low.empty());
+}
+
+TEST_CASE("CSV: a level above 255 after 2^20 points of 8-bit levels is kept as 255, with a warning", "[io][xyz]") {
+  test::TempDir dir;
+  const std::string path = dir.file("late.xyz");
+  std::string text;
+  text.reserve(16u << 20);
+  const std::size_t points = (std::size_t{1} << 20) + 5;
+  for (std::size_t i = 0; i < points; ++i) text += (i == points - 2) ? "1 2 3 10 1000 20\n" : "1 2 3 10 200 20\n";
+  write_file(path, text);
+  for (const std::size_t batch : {std::size_t{100000}, std::size_t{1} << 21}) {
+    INFO("batch " << batch);
+    ReaderOptions o;
+    o.xyz_columns = "x,y,z,r,g,b";
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path, o);
+    REQUIRE(r.is_ok());
+    PointCloud batch_cloud;
+    std::size_t seen = 0;
+    Rgb8 late{};
+    while (true) {
+      const Result<std::size_t> n = (*r)->read(batch_cloud, batch);
+      REQUIRE(n.is_ok());
+      if (*n == 0) break;
+      if (seen + *n > points - 2) late = batch_cloud.colors[points - 2 - seen];
+      seen += *n;
+    }
+    REQUIRE(seen == points);
+    CHECK(late == Rgb8{10, 255, 20});
+    REQUIRE((*r)->info().warnings.size() == 1);
+    CHECK_THAT((*r)->info().warnings[0], Catch::Matchers::Contains("has the colour level 1000") &&
+                                             Catch::Matchers::Contains("is kept as 255"));
+  }
 }
 
 // ---------------------------------------------------------------- float intensities

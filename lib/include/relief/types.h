@@ -184,9 +184,9 @@ struct LasAttributes {
   std::vector<std::uint16_t> point_source_id;
   std::vector<double> gps_time;
   std::vector<std::uint16_t> nir;
-  // Low bytes of 16-bit LAS colours whose low byte is not implied by the high
-  // byte: the LAS value is (colors[i].r << 8) | color_low[i].r. Empty when the
-  // source's colours are 8-bit (the colour is colors[i] itself).
+  // Low bytes of LAS colours (and of PLY colours wider than 8 bits): the LAS
+  // value is las_color_level(colors[i].r, color_low[i].r, ...) below. Empty
+  // when the source's colours are 8-bit (the colour is colors[i] itself).
   std::vector<Rgb8> color_low;
   // LAS "extra bytes": extra_bytes_size raw bytes per point, described by the
   // source's Extra Bytes VLR (PointStreamInfo::extra_bytes_vlr); extra_bytes
@@ -234,6 +234,33 @@ struct LasAttributes {
   }
 
 };
+
+// A colour channel's LAS level from its 8-bit colour and its low byte
+// (LasAttributes::color_low), by the rule of the source or archive
+// (format-spec/archive.md §2.1, las_colors_8bit). 16-bit levels
+// (`levels_8bit` false): (colour << 8) | low. Levels stored as 8-bit values
+// in the 16-bit fields (`levels_8bit` true): the colour itself when the low
+// byte equals it; a low byte that differs marks a level above 255 met after
+// the file's sample held none, split by split_8bit_level.
+inline std::uint16_t las_color_level(std::uint8_t colour, std::uint8_t low, bool levels_8bit) {
+  if (!levels_8bit) return static_cast<std::uint16_t>((colour << 8) | low);
+  if (low == colour) return colour;
+  return static_cast<std::uint16_t>(256 + 255 * colour + (low < colour ? low : low - 1));
+}
+// The colour and low byte of a level of a source that stores 8-bit levels in
+// its 16-bit fields, so that las_color_level(colour, low, true) gives it
+// back: a level up to 255 is both; a level above 255 (one that came after
+// the sample) takes colour = (level - 256) / 255 (about level / 256, its
+// 16-bit meaning) and one of the 255 low bytes that differ from the colour.
+inline void split_8bit_level(std::uint16_t level, std::uint8_t& colour, std::uint8_t& low) {
+  if (level <= 255) {
+    colour = low = static_cast<std::uint8_t>(level);
+    return;
+  }
+  const unsigned c = (level - 256u) / 255u, r = (level - 256u) % 255u;
+  colour = static_cast<std::uint8_t>(c);
+  low = static_cast<std::uint8_t>(r < c ? r : r + 1);
+}
 
 // A point cloud with optional per-point attributes. Coordinates are double
 // end to end so georeferenced data keeps sub-millimetre precision.
