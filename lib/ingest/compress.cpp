@@ -227,6 +227,42 @@ ScanAttributes scan_attributes(const InputSet& in) {
   return a;
 }
 
+// What the colour rule of scan_attributes and Archive::begin_scan does to
+// levels that are not given back as they were read (format-spec/archive.md
+// §2.1 las_colors_8bit): 8-bit levels stored in 16-bit fields come back
+// scaled to 16 bits (v * 257) once the archive also holds 16-bit levels,
+// whether they were in it before this scan or come with it. Called when the
+// scan's readers have decided their rule.
+std::vector<std::string> colour_rule_warnings(const Archive& archive, const InputSet& in) {
+  std::vector<std::string> out;
+  const Result<ArchiveInfo> info = archive.info();
+  if (!info) return out;
+  const bool old_rgb = (info->las_attributes & kLasColorLow) != 0;
+  std::vector<std::string> narrow, wide;
+  for (const auto& reader : in.readers) {
+    const PointStreamInfo& r = reader->info();
+    if ((r.las_attributes & kLasColorLow) == 0) continue;
+    (r.las_colors_8bit ? narrow : wide).push_back(r.path);
+  }
+  const bool new_8bit = wide.empty();
+  const bool archive_8bit = old_rgb ? info->las_colors_8bit && new_8bit : new_8bit;
+  if (archive_8bit) return out;
+  const std::string scaled = "come back from LAS and LAZ output scaled to 16 bits (level x 257)";
+  if (old_rgb && info->las_colors_8bit && !wide.empty()) {
+    out.push_back(wide.front() + " has 16-bit colour levels: the archive's earlier points, whose sources stored " +
+                  "8-bit levels in their 16-bit colour fields, now " + scaled);
+  }
+  const std::string why = !wide.empty() ? wide.front() + " has 16-bit levels" : "the archive holds 16-bit levels";
+  for (std::size_t i = 0; i < narrow.size() && i < 3; ++i) {
+    out.push_back(narrow[i] + " stores 8-bit levels in its 16-bit colour fields, but " + why + ": its levels " +
+                  scaled);
+  }
+  if (narrow.size() > 3) {
+    out.push_back(std::to_string(narrow.size() - 3) + " more inputs store 8-bit levels: theirs " + scaled + " too");
+  }
+  return out;
+}
+
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params,
                                 InputSet& in, PointCloud pending, const IngestOptions& options,
                                 const std::string& tmp_parent) {
@@ -385,6 +421,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
                           (skipped > 0 ? " (" + std::to_string(skipped) + " skipped as having no depth)" : ""));
     }
     all.resize_points(static_cast<std::size_t>(points_read));
+    for (std::string& w : colour_rule_warnings(archive, in)) in.warnings.push_back(std::move(w));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, plan.encode_threads,
                                                options.cancel, options.verify_blobs, plan.encode_memory);
@@ -404,6 +441,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
         read_all(key_batch, [&](ReadBatch& b) -> Status { return files.append(b.points, b.keys.data()); }));
     RELIEF_RETURN_IF_ERROR(files.finish_writing());
     // ---- Each bucket, slice by slice: group by chunk, encode, store.
+    for (std::string& w : colour_rule_warnings(archive, in)) in.warnings.push_back(std::move(w));
     RELIEF_ASSIGN_OR_RETURN(scan_id, archive.begin_scan(in.sources, scan_attributes(in)));
     pipeline = std::make_unique<ChunkPipeline>(archive, with_ranges(), grid, scan_id, plan.encode_threads,
                                                options.cancel, options.verify_blobs, plan.encode_memory);

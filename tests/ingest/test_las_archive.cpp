@@ -989,3 +989,47 @@ TEST_CASE("a colour tolerance on 8-bit levels: the low bytes cost nothing, LAS o
     CHECK(worst > 0);
   }
 }
+
+TEST_CASE("8-bit and 16-bit colour levels in one archive: the scaled levels are named in a warning",
+          "[las][archive]") {
+  TempDir dir;
+  const auto file = [&](const std::string& name, bool wide, std::uint32_t seed) {
+    TestLasOptions o;
+    o.format = 3;
+    o.points = 500;
+    o.seed = seed;
+    o.wide_colors = wide;
+    const std::string path = dir.file(name);
+    REQUIRE(write_test_las(path, o));
+    return path;
+  };
+  const std::string narrow = file("narrow.las", false, 1), wide = file("wide.las", true, 2);
+  const std::string narrow2 = file("narrow2.las", false, 3);
+  SECTION("one compress of both kinds") {
+    const auto r = relief::test::run_cli(cli(), "compress " + narrow + " " + wide + " -o " + dir.file("m.relief") + " --quiet");
+    REQUIRE(r.code == 0);
+    CHECK_THAT(r.output, Contains(narrow + " stores 8-bit levels in its 16-bit colour fields, but " + wide +
+                                  " has 16-bit levels: its levels come back from LAS and LAZ output scaled to 16 bits"));
+    CHECK_FALSE(archive_info(dir.file("m.relief")).las_colors_8bit);
+  }
+  SECTION("8-bit levels, then a 16-bit scan appended") {
+    const std::string a = dir.file("a.relief");
+    const auto made = relief::test::run_cli(cli(), "compress " + narrow + " " + narrow2 + " -o " + a + " --quiet");
+    REQUIRE(made.code == 0);
+    CHECK(made.output.find("scaled") == std::string::npos);
+    CHECK(archive_info(a).las_colors_8bit);
+    const auto r = relief::test::run_cli(cli(), "append " + a + " " + wide + " --quiet");
+    REQUIRE(r.code == 0);
+    CHECK_THAT(r.output, Contains(wide + " has 16-bit colour levels: the archive's earlier points") &&
+                             Contains("now come back from LAS and LAZ output scaled to 16 bits (level x 257)"));
+    CHECK_FALSE(archive_info(a).las_colors_8bit);
+  }
+  SECTION("16-bit levels, then an 8-bit scan appended") {
+    const std::string a = dir.file("b.relief");
+    REQUIRE(relief::test::run_cli(cli(), "compress " + wide + " -o " + a + " --quiet").code == 0);
+    const auto r = relief::test::run_cli(cli(), "append " + a + " " + narrow + " --quiet");
+    REQUIRE(r.code == 0);
+    CHECK_THAT(r.output, Contains(narrow + " stores 8-bit levels in its 16-bit colour fields, but the archive holds "
+                                  "16-bit levels"));
+  }
+}
