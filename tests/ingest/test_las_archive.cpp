@@ -528,6 +528,13 @@ std::uint16_t global_encoding_of(const std::string& path) {
   return static_cast<std::uint16_t>(static_cast<std::uint8_t>(b[6]) | (static_cast<std::uint8_t>(b[7]) << 8));
 }
 
+// A test LAS file `name` in `dir` as `o` says.
+std::string las_file_as(const TempDir& dir, const std::string& name, const TestLasOptions& o) {
+  const std::string path = dir.file(name);
+  REQUIRE(write_test_las(path, o));
+  return path;
+}
+
 std::string las_with_time(const TempDir& dir, const std::string& name, int format, std::uint16_t global_encoding,
                           std::uint32_t seed) {
   TestLasOptions o;
@@ -535,9 +542,7 @@ std::string las_with_time(const TempDir& dir, const std::string& name, int forma
   o.points = 2000;
   o.seed = seed;
   o.global_encoding = global_encoding;
-  const std::string path = dir.file(name);
-  REQUIRE(write_test_las(path, o));
-  return path;
+  return las_file_as(dir, name, o);
 }
 
 }  // namespace
@@ -940,8 +945,7 @@ TEST_CASE("a colour tolerance on 8-bit levels: the low bytes cost nothing, LAS o
     o.points = 6000;
     o.seed = 5;
     o.wide_colors = false;
-    const std::string in = dir.file(wide ? "w.las" : "n.las");
-    REQUIRE(write_test_las(in, o));
+    const std::string in = las_file_as(dir, wide ? "w.las" : "n.las", o);
     if (wide) {
       const auto records = read_las_records(in);
       REQUIRE(records);
@@ -999,9 +1003,7 @@ TEST_CASE("8-bit and 16-bit colour levels in one archive: the scaled levels are 
     o.points = 500;
     o.seed = seed;
     o.wide_colors = wide;
-    const std::string path = dir.file(name);
-    REQUIRE(write_test_las(path, o));
-    return path;
+    return las_file_as(dir, name, o);
   };
   const std::string narrow = file("narrow.las", false, 1), wide = file("wide.las", true, 2);
   const std::string narrow2 = file("narrow2.las", false, 3);
