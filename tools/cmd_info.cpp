@@ -52,6 +52,9 @@ std::string las_text(const ArchiveInfo& i) {
   if (i.las_gps_time_type != GpsTimeType::kUnknown) {
     out += std::string(", GPS ") + gps_time_type_name(i.las_gps_time_type) + " time";
   }
+  if ((i.las_attributes & kLasColorLow) != 0) {
+    out += i.las_colors_8bit ? ", 8-bit colour levels in 16-bit fields" : ", 16-bit colour levels";
+  }
   if (i.extra_bytes_size > 0) {
     out += ", " + std::to_string(i.extra_bytes_size) + " extra bytes";
     const std::vector<ExtraBytesField> fields = archive_extra_bytes_fields(i);

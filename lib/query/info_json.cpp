@@ -141,6 +141,9 @@ std::string json_las(const ArchiveInfo& i) {
                     ", \"gps_time_type\": " +
                     (i.las_gps_time_type == GpsTimeType::kUnknown ? std::string("null")
                                                                    : json_string(gps_time_type_name(i.las_gps_time_type))) +
+                    ", \"color_levels\": " +
+                    ((i.las_attributes & kLasColorLow) == 0 ? std::string("null")
+                                                            : std::string(i.las_colors_8bit ? "8" : "16")) +
                     ", \"extra_bytes_per_point\": " + std::to_string(i.extra_bytes_size) + ", \"extra_bytes\": [";
   bool first = true;
   for (const ExtraBytesField& f : archive_extra_bytes_fields(i)) {

@@ -281,6 +281,8 @@ def test_las_input(tmp_path):
         # LAS default tolerance: half the scale, so the integers come back.
         assert np.array_equal(np.sort(np.round(pts[k] / LAS_SCALE)), np.sort(np.round(s[k] / LAS_SCALE)))
     # The file stores 16-bit colours (level x 257): they come back exactly, as uint16.
+    with relief.open(out) as a:
+        assert a.info["las"]["color_levels"] == 16
     assert pts["red"].dtype == np.uint16
     assert np.array_equal(np.sort(pts["red"]), np.sort(s["red"].astype(np.uint16) * 257))
     assert np.array_equal(np.sort(pts["intensity"]), np.sort(s["intensity"]))
@@ -297,6 +299,7 @@ def test_las_input_with_8bit_levels(tmp_path):
     relief.compress([tmp_path / "s8.las"], out)
     with relief.open(out) as a:
         pts = a.query()
+        assert a.info["las"]["color_levels"] == 8
     assert pts["red"].dtype == np.uint16
     assert np.array_equal(np.sort(pts["red"]), np.sort(s["red"].astype(np.uint16)))
     assert np.array_equal(np.sort(pts["blue"]), np.sort(s["blue"].astype(np.uint16)))

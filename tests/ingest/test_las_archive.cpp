@@ -1020,11 +1020,15 @@ TEST_CASE("8-bit and 16-bit colour levels in one archive: the scaled levels are 
     REQUIRE(made.code == 0);
     CHECK(made.output.find("scaled") == std::string::npos);
     CHECK(archive_info(a).las_colors_8bit);
+    CHECK_THAT(relief::test::run_cli(cli(), "info " + a).output, Contains("8-bit colour levels in 16-bit fields"));
+    CHECK_THAT(relief::test::run_cli(cli(), "info --json " + a).output, Contains("\"color_levels\": 8,"));
     const auto r = relief::test::run_cli(cli(), "append " + a + " " + wide + " --quiet");
     REQUIRE(r.code == 0);
     CHECK_THAT(r.output, Contains(wide + " has 16-bit colour levels: the archive's earlier points") &&
                              Contains("now come back from LAS and LAZ output scaled to 16 bits (level x 257)"));
     CHECK_FALSE(archive_info(a).las_colors_8bit);
+    CHECK_THAT(relief::test::run_cli(cli(), "info " + a).output, Contains(", 16-bit colour levels"));
+    CHECK_THAT(relief::test::run_cli(cli(), "info --json " + a).output, Contains("\"color_levels\": 16,"));
   }
   SECTION("16-bit levels, then an 8-bit scan appended") {
     const std::string a = dir.file("b.relief");
