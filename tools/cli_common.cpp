@@ -346,7 +346,8 @@ CheckProgress check_progress_printer(const std::string& archive, bool quiet) {
                     static_cast<unsigned long long>(total),
                     100.0 * static_cast<double>(std::min(done, total)) / static_cast<double>(total));
     } else if (done > 0) {
-      std::snprintf(count, sizeof count, " %llu", static_cast<unsigned long long>(done));
+      // Stages without a total count pages read (CheckProgress).
+      std::snprintf(count, sizeof count, ", %llu pages read", static_cast<unsigned long long>(done));
     }
     std::fprintf(stderr, "\r\033[K%s: %s%s, %.0f s", archive.c_str(), stage, count,
                  static_cast<double>(t - start) * 1e-9);

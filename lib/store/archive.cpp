@@ -2291,6 +2291,13 @@ class CheckReport {
   std::uint64_t dropped_ = 0;
 };
 
+// Pages SQLite has read into its cache on this connection so far.
+std::uint64_t pages_read(sqlite3* db) {
+  int current = 0, highwater = 0;
+  if (sqlite3_db_status(db, SQLITE_DBSTATUS_CACHE_MISS, &current, &highwater, 0) != SQLITE_OK) return 0;
+  return current > 0 ? static_cast<std::uint64_t>(current) : 0;
+}
+
 // Rows of a single-column text query ("PRAGMA integrity_check",
 // "rtreecheck"): every row but a lone "ok" is a problem.
 Status text_rows_problems(sqlite3* db, const char* sql, const std::string& path, const std::string& label,
@@ -2453,10 +2460,33 @@ Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress&
     const auto attempt = [&](const Status& status, const std::string& what) {
       if (!status) report.problem(status.message() + " (while checking " + what + ")");
     };
-    report.stage("SQLite integrity check");
-    attempt(text_rows_problems(archive->connection(), "PRAGMA integrity_check", path,
-                               path + ": SQLite integrity check", report),
-            "the SQLite structure");
+    {
+      // SQLite checks every page in one step of the statement: a progress
+      // handler reports the pages it has read so far (its cache misses),
+      // a few times a second at most on a terminal (the printer's rate).
+      constexpr const char* kStage = "SQLite integrity check";
+      constexpr int kOpsPerReport = 4096;  // virtual-machine instructions between reports
+      struct Watch {
+        sqlite3* db;
+        const CheckReport* report;
+        std::uint64_t base;
+        std::uint64_t pages() const { return pages_read(db) - base; }
+      };
+      Watch watch{archive->connection(), &report, pages_read(archive->connection())};
+      report.stage(kStage);
+      sqlite3_progress_handler(
+          watch.db, kOpsPerReport,
+          [](void* p) {
+            const auto* w = static_cast<const Watch*>(p);
+            w->report->stage(kStage, w->pages());
+            return 0;
+          },
+          &watch);
+      attempt(text_rows_problems(watch.db, "PRAGMA integrity_check", path, path + ": SQLite integrity check", report),
+              "the SQLite structure");
+      sqlite3_progress_handler(watch.db, 0, nullptr, nullptr);
+      report.stage(kStage, watch.pages());
+    }
     report.checked("the SQLite file structure (PRAGMA integrity_check)");
     if (!init_status) report.problem(init_status.message());
     report.checked("tables, indexes and grid metadata");

@@ -292,8 +292,11 @@ struct ArchiveCheck {
 // What check_archive is doing, for a progress display: the stage (a short
 // text: "SQLite integrity check", "chunk blobs", "pyramid nodes", "spatial
 // index", "spatial index tree") and, in the stages that go chunk by chunk,
-// how many of `total` are done (total 0: a stage that is not counted). Called
-// on the caller's thread, at each stage's start and after every chunk.
+// how many of `total` are done; total 0: a stage that is not counted, but
+// for the SQLite integrity check, whose `done` is the pages SQLite has read
+// so far (no total: it may read a page more than once). Called on the
+// caller's thread, at each stage's start, after every chunk and, in the
+// SQLite check, every few thousand of SQLite's instructions.
 using CheckProgress = std::function<void(const char* stage, std::uint64_t done, std::uint64_t total)>;
 
 // Checks a whole archive without trusting any part of it: SQLite's own
