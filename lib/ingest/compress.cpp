@@ -227,28 +227,24 @@ ScanAttributes scan_attributes(const InputSet& in) {
   return a;
 }
 
-// What the colour rule of scan_attributes and Archive::begin_scan does to
-// levels that are not given back as they were read (format-spec/archive.md
-// §2.1 las_colors_8bit): 8-bit levels stored in 16-bit fields come back
-// scaled to 16 bits (v * 257) once the archive also holds 16-bit levels,
-// whether they were in it before this scan or come with it. Called when the
-// scan's readers have decided their rule.
-std::vector<std::string> colour_rule_warnings(const Archive& archive, const InputSet& in) {
-  std::vector<std::string> out;
-  const Result<ArchiveInfo> info = archive.info();
-  if (!info) return out;
-  const bool old_rgb = (info->las_attributes & kLasColorLow) != 0;
-  std::vector<std::string> narrow, wide;
+std::vector<ColourSource> colour_sources(const InputSet& in) {
+  std::vector<ColourSource> out;
   for (const auto& reader : in.readers) {
     const PointStreamInfo& r = reader->info();
-    if ((r.las_attributes & kLasColorLow) == 0) continue;
-    (r.las_colors_8bit ? narrow : wide).push_back(r.path);
+    if ((r.las_attributes & kLasColorLow) != 0) out.push_back({r.path, r.las_colors_8bit});
   }
+  return out;
+}
+
+std::vector<std::string> colour_rule_warnings(bool archive_rgb, bool archive_8bit,
+                                              const std::vector<ColourSource>& sources) {
+  std::vector<std::string> out;
+  std::vector<std::string> narrow, wide;
+  for (const ColourSource& s : sources) (s.levels_8bit ? narrow : wide).push_back(s.path);
   const bool new_8bit = wide.empty();
-  const bool archive_8bit = old_rgb ? info->las_colors_8bit && new_8bit : new_8bit;
-  if (archive_8bit) return out;
+  if (archive_rgb ? archive_8bit && new_8bit : new_8bit) return out;
   const std::string scaled = "come back from LAS and LAZ output scaled to 16 bits (level x 257)";
-  if (old_rgb && info->las_colors_8bit && !wide.empty()) {
+  if (archive_rgb && archive_8bit) {
     out.push_back(wide.front() + " has 16-bit colour levels: the archive's earlier points, whose sources stored " +
                   "8-bit levels in their 16-bit colour fields, now " + scaled);
   }
@@ -262,6 +258,18 @@ std::vector<std::string> colour_rule_warnings(const Archive& archive, const Inpu
   }
   return out;
 }
+
+namespace {
+
+// The warnings above for a scan about to begin in `archive`, its readers
+// having decided their rule.
+std::vector<std::string> colour_rule_warnings(const Archive& archive, const InputSet& in) {
+  const Result<ArchiveInfo> info = archive.info();
+  if (!info) return {};
+  return colour_rule_warnings((info->las_attributes & kLasColorLow) != 0, info->las_colors_8bit, colour_sources(in));
+}
+
+}  // namespace
 
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params,
                                 InputSet& in, PointCloud pending, const IngestOptions& options,

@@ -63,6 +63,23 @@ void conform_attributes(PointCloud& batch, const InputSet& in);
 // The ScanAttributes of the inputs (after reading: the colour-level rule of
 // LAS inputs is known once they have been read).
 ScanAttributes scan_attributes(const InputSet& in);
+
+// A LAS-style colour source of a scan: its path and whether it stores 8-bit
+// levels in its 16-bit fields (PointStreamInfo::las_colors_8bit).
+struct ColourSource {
+  std::string path;
+  bool levels_8bit = false;
+};
+// Warnings for the levels the archive's colour rule (format-spec/archive.md
+// §2.1 las_colors_8bit: 8-bit only while every source is) gives back scaled
+// to 16 bits (v * 257): a scan's 8-bit sources beside 16-bit ones or in an
+// archive of 16-bit levels, and an archive's earlier 8-bit levels when 16-bit
+// ones join them. `archive_rgb`: the archive already holds such colours,
+// `archive_8bit` as 8-bit levels.
+std::vector<std::string> colour_rule_warnings(bool archive_rgb, bool archive_8bit,
+                                              const std::vector<ColourSource>& sources);
+// The scan's sources with LAS-style colours (colour low bytes), from its readers.
+std::vector<ColourSource> colour_sources(const InputSet& in);
 // kInvalidArgument naming `source`, the point's index (first_index + i) and the
 // value when a coordinate of `batch` exceeds `limit` in magnitude
 // (max_coordinate_magnitude): such points would overflow chunk keys or lose

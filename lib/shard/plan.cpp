@@ -107,10 +107,12 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   }
   bool any_rgb = false;
   bool all_8bit = true;
+  std::vector<ColourSource> colour_inputs;
   for (std::size_t i = 0; i < in.readers.size(); ++i) {
     if ((in.readers[i]->info().las_attributes & kLasColorLow) == 0) continue;
     any_rgb = true;
     all_8bit = all_8bit && sample.las_colors_8bit[i];
+    colour_inputs.push_back({in.readers[i]->info().path, sample.las_colors_8bit[i] != 0});
   }
   plan.attributes.las_colors_8bit = any_rgb && all_8bit;
   plan.creator = o.creator;
@@ -138,6 +140,7 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   for (const auto& reader : in.readers) {
     for (const std::string& w : reader->info().warnings) plan.warnings.push_back(w);
   }
+  for (std::string& w : colour_rule_warnings(false, false, colour_inputs)) plan.warnings.push_back(std::move(w));
   // Key ranges of about equal point counts: quantiles of the order-free
   // sample's chunk keys (a uniform sample of the points), so the ranges too
   // depend only on the set of input points. Balance only: no blob depends on

@@ -1013,6 +1013,11 @@ TEST_CASE("8-bit and 16-bit colour levels in one archive: the scaled levels are 
     CHECK_THAT(r.output, Contains(narrow + " stores 8-bit levels in its 16-bit colour fields, but " + wide +
                                   " has 16-bit levels: its levels come back from LAS and LAZ output scaled to 16 bits"));
     CHECK_FALSE(archive_info(dir.file("m.relief")).las_colors_8bit);
+    // The sharded build's plan says the same.
+    const auto plan = relief::test::run_cli(cli(), "shard-plan " + narrow + " " + wide + " -o " + dir.file("m.plan") + " --quiet");
+    REQUIRE(plan.code == 0);
+    CHECK_THAT(plan.output, Contains(narrow + " stores 8-bit levels in its 16-bit colour fields, but " + wide +
+                                     " has 16-bit levels"));
   }
   SECTION("8-bit levels, then a 16-bit scan appended") {
     const std::string a = dir.file("a.relief");
