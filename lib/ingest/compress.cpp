@@ -213,14 +213,15 @@ ScanAttributes scan_attributes(const InputSet& in) {
   a.las_version_minor = in.las_version_minor;
   a.extra_bytes_vlr = in.extra_bytes_vlr;
   a.extra_bytes_size = in.extra_bytes_size;
-  // 8-bit levels only when every LAS input with colours stored them so.
+  // 8-bit levels only when every LAS input with colours stored them so (or
+  // had its 16-bit levels split as such: InputSet::split_wide_levels).
   bool any = false;
   bool all = true;
   for (const auto& reader : in.readers) {
     const PointStreamInfo& info = reader->info();
     if ((info.las_attributes & kLasColorLow) == 0) continue;
     any = true;
-    all = all && info.las_colors_8bit;
+    all = all && (info.las_colors_8bit || in.split_wide_levels);
   }
   a.las_colors_8bit = any && all;
   a.las_gps_time_type = in.las_gps_time_type;
@@ -231,9 +232,26 @@ std::vector<ColourSource> colour_sources(const InputSet& in) {
   std::vector<ColourSource> out;
   for (const auto& reader : in.readers) {
     const PointStreamInfo& r = reader->info();
-    if ((r.las_attributes & kLasColorLow) != 0) out.push_back({r.path, r.las_colors_8bit});
+    // Split 16-bit levels are 8-bit ones for the archive's rule.
+    if ((r.las_attributes & kLasColorLow) != 0) out.push_back({r.path, r.las_colors_8bit || in.split_wide_levels});
   }
   return out;
+}
+
+void split_wide_levels(PointCloud& batch, const PointReader& reader) {
+  const PointStreamInfo& info = reader.info();
+  const std::size_t n = batch.size();
+  if ((info.las_attributes & kLasColorLow) == 0 || info.las_colors_8bit || batch.colors.size() != n ||
+      batch.las.color_low.size() != n) {
+    return;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    Rgb8& c = batch.colors[i];
+    Rgb8& l = batch.las.color_low[i];
+    split_8bit_level(las_color_level(c.r, l.r, false), c.r, l.r);
+    split_8bit_level(las_color_level(c.g, l.g, false), c.g, l.g);
+    split_8bit_level(las_color_level(c.b, l.b, false), c.b, l.b);
+  }
 }
 
 std::vector<std::string> colour_rule_warnings(bool archive_rgb, bool archive_8bit,
@@ -313,6 +331,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       RELIEF_RETURN_IF_ERROR(stage_points(b.points, coordinate_limit, in.sources[b.reader].path,
                                           staged_per_source[b.reader], in.colors, in.intensity, params));
       staged_per_source[b.reader] += b.points.size();
+      if (in.split_wide_levels) split_wide_levels(b.points, *in.readers[b.reader]);
       // LAS attributes the archive carries and this input lacks: zeros.
       conform_las(b.points, in.las_attributes, in.extra_bytes_size);
       widen_intensity_range(b.points, intensity_lo, intensity_hi);
@@ -1009,6 +1028,13 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
     in.warnings.push_back(archive_path + " had no CRS; it takes " + crs_label(in.crs) + " of " + in.crs_from);
   }
   RELIEF_ASSIGN_OR_RETURN(EncodeParams params, encode_params_from_string(info.codec_params));
+  // An archive of 8-bit colour levels with exact colour keeps its rule: the
+  // new inputs' 16-bit levels are split as 8-bit ones, so both kinds come
+  // back. (With a colour tolerance the levels that come back are the decoded
+  // 8-bit colours, which would drop the 16-bit ones' scale: there the rule
+  // turns to 16 bits as before, with a warning.)
+  in.split_wide_levels = params.bound && params.bound->color_tolerance == 0 && info.las_colors_8bit &&
+                         (info.las_attributes & kLasColorLow) != 0;
   if (info.chunk_count > 0) {
     // Keep one attribute set per archive so every chunk decodes alike.
     if (info.has_colors && !in.colors) {

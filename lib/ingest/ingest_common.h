@@ -44,7 +44,17 @@ struct InputSet {
   // CRS decisions the user should hear of (inputs without a CRS among ones
   // with, a different CRS overridden by --assume-crs).
   std::vector<std::string> warnings;
+  // An append to an archive of 8-bit colour levels with exact colour: the
+  // 16-bit levels of the new inputs are stored split as 8-bit ones
+  // (split_8bit_level), so the archive keeps its rule and every level of
+  // either kind comes back (format-spec/archive.md §2.1 las_colors_8bit).
+  bool split_wide_levels = false;
 };
+
+// With InputSet::split_wide_levels: the batch's 16-bit levels, as `reader`
+// (which read them) narrowed them, become split 8-bit levels. Nothing for a
+// reader of 8-bit levels or one without colour low bytes.
+void split_wide_levels(PointCloud& batch, const PointReader& reader);
 
 // Opens every input up front, so a missing or unsupported file fails before
 // anything is created. Inputs whose CRSs differ are refused (kInvalidArgument

@@ -1019,7 +1019,7 @@ TEST_CASE("8-bit and 16-bit colour levels in one archive: the scaled levels are 
     CHECK_THAT(plan.output, Contains(narrow + " stores 8-bit levels in its 16-bit colour fields, but " + wide +
                                      " has 16-bit levels"));
   }
-  SECTION("8-bit levels, then a 16-bit scan appended") {
+  SECTION("8-bit levels, then a 16-bit scan appended: both kinds come back exactly") {
     const std::string a = dir.file("a.relief");
     const auto made = relief::test::run_cli(cli(), "compress " + narrow + " " + narrow2 + " -o " + a + " --quiet");
     REQUIRE(made.code == 0);
@@ -1027,6 +1027,25 @@ TEST_CASE("8-bit and 16-bit colour levels in one archive: the scaled levels are 
     CHECK(archive_info(a).las_colors_8bit);
     CHECK_THAT(relief::test::run_cli(cli(), "info " + a).output, Contains("8-bit colour levels in 16-bit fields"));
     CHECK_THAT(relief::test::run_cli(cli(), "info --json " + a).output, Contains("\"color_levels\": 8,"));
+    const auto r = relief::test::run_cli(cli(), "append " + a + " " + wide + " --quiet");
+    REQUIRE(r.code == 0);
+    CHECK(r.output.find("scaled") == std::string::npos);
+    // The archive keeps its rule; the 16-bit levels are stored split.
+    CHECK(archive_info(a).las_colors_8bit);
+    const std::string out = dir.file("a-out.las");
+    REQUIRE(relief::test::run_cli(cli(), "decompress " + a + " -o " + out + " --quiet").code == 0);
+    std::vector<LasRecord> want = sorted_records(narrow);
+    for (const std::string& f : {narrow2, wide}) {
+      const std::vector<LasRecord> more = sorted_records(f);
+      want.insert(want.end(), more.begin(), more.end());
+    }
+    std::sort(want.begin(), want.end());
+    REQUIRE(relief::test::first_difference(sorted_records(out), want) == "");
+  }
+  SECTION("with a colour tolerance, a 16-bit scan appended turns the archive to 16-bit levels, with a warning") {
+    const std::string a = dir.file("t.relief");
+    REQUIRE(relief::test::run_cli(cli(), "compress " + narrow + " -o " + a + " --quiet --color-tolerance 2").code == 0);
+    CHECK(archive_info(a).las_colors_8bit);
     const auto r = relief::test::run_cli(cli(), "append " + a + " " + wide + " --quiet");
     REQUIRE(r.code == 0);
     CHECK_THAT(r.output, Contains(wide + " has 16-bit colour levels: the archive's earlier points") &&
