@@ -215,15 +215,7 @@ ScanAttributes scan_attributes(const InputSet& in) {
   a.extra_bytes_size = in.extra_bytes_size;
   // 8-bit levels only when every LAS input with colours stored them so (or
   // had its 16-bit levels split as such: InputSet::split_wide_levels).
-  bool any = false;
-  bool all = true;
-  for (const auto& reader : in.readers) {
-    const PointStreamInfo& info = reader->info();
-    if ((info.las_attributes & kLasColorLow) == 0) continue;
-    any = true;
-    all = all && (info.las_colors_8bit || in.split_wide_levels);
-  }
-  a.las_colors_8bit = any && all;
+  a.las_colors_8bit = all_8bit_levels(colour_sources(in));
   a.las_gps_time_type = in.las_gps_time_type;
   return a;
 }
@@ -252,6 +244,11 @@ void split_wide_levels(PointCloud& batch, const PointReader& reader) {
     split_8bit_level(las_color_level(c.g, l.g, false), c.g, l.g);
     split_8bit_level(las_color_level(c.b, l.b, false), c.b, l.b);
   }
+}
+
+bool all_8bit_levels(const std::vector<ColourSource>& sources) {
+  return !sources.empty() &&
+         std::all_of(sources.begin(), sources.end(), [](const ColourSource& s) { return s.levels_8bit; });
 }
 
 std::vector<std::string> colour_rule_warnings(bool archive_rgb, bool archive_8bit,

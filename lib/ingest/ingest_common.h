@@ -90,6 +90,9 @@ std::vector<std::string> colour_rule_warnings(bool archive_rgb, bool archive_8bi
                                               const std::vector<ColourSource>& sources);
 // The scan's sources with LAS-style colours (colour low bytes), from its readers.
 std::vector<ColourSource> colour_sources(const InputSet& in);
+// The scan's rule (ScanAttributes::las_colors_8bit): some source has such
+// colours, and every one stores 8-bit levels.
+bool all_8bit_levels(const std::vector<ColourSource>& sources);
 // kInvalidArgument naming `source`, the point's index (first_index + i) and the
 // value when a coordinate of `batch` exceeds `limit` in magnitude
 // (max_coordinate_magnitude): such points would overflow chunk keys or lose

@@ -105,16 +105,12 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
     return internal_error("shard plan: the sample pass saw " + std::to_string(sample.las_colors_8bit.size()) +
                           " of " + std::to_string(in.readers.size()) + " inputs");
   }
-  bool any_rgb = false;
-  bool all_8bit = true;
   std::vector<ColourSource> colour_inputs;
   for (std::size_t i = 0; i < in.readers.size(); ++i) {
     if ((in.readers[i]->info().las_attributes & kLasColorLow) == 0) continue;
-    any_rgb = true;
-    all_8bit = all_8bit && sample.las_colors_8bit[i];
     colour_inputs.push_back({in.readers[i]->info().path, sample.las_colors_8bit[i] != 0});
   }
-  plan.attributes.las_colors_8bit = any_rgb && all_8bit;
+  plan.attributes.las_colors_8bit = all_8bit_levels(colour_inputs);
   plan.creator = o.creator;
   plan.archive_params = encode_params_to_string(built.params, ParamsText::kCompact);
   plan.grid = built.grid;
