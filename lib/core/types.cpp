@@ -183,6 +183,25 @@ void PointCloud::append_points(const PointCloud& src) {
   append_column(las.extra_bytes, a.extra_bytes);
 }
 
+void PointCloud::assign_range(const PointCloud& src, std::size_t first, std::size_t n) {
+  // Each column of this cloud becomes the same range of src's column (empty
+  // when src does not carry it); capacity is kept for the next range.
+  const auto assign = [first, n](auto& dst, const auto& from, std::size_t width) {
+    if (from.empty()) {
+      dst.clear();
+      return;
+    }
+    const auto begin = from.begin() + static_cast<std::ptrdiff_t>(first * width);
+    dst.assign(begin, begin + static_cast<std::ptrdiff_t>(n * width));
+  };
+  assign(positions, src.positions, 1);
+  assign(colors, src.colors, 1);
+  assign(intensities, src.intensities, 1);
+  LasAttributes::for_each_vector_pair(las, src.las, [&](auto& to, const auto& from, std::uint32_t) { assign(to, from, 1); });
+  las.extra_bytes_size = src.las.extra_bytes_size;
+  assign(las.extra_bytes, src.las.extra_bytes, src.las.extra_bytes_size);
+}
+
 PointCloud PointCloud::gathered(const std::vector<std::uint32_t>& order) const {
   PointCloud out;
   out.las.extra_bytes_size = las.extra_bytes_size;

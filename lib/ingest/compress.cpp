@@ -70,6 +70,12 @@ bool same_crs(const std::string& a, const std::string& b) {
   return equivalent.is_ok() && *equivalent;
 }
 
+ReaderOptions ingest_reader_options(const IngestOptions& options) {
+  ReaderOptions r = options.reader;
+  r.color_sample_memory = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget) / 8;
+  return r;
+}
+
 Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                              bool assume_crs, const std::string& crs) {
   if (inputs.empty()) return invalid_argument("no input files");
@@ -976,7 +982,7 @@ Result<IngestResult> compress_files(const std::vector<std::string>& given, const
     return io_error(archive_path + ": already exists and is not a Relief archive (compress never overwrites a file)");
   }
   RELIEF_RETURN_IF_ERROR(check_output_directory(archive_path));
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs, options.crs));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, ingest_reader_options(options), options.assume_crs, options.crs));
   PointCloud first;
   RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, options, in, first));
   const EncodeParams& params = built.params;
@@ -1006,7 +1012,7 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
                                   const IngestOptions& options) {
   using namespace ingest;
   RELIEF_ASSIGN_OR_RETURN(const std::vector<std::string> inputs, expand_inputs(given));
-  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, options.reader, options.assume_crs, options.crs));
+  RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, ingest_reader_options(options), options.assume_crs, options.crs));
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive, Archive::open(archive_path, Archive::Mode::kReadWrite));
   RELIEF_ASSIGN_OR_RETURN(ArchiveInfo info, archive->info());
   // One CRS per archive: the archive's wins over the inputs' when they differ

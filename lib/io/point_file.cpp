@@ -13,6 +13,7 @@
 
 #include "io/point_writers.h"
 #include "io/readers.h"
+#include "io/stream_support.h"
 #include "relief/io.h"
 
 namespace relief {
@@ -127,17 +128,26 @@ Result<std::unique_ptr<PointReader>> open_by_kind(const std::string& path, const
                        "); supported formats: " + supported_list());
   }
   const InputSpec input{path, std::nullopt};
+  std::unique_ptr<PointReader> reader;
   switch (it->kind) {
-    case Kind::kPly:
-      return open_ply_reader(input, options);
-    case Kind::kLas:
-      return open_las_reader(input, options.positions_only);
-    case Kind::kXyz:
-      return open_xyz_reader(input, options);
+    case Kind::kPly: {
+      RELIEF_ASSIGN_OR_RETURN(reader, open_ply_reader(input, options));
+      break;
+    }
+    case Kind::kLas: {
+      RELIEF_ASSIGN_OR_RETURN(reader, open_las_reader(input, options.positions_only));
+      break;
+    }
+    case Kind::kXyz: {
+      RELIEF_ASSIGN_OR_RETURN(reader, open_xyz_reader(input, options));
+      break;
+    }
     case Kind::kPcd:
       return open_pcd_reader(input, options);
   }
-  return internal_error(path + ": unhandled point file kind");
+  if (!reader) return internal_error(path + ": unhandled point file kind");
+  if (auto* batch = dynamic_cast<BatchPointReader*>(reader.get())) batch->hold_sample_up_to(options.color_sample_memory);
+  return reader;
 }
 
 }  // namespace

@@ -70,11 +70,47 @@ void BatchPointReader::note_levels_above_255(const std::uint16_t* wide, std::siz
   note_level_above_255(first + i, std::max({wide[3 * i], wide[3 * i + 1], wide[3 * i + 2]}));
 }
 
+Result<bool> BatchPointReader::hold_sample(std::uint64_t sample) {
+  // Positions 24 bytes, 16-bit levels 6, colours and low bytes 6, intensity
+  // 4, the LAS attributes up to 22 (GPS time, NIR and the small ones).
+  constexpr std::uint64_t kHeldBytesPerPoint = 64;
+  if (sample > hold_bytes_ / (kHeldBytesPerPoint + info_.extra_bytes_size)) return false;
+  std::vector<std::uint16_t> wide;
+  RELIEF_ASSIGN_OR_RETURN(const std::size_t n, read_into(held_, &wide, 0, static_cast<std::size_t>(sample)));
+  color_shift_ = color_shift_for(max_level(wide.data(), 3 * n));
+  shift_known_ = true;
+  info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+  note_lost_low_bytes();
+  held_.colors.resize(n);
+  if (color_low_) {
+    held_.las.color_low.resize(n);
+    narrow_colors(wide.data(), n, color_shift_, held_.colors.data(), held_.las.color_low.data());
+  } else {
+    narrow_colors(wide.data(), n, color_shift_, held_.colors.data());
+  }
+  held_next_ = 0;
+  return true;
+}
+
 Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_points) {
+  if (held_next_ < held_.size()) {
+    const std::size_t n = std::min(max_points, held_.size() - held_next_);
+    batch.assign_range(held_, held_next_, n);
+    held_next_ += n;
+    if (held_next_ == held_.size()) {
+      held_ = PointCloud{};  // the memory goes back as soon as the sample is out
+      held_next_ = 0;
+    }
+    return n;
+  }
   if (!wide_colors_ || shift_known_) return read_into(batch, nullptr, 0, max_points);
 
   const std::uint64_t sample = std::min(info_.point_count.value_or(kColorSamplePoints), kColorSamplePoints);
   if (max_points < sample) {
+    // Decoded once and held, when the caller allows the memory ...
+    RELIEF_ASSIGN_OR_RETURN(const bool held, hold_sample(sample));
+    if (held) return read(batch, max_points);
+    // ... else decided through a second handle (the sample decoded twice).
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<BatchPointReader> probe, reopen());
     if (probe) {
       RELIEF_ASSIGN_OR_RETURN(const LevelSample s, probe->sample_levels(sample, false));

@@ -130,6 +130,10 @@ class BatchPointReader : public PointReader {
   const PointStreamInfo& info() const final { return info_; }
   Result<std::size_t> read(PointCloud& batch, std::size_t max_points) final;
 
+  // ReaderOptions::color_sample_memory: with reads smaller than the colour
+  // rule's sample, the sample is decoded once and held (at most `bytes`).
+  void hold_sample_up_to(std::uint64_t bytes) { hold_bytes_ = bytes; }
+
   // Decodes up to `max_points` points into `out` from index `at` and returns
   // how many (0 at the end). On return every array info() announces holds
   // at + n entries and the others are empty. When `wide` is given and the file
@@ -180,8 +184,16 @@ class BatchPointReader : public PointReader {
   };
   Result<LevelSample> sample_levels(std::uint64_t sample, bool stop_when_wide);
 
+  // Decodes the rule's `sample` points into held_ (whole points, colours
+  // narrowed once the rule is decided from them): false, reading nothing,
+  // when they would need more than hold_bytes_.
+  Result<bool> hold_sample(std::uint64_t sample);
+
   bool shift_known_ = false;
   bool level_above_255_noted_ = false;
+  std::uint64_t hold_bytes_ = 0;
+  PointCloud held_;            // the sample's points not yet handed out ...
+  std::size_t held_next_ = 0;  // ... from this one
 };
 
 }  // namespace relief

@@ -577,6 +577,68 @@ TEST_CASE("LAS read from a pipe, where the size is unknown", "[io]") {
   require_same(*got, las_expected(s, true));  // the first batch holds levels > 255
 }
 
+TEST_CASE("LAS colour rule: a held sample reads as a second read does, and gives a pipe the whole sample", "[io]") {
+  // 8-bit levels but one of 1000 at point 3000: past a batch of 1000 points,
+  // within the rule's sample (the whole file), so the file is read as 16-bit
+  // levels (shifted by 8).
+  LasSpec s;
+  s.format = 3;
+  s.points = las_points(5000, false);
+  s.points[3000].g = 1000;
+  const std::string file = make_las(s);
+  const PointCloud want = las_expected(s, true);
+  REQUIRE(want.colors[3000].g == 3);
+  TempDir dir;
+  const std::string path = dir.file("late.las");
+  write_file(path, file);
+  ReaderOptions hold;
+  hold.color_sample_memory = std::uint64_t{1} << 30;
+  SECTION("a file: the sample held (decoded once), or not (decoded again to decide), the same points") {
+    // 5000 * 64 - 1 bytes: one byte short of holding the sample.
+    for (const std::uint64_t memory : {std::uint64_t{0}, hold.color_sample_memory, std::uint64_t{5000 * 64 - 1}}) {
+      CAPTURE(memory);
+      ReaderOptions o;
+      o.color_sample_memory = memory;
+      for (const std::size_t batch : {std::size_t{1}, std::size_t{999}, std::size_t{1000}, std::size_t{7000}}) {
+        CAPTURE(batch);
+        const Result<PointCloud> got = read_path(path, batch, o);
+        REQUIRE(got.is_ok());
+        require_same(*got, want);
+      }
+    }
+  }
+  SECTION("a pipe, which cannot be read twice: held, the whole sample decides; else the first batch") {
+    for (const bool held : {true, false}) {
+      CAPTURE(held);
+      const std::string fifo = dir.file(held ? "held.las" : "first-batch.las");
+      REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+      std::signal(SIGPIPE, SIG_IGN);
+      std::thread writer([&] { write_file(fifo, file); });
+      Result<std::unique_ptr<PointReader>> r = open_point_reader(fifo, held ? hold : ReaderOptions{});
+      Result<PointCloud> got = r.is_ok() ? read_stream(**r, 1000) : Result<PointCloud>(r.status());
+      std::vector<std::string> warnings;
+      if (r.is_ok()) warnings = (*r)->info().warnings;
+      r = Status(StatusCode::kInternal, "closed");  // closes the pipe before joining
+      writer.join();
+      INFO(got.status().to_string());
+      REQUIRE(got.is_ok());
+      if (held) {
+        require_same(*got, want);
+        CHECK(warnings.empty());
+      } else {
+        // The first 1000 points decided 8-bit levels: the late level is
+        // kept beside its colour, with a warning naming it.
+        CHECK(got->colors[0].r == s.points[0].r);
+        std::uint8_t colour = 0, low = 0;
+        relief::split_8bit_level(1000, colour, low);
+        CHECK(got->colors[3000].g == colour);
+        REQUIRE(warnings.size() == 1);
+        CHECK_THAT(warnings[0], Catch::Matchers::Contains("point 3000 has the colour level 1000"));
+      }
+    }
+  }
+}
+
 TEST_CASE("LAZ files go to the LAS reader", "[io]") {
   TempDir dir;
   const std::string path = dir.file("missing.LAZ");  // does not exist

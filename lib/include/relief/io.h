@@ -135,6 +135,15 @@ struct ReaderOptions {
   // points repeats its first point's. Do not use anything but the
   // positions of what such a reader returns. Other formats read as usual.
   bool positions_only = false;
+  // Memory (bytes) a reader of colour levels that may be 16-bit (LAS, LAZ,
+  // PLY, text) may hold to settle the colour rule above in one pass when it
+  // is read in batches smaller than the rule's sample: the sample's points
+  // are then decoded once, kept, and handed out batch by batch. With 0 (or a
+  // sample needing more, about 64 bytes a point plus the extra bytes) the
+  // sample is decoded twice, once through a second handle to decide, then as
+  // it is read: for LAZ, the first 2^20 points' decompression done twice.
+  // relief compress and append allow an eighth of their memory budget.
+  std::uint64_t color_sample_memory = 0;
 };
 
 class PointReader {

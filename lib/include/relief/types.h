@@ -293,6 +293,9 @@ struct PointCloud {
   void push_back_from(const PointCloud& src, std::size_t i);
   // Appends every point of `src`, which must carry the same attributes.
   void append_points(const PointCloud& src);
+  // This cloud becomes points [first, first + n) of `src` with the
+  // attributes `src` carries (first + n <= src.size()).
+  void assign_range(const PointCloud& src, std::size_t first, std::size_t n);
   // Reorders (or selects) points: the result's point k is this cloud's point order[k].
   PointCloud gathered(const std::vector<std::uint32_t>& order) const;
   // Resizes positions and every carried attribute to n points (new points zeroed).
