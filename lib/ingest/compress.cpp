@@ -292,6 +292,23 @@ std::vector<std::string> colour_rule_warnings(const Archive& archive, const Inpu
 
 }  // namespace
 
+namespace {
+
+// The memory plan of run_ingest for these inputs (their LAS attributes as
+// the archive will carry them).
+IngestBudget ingest_plan(const InputSet& in, const IngestOptions& options, bool bounded) {
+  const std::uint64_t las_bytes = las_record_bytes(in.las_attributes, in.extra_bytes_size);
+  return plan_ingest_budget(options.memory_budget, resolve_threads(options.threads), las_bytes, in.estimated_points,
+                            bounded);
+}
+
+// Whether run_ingest holds the whole input in memory (no bucket files).
+bool whole_input_in_memory(const InputSet& in, const IngestBudget& plan) {
+  return in.all_counts_known && in.known_total <= plan.in_memory_points;
+}
+
+}  // namespace
+
 Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const EncodeParams& params,
                                 InputSet& in, PointCloud pending, const IngestOptions& options,
                                 const std::string& tmp_parent) {
@@ -305,11 +322,10 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     in.extra_bytes_vlr.clear();
   }
   const unsigned threads = resolve_threads(options.threads);
-  const std::uint64_t las_bytes = las_record_bytes(in.las_attributes, in.extra_bytes_size);
   // Error-bounded archives must not depend on the budget: chunks are encoded
   // whole (bucket slices hold whole buckets) and split by a fixed rule.
   const bool bounded = params.bound.has_value();
-  const IngestBudget plan = plan_ingest_budget(options.memory_budget, threads, las_bytes, in.estimated_points, bounded);
+  const IngestBudget plan = ingest_plan(in, options, bounded);
   const ArchiveGrid* split_grid = bounded ? &grid : nullptr;
   const std::uint64_t task_points =
       bounded ? bounded_split_points(options.split_points, in.las_attributes, in.extra_bytes_size) : plan.part_points;
@@ -328,8 +344,11 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   // Reads every input. A background thread reads ahead and runs `stage` on
   // each batch (after dropping attributes the archive does not carry); the
   // calling thread hands the staged batches to `sink` in input order.
+  // With the input read ahead (InputSet::read_ahead) its batches are staged
+  // here in turn, `prepare` first (the in-memory path's room for them).
   const auto read_all = [&](const std::function<Status(ReadBatch&)>& stage,
-                            const std::function<Status(ReadBatch&)>& sink) -> Status {
+                            const std::function<Status(ReadBatch&)>& sink,
+                            const std::function<void(const ReadBatch&)>& prepare = nullptr) -> Status {
     const auto full_stage = [&](ReadBatch& b) -> Status {
       RELIEF_RETURN_IF_ERROR(stage_points(b.points, coordinate_limit, in.sources[b.reader].path,
                                           staged_per_source[b.reader], in.colors, in.intensity, params));
@@ -359,11 +378,21 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       first = batch.points.size();
       batch = ReadBatch();  // larger than the batches to come: not recycled
     }
-    Prefetcher prefetch(in.readers, static_cast<std::size_t>(plan.read_batch), 1, first, full_stage);
-    for (;;) {
-      RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(batch));
-      if (!more) break;
-      RELIEF_RETURN_IF_ERROR(take(batch));
+    if (in.whole_read) {
+      for (ReadBatch& b : in.read_ahead) {
+        if (prepare) prepare(b);
+        RELIEF_RETURN_IF_ERROR(full_stage(b));
+        RELIEF_RETURN_IF_ERROR(take(b));
+        b = ReadBatch();  // its memory goes back as the archive's copy grows
+      }
+      in.read_ahead.clear();
+    } else {
+      Prefetcher prefetch(in.readers, static_cast<std::size_t>(plan.read_batch), 1, first, full_stage);
+      for (;;) {
+        RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(batch));
+        if (!more) break;
+        RELIEF_RETURN_IF_ERROR(take(batch));
+      }
     }
     for (std::size_t i = 0; i < in.sources.size(); ++i) in.sources[i].point_count = per_source[i];
     return Status::ok();
@@ -433,11 +462,14 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       return Status::ok();
     };
     cover(pending.size() + 2 * plan.read_batch);
-    RELIEF_RETURN_IF_ERROR(read_all(copy_in, [&](ReadBatch& b) -> Status {
-      cover(b.first + b.points.size() + 2 * plan.read_batch);
-      grouping.add(b.points.positions.data(), b.points.size(), grid);
-      return Status::ok();
-    }));
+    RELIEF_RETURN_IF_ERROR(read_all(
+        copy_in,
+        [&](ReadBatch& b) -> Status {
+          cover(b.first + b.points.size() + 2 * plan.read_batch);
+          grouping.add(b.points.positions.data(), b.points.size(), grid);
+          return Status::ok();
+        },
+        [&](const ReadBatch& b) { cover(b.first + b.points.size()); }));
     // Headers count the records a reader skips by design (PCD's no-depth
     // NaN points), so those are subtracted, and `all`, covered up to the
     // headers' total, shrinks to the points read.
@@ -735,7 +767,8 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& b) {
 }
 
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                         int map_resolution, Box3d* bounds, OrderFreeSample* extra) {
+                                         int map_resolution, Box3d* bounds, OrderFreeSample* extra, InputSet* keep_from,
+                                         const PointCloud* first) {
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
@@ -771,31 +804,43 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
                                      "--cell (a shard plan needs files), or use 'relief stream'");
     }
   }
+  const auto take = [&](const PointCloud& batch) {
+    total += batch.size();
+    if (extra != nullptr) widen_intensity_range(batch, extra->intensity_lo, extra->intensity_hi);
+    for (const Vec3d& p : batch.positions) {
+      if (bounds != nullptr) bounds->add(p);
+      const std::uint64_t h = hash(p);
+      if (h < threshold) kept.emplace_back(h, p);
+    }
+    while (kept.size() > kKeep) {
+      threshold >>= 1;
+      std::erase_if(kept, [&](const auto& e) { return e.first >= threshold; });
+    }
+  };
   std::vector<std::unique_ptr<PointReader>> readers;
-  for (const std::string& path : inputs) {
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, first_pass));
-    readers.push_back(std::move(reader));
+  if (keep_from == nullptr) {
+    for (const std::string& path : inputs) {
+      RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, first_pass));
+      readers.push_back(std::move(reader));
+    }
   }
+  if (keep_from != nullptr && first != nullptr) take(*first);
   {
-    Prefetcher prefetch(readers, kReadBatchPoints, 1, 0, nullptr);  // one batch ahead, as the main pass
+    // One batch ahead, as the main pass.
+    Prefetcher prefetch(keep_from != nullptr ? keep_from->readers : readers, kReadBatchPoints, 1,
+                        keep_from != nullptr && first != nullptr ? first->size() : 0, nullptr);
     ReadBatch read;
     for (;;) {
       RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(read));
       if (!more) break;
-      const PointCloud& batch = read.points;
-      total += batch.size();
-      if (extra != nullptr) widen_intensity_range(batch, extra->intensity_lo, extra->intensity_hi);
-      for (const Vec3d& p : batch.positions) {
-        if (bounds != nullptr) bounds->add(p);
-        const std::uint64_t h = hash(p);
-        if (h < threshold) kept.emplace_back(h, p);
-      }
-      while (kept.size() > kKeep) {
-        threshold >>= 1;
-        std::erase_if(kept, [&](const auto& e) { return e.first >= threshold; });
+      take(read.points);
+      if (keep_from != nullptr) {
+        keep_from->read_ahead.push_back(std::move(read));
+        read = ReadBatch();
       }
     }
   }
+  if (keep_from != nullptr) keep_from->whole_read = true;
   if (extra != nullptr) {
     for (const auto& reader : readers) extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
   }
@@ -884,8 +929,12 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   if (bounded && params.cell_size == 0) {
     // The base layer's cells: from a sample that depends only on the set of
     // input points (not their order, not the memory budget).
-    RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
-                            order_free_cells(inputs, options.reader, params.map_resolution, &all_bounds, sample));
+    // A compress whose whole input fits its memory keeps what this pass
+    // reads (through the inputs' own readers, so every attribute), and the
+    // ingest stages it instead of reading every input a second time.
+    InputSet* keep = sample == nullptr && whole_input_in_memory(in, ingest_plan(in, options, true)) ? &in : nullptr;
+    RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells, order_free_cells(inputs, options.reader, params.map_resolution,
+                                                                         &all_bounds, sample, keep, &first));
     // Inputs without a single point still make a valid (empty) archive, on a
     // documented default grid, so scripted pipelines need no special case.
     params.cell_size = cells.density_cell > 0 ? cells.base_cell : kBaseCellFactor * kEmptyInputCellSize;

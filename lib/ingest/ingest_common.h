@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "ingest/chunk_pipeline.h"
+#include "ingest/prefetch.h"
 #include "relief/archive.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
@@ -49,6 +50,13 @@ struct InputSet {
   // (split_8bit_level), so the archive keeps its rule and every level of
   // either kind comes back (format-spec/archive.md §2.1 las_colors_8bit).
   bool split_wide_levels = false;
+  // A compress whose whole input fits its memory reads every point once: the
+  // order-free pass that fixes the grid reads through `readers` (after the
+  // first batch, which derive_build_parameters read) and keeps the batches
+  // here, as read, in order; run_ingest then stages them instead of reading
+  // the inputs a second time (`whole_read`: they hold every point).
+  std::vector<ReadBatch> read_ahead;
+  bool whole_read = false;
 };
 
 // With InputSet::split_wide_levels: the batch's 16-bit levels, as `reader`
@@ -230,8 +238,12 @@ struct OrderFreeSample {
   // (a LAS reader decides it on its first points).
   std::vector<bool> las_colors_8bit;
 };
+// With `keep_from`, the pass reads `keep_from->readers` themselves from the
+// point after `first` (whose points it counts first) and keeps every batch in
+// keep_from->read_ahead (InputSet::read_ahead); else it opens the inputs anew.
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                        int map_resolution, Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr);
+                                        int map_resolution, Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr,
+                                        InputSet* keep_from = nullptr, const PointCloud* first = nullptr);
 
 // ---- The steps of a new archive's build, shared by compress_files and the
 // sharded build (lib/shard), so both make the same decisions.

@@ -481,3 +481,66 @@ TEST_CASE("a bucket too large to load is cut into loads that give the tasks the 
   CHECK(whole.size() > 20);
   CHECK(loaded == whole);
 }
+
+TEST_CASE("the grid's pass can keep what it reads: the same cells, every point once, in order", "[ingest][read-ahead]") {
+  TempDir dir;
+  ArchiveGrid grid;
+  grid.chunk_edge = 10;
+  const PointCloud points = points_over_chunks(grid, 300000, 5);
+  const std::string a = dir.file("a.ply"), b = dir.file("b.ply");
+  PointCloud first_half, second_half;
+  for (std::size_t i = 0; i < points.size(); ++i) (i < 200000 ? first_half : second_half).push_back_from(points, i);
+  REQUIRE(write_ply(a, first_half).is_ok());
+  REQUIRE(write_ply(b, second_half).is_ok());
+  const std::vector<std::string> inputs = {a, b};
+  // What the files hold, read on their own.
+  auto cloud = read_point_file(a);
+  REQUIRE(cloud.is_ok());
+  auto rest = read_point_file(b);
+  REQUIRE(rest.is_ok());
+  cloud->append_points(*rest);
+  Box3d fresh_bounds;
+  const auto fresh = ingest::order_free_cells(inputs, ReaderOptions{}, 16, &fresh_bounds);
+  REQUIRE(fresh.is_ok());
+
+  auto in = ingest::open_inputs(inputs, ReaderOptions{});
+  REQUIRE(in.is_ok());
+  PointCloud first;
+  const auto got_first = in->readers[0]->read(first, 1000);
+  REQUIRE(got_first.is_ok());
+  REQUIRE(*got_first == 1000);
+  Box3d kept_bounds;
+  const auto kept = ingest::order_free_cells(inputs, ReaderOptions{}, 16, &kept_bounds, nullptr, &*in, &first);
+  REQUIRE(kept.is_ok());
+  CHECK(kept->points == cloud->size());
+  CHECK(kept->points == fresh->points);
+  CHECK(kept->density_cell == fresh->density_cell);
+  CHECK(kept->base_cell == fresh->base_cell);
+  CHECK(kept_bounds.min == fresh_bounds.min);
+  CHECK(kept_bounds.max == fresh_bounds.max);
+  REQUIRE(in->whole_read);
+  // The batches after `first`, in order, hold every other point exactly once.
+  PointCloud all = first;
+  std::uint64_t next = first.size();
+  for (const ingest::ReadBatch& batch : in->read_ahead) {
+    CHECK(batch.first == next);
+    CHECK(batch.reader == (next < first_half.size() ? 0u : 1u));
+    next += batch.points.size();
+    all.append_points(batch.points);
+  }
+  REQUIRE(all.size() == cloud->size());
+  for (std::size_t i = 0; i < cloud->size(); ++i) {
+    REQUIRE(all.positions[i] == cloud->positions[i]);
+    REQUIRE(all.colors[i].r == cloud->colors[i].r);
+    REQUIRE(all.colors[i].g == cloud->colors[i].g);
+    REQUIRE(all.colors[i].b == cloud->colors[i].b);
+    REQUIRE(all.intensities[i] == cloud->intensities[i]);
+  }
+  // The inputs' readers are at their ends: nothing is read twice.
+  PointCloud more;
+  for (const auto& reader : in->readers) {
+    const auto n = reader->read(more, 1000);
+    REQUIRE(n.is_ok());
+    CHECK(*n == 0);
+  }
+}
