@@ -77,19 +77,27 @@ Result<bool> BatchPointReader::hold_sample(std::uint64_t sample) {
   if (sample > hold_bytes_ / (kHeldBytesPerPoint + info_.extra_bytes_size)) return false;
   std::vector<std::uint16_t> wide;
   RELIEF_ASSIGN_OR_RETURN(const std::size_t n, read_into(held_, &wide, 0, static_cast<std::size_t>(sample)));
-  color_shift_ = color_shift_for(max_level(wide.data(), 3 * n));
-  shift_known_ = true;
-  info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+  settle_rule(max_level(wide.data(), 3 * n));
   note_lost_low_bytes();
-  held_.colors.resize(n);
-  if (color_low_) {
-    held_.las.color_low.resize(n);
-    narrow_colors(wide.data(), n, color_shift_, held_.colors.data(), held_.las.color_low.data());
-  } else {
-    narrow_colors(wide.data(), n, color_shift_, held_.colors.data());
-  }
+  narrow_into(held_, wide.data(), n);
   held_next_ = 0;
   return true;
+}
+
+void BatchPointReader::settle_rule(std::uint16_t largest) {
+  color_shift_ = color_shift_for(largest);
+  shift_known_ = true;
+  info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+}
+
+void BatchPointReader::narrow_into(PointCloud& out, const std::uint16_t* wide, std::size_t n) const {
+  out.colors.resize(n);
+  if (color_low_) {
+    out.las.color_low.resize(n);
+    narrow_colors(wide, n, color_shift_, out.colors.data(), out.las.color_low.data());
+  } else {
+    narrow_colors(wide, n, color_shift_, out.colors.data());
+  }
 }
 
 Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_points) {
@@ -114,9 +122,7 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<BatchPointReader> probe, reopen());
     if (probe) {
       RELIEF_ASSIGN_OR_RETURN(const LevelSample s, probe->sample_levels(sample, false));
-      color_shift_ = color_shift_for(s.max);
-      shift_known_ = true;
-      info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+      settle_rule(s.max);
       note_lost_low_bytes();
       return read_into(batch, nullptr, 0, max_points);
     }
@@ -125,19 +131,11 @@ Result<std::size_t> BatchPointReader::read(PointCloud& batch, std::size_t max_po
   std::vector<std::uint16_t> wide;
   RELIEF_ASSIGN_OR_RETURN(const std::size_t n, read_into(batch, &wide, 0, max_points));
   const auto sampled = static_cast<std::size_t>(std::min<std::uint64_t>(n, sample));
-  color_shift_ = color_shift_for(max_level(wide.data(), 3 * sampled));
-  shift_known_ = true;
-  info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+  settle_rule(max_level(wide.data(), 3 * sampled));
   // Levels above 255 after the sample, in this first batch.
   note_levels_above_255(wide.data() + 3 * sampled, n - sampled, sampled);
   note_lost_low_bytes();
-  batch.colors.resize(n);
-  if (color_low_) {
-    batch.las.color_low.resize(n);
-    narrow_colors(wide.data(), n, color_shift_, batch.colors.data(), batch.las.color_low.data());
-  } else {
-    narrow_colors(wide.data(), n, color_shift_, batch.colors.data());
-  }
+  narrow_into(batch, wide.data(), n);
   return n;
 }
 

@@ -188,6 +188,11 @@ class BatchPointReader : public PointReader {
   // narrowed once the rule is decided from them): false, reading nothing,
   // when they would need more than hold_bytes_.
   Result<bool> hold_sample(std::uint64_t sample);
+  // The rule for a sample whose largest level is `largest` (with
+  // info().las_colors_8bit), and the colours (and low bytes) of `out`'s
+  // first n points from their 16-bit levels by it.
+  void settle_rule(std::uint16_t largest);
+  void narrow_into(PointCloud& out, const std::uint16_t* wide, std::size_t n) const;
 
   bool shift_known_ = false;
   bool level_above_255_noted_ = false;
