@@ -186,7 +186,11 @@ Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, cons
 
 Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptions& options,
                                       const std::function<void(std::uint64_t points)>& progress) {
-  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, options));
+  // Read in batches smaller than the colour rule's sample: held, the sample
+  // is decoded once (for LAZ, its first 2^20 points are not decompressed twice).
+  ReaderOptions read_options = options;
+  read_options.color_sample_memory = std::max<std::uint64_t>(read_options.color_sample_memory, std::uint64_t{128} << 20);
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_point_reader(path, read_options));
   // A reader knows some things only once it has read (a PLY's extra
   // properties do not change, but a text file's colour rule may): the
   // summary is set up from the first batch's info.

@@ -175,7 +175,8 @@ Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, cons
 // The same of a point file (any format open_point_reader reads), read whole
 // with `options` (its `attributes` choose what is summarised): `relief stats
 // in.laz` beside `relief stats out.relief` checks an archive against its
-// source.
+// source. The colour rule's sample is decoded once: at least 128 MiB of
+// ReaderOptions::color_sample_memory.
 Result<ArchiveStats> point_file_stats(const std::string& path, const ReaderOptions& options = {},
                                       const std::function<void(std::uint64_t points)>& progress = {});
 // The statistics as one JSON object: what `relief stats --json` prints and
