@@ -73,6 +73,7 @@ bool same_crs(const std::string& a, const std::string& b) {
 ReaderOptions ingest_reader_options(const IngestOptions& options) {
   ReaderOptions r = options.reader;
   r.color_sample_memory = std::max<std::uint64_t>(options.memory_budget, kMinMemoryBudget) / 8;
+  r.decode_threads = resolve_threads(options.threads);
   return r;
 }
 
@@ -933,8 +934,9 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     // reads (through the inputs' own readers, so every attribute), and the
     // ingest stages it instead of reading every input a second time.
     InputSet* keep = sample == nullptr && whole_input_in_memory(in, ingest_plan(in, options, true)) ? &in : nullptr;
-    RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells, order_free_cells(inputs, options.reader, params.map_resolution,
-                                                                         &all_bounds, sample, keep, &first));
+    RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
+                            order_free_cells(inputs, ingest_reader_options(options), params.map_resolution,
+                                             &all_bounds, sample, keep, &first));
     // Inputs without a single point still make a valid (empty) archive, on a
     // documented default grid, so scripted pipelines need no special case.
     params.cell_size = cells.density_cell > 0 ? cells.base_cell : kBaseCellFactor * kEmptyInputCellSize;

@@ -71,10 +71,10 @@ void split_wide_levels(PointCloud& batch, const PointReader& reader);
 // CRS: those naming another are told of in the warnings.
 Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                              bool assume_crs = false, const std::string& crs = {});
-// The reader options of an ingest's main read: options.reader, allowed to
-// hold the colour rule's sample (ReaderOptions::color_sample_memory) in an
-// eighth of the memory budget, so a LAZ input's first 2^20 points are not
-// decompressed twice.
+// The reader options of an ingest's reads: options.reader, allowed to hold
+// the colour rule's sample (ReaderOptions::color_sample_memory) in an eighth
+// of the memory budget, so a LAZ input's first 2^20 points are not
+// decompressed twice, and decompressing LAZ on the ingest's threads.
 ReaderOptions ingest_reader_options(const IngestOptions& options);
 // Whether two CRSs are the same (PROJ equivalence; text equality for a CRS
 // PROJ cannot read).

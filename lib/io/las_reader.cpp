@@ -494,10 +494,12 @@ DecodeFn pick_decoder(ColorOut color) {
 
 class LasPointReader final : public BatchPointReader {
  public:
-  static Result<std::unique_ptr<LasPointReader>> open(const InputSpec& input, bool positions_only) {
+  static Result<std::unique_ptr<LasPointReader>> open(const InputSpec& input, bool positions_only,
+                                                      unsigned decode_threads) {
     RELIEF_ASSIGN_OR_RETURN(ByteSource src, input.open());
     std::unique_ptr<LasPointReader> reader(new LasPointReader(input, std::move(src)));
     reader->positions_only_ = positions_only;
+    reader->decode_threads_ = decode_threads;
     RELIEF_RETURN_IF_ERROR(reader->start());
     return reader;
   }
@@ -508,13 +510,14 @@ class LasPointReader final : public BatchPointReader {
  protected:
   Result<std::unique_ptr<BatchPointReader>> reopen() const override {
     if (!input_.memory && !src_.size()) return std::unique_ptr<BatchPointReader>();
-    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> again, open(input_, positions_only_));
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> again, open(input_, positions_only_, decode_threads_));
     return std::unique_ptr<BatchPointReader>(std::move(again));
   }
 
  private:
   LasPointReader(InputSpec input, ByteSource src) : input_(std::move(input)), src_(std::move(src)) {}
   bool positions_only_ = false;  // ReaderOptions::positions_only
+  unsigned decode_threads_ = 0;  // ReaderOptions::decode_threads
 
   Status start();
   Status check_size();
@@ -855,7 +858,8 @@ Status LasPointReader::start_laz(const ProjectionRecords& records) {
   RELIEF_ASSIGN_OR_RETURN(std::vector<laz::Chunk> chunks,
                           laz::parse_chunk_table(view.first(table_bytes), params, first_chunk, table_offset,
                                                  header_.point_count, name()));
-  const unsigned threads = std::clamp(std::thread::hardware_concurrency(), 1u, kMaxLazThreads);
+  const unsigned threads =
+      std::clamp(decode_threads_ != 0 ? decode_threads_ : std::thread::hardware_concurrency(), 1u, kMaxLazThreads);
   RELIEF_ASSIGN_OR_RETURN(laz_reader_, laz::ChunkReader::create(params, std::move(chunks), threads, name()));
   laz_ = true;
   backed_ = true;  // the table accounts for every declared point
@@ -968,8 +972,10 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
 
 }  // namespace
 
-Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input, bool positions_only) {
-  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> reader, LasPointReader::open(input, positions_only));
+Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input, bool positions_only,
+                                                     unsigned decode_threads) {
+  RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<LasPointReader> reader,
+                          LasPointReader::open(input, positions_only, decode_threads));
   return std::unique_ptr<PointReader>(std::move(reader));
 }
 

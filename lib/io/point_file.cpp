@@ -135,7 +135,7 @@ Result<std::unique_ptr<PointReader>> open_by_kind(const std::string& path, const
       break;
     }
     case Kind::kLas: {
-      RELIEF_ASSIGN_OR_RETURN(reader, open_las_reader(input, options.positions_only));
+      RELIEF_ASSIGN_OR_RETURN(reader, open_las_reader(input, options.positions_only, options.decode_threads));
       break;
     }
     case Kind::kXyz: {

@@ -11,7 +11,8 @@
 namespace relief {
 
 Result<std::unique_ptr<PointReader>> open_ply_reader(const InputSpec& input, const ReaderOptions& options);
-Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input, bool positions_only = false);
+Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input, bool positions_only = false,
+                                                     unsigned decode_threads = 0);
 Result<std::unique_ptr<PointReader>> open_xyz_reader(const InputSpec& input, const ReaderOptions& options);
 Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input, const ReaderOptions& options);
 

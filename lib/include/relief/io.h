@@ -144,6 +144,10 @@ struct ReaderOptions {
   // it is read: for LAZ, the first 2^20 points' decompression done twice.
   // relief compress and append allow an eighth of their memory budget.
   std::uint64_t color_sample_memory = 0;
+  // LAZ: the threads that decompress chunks side by side (one chunk each),
+  // 0 for every core; at most 4 either way. relief compress and append pass
+  // their --threads.
+  unsigned decode_threads = 0;
 };
 
 class PointReader {
