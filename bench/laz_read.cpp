@@ -2,6 +2,9 @@
 // through the public reader (open_point_reader, batches of 2^20 points, the
 // way the ingest reads), median of --repeat runs. Prints CSV with wall and
 // process CPU seconds: on a shared machine the CPU time is the steadier one.
+// Then the LAS twin's points written back as LAZ (open_point_writer) with
+// one compressing thread and with every core (WriterOptions::threads): wall
+// seconds, median of --repeat.
 #include <time.h>
 
 #include <algorithm>
@@ -76,6 +79,42 @@ Timing median_read(const std::string& path, int repeat, std::uint64_t& points, b
   return {wall[wall.size() / 2], cpu[cpu.size() / 2]};
 }
 
+// Wall seconds to write `cloud` as LAZ to `out` with `threads`, or < 0.
+double time_write(const relief::PointCloud& cloud, const relief::PointStreamInfo& info, const std::string& out,
+                  unsigned threads) {
+  relief::WriterOptions w;
+  w.colors = cloud.has_colors();
+  w.intensity = cloud.has_intensity();
+  w.las_attributes = cloud.las.carried();
+  w.extra_bytes_size = cloud.las.extra_bytes_size;
+  w.extra_bytes_vlr = info.extra_bytes_vlr;
+  w.las_point_format = info.las_point_format;
+  w.las_version_minor = info.las_version_minor;
+  w.threads = threads;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto writer = relief::open_point_writer(out, w);
+  if (!writer.is_ok() || !(*writer)->write(cloud).is_ok() || !(*writer)->finish().is_ok()) {
+    std::fprintf(stderr, "%s: the LAZ write failed\n", out.c_str());
+    return -1;
+  }
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double median_write(const std::string& las, const std::string& out, int repeat, unsigned threads) {
+  auto cloud = relief::read_point_file(las);
+  auto reader = relief::open_point_reader(las);
+  if (!cloud.is_ok() || !reader.is_ok()) return -1;
+  std::vector<double> wall;
+  for (int i = 0; i < repeat; ++i) {
+    const double t = time_write(*cloud, (*reader)->info(), out, threads);
+    std::filesystem::remove(out);
+    if (t < 0) return t;
+    wall.push_back(t);
+  }
+  std::sort(wall.begin(), wall.end());
+  return wall[wall.size() / 2];
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -103,7 +142,8 @@ int main(int argc, char** argv) {
   std::printf("# median of %d runs, batches of %zu points; LAZ chunks decode on up to %u threads\n", repeat, kBatch,
               std::max(1u, std::min(4u, std::thread::hardware_concurrency())));
   std::printf("file,points,laz_bytes,las_bytes,laz_wall_s,laz_wall_mpts_s,laz_cpu_s,laz_cpu_mpts_s,las_wall_s,"
-              "las_cpu_s,las_cpu_mpts_s,laz_over_las_cpu,laz_xyz_cpu_s,laz_xyz_cpu_mpts_s\n");
+              "las_cpu_s,las_cpu_mpts_s,laz_over_las_cpu,laz_xyz_cpu_s,laz_xyz_cpu_mpts_s,write_laz_1_thread_s,"
+              "write_laz_s\n");
   int status = 0;
   for (const Pair& p : pairs) {
     const std::string laz = data + "/" + p.laz;
@@ -123,12 +163,20 @@ int main(int argc, char** argv) {
       continue;
     }
     const auto n = static_cast<double>(n_laz);
-    std::printf("%s,%llu,%llu,%llu,%.4f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.1f,%.4f,%.2f\n", p.name,
+    const std::string out = (std::filesystem::temp_directory_path() / "relief-bench-laz-write.laz").string();
+    const double w1 = median_write(las, out, repeat, 1);
+    const double wn = median_write(las, out, repeat, 0);
+    if (w1 < 0 || wn < 0) {
+      std::printf("# %s: failed\n", p.name);
+      status = 1;
+      continue;
+    }
+    std::printf("%s,%llu,%llu,%llu,%.4f,%.2f,%.4f,%.2f,%.4f,%.4f,%.2f,%.1f,%.4f,%.2f,%.4f,%.4f\n", p.name,
                 static_cast<unsigned long long>(n_laz),
                 static_cast<unsigned long long>(std::filesystem::file_size(laz)),
                 static_cast<unsigned long long>(std::filesystem::file_size(las)), t_laz.wall, n / t_laz.wall / 1e6, t_laz.cpu,
                 n / t_laz.cpu / 1e6, t_las.wall, t_las.cpu, n / t_las.cpu / 1e6, t_laz.cpu / t_las.cpu, t_xyz.cpu,
-                n / t_xyz.cpu / 1e6);
+                n / t_xyz.cpu / 1e6, w1, wn);
   }
   return status;
 }

@@ -89,6 +89,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/parallel.h"
 #include "io/output_file.h"
 #include "io/point_writers.h"
 #include "io/text_scan.h"
@@ -734,7 +735,7 @@ class LasStreamWriter final : public StreamPointWriter {
     if (laz_) {
       RELIEF_ASSIGN_OR_RETURN(compressor_, laz::PointCompressor::create(format_, record_length_,
                                                                         laz::PointCompressor::kDefaultChunkSize,
-                                                                        out_->path()));
+                                                                        out_->path(), resolve_threads(options_.threads)));
     }
     build_vlrs();
     if (header_size_ + vlrs_.size() > std::numeric_limits<std::uint32_t>::max()) {

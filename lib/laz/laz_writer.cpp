@@ -16,6 +16,7 @@
 #include "laz/integer_coder.h"
 #include "laz/items.h"
 #include "laz/tables.h"
+#include "core/parallel.h"
 #include "relief/laz.h"
 
 namespace relief::laz {
@@ -42,6 +43,10 @@ constexpr std::uint32_t kChunkTableVersion = 0;
 // end there.
 constexpr std::size_t kCompressedSlackPerPoint = 64;
 constexpr std::uint64_t kMaxChunkBytes = std::uint64_t{1} << 31;
+// Chunks compressed side by side at most (PointCompressor::create), and only
+// chunks of at most this many bytes of records (each waits whole in memory).
+constexpr unsigned kMaxCompressThreads = 4;
+constexpr std::uint64_t kMaxParallelCompressBytes = std::uint64_t{16} << 20;
 
 }  // namespace
 
@@ -81,7 +86,8 @@ PointCompressor::PointCompressor() = default;
 PointCompressor::~PointCompressor() = default;
 
 Result<std::unique_ptr<PointCompressor>> PointCompressor::create(int point_format, std::size_t record_length,
-                                                                 std::uint32_t chunk_size, const std::string& name) {
+                                                                 std::uint32_t chunk_size, const std::string& name,
+                                                                 unsigned threads) {
   // Formats 9 and 10 are read (their wave packet layer skipped), not written.
   const bool wave = point_format == 9 || point_format == 10;
   const FormatItems need = wave ? FormatItems{} : items_for_format(point_format);
@@ -101,8 +107,22 @@ Result<std::unique_ptr<PointCompressor>> PointCompressor::create(int point_forma
                             "-byte records, or variable)");
   }
   std::unique_ptr<PointCompressor> c(new PointCompressor());
-  c->state_ = std::make_unique<State>();
-  State& s = *c->state_;
+  // One state per thread: each compresses whole chunks on its own (a chunk
+  // starts every model afresh, so the bytes do not depend on which state
+  // wrote it). Variable chunks end at the caller's word: one state.
+  const bool parallel = chunk_size != kVariableChunks && std::uint64_t{chunk_size} * record_length <= kMaxParallelCompressBytes;
+  const unsigned states = parallel ? std::clamp(threads, 1u, kMaxCompressThreads) : 1u;
+  for (unsigned i = 0; i < states; ++i) c->states_.push_back(make_state(point_format, record_length, chunk_size, max_points));
+  c->state_ = c->states_.front().get();
+  return c;
+}
+
+std::unique_ptr<PointCompressor::State> PointCompressor::make_state(int point_format, std::size_t record_length,
+                                                                    std::uint32_t chunk_size,
+                                                                    std::uint32_t max_points) {
+  const FormatItems need = items_for_format(point_format);
+  auto state = std::make_unique<State>();
+  State& s = *state;
   s.format = point_format;
   s.layered = point_format >= 6;
   s.record_length = record_length;
@@ -141,7 +161,7 @@ Result<std::unique_ptr<PointCompressor>> PointCompressor::create(int point_forma
       s.bytes = std::make_unique<ByteV2>(s.extra);
     }
   }
-  return c;
+  return state;
 }
 
 std::vector<std::uint8_t> PointCompressor::vlr_payload() const {
@@ -178,8 +198,7 @@ std::vector<std::uint8_t> PointCompressor::vlr_payload() const {
   return p;
 }
 
-void PointCompressor::start_chunk(const std::uint8_t* record) {
-  State& s = *state_;
+void PointCompressor::start_chunk(State& s, const std::uint8_t* record) {
   // A chunk starts with its first point raw; the streams code the rest.
   s.chunk.insert(s.chunk.end(), record, record + s.record_length);
   if (s.layered) {
@@ -198,8 +217,7 @@ void PointCompressor::start_chunk(const std::uint8_t* record) {
   }
 }
 
-void PointCompressor::end_chunk(std::vector<std::uint8_t>& out) {
-  State& s = *state_;
+void PointCompressor::end_chunk(State& s, std::vector<std::uint8_t>& out) {
   if (s.layered) {
     std::array<std::uint8_t, 4> word{};
     put_u32(word.data(), s.in_chunk);
@@ -228,12 +246,53 @@ void PointCompressor::end_chunk(std::vector<std::uint8_t>& out) {
 }
 
 void PointCompressor::add(const std::uint8_t* records, std::size_t n, std::vector<std::uint8_t>& out) {
+  if (states_.size() == 1) return encode(*state_, records, n, out);
+  // Whole chunks are gathered, then compressed side by side, one a state,
+  // and appended in order.
   State& s = *state_;
+  const std::size_t chunk_bytes = std::size_t{s.chunk_size} * s.record_length;
+  const std::size_t batch_bytes = states_.size() * chunk_bytes;
+  while (n > 0) {
+    const std::size_t take = std::min(n, (batch_bytes - pending_.size()) / s.record_length);
+    pending_.insert(pending_.end(), records, records + take * s.record_length);
+    records += take * s.record_length;
+    n -= take;
+    if (pending_.size() == batch_bytes) compress_pending(out);
+  }
+}
+
+void PointCompressor::compress_pending(std::vector<std::uint8_t>& out) {
+  State& main = *state_;
+  const std::size_t chunk_bytes = std::size_t{main.chunk_size} * main.record_length;
+  const std::size_t chunks = (pending_.size() + chunk_bytes - 1) / chunk_bytes;
+  if (chunks == 0) return;
+  std::vector<std::vector<std::uint8_t>> outs(chunks);
+  for_each_parallel(chunks, static_cast<unsigned>(chunks), [&](std::size_t i) {
+    State& w = *states_[i];
+    const std::size_t begin = i * chunk_bytes;
+    const std::size_t bytes = std::min(chunk_bytes, pending_.size() - begin);
+    encode(w, pending_.data() + begin, bytes / main.record_length, outs[i]);
+    end_chunk(w, outs[i]);
+  });
+  for (std::size_t i = 0; i < chunks; ++i) {
+    State& w = *states_[i];
+    out.insert(out.end(), outs[i].begin(), outs[i].end());
+    if (i > 0) {  // the first state is the main one: its counts are in place
+      main.chunk_points.insert(main.chunk_points.end(), w.chunk_points.begin(), w.chunk_points.end());
+      main.chunk_bytes.insert(main.chunk_bytes.end(), w.chunk_bytes.begin(), w.chunk_bytes.end());
+      w.chunk_points.clear();
+      w.chunk_bytes.clear();
+    }
+  }
+  pending_.clear();
+}
+
+void PointCompressor::encode(State& s, const std::uint8_t* records, std::size_t n, std::vector<std::uint8_t>& out) {
   const std::uint32_t limit = s.chunk_size == kVariableChunks ? s.max_chunk_points : s.chunk_size;
   for (std::size_t i = 0; i < n; ++i, records += s.record_length) {
-    if (s.in_chunk == limit) end_chunk(out);
+    if (s.in_chunk == limit) end_chunk(s, out);
     if (s.in_chunk == 0) {
-      start_chunk(records);
+      start_chunk(s, records);
     } else if (s.layered) {
       const std::uint32_t context = s.point14->write(records);
       if (s.rgb14) s.rgb14->write(records + s.rgb_offset, context);
@@ -249,12 +308,13 @@ void PointCompressor::add(const std::uint8_t* records, std::size_t n, std::vecto
 }
 
 void PointCompressor::flush_chunk(std::vector<std::uint8_t>& out) {
-  if (state_->chunk_size == kVariableChunks && state_->in_chunk > 0) end_chunk(out);
+  if (state_->chunk_size == kVariableChunks && state_->in_chunk > 0) end_chunk(*state_, out);
 }
 
 std::vector<std::uint8_t> PointCompressor::finish(std::vector<std::uint8_t>& out) {
   State& s = *state_;
-  if (s.in_chunk > 0) end_chunk(out);
+  compress_pending(out);
+  if (s.in_chunk > 0) end_chunk(s, out);
   std::vector<std::uint8_t> table(8);
   put_u32(table.data(), kChunkTableVersion);
   put_u32(table.data() + 4, static_cast<std::uint32_t>(s.chunk_bytes.size()));

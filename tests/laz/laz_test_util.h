@@ -115,11 +115,12 @@ inline std::vector<std::uint8_t> twin_records(const std::vector<std::uint8_t>& l
 
 // Compresses `records`, lays them out as a file would (8-byte table offset,
 // chunks, table), and decodes them through the reading API. With
-// kVariableChunks a chunk ends after each count in `variable` in turn.
+// kVariableChunks a chunk ends after each count in `variable` in turn. With
+// `threads` > 1 the compressor writes fixed chunks side by side.
 inline std::vector<std::uint8_t> round_trip(const std::vector<std::uint8_t>& records, int format, std::size_t rl,
                                      std::uint32_t chunk_size, const std::vector<std::size_t>& variable = {},
-                                     bool positions_only = false) {
-  auto comp = laz::PointCompressor::create(format, rl, chunk_size, "test");
+                                     bool positions_only = false, unsigned threads = 1) {
+  auto comp = laz::PointCompressor::create(format, rl, chunk_size, "test", threads);
   INFO(comp.status().to_string());
   REQUIRE(comp.is_ok());
   const std::size_t count = records.size() / rl;

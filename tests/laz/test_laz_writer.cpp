@@ -166,6 +166,9 @@ TEST_CASE("LAZ writer: random records of every format come back exactly", "[laz]
           // Chunks of one point each (on fewer records: every chunk restarts every model).
           const std::vector<std::uint8_t> few(records.begin(), records.begin() + static_cast<std::ptrdiff_t>(300 * rl));
           CHECK(first_difference(round_trip(few, format, rl, 1), few, rl) == -1);
+          // Chunks compressed side by side: the same records back.
+          CHECK(first_difference(round_trip(records, format, rl, 1000, {}, false, 3), records, rl) == -1);
+          CHECK(first_difference(round_trip(few, format, rl, 1, {}, false, 4), few, rl) == -1);
           // Variable chunks of uneven sizes, single points among them.
           CHECK(first_difference(round_trip(records, format, rl, laz::kVariableChunks, {777, 1, 2048, 5, 3000}),
                                  records, rl) == -1);

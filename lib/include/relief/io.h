@@ -321,6 +321,10 @@ struct WriterOptions {
   std::optional<Vec3d> grid_scale;
   std::optional<Vec3d> grid_offset;
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
+  // LAZ: the threads that compress chunks side by side (whole chunks of
+  // 50,000 points gathered, one a thread; the bytes do not change), 0 for
+  // every core; at most 4 either way.
+  unsigned threads = 0;
   // The per-point LAS attributes (LasAttributeBits) every batch carries and
   // the file records (LAS/LAZ; PLY, ASCII or binary, and text write them as
   // properties and columns, see the README); the source's point format and LAS minor

@@ -173,8 +173,11 @@ class PointCompressor {
   // shorter than the format's or over 65535, and chunks so long that their
   // byte counts could overflow the chunk table's 32 bits (a variable chunk
   // ends there by itself).
+  // With `threads` > 1 and fixed chunks (of up to 16 MiB of records), up to
+  // 4 chunks are gathered and compressed side by side; the bytes are the same.
   static Result<std::unique_ptr<PointCompressor>> create(int point_format, std::size_t record_length,
-                                                         std::uint32_t chunk_size, const std::string& name);
+                                                         std::uint32_t chunk_size, const std::string& name,
+                                                         unsigned threads = 1);
   ~PointCompressor();
 
   // The LASzip VLR's payload (user id kVlrUserId, record kVlrRecordId).
@@ -192,10 +195,18 @@ class PointCompressor {
  private:
   struct State;
   PointCompressor();
-  void start_chunk(const std::uint8_t* record);
-  void end_chunk(std::vector<std::uint8_t>& out);
+  static std::unique_ptr<State> make_state(int point_format, std::size_t record_length, std::uint32_t chunk_size,
+                                           std::uint32_t max_points);
+  static void start_chunk(State& s, const std::uint8_t* record);
+  static void end_chunk(State& s, std::vector<std::uint8_t>& out);
+  // Compresses n records with `s`, ending its chunks as they fill.
+  static void encode(State& s, const std::uint8_t* records, std::size_t n, std::vector<std::uint8_t>& out);
+  // The gathered records' chunks, side by side, appended to `out` in order.
+  void compress_pending(std::vector<std::uint8_t>& out);
 
-  std::unique_ptr<State> state_;
+  std::vector<std::unique_ptr<State>> states_;  // one a thread; the first keeps the chunk table
+  State* state_ = nullptr;                      // states_[0]
+  std::vector<std::uint8_t> pending_;           // records of whole chunks waiting (several states)
 };
 
 }  // namespace relief::laz
