@@ -379,7 +379,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
       first = batch.points.size();
       batch = ReadBatch();  // larger than the batches to come: not recycled
     }
-    if (in.whole_read) {
+    if (!in.read_ahead.empty()) {
       for (ReadBatch& b : in.read_ahead) {
         if (prepare) prepare(b);
         RELIEF_RETURN_IF_ERROR(full_stage(b));
@@ -841,7 +841,6 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
       }
     }
   }
-  if (keep_from != nullptr) keep_from->whole_read = true;
   if (extra != nullptr) {
     for (const auto& reader : readers) extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
   }

@@ -54,9 +54,8 @@ struct InputSet {
   // order-free pass that fixes the grid reads through `readers` (after the
   // first batch, which derive_build_parameters read) and keeps the batches
   // here, as read, in order; run_ingest then stages them instead of reading
-  // the inputs a second time (`whole_read`: they hold every point).
+  // the inputs a second time (the readers are at their ends).
   std::vector<ReadBatch> read_ahead;
-  bool whole_read = false;
 };
 
 // With InputSet::split_wide_levels: the batch's 16-bit levels, as `reader`
