@@ -23,7 +23,8 @@ constexpr const char* kUsageText =
     "                   level holds more)\n"
     "  -o OUT           .las, .laz, .ply or .xyz/.txt/.csv; '-' writes XYZ text to stdout\n"
     "  --skip-corrupt   report damaged chunks and go on instead of failing\n"
-    "  --threads N      decoder threads (default: all cores)\n"
+    "  --threads N      decoder threads, and LAZ output's compressing threads (up to 4)\n"
+    "                   (default: all cores)\n"
     "  --quiet          no summary on stderr\n";
 }  // namespace
 

@@ -21,7 +21,9 @@ inline unsigned resolve_threads(unsigned requested) {
 }
 
 // Calls fn(begin, end, worker) on `threads` contiguous slices of [0, n).
-// fn must not throw.
+// fn must not throw. With fewer than two items a thread (n < 2 * threads) it
+// runs fn(0, n, 0) on the calling thread alone: for many small items; to run
+// a few large ones side by side, use for_each_parallel.
 template <typename Fn>
 void parallel_for_ranges(std::size_t n, unsigned threads, Fn&& fn) {
   threads = std::max(1u, threads);
