@@ -538,6 +538,19 @@ TEST_CASE("LAS attributes: subsets, and levels of detail from the point layer", 
   auto direct = encode_chunk(in.gathered(subset), p);
   REQUIRE(direct.is_ok());
   CHECK(*sub_blob == *direct);
+  // The whole cloud in its order is encoded in place: the same blob as
+  // encode_chunk, as the gathered path would give.
+  std::vector<std::uint32_t> identity(in.size());
+  for (std::uint32_t i = 0; i < in.size(); ++i) identity[i] = i;
+  auto whole = encode_chunk_subset(in, identity, p);
+  REQUIRE(whole.is_ok());
+  auto whole_direct = encode_chunk(in, p);
+  REQUIRE(whole_direct.is_ok());
+  CHECK(*whole == *whole_direct);
+  std::vector<std::uint32_t> reversed(identity.rbegin(), identity.rend());
+  auto whole_reversed = encode_chunk_subset(in, reversed, p);
+  REQUIRE(whole_reversed.is_ok());
+  CHECK(*whole_reversed == *encode_chunk(in.gathered(reversed), p));
 
   // A fine level (decoded from the point layer) keeps each kept point's attributes.
   auto blob = encode_chunk(in, params_for(0.002, 0.05));
@@ -576,6 +589,12 @@ TEST_CASE("LAS attributes: encoder refuses inconsistent attributes", "[codec][la
   CHECK(encode_chunk_subset(nan_time, std::vector<std::uint32_t>{4, 5}, p).status().code() ==
         StatusCode::kInvalidArgument);
   CHECK(encode_chunk_subset(short_class, subset, p).status().code() == StatusCode::kInvalidArgument);
+  // The whole cloud in order (encoded in place, not gathered) is checked alike.
+  std::vector<std::uint32_t> identity(in.size());
+  for (std::uint32_t i = 0; i < in.size(); ++i) identity[i] = i;
+  CHECK(encode_chunk_subset(nan_time, identity, p).status().code() == StatusCode::kInvalidArgument);
+  CHECK(encode_chunk_subset(short_class, identity, p).status().code() == StatusCode::kInvalidArgument);
+  CHECK(encode_chunk_subset(low_without_rgb, identity, p).status().code() == StatusCode::kInvalidArgument);
 }
 
 TEST_CASE("LAS attributes: truncated and lying attribute sections are refused", "[codec][las][reject]") {
