@@ -232,7 +232,9 @@ std::vector<ColourSource> colour_sources(const InputSet& in) {
   for (const auto& reader : in.readers) {
     const PointStreamInfo& r = reader->info();
     // Split 16-bit levels are 8-bit ones for the archive's rule.
-    if ((r.las_attributes & kLasColorLow) != 0) out.push_back({r.path, r.las_colors_8bit || in.split_wide_levels});
+    if ((r.las_attributes & kLasColorLow) != 0) {
+      out.push_back({r.path, r.las_colors_8bit || in.split_wide_levels, r.las_colors_all_zero});
+    }
   }
   return out;
 }
@@ -262,7 +264,11 @@ std::vector<std::string> colour_rule_warnings(bool archive_rgb, bool archive_8bi
                                               const std::vector<ColourSource>& sources) {
   std::vector<std::string> out;
   std::vector<std::string> narrow, wide;
-  for (const ColourSource& s : sources) (s.levels_8bit ? narrow : wide).push_back(s.path);
+  for (const ColourSource& s : sources) {
+    // Levels all 0 stay 0 scaled (0 x 257): nothing to warn of.
+    if (s.levels_8bit && s.all_zero) continue;
+    (s.levels_8bit ? narrow : wide).push_back(s.path);
+  }
   const bool new_8bit = wide.empty();
   if (archive_rgb ? archive_8bit && new_8bit : new_8bit) return out;
   const std::string scaled = "come back from LAS and LAZ output scaled to 16 bits (level x 257)";
@@ -322,7 +328,6 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     in.extra_bytes_size = 0;
     in.extra_bytes_vlr.clear();
   }
-  const unsigned threads = resolve_threads(options.threads);
   // Error-bounded archives must not depend on the budget: chunks are encoded
   // whole (bucket slices hold whole buckets) and split by a fixed rule.
   const bool bounded = params.bound.has_value();
@@ -842,7 +847,10 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
     }
   }
   if (extra != nullptr) {
-    for (const auto& reader : readers) extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
+    for (const auto& reader : readers) {
+      extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
+      extra->las_colors_all_zero.push_back(reader->info().las_colors_all_zero);
+    }
   }
   if (extra != nullptr) extra->points = total;
   if (kept.empty()) return OrderFreeCells{};  // no points at all: the caller picks the empty-input cell

@@ -86,11 +86,14 @@ void conform_attributes(PointCloud& batch, const InputSet& in);
 // LAS inputs is known once they have been read).
 ScanAttributes scan_attributes(const InputSet& in);
 
-// A LAS-style colour source of a scan: its path and whether it stores 8-bit
-// levels in its 16-bit fields (PointStreamInfo::las_colors_8bit).
+// A LAS-style colour source of a scan: its path, whether it stores 8-bit
+// levels in its 16-bit fields (PointStreamInfo::las_colors_8bit) and whether
+// every level is 0 (las_colors_all_zero: unchanged by either rule, so never
+// named in a warning).
 struct ColourSource {
   std::string path;
   bool levels_8bit = false;
+  bool all_zero = false;
 };
 // Warnings for the levels the archive's colour rule (format-spec/archive.md
 // §2.1 las_colors_8bit: 8-bit only while every source is) gives back scaled
@@ -236,6 +239,8 @@ struct OrderFreeSample {
   // Per input, PointStreamInfo::las_colors_8bit once the input was read
   // (a LAS reader decides it on its first points).
   std::vector<bool> las_colors_8bit;
+  // ... and PointStreamInfo::las_colors_all_zero.
+  std::vector<bool> las_colors_all_zero;
 };
 // With `keep_from`, the pass reads `keep_from->readers` themselves from the
 // point after `first` (whose points it counts first) and keeps every batch in

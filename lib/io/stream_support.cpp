@@ -88,6 +88,8 @@ void BatchPointReader::settle_rule(std::uint16_t largest) {
   color_shift_ = color_shift_for(largest);
   shift_known_ = true;
   info_.las_colors_8bit = color_low_ && color_shift_ == 0;
+  info_.las_colors_all_zero =
+      color_low_ && largest == 0 && info_.point_count.has_value() && *info_.point_count <= kColorSamplePoints;
 }
 
 void BatchPointReader::narrow_into(PointCloud& out, const std::uint16_t* wide, std::size_t n) const {

@@ -101,14 +101,15 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   // the batch size): the sample pass read every input, so its readers know.
   // The rule of scan_attributes: 8-bit only when every LAS input with
   // colours stored them so.
-  if (sample.las_colors_8bit.size() != in.readers.size()) {
+  if (sample.las_colors_8bit.size() != in.readers.size() || sample.las_colors_all_zero.size() != in.readers.size()) {
     return internal_error("shard plan: the sample pass saw " + std::to_string(sample.las_colors_8bit.size()) +
                           " of " + std::to_string(in.readers.size()) + " inputs");
   }
   std::vector<ColourSource> colour_inputs;
   for (std::size_t i = 0; i < in.readers.size(); ++i) {
     if ((in.readers[i]->info().las_attributes & kLasColorLow) == 0) continue;
-    colour_inputs.push_back({in.readers[i]->info().path, sample.las_colors_8bit[i] != 0});
+    colour_inputs.push_back(
+        {in.readers[i]->info().path, sample.las_colors_8bit[i] != 0, sample.las_colors_all_zero[i] != 0});
   }
   plan.attributes.las_colors_8bit = all_8bit_levels(colour_inputs);
   plan.creator = o.creator;

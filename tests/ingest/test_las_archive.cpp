@@ -1019,6 +1019,33 @@ TEST_CASE("8-bit and 16-bit colour levels in one archive: the scaled levels are 
     CHECK_THAT(plan.output, Contains(narrow + " stores 8-bit levels in its 16-bit colour fields, but " + wide +
                                      " has 16-bit levels"));
   }
+  SECTION("inputs of levels all 0 or of no point go unnamed") {
+    TestLasOptions o;
+    o.format = 3;
+    o.points = 400;
+    o.seed = 4;
+    o.zero_colors = true;
+    const std::string dark = las_file_as(dir, "dark.las", o);
+    o.points = 0;
+    const std::string empty = las_file_as(dir, "empty.las", o);
+    const std::string m = dir.file("z.relief");
+    const auto r = relief::test::run_cli(cli(), "compress " + dark + " " + empty + " " + wide + " " + narrow + " -o " + m + " --quiet");
+    REQUIRE(r.code == 0);
+    CHECK_THAT(r.output, Contains(narrow + " stores 8-bit levels"));
+    CHECK(r.output.find(dark) == std::string::npos);
+    CHECK(r.output.find(empty) == std::string::npos);
+    CHECK_FALSE(archive_info(m).las_colors_8bit);
+    const auto plan = relief::test::run_cli(cli(), "shard-plan " + dark + " " + empty + " " + wide + " -o " + dir.file("z.plan") + " --quiet");
+    REQUIRE(plan.code == 0);
+    INFO(plan.output);
+    CHECK(plan.output.find("8-bit") == std::string::npos);
+    // The colourless file's points come back as they were, levels 0.
+    const std::string out = dir.file("z-out.las");
+    REQUIRE(relief::test::run_cli(cli(), "decompress " + m + " -o " + out + " --quiet").code == 0);
+    std::size_t zero = 0;
+    for (const LasRecord& rec : sorted_records(out)) zero += rec.red == 0 && rec.green == 0 && rec.blue == 0 ? 1 : 0;
+    CHECK(zero >= 400);
+  }
   SECTION("8-bit levels, then a 16-bit scan appended: both kinds come back exactly") {
     const std::string a = dir.file("a.relief");
     const auto made = relief::test::run_cli(cli(), "compress " + narrow + " " + narrow2 + " -o " + a + " --quiet");

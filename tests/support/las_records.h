@@ -216,6 +216,7 @@ struct TestLasOptions {
   std::size_t extra = 0;                       // extra bytes per record
   std::vector<std::uint8_t> extra_bytes_vlr;   // written when non-empty
   bool wide_colors = true;                     // 16-bit colour levels (else 0..255)
+  bool zero_colors = false;                    // every colour level 0 (a scanner without a camera)
   double extent = 100;                         // metres in x and y
   double scale = 0.01;
   std::uint16_t global_encoding = 0;           // header bytes 6-7 (bit 0: standard GPS time)
@@ -327,7 +328,7 @@ inline bool write_test_las(const std::string& path, const TestLasOptions& o) {
     if (fm.rgb) {
       for (int c = 0; c < 3; ++c) {
         put<std::uint16_t>(b, r + fm.rgb + 2 * static_cast<std::size_t>(c),
-                           static_cast<std::uint16_t>(u(0, o.wide_colors ? 65535 : 255)));
+                           static_cast<std::uint16_t>(o.zero_colors ? 0 : u(0, o.wide_colors ? 65535 : 255)));
       }
     }
     if (fm.nir) put<std::uint16_t>(b, r + fm.nir, static_cast<std::uint16_t>(u(0, 65535)));

@@ -78,6 +78,11 @@ struct PointStreamInfo {
   // should write each level as it is rather than (colour << 8) | low.
   // Known once read() has returned points (the rule samples them).
   bool las_colors_8bit = false;
+  // LAS/LAZ with RGB: every colour level of the file is 0 (no point, or a
+  // scanner without a camera), as far as the rule's sample shows and the
+  // sample held every point: either rule gives such levels back alike, so
+  // an archive of other inputs' 16-bit levels changes none of them.
+  bool las_colors_all_zero = false;
   // LAS/LAZ whose points carry GPS time: what the times count (the header's
   // global encoding bit 0); kUnknown otherwise.
   GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
