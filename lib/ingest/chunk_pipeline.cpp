@@ -52,7 +52,9 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
   // The encoder reports the exact bounds of what a reader will decode: the
   // spatial index must contain every decoded point.
   EncodeStats stats;
-  // Tasks that index into a shared cloud are encoded in place (no copy).
+  // Tasks that index into a shared cloud are not copied out first:
+  // encode_chunk_subset gathers the task's points (one pass), or encodes the
+  // cloud where it lies when the task is all of it in order.
   auto blob = task.source != nullptr
                   ? encode_chunk_subset(*task.source, std::span<const std::uint32_t>(task.index, task.count), p, &stats)
                   : encode_chunk(task.points, p, {}, &stats);
