@@ -847,12 +847,15 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
     }
   }
   if (extra != nullptr) {
+    extra->inputs = readers.size();
     for (const auto& reader : readers) {
-      extra->las_colors_8bit.push_back(reader->info().las_colors_8bit);
-      extra->las_colors_all_zero.push_back(reader->info().las_colors_all_zero);
+      const PointStreamInfo& r = reader->info();
+      if ((r.las_attributes & kLasColorLow) != 0) {
+        extra->colour_sources.push_back({r.path, r.las_colors_8bit, r.las_colors_all_zero});
+      }
     }
+    extra->points = total;
   }
-  if (extra != nullptr) extra->points = total;
   if (kept.empty()) return OrderFreeCells{};  // no points at all: the caller picks the empty-input cell
   PointCloud sample;
   sample.positions.reserve(kept.size());

@@ -236,11 +236,11 @@ struct OrderFreeSample {
   // Of every point's intensity (widen_intensity_range): the scan's range.
   float intensity_lo = std::numeric_limits<float>::infinity();
   float intensity_hi = -std::numeric_limits<float>::infinity();
-  // Per input, PointStreamInfo::las_colors_8bit once the input was read
-  // (a LAS reader decides it on its first points).
-  std::vector<bool> las_colors_8bit;
-  // ... and PointStreamInfo::las_colors_all_zero.
-  std::vector<bool> las_colors_all_zero;
+  // Inputs read, and those with LAS-style colours in input order, with the
+  // colour rule their readers decided once they were read (a LAS reader
+  // decides it on its first points).
+  std::size_t inputs = 0;
+  std::vector<ColourSource> colour_sources;
 };
 // With `keep_from`, the pass reads `keep_from->readers` themselves from the
 // point after `first` (whose points it counts first) and keeps every batch in

@@ -101,17 +101,11 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   // the batch size): the sample pass read every input, so its readers know.
   // The rule of scan_attributes: 8-bit only when every LAS input with
   // colours stored them so.
-  if (sample.las_colors_8bit.size() != in.readers.size() || sample.las_colors_all_zero.size() != in.readers.size()) {
-    return internal_error("shard plan: the sample pass saw " + std::to_string(sample.las_colors_8bit.size()) +
-                          " of " + std::to_string(in.readers.size()) + " inputs");
+  if (sample.inputs != in.readers.size()) {
+    return internal_error("shard plan: the sample pass saw " + std::to_string(sample.inputs) + " of " +
+                          std::to_string(in.readers.size()) + " inputs");
   }
-  std::vector<ColourSource> colour_inputs;
-  for (std::size_t i = 0; i < in.readers.size(); ++i) {
-    if ((in.readers[i]->info().las_attributes & kLasColorLow) == 0) continue;
-    colour_inputs.push_back(
-        {in.readers[i]->info().path, sample.las_colors_8bit[i] != 0, sample.las_colors_all_zero[i] != 0});
-  }
-  plan.attributes.las_colors_8bit = all_8bit_levels(colour_inputs);
+  plan.attributes.las_colors_8bit = all_8bit_levels(sample.colour_sources);
   plan.creator = o.creator;
   plan.archive_params = encode_params_to_string(built.params, ParamsText::kCompact);
   plan.grid = built.grid;
@@ -137,7 +131,7 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   for (const auto& reader : in.readers) {
     for (const std::string& w : reader->info().warnings) plan.warnings.push_back(w);
   }
-  for (std::string& w : colour_rule_warnings(false, false, colour_inputs)) plan.warnings.push_back(std::move(w));
+  for (std::string& w : colour_rule_warnings(false, false, sample.colour_sources)) plan.warnings.push_back(std::move(w));
   // Key ranges of about equal point counts: quantiles of the order-free
   // sample's chunk keys (a uniform sample of the points), so the ranges too
   // depend only on the set of input points. Balance only: no blob depends on
