@@ -478,6 +478,14 @@ TEST_CASE("encoding a subset in place equals encoding the gathered points", "[co
   REQUIRE(b.is_ok());
   CHECK(*a == *b);
   CHECK(a_stats.decoded_points == b_stats.decoded_points);
+  // The whole cloud in order is encoded where it lies: encode_chunk's blob.
+  std::vector<std::uint32_t> identity(all.size());
+  for (std::uint32_t i = 0; i < all.size(); ++i) identity[i] = i;
+  auto whole = encode_chunk_subset(all, identity, p);
+  auto direct = encode_chunk(all, p);
+  REQUIRE(whole.is_ok());
+  REQUIRE(direct.is_ok());
+  CHECK(*whole == *direct);
   subset.push_back(static_cast<std::uint32_t>(all.size()));  // out of range
   CHECK(encode_chunk_subset(all, subset, p).status().code() == StatusCode::kInvalidArgument);
   EncodeParams automatic;
