@@ -823,18 +823,21 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
       std::erase_if(kept, [&](const auto& e) { return e.first >= threshold; });
     }
   };
-  std::vector<std::unique_ptr<PointReader>> readers;
+  // The readers this pass reads: the ingest's own (after `first`, counted
+  // here) or its own, opened anew.
+  std::vector<std::unique_ptr<PointReader>> opened;
   if (keep_from == nullptr) {
     for (const std::string& path : inputs) {
       RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, first_pass));
-      readers.push_back(std::move(reader));
+      opened.push_back(std::move(reader));
     }
   }
-  if (keep_from != nullptr && first != nullptr) take(*first);
+  std::vector<std::unique_ptr<PointReader>>& readers = keep_from != nullptr ? keep_from->readers : opened;
+  const PointCloud* already = keep_from != nullptr ? first : nullptr;
+  if (already != nullptr) take(*already);
   {
     // One batch ahead, as the main pass.
-    Prefetcher prefetch(keep_from != nullptr ? keep_from->readers : readers, kReadBatchPoints, 1,
-                        keep_from != nullptr && first != nullptr ? first->size() : 0, nullptr);
+    Prefetcher prefetch(readers, kReadBatchPoints, 1, already != nullptr ? already->size() : 0, nullptr);
     ReadBatch read;
     for (;;) {
       RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(read));
