@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "ingest/ingest_common.h"
+#include "ingest/temp_dir.h"
 #include "relief/archive.h"
 #include "relief/status.h"
 #include "relief/types.h"
@@ -115,7 +116,7 @@ class BucketFiles {
   // Deletes one bucket's file early (frees disk as the ingest proceeds).
   void discard(std::uint32_t bucket);
 
-  const std::string& directory() const { return dir_; }
+  const std::string& directory() const { return dir_.path(); }
   // Bytes held by the staging buffers: about staging_bytes between appends,
   // however large the blocks of a batch were.
   std::size_t staging_capacity() const;
@@ -156,10 +157,9 @@ class BucketFiles {
   // gives the memory back.
   Status shrink_staging(std::uint32_t bucket);
 
-  std::string dir_;
+  IngestTempDir dir_;
   std::vector<std::string> paths_;
   std::vector<int> files_;  // file descriptors, -1 when closed
-  int lock_fd_ = -1;        // holds the directory's lock file locked (bucket_files.cpp)
   std::vector<std::uint64_t> counts_;
   std::vector<std::uint64_t> bytes_;       // logical bytes written per bucket
   std::vector<AlignedBuffer> staging_;
