@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <random>
 
+#include "archive_blobs.h"
 #include "relief/archive.h"
 #include "run_child.h"
 
@@ -71,28 +72,6 @@ std::vector<float> surface_scene(std::uint64_t points, std::uint64_t seed) {
     const double x = u(rng), y = u(rng);
     return std::array<double, 3>{x, y, std::sin(x) * 0.5 + std::cos(y) * 0.3 + noise(rng)};
   });
-}
-
-struct Blobs {
-  std::uint64_t chunks = 0, largest = 0, bytes = 0;
-  std::uint64_t hash = 1469598103934665603ull;  // FNV-1a of the blobs in content order
-};
-
-Blobs blobs_of(const std::string& path) {
-  Blobs b;
-  auto archive = Archive::open(path, Archive::Mode::kReadOnly);
-  if (!archive) return b;
-  auto refs = (*archive)->all_chunks();  // content order: the same blobs list alike
-  if (!refs) return b;
-  for (const ChunkRef& ref : *refs) {
-    auto row = (*archive)->read_chunk(ref.id);
-    if (!row) return Blobs{};
-    ++b.chunks;
-    b.largest = std::max<std::uint64_t>(b.largest, ref.input_points);
-    b.bytes += row->blob.size();
-    for (std::uint8_t c : row->blob) b.hash = (b.hash ^ c) * 1099511628211ull;
-  }
-  return b;
 }
 
 // Runs `argv` (which writes the archive `out`) o.repeat times and prints its

@@ -6,6 +6,10 @@
 //   build/bench/ingest --laz-vs-las [--threads 2] [--repeat 3] [--data DIR]
 //   build/bench/ingest --billion [--sizes 10M,100M[,1G]] [--repeat 3] [--tmp DIR] [--keep DIR]
 //   build/bench/ingest --dense [--memory 128M,256M,1G] [--cases A,B] [--repeat 3] [--tmp DIR] [--cli RELIEF]
+//   build/bench/ingest --spool [--sizes 10M] [--repeat 3] [--tmp DIR] [--data DIR] [--cli RELIEF]
+//
+// --spool compresses a generated survey as LAZ and as text, and the shared
+// aerial tile's LAZ at --memory 64M, with and without --no-spool (bench/spool.h).
 //
 // --dense compresses a generated terrestrial scan (chunks of 1.7 M points
 // beside the scanner) and single chunks of 4 M and 16 M points at each budget
@@ -38,6 +42,7 @@
 #include "billion.h"
 #include "dense.h"
 #include "run_child.h"
+#include "spool.h"
 #include "relief/archive.h"
 #include "relief/io.h"
 #include "relief/metrics.h"
@@ -62,6 +67,7 @@ struct Options {
   bool billion = false;
   std::string keep;  // --billion --keep DIR: keep each size's archive there
   bool dense = false;
+  bool spool = false;
   std::string memory_text;  // --dense --memory 128M,256M,1G
   std::string cases_text;   // --dense --cases scanner-12M,one-chunk-4M
   std::string sizes_text;  // --sizes as given (--billion reads it with suffixes)
@@ -290,6 +296,8 @@ int main(int argc, char** argv) {
       o.keep = value();
     } else if (a == "--dense") {
       o.dense = true;
+    } else if (a == "--spool") {
+      o.spool = true;
     } else if (a == "--memory") {
       o.memory_text = value();
     } else if (a == "--cases") {
@@ -302,7 +310,8 @@ int main(int argc, char** argv) {
                    "              [--no-shared] [--no-chunk-sweep] [--no-error-targets]\n"
                    "       ingest --laz-vs-las [--threads 2] [--repeat N] [--data DIR] [--tmp DIR]\n"
                    "       ingest --billion [--sizes 10M,100M[,1G]] [--repeat N] [--tmp DIR] [--keep DIR]\n"
-                   "       ingest --dense [--memory 128M,256M,1G] [--cases A,B] [--repeat N] [--tmp DIR] [--cli RELIEF]\n");
+                   "       ingest --dense [--memory 128M,256M,1G] [--cases A,B] [--repeat N] [--tmp DIR] [--cli RELIEF]\n"
+                   "       ingest --spool [--sizes 10M] [--repeat N] [--tmp DIR] [--data DIR] [--cli RELIEF]\n");
       return a == "--help" ? 0 : 2;
     }
   }
@@ -331,6 +340,23 @@ int main(int argc, char** argv) {
     d.tmp = o.tmp;
     d.cli = o.cli;
     return relief::bench::run_dense(d);
+  }
+  if (o.spool) {
+    relief::bench::SpoolOptions sp;
+    if (!o.sizes_text.empty()) {
+      const std::vector<std::uint64_t> sizes = relief::bench::parse_point_counts(o.sizes_text);
+      if (sizes.size() != 1) {
+        std::fprintf(stderr, "error: --spool --sizes expects one count such as 10M, got '%s'\n", o.sizes_text.c_str());
+        return 2;
+      }
+      sp.points = sizes[0];
+      sp.text_points = std::min(sp.text_points, sp.points);
+    }
+    if (o.repeat_given) sp.repeat = o.repeat;
+    sp.tmp = o.tmp;
+    sp.cli = o.cli;
+    sp.data_dir = o.data_dir;
+    return relief::bench::run_spool(sp);
   }
   if (o.billion) {
     relief::bench::BillionOptions b;

@@ -34,7 +34,10 @@ int run_compress(int argc, char** argv) {
       "                         properties and PCD fields kept as such (normals, labels ...)\n"
       "  --attributes LIST      keep only these attributes beside x y z, as 'relief info' lists them\n"
       "                         (rgb, intensity, classification, gps_time, extra_bytes ...; none; default\n"
-      "                         all): a smaller archive when the others are not needed\n\n") +
+      "                         all): a smaller archive when the others are not needed\n"
+      "  --no-spool             read LAZ and text inputs twice (the pass that fixes the grid, then\n"
+      "                         the ingest) instead of keeping their decoded points in temporary\n"
+      "                         files under --tmp (28-56 bytes a point, freed as the ingest reads)\n\n") +
       kInputsHelp + "\n" + kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
   options.insert(options.end(), {"-o", "--input-list"});

@@ -1,6 +1,7 @@
 // compress_files / append_files: an external distribution sort into bucket
 // files, then chunk-by-chunk parallel encoding into the archive.
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -25,6 +26,7 @@
 #include "ingest/lazy_reader.h"
 #include "ingest/prefetch.h"
 #include "ingest/slice_pool.h"
+#include "ingest/spool.h"
 #include "relief/archive.h"
 #include "relief/crs.h"
 #include "relief/ingest.h"
@@ -535,6 +537,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
 
   IngestResult result = scan_result(totals, points_read, t0, params.cell_size, grid.chunk_edge, scan_id, progress);
   result.pyramid = pyramid;
+  if (in.spool != nullptr) result.spooled_bytes = in.spool->bytes_written();
   if (!pyramid.skipped.empty()) result.warnings.push_back(pyramid.skipped);
   result.warnings.insert(result.warnings.end(), in.warnings.begin(), in.warnings.end());
   for (const auto& reader : in.readers) {
@@ -772,9 +775,46 @@ void snap_to_grid(PointCloud& batch, const ErrorBound& b) {
   }
 }
 
+namespace {
+
+// Another reader's points, read through it (which stays its owner's).
+class BorrowedReader final : public PointReader {
+ public:
+  explicit BorrowedReader(PointReader& reader) : reader_(reader) {}
+  const PointStreamInfo& info() const override { return reader_.info(); }
+  Result<std::size_t> read(PointCloud& batch, std::size_t max_points) override {
+    return reader_.read(batch, max_points);
+  }
+
+ private:
+  PointReader& reader_;
+};
+
+// A reader's points after its first `skip` (read and dropped).
+class SkipFirst final : public PointReader {
+ public:
+  SkipFirst(std::unique_ptr<PointReader> reader, std::uint64_t skip) : reader_(std::move(reader)), skip_(skip) {}
+  const PointStreamInfo& info() const override { return reader_->info(); }
+  Result<std::size_t> read(PointCloud& batch, std::size_t max_points) override {
+    while (skip_ > 0) {
+      RELIEF_ASSIGN_OR_RETURN(const std::size_t got,
+                              reader_->read(batch, static_cast<std::size_t>(std::min<std::uint64_t>(skip_, max_points))));
+      if (got == 0) return io_error(reader_->info().path + ": fewer points on a second read than on the first");
+      skip_ -= got;
+    }
+    return reader_->read(batch, max_points);
+  }
+
+ private:
+  std::unique_ptr<PointReader> reader_;
+  std::uint64_t skip_;
+};
+
+}  // namespace
+
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                                          int map_resolution, Box3d* bounds, OrderFreeSample* extra, InputSet* keep_from,
-                                         const PointCloud* first) {
+                                         const PointCloud* first, Spool* spool) {
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
@@ -824,30 +864,50 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
     }
   };
   // The readers this pass reads: the ingest's own (after `first`, counted
-  // here) or its own, opened anew.
+  // here), or its own opened anew (positions only); with a spool, the
+  // ingest's own for the inputs spooled (their colour rule's sample, which
+  // their readers have settled, is not decoded again; see
+  // derive_build_parameters for a spool given up), its own for the others.
+  const bool keep = keep_from != nullptr && spool == nullptr;
   std::vector<std::unique_ptr<PointReader>> opened;
-  if (keep_from == nullptr) {
-    for (const std::string& path : inputs) {
-      RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(path, first_pass));
+  for (std::size_t i = 0; i < inputs.size() && !keep; ++i) {
+    if (spool != nullptr && spool->wants(i)) {
+      opened.push_back(std::make_unique<BorrowedReader>(*keep_from->readers[i]));
+    } else {
+      RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> reader, open_lazy_reader(inputs[i], first_pass));
       opened.push_back(std::move(reader));
     }
   }
-  std::vector<std::unique_ptr<PointReader>>& readers = keep_from != nullptr ? keep_from->readers : opened;
-  const PointCloud* already = keep_from != nullptr ? first : nullptr;
+  std::vector<std::unique_ptr<PointReader>>& readers = keep ? keep_from->readers : opened;
+  const bool continues_first = keep || (spool != nullptr && spool->wants(0));
+  const PointCloud* already = continues_first ? first : nullptr;
   if (already != nullptr) take(*already);
+  // The LAS grid of each input for the spool, taken before the reading
+  // thread starts (info() is the reader's, which that thread then updates).
+  std::vector<std::pair<Vec3d, Vec3d>> spool_grids;
+  if (spool != nullptr) {
+    for (const auto& reader : readers) spool_grids.emplace_back(reader->info().offset, reader->info().scale);
+  }
   {
     // One batch ahead, as the main pass.
-    Prefetcher prefetch(readers, kReadBatchPoints, 1, already != nullptr ? already->size() : 0, nullptr);
+    Prefetcher prefetch(readers, spool != nullptr ? spool->batch_points() : kReadBatchPoints, 1,
+                        already != nullptr ? already->size() : 0, nullptr);
     ReadBatch read;
     for (;;) {
       RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(read));
       if (!more) break;
       take(read.points);
-      if (keep_from != nullptr) {
+      if (spool != nullptr) {
+        spool->append(read.reader, read.points, spool_grids[read.reader].first, spool_grids[read.reader].second);
+      }
+      if (keep) {
         keep_from->read_ahead.push_back(std::move(read));
         read = ReadBatch();
       }
     }
+  }
+  if (spool != nullptr) {
+    for (std::size_t i = 0; i < readers.size(); ++i) spool->finish(i, readers[i]->info());
   }
   if (extra != nullptr) {
     extra->inputs = readers.size();
@@ -908,8 +968,43 @@ Status validate_build_options(const IngestOptions& options) {
   return Status::ok();
 }
 
+namespace {
+
+// Room kept free beside a spool and the bucket files after it.
+constexpr std::uint64_t kSpoolDiskMargin = std::uint64_t{256} << 20;
+
+// A spool for the order-free pass of `in` (IngestOptions::spool), or none:
+// no LAZ or text input, or less room under `parent` than twice what the
+// spool would hold (the bucket files come after it), or no directory there
+// (the bucket files will say why).
+std::shared_ptr<Spool> start_spool(const InputSet& in, const std::string& parent, std::size_t batch_points) {
+  std::vector<bool> wanted(in.readers.size(), false);
+  std::uint64_t bytes = 0;
+  for (std::size_t i = 0; i < in.readers.size(); ++i) {
+    const PointStreamInfo& info = in.readers[i]->info();
+    if (info.format != "laz" && info.format != "xyz") continue;
+    wanted[i] = true;
+    struct stat st {};
+    // Text states no count: its size (a text point takes more bytes).
+    const std::uint64_t points = info.point_count ? *info.point_count
+                                 : ::stat(info.path.c_str(), &st) == 0 ? static_cast<std::uint64_t>(st.st_size) / 8
+                                                                       : 0;
+    bytes += points * Spool::point_bytes(info);
+  }
+  if (std::none_of(wanted.begin(), wanted.end(), [](bool w) { return w; })) return nullptr;
+  struct statvfs fs {};
+  if (::statvfs(parent.c_str(), &fs) != 0) return nullptr;
+  const std::uint64_t free_bytes = static_cast<std::uint64_t>(fs.f_bavail) * fs.f_frsize;
+  if (free_bytes / 2 < bytes + kSpoolDiskMargin) return nullptr;
+  Result<std::shared_ptr<Spool>> spool = Spool::create(parent, std::move(wanted), batch_points);
+  return spool ? *spool : nullptr;
+}
+
+}  // namespace
+
 Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& inputs, const IngestOptions& options,
-                                                InputSet& in, PointCloud& first, OrderFreeSample* sample) {
+                                                InputSet& in, PointCloud& first, OrderFreeSample* sample,
+                                                const std::string& tmp_parent) {
   EncodeParams params = options.codec;
   // The first points set the cell size (from their density, or by trial
   // encodes for an error target) and are checked against it; they are then
@@ -947,9 +1042,34 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     // reads (through the inputs' own readers, so every attribute), and the
     // ingest stages it instead of reading every input a second time.
     InputSet* keep = sample == nullptr && whole_input_in_memory(in, ingest_plan(in, options, true)) ? &in : nullptr;
+    // Otherwise the pass may keep what it decodes of LAZ and text inputs.
+    std::shared_ptr<Spool> spool =
+        keep == nullptr && sample == nullptr && options.spool && !tmp_parent.empty()
+            ? start_spool(in, tmp_parent, static_cast<std::size_t>(ingest_plan(in, options, true).read_batch))
+            : nullptr;
     RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
                             order_free_cells(inputs, ingest_reader_options(options), params.map_resolution,
-                                             &all_bounds, sample, keep, &first));
+                                             &all_bounds, sample, keep != nullptr || spool != nullptr ? &in : nullptr, &first,
+                                             spool.get()));
+    if (spool != nullptr && spool->failure().empty()) {
+      // The pass read the spooled inputs through the ingest's readers (input
+      // 0 after `first`): the ingest reads them from the spool.
+      for (std::size_t i = 0; i < in.readers.size(); ++i) {
+        if (spool->wants(i)) in.readers[i] = spool->reader(i, 0);
+      }
+      in.spool = std::move(spool);
+    } else if (spool != nullptr) {
+      // Given up (a full disk): those readers are spent; the ingest reads
+      // the inputs anew (input 0 after `first`).
+      for (std::size_t i = 0; i < in.readers.size(); ++i) {
+        if (!spool->wants(i)) continue;
+        RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> again,
+                                open_lazy_reader(inputs[i], ingest_reader_options(options)));
+        in.readers[i] = i == 0 ? std::make_unique<SkipFirst>(std::move(again), got) : std::move(again);
+      }
+      in.warnings.push_back("the decoded points of LAZ and text inputs could not be kept in temporary files (" +
+                            spool->failure() + "): they are read a second time");
+    }
     // Inputs without a single point still make a valid (empty) archive, on a
     // documented default grid, so scripted pipelines need no special case.
     params.cell_size = cells.density_cell > 0 ? cells.base_cell : kBaseCellFactor * kEmptyInputCellSize;
@@ -1048,7 +1168,9 @@ Result<IngestResult> compress_files(const std::vector<std::string>& given, const
   RELIEF_RETURN_IF_ERROR(check_output_directory(archive_path));
   RELIEF_ASSIGN_OR_RETURN(InputSet in, open_inputs(inputs, ingest_reader_options(options), options.assume_crs, options.crs));
   PointCloud first;
-  RELIEF_ASSIGN_OR_RETURN(const BuildParameters built, derive_build_parameters(inputs, options, in, first));
+  RELIEF_ASSIGN_OR_RETURN(const BuildParameters built,
+                          derive_build_parameters(inputs, options, in, first, nullptr,
+                                                  default_tmp_parent(archive_path, options)));
   const EncodeParams& params = built.params;
   const ArchiveGrid& grid = built.grid;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Archive> archive,

@@ -18,6 +18,8 @@
 
 namespace relief::ingest {
 
+class Spool;
+
 struct InputSet {
   std::vector<std::unique_ptr<PointReader>> readers;
   std::vector<ArchiveSource> sources;
@@ -56,6 +58,10 @@ struct InputSet {
   // here, as read, in order; run_ingest then stages them instead of reading
   // the inputs a second time (the readers are at their ends).
   std::vector<ReadBatch> read_ahead;
+  // Otherwise the same pass may have kept the decoded points of LAZ and text
+  // inputs in a spool (spool.h, IngestOptions::spool): their readers are then
+  // the spool's, which this keeps alive.
+  std::shared_ptr<Spool> spool;
 };
 
 // With InputSet::split_wide_levels: the batch's 16-bit levels, as `reader`
@@ -244,10 +250,15 @@ struct OrderFreeSample {
 };
 // With `keep_from`, the pass reads `keep_from->readers` themselves from the
 // point after `first` (whose points it counts first) and keeps every batch in
-// keep_from->read_ahead (InputSet::read_ahead); else it opens the inputs anew.
+// keep_from->read_ahead (InputSet::read_ahead); else it opens the inputs anew
+// (positions only). With `spool` too, only the inputs the spool wants are
+// read through `keep_from->readers` (input 0 after `first`), their batches
+// appended to the spool (Spool::append, then Spool::finish) and not kept;
+// the others are opened anew.
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                                         int map_resolution, Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr,
-                                        InputSet* keep_from = nullptr, const PointCloud* first = nullptr);
+                                        InputSet* keep_from = nullptr, const PointCloud* first = nullptr,
+                                        Spool* spool = nullptr);
 
 // ---- The steps of a new archive's build, shared by compress_files and the
 // sharded build (lib/shard), so both make the same decisions.
@@ -264,8 +275,11 @@ struct BuildParameters {
   EncodeParams params;
   ArchiveGrid grid;
 };
+// `tmp_parent`: where a spool of the pass may go (IngestOptions::spool;
+// empty: no spool).
 Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& inputs, const IngestOptions& options,
-                                                InputSet& in, PointCloud& first, OrderFreeSample* sample = nullptr);
+                                                InputSet& in, PointCloud& first, OrderFreeSample* sample = nullptr,
+                                                const std::string& tmp_parent = {});
 // What every point goes through between its reader and its chunk key: the
 // coordinate limit (naming `source` and the point's index first_index + i),
 // the archive's attribute set, the error-bounded grid.

@@ -252,7 +252,7 @@ std::vector<std::string> ingest_option_names(IngestOptionSet set) {
 std::vector<std::string> ingest_flag_names(IngestOptionSet set) {
   switch (set) {
     case IngestOptionSet::kCompress:
-      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes", "keep-order"};
+      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes", "keep-order", "no-spool"};
     case IngestOptionSet::kAppend:
       return {"verify", "assume-crs", "no-extra-bytes"};
     case IngestOptionSet::kStream:
@@ -314,6 +314,9 @@ Status apply_ingest_options(IngestOptionSet set, const std::vector<NamedOption>&
       o.mode = IngestMode::kResample;
     }
     RELIEF_RETURN_IF_ERROR(g.get_flag("allow-sparse", o.allow_sparse));
+    bool no_spool = false;
+    RELIEF_RETURN_IF_ERROR(g.get_flag("no-spool", no_spool));
+    o.spool = !no_spool;
   }
   if (set != IngestOptionSet::kAppend) RELIEF_RETURN_IF_ERROR(apply_mode(g, o));
   RELIEF_RETURN_IF_ERROR(apply_run(g, o));

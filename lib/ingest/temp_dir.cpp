@@ -22,7 +22,6 @@ constexpr std::string_view kTempPrefix = "relief-ingest-";
 constexpr std::size_t kTempSuffixLength = 6;
 constexpr const char* kLockName = "lock";
 
-
 struct TempDirOwner {
   std::string host;
   pid_t pid = 0;
@@ -95,7 +94,8 @@ int create_lock(const std::string& dir) {
   const std::string staging = dir + "/" + kLockName + ".new";
   const int fd = ::open(staging.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd < 0) return -1;
-  if (::flock(fd, LOCK_EX | LOCK_NB) != 0 || std::rename(staging.c_str(), (dir + "/" + kLockName).c_str()) != 0) {
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0 ||
+      std::rename(staging.c_str(), (dir + "/" + kLockName).c_str()) != 0) {
     ::unlink(staging.c_str());
     ::close(fd);
     return -1;

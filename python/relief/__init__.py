@@ -157,14 +157,16 @@ def compress(inputs, archive, *, progress=None, **options):
     ``error_target``, ``memory`` ("512M", "2G" or a number of MiB), ``threads``,
     ``tmp``, ``columns``, ``verify``, ``allow_sparse``, ``assume_crs``, ``keep_order``
     (each chunk's points back in the order they were read), ``crs`` (the inputs' CRS, e.g. ``"EPSG:32633"``, for files that name
-    none), ``no_extra_bytes`` and the encoder options). ``progress``: called about twice a second with a dict
+    none), ``no_extra_bytes``, ``no_spool`` (read LAZ and text inputs twice rather than keep their
+    decoded points in temporary files) and the encoder options). ``progress``: called about twice a second with a dict
     (points_read, points_total, points_encoded, chunks_written, bytes_written,
     seconds, phase: "reading", "encoding", "pyramid", "done"); an exception it raises (or Ctrl-C) stops the ingest and
     propagates, and the archive keeps the chunks committed so far (an
     incomplete scan), as after Ctrl-C in the CLI.
 
     Returns a dict: points_read, points_decoded, chunks_written, blob_bytes,
-    seconds, cell_size, chunk_edge, scan_id, warnings.
+    seconds, cell_size, chunk_edge, scan_id, spooled_bytes (decoded LAZ and text
+    points kept in temporary files instead of read twice), warnings.
     """
     return _ingest("compress", inputs, archive, options, progress)
 

@@ -74,6 +74,7 @@ py::dict result_dict(const IngestResult& r) {
   d["cell_size"] = r.cell_size;
   d["chunk_edge"] = r.chunk_edge;
   d["scan_id"] = r.scan_id;
+  d["spooled_bytes"] = r.spooled_bytes;
   py::dict pyramid;
   pyramid["levels"] = r.pyramid.levels;
   pyramid["top_level"] = r.pyramid.top_level;

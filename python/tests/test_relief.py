@@ -24,6 +24,25 @@ def test_version():
     assert re.fullmatch(r"\d+\.\d+\.\d+", relief.__version__)
 
 
+def test_text_beyond_the_first_points_is_spooled_once_unless_no_spool(tmp_path):
+    # Text states no count: the pass that fixes the grid reads every point
+    # first and keeps what lies past the first 2^17 for the ingest.
+    s = make_scene(n=140000, seed=3)
+    write_xyz(tmp_path / "s.xyz", s)
+    spooled = relief.compress(str(tmp_path / "s.xyz"), str(tmp_path / "a.relief"), columns="x,y,z,r,g,b,i")
+    twice = relief.compress(str(tmp_path / "s.xyz"), str(tmp_path / "b.relief"), columns="x,y,z,r,g,b,i",
+                            no_spool=True)
+    assert spooled["spooled_bytes"] >= (140000 - 131072) * 31
+    assert twice["spooled_bytes"] == 0
+    assert spooled["points_decoded"] == twice["points_decoded"] == 140000
+
+    def blobs(path):
+        with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as db:
+            return db.execute("SELECT ix, iy, iz, seq, blob FROM relief_chunk ORDER BY ix, iy, iz, seq").fetchall()
+
+    assert blobs(tmp_path / "a.relief") == blobs(tmp_path / "b.relief")
+
+
 def test_compress_result_and_info(xyz_archive, scene):
     path, result = xyz_archive
     n = len(scene["x"])

@@ -155,6 +155,17 @@ struct IngestOptions {
   // different one an input gives. Empty: the inputs' own.
   std::string crs;
   std::string tmp_dir;      // temporary bucket files; empty = beside the archive
+  // compress_files, bounded mode with the cell derived (the default): the
+  // pass that reads every point before the ingest keeps the decoded points
+  // of LAZ and text inputs in temporary files (under tmp_dir), and the ingest
+  // reads them from there instead of decompressing or parsing each input a
+  // second time (28-56 bytes a point of temporary disk for LAS formats 0-8, freed input by
+  // input as the ingest reads it). Not when the whole input fits the memory
+  // budget (read once anyway), nor when the file system has less than twice
+  // that room free, nor after a write error there (then the inputs are read
+  // twice, with a warning). false: always read them twice. The archive is
+  // the same either way.
+  bool spool = true;
   ReaderOptions reader;
   // Called from the ingest's own thread about twice a second and at the end.
   std::function<void(const IngestProgress&)> progress;
@@ -231,6 +242,9 @@ struct IngestResult {
   double chunk_edge = 0;
   std::int64_t scan_id = 0;
   PyramidResult pyramid;  // levels 0: none built
+  // Bytes of decoded LAZ and text points the ingest kept in temporary files
+  // and read back (IngestOptions::spool); 0 when it read its inputs again.
+  std::uint64_t spooled_bytes = 0;
   // What the input readers noticed but did not refuse (PointStreamInfo::warnings),
   // e.g. a PLY holding more vertices than its header declares.
   std::vector<std::string> warnings;
