@@ -985,17 +985,21 @@ std::shared_ptr<Spool> start_spool(const InputSet& in, const std::string& parent
     if (info.format != "laz" && info.format != "xyz") continue;
     wanted[i] = true;
     struct stat st {};
-    // Text states no count: its size (a text point takes more bytes).
+    // Text states no count: its size over 8 (a text point takes about that
+    // at least).
     const std::uint64_t points = info.point_count ? *info.point_count
                                  : ::stat(info.path.c_str(), &st) == 0 ? static_cast<std::uint64_t>(st.st_size) / 8
                                                                        : 0;
-    bytes += points * Spool::point_bytes(info);
+    // Saturating: a header may state any count (the reader judges it).
+    const std::uint64_t per_point = Spool::point_bytes(info);
+    const std::uint64_t input_bytes = points > (UINT64_MAX - bytes) / per_point ? UINT64_MAX - bytes : points * per_point;
+    bytes += input_bytes;
   }
   if (std::none_of(wanted.begin(), wanted.end(), [](bool w) { return w; })) return nullptr;
   struct statvfs fs {};
   if (::statvfs(parent.c_str(), &fs) != 0) return nullptr;
   const std::uint64_t free_bytes = static_cast<std::uint64_t>(fs.f_bavail) * fs.f_frsize;
-  if (free_bytes / 2 < bytes + kSpoolDiskMargin) return nullptr;
+  if (bytes > free_bytes / 2 || free_bytes / 2 - bytes < kSpoolDiskMargin) return nullptr;
   Result<std::shared_ptr<Spool>> spool = Spool::create(parent, std::move(wanted), batch_points);
   return spool ? *spool : nullptr;
 }

@@ -77,6 +77,21 @@ PointCloud tail(const PointCloud& c, std::size_t from) {
   return t;
 }
 
+// Runs fn with the process's files limited to `bytes`: a write past it fails
+// (EFBIG) part way, as on a full disk (SIGXFSZ ignored meanwhile).
+template <typename F>
+void with_file_size_limit(rlim_t bytes, F&& fn) {
+  rlimit old{};
+  REQUIRE(::getrlimit(RLIMIT_FSIZE, &old) == 0);
+  rlimit small = old;
+  small.rlim_cur = std::min(bytes, old.rlim_max);
+  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
+  REQUIRE(::setrlimit(RLIMIT_FSIZE, &small) == 0);
+  fn();
+  ::setrlimit(RLIMIT_FSIZE, &old);
+  ::signal(SIGXFSZ, old_handler);
+}
+
 bool same_points(const PointCloud& a, const PointCloud& b) {
   if (a.size() != b.size() || !a.same_attributes(b)) return false;
   if (std::memcmp(a.positions.data(), b.positions.data(), a.size() * sizeof(Vec3d)) != 0) return false;
@@ -230,15 +245,8 @@ TEST_CASE("spool: a write error abandons it, removing its files", "[ingest][spoo
   s->finish(0, PointStreamInfo{});
   REQUIRE(fs::exists(s->file(0)));
   // Files of at most 64 KiB (as a full disk, write() fails part way).
-  rlimit old{};
-  REQUIRE(::getrlimit(RLIMIT_FSIZE, &old) == 0);
-  rlimit small = old;
-  small.rlim_cur = 64 << 10;
-  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
-  REQUIRE(::setrlimit(RLIMIT_FSIZE, &small) == 0);
-  s->append(1, spool_cloud(5000, 7, offset, scale, false), offset, scale);
-  ::setrlimit(RLIMIT_FSIZE, &old);
-  ::signal(SIGXFSZ, old_handler);
+  with_file_size_limit(64 << 10,
+                       [&] { s->append(1, spool_cloud(5000, 7, offset, scale, false), offset, scale); });
   CHECK(s->failure().find(s->file(1)) != std::string::npos);
   CHECK_FALSE(fs::exists(s->file(0)));
   CHECK_FALSE(fs::exists(s->file(1)));
@@ -291,8 +299,9 @@ TEST_CASE("compress: spooled LAZ and text inputs give the blobs of inputs read t
     std::ofstream csv(dir.file(name));
     csv << "x,y,z,r,g,b,i\n";
     for (std::size_t i = 0; i < n; ++i) {
-      csv << 1100 + 0.01 * static_cast<double>(i % 997) << "," << 2100 + 0.02 * static_cast<double>(i % 509) << ","
-          << 0.5 * static_cast<double>(i % 13) << "," << i % 256 << "," << (i * 7) % 256 << ",3," << i % 1000 << "\n";
+      csv << 1100 + 0.01 * static_cast<double>(i % 997) << "," << 2100 + 0.02 * static_cast<double>(i % 509)
+          << "," << 0.5 * static_cast<double>(i % 13) << "," << i % 256 << "," << (i * 7) % 256 << ",3,"
+          << i % 1000 << "\n";
     }
   };
   write_csv("small.csv", 20000);
@@ -328,21 +337,15 @@ TEST_CASE("compress: spooled LAZ and text inputs give the blobs of inputs read t
     std::ofstream csv(dir.file("wide.csv"));
     csv << "x,y,z,r,g,b,i\n";
     for (std::size_t i = 0; i < 431072; ++i) {
-      csv << 0.01 * static_cast<double>(i * 7919 % 100000) << "," << 0.01 * static_cast<double>(i * 104729 % 80000)
-          << "," << 0.5 * static_cast<double>(i % 13) << "," << i % 256 << ",9," << (i * 3) % 256 << "," << i % 1000
-          << "\n";
+      csv << 0.01 * static_cast<double>(i * 7919 % 100000) << ","
+          << 0.01 * static_cast<double>(i * 104729 % 80000) << "," << 0.5 * static_cast<double>(i % 13) << ","
+          << i % 256 << ",9," << (i * 3) % 256 << "," << i % 1000 << "\n";
     }
   }
-  rlimit old{};
-  REQUIRE(::getrlimit(RLIMIT_FSIZE, &old) == 0);
-  rlimit small = old;
-  small.rlim_cur = 6 << 20;
-  const auto old_handler = ::signal(SIGXFSZ, SIG_IGN);
-  REQUIRE(::setrlimit(RLIMIT_FSIZE, &small) == 0);
   o.spool = true;
-  auto fallback = compress_files({dir.file("wide.csv")}, dir.file("fallback.relief"), o);
-  ::setrlimit(RLIMIT_FSIZE, &old);
-  ::signal(SIGXFSZ, old_handler);
+  Result<IngestResult> fallback = internal_error("not run");
+  with_file_size_limit(
+      6 << 20, [&] { fallback = compress_files({dir.file("wide.csv")}, dir.file("fallback.relief"), o); });
   INFO(fallback.status().message());
   REQUIRE(fallback.is_ok());
   CHECK(fallback->spooled_bytes == 0);
