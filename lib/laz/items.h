@@ -28,6 +28,7 @@ enum ItemType : std::uint16_t {
   kItemPoint10 = 6,
   kItemGpsTime11 = 7,
   kItemRgb12 = 8,
+  kItemWavePacket13 = 9,
   kItemPoint14 = 10,
   kItemRgb14 = 11,
   kItemRgbNir14 = 12,
@@ -202,6 +203,31 @@ class Rgb12V1 {
   SymbolModel byte_used_{64};
   IntegerCoder ic_{8, 6};
   std::array<std::uint16_t, 3> last_{};
+};
+
+// WAVEPACKET13 (point formats 4 and 5): the wave packet descriptor of a
+// pulse. LASzip 2.x and 3.x still write it as version 1 in their pointwise
+// streams. The descriptor index by a 256-symbol model; the byte offset of the
+// waveform as the previous one, the previous one plus its size, a 32-bit
+// difference (integer coder) or all 64 bits raw, the choice coded in a model
+// picked by the previous choice; the packet size, the return point and the
+// x y z step (floats, coded as their 32-bit patterns) by integer coders
+// against the previous descriptor's.
+class WavePacket13V1 {
+ public:
+  void init(const std::uint8_t* item);
+  void read(ArithmeticDecoder& dec, std::uint8_t* item);
+
+ private:
+  SymbolModel packet_index_{256};
+  std::array<SymbolModel, 4> offset_diff_{SymbolModel(4), SymbolModel(4), SymbolModel(4), SymbolModel(4)};
+  IntegerCoder ic_offset_diff_{32};
+  IntegerCoder ic_packet_size_{32};
+  IntegerCoder ic_return_point_{32};
+  IntegerCoder ic_xyz_{32, 3};
+  std::array<std::uint8_t, kWavePacketSize - 1> last_{};  // the previous descriptor but its index
+  std::int32_t last_diff_ = 0;
+  std::uint32_t last_choice_ = 0;
 };
 
 class ByteV1 {

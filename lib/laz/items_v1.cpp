@@ -186,4 +186,46 @@ void ByteV1::read(ArithmeticDecoder& dec, std::uint8_t* item) {
   std::memcpy(item, last_.data(), last_.size());
 }
 
+// ---------------------------------------------------------------- WAVEPACKET13
+
+void WavePacket13V1::init(const std::uint8_t* item) {
+  last_diff_ = 0;
+  last_choice_ = 0;
+  packet_index_.init();
+  for (auto& m : offset_diff_) m.init();
+  ic_offset_diff_.init();
+  ic_packet_size_.init();
+  ic_return_point_.init();
+  ic_xyz_.init();
+  std::memcpy(last_.data(), item + 1, last_.size());
+}
+
+void WavePacket13V1::read(ArithmeticDecoder& dec, std::uint8_t* item) {
+  item[0] = static_cast<std::uint8_t>(dec.decode_symbol(packet_index_));
+  std::uint8_t* out = item + 1;
+  const std::uint8_t* last = last_.data();
+  // Byte 0 the offset (64 bits), 8 the packet size, 12 the return point,
+  // 16, 20, 24 the x, y, z step.
+  const std::uint64_t last_offset = get_u64(last);
+  const std::uint32_t last_size = get_u32(last + 8);
+  last_choice_ = dec.decode_symbol(offset_diff_[last_choice_]);
+  std::uint64_t offset = last_offset;
+  if (last_choice_ == 1) {
+    offset = last_offset + last_size;
+  } else if (last_choice_ == 2) {
+    last_diff_ = ic_offset_diff_.decompress(dec, last_diff_);
+    offset = last_offset + static_cast<std::uint64_t>(static_cast<std::int64_t>(last_diff_));
+  } else if (last_choice_ == 3) {
+    const std::uint64_t low = dec.read_int();
+    offset = (static_cast<std::uint64_t>(dec.read_int()) << 32) | low;
+  }
+  put_u64(out, offset);
+  put_i32(out + 8, ic_packet_size_.decompress(dec, static_cast<std::int32_t>(last_size)));
+  put_i32(out + 12, ic_return_point_.decompress(dec, get_i32(last + 12)));
+  for (std::uint32_t a = 0; a < 3; ++a) {
+    put_i32(out + 16 + 4 * a, ic_xyz_.decompress(dec, get_i32(last + 16 + 4 * a), a));
+  }
+  std::memcpy(last_.data(), out, last_.size());
+}
+
 }  // namespace relief::laz

@@ -48,7 +48,7 @@ std::string item_name(std::uint16_t type) {
     case kItemPoint10: return "POINT10";
     case kItemGpsTime11: return "GPSTIME11";
     case kItemRgb12: return "RGB12";
-    case 9: return "WAVEPACKET13";
+    case kItemWavePacket13: return "WAVEPACKET13";
     case kItemPoint14: return "POINT14";
     case kItemRgb14: return "RGB14";
     case kItemRgbNir14: return "RGBNIR14";
@@ -66,6 +66,10 @@ FormatItems items_for_format(int format) {
     case 1: return {{kItemPoint10, kItemGpsTime11}, 28};
     case 2: return {{kItemPoint10, kItemRgb12}, 26};
     case 3: return {{kItemPoint10, kItemGpsTime11, kItemRgb12}, 34};
+    // The wave packet descriptor is one more item of the pointwise stream:
+    // decoded (the next items depend on its bits), then not kept.
+    case 4: return {{kItemPoint10, kItemGpsTime11, kItemWavePacket13}, 57};
+    case 5: return {{kItemPoint10, kItemGpsTime11, kItemRgb12, kItemWavePacket13}, 63};
     case 6: return {{kItemPoint14}, 30};
     case 7: return {{kItemPoint14, kItemRgb14}, 36};
     case 8: return {{kItemPoint14, kItemRgbNir14}, 38};
@@ -85,6 +89,7 @@ std::size_t fixed_item_size(std::uint16_t type) {
     case kItemPoint14: return kPoint14Size;
     case kItemRgb14: return kRgb12Size;
     case kItemRgbNir14: return kRgbNir14Size;
+    case kItemWavePacket13: return kWavePacketSize;
     case kItemWavePacket14: return kWavePacketSize;
     default: return 0;
   }
@@ -133,8 +138,7 @@ Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format
   const FormatItems need = items_for_format(point_format);
   if (need.types.empty()) {
     return unsupported(name + ": LAZ point format " + std::to_string(point_format) +
-                       " is not supported (0-3 and 6-10 are; 4 and 5 are not: their wave packets are "
-                       "interleaved with the other items in one stream)");
+                       " is not supported (LAS defines 0-10)");
   }
   const bool layered = point_format >= 6;
   // LASzip 1.x's unchunked compressor (1) knew the pointwise items only.
@@ -162,6 +166,12 @@ Result<Params> parse_vlr(std::span<const std::uint8_t> payload, int point_format
     if (it.type != type || it.size != size) {
       return format_error(what + ": items (" + listed + ") do not describe point format " +
                           std::to_string(point_format) + " with " + std::to_string(extra) + " extra bytes");
+    }
+    // LASzip has only version 1 of the wave packet item, and writes it so
+    // beside version-2 items.
+    if (it.type == kItemWavePacket13 && it.version != 1) {
+      return unsupported(name + ": LASzip item WAVEPACKET13 version " + std::to_string(it.version) +
+                         " is not supported (version 1 is)");
     }
     if (it.version < min_version || it.version > want_version) {
       return unsupported(name + ": LASzip item " + item_name(it.type) + " version " + std::to_string(it.version) +
@@ -344,6 +354,9 @@ class PointwiseDecoder final : public ChunkDecoderBase {
           break;
         case kItemRgb12:
           item = v1 ? make_item<Rgb12V1>() : make_item<Rgb12V2>();
+          break;
+        case kItemWavePacket13:
+          item = make_item<WavePacket13V1>();  // version 1 only (parse_vlr)
           break;
         default:
           item = v1 ? make_item<ByteV1>(std::size_t{it.size}) : make_item<ByteV2>(std::size_t{it.size});

@@ -88,8 +88,9 @@ PointCompressor::~PointCompressor() = default;
 Result<std::unique_ptr<PointCompressor>> PointCompressor::create(int point_format, std::size_t record_length,
                                                                  std::uint32_t chunk_size, const std::string& name,
                                                                  unsigned threads) {
-  // Formats 9 and 10 are read (their wave packet layer skipped), not written.
-  const bool wave = point_format == 9 || point_format == 10;
+  // Formats 4, 5, 9 and 10 are read (their wave packets decoded or
+  // skipped, and not kept), not written.
+  const bool wave = point_format == 4 || point_format == 5 || point_format == 9 || point_format == 10;
   const FormatItems need = wave ? FormatItems{} : items_for_format(point_format);
   if (need.types.empty()) {
     return unsupported(name + ": LAZ output is written in point formats 0-3 and 6-8, not " +

@@ -1,6 +1,7 @@
 // Test-side LAZ writers for what Relief only reads: LASzip 1.x's item
-// version 1 (POINT10, GPSTIME11, RGB12, BYTE) and its unchunked pointwise
-// compressor (1). The version-1 encoders here are written from LASzip's
+// version 1 (POINT10, GPSTIME11, RGB12, BYTE, and WAVEPACKET13 of the
+// waveform formats 4 and 5, which LASzip still writes in version 1) and its
+// unchunked pointwise compressor (1). The version-1 encoders here are written from LASzip's
 // description of its version-1 compressors, apart from the library's
 // decoders (items_v1.cpp): they share only the range coder and the integer
 // coder, so a round trip checks the decoders' models against a second
@@ -240,6 +241,62 @@ class ByteV1Encoder final : public ItemEncoder {
   laz::IntegerCoder ic_;
 };
 
+// WAVEPACKET13 version 1 (the only version; LASzip writes it so in every
+// pointwise stream, formats 4 and 5), from LASzip's description of its
+// writer: the descriptor index by a 256-symbol model; the waveform's byte
+// offset against the previous descriptor's as 0 (the same), 1 (previous
+// offset + previous packet size), 2 (a difference that fits 32 bits, by an
+// integer coder against the previous such difference) or 3 (the 64 bits
+// raw), in a 4-symbol model chosen by the previous choice; then the packet
+// size, the return point and x, y, z (their 32-bit patterns; x y z in three
+// contexts of one coder) against the previous descriptor's.
+class WavePacket13V1Encoder final : public ItemEncoder {
+ public:
+  void init(const std::uint8_t* item) override {
+    std::memcpy(last_, item + 1, 28);
+    last_diff_ = 0;
+    choice_ = 0;
+    index_.init();
+    for (auto& m : offset_) m.init();
+    ic_offset_.init();
+    ic_size_.init();
+    ic_return_.init();
+    ic_xyz_.init();
+  }
+  void write(laz::ArithmeticEncoder& enc, const std::uint8_t* item) override {
+    enc.encode_symbol(index_, item[0]);
+    const std::uint8_t* cur = item + 1;
+    const std::uint64_t offset = le_u64(cur), last_offset = le_u64(last_);
+    const auto size = static_cast<std::int32_t>(le_i32(cur + 8)), last_size = le_i32(last_ + 8);
+    const auto diff64 = static_cast<std::int64_t>(offset - last_offset);
+    const auto diff32 = static_cast<std::int32_t>(diff64);
+    std::uint32_t choice = 3;
+    if (diff64 == static_cast<std::int64_t>(diff32)) choice = diff32 == 0 ? 0 : (diff32 == last_size ? 1 : 2);
+    enc.encode_symbol(offset_[choice_], choice);
+    choice_ = choice;
+    if (choice == 2) {
+      ic_offset_.compress(enc, last_diff_, diff32);
+      last_diff_ = diff32;
+    } else if (choice == 3) {
+      enc.write_int(static_cast<std::uint32_t>(offset));
+      enc.write_int(static_cast<std::uint32_t>(offset >> 32));
+    }
+    ic_size_.compress(enc, last_size, size);
+    ic_return_.compress(enc, le_i32(last_ + 12), le_i32(cur + 12));
+    for (std::uint32_t a = 0; a < 3; ++a) ic_xyz_.compress(enc, le_i32(last_ + 16 + 4 * a), le_i32(cur + 16 + 4 * a), a);
+    std::memcpy(last_, cur, 28);
+  }
+
+ private:
+  laz::SymbolModel index_{256};
+  std::array<laz::SymbolModel, 4> offset_{laz::SymbolModel(4), laz::SymbolModel(4), laz::SymbolModel(4),
+                                          laz::SymbolModel(4)};
+  laz::IntegerCoder ic_offset_{32}, ic_size_{32}, ic_return_{32}, ic_xyz_{32, 3};
+  std::uint8_t last_[28] = {};
+  std::int32_t last_diff_ = 0;
+  std::uint32_t choice_ = 0;
+};
+
 // A version-2 item through the library's item coder.
 template <typename T>
 class V2Encoder final : public ItemEncoder {
@@ -253,8 +310,9 @@ class V2Encoder final : public ItemEncoder {
   T item_;
 };
 
-// The items of point format 0-3 with `extra` bytes, each in `version`
-// (bit i of `v1_mask` makes item i version 1, the others version 2).
+// The items of point format 0-5 with `extra` bytes, each in `version`
+// (bit i of `v1_mask` makes item i version 1, the others version 2;
+// WAVEPACKET13 is always version 1).
 inline std::vector<laz::Item> pointwise_items(int format, std::size_t extra, unsigned v1_mask) {
   std::vector<laz::Item> items;
   const laz::FormatItems need = laz::items_for_format(format);
@@ -263,7 +321,7 @@ inline std::vector<laz::Item> pointwise_items(int format, std::size_t extra, uns
   }
   if (extra > 0) items.push_back({laz::kItemByte, static_cast<std::uint16_t>(extra), 2});
   for (std::size_t i = 0; i < items.size(); ++i) {
-    if (v1_mask & (1u << i)) items[i].version = 1;
+    if ((v1_mask & (1u << i)) || items[i].type == laz::kItemWavePacket13) items[i].version = 1;
   }
   return items;
 }
@@ -289,6 +347,9 @@ inline std::vector<std::uint8_t> encode_pointwise(std::span<const std::uint8_t> 
       case laz::kItemRgb12:
         coders.push_back(v1 ? std::unique_ptr<ItemEncoder>(std::make_unique<Rgb12V1Encoder>())
                             : std::make_unique<V2Encoder<laz::Rgb12V2>>());
+        break;
+      case laz::kItemWavePacket13:
+        coders.push_back(std::make_unique<WavePacket13V1Encoder>());
         break;
       default:
         coders.push_back(v1 ? std::unique_ptr<ItemEncoder>(std::make_unique<ByteV1Encoder>(it.size))

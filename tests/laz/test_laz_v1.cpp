@@ -21,6 +21,7 @@
 #include "laz/laz_v1_encoder.h"
 #include "relief/io.h"
 #include "relief/laz.h"
+#include "support/las_records.h"
 #include "support/temp_dir.h"
 
 using namespace relief::laztest;
@@ -46,7 +47,7 @@ void put(std::uint8_t* p, std::uint64_t v, int bytes) {
   for (int i = 0; i < bytes; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
 }
 
-constexpr std::size_t kBaseSize[] = {20, 28, 26, 34};
+constexpr std::size_t kBaseSize[] = {20, 28, 26, 34, 57, 63};
 
 // Records of format 0-3 plus `extra` bytes in which every field varies the
 // ways the version-1 models tell apart: coordinates step steadily, jitter,
@@ -59,9 +60,14 @@ constexpr std::size_t kBaseSize[] = {20, 28, 26, 34};
 std::vector<std::uint8_t> varied_records(int format, std::size_t extra, std::size_t n, std::uint64_t seed) {
   Rng rng(seed);
   const std::size_t rl = kBaseSize[format] + extra;
-  const bool gps = format == 1 || format == 3;
-  const bool rgb = format == 2 || format == 3;
-  const std::size_t rgb_at = format == 3 ? 28 : 20;
+  const bool gps = format == 1 || format == 3 || format == 4 || format == 5;
+  const bool rgb = format == 2 || format == 3 || format == 5;
+  const std::size_t rgb_at = format == 3 || format == 5 ? 28 : 20;
+  // Formats 4 and 5: the wave packet descriptor last (index, offset,
+  // size, return point, x y z step).
+  const std::size_t wave_at = format == 4 ? 28 : 34;
+  std::uint64_t wave_offset = 60000;
+  std::uint32_t wave_size = 256;
   std::vector<std::uint8_t> out(n * rl);
   std::uint32_t x = 1000, y = 2000, z = 300;
   std::uint32_t step = 17;
@@ -114,6 +120,26 @@ std::vector<std::uint8_t> varied_records(int format, std::size_t extra, std::siz
       }
       if (prev == nullptr) {
         for (int b = 0; b < 6; ++b) c[b] = static_cast<std::uint8_t>(rng.next());
+      }
+    }
+    if (format >= 4) {
+      // The offset repeats, follows the previous packet, steps by a 32-bit
+      // difference (forwards or back) or jumps anywhere in 64 bits; the
+      // other fields mostly repeat or change a little.
+      std::uint8_t* w = r + wave_at;
+      if (prev == nullptr || rng.one_in(9)) w[0] = static_cast<std::uint8_t>(rng.below(rng.one_in(4) ? 256 : 3));
+      switch (rng.below(8)) {
+        case 0: break;
+        case 1: wave_offset += static_cast<std::uint64_t>(static_cast<std::int64_t>(static_cast<std::int32_t>(rng.next()))); break;
+        case 2: wave_offset = (std::uint64_t{rng.next()} << 32) | rng.next(); break;
+        case 3: wave_offset += std::uint64_t{rng.below(1000)}; break;
+        default: wave_offset += wave_size; break;
+      }
+      if (rng.one_in(5)) wave_size = rng.one_in(3) ? rng.next() : 200 + rng.below(100);
+      put(w + 1, wave_offset, 8);
+      put(w + 9, wave_size, 4);
+      for (int f = 0; f < 4; ++f) {
+        if (prev == nullptr || rng.one_in(4)) put(w + 13 + 4 * f, rng.one_in(3) ? rng.next() : 0x3F800000u + rng.below(4096), 4);
       }
     }
     for (std::size_t b = 0; b < extra; ++b) {
@@ -297,6 +323,40 @@ const std::string kSimpleLas = std::string(RELIEF_SOURCE_DIR) + "/tests/data/sim
 // simple.laz as LASzip 1.x would have written it: its header and VLRs with
 // the LASzip VLR saying `compressor` and item versions (`v1_mask`), then
 // simple.las's records compressed so (with chunks of 500 for compressor 2).
+TEST_CASE("LAZ: waveform formats 4 and 5 come back exactly, their wave packets decoded", "[laz][v1][wave]") {
+  constexpr std::size_t kPoints = 3000;
+  for (int format = 4; format <= 5; ++format) {
+    for (const std::size_t extra : {std::size_t{0}, std::size_t{2}}) {
+      const std::size_t rl = kBaseSize[format] + extra;
+      const auto records = varied_records(format, extra, kPoints, 300 + static_cast<std::uint64_t>(format) * 5 + extra);
+      // Every version of the other items; the wave packets in version 1.
+      for (const unsigned mask : {0u, 1u, 0x7u, 0xFu}) {
+        const auto items = pointwise_items(format, extra, mask);
+        INFO("format " << format << ", " << extra << " extra bytes, version-1 items mask " << mask);
+        for (const std::uint16_t compressor : {std::uint16_t{1}, std::uint16_t{2}}) {
+          INFO("compressor " << compressor);
+          auto params = laz::parse_vlr(pointwise_vlr(compressor, compressor == 1 ? 0 : 1000, items), format, rl,
+                                       "wave.laz");
+          INFO(params.status().to_string());
+          REQUIRE(params.is_ok());
+          const auto region = compressor == 1 ? encode_pointwise(records, rl, items)
+                                              : chunked_region(records, rl, items, 1000, 0);
+          auto got = decode_region(*params, region, 0, kPoints, 777);
+          INFO(got.status().to_string());
+          REQUIRE(got.is_ok());
+          CHECK(first_difference(*got, records, rl) == -1);
+        }
+      }
+    }
+  }
+  // The wave packet item exists in version 1 only.
+  const std::vector<laz::Item> v2 = {{laz::kItemPoint10, 20, 2}, {laz::kItemGpsTime11, 8, 2}, {laz::kItemWavePacket13, 29, 2}};
+  const auto r = laz::parse_vlr(pointwise_vlr(2, 1000, v2), 4, 57, "wave.laz");
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().message().find("wave.laz") != std::string::npos);
+  CHECK(r.status().message().find("WAVEPACKET13 version 2") != std::string::npos);
+}
+
 std::vector<std::uint8_t> simple_as(std::uint16_t compressor, unsigned v1_mask) {
   const auto laz = slurp(kSimpleLaz);
   const auto las = slurp(kSimpleLas);
@@ -368,6 +428,56 @@ TEST_CASE("LAZ v1: the LAS reader reads LASzip 1.x files to the twin's cloud", "
     INFO(got.status().to_string());
     REQUIRE(got.is_ok());
     check_same_cloud(*got, *want);
+  }
+}
+
+namespace {
+
+// A LAS file (1.2, no VLRs) rewritten as LAZ with `items`, chunks of 400.
+std::vector<std::uint8_t> laz_of_las(const std::vector<std::uint8_t>& las, const std::vector<laz::Item>& items) {
+  const Header h = header_of(las);
+  REQUIRE(h.point_offset == 227);
+  const std::vector<std::uint8_t> records(las.begin() + h.point_offset, las.end());
+  const auto payload = pointwise_vlr(2, 400, items);
+  std::vector<std::uint8_t> f(las.begin(), las.begin() + h.point_offset);
+  std::vector<std::uint8_t> vlr(54, 0);
+  std::memcpy(vlr.data() + 2, "laszip encoded", 14);
+  put(vlr.data() + 18, 22204, 2);
+  put(vlr.data() + 20, payload.size(), 2);
+  f.insert(f.end(), vlr.begin(), vlr.end());
+  f.insert(f.end(), payload.begin(), payload.end());
+  put(f.data() + 96, f.size(), 4);  // offset to the point data
+  put(f.data() + 100, 1, 4);        // one VLR
+  f[104] = static_cast<std::uint8_t>(f[104] | 0x80);
+  const auto region = chunked_region(records, h.record_length, items, 400, f.size());
+  f.insert(f.end(), region.begin(), region.end());
+  return f;
+}
+
+}  // namespace
+
+TEST_CASE("LAZ: the LAS reader reads waveform LAZ (formats 4 and 5) to the LAS file's cloud", "[laz][v1][wave][io]") {
+  test::TempDir tmp;
+  for (const int format : {4, 5}) {
+    for (const std::size_t extra : {std::size_t{0}, std::size_t{3}}) {
+      INFO("format " << format << ", " << extra << " extra bytes");
+      test::TestLasOptions o;
+      o.format = format;
+      o.points = 2100;
+      o.extra = extra;
+      o.seed = static_cast<std::uint32_t>(format * 10 + extra);
+      const std::string las = tmp.file("w.las"), lazf = tmp.file("w.laz");
+      REQUIRE(test::write_test_las(las, o));
+      spit(lazf, laz_of_las(slurp(las), pointwise_items(format, extra, 0)));
+      const auto want = read_all(las);
+      REQUIRE(want.is_ok());
+      REQUIRE(want->size() == 2100);
+      const auto got = read_all(lazf);
+      INFO(got.status().to_string());
+      REQUIRE(got.is_ok());
+      check_same_cloud(*got, *want);
+      CHECK(got->las.extra_bytes == want->las.extra_bytes);
+    }
   }
 }
 
@@ -451,7 +561,8 @@ TEST_CASE("LAZ v1: variants still not read are refused naming the file and the v
       {2, 0, {p10(0)}, 20, "POINT10 version 0"},
       {1, 6, {{laz::kItemPoint14, 30, 3}}, 30, "compressor 1"},
       {3, 6, {{laz::kItemPoint14, 30, 1}}, 30, "POINT14 version 1"},
-      {1, 4, {p10(1), {laz::kItemGpsTime11, 8, 1}, {9, 29, 1}}, 57, "point format 4"},
+      {2, 4, {p10(2), {laz::kItemGpsTime11, 8, 2}, {9, 29, 3}}, 57, "WAVEPACKET13 version 3"},
+      {2, 11, {p10(2)}, 20, "point format 11"},
   };
   for (const Case& c : cases) {
     INFO(c.expect);
@@ -478,6 +589,14 @@ TEST_CASE("LAZ v1: fuzz seed", "[.seed]") {
   f.insert(f.end(), stream.begin(), stream.end());
   put(f.data() + 107, 16, 4);
   spit(std::string(dir) + "/seed-laz-v1-unchunked.laz", f);
+  // A waveform LAZ (format 5, every field random): 40 points in chunks of 400.
+  test::TempDir tmp;
+  test::TestLasOptions o;
+  o.format = 5;
+  o.points = 40;
+  o.seed = 5;
+  REQUIRE(test::write_test_las(tmp.file("w.las"), o));
+  spit(std::string(dir) + "/seed-laz-wave-format5.laz", laz_of_las(slurp(tmp.file("w.las")), pointwise_items(5, 0, 0)));
 }
 
 }  // namespace relief

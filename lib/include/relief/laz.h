@@ -12,9 +12,11 @@
 // bytes, fixed or variable chunk sizes. Read only: LASzip 1.x's unchunked
 // pointwise compressor (1: no chunk table and no table offset, the whole
 // point data is one stream) and the pointwise items in version 1, with either
-// pointwise compressor and mixed with version-2 items as LASzip allows. Not
-// supported: waveform formats 4 and 5 (their wave packets are interleaved with
-// the other items in one stream), item version 4. Formats 9 and 10 are read
+// pointwise compressor and mixed with version-2 items as LASzip allows; the
+// waveform formats 4 and 5 (POINT10, GPSTIME11, [RGB12,] WAVEPACKET13, which
+// LASzip writes in version 1 beside version-2 items: the descriptors are
+// decoded, being interleaved with the other items in one stream). Not
+// supported: item version 4. Formats 9 and 10 are read
 // with their wave packet layer skipped: the records hold zeros there (a
 // chunk's first record its raw bytes), as Relief keeps no wave packets.
 // Decoding and encoding go chunk by chunk, so memory is bounded by one
