@@ -1,4 +1,5 @@
 #include "billion.h"
+#include "disk_bytes.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -65,19 +66,6 @@ std::uint64_t write_scene(int fd, std::uint64_t points, std::uint64_t seed) {
     if (got == 0) break;
     if (!write_all(fd, buf.data(), got * AerialScene::kRecordBytes)) break;
     total += got;
-  }
-  return total;
-}
-
-// Bytes allocated on disk below `dir` (st_blocks), the pipe excluded.
-std::uint64_t disk_bytes(const std::string& dir) {
-  std::uint64_t total = 0;
-  std::error_code ec;
-  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    struct stat st {};
-    if (::lstat(it->path().c_str(), &st) == 0 && S_ISREG(st.st_mode)) {
-      total += static_cast<std::uint64_t>(st.st_blocks) * 512;
-    }
   }
   return total;
 }

@@ -13,9 +13,9 @@ namespace relief::bench {
 struct SpoolOptions {
   int repeat = 3;
   std::string tmp = "/tmp";
-  std::string cli;             // the relief binary
-  std::string data_dir;        // the shared data (the aerial tile's LAZ at --memory 64M)
-  std::uint64_t points = 10000000;  // the generated scene, as LAZ (LAS 1.2 format 3)
+  std::string cli;                      // the relief binary
+  std::string data_dir;                 // the shared data (the aerial tile's LAZ at --memory 64M)
+  std::uint64_t points = 10000000;      // the generated scene, as LAZ (LAS 1.2 format 3)
   std::uint64_t text_points = 3000000;  // its first points as CSV (x y z r g b i)
   std::uint64_t seed = 1;
 };

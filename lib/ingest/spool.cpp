@@ -72,8 +72,13 @@ Status write_all(int fd, std::vector<iovec>& iov) {
 
 class SpoolReader final : public PointReader {
  public:
-  SpoolReader(std::shared_ptr<const Spool> spool, std::string path, PointStreamInfo info, std::uint64_t skip)
-      : spool_(std::move(spool)), path_(std::move(path)), info_(std::move(info)), skip_(skip) {}
+  SpoolReader(std::shared_ptr<const Spool> spool, std::string path, PointStreamInfo info, std::uint64_t skip,
+              std::uint64_t release_bytes)
+      : spool_(std::move(spool)),
+        path_(std::move(path)),
+        info_(std::move(info)),
+        skip_(skip),
+        release_bytes_(release_bytes) {}
   ~SpoolReader() override { close_file(); }
 
   const PointStreamInfo& info() const override { return info_; }
@@ -85,7 +90,8 @@ class SpoolReader final : public PointReader {
       return std::size_t{0};
     }
     if (fd_ < 0) {
-      fd_ = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
+      // Read-write, to give back the disk of what has been read.
+      fd_ = ::open(path_.c_str(), O_RDWR | O_CLOEXEC);
       struct stat st {};
       if (fd_ < 0 || ::fstat(fd_, &st) != 0)
         return io_error(what() + ": cannot read: " + std::strerror(errno));
@@ -101,6 +107,7 @@ class SpoolReader final : public PointReader {
           batch = PointCloud();
           return std::size_t{0};
         }
+        release_read();
         RELIEF_RETURN_IF_ERROR(load_header());
       }
       const std::uint64_t left = header_.points - used_;
@@ -140,6 +147,22 @@ class SpoolReader final : public PointReader {
       n -= static_cast<std::size_t>(r);
     }
     return Status::ok();
+  }
+
+  // Gives the file system back the blocks of the batches read (a hole
+  // punched before next_, at least release_bytes at a time), so that the
+  // spool shrinks as the ingest's bucket files grow. A file system without
+  // holes keeps them until the file is deleted at its end.
+  void release_read() {
+#if defined(FALLOC_FL_PUNCH_HOLE)
+    if (next_ - released_ < release_bytes_) return;
+    if (::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(released_),
+                    static_cast<off_t>(next_ - released_)) == 0) {
+      released_ = next_;
+    } else {
+      release_bytes_ = UINT64_MAX;  // not supported here: stop trying
+    }
+#endif
   }
 
   // Reads the header at next_ and lays out the batch's columns; bounded by
@@ -210,10 +233,12 @@ class SpoolReader final : public PointReader {
   std::uint64_t skip_;
   int fd_ = -1;
   std::uint64_t size_ = 0;
-  std::uint64_t next_ = 0;     // the next batch's header
-  Header header_;              // the batch being read (points 0 before the first)
-  std::uint64_t columns_ = 0;  // its columns' start
-  std::uint64_t used_ = 0;     // its points handed out (or skipped)
+  std::uint64_t next_ = 0;      // the next batch's header
+  Header header_;               // the batch being read (points 0 before the first)
+  std::uint64_t columns_ = 0;   // its columns' start
+  std::uint64_t used_ = 0;      // its points handed out (or skipped)
+  std::uint64_t released_ = 0;  // bytes before this are a hole (release_read)
+  std::uint64_t release_bytes_;
   Vec3d offset_{0, 0, 0}, scale_{0, 0, 0};
   std::vector<std::int32_t> ints_;
   bool done_ = false;
@@ -222,8 +247,9 @@ class SpoolReader final : public PointReader {
 }  // namespace
 
 Result<std::shared_ptr<Spool>> Spool::create(const std::string& parent, std::vector<bool> wanted,
-                                             std::size_t batch_points) {
+                                             std::size_t batch_points, std::uint64_t release_bytes) {
   std::shared_ptr<Spool> s(new Spool());
+  s->release_bytes_ = std::max<std::uint64_t>(1, release_bytes);
   s->batch_points_ = std::max<std::size_t>(1, batch_points);
   RELIEF_ASSIGN_OR_RETURN(s->dir_, IngestTempDir::create(parent));
   s->finished_.assign(wanted.size(), false);
@@ -342,7 +368,7 @@ void Spool::finish(std::size_t input, const PointStreamInfo& info) {
 }
 
 std::unique_ptr<PointReader> Spool::reader(std::size_t input, std::uint64_t skip) {
-  return std::make_unique<SpoolReader>(shared_from_this(), file(input), infos_[input], skip);
+  return std::make_unique<SpoolReader>(shared_from_this(), file(input), infos_[input], skip, release_bytes_);
 }
 
 }  // namespace relief::ingest

@@ -8,8 +8,9 @@
 // columns (x y z, colours, intensities, each LAS vector, the extra bytes) as
 // the PointCloud holds them; x y z as the LAS integers when the input's scale
 // and offset give every coordinate back exactly (checked batch by batch), else
-// as doubles. The files live in an IngestTempDir; each is deleted as soon as
-// the ingest has read it.
+// as doubles. The files live in an IngestTempDir; what the ingest has read of
+// one is given back to the file system as it goes (a hole punched over it),
+// and the file is deleted once read.
 #pragma once
 
 #include <cstddef>
@@ -29,9 +30,14 @@ class Spool : public std::enable_shared_from_this<Spool> {
   // A spool under `parent` for the inputs whose `wanted` entry is true (the
   // others are not spooled), whose pass reads `batch_points` at a time (its
   // batches carry every attribute: the ingest's batch size keeps them within
-  // its memory budget). kIoError when its directory cannot be made.
+  // its memory budget). Its readers punch a hole in their file over what
+  // they have read, `release_bytes` or more at a time (where the file system
+  // can), so the spool's disk goes back as the ingest's bucket files take
+  // theirs. kIoError when its directory cannot be made.
+  static constexpr std::uint64_t kReleaseBytes = std::uint64_t{64} << 20;
   static Result<std::shared_ptr<Spool>> create(const std::string& parent, std::vector<bool> wanted,
-                                               std::size_t batch_points);
+                                               std::size_t batch_points,
+                                               std::uint64_t release_bytes = kReleaseBytes);
   ~Spool();
   Spool(const Spool&) = delete;
   Spool& operator=(const Spool&) = delete;
@@ -71,6 +77,7 @@ class Spool : public std::enable_shared_from_this<Spool> {
   IngestTempDir dir_;
   std::vector<bool> wanted_;
   std::size_t batch_points_ = 0;
+  std::uint64_t release_bytes_ = kReleaseBytes;
   std::vector<bool> finished_;
   std::vector<PointStreamInfo> infos_;
   int fd_ = -1;               // the file being written
