@@ -282,10 +282,10 @@ std::function<void(const IngestProgress&)> progress_printer(bool quiet) {
     const double rate = p.seconds > 0 ? static_cast<double>(p.points_read) / p.seconds : 0;
     const std::string phase = p.phase;
     char eta[96] = "";
-    if (p.points_total > 0 && rate > 0 && phase == "reading") {
+    if (p.points_total > 0 && rate > 0 && (phase == "reading" || phase == "scanning")) {
       const double left = static_cast<double>(p.points_total - std::min(p.points_total, p.points_read)) / rate;
-      std::snprintf(eta, sizeof eta, " (%.0f%%, reading ETA %.0f s)",
-                    100.0 * static_cast<double>(p.points_read) / static_cast<double>(p.points_total), left);
+      std::snprintf(eta, sizeof eta, " (%.0f%%, %s ETA %.0f s)",
+                    100.0 * static_cast<double>(p.points_read) / static_cast<double>(p.points_total), p.phase, left);
     }
     if (phase == "encoding" && p.points_read > 0) {
       // Every point is read before the encoding phase: its total is points_read.

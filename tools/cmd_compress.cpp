@@ -1,4 +1,6 @@
 // relief compress IN... -o OUT.relief: out-of-core ingest into a new archive.
+#include <sys/stat.h>
+
 #include <cstdio>
 #include <iostream>
 
@@ -65,8 +67,14 @@ int run_compress(int argc, char** argv) {
   end_progress_line();
   if (!r) {
     if (o.cancel->load()) {
-      std::cerr << "relief compress: interrupted; " << *out
-                << " keeps the chunks committed so far (an incomplete scan)\n";
+      struct stat st {};
+      if (::stat(out->c_str(), &st) != 0) {
+        // Stopped in the pass that fixes the grid, before the archive exists.
+        std::cerr << "relief compress: interrupted before " << *out << " was created\n";
+      } else {
+        std::cerr << "relief compress: interrupted; " << *out
+                  << " keeps the chunks committed so far (an incomplete scan)\n";
+      }
       return 130;
     }
     return fail(kCommand, r.status());

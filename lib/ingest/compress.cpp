@@ -814,7 +814,7 @@ class SkipFirst final : public PointReader {
 
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                                          int map_resolution, Box3d* bounds, OrderFreeSample* extra, InputSet* keep_from,
-                                         const PointCloud* first, Spool* spool) {
+                                         const PointCloud* first, Spool* spool, const IngestOptions* run) {
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
@@ -881,6 +881,17 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
   std::vector<std::unique_ptr<PointReader>>& readers = keep ? keep_from->readers : opened;
   const bool continues_first = keep || (spool != nullptr && spool->wants(0));
   const PointCloud* already = continues_first ? first : nullptr;
+  // Progress (a survey of a billion points takes minutes here), counted
+  // against the inputs' total when every header states its count.
+  std::uint64_t stated = 0;
+  bool all_stated = true;
+  for (const auto& reader : readers) {
+    const std::optional<std::uint64_t> c = reader->info().point_count;
+    all_stated = all_stated && c.has_value();
+    stated += c.value_or(0);
+  }
+  Progress progress(run != nullptr ? run->progress : nullptr, all_stated ? stated : 0);
+  const auto cancelled = [&] { return run != nullptr && run->cancel != nullptr && run->cancel->load(); };
   if (already != nullptr) take(*already);
   // The LAS grid of each input for the spool, taken before the reading
   // thread starts (info() is the reader's, which that thread then updates).
@@ -897,6 +908,8 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
       RELIEF_ASSIGN_OR_RETURN(const bool more, prefetch.next(read));
       if (!more) break;
       take(read.points);
+      progress.update("scanning", total, 0, 0);
+      if (cancelled()) return io_error("interrupted");
       if (spool != nullptr) {
         spool->append(read.reader, read.points, spool_grids[read.reader].first, spool_grids[read.reader].second);
       }
@@ -1054,7 +1067,7 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
                             order_free_cells(inputs, ingest_reader_options(options), params.map_resolution,
                                              &all_bounds, sample, keep != nullptr || spool != nullptr ? &in : nullptr, &first,
-                                             spool.get()));
+                                             spool.get(), &options));
     if (spool != nullptr && spool->failure().empty()) {
       // The pass read the spooled inputs through the ingest's readers (input
       // 0 after `first`): the ingest reads them from the spool.
@@ -1082,7 +1095,9 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   } else if (sample != nullptr) {
     // The caller wants the pass anyway (a shard plan): the sample, not the
     // cells, and no bounds, so the grid is the one this branch would get.
-    RELIEF_RETURN_IF_ERROR(order_free_cells(inputs, options.reader, params.map_resolution, nullptr, sample).status());
+    RELIEF_RETURN_IF_ERROR(order_free_cells(inputs, options.reader, params.map_resolution, nullptr, sample, nullptr,
+                                            nullptr, nullptr, &options)
+                               .status());
   }
   if (derive_from_first) {
     if (got == 0 && inputs.size() > 1) {

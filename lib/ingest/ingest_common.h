@@ -254,11 +254,12 @@ struct OrderFreeSample {
 // (positions only). With `spool` too, only the inputs the spool wants are
 // read through `keep_from->readers` (input 0 after `first`), their batches
 // appended to the spool (Spool::append, then Spool::finish) and not kept;
-// the others are opened anew.
+// the others are opened anew. With `run`, the pass reports its progress
+// (phase "scanning") and stops ("interrupted") when run->cancel is set.
 Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
                                         int map_resolution, Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr,
                                         InputSet* keep_from = nullptr, const PointCloud* first = nullptr,
-                                        Spool* spool = nullptr);
+                                        Spool* spool = nullptr, const IngestOptions* run = nullptr);
 
 // ---- The steps of a new archive's build, shared by compress_files and the
 // sharded build (lib/shard), so both make the same decisions.

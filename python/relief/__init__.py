@@ -160,9 +160,10 @@ def compress(inputs, archive, *, progress=None, **options):
     none), ``no_extra_bytes``, ``no_spool`` (read LAZ and text inputs twice rather than keep their
     decoded points in temporary files) and the encoder options). ``progress``: called about twice a second with a dict
     (points_read, points_total, points_encoded, chunks_written, bytes_written,
-    seconds, phase: "reading", "encoding", "pyramid", "done"); an exception it raises (or Ctrl-C) stops the ingest and
+    seconds, phase: "scanning" (the pass over every point that fixes the grid), "reading", "encoding",
+    "pyramid", "done"); an exception it raises (or Ctrl-C) stops the ingest and
     propagates, and the archive keeps the chunks committed so far (an
-    incomplete scan), as after Ctrl-C in the CLI.
+    incomplete scan; no archive when it stops while scanning), as after Ctrl-C in the CLI.
 
     Returns a dict: points_read, points_decoded, chunks_written, blob_bytes,
     seconds, cell_size, chunk_edge, scan_id, spooled_bytes (decoded LAZ and text

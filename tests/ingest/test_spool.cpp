@@ -9,6 +9,7 @@
 #include <unistd.h>
 #include <catch2/catch.hpp>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -403,4 +404,49 @@ TEST_CASE("compress: spooled LAZ and text inputs give the blobs of inputs read t
   CHECK(test::archive_blobs(dir.file("fallback.relief")) ==
         test::archive_blobs(dir.file("csv_twice.relief")));
   CHECK(TempDir::list(o.tmp_dir).empty());
+}
+
+TEST_CASE("compress: the pass that fixes the grid reports its progress and stops when cancelled",
+          "[ingest][spool][progress]") {
+  TempDir dir;
+  {
+    std::ofstream csv(dir.file("p.csv"));
+    csv << "x,y,z,i\n";
+    for (std::size_t i = 0; i < 150000; ++i) {
+      csv << 0.01 * static_cast<double>(i * 7919 % 30000) << "," << 0.01 * static_cast<double>(i * 104729 % 20000)
+          << "," << 0.5 * static_cast<double>(i % 13) << "," << i % 1000 << "\n";
+    }
+  }
+  for (const bool spool : {true, false}) {
+    CAPTURE(spool);
+    IngestOptions o;
+    o.spool = spool;
+    o.tmp_dir = dir.file("tmp");
+    fs::create_directories(o.tmp_dir);
+    // The first progress call of a phase is never throttled: the pass's
+    // first batch reports "scanning", before any "reading".
+    std::vector<std::string> phases;
+    o.progress = [&](const IngestProgress& p) {
+      if (phases.empty() || phases.back() != p.phase) phases.emplace_back(p.phase);
+    };
+    const std::string out = dir.file(spool ? "a.relief" : "b.relief");
+    REQUIRE(compress_files({dir.file("p.csv")}, out, o).is_ok());
+    REQUIRE(phases.size() >= 3);
+    CHECK(phases.front() == "scanning");
+    CHECK(phases[1] == "reading");
+    CHECK(phases.back() == "done");
+    // Cancelled while scanning: "interrupted", no archive, no temporary file.
+    std::atomic<bool> stop{false};
+    o.cancel = &stop;
+    o.progress = [&](const IngestProgress& p) {
+      if (std::string(p.phase) == "scanning") stop = true;
+    };
+    const std::string stopped = dir.file("stopped.relief");
+    auto r = compress_files({dir.file("p.csv")}, stopped, o);
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kIoError);
+    CHECK(r.status().message().find("interrupted") != std::string::npos);
+    CHECK_FALSE(fs::exists(stopped));
+    CHECK(TempDir::list(o.tmp_dir).empty());
+  }
 }

@@ -29,7 +29,11 @@ struct IngestProgress {
   std::uint64_t chunks_written = 0;
   std::uint64_t bytes_written = 0;
   double seconds = 0;
-  const char* phase = "";  // "reading", "encoding", "streaming"
+  // "scanning" (compress's pass over every point that fixes the grid, when
+  // the cell is derived: points_read counts the points scanned, against
+  // points_total), then "reading", "encoding", "pyramid", "done"; or
+  // "streaming".
+  const char* phase = "";
 };
 
 // How compress stores points: every point back within a tolerance (chunk
