@@ -1058,12 +1058,12 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     // A compress whose whole input fits its memory keeps what this pass
     // reads (through the inputs' own readers, so every attribute), and the
     // ingest stages it instead of reading every input a second time.
-    InputSet* keep = sample == nullptr && whole_input_in_memory(in, ingest_plan(in, options, true)) ? &in : nullptr;
+    const IngestBudget plan = ingest_plan(in, options, true);
+    InputSet* keep = sample == nullptr && whole_input_in_memory(in, plan) ? &in : nullptr;
     // Otherwise the pass may keep what it decodes of LAZ and text inputs.
-    std::shared_ptr<Spool> spool =
-        keep == nullptr && sample == nullptr && options.spool && !tmp_parent.empty()
-            ? start_spool(in, tmp_parent, static_cast<std::size_t>(ingest_plan(in, options, true).read_batch))
-            : nullptr;
+    std::shared_ptr<Spool> spool = keep == nullptr && sample == nullptr && options.spool && !tmp_parent.empty()
+                                       ? start_spool(in, tmp_parent, static_cast<std::size_t>(plan.read_batch))
+                                       : nullptr;
     RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
                             order_free_cells(inputs, ingest_reader_options(options), params.map_resolution,
                                              &all_bounds, sample, keep != nullptr || spool != nullptr ? &in : nullptr, &first,
@@ -1072,7 +1072,7 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
       // The pass read the spooled inputs through the ingest's readers (input
       // 0 after `first`): the ingest reads them from the spool.
       for (std::size_t i = 0; i < in.readers.size(); ++i) {
-        if (spool->wants(i)) in.readers[i] = spool->reader(i, 0);
+        if (spool->wants(i)) in.readers[i] = spool->reader(i);
       }
       in.spool = std::move(spool);
     } else if (spool != nullptr) {

@@ -72,12 +72,11 @@ Status write_all(int fd, std::vector<iovec>& iov) {
 
 class SpoolReader final : public PointReader {
  public:
-  SpoolReader(std::shared_ptr<const Spool> spool, std::string path, PointStreamInfo info, std::uint64_t skip,
+  SpoolReader(std::shared_ptr<const Spool> spool, std::string path, PointStreamInfo info,
               std::uint64_t release_bytes)
       : spool_(std::move(spool)),
         path_(std::move(path)),
         info_(std::move(info)),
-        skip_(skip),
         release_bytes_(release_bytes) {}
   ~SpoolReader() override { close_file(); }
 
@@ -97,28 +96,16 @@ class SpoolReader final : public PointReader {
         return io_error(what() + ": cannot read: " + std::strerror(errno));
       size_ = static_cast<std::uint64_t>(st.st_size);
     }
-    for (;;) {
-      if (used_ == header_.points) {
-        if (next_ == size_) {
-          if (skip_ > 0) return damaged("it ends before the points read ahead of it");
-          close_file();
-          ::unlink(path_.c_str());
-          done_ = true;
-          batch = PointCloud();
-          return std::size_t{0};
-        }
-        release_read();
-        RELIEF_RETURN_IF_ERROR(load_header());
+    if (used_ == header_.points) {
+      if (next_ == size_) {
+        close_file();
+        ::unlink(path_.c_str());
+        done_ = true;
+        batch = PointCloud();
+        return std::size_t{0};
       }
-      const std::uint64_t left = header_.points - used_;
-      if (skip_ >= left) {
-        skip_ -= left;
-        used_ = header_.points;
-        continue;
-      }
-      used_ += skip_;
-      skip_ = 0;
-      break;
+      release_read();
+      RELIEF_RETURN_IF_ERROR(load_header());
     }
     const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(max_points, header_.points - used_));
     RELIEF_RETURN_IF_ERROR(read_columns(batch, n));
@@ -230,13 +217,12 @@ class SpoolReader final : public PointReader {
   std::shared_ptr<const Spool> spool_;  // keeps the directory while this reads
   std::string path_;
   PointStreamInfo info_;
-  std::uint64_t skip_;
   int fd_ = -1;
   std::uint64_t size_ = 0;
   std::uint64_t next_ = 0;      // the next batch's header
   Header header_;               // the batch being read (points 0 before the first)
   std::uint64_t columns_ = 0;   // its columns' start
-  std::uint64_t used_ = 0;      // its points handed out (or skipped)
+  std::uint64_t used_ = 0;      // its points handed out
   std::uint64_t released_ = 0;  // bytes before this are a hole (release_read)
   std::uint64_t release_bytes_;
   Vec3d offset_{0, 0, 0}, scale_{0, 0, 0};
@@ -367,8 +353,8 @@ void Spool::finish(std::size_t input, const PointStreamInfo& info) {
   finished_[input] = true;
 }
 
-std::unique_ptr<PointReader> Spool::reader(std::size_t input, std::uint64_t skip) {
-  return std::make_unique<SpoolReader>(shared_from_this(), file(input), infos_[input], skip, release_bytes_);
+std::unique_ptr<PointReader> Spool::reader(std::size_t input) {
+  return std::make_unique<SpoolReader>(shared_from_this(), file(input), infos_[input], release_bytes_);
 }
 
 }  // namespace relief::ingest

@@ -56,11 +56,10 @@ class Spool : public std::enable_shared_from_this<Spool> {
   const std::string& failure() const { return failure_; }
   std::uint64_t bytes_written() const { return bytes_written_; }
 
-  // A reader of input `input`'s spooled points from point `skip` on (the
-  // points the ingest read before the pass), whose info() is the one
+  // A reader of input `input`'s spooled points, whose info() is the one
   // finish() was given. The spool must be whole (failure() empty) and the
   // input finished.
-  std::unique_ptr<PointReader> reader(std::size_t input, std::uint64_t skip);
+  std::unique_ptr<PointReader> reader(std::size_t input);
 
   // Bytes a point takes in a spool file at most (x y z as doubles) with
   // these attributes, for the free-space check before spooling.
