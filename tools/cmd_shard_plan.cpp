@@ -50,8 +50,17 @@ int run_shard_plan(int argc, char** argv) {
   }
   po.ranges = static_cast<std::uint32_t>(args.get_int("--ranges", 0, 1, kMaxShardRanges));
   if (!args.ok()) return usage_error(kCommand, args.error());
+  o.progress = progress_printer(args.has("--quiet"));
+  o.cancel = install_interrupt_flag();
   auto plan = plan_shards(inputs, po);
-  if (!plan) return fail(kCommand, plan.status());
+  end_progress_line();
+  if (!plan) {
+    if (o.cancel->load()) {
+      std::cerr << "relief shard-plan: interrupted; no plan written\n";
+      return 130;
+    }
+    return fail(kCommand, plan.status());
+  }
   for (const std::string& w : plan->warnings) std::fprintf(stderr, "relief %s: warning: %s\n", kCommand, w.c_str());
   if (Status s = write_shard_plan(*plan, *out); !s) return fail(kCommand, s);
   if (!args.has("--quiet")) {

@@ -247,6 +247,25 @@ std::vector<std::string> build_shards(const std::vector<std::string>& inputs, co
 
 }  // namespace
 
+TEST_CASE("shard plan: its pass reports progress and stops when cancelled", "[shard][progress]") {
+  TempDir dir;
+  const std::vector<std::string> inputs = {las_input(dir, "a.las", 3, 1, false), las_input(dir, "b.las", 3, 2, false)};
+  ShardPlanOptions po;
+  std::vector<std::string> phases;
+  po.ingest.progress = [&](const IngestProgress& p) {
+    if (phases.empty() || phases.back() != p.phase) phases.emplace_back(p.phase);
+  };
+  REQUIRE(plan_shards(inputs, po).is_ok());
+  REQUIRE_FALSE(phases.empty());
+  CHECK(phases.front() == "scanning");
+  std::atomic<bool> stop{false};
+  po.ingest.cancel = &stop;
+  po.ingest.progress = [&](const IngestProgress&) { stop = true; };
+  auto r = plan_shards(inputs, po);
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().message().find("interrupted") != std::string::npos);
+}
+
 TEST_CASE("sharded build: the merged archive equals a one-box compress", "[shard]") {
   const Scene scenes[] = {
       // Many chunks, some split into octants, colours and intensity.

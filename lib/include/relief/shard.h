@@ -85,8 +85,10 @@ struct ShardPlan {
 };
 
 struct ShardPlanOptions {
-  // As for compress_files (the error-bounded mode only; threads, memory and
-  // tmp_dir do not change the archive). progress and cancel are not used.
+  // As for compress_files (the error-bounded mode only; threads, memory,
+  // tmp_dir and spool do not change the archive, and the plan keeps no
+  // spool). Its pass over every point reports progress (phase "scanning")
+  // and stops ("interrupted") when cancel is set.
   IngestOptions ingest;
   // 0 = automatic (about kDefaultRangePoints points each), else at most this
   // many (fewer when the data has fewer distinct chunks).
