@@ -34,6 +34,11 @@ int usage_error(const std::string& command, const std::string& message) {
   return kExitUsage;
 }
 
+int interrupted(const std::string& command, const std::string& what) {
+  std::cerr << "relief " << command << ": interrupted" << what << "\n";
+  return kExitInterrupted;
+}
+
 Args::Args(int argc, char** argv, std::vector<std::string> flags, std::vector<std::string> options) {
   const auto is_in = [](const std::vector<std::string>& v, const std::string& s) {
     for (const auto& x : v) {

@@ -27,6 +27,11 @@ int exit_code_for(const Status& status);
 int fail(const std::string& command, const Status& status);
 // Prints the error and a hint to see `relief <command> --help`; returns kExitUsage.
 int usage_error(const std::string& command, const std::string& message);
+// Ctrl-C (or SIGTERM) stopped the command: prints "relief <command>:
+// interrupted<what>" (what is left, e.g. "; no plan written") and returns
+// kExitInterrupted.
+inline constexpr int kExitInterrupted = 130;  // 128 + SIGINT, as shells report it
+int interrupted(const std::string& command, const std::string& what);
 
 // A tiny option parser: `--name value`, `--name=value`, `-o value`, flags and
 // positionals. Unknown options are an error.

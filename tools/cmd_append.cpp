@@ -47,10 +47,7 @@ int run_append(int argc, char** argv) {
   auto r = append_files(archive, inputs, o);
   end_progress_line();
   if (!r) {
-    if (o.cancel->load()) {
-      std::cerr << "relief append: interrupted; " << archive << " keeps the chunks committed so far\n";
-      return 130;
-    }
+    if (o.cancel->load()) return interrupted("append", "; " + archive + " keeps the chunks committed so far");
     return fail("append", r.status());
   }
   print_ingest_warnings("append", *r);

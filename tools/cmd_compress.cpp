@@ -67,15 +67,11 @@ int run_compress(int argc, char** argv) {
   end_progress_line();
   if (!r) {
     if (o.cancel->load()) {
+      // Stopped in the pass that fixes the grid, the archive does not exist yet.
       struct stat st {};
-      if (::stat(out->c_str(), &st) != 0) {
-        // Stopped in the pass that fixes the grid, before the archive exists.
-        std::cerr << "relief compress: interrupted before " << *out << " was created\n";
-      } else {
-        std::cerr << "relief compress: interrupted; " << *out
-                  << " keeps the chunks committed so far (an incomplete scan)\n";
-      }
-      return 130;
+      return ::stat(out->c_str(), &st) != 0
+                 ? interrupted(kCommand, " before " + *out + " was created")
+                 : interrupted(kCommand, "; " + *out + " keeps the chunks committed so far (an incomplete scan)");
     }
     return fail(kCommand, r.status());
   }

@@ -61,10 +61,7 @@ int run_shard_encode(int argc, char** argv) {
   auto r = encode_shard(*plan, range, *args.get("--dir"), out, o);
   end_progress_line();
   if (!r) {
-    if (o.cancel->load()) {
-      std::cerr << "relief shard-encode: interrupted; no shard written (nothing of it is left)\n";
-      return 130;
-    }
+    if (o.cancel->load()) return interrupted(kCommand, "; no shard written (nothing of it is left)");
     return fail(kCommand, r.status());
   }
   if (!args.has("--quiet")) print_ingest_summary(out, *r);

@@ -33,13 +33,10 @@ int run_shard_partition(int argc, char** argv) {
   if (!args.ok()) return usage_error(kCommand, args.error());
   auto plan = read_shard_plan(args.positional()[0]);
   if (!plan) return fail(kCommand, plan.status());
-  const std::atomic<bool>* interrupted = install_interrupt_flag();
-  auto r = partition_input(*plan, input, *args.get("--dir"), interrupted);
+  const std::atomic<bool>* cancel = install_interrupt_flag();
+  auto r = partition_input(*plan, input, *args.get("--dir"), cancel);
   if (!r) {
-    if (interrupted->load()) {
-      std::cerr << "relief shard-partition: interrupted; nothing of input " << input << " is left\n";
-      return 130;
-    }
+    if (cancel->load()) return interrupted(kCommand, "; nothing of input " + std::to_string(input) + " is left");
     return fail(kCommand, r.status());
   }
   for (const std::string& w : r->warnings) std::fprintf(stderr, "relief %s: warning: %s\n", kCommand, w.c_str());

@@ -55,10 +55,7 @@ int run_shard_plan(int argc, char** argv) {
   auto plan = plan_shards(inputs, po);
   end_progress_line();
   if (!plan) {
-    if (o.cancel->load()) {
-      std::cerr << "relief shard-plan: interrupted; no plan written\n";
-      return 130;
-    }
+    if (o.cancel->load()) return interrupted(kCommand, "; no plan written");
     return fail(kCommand, plan.status());
   }
   for (const std::string& w : plan->warnings) std::fprintf(stderr, "relief %s: warning: %s\n", kCommand, w.c_str());
