@@ -1,5 +1,6 @@
 #include "billion.h"
 #include "disk_bytes.h"
+#include "median.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -31,11 +32,6 @@ namespace {
 constexpr std::size_t kBlockRecords = 8192;  // records per write to the pipe
 // Points of the regular file the automatic grid is measured on.
 constexpr std::uint64_t kCalibrationPoints = 2'000'000;
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
 
 std::string count_label(std::uint64_t n) {
   if (n % 1'000'000'000 == 0) return std::to_string(n / 1'000'000'000) + "G";

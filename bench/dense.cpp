@@ -8,6 +8,7 @@
 #include <random>
 
 #include "archive_blobs.h"
+#include "median.h"
 #include "relief/archive.h"
 #include "run_child.h"
 
@@ -16,11 +17,6 @@ namespace fs = std::filesystem;
 namespace relief::bench {
 
 namespace {
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
 
 // A binary little-endian PLY of float x y z.
 bool write_xyz_ply(const std::string& path, const std::vector<float>& xyz) {

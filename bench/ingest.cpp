@@ -41,6 +41,7 @@
 
 #include "billion.h"
 #include "dense.h"
+#include "median.h"
 #include "run_child.h"
 #include "spool.h"
 #include "relief/archive.h"
@@ -52,6 +53,8 @@
 namespace fs = std::filesystem;
 
 namespace {
+
+using relief::bench::median;
 
 struct Options {
   std::vector<int> sizes_m = {1, 10, 100};
@@ -147,11 +150,6 @@ bool write_city(const std::string& path, std::uint64_t points) {
   }
   const bool ok = std::fwrite(buf.data(), 1, fill, f) == fill;
   return std::fclose(f) == 0 && ok;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
 }
 
 std::uint64_t archive_blob_bytes(const std::string& path, std::uint64_t* chunks, std::uint64_t* points) {

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "median.h"
 #include "relief/archive.h"
 #include "relief/ingest.h"
 #include "relief/query.h"
@@ -27,12 +28,9 @@
 
 namespace {
 
-using namespace relief;
+using relief::bench::median;
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
+using namespace relief;
 
 struct Measure {
   double seconds = 0;

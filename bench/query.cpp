@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "median.h"
 #include "run_child.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
@@ -35,10 +36,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
+using relief::bench::median;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

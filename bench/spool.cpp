@@ -8,6 +8,7 @@
 
 #include "archive_blobs.h"
 #include "disk_bytes.h"
+#include "median.h"
 #include "relief/io.h"
 #include "run_child.h"
 #include "scene.h"
@@ -17,11 +18,6 @@ namespace fs = std::filesystem;
 namespace relief::bench {
 
 namespace {
-
-double median_of(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
 
 // The generated survey as a LAS file (its header and records as they come).
 bool write_scene_las(const std::string& path, std::uint64_t points, std::uint64_t seed) {
@@ -108,12 +104,12 @@ int measure(const SpoolOptions& o, const std::string& name, const std::string& i
     }
   }
   fs::remove_all(work);
-  const double a = median_of(sides[0].seconds), b = median_of(sides[1].seconds);
+  const double a = median(sides[0].seconds), b = median(sides[1].seconds);
   const bool same = sides[0].blobs.chunks > 0 && sides[0].blobs.hash == sides[1].blobs.hash &&
                     sides[0].blobs.bytes == sides[1].blobs.bytes;
   std::printf("spool,%s,%llu,%.2f,%.2f,%.3f,%.2f,%.2f,%.2f,%.2f,%ld,%ld,%.0f,%.0f,%016llx%s\n", name.c_str(),
               static_cast<unsigned long long>(points), a, b, a / b, static_cast<double>(points) / a * 1e-6,
-              static_cast<double>(points) / b * 1e-6, median_of(sides[0].cpu), median_of(sides[1].cpu),
+              static_cast<double>(points) / b * 1e-6, median(sides[0].cpu), median(sides[1].cpu),
               sides[0].rss_kib / 1024, sides[1].rss_kib / 1024,
               static_cast<double>(sides[0].disk_peak) / (1 << 20),
               static_cast<double>(sides[1].disk_peak) / (1 << 20),
