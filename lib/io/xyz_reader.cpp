@@ -1,6 +1,9 @@
 // ASCII XYZ / CSV / PTS reader: one point per line, columns as
 // ReaderOptions::xyz_columns says, or else as a header line names them, or
-// else x y z.
+// else x y z and, when the first data line has more columns: a Leica PTS
+// file's (below) of 4 or 7 columns as x y z intensity [red green blue], any
+// other file's kept as extra bytes named column_4 ... (as header names would
+// be, below), with a warning that says so: never dropped unseen.
 //
 // Header names: the first non-comment line when its first column is not a
 // number, or else the last comment line before the data (CloudCompare writes
@@ -44,7 +47,10 @@
 // Skipped: blank lines, comment lines (first non-blank characters '#' or
 // "//"), a UTF-8 byte order mark, and on the first non-comment line either a
 // header (its first column is not a number) or a Leica PTS point count (a
-// single integer). Columns after the last one the plan uses are ignored.
+// single integer). A PTS file repeats the count before each further block of
+// points (one per scan): those lines are skipped too, and each block must
+// hold the points its count announces. Columns after the last one the plan
+// uses (a header's or --columns') are ignored.
 
 #include <algorithm>
 #include <array>
@@ -555,6 +561,13 @@ class XyzPointReader final : public BatchPointReader {
     return format_error(name() + ": line " + std::to_string(line_no) + ": " + what);
   }
   Status start(std::optional<ColumnPlan> explicit_plan);
+  // The columns of a file that names none (see the top of the file).
+  Status plan_without_header();
+  // A PTS point count `count` on line `line_no`: checks the block before
+  // (its count against its points) and starts the next.
+  Status open_pts_block(std::string_view count, std::uint64_t line_no);
+  // The check of the block read last, at the end of the file.
+  Status check_last_pts_block() const;
   // Settles the candidate extra columns of a header plan (see the top of the file).
   Status settle_extras();
   // The Extra Bytes VLR and size of the plan's kept columns.
@@ -585,7 +598,83 @@ class XyzPointReader final : public BatchPointReader {
   bool explicit_columns_ = false;  // ReaderOptions::xyz_columns, not a header, gave the plan
   bool probe_ = false;             // samples colour levels for another reader (open)
   char delimiter_ = ' ';  // ' ' means blanks only
+  // Leica PTS: a point count alone on the first line, and again before each
+  // further block of points (one per scan). Each block must hold the points
+  // its count announces: fewer is a truncated file, more a damaged one.
+  bool pts_ = false;
+  std::uint64_t pts_count_ = 0;   // the current block's count
+  std::uint64_t pts_points_ = 0;  // the points read in it
+  std::uint64_t pts_line_ = 0;    // its count's line
 };
+
+Status XyzPointReader::open_pts_block(std::string_view count, std::uint64_t line_no) {
+  std::uint64_t n = 0;
+  const auto [end, ec] = std::from_chars(count.data(), count.data() + count.size(), n);
+  if (ec != std::errc{} || end != count.data() + count.size()) {
+    return line_error(line_no, "the PTS point count " + quoted(count) + " is out of range");
+  }
+  if (pts_ && pts_points_ != pts_count_) {
+    return line_error(line_no, "the PTS block whose count is on line " + std::to_string(pts_line_) + " announces " +
+                                   std::to_string(pts_count_) + " points but holds " + std::to_string(pts_points_) +
+                                   " (a damaged file)");
+  }
+  pts_ = true;
+  pts_count_ = n;
+  pts_points_ = 0;
+  pts_line_ = line_no;
+  return Status::ok();
+}
+
+Status XyzPointReader::check_last_pts_block() const {
+  if (!pts_ || pts_points_ == pts_count_) return Status::ok();
+  return format_error(name() + ": the PTS block whose count is on line " + std::to_string(pts_line_) + " announces " +
+                      std::to_string(pts_count_) + " points but the file " +
+                      (pts_points_ < pts_count_ ? "ends after " : "holds ") + std::to_string(pts_points_) +
+                      (pts_points_ < pts_count_ ? " of them (a truncated file)" : " (a damaged file)"));
+}
+
+Status XyzPointReader::plan_without_header() {
+  // The first data line's columns; empty ones at its end (a delimiter
+  // closing the line) do not count.
+  std::size_t columns = 3;
+  if (has_pending_) {
+    std::size_t pos = skip_blanks(pending_), n = 0;
+    for (bool more = pos < pending_.size(); more;) {
+      const std::string_view tok = take_column(pending_, pos, delimiter_, more);
+      ++n;
+      if (!tok.empty()) columns = std::max(columns, n);
+    }
+  }
+  if (columns == 3 || (pts_ && (columns == 4 || columns == 7))) {
+    // Leica's PTS columns: x y z intensity [red green blue].
+    const char* spec = columns == 4 ? "x,y,z,i" : columns == 7 ? "x,y,z,i,r,g,b" : "x,y,z";
+    RELIEF_ASSIGN_OR_RETURN(plan_, parse_columns(spec, name()));
+    return Status::ok();
+  }
+  // Any other columns are kept as extra bytes named by their place, as a
+  // header would name them, rather than dropped unseen.
+  const std::size_t named = std::min(columns, 3 + kMaxExtraColumns);
+  std::string header = "x,y,z";
+  for (std::size_t c = 4; c <= named; ++c) header += ",column_" + std::to_string(c);
+  plan_ = *plan_from_header(header);  // it names x, y and z
+  RELIEF_RETURN_IF_ERROR(settle_extras());
+  std::string what = name() + ": no header line names its " + std::to_string(columns) + " columns, so ";
+  if (!plan_.extra_names.empty()) {
+    what += "after x, y and z " + std::string(plan_.extra_names.size() > 1 ? "columns " : "column ");
+    for (std::size_t e = 0; e < plan_.extra_names.size(); ++e) {
+      what += (e == 0 ? "" : e + 1 == plan_.extra_names.size() ? " and " : ", ") + plan_.extra_names[e].substr(7);
+    }
+    what += std::string(plan_.extra_names.size() > 1 ? " are" : " is") + " kept as extra bytes (" +
+            plan_.extra_names.front() + (plan_.extra_names.size() > 1 ? " ...)" : ")");
+    if (!plan_.unread.empty() || named < columns) what += " and the others are not kept";
+  } else {
+    what += "only x, y and z are kept" +
+            std::string(options_.extra_bytes ? " (the others are not numbers)" : " (--no-extra-bytes)");
+  }
+  info_.warnings.push_back(what + "; --columns names them (x,y,z,i,r,g,b reads intensity and colour" +
+                           std::string(pts_ ? ", as in a PTS file of 7 columns)" : ")"));
+  return Status::ok();
+}
 
 Status XyzPointReader::next_content_line(std::string_view& line, bool& end, std::string* last_comment_header) {
   end = false;
@@ -665,6 +754,7 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
       RELIEF_RETURN_IF_ERROR(next_content_line(line, end, nullptr));
     } else if (is_point_count(line, first)) {
       // A Leica PTS file starts with its point count alone on a line.
+      RELIEF_RETURN_IF_ERROR(open_pts_block(first, line_no_));
       RELIEF_RETURN_IF_ERROR(next_content_line(line, end, nullptr));
     }
   }
@@ -695,7 +785,7 @@ Status XyzPointReader::start(std::optional<ColumnPlan> explicit_plan) {
                                "their name is new)");
     }
   } else {
-    RELIEF_ASSIGN_OR_RETURN(plan_, parse_columns("x,y,z", name()));
+    RELIEF_RETURN_IF_ERROR(plan_without_header());
   }
   las_columns_ = las_columns_of(plan_);
   info_.has_colors = plan_.colors;
@@ -865,10 +955,22 @@ Result<std::size_t> XyzPointReader::read_into(PointCloud& out, std::vector<std::
     } else {
       bool end = false;
       RELIEF_RETURN_IF_ERROR(next_content_line(line, end, nullptr));
-      if (end) break;
+      if (end) {
+        RELIEF_RETURN_IF_ERROR(check_last_pts_block());
+        break;
+      }
       line_no = line_no_;
+      if (pts_) {
+        // The next block's count: not a point (a point has three columns).
+        const std::string_view first = first_column(line);
+        if (is_point_count(line, first)) {
+          RELIEF_RETURN_IF_ERROR(open_pts_block(first, line_no));
+          continue;
+        }
+      }
     }
     RELIEF_RETURN_IF_ERROR(parse_point(line, line_no, out, levels));
+    pts_points_ += pts_ ? 1 : 0;
     ++got;
   }
   return got;
@@ -916,8 +1018,9 @@ class StreamFields : public Parser {
 // delimiter from), colour levels 0..255 (no file-wide 16-bit rule either).
 class TextLineParserImpl final : public StreamFields<TextLineParser> {
  public:
-  TextLineParserImpl(ColumnPlan plan, std::string name, std::string extra_vlr)
-      : StreamFields(plan, std::move(name), std::move(extra_vlr), extras_size(plan)) {}
+  // `named`: the columns the spec names, trailing skips included.
+  TextLineParserImpl(ColumnPlan plan, std::string name, std::string extra_vlr, std::size_t named)
+      : StreamFields(plan, std::move(name), std::move(extra_vlr), extras_size(plan)), named_(named) {}
 
   Status parse(std::string_view line, std::uint64_t line_no, PointCloud& batch) const override {
     const auto error = [&](const std::string& what) {
@@ -963,6 +1066,22 @@ class TextLineParserImpl final : public StreamFields<TextLineParser> {
       note_intensity_rounding(name_, v[at_role(Role::kIntensity)], intensity_digits, line_no, intensity_rounding_noted_,
                               warnings_);
     }
+    if (pos < line.size() && !extra_columns_noted_) {
+      // Columns beyond those the spec names are not kept: said once.
+      std::size_t columns = plan_.roles.size();
+      for (;;) {
+        while (pos < line.size() && separator(line[pos])) ++pos;
+        if (pos == line.size()) break;
+        ++columns;
+        while (pos < line.size() && !separator(line[pos])) ++pos;
+      }
+      if (columns > named_) {
+        extra_columns_noted_ = true;
+        warnings_.push_back(name_ + ": line " + std::to_string(line_no) + " has " + std::to_string(columns) +
+                            " columns but --columns names " + std::to_string(named_) +
+                            ": the others are not kept (name them, or _ to skip them; later lines are not listed)");
+      }
+    }
     append_point(v, plan_, batch);
     if (extra_size_ > 0) {
       batch.las.extra_bytes_size = extra_size_;
@@ -977,7 +1096,9 @@ class TextLineParserImpl final : public StreamFields<TextLineParser> {
   // parse() is const to its callers (a refused line changes nothing they
   // see); what it notes for take_warnings() is bookkeeping beside the batch.
   mutable bool intensity_rounding_noted_ = false;
+  mutable bool extra_columns_noted_ = false;
   mutable std::vector<std::string> warnings_;
+  std::size_t named_;
 };
 
 }  // namespace
@@ -989,7 +1110,8 @@ Result<std::unique_ptr<TextLineParser>> TextLineParser::create(const std::string
     std::vector<std::string> warnings;  // none: the names fit (parse_columns checked them)
     RELIEF_ASSIGN_OR_RETURN(vlr, extras_vlr(plan, name, warnings));
   }
-  return std::unique_ptr<TextLineParser>(new TextLineParserImpl(std::move(plan), name, std::move(vlr)));
+  const auto named = static_cast<std::size_t>(std::count(spec.begin(), spec.end(), ',')) + 1;
+  return std::unique_ptr<TextLineParser>(new TextLineParserImpl(std::move(plan), name, std::move(vlr), named));
 }
 
 namespace {

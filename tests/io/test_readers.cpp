@@ -61,6 +61,8 @@ Result<PointCloud> read_stream(PointReader& reader, std::size_t batch_size) {
     all.positions.insert(all.positions.end(), batch.positions.begin(), batch.positions.end());
     all.colors.insert(all.colors.end(), batch.colors.begin(), batch.colors.end());
     all.intensities.insert(all.intensities.end(), batch.intensities.begin(), batch.intensities.end());
+    all.las.extra_bytes_size = batch.las.extra_bytes_size;
+    all.las.extra_bytes.insert(all.las.extra_bytes.end(), batch.las.extra_bytes.begin(), batch.las.extra_bytes.end());
   }
   return all;
 }
@@ -817,6 +819,131 @@ TEST_CASE("XYZ column specs and delimiters", "[io]") {
   }
 }
 
+// The float64 extra field `field` (of `fields`, each 8 bytes) of point i.
+double extra_double(const PointCloud& c, std::size_t i, std::size_t field, std::size_t fields) {
+  double v = 0;
+  REQUIRE(c.las.extra_bytes.size() >= 8 * fields * (i + 1));
+  std::memcpy(&v, c.las.extra_bytes.data() + 8 * (fields * i + field), 8);
+  return v;
+}
+
+TEST_CASE("Text without a header keeps the columns after x, y and z as extra bytes and says so", "[io]") {
+  TempDir dir;
+  const std::string path = dir.file("five.xyz");
+  write_file(path, "1 2 3 0.5 -7\n4 5 6 1e3 8\n");
+  for (const std::size_t batch : {std::size_t{1}, std::size_t{100}}) {
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    REQUIRE(r.is_ok());
+    const PointStreamInfo& info = (*r)->info();
+    CHECK((info.las_attributes & kLasExtraBytes) != 0);
+    CHECK(info.extra_bytes_size == 16);
+    CHECK_FALSE(info.has_intensity);
+    REQUIRE(info.warnings.size() == 1);
+    CHECK(info.warnings[0] == path + ": no header line names its 5 columns, so after x, y and z columns 4 and 5 are "
+                                     "kept as extra bytes (column_4 ...); --columns names them (x,y,z,i,r,g,b reads "
+                                     "intensity and colour)");
+    const Result<PointCloud> got = read_stream(**r, batch);
+    REQUIRE(got.is_ok());
+    REQUIRE(got->size() == 2);
+    CHECK(extra_double(*got, 0, 0, 2) == 0.5);
+    CHECK(extra_double(*got, 0, 1, 2) == -7.0);
+    CHECK(extra_double(*got, 1, 0, 2) == 1000.0);
+    CHECK(extra_double(*got, 1, 1, 2) == 8.0);
+  }
+  SECTION("a delimiter closing each line adds no column") {
+    const std::string csv = dir.file("closed.csv");
+    write_file(csv, "1,2,3,\n4,5,6,\n");
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(csv);
+    REQUIRE(r.is_ok());
+    CHECK((*r)->info().las_attributes == 0);
+    CHECK((*r)->info().warnings.empty());
+    REQUIRE(read_stream(**r, 10).is_ok());
+  }
+  SECTION("words are not kept, and the warning says so") {
+    const std::string words = dir.file("words.txt");
+    write_file(words, "1 2 3 wall 9\n4 5 6 roof 10\n");
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(words);
+    REQUIRE(r.is_ok());
+    CHECK((*r)->info().extra_bytes_size == 8);
+    REQUIRE((*r)->info().warnings.size() == 1);
+    CHECK_THAT((*r)->info().warnings[0], Contains("column 5 is kept as extra bytes (column_5) and the others are not kept"));
+    const Result<PointCloud> got = read_stream(**r, 10);
+    REQUIRE(got.is_ok());
+    CHECK(extra_double(*got, 1, 0, 1) == 10.0);
+  }
+  SECTION("--no-extra-bytes keeps x, y and z, and says what it dropped") {
+    ReaderOptions o;
+    o.extra_bytes = false;
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path, o);
+    REQUIRE(r.is_ok());
+    CHECK((*r)->info().las_attributes == 0);
+    REQUIRE((*r)->info().warnings.size() == 1);
+    CHECK_THAT((*r)->info().warnings[0], Contains("only x, y and z are kept (--no-extra-bytes)"));
+    const Result<PointCloud> got = read_stream(**r, 10);
+    REQUIRE(got.is_ok());
+    require_same(*got, xyz_cloud({{1, 2, 3}, {4, 5, 6}}));
+  }
+}
+
+TEST_CASE("PTS files: Leica's columns, a count before each block, counts checked", "[io]") {
+  TempDir dir;
+  SECTION("x y z intensity r g b, intensities signed as Leica's, in two blocks") {
+    const std::string path = dir.file("scans.pts");
+    write_file(path, "2\n1 2 3 -1200 10 20 30\n4.5 -5.5 6e-3 2047 255 0 128\n\n1\r\n7 8 9 -2048 1 2 3\n");
+    PointCloud want = xyz_cloud({{1, 2, 3}, {4.5, -5.5, 6e-3}, {7, 8, 9}});
+    want.colors = {{10, 20, 30}, {255, 0, 128}, {1, 2, 3}};
+    want.intensities = {-1200.0f, 2047.0f, -2048.0f};
+    for (const std::size_t batch : {std::size_t{1}, std::size_t{2}, std::size_t{100}}) {
+      Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+      REQUIRE(r.is_ok());
+      CHECK((*r)->info().has_colors);
+      CHECK((*r)->info().has_intensity);
+      CHECK((*r)->info().warnings.empty());
+      const Result<PointCloud> got = read_stream(**r, batch);
+      INFO(got.status().to_string());
+      REQUIRE(got.is_ok());
+      require_same(*got, want);
+    }
+  }
+  SECTION("x y z intensity") {
+    const std::string path = dir.file("four.pts");
+    write_file(path, "2\n1 2 3 -5\n4 5 6 7\n");
+    const Result<PointCloud> got = read_path(path, 100);
+    REQUIRE(got.is_ok());
+    PointCloud want = xyz_cloud({{1, 2, 3}, {4, 5, 6}});
+    want.intensities = {-5.0f, 7.0f};
+    require_same(*got, want);
+  }
+  SECTION("other column counts are kept as extra bytes, with a warning") {
+    const std::string path = dir.file("five.pts");
+    write_file(path, "1\n1 2 3 4 5\n");
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    REQUIRE(r.is_ok());
+    CHECK((*r)->info().extra_bytes_size == 16);
+    REQUIRE((*r)->info().warnings.size() == 1);
+    CHECK_THAT((*r)->info().warnings[0], Contains("as in a PTS file of 7 columns"));
+  }
+  SECTION("a count that does not match its block is an error naming both") {
+    const std::string path = dir.file("bad.pts");
+    write_file(path, "5\n1 2 3 4\n1 2 3 4\n");
+    require_error(read_path(path, 100).status(), StatusCode::kFormatError, path,
+                  "the PTS block whose count is on line 1 announces 5 points but the file ends after 2 of them "
+                  "(a truncated file)");
+    write_file(path, "1\n1 2 3 4\n1 2 3 4\n1\n1 2 3 4\n");
+    require_error(read_path(path, 1).status(), StatusCode::kFormatError, path,
+                  "line 4: the PTS block whose count is on line 1 announces 1 points but holds 2");
+    write_file(path, "1\n1 2 3 4\n");
+    ReaderOptions o;
+    o.xyz_columns = "x,y,z,i";
+    REQUIRE(read_path(path, 100, o).is_ok());
+    write_file(path, "3\n1 2 3 4\n");
+    require_error(read_path(path, 100, o).status(), StatusCode::kFormatError, path, "ends after 1 of them");
+    write_file(path, "99999999999999999999999\n1 2 3\n");
+    require_error(read_path(path, 100).status(), StatusCode::kFormatError, path,
+                  "line 1: the PTS point count '99999999999999999999999' is out of range");
+  }
+}
+
 TEST_CASE("XYZ rejects bad lines naming the line", "[io]") {
   TempDir dir;
   const std::string path = dir.file("bad.xyz");
@@ -1210,6 +1337,23 @@ TEST_CASE("TextLineParser names the first intensity a float does not give back, 
   CHECK(p.take_warnings().empty());
 }
 
+TEST_CASE("TextLineParser says once that a line has columns its spec does not name", "[io][stream]") {
+  auto parser = relief::TextLineParser::create("x,y,z,_", "stdin");
+  REQUIRE(parser.is_ok());
+  relief::TextLineParser& p = **parser;
+  relief::PointCloud batch;
+  // The spec's trailing skip names the fourth column, and separators closing a line add none.
+  REQUIRE(p.parse("1 2 3 4", 1, batch).is_ok());
+  REQUIRE(p.parse("1,2,3,4,", 2, batch).is_ok());
+  CHECK(p.take_warnings().empty());
+  REQUIRE(p.parse("1 2 3 4 -1200 7", 3, batch).is_ok());
+  REQUIRE(p.parse("1 2 3 4 5", 4, batch).is_ok());
+  const std::vector<std::string> warnings = p.take_warnings();
+  REQUIRE(warnings.size() == 1);
+  CHECK(warnings[0] == "stdin: line 3 has 6 columns but --columns names 4: the others are not kept (name them, or _ "
+                       "to skip them; later lines are not listed)");
+  CHECK(batch.size() == 4);
+}
 
 namespace {
 
