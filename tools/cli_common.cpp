@@ -216,7 +216,7 @@ Result<std::vector<std::uint8_t>> read_file(const std::string& path) {
   return data;
 }
 
-Status write_decoded_cloud(const std::string& path, const PointCloud& cloud, bool ascii_ply) {
+Status write_decoded_cloud(const char* command, const std::string& path, const PointCloud& cloud, bool ascii_ply) {
   WriterOptions w;
   w.colors = cloud.has_colors();
   w.intensity = cloud.has_intensity();
@@ -226,7 +226,11 @@ Status write_decoded_cloud(const std::string& path, const PointCloud& cloud, boo
   auto writer = open_point_writer(path, w);
   if (!writer) return writer.status();
   RELIEF_RETURN_IF_ERROR((*writer)->write(cloud));
-  return (*writer)->finish();
+  RELIEF_RETURN_IF_ERROR((*writer)->finish());
+  for (const std::string& said : (*writer)->take_warnings()) {
+    std::cerr << "relief " << command << ": warning: " << said << "\n";
+  }
+  return Status::ok();
 }
 
 std::int64_t now_ns() {

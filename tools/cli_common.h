@@ -94,7 +94,9 @@ Result<std::vector<std::uint8_t>> read_file(const std::string& path);
 // low bytes, intensity, LAS attributes, extra bytes) through the streaming
 // writer: PLY, or LAS/LAZ/XYZ/CSV by `path`'s extension (decode-chunk,
 // roundtrip; the whole-cloud write_ply keeps colour and intensity alone).
-Status write_decoded_cloud(const std::string& path, const PointCloud& cloud, bool ascii_ply = false);
+// The writer's warnings go to stderr as `command`'s.
+Status write_decoded_cloud(const char* command, const std::string& path, const PointCloud& cloud,
+                           bool ascii_ply = false);
 
 double seconds_since(std::int64_t start_ns);
 std::int64_t now_ns();

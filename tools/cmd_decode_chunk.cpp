@@ -37,7 +37,7 @@ int run_decode_chunk(int argc, char** argv) {
   auto cloud = decode_chunk(*blob, options);
   if (!cloud) return fail(kCommand, cloud.status().with_context(in_path));
   const double secs = seconds_since(t0);
-  if (Status s = write_decoded_cloud(*out_path, *cloud, args.has("--ascii")); !s) return fail(kCommand, s);
+  if (Status s = write_decoded_cloud(kCommand, *out_path, *cloud, args.has("--ascii")); !s) return fail(kCommand, s);
   if (!args.has("--quiet") && *out_path != "-") {  // "-": standard output carries the points
     std::printf("%s: %zu points, %.2f M points/s\n", out_path->c_str(), cloud->size(),
                 secs > 0 ? static_cast<double>(cloud->size()) / secs * 1e-6 : 0.0);

@@ -64,7 +64,7 @@ int run_roundtrip(int argc, char** argv) {
     if (Status s = write_file(*blob_path, *blob); !s) return fail(kCommand, s);
   }
   if (auto out = args.get("-o")) {
-    if (Status s = write_decoded_cloud(*out, *recon); !s) return fail(kCommand, s);
+    if (Status s = write_decoded_cloud(kCommand, *out, *recon); !s) return fail(kCommand, s);
   }
   auto info = inspect_chunk(*blob);
   if (!info) return fail(kCommand, info.status());

@@ -144,6 +144,9 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   end_progress_line();
   if (!stats) return fail(command, stats.status());
   if (Status s = (*writer)->finish(); !s) return fail(command, s);
+  for (const std::string& said : (*writer)->take_warnings()) {
+    std::cerr << "relief " << command << ": warning: " << said << "\n";
+  }
   const double secs = seconds_since(t0);
   if (!quiet && out_path != "-") {
     std::fprintf(stderr,

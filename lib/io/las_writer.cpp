@@ -45,6 +45,8 @@
 // rewrites the records already written to the plain rule. That is exact: for
 // v in [0, 1], round(v * 65535) >= 32768 exactly when v >= 0.5, i.e. when
 // round(v) = 1. So the file depends on the set of points, not on the batches.
+// Under the plain rule, intensities clamped or rounded are counted and said
+// by take_warnings() (the first of each kind named): never changed silently.
 //
 // Coordinates are stored as X = round((x - offset) / scale) in int32, per
 // axis. Scale: WriterOptions::scale when > 0, else 0.1 mm (1e-4; 1e-9 degrees,
@@ -773,6 +775,7 @@ class LasStreamWriter final : public StreamPointWriter {
       unit_intensity_ = false;
       unit_records_ = points_written();  // finish() rewrites these
     }
+    if (options_.intensity) note_intensities(batch);
     if (laz_) return write_compressed(batch);
     std::size_t i = 0;
     while (i < n) {
@@ -792,6 +795,7 @@ class LasStreamWriter final : public StreamPointWriter {
 
   Status complete() override {
     if (!placed_) place_default();
+    if (!unit_intensity_) say_changed_intensities();
     if (laz_) {
       compressed_.clear();
       const std::vector<std::uint8_t> table = compressor_->finish(compressed_);
@@ -818,6 +822,45 @@ class LasStreamWriter final : public StreamPointWriter {
   }
 
  private:
+  // Intensities the plain rule (see the top of the file) does not keep as
+  // they are: outside 0..65535 (clamped) or with a fraction (rounded). A
+  // PTS file's are -2048..2047, a normalised one's fractions.
+  struct ChangedValues {
+    std::uint64_t count = 0;
+    float first = 0;
+    void note(float v) {
+      if (count++ == 0) first = v;
+    }
+  };
+  void note_intensities(const PointCloud& batch) {
+    for (const float v : batch.intensities) {
+      if (v < 0.0f || v > 65535.0f) {
+        clamped_.note(v);
+      } else if (v != std::floor(v)) {
+        rounded_.note(v);
+      }
+    }
+  }
+  void say_changed_intensities() {
+    const auto shortest = [](float v) {
+      char text[32];
+      return std::string(text, std::to_chars(text, text + sizeof text, v).ptr);
+    };
+    const auto counted = [](std::uint64_t n, const char* what) {
+      return std::to_string(n) + (n == 1 ? " intensity " : " intensities ") + what + (n == 1 ? " was " : " were ");
+    };
+    if (clamped_.count > 0) {
+      warnings_.push_back(out_->path() + ": " + counted(clamped_.count, "outside LAS's 0..65535") +
+                          "clamped to it (the first: " + shortest(clamped_.first) + ")");
+    }
+    if (rounded_.count > 0) {
+      warnings_.push_back(out_->path() + ": " + counted(rounded_.count, "with a fraction") +
+                          "rounded to a whole number (the first: " + shortest(rounded_.first) +
+                          "): LAS keeps whole numbers 0..65535, or 0..1 scaled to them when every intensity of "
+                          "the file is within 0..1");
+    }
+  }
+
   // The first unit_records_ records were written by the unit rule before an
   // intensity outside [0, 1] arrived: rewrite them to the plain rule.
   Status unscale_unit_records() {
@@ -1192,6 +1235,7 @@ class LasStreamWriter final : public StreamPointWriter {
   bool times_in_week_ = true;      // every GPS time so far in [0, 604800)
   bool unit_intensity_ = true;     // every intensity so far in [0, 1]
   std::uint64_t unit_records_ = 0;  // records to rewrite when that ended
+  ChangedValues clamped_, rounded_;  // intensities, for say_changed_intensities()
   bool placed_ = false;
   Quantizer q_;
   IntBounds bounds_;

@@ -12,6 +12,8 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "io/output_file.h"
 #include "relief/io.h"
@@ -38,6 +40,7 @@ class StreamPointWriter : public PointWriter {
   Status write(const PointCloud& batch) final;
   Status finish() final;
   std::uint64_t points_written() const final { return count_; }
+  std::vector<std::string> take_warnings() final { return std::exchange(warnings_, {}); }
 
  protected:
   StreamPointWriter(std::unique_ptr<OutputFile> out, const WriterOptions& options)
@@ -57,6 +60,8 @@ class StreamPointWriter : public PointWriter {
 
   std::unique_ptr<OutputFile> out_;
   WriterOptions options_;
+  // For take_warnings(), filled by complete().
+  std::vector<std::string> warnings_;
 
  private:
   Status check_batch(const PointCloud& batch) const;

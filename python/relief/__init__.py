@@ -556,6 +556,8 @@ def write(path, points, *, crs=None, scale=None):
     view it. ``crs``: WKT or "EPSG:<code>" for LAS/LAZ. ``scale``: the LAS
     coordinate resolution (default: 0.1 mm, coarser when the extent needs
     it). An existing file is replaced once the new one is complete.
+    What the format cannot hold as given (a LAS intensity outside 0..65535,
+    clamped, or with a fraction, rounded) is said by a RuntimeWarning.
     Returns the number of points written.
     """
     import numpy as np
@@ -620,8 +622,10 @@ def write(path, points, *, crs=None, scale=None):
     extra = None
     if extra_parts:
         extra = np.ascontiguousarray(np.concatenate(extra_parts, axis=1) if len(extra_parts) > 1 else extra_parts[0])
-    return _relief.write_points(str(path), columns, extra, b"".join(descriptors), crs or "",
-                                0.0 if scale is None else float(scale))
+    written, messages = _relief.write_points(str(path), columns, extra, b"".join(descriptors), crs or "",
+                                             0.0 if scale is None else float(scale))
+    _warn_all(messages)
+    return written
 
 
 def retain_freed_memory():

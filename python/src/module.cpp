@@ -523,8 +523,11 @@ PYBIND11_MODULE(_relief, m) {
       [](const std::string& path, const py::dict& columns, const py::object& extra, const py::bytes& extra_vlr,
          const std::string& crs, double scale) {
         std::uint64_t written = 0;
-        if (const Status s = write_points(path, columns, extra, extra_vlr, crs, scale, written); !s) raise_status(s);
-        return written;
+        std::vector<std::string> warnings;
+        if (const Status s = write_points(path, columns, extra, extra_vlr, crs, scale, written, warnings); !s) {
+          raise_status(s);
+        }
+        return py::make_tuple(written, warnings);
       },
       py::arg("path"), py::arg("columns"), py::arg("extra"), py::arg("extra_vlr"), py::arg("crs"),
       py::arg("scale"));

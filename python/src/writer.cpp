@@ -35,7 +35,8 @@ void append(const Column& c, std::size_t first, std::size_t n, std::vector<T>& o
 }  // namespace
 
 Status write_points(const std::string& path, const py::dict& columns, const py::object& extra,
-                    const py::bytes& extra_vlr, const std::string& crs, double scale, std::uint64_t& written) {
+                    const py::bytes& extra_vlr, const std::string& crs, double scale, std::uint64_t& written,
+                    std::vector<std::string>& warnings) {
   written = 0;
   // `size`: the element size the copy below reads (colours: 1 or 2), so a
   // column of another type is refused rather than read past its end.
@@ -161,6 +162,7 @@ Status write_points(const std::string& path, const py::dict& columns, const py::
   }
   RELIEF_RETURN_IF_ERROR(writer->finish());
   written = writer->points_written();
+  warnings = writer->take_warnings();
   return Status::ok();
 }
 

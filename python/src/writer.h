@@ -18,8 +18,10 @@ namespace relief::python {
 // array, each point's extra bytes, described by `extra_vlr` (an Extra Bytes
 // VLR payload; empty: undocumented). `crs`: WKT or "EPSG:<code>" for LAS/LAZ
 // (empty: none); `scale`: the LAS coordinate resolution (0: automatic).
-// Runs without the GIL; sets `written` to the points written.
+// Runs without the GIL; sets `written` to the points written and `warnings`
+// to what the format could not hold as given (PointWriter::take_warnings).
 Status write_points(const std::string& path, const pybind11::dict& columns, const pybind11::object& extra,
-                    const pybind11::bytes& extra_vlr, const std::string& crs, double scale, std::uint64_t& written);
+                    const pybind11::bytes& extra_vlr, const std::string& crs, double scale, std::uint64_t& written,
+                    std::vector<std::string>& warnings);
 
 }  // namespace relief::python

@@ -767,6 +767,21 @@ def test_write_text_and_ply(tmp_path, ext):
     assert np.array_equal(as_rows(pts, XYZRGBI), as_rows(v, XYZRGBI))
 
 
+def test_write_warns_of_las_intensities_it_clamps_or_rounds(tmp_path):
+    v = np.zeros(3, [("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("intensity", "<f4")])
+    v["x"] = [0, 1, 2]
+    v["intensity"] = [-1200, 2.5, 7]  # a PTS file's signed intensity, a fraction
+    out = tmp_path / "i.las"
+    with pytest.warns(RuntimeWarning) as said:
+        assert relief.write(out, v) == 3
+    messages = [str(w.message) for w in said]
+    assert any("1 intensity outside LAS's 0..65535 was clamped to it (the first: -1200)" in m for m in messages)
+    assert any("1 intensity with a fraction was rounded to a whole number (the first: 2.5)" in m for m in messages)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # PLY keeps them as they are: no warning
+        relief.write(tmp_path / "i.ply", v)
+
+
 def test_write_refuses_what_it_cannot_hold(tmp_path):
     a = _every_las_field(10)
     out = tmp_path / "bad.las"

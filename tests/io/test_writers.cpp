@@ -242,6 +242,53 @@ TEST_CASE("PLY binary big endian stores the bytes swapped", "[io]") {
 
 // ---------------------------------------------------------------- LAS
 
+// The warnings of writing `intensities` (at x = 0, 1, ...) to `path` in
+// batches of `batch` points.
+std::vector<std::string> intensity_warnings(const std::string& path, const std::vector<float>& intensities,
+                                            std::size_t batch) {
+  PointCloud cloud;
+  for (std::size_t i = 0; i < intensities.size(); ++i) cloud.positions.push_back({static_cast<double>(i), 0, 0});
+  cloud.intensities = intensities;
+  Result<std::unique_ptr<PointWriter>> w = open_point_writer(path, options_with(false, true));
+  REQUIRE(w.is_ok());
+  for (std::size_t at = 0; at < cloud.size(); at += batch) {
+    REQUIRE((*w)->write(slice(cloud, at, std::min(at + batch, cloud.size()))).is_ok());
+  }
+  CHECK((*w)->take_warnings().empty());  // said once the file is complete
+  REQUIRE((*w)->finish().is_ok());
+  return (*w)->take_warnings();
+}
+
+TEST_CASE("LAS output says which intensities it clamped or rounded", "[io]") {
+  TempDir dir;
+  for (const char* name : {"out.las", "out.laz"}) {
+    const std::string path = dir.file(name);
+    INFO(path);
+    std::vector<std::string> said = intensity_warnings(path, {7, -1200, 12.5f, 70000, -3, 9.25f}, 2);
+    REQUIRE(said.size() == 2);
+    CHECK(said[0] == path + ": 3 intensities outside LAS's 0..65535 were clamped to it (the first: -1200)");
+    CHECK(said[1] == path + ": 2 intensities with a fraction were rounded to a whole number (the first: 12.5): LAS "
+                            "keeps whole numbers 0..65535, or 0..1 scaled to them when every intensity of the file "
+                            "is within 0..1");
+    const ReadBack r = read_back(path);
+    CHECK(r.cloud.intensities == std::vector<float>{7, 0, 13, 65535, 0, 9});
+    // Whole numbers in range, and a file within 0..1 (scaled to 16 bits), lose nothing.
+    CHECK(intensity_warnings(path, {65535, 0, 12}, 1).empty());
+    CHECK(intensity_warnings(path, {0.25f, 1, 0.5f}, 3).empty());
+    said = intensity_warnings(path, {-1}, 1);
+    REQUIRE(said.size() == 1);
+    CHECK(said[0] == path + ": 1 intensity outside LAS's 0..65535 was clamped to it (the first: -1)");
+  }
+  // Written within 0..1 and then not (LAS only: LAZ refuses): the fractions before count too.
+  const std::string path = dir.file("late.las");
+  const std::vector<std::string> said = intensity_warnings(path, {0.25f, 0.5f, 3.5f}, 2);
+  REQUIRE(said.size() == 1);
+  CHECK_THAT(said[0], Contains("3 intensities with a fraction were rounded to a whole number (the first: 0.25)"));
+  // PLY and text keep the floats as they are.
+  CHECK(intensity_warnings(dir.file("out.ply"), {-1200, 0.25f}, 1).empty());
+  CHECK(intensity_warnings(dir.file("out.csv"), {-1200, 0.25f}, 1).empty());
+}
+
 TEST_CASE("LAS 1.2 round trip: coordinates within half the scale, colours, intensity, header", "[io]") {
   TempDir dir;
   PointCloud cloud = sample_cloud(20000, true, true, false);

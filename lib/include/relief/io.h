@@ -372,6 +372,10 @@ class PointWriter {
   // finish() (or on any error) the destination is left untouched.
   virtual Status finish() = 0;
   virtual std::uint64_t points_written() const = 0;
+  // What the format could not hold as it was given, said once finish()
+  // succeeded (a LAS intensity clamped to 0..65535 or rounded to a whole
+  // number, ...); taken out. None by default.
+  virtual std::vector<std::string> take_warnings() { return {}; }
 };
 
 // Opens a writer by extension: .ply (binary little endian by default),
