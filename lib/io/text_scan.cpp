@@ -2,6 +2,7 @@
 
 #include <array>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 
 namespace relief {
@@ -74,6 +75,58 @@ std::string format_double(double v) {
   std::array<char, 64> buf{};
   const auto [end, ec] = std::to_chars(buf.data(), buf.data() + buf.size(), v);
   return ec == std::errc{} ? std::string(buf.data(), end) : std::string("?");
+}
+
+bool parse_number(std::string_view tok, double& out) {
+  const char* first = tok.data();
+  const char* const last = tok.data() + tok.size();
+  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') ++first;
+  const auto [p, ec] = std::from_chars(first, last, out);
+  return ec == std::errc{} && p == last && first != last;
+}
+
+int significant_digits(std::string_view text) {
+  int n = 0;
+  for (const char c : text) {
+    if (c == 'e' || c == 'E') break;
+    if (c < '0' || c > '9' || (n == 0 && c == '0')) continue;
+    ++n;
+  }
+  return n;
+}
+
+namespace {
+
+// The warning for the first intensity whose text (of significant_digits
+// `digits`) a 32-bit float does not give back, or "" when it does. A decimal
+// of at most 6 significant digits always comes back (FLT_DIG), and so do
+// whole numbers up to 2^24 (every LAS intensity): neither costs a comparison.
+std::string intensity_rounding_warning(const std::string& input, double text_value, int digits,
+                                       std::uint64_t line_no) {
+  if (digits <= 6) return {};
+  if (std::fabs(text_value) <= 16777216.0 && text_value == std::nearbyint(text_value)) return {};
+  // The float's shortest text, read back as a double, against the input's.
+  const float kept = static_cast<float>(text_value);
+  char text[32];
+  const auto printed = std::to_chars(text, text + sizeof text, kept);
+  double back = 0;
+  std::from_chars(text, printed.ptr, back);
+  if (back == text_value) return {};
+  return input + ": line " + std::to_string(line_no) + ": intensity " + format_double(text_value) +
+         " is kept as the 32-bit float " + std::string(text, printed.ptr) +
+         " (intensities are 32-bit floats: about 7 significant digits, integers exact up to 2^24); later ones are "
+         "not listed";
+}
+
+}  // namespace
+
+void note_intensity_rounding(const std::string& input, double text_value, int digits, std::uint64_t line_no,
+                             bool& noted, std::vector<std::string>& warnings) {
+  if (noted) return;
+  std::string warning = intensity_rounding_warning(input, text_value, digits, line_no);
+  if (warning.empty()) return;
+  noted = true;
+  warnings.push_back(std::move(warning));
 }
 
 }  // namespace relief

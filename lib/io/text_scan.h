@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -35,5 +36,19 @@ std::string quoted(std::string_view s);
 
 // Shortest round-trip text, so messages show the value actually read.
 std::string format_double(double v);
+
+// Parses all of `tok` as a number; from_chars rejects the '+' printf may emit.
+bool parse_number(std::string_view tok, double& out);
+
+// Significant digits of a number's text: the mantissa's digits after any
+// leading zeros, the exponent not counted ("0.1234": 4, "1234.5678901": 11;
+// trailing zeros count, which only errs towards comparing).
+int significant_digits(std::string_view text);
+
+// Adds to `warnings`, once per input (`noted` says it was), the warning for
+// the first intensity whose text (of significant_digits `digits`, value
+// `text_value`, on line `line_no`) a 32-bit float does not give back.
+void note_intensity_rounding(const std::string& input, double text_value, int digits, std::uint64_t line_no,
+                             bool& noted, std::vector<std::string>& warnings);
 
 }  // namespace relief

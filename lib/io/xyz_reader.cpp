@@ -268,15 +268,6 @@ std::optional<ColumnPlan> plan_from_header(std::string_view line) {
   return plan;
 }
 
-// Parses all of `tok` as a number; from_chars rejects the '+' printf may emit.
-bool parse_number(std::string_view tok, double& out) {
-  const char* first = tok.data();
-  const char* const last = tok.data() + tok.size();
-  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') ++first;
-  const auto [p, ec] = std::from_chars(first, last, out);
-  return ec == std::errc{} && p == last && first != last;
-}
-
 // The column of `line` at `pos` (past leading blanks), advancing `pos` past it
 // and its separator; `more` says whether another column follows (a delimiter
 // at the end of the line is followed by an empty one). `delimiter` ' ' means
@@ -819,50 +810,6 @@ Status XyzPointReader::parse_extra(std::string_view tok, std::size_t c, std::siz
     if (type == kFloat64) why += ", and a column whose first value is an integer beyond 2^53 is kept as a 64-bit integer";
   }
   return line_error(line_no, "column " + std::to_string(c + 1) + " " + problem + why);
-}
-
-// Significant digits of a number's text: the mantissa's digits after any
-// leading zeros, the exponent not counted ("0.1234": 4, "1234.5678901": 11;
-// trailing zeros count, which only errs towards comparing).
-int significant_digits(std::string_view text) {
-  int n = 0;
-  for (const char c : text) {
-    if (c == 'e' || c == 'E') break;
-    if (c < '0' || c > '9' || (n == 0 && c == '0')) continue;
-    ++n;
-  }
-  return n;
-}
-
-// The warning for the first intensity whose text (of significant_digits
-// `digits`) a 32-bit float does not give back, or "" when it does. A decimal
-// of at most 6 significant digits always comes back (FLT_DIG), and so do
-// whole numbers up to 2^24 (every LAS intensity): neither costs a comparison.
-std::string intensity_rounding_warning(const std::string& input, double text_value, int digits,
-                                       std::uint64_t line_no) {
-  if (digits <= 6) return {};
-  if (std::fabs(text_value) <= 16777216.0 && text_value == std::nearbyint(text_value)) return {};
-  // The float's shortest text, read back as a double, against the input's.
-  const float kept = static_cast<float>(text_value);
-  char text[32];
-  const auto printed = std::to_chars(text, text + sizeof text, kept);
-  double back = 0;
-  std::from_chars(text, printed.ptr, back);
-  if (back == text_value) return {};
-  return input + ": line " + std::to_string(line_no) + ": intensity " + format_double(text_value) +
-         " is kept as the 32-bit float " + std::string(text, printed.ptr) +
-         " (intensities are 32-bit floats: about 7 significant digits, integers exact up to 2^24); later ones are "
-         "not listed";
-}
-
-// Adds that warning to `warnings` once per input: `noted` says it was.
-void note_intensity_rounding(const std::string& input, double text_value, int digits, std::uint64_t line_no,
-                             bool& noted, std::vector<std::string>& warnings) {
-  if (noted) return;
-  std::string warning = intensity_rounding_warning(input, text_value, digits, line_no);
-  if (warning.empty()) return;
-  noted = true;
-  warnings.push_back(std::move(warning));
 }
 
 Status XyzPointReader::parse_point(std::string_view line, std::uint64_t line_no, PointCloud& out,
