@@ -20,14 +20,14 @@ namespace relief {
 
 namespace {
 
-enum class Kind { kPly, kLas, kXyz, kPcd };
+enum class Kind { kPly, kLas, kXyz, kPcd, kPtx };
 
 struct Extension {
   std::string_view extension;  // lower case, with the dot
   Kind kind;
 };
 
-constexpr std::array<Extension, 8> kExtensions = {{
+constexpr std::array<Extension, 9> kExtensions = {{
     {".ply", Kind::kPly},
     {".las", Kind::kLas},
     {".laz", Kind::kLas},  // LASzip-compressed LAS (COPC too): the LAS reader decompresses it
@@ -36,6 +36,7 @@ constexpr std::array<Extension, 8> kExtensions = {{
     {".csv", Kind::kXyz},
     {".pts", Kind::kXyz},
     {".pcd", Kind::kPcd},
+    {".ptx", Kind::kPtx},
 }};
 
 // Batches for read_point_file: large enough to amortise the per-call work,
@@ -144,6 +145,8 @@ Result<std::unique_ptr<PointReader>> open_by_kind(const std::string& path, const
     }
     case Kind::kPcd:
       return open_pcd_reader(input, options);
+    case Kind::kPtx:
+      return open_ptx_reader(input);
   }
   if (!reader) return internal_error(path + ": unhandled point file kind");
   if (auto* batch = dynamic_cast<BatchPointReader*>(reader.get())) batch->hold_sample_up_to(options.color_sample_memory);

@@ -15,5 +15,6 @@ Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input, boo
                                                      unsigned decode_threads = 0);
 Result<std::unique_ptr<PointReader>> open_xyz_reader(const InputSpec& input, const ReaderOptions& options);
 Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input, const ReaderOptions& options);
+Result<std::unique_ptr<PointReader>> open_ptx_reader(const InputSpec& input);
 
 }  // namespace relief

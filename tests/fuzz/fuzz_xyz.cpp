@@ -1,5 +1,7 @@
-// libFuzzer target: the XYZ/CSV text reader from memory. The first byte picks
-// the column layout (ReaderOptions::xyz_columns), the rest is the file.
+// libFuzzer target: the XYZ/CSV/PTS text reader and the PTX reader from
+// memory. The first byte picks the reader and the column layout
+// (ReaderOptions::xyz_columns, or none: a header's, PTS's or the default's);
+// the rest is the file.
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -21,9 +23,15 @@ constexpr std::array<const char*, 10> kColumns = {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
-  relief::ReaderOptions options;
-  options.xyz_columns = kColumns[data[0] % kColumns.size()];
   const std::span<const std::uint8_t> bytes(data + 1, size - 1);
+  const std::size_t pick = data[0] % (kColumns.size() + 2);
+  if (pick == kColumns.size() + 1) {
+    auto reader = relief::open_ptx_reader(relief::InputSpec{"fuzz.ptx", bytes});
+    if (reader.is_ok()) relief::fuzz::drain(**reader, bytes.size(), "ptx reader");
+    return 0;
+  }
+  relief::ReaderOptions options;
+  if (pick < kColumns.size()) options.xyz_columns = kColumns[pick];
   auto reader = relief::open_xyz_reader(relief::InputSpec{"fuzz.xyz", bytes}, options);
   if (reader.is_ok()) relief::fuzz::drain(**reader, bytes.size(), "xyz reader");
   return 0;

@@ -944,6 +944,98 @@ TEST_CASE("PTS files: Leica's columns, a count before each block, counts checked
   }
 }
 
+// A PTX scan header: its grid and the 4 x 4 matrix by rows (the scanner's
+// position and axes lines as a registered scanner's would be).
+std::string ptx_header(int columns, int rows, const std::array<std::array<double, 4>, 4>& m) {
+  std::string h = std::to_string(columns) + "\n" + std::to_string(rows) + "\n";
+  h += "100 200 10\n0 1 0\n-1 0 0\n0 0 1\n";
+  for (const auto& row : m) {
+    for (int c = 0; c < 4; ++c) {
+      char text[32];
+      std::snprintf(text, sizeof text, "%.17g", row[c]);
+      h += std::string(text) + (c < 3 ? " " : "\n");
+    }
+  }
+  return h;
+}
+
+TEST_CASE("PTX scans: each scan's matrix applied, points without a return skipped", "[io]") {
+  TempDir dir;
+  // Scan 1: a quarter turn about z, then (100, 200, 10): (x, y, z) -> (100 - y, 200 + x, 10 + z).
+  const std::array<std::array<double, 4>, 4> turn = {{{0, 1, 0, 0}, {-1, 0, 0, 0}, {0, 0, 1, 0}, {100, 200, 10, 1}}};
+  const std::array<std::array<double, 4>, 4> identity = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}}};
+  const std::string path = dir.file("site.PTX");
+  write_file(path, ptx_header(2, 2, turn) +
+                       "1.5 -2.25 0.5 0.5 10 20 30\n"
+                       "0 0 0 0.5 0 0 0\n"
+                       "\n"
+                       "3 4 -1 0.125 255 0 128\r\n"
+                       "0.25 0.5 2 1 1 2 3\n" +
+                       ptx_header(0, 7, identity) +  // a scan without points
+                       ptx_header(1, 1, identity) + "7 8 9 0.75 4 5 6\n");
+  PointCloud want = xyz_cloud({{102.25, 201.5, 10.5}, {96, 203, 9}, {99.5, 200.25, 12}, {7, 8, 9}});
+  want.colors = {{10, 20, 30}, {255, 0, 128}, {1, 2, 3}, {4, 5, 6}};
+  want.intensities = {0.5f, 0.125f, 1.0f, 0.75f};
+  for (const std::size_t batch : {std::size_t{1}, std::size_t{3}, std::size_t{100}}) {
+    Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
+    INFO(r.status().to_string());
+    REQUIRE(r.is_ok());
+    CHECK((*r)->info().format == "ptx");
+    CHECK((*r)->info().has_colors);
+    CHECK((*r)->info().has_intensity);
+    CHECK_FALSE((*r)->info().point_count.has_value());
+    const Result<PointCloud> got = read_stream(**r, batch);
+    INFO(got.status().to_string());
+    REQUIRE(got.is_ok());
+    require_same(*got, want);
+    CHECK((*r)->info().skipped_points == 1);
+    CHECK((*r)->info().warnings.empty());
+  }
+  SECTION("without colour, and an empty file") {
+    write_file(path, ptx_header(1, 2, identity) + "1 2 3 0.5\n4 5 6 0.25\n");
+    const Result<PointCloud> got = read_path(path, 100);
+    REQUIRE(got.is_ok());
+    PointCloud plain = xyz_cloud({{1, 2, 3}, {4, 5, 6}});
+    plain.intensities = {0.5f, 0.25f};
+    require_same(*got, plain);
+    write_file(path, "");
+    const Result<PointCloud> none = read_path(path, 100);
+    REQUIRE(none.is_ok());
+    CHECK(none->size() == 0);
+  }
+  SECTION("malformed files are errors naming the line") {
+    const auto status_of = [&](const std::string& text) {
+      write_file(path, text);
+      return read_path(path, 100).status();
+    };
+    const std::string head = ptx_header(1, 2, identity);
+    require_error(status_of(head + "1 2 3 0.5\n"), StatusCode::kFormatError, path,
+                  "the scan whose header is on line 1 has 2 points (1 x 2) but the file ends after 1 of them");
+    require_error(status_of("3\n2\n0 0 0\n"), StatusCode::kFormatError, path,
+                  "the scan header on line 1 ends before its the scanner's X axis");
+    require_error(status_of("3.5\n2\n"), StatusCode::kFormatError, path,
+                  "line 1: the scan's number of columns 3.5 is not a whole number");
+    require_error(status_of("columns\n"), StatusCode::kFormatError, path, "line 1: expected number of columns");
+    require_error(status_of(ptx_header(1, 1, {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0.5}, {0, 0, 0, 1}}}) +
+                            "1 2 3 0.5\n"),
+                  StatusCode::kFormatError, path, "line 9: the transformation matrix's fourth column must be 0 0 0 1");
+    require_error(status_of(head + "1 2 3 0.5 1\n1 2 3 0.5\n"), StatusCode::kFormatError, path,
+                  "line 11: a PTX point has 4 columns (x y z intensity) or 7 (with red green blue), not 5");
+    require_error(status_of(head + "1 2 3 0.5\n1 2 3 0.5 1 2 3\n"), StatusCode::kFormatError, path,
+                  "line 12: a point of this file has 4 columns, this line more");
+    require_error(status_of(head + "1 2 3 0.5 1 2 3\n1 2 3 0.5 1 2 256\n"), StatusCode::kFormatError, path,
+                  "line 12: colour level 256 is not a whole number 0..255");
+    require_error(status_of(head + "1 2 3 0.5 1 2 3\n1 2 3 0.5 1 2.5 3\n"), StatusCode::kFormatError, path,
+                  "line 12: colour level 2.5 is not a whole number 0..255");
+    require_error(status_of(head + "1 2 3 0.5\n1 nan 3 0.5\n"), StatusCode::kFormatError, path,
+                  "line 12: column 2 is not finite");
+    require_error(status_of(head + "1 2 3 0.5\n1 two 3 0.5\n"), StatusCode::kFormatError, path,
+                  "line 12: column 2 'two' is not a number");
+    require_error(status_of(head + "1 2 3 0.5\n" + std::string(70000, '1') + "\n"), StatusCode::kFormatError, path,
+                  "line 12: longer than 65536 bytes");
+  }
+}
+
 TEST_CASE("XYZ rejects bad lines naming the line", "[io]") {
   TempDir dir;
   const std::string path = dir.file("bad.xyz");

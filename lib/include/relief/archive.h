@@ -58,7 +58,7 @@ struct ArchiveGrid {
 // One input file as recorded in the archive.
 struct ArchiveSource {
   std::string path;
-  std::string format;  // "ply", "las", "laz", "xyz", "pcd", "stream"
+  std::string format;  // "ply", "las", "laz", "xyz", "pcd", "ptx", "stream"
   std::uint64_t point_count = 0;
   std::string crs;     // as the file gave it (relief/crs.h source form), empty when none
   std::int64_t scan_id = 0;

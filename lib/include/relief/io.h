@@ -51,7 +51,7 @@ Result<PointCloud> read_point_file(const std::string& path);
 
 struct PointStreamInfo {
   std::string path;
-  std::string format;                        // "ply", "las", "laz", "xyz", "pcd"
+  std::string format;                        // "ply", "las", "laz", "xyz", "pcd", "ptx"
   std::optional<std::uint64_t> point_count;  // when the header states it
   bool has_colors = false;
   bool has_intensity = false;
@@ -96,8 +96,9 @@ struct PointStreamInfo {
   Vec3d scale{0, 0, 0};
   Vec3d offset{0, 0, 0};
   // Records dropped so far by design rather than error: PCD points with a NaN
-  // coordinate (organised clouds mark pixels without depth that way). They are
-  // included in point_count, which is what the header declares.
+  // coordinate (organised clouds mark pixels without depth that way), PTX
+  // lines 0 0 0 (directions without a return). They are included in
+  // point_count, which is what the header declares.
   std::uint64_t skipped_points = 0;
   // Things the reader noticed but did not refuse, each a sentence naming the
   // file, e.g. a PLY whose vertex records go on past the count its header
@@ -165,11 +166,11 @@ class PointReader {
   virtual Result<std::size_t> read(PointCloud& batch, std::size_t max_points) = 0;
 };
 
-// Opens a point file for streaming, by extension: .ply, .las, .xyz/.txt/.csv,
-// .pcd (ascii, binary and binary_compressed; field names in any case; packed
-// rgb/rgba or separate r g b fields), .laz (LASzip-compressed LAS, COPC
-// included; see relief/laz.h for what is supported). Unknown extensions give
-// kUnsupported.
+// Opens a point file for streaming, by extension: .ply, .las, .xyz/.txt/.csv/
+// .pts, .pcd (ascii, binary and binary_compressed; field names in any case;
+// packed rgb/rgba or separate r g b fields), .laz (LASzip-compressed LAS, COPC
+// included; see relief/laz.h for what is supported), .ptx (Leica's scans, each
+// scan's matrix applied). Unknown extensions give kUnsupported.
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
