@@ -1,4 +1,5 @@
 #include "ingest/bucket_files.h"
+#include "core/file_io.h"
 #include "ingest/las_columns.h"
 
 #include <fcntl.h>
@@ -365,16 +366,9 @@ Status BucketFiles::read_range(std::uint32_t bucket, std::uint64_t from, std::si
     return corrupt_data(paths_[bucket] + ": temporary file shorter than written");
   }
   buf.reserve(len, 0);
-  std::size_t got = 0;
-  while (got < len) {
-    const ssize_t r = ::pread(files_[bucket], buf.data() + got, len - got, static_cast<off_t>(start + got));
-    if (r < 0 && errno == EINTR) continue;
-    if (r <= 0) {
-      return io_error(paths_[bucket] + ": read failed: " + (r < 0 ? std::strerror(errno) : "unexpected end"));
-    }
-    got += static_cast<std::size_t>(r);
-  }
-  return Status::ok();
+  const int e = pread_exact(files_[bucket], buf.data(), len, start);
+  if (e == 0) return Status::ok();
+  return io_error(paths_[bucket] + ": read failed: " + (e > 0 ? std::strerror(e) : "unexpected end"));
 }
 
 Vec3d BucketFiles::position(const Vec3d& cube_min, const std::uint8_t* r) const {

@@ -1,5 +1,6 @@
 #include "ingest/spool.h"
 
+#include "core/file_io.h"
 #include "ingest/las_columns.h"
 
 #include <fcntl.h>
@@ -123,17 +124,9 @@ class SpoolReader final : public PointReader {
     fd_ = -1;
   }
   Status pread_all(void* to, std::size_t n, std::uint64_t at) const {
-    auto* p = static_cast<std::uint8_t*>(to);
-    while (n > 0) {
-      const ssize_t r = ::pread(fd_, p, n, static_cast<off_t>(at));
-      if (r < 0 && errno == EINTR) continue;
-      if (r <= 0)
-        return r < 0 ? io_error(what() + ": cannot read: " + std::strerror(errno)) : damaged("truncated");
-      p += r;
-      at += static_cast<std::uint64_t>(r);
-      n -= static_cast<std::size_t>(r);
-    }
-    return Status::ok();
+    const int e = pread_exact(fd_, to, n, at);
+    if (e == 0) return Status::ok();
+    return e > 0 ? io_error(what() + ": cannot read: " + std::strerror(e)) : damaged("truncated");
   }
 
   // Gives the file system back the blocks of the batches read (a hole

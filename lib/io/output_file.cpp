@@ -1,5 +1,6 @@
 #include "io/output_file.h"
 
+#include "core/file_io.h"
 #include "core/host.h"
 
 #include <fcntl.h>
@@ -126,18 +127,9 @@ Status OutputFile::read_at(std::uint64_t offset, void* data, std::size_t n) {
   if (done_) return internal_error(path_ + ": the output is already closed");
   if (offset + n > position()) return internal_error(path_ + ": read beyond the written data");
   RELIEF_RETURN_IF_ERROR(flush());
-  auto* bytes = static_cast<std::uint8_t*>(data);
-  std::size_t got = 0;
-  while (got < n) {
-    const ssize_t r = ::pread(fd_, bytes + got, n - got, static_cast<off_t>(offset + got));
-    if (r < 0) {
-      if (errno == EINTR) continue;
-      return io_error(path_ + ": read back failed: " + errno_text(errno));
-    }
-    if (r == 0) return io_error(path_ + ": read back failed: the file is shorter than written");
-    got += static_cast<std::size_t>(r);
-  }
-  return Status::ok();
+  const int e = pread_exact(fd_, data, n, offset);
+  if (e == 0) return Status::ok();
+  return io_error(path_ + ": read back failed: " + (e > 0 ? errno_text(e) : "the file is shorter than written"));
 }
 
 Status OutputFile::commit() {
