@@ -987,7 +987,7 @@ namespace {
 constexpr std::uint64_t kSpoolDiskMargin = std::uint64_t{256} << 20;
 
 // A spool for the order-free pass of `in` (IngestOptions::spool), or none:
-// no LAZ or text (XYZ, CSV, PTS, PTX) input, or less room under `parent` than twice what the
+// no LAZ or text input (PointStreamInfo::text_body), or less room under `parent` than twice what the
 // spool would hold (the bucket files come after it), or no directory there
 // (the bucket files will say why).
 std::shared_ptr<Spool> start_spool(const InputSet& in, const std::string& parent, std::size_t batch_points) {
@@ -995,7 +995,7 @@ std::shared_ptr<Spool> start_spool(const InputSet& in, const std::string& parent
   std::uint64_t bytes = 0;
   for (std::size_t i = 0; i < in.readers.size(); ++i) {
     const PointStreamInfo& info = in.readers[i]->info();
-    if (info.format != "laz" && info.format != "xyz" && info.format != "ptx") continue;
+    if (info.format != "laz" && !info.text_body) continue;
     wanted[i] = true;
     struct stat st {};
     // Text states no count: its size over 8 (a text point takes about that

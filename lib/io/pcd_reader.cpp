@@ -409,6 +409,7 @@ class PcdPointReader final : public PointReader {
     intensity_ = find_field(header_, "intensity");
     info_.path = std::move(name);
     info_.format = "pcd";
+    info_.text_body = header_.data == PcdData::kAscii;
     info_.point_count = header_.point_count;
     info_.has_colors = rgb_ != nullptr || split_[0] != nullptr;
     info_.has_intensity = intensity_ != nullptr;

@@ -900,6 +900,7 @@ Status PlyPointReader::start() {
 
   info_.path = name();
   info_.format = "ply";
+  info_.text_body = header_.encoding == PlyEncoding::kAscii;
   info_.point_count = vertex().count;
   info_.has_colors = plan_.has_color;
   info_.has_intensity = plan_.has_intensity;

@@ -53,6 +53,7 @@ class PtxPointReader final : public PointReader {
   PtxPointReader(std::string name, ByteSource src) : src_(std::move(src)) {
     info_.path = std::move(name);
     info_.format = "ptx";
+    info_.text_body = true;
   }
 
   const PointStreamInfo& info() const override { return info_; }

@@ -545,6 +545,7 @@ class XyzPointReader final : public BatchPointReader {
       : input_(std::move(input)), options_(std::move(options)), src_(std::move(src)) {
     info_.path = input_.name;
     info_.format = "xyz";
+    info_.text_body = true;
   }
 
   const std::string& name() const { return info_.path; }

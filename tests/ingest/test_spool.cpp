@@ -343,7 +343,25 @@ TEST_CASE("compress: spooled LAZ and text inputs give the blobs of inputs read t
   };
   write_csv("small.csv", 20000);
   write_csv("big.csv", 171072);  // 40,000 points past the first 2^17
-  const std::vector<std::string> inputs = {dir.file("small.csv"), dir.file("tile.laz"), dir.file("big.csv")};
+  // ASCII PLY and PCD parse as slowly as text: spooled too (binary ones are not).
+  {
+    std::ofstream ply(dir.file("scan.ply"));
+    ply << "ply\nformat ascii 1.0\nelement vertex 30000\nproperty double x\nproperty double y\n"
+           "property double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n";
+    for (std::size_t i = 0; i < 30000; ++i) {
+      ply << 1200 + 0.01 * static_cast<double>(i % 991) << " " << 2050 + 0.01 * static_cast<double>(i % 577) << " "
+          << 0.25 * static_cast<double>(i % 7) << " " << i % 256 << " 5 " << (i * 3) % 256 << "\n";
+    }
+    std::ofstream pcd(dir.file("scan.pcd"));
+    pcd << "VERSION 0.7\nFIELDS x y z intensity\nSIZE 8 8 8 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 20000\n"
+           "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 20000\nDATA ascii\n";
+    for (std::size_t i = 0; i < 20000; ++i) {
+      pcd << 1250 + 0.02 * static_cast<double>(i % 499) << " " << 2120 + 0.01 * static_cast<double>(i % 811) << " "
+          << 0.5 * static_cast<double>(i % 5) << " " << i % 300 << "\n";
+    }
+  }
+  const std::vector<std::string> inputs = {dir.file("small.csv"), dir.file("tile.laz"), dir.file("big.csv"),
+                                           dir.file("scan.ply"), dir.file("scan.pcd")};
   IngestOptions o;
   o.tmp_dir = dir.file("tmp");
   o.chunk_edge = 64;
@@ -353,12 +371,12 @@ TEST_CASE("compress: spooled LAZ and text inputs give the blobs of inputs read t
   o.spool = false;
   auto twice = compress_files(inputs, dir.file("twice.relief"), o);
   REQUIRE(twice.is_ok());
-  CHECK(spooled->points_read == 251072);
-  CHECK(spooled->points_decoded == 251072);
+  CHECK(spooled->points_read == 301072);
+  CHECK(spooled->points_decoded == 301072);
   CHECK(spooled->warnings == twice->warnings);
-  // The tile's 60,000 points (42 bytes each) and the big text's 171,072
-  // (31 bytes) went through it.
-  CHECK(spooled->spooled_bytes > 60000 * 42 + 171072 * 31);
+  // The tile's 60,000 points (42 bytes each), the big text's 171,072 (31
+  // bytes), the PLY's 30,000 (27) and the PCD's 20,000 (28) went through it.
+  CHECK(spooled->spooled_bytes > 60000 * 42 + 171072 * 31 + 30000 * 27 + 20000 * 28);
   CHECK(twice->spooled_bytes == 0);
   const auto blobs = test::archive_blobs(dir.file("spooled.relief"));
   CHECK(blobs.size() > 1);

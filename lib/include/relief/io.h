@@ -100,6 +100,10 @@ struct PointStreamInfo {
   // lines 0 0 0 (directions without a return). They are included in
   // point_count, which is what the header declares.
   std::uint64_t skipped_points = 0;
+  // The points are decimal text (XYZ/CSV/PTS, PTX, ASCII PLY and PCD): a
+  // second read parses them all again, so a pass before the ingest keeps
+  // what it read in its spool (IngestOptions::spool).
+  bool text_body = false;
   // Things the reader noticed but did not refuse, each a sentence naming the
   // file, e.g. a PLY whose vertex records go on past the count its header
   // declares (the header count is kept). Complete once read() has returned 0.
