@@ -81,6 +81,11 @@ void print_ingest_summary(const std::string& path, const IngestResult& r) {
               static_cast<unsigned long long>(r.chunks_written), format_bytes(r.blob_bytes).c_str(),
               n > 0 ? 8.0 * static_cast<double>(r.blob_bytes) / n : 0.0,
               static_cast<unsigned long long>(r.points_decoded));
+  if (r.points_skipped > 0) {
+    std::printf("%llu input records without a point skipped (PCD NaN points, PTX directions without a "
+                "return)\n",
+                static_cast<unsigned long long>(r.points_skipped));
+  }
   std::printf("cell %.6g, chunk edge %.6g, %.2f s, %.2f M points/s\n", r.cell_size, r.chunk_edge, r.seconds,
               r.seconds > 0 ? n / r.seconds * 1e-6 : 0.0);
   if (r.pyramid.levels > 0) {

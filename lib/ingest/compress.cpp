@@ -542,6 +542,7 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
   result.warnings.insert(result.warnings.end(), in.warnings.begin(), in.warnings.end());
   for (const auto& reader : in.readers) {
     for (const std::string& w : reader->info().warnings) result.warnings.push_back(w);
+    result.points_skipped += reader->info().skipped_points;
   }
   return result;
 }

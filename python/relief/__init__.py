@@ -167,7 +167,9 @@ def compress(inputs, archive, *, progress=None, **options):
 
     Returns a dict: points_read, points_decoded, chunks_written, blob_bytes,
     seconds, cell_size, chunk_edge, scan_id, spooled_bytes (decoded LAZ and text
-    points kept in temporary files instead of read twice), warnings.
+    points kept in temporary files instead of read twice), points_skipped
+    (records of the inputs that hold no point: PCD NaN points, PTX directions
+    without a return), warnings.
     """
     return _ingest("compress", inputs, archive, options, progress)
 

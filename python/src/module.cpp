@@ -75,6 +75,7 @@ py::dict result_dict(const IngestResult& r) {
   d["chunk_edge"] = r.chunk_edge;
   d["scan_id"] = r.scan_id;
   d["spooled_bytes"] = r.spooled_bytes;
+  d["points_skipped"] = r.points_skipped;
   py::dict pyramid;
   pyramid["levels"] = r.pyramid.levels;
   pyramid["top_level"] = r.pyramid.top_level;

@@ -24,6 +24,16 @@ def test_version():
     assert re.fullmatch(r"\d+\.\d+\.\d+", relief.__version__)
 
 
+def test_compress_counts_ptx_directions_without_a_return(tmp_path):
+    # One 2 x 2 PTX scan (identity matrix) with one direction without a return.
+    (tmp_path / "s.ptx").write_text("2\n2\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"
+                                    "1 2 3 0.5\n0 0 0 0.5\n4 5 6 0.25\n7 8 9 1\n")
+    r = relief.compress(str(tmp_path / "s.ptx"), str(tmp_path / "s.relief"))
+    assert (r["points_read"], r["points_skipped"]) == (3, 1)
+    with relief.open(tmp_path / "s.relief") as a:
+        assert sorted(a.query()["intensity"].tolist()) == [0.25, 0.5, 1.0]
+
+
 def test_text_beyond_the_first_points_is_spooled_once_unless_no_spool(tmp_path):
     # Text states no count: the pass that fixes the grid reads every point
     # first and keeps what lies past the first 2^17 for the ingest.
@@ -34,6 +44,7 @@ def test_text_beyond_the_first_points_is_spooled_once_unless_no_spool(tmp_path):
                             no_spool=True)
     assert spooled["spooled_bytes"] >= (140000 - 131072) * 31
     assert twice["spooled_bytes"] == 0
+    assert spooled["points_skipped"] == twice["points_skipped"] == 0
     assert spooled["points_decoded"] == twice["points_decoded"] == 140000
 
     def blobs(path):

@@ -203,6 +203,31 @@ TEST_CASE("append adds a second scan and queries see both", "[ingest]") {
   CHECK(m->rmse_nn_qp < 0.02);
 }
 
+TEST_CASE("compress and append count the records of their inputs that hold no point", "[ingest]") {
+  TempDir tmp;
+  // A PTX scan of 3 x 2 directions, two without a return (identity matrix),
+  // and a PCD with one NaN point (both with intensities, as append wants).
+  {
+    std::ofstream ptx(tmp.file("scan.ptx"));
+    ptx << "3\n2\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"
+           "1 2 3 0.5\n0 0 0 0.5\n4 5 6 0.25\n7 8 9 1\n0 0 0 0.5\n2 2 2 0.75\n";
+    std::ofstream pcd(tmp.file("cloud.pcd"));
+    pcd << "VERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+           "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 1 1 5\nnan nan nan 0\n3 3 3 6\n";
+  }
+  auto made = compress_files({tmp.file("scan.ptx")}, tmp.file("a.relief"), IngestOptions{});
+  INFO(made.status().to_string());
+  REQUIRE(made.is_ok());
+  CHECK(made->points_read == 4);
+  CHECK(made->points_skipped == 2);
+  auto added = append_files(tmp.file("a.relief"), {tmp.file("cloud.pcd"), tmp.file("scan.ptx")}, IngestOptions{});
+  INFO(added.status().to_string());
+  REQUIRE(added.is_ok());
+  CHECK(added->points_read == 6);
+  CHECK(added->points_skipped == 3);
+  CHECK(decode_all(tmp.file("a.relief")).size() == 10);
+}
+
 TEST_CASE("a failed append leaves the archive as it was", "[ingest]") {
   TempDir tmp;
   REQUIRE(write_ply(tmp.file("a.ply"), scene(4, 20000)).is_ok());

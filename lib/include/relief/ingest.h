@@ -249,6 +249,10 @@ struct IngestResult {
   // Bytes of decoded LAZ and text points the ingest kept in temporary files
   // and read back (IngestOptions::spool); 0 when it read its inputs again.
   std::uint64_t spooled_bytes = 0;
+  // Records of the inputs that hold no point, skipped by design
+  // (PointStreamInfo::skipped_points: a PCD's NaN points, a PTX scan's
+  // directions without a return); not in points_read.
+  std::uint64_t points_skipped = 0;
   // What the input readers noticed but did not refuse (PointStreamInfo::warnings),
   // e.g. a PLY holding more vertices than its header declares.
   std::vector<std::string> warnings;
