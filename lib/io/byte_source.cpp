@@ -161,4 +161,25 @@ Status ByteSource::skip(std::uint64_t n, std::uint64_t& skipped) {
   return Status::ok();
 }
 
+Status ByteSource::read_at(std::uint64_t offset, std::span<std::uint8_t> out, std::size_t& got) const {
+  got = 0;
+  if (fd_ < 0) {  // memory
+    if (offset >= data_.size()) return Status::ok();
+    got = static_cast<std::size_t>(std::min<std::uint64_t>(out.size(), data_.size() - offset));
+    std::memcpy(out.data(), data_.data() + offset, got);
+    return Status::ok();
+  }
+  if (!seekable_) return unsupported(path_ + ": cannot be read out of order (a pipe or device, not a regular file)");
+  while (got < out.size()) {
+    const ssize_t n = ::pread(fd_, out.data() + got, out.size() - got, static_cast<off_t>(offset + got));
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return io_error(path_ + ": read failed at byte " + std::to_string(offset + got) + ": " + errno_text(errno));
+    }
+    if (n == 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  return Status::ok();
+}
+
 }  // namespace relief

@@ -39,6 +39,12 @@ class ByteSource {
   // only when the input ended first.
   Status skip(std::uint64_t n, std::uint64_t& skipped);
 
+  // Copies bytes [offset, offset + out.size()) of the input into `out`,
+  // independently of the sequential position, for formats read out of order
+  // (E57). `got` is less than out.size() only at the end of the input.
+  // Memory and regular files only: a pipe is kUnsupported.
+  Status read_at(std::uint64_t offset, std::span<std::uint8_t> out, std::size_t& got) const;
+
   // Bytes consumed since the start.
   std::uint64_t position() const { return base_ + begin_; }
   // Total input size when it is known in advance (memory, regular files).
