@@ -11,7 +11,7 @@ set -euo pipefail
 packages=(
   cmake g++ make pkg-config
   libeigen3-dev libopenjp2-7-dev libturbojpeg0-dev liblzma-dev libsqlite3-dev
-  catch2 libjbig-dev libnanoflann-dev libpng-dev liblzf-dev
+  catch2 libjbig-dev libnanoflann-dev libpng-dev liblzf-dev libexpat1-dev
   libgeotiff-dev libproj-dev
   pybind11-dev python3-dev python3-numpy python3-pytest python3-distributed
 )

@@ -20,14 +20,14 @@ namespace relief {
 
 namespace {
 
-enum class Kind { kPly, kLas, kXyz, kPcd, kPtx };
+enum class Kind { kPly, kLas, kXyz, kPcd, kPtx, kE57 };
 
 struct Extension {
   std::string_view extension;  // lower case, with the dot
   Kind kind;
 };
 
-constexpr std::array<Extension, 9> kExtensions = {{
+constexpr std::array<Extension, 10> kExtensions = {{
     {".ply", Kind::kPly},
     {".las", Kind::kLas},
     {".laz", Kind::kLas},  // LASzip-compressed LAS (COPC too): the LAS reader decompresses it
@@ -37,6 +37,7 @@ constexpr std::array<Extension, 9> kExtensions = {{
     {".pts", Kind::kXyz},
     {".pcd", Kind::kPcd},
     {".ptx", Kind::kPtx},
+    {".e57", Kind::kE57},
 }};
 
 // Batches for read_point_file: large enough to amortise the per-call work,
@@ -147,6 +148,8 @@ Result<std::unique_ptr<PointReader>> open_by_kind(const std::string& path, const
       return open_pcd_reader(input, options);
     case Kind::kPtx:
       return open_ptx_reader(input);
+    case Kind::kE57:
+      return open_e57_reader(input, options);
   }
   if (!reader) return internal_error(path + ": unhandled point file kind");
   if (auto* batch = dynamic_cast<BatchPointReader*>(reader.get())) batch->hold_sample_up_to(options.color_sample_memory);

@@ -16,5 +16,6 @@ Result<std::unique_ptr<PointReader>> open_las_reader(const InputSpec& input, boo
 Result<std::unique_ptr<PointReader>> open_xyz_reader(const InputSpec& input, const ReaderOptions& options);
 Result<std::unique_ptr<PointReader>> open_pcd_reader(const InputSpec& input, const ReaderOptions& options);
 Result<std::unique_ptr<PointReader>> open_ptx_reader(const InputSpec& input);
+Result<std::unique_ptr<PointReader>> open_e57_reader(const InputSpec& input, const ReaderOptions& options);
 
 }  // namespace relief

@@ -282,8 +282,8 @@ TEST_CASE("bad input gives a clear error, a documented exit code and no output f
     CHECK(r.output.find("not a Relief chunk") != std::string::npos);
   }
   SECTION("unsupported input type") {
-    write_text(tmp.file("scan.e57"), "ASTM-E57");
-    const Run r = run("roundtrip " + tmp.file("scan.e57"));
+    write_text(tmp.file("scan.fls"), "FARO");
+    const Run r = run("roundtrip " + tmp.file("scan.fls"));
     CHECK(r.code == 15);
   }
 }

@@ -771,7 +771,7 @@ TEST_CASE("read_point_file dispatches on the extension", "[io]") {
   REQUIRE(r.is_ok());
   CHECK(r->size() == 50);
 
-  for (const std::string& path : {dir.file("cloud.e57"), dir.file("cloud")}) {
+  for (const std::string& path : {dir.file("cloud.fls"), dir.file("cloud")}) {
     const Result<PointCloud> u = read_point_file(path);
     REQUIRE_FALSE(u.is_ok());
     CHECK(u.status().code() == StatusCode::kUnsupported);

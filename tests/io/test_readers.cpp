@@ -1318,7 +1318,7 @@ TEST_CASE("open_point_reader dispatch, missing files and unknown extensions", "[
     INFO(name);
     require_error(r.status(), StatusCode::kIoError, path, "No such file");
   }
-  for (const char* name : {"cloud.e57", "cloud", "cloud.ply.gz"}) {
+  for (const char* name : {"cloud.fls", "cloud", "cloud.ply.gz"}) {
     const std::string path = dir.file(name);
     const Result<std::unique_ptr<PointReader>> r = open_point_reader(path);
     INFO(name);
