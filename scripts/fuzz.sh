@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (clang, ASan/UBSan) and runs one of them.
 #   scripts/fuzz.sh TARGET [SECONDS] [extra libFuzzer flags...]
-# TARGET: chunk ply las xyz pcd archive laz_writer stream polygon. New inputs go to build-fuzz/corpus/
+# TARGET: chunk ply las xyz pcd e57 archive laz_writer stream polygon. New inputs go to build-fuzz/corpus/
 # TARGET (seeded from tests/fuzz/corpus/TARGET), crashes to build-fuzz/
 # artifacts/TARGET/. Needs RELIEF_WITH_FUZZ=1 scripts/install-deps.sh.
 set -euo pipefail
@@ -15,6 +15,7 @@ case "$target" in
   chunk) max_len=4096 ;;
   ply|xyz|pcd) max_len=2048 ;;
   las) max_len=16384 ;;
+  e57) max_len=8192 ;;
   archive) max_len=32768 ;;
   laz_writer) max_len=8192 ;;
   stream) max_len=2048 ;;
