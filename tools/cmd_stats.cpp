@@ -21,7 +21,7 @@ constexpr const char* kUsageText =
     "Decodes the points (of a box) and prints, per attribute, the range and mean of its values or\n"
     "the count of each value: x, y, z, colours, intensity, classification, flags, returns, scan\n"
     "angle, user data, point source IDs, GPS time, NIR and each scalar extra bytes field.\n"
-    "A point file (.las, .laz, .ply, .xyz/.txt/.csv/.pts, .pcd) is summarised the same way, so an\n"
+    "A point file (.las, .laz, .ply, .xyz/.txt/.csv/.pts, .pcd, .ptx, .e57) is summarised the same way, so an\n"
     "archive can be checked against its source (without --box or filters).\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights (default: everything)\n"
     "  --polygon AREA   only the points inside this x-y area (WKT or GeoJSON, or @FILE of WKT,\n"

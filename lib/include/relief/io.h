@@ -51,7 +51,7 @@ Result<PointCloud> read_point_file(const std::string& path);
 
 struct PointStreamInfo {
   std::string path;
-  std::string format;                        // "ply", "las", "laz", "xyz", "pcd", "ptx"
+  std::string format;                        // "ply", "las", "laz", "xyz", "pcd", "ptx", "e57"
   std::optional<std::uint64_t> point_count;  // when the header states it
   bool has_colors = false;
   bool has_intensity = false;
@@ -97,8 +97,9 @@ struct PointStreamInfo {
   Vec3d offset{0, 0, 0};
   // Records dropped so far by design rather than error: PCD points with a NaN
   // coordinate (organised clouds mark pixels without depth that way), PTX
-  // lines 0 0 0 (directions without a return). They are included in
-  // point_count, which is what the header declares.
+  // lines 0 0 0 (directions without a return), E57 records whose invalid
+  // state is 1 or 2 (a direction without a range, no return). They are
+  // included in point_count, which is what the header declares.
   std::uint64_t skipped_points = 0;
   // The points are decimal text (XYZ/CSV/PTS, PTX, ASCII PLY and PCD): a
   // second read parses them all again, so a pass before the ingest keeps
@@ -174,7 +175,9 @@ class PointReader {
 // .pts, .pcd (ascii, binary and binary_compressed; field names in any case;
 // packed rgb/rgba or separate r g b fields), .laz (LASzip-compressed LAS, COPC
 // included; see relief/laz.h for what is supported), .ptx (Leica's scans, each
-// scan's matrix applied). Unknown extensions give kUnsupported.
+// scan's matrix applied), .e57 (ASTM E2807 3D scans, each scan's pose
+// applied; the default bitpack codec; a regular file, not a pipe). Unknown
+// extensions give kUnsupported.
 Result<std::unique_ptr<PointReader>> open_point_reader(const std::string& path,
                                                        const ReaderOptions& options = {});
 
