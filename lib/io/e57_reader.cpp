@@ -46,9 +46,10 @@
 // or lengths outside the file, a scan whose bytestreams end before its
 // recordCount, a value outside its field's declared range, String or nested
 // fields, any codec but bitpack (kUnsupported), scans that carry different
-// attributes. Memory is bounded by the XML section (at most kMaxXml) plus a
-// buffer per field (a bytestream buffer is at most 64 KiB), never by a count
-// the file states; every loop over packets is bounded by the section's bytes.
+// attributes. Memory is bounded by the XML section (at most kMaxXml bytes and
+// kMaxXmlElements elements) plus a buffer per field (a bytestream buffer is at
+// most 64 KiB), never by a count the file states; every loop over packets is
+// bounded by the section's bytes.
 
 #include <expat.h>
 
@@ -88,6 +89,10 @@ constexpr std::size_t kCachedPages = 16;
 // The XML section is metadata (a few KB for a scan); this bounds its memory.
 constexpr std::uint64_t kMaxXml = std::uint64_t{64} << 20;
 constexpr int kMaxXmlDepth = 64;
+// A scan's XML is some fifty elements; this bounds the tree built from a
+// hostile section (an element costs about 150 bytes in it, however short
+// its text).
+constexpr std::size_t kMaxXmlElements = std::size_t{1} << 20;
 // Far above the fields of a real prototype (a dozen), and a buffer of up to
 // 64 KiB each.
 constexpr std::size_t kMaxFields = 256;
@@ -146,6 +151,7 @@ struct XmlBuilder {
   XmlNode root;
   std::vector<XmlNode*> stack;  // open elements; empty before the root and after it
   bool have_root = false;
+  std::size_t elements = 0;
   std::string error;
 
   void fail(std::string what) {
@@ -158,6 +164,10 @@ struct XmlBuilder {
     if (!b->error.empty()) return;
     if (b->stack.size() >= static_cast<std::size_t>(kMaxXmlDepth)) {
       b->fail("elements nested deeper than " + std::to_string(kMaxXmlDepth));
+      return;
+    }
+    if (++b->elements > kMaxXmlElements) {
+      b->fail("more than " + std::to_string(kMaxXmlElements) + " elements");
       return;
     }
     XmlNode* node = nullptr;
