@@ -350,14 +350,6 @@ bool parse_value_bytes(std::string_view tok, char type, std::size_t size, std::u
   return ok;
 }
 
-bool parse_double(std::string_view tok, double& out) {
-  const char* first = tok.data();
-  const char* const last = tok.data() + tok.size();
-  if (last - first > 1 && *first == '+' && first[1] != '-' && first[1] != '+') ++first;
-  const auto [p, ec] = std::from_chars(first, last, out);
-  return ec == std::errc{} && p == last && first != last;
-}
-
 // A packed colour in an ascii body. PCL writes it as the unsigned integer of
 // its bits (since 1.x, because opaque colours are NaN as floats); older
 // writers printed the float value, whose bits are the colour.
@@ -582,13 +574,13 @@ Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, V
     bool ok = true;
     switch (role) {
       case kX:
-        ok = parse_double(tok, v.x);
+        ok = parse_number(tok, v.x);
         break;
       case kY:
-        ok = parse_double(tok, v.y);
+        ok = parse_number(tok, v.y);
         break;
       case kZ:
-        ok = parse_double(tok, v.z);
+        ok = parse_number(tok, v.z);
         break;
       case kRgb:
         ok = parse_packed_color(tok, rgb_->type, v.rgb);
@@ -596,7 +588,7 @@ Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, V
       case kRed:
       case kGreen:
       case kBlue:
-        ok = parse_double(tok, v.levels[role - kRed]);
+        ok = parse_number(tok, v.levels[role - kRed]);
         break;
       case kExtra: {
         const Extra& e = extras_[extra_of_column_[c]];
@@ -604,7 +596,7 @@ Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, V
         break;
       }
       default:
-        ok = parse_double(tok, v.intensity);
+        ok = parse_number(tok, v.intensity);
         break;
     }
     if (!ok)
