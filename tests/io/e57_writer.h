@@ -101,7 +101,7 @@ inline std::vector<std::uint8_t> bytestream(const Field& f) {
     return out;
   }
   const std::uint64_t span = static_cast<std::uint64_t>(f.maximum) - static_cast<std::uint64_t>(f.minimum);
-  const int width = std::bit_width(span);
+  const int width = static_cast<int>(std::bit_width(span));
   std::uint8_t cur = 0;
   int filled = 0;
   for (std::int64_t v : f.ints) {
