@@ -37,6 +37,7 @@ __all__ = [
     "check",
     "compress",
     "open",
+    "read",
     "retain_freed_memory",
     "write",
 ]
@@ -233,6 +234,34 @@ def _attribute_list(attributes):
     return ",".join(names) if names else "none"
 
 
+_EXTRA_TYPES = {"uint8": "u1", "int8": "i1", "uint16": "<u2", "int16": "<i2", "uint32": "<u4", "int32": "<i4",
+                "uint64": "<u8", "int64": "<i8", "float32": "<f4", "float64": "<f8"}
+
+
+def _with_extra_fields(array, described):
+    """`array` viewed with each field of `described` (dicts with name, type,
+    offset and size, as ``info["las"]["extra_bytes"]`` lists them) as a
+    typed field beside ``extra_bytes``."""
+    names = array.dtype.names or ()
+    if "extra_bytes" not in names or not described:
+        return array
+    import numpy as np
+
+    base, at = array.dtype.fields["extra_bytes"][:2]
+    fields = {n: array.dtype.fields[n][:2] for n in names}
+    for f in described:
+        kind, _, count = f["type"].partition("[")
+        if f["name"] in fields or kind not in _EXTRA_TYPES or f["offset"] + f["size"] > base.itemsize:
+            continue
+        t = np.dtype(_EXTRA_TYPES[kind])
+        if count:
+            t = np.dtype((t, (int(count.rstrip("]")),)))
+        fields[f["name"]] = (t, at + f["offset"])
+    view = np.dtype({"names": list(fields), "formats": [v[0] for v in fields.values()],
+                     "offsets": [v[1] for v in fields.values()], "itemsize": array.dtype.itemsize})
+    return array.view(view)
+
+
 def _warn_all(messages):
     for m in messages:
         _warnings.warn(m, RuntimeWarning, stacklevel=3)
@@ -364,31 +393,10 @@ class Archive:
         finally:
             stream.close()
 
-    _EXTRA_TYPES = {"uint8": "u1", "int8": "i1", "uint16": "<u2", "int16": "<i2", "uint32": "<u4", "int32": "<i4",
-                    "uint64": "<u8", "int64": "<i8", "float32": "<f4", "float64": "<f8"}
-
     def _with_extra_fields(self, array):
         """`array` viewed with each described extra bytes field as a typed field."""
-        names = array.dtype.names or ()
         las = self.info.get("las") or {}
-        described = las.get("extra_bytes") or []
-        if "extra_bytes" not in names or not described:
-            return array
-        import numpy as np
-
-        base, at = array.dtype.fields["extra_bytes"][:2]
-        fields = {n: array.dtype.fields[n][:2] for n in names}
-        for f in described:
-            kind, _, count = f["type"].partition("[")
-            if f["name"] in fields or kind not in self._EXTRA_TYPES or f["offset"] + f["size"] > base.itemsize:
-                continue
-            t = np.dtype(self._EXTRA_TYPES[kind])
-            if count:
-                t = np.dtype((t, (int(count.rstrip("]")),)))
-            fields[f["name"]] = (t, at + f["offset"])
-        view = np.dtype({"names": list(fields), "formats": [v[0] for v in fields.values()],
-                         "offsets": [v[1] for v in fields.values()], "itemsize": array.dtype.itemsize})
-        return array.view(view)
+        return _with_extra_fields(array, las.get("extra_bytes") or [])
 
     def preview(self, box=None, *, path=None, width=1024, view="top", azimuth=30, elevation=35, lod=None,
                 threads=0):
@@ -537,6 +545,29 @@ def stats(path, *, attributes=None):
     ``Archive.stats`` summarises an archive (the same dict): compare the two
     to check an archive against its source."""
     return _json.loads(_relief.file_stats_json(str(path), _attribute_list(attributes)))
+
+
+def read(path, *, attributes=None, columns=None, extra_bytes=True):
+    """Every point of a point file as a numpy structured array.
+
+    Any format ``relief compress`` reads, by extension: ``.las``, ``.laz``
+    (COPC too), ``.ply``, ``.xyz``/``.txt``/``.csv``/``.pts``, ``.pcd``,
+    ``.ptx``, ``.e57``, read by the library's own readers, as they read
+    inputs (the same rules, checks and warnings, which come as
+    RuntimeWarnings). The fields are those :meth:`Archive.query` gives for
+    an archive of the file: x, y, z; red, green, blue (uint8, or uint16 LAS
+    values for 16-bit colours); intensity; the LAS attributes the points
+    carry; ``extra_bytes`` with a typed field for each described one.
+    ``attributes``: only those beside x, y, z (as ``query`` takes them);
+    ``columns``: the columns of a text file, as ``compress`` takes them
+    (``"x,y,z,i,r,g,b"``); ``extra_bytes=False`` drops the extra fields. The
+    whole file is read into memory: for files larger than memory, compress
+    them and query the archive.
+    """
+    array, messages, described = _relief.read_points(str(path), _attribute_list(attributes), columns or "",
+                                                     bool(extra_bytes))
+    _warn_all(messages)
+    return _with_extra_fields(array, [{"name": n, "type": t, "offset": o, "size": s} for n, t, o, s in described])
 
 
 def write(path, points, *, crs=None, scale=None):

@@ -19,6 +19,7 @@
 
 #include "arrays.h"
 #include "batch_stream.h"
+#include "reader.h"
 #include "writer.h"
 #include "relief/archive.h"
 #include "relief/ingest.h"
@@ -519,6 +520,16 @@ PYBIND11_MODULE(_relief, m) {
       .def_property_readonly("closed", &Reader::closed)
       .def_property_readonly("path", &Reader::path);
 
+  m.def(
+      "read_points",
+      [](const std::string& path, const std::string& attributes, const std::string& columns, bool extra_bytes) {
+        ReadPoints r;
+        if (const Status s = read_points(path, attributes, columns, extra_bytes, r); !s) raise_status(s);
+        py::list extra;
+        for (const ExtraBytesField& f : r.extra) extra.append(py::make_tuple(f.name, f.type_name, f.offset, f.size));
+        return py::make_tuple(r.points, r.warnings, extra);
+      },
+      py::arg("path"), py::arg("attributes"), py::arg("columns"), py::arg("extra_bytes"));
   m.def(
       "write_points",
       [](const std::string& path, const py::dict& columns, const py::object& extra, const py::bytes& extra_vlr,

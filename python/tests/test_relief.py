@@ -619,6 +619,41 @@ def test_write_gives_every_las_field_back(tmp_path, ext):
         assert np.array_equal(a[name], b[name]), name
 
 
+@pytest.mark.parametrize("ext", ["las", "laz", "ply"])
+def test_read_gives_a_files_points_as_write_wrote_them(tmp_path, ext):
+    a = _every_las_field(3000)
+    relief.write(tmp_path / f"p.{ext}", a)
+    b = relief.read(tmp_path / f"p.{ext}")
+    assert b.dtype.names == a.dtype.names
+    for name in a.dtype.names:
+        assert np.array_equal(a[name], b[name]), name
+    # As a query of the file's archive gives them.
+    relief.compress(tmp_path / f"p.{ext}", tmp_path / "p.relief")
+    with relief.open(tmp_path / "p.relief") as archive:
+        q = archive.query()
+    assert q.dtype == b.dtype
+    only = relief.read(tmp_path / f"p.{ext}", attributes=["classification"])
+    assert only.dtype.names == ("x", "y", "z", "classification")
+    assert np.array_equal(only["classification"], a["classification"])
+
+
+def test_read_text_extra_fields_and_errors(tmp_path):
+    (tmp_path / "s.pts").write_text("2\n1 2 3 -1200 10 20 30\n4 5 6 7 40 50 60\n")
+    p = relief.read(tmp_path / "s.pts")  # Leica's columns: x y z intensity r g b
+    assert p["intensity"].tolist() == [-1200, 7] and p["green"].tolist() == [20, 50]
+    (tmp_path / "h.xyz").write_text("1 2 3 0.5 9\n4 5 6 0.25 8\n")
+    with pytest.warns(RuntimeWarning, match="kept as extra bytes"):
+        h = relief.read(tmp_path / "h.xyz")
+    assert h["column_4"].tolist() == [0.5, 0.25] and h["column_5"].tolist() == [9, 8]
+    named = relief.read(tmp_path / "h.xyz", columns="x,y,z,i,_")
+    assert named.dtype.names == ("x", "y", "z", "intensity")
+    with pytest.raises(relief.IoError, match="missing.las"):
+        relief.read(tmp_path / "missing.las")
+    (tmp_path / "bad.pts").write_text("5\n1 2 3 4\n")
+    with pytest.raises(relief.FormatError, match="announces 5 points"):
+        relief.read(tmp_path / "bad.pts")
+
+
 def test_compress_with_a_crs_for_files_without_one(tmp_path, scene):
     src = tmp_path / "utm.xyz"
     with open(src, "w") as f:
