@@ -547,7 +547,7 @@ def stats(path, *, attributes=None):
     return _json.loads(_relief.file_stats_json(str(path), _attribute_list(attributes)))
 
 
-def read(path, *, attributes=None, columns=None, extra_bytes=True):
+def read(path, *, attributes=None, columns=None, extra_bytes=True, batches=False, batch_points=1 << 20):
     """Every point of a point file as a numpy structured array.
 
     Any format ``relief compress`` reads, by extension: ``.las``, ``.laz``
@@ -560,14 +560,38 @@ def read(path, *, attributes=None, columns=None, extra_bytes=True):
     carry; ``extra_bytes`` with a typed field for each described one.
     ``attributes``: only those beside x, y, z (as ``query`` takes them);
     ``columns``: the columns of a text file, as ``compress`` takes them
-    (``"x,y,z,i,r,g,b"``); ``extra_bytes=False`` drops the extra fields. The
-    whole file is read into memory: for files larger than memory, compress
-    them and query the archive.
+    (``"x,y,z,i,r,g,b"``); ``extra_bytes=False`` drops the extra fields.
+    The whole file is read into memory, unless ``batches=True``: then an
+    iterator of arrays of at most ``batch_points`` points each, in the
+    file's order, one batch in memory at a time (close it, or let it go, to
+    stop early). A file that cannot be opened raises here, a later error
+    when its batch is reached.
     """
+    if batches:
+        it = _relief.read_batches(str(path), _attribute_list(attributes), columns or "", bool(extra_bytes),
+                                  int(batch_points))
+        return _file_batches(it, _described(it.extra_fields()))
     array, messages, described = _relief.read_points(str(path), _attribute_list(attributes), columns or "",
                                                      bool(extra_bytes))
     _warn_all(messages)
-    return _with_extra_fields(array, [{"name": n, "type": t, "offset": o, "size": s} for n, t, o, s in described])
+    return _with_extra_fields(array, _described(described))
+
+
+def _described(fields):
+    """(name, type, offset, size) tuples as ``info["las"]["extra_bytes"]`` lists fields."""
+    return [{"name": n, "type": t, "offset": o, "size": s} for n, t, o, s in fields]
+
+
+def _file_batches(it, described):
+    # A generator, so an abandoned iteration closes the file when the
+    # generator is collected or closed.
+    try:
+        for array, messages in it:
+            _warn_all(messages)
+            if array is not None:
+                yield _with_extra_fields(array, described)
+    finally:
+        it.close()
 
 
 def write(path, points, *, crs=None, scale=None):

@@ -240,6 +240,54 @@ class BatchIterator {
   FieldSet fields_;
 };
 
+// relief.read(batches=True) on the C++ side: next() -> (array, warnings),
+// StopIteration at the end, the reader's error raised in its place.
+class FileBatchIterator {
+ public:
+  explicit FileBatchIterator(std::unique_ptr<PointFileBatches> file) : file_(std::move(file)) {}
+  ~FileBatchIterator() {
+    py::gil_scoped_release release;
+    file_.reset();
+  }
+
+  py::tuple next() {
+    if (!file_) throw py::stop_iteration();
+    PointCloud batch;
+    FieldSet fields;
+    std::vector<std::string> said;
+    Status status;
+    {
+      py::gil_scoped_release release;
+      status = file_->next(batch, fields, said);
+    }
+    if (!status || batch.empty()) {
+      close();
+      if (!status) raise_status(status);
+      if (!said.empty()) return py::make_tuple(py::none(), said);
+      throw py::stop_iteration();
+    }
+    std::vector<PointCloud> one;
+    one.push_back(std::move(batch));
+    return py::make_tuple(to_array(one, fields), said);
+  }
+
+  py::list extra_fields() const {
+    py::list out;
+    if (file_) {
+      for (const ExtraBytesField& f : file_->extra()) out.append(py::make_tuple(f.name, f.type_name, f.offset, f.size));
+    }
+    return out;
+  }
+
+  void close() {
+    py::gil_scoped_release release;
+    file_.reset();
+  }
+
+ private:
+  std::unique_ptr<PointFileBatches> file_;
+};
+
 // An open archive. One query at a time uses its reader (the mutex); batch
 // queries open their own reader so they can run beside it.
 class Reader {
@@ -500,6 +548,25 @@ PYBIND11_MODULE(_relief, m) {
       .def("__iter__", [](BatchIterator& it) -> BatchIterator& { return it; })
       .def("__next__", &BatchIterator::next)
       .def("close", &BatchIterator::close);
+
+  py::class_<FileBatchIterator>(m, "FileBatchIterator")
+      .def("__iter__", [](FileBatchIterator& it) -> FileBatchIterator& { return it; })
+      .def("__next__", &FileBatchIterator::next)
+      .def("extra_fields", &FileBatchIterator::extra_fields)
+      .def("close", &FileBatchIterator::close);
+  m.def(
+      "read_batches",
+      [](const std::string& path, const std::string& attributes, const std::string& columns, bool extra_bytes,
+         std::size_t batch_points) {
+        Result<std::unique_ptr<PointFileBatches>> file = Status(internal_error("not opened"));
+        {
+          py::gil_scoped_release release;
+          file = PointFileBatches::open(path, attributes, columns, extra_bytes, batch_points);
+        }
+        if (!file) raise_status(file.status());
+        return std::make_unique<FileBatchIterator>(std::move(file).value());
+      },
+      py::arg("path"), py::arg("attributes"), py::arg("columns"), py::arg("extra_bytes"), py::arg("batch_points"));
 
   py::class_<Reader>(m, "Reader")
       .def(py::init<const std::string&>(), py::arg("path"))

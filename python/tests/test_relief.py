@@ -637,6 +637,26 @@ def test_read_gives_a_files_points_as_write_wrote_them(tmp_path, ext):
     assert np.array_equal(only["classification"], a["classification"])
 
 
+def test_read_in_batches_gives_the_whole_read(tmp_path):
+    a = _every_las_field(3000)
+    relief.write(tmp_path / "p.laz", a)
+    whole = relief.read(tmp_path / "p.laz")
+    parts = list(relief.read(tmp_path / "p.laz", batches=True, batch_points=1000))
+    assert [len(p) for p in parts] == [1000, 1000, 1000]
+    assert all(p.dtype == whole.dtype for p in parts)
+    assert np.array_equal(np.concatenate(parts), whole)
+    it = relief.read(tmp_path / "p.laz", batches=True, batch_points=7)
+    assert len(next(it)) == 7
+    it.close()  # stops early
+    with pytest.raises(relief.IoError):
+        relief.read(tmp_path / "missing.laz", batches=True)  # raised at once, not at the first batch
+    (tmp_path / "bad.pts").write_text("3\n1 2 3 4\n1 2 3 4\n")
+    with pytest.raises(relief.FormatError, match="ends after 2 of them"):
+        list(relief.read(tmp_path / "bad.pts", batches=True, batch_points=1))
+    with pytest.raises(relief.InvalidArgumentError):
+        relief.read(tmp_path / "p.laz", batches=True, batch_points=0)
+
+
 def test_read_text_extra_fields_and_errors(tmp_path):
     (tmp_path / "s.pts").write_text("2\n1 2 3 -1200 10 20 30\n4 5 6 7 40 50 60\n")
     p = relief.read(tmp_path / "s.pts")  # Leica's columns: x y z intensity r g b
