@@ -11,19 +11,23 @@ namespace relief {
 
 // Reads exactly `n` bytes of `fd` at `offset` into `to`, going on after short
 // reads and EINTR. Returns 0 when all were read, the errno of a failed read,
-// or -1 when the file ends first; the caller says which file and why.
-inline int pread_exact(int fd, void* to, std::size_t n, std::uint64_t offset) {
+// or -1 when the file ends first; the caller says which file and why. `got`,
+// when given, is set to the bytes read either way.
+inline int pread_exact(int fd, void* to, std::size_t n, std::uint64_t offset, std::size_t* got = nullptr) {
   auto* p = static_cast<std::uint8_t*>(to);
-  while (n > 0) {
-    const ssize_t r = ::pread(fd, p, n, static_cast<off_t>(offset));
+  std::size_t done = 0;
+  int result = 0;
+  while (done < n) {
+    const ssize_t r = ::pread(fd, p + done, n - done, static_cast<off_t>(offset + done));
     if (r < 0 && errno == EINTR) continue;
-    if (r < 0) return errno;
-    if (r == 0) return -1;
-    p += r;
-    offset += static_cast<std::uint64_t>(r);
-    n -= static_cast<std::size_t>(r);
+    if (r <= 0) {
+      result = r < 0 ? errno : -1;
+      break;
+    }
+    done += static_cast<std::size_t>(r);
   }
-  return 0;
+  if (got != nullptr) *got = done;
+  return result;
 }
 
 }  // namespace relief

@@ -1,5 +1,7 @@
 #include "io/byte_source.h"
 
+#include "core/file_io.h"
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -170,15 +172,9 @@ Status ByteSource::read_at(std::uint64_t offset, std::span<std::uint8_t> out, st
     return Status::ok();
   }
   if (!seekable_) return unsupported(path_ + ": cannot be read out of order (a pipe or device, not a regular file)");
-  while (got < out.size()) {
-    const ssize_t n = ::pread(fd_, out.data() + got, out.size() - got, static_cast<off_t>(offset + got));
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      return io_error(path_ + ": read failed at byte " + std::to_string(offset + got) + ": " + errno_text(errno));
-    }
-    if (n == 0) break;
-    got += static_cast<std::size_t>(n);
-  }
+  // An early end leaves got short, which the caller judges.
+  const int e = pread_exact(fd_, out.data(), out.size(), offset, &got);
+  if (e > 0) return io_error(path_ + ": read failed at byte " + std::to_string(offset + got) + ": " + errno_text(e));
   return Status::ok();
 }
 
