@@ -180,7 +180,7 @@ std::optional<double> bd_rate(std::vector<CurvePoint> a, std::vector<CurvePoint>
 std::string pct(std::optional<double> v) {
   if (!v) return "n/a";
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%+.1f%%", 100 * *v);
+  std::snprintf(buf, sizeof buf, "%+.2f%%", 100 * *v);
   return buf;
 }
 
