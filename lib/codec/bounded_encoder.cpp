@@ -192,7 +192,7 @@ bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::s
     i = j;
   }
   const std::uint64_t share = std::uint64_t{scan_bytes} * m / n;  // both below 2^32: no overflow
-  return encode_geometry_within(trial, depth, OctreeCoding::kFacePatterns, share).has_value();
+  return encode_geometry_within(trial, depth, OctreeCoding::kPlanes, share).has_value();
 }
 
 Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
@@ -204,7 +204,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  // 13: geometry codec 12 or 9 (time order), colour codec 6 or 10, voted LAS
+  // 13: geometry codec 9 (time order; 16 below for the octree, codec 13), colour codec 6 or 10, voted LAS
   // bytes, an intensity tolerance; 14 (below) for keep_order's scan order
   // without GPS times or with times that step back.
   h.version = kOrderFreeFormatVersion;
@@ -301,7 +301,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // smaller of the two codings of geometry and times (the octree when they
   // tie), and stops coding the octree once it is sure to lose.
   std::vector<std::uint8_t> geometry;
-  SectionCodec geometry_codec = SectionCodec::kOctreeFaces;
+  SectionCodec geometry_codec = SectionCodec::kOctreePlanes;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
   if (bound.keep_order && n > 1) {
@@ -336,9 +336,10 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       std::vector<std::uint8_t> gps_ranked;
       if (octree_may_win(scan.order, depth, scan_bytes)) {
         time_order = las_time_order(cell_las.gps_time);
-        gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, h.version, cells_in_order(q, lo, order), time_order);
+        gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, kOctreePlanesFormatVersion, cells_in_order(q, lo, order),
+                                          time_order);
         if (gps_ranked.size() <= scan_bytes) {
-          octree = encode_geometry_within(cells, depth, OctreeCoding::kFacePatterns, scan_bytes - gps_ranked.size());
+          octree = encode_geometry_within(cells, depth, OctreeCoding::kPlanes, scan_bytes - gps_ranked.size());
         }
       }
       if (octree) {
@@ -353,9 +354,12 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       }
     }
   }
-  if (geometry_codec == SectionCodec::kOctreeFaces && geometry.empty()) {
-    geometry = encode_geometry(cells, depth, OctreeCoding::kFacePatterns);
+  if (geometry_codec == SectionCodec::kOctreePlanes && geometry.empty()) {
+    geometry = encode_geometry(cells, depth, OctreeCoding::kPlanes);
   }
+  // Format 16 for octree geometry (codec 13), its LAS sections with format
+  // 15's codings; 13, 14 or 15 (below) for geometry in scan order.
+  if (geometry_codec == SectionCodec::kOctreePlanes) h.version = kOctreePlanesFormatVersion;
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;
   payloads.push_back(std::move(geometry));
@@ -578,8 +582,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         const int slot = order_slot(bit);
         // The section's format-15 coding, where it differs (§11.7, §11.7.2):
         // the scan angle in time order, NIR with colours.
-        const bool v15_differs =
-            (bit == kLasScanAngle && !time_order.empty()) || (bit == kLasNir && !base.colors.empty());
+        // (Format 16 codes them so already.)
+        const bool v15_differs = h.version < kLasCodingFormatVersion &&
+                                 ((bit == kLasScanAngle && !time_order.empty()) || (bit == kLasNir && !base.colors.empty()));
         if (cell_pos.empty() || slot < 0) {
           payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors));
           if (v15_differs) {

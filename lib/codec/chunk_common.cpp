@@ -61,10 +61,11 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec, std::ui
       return c == SectionCodec::kJpeg2000;
     case SectionId::kGeometry:
       // One octree coding per version: codec 6 in versions 2 and 3, codec 7
-      // in 5 and 6, codec 8 in 7 to 9, codec 11 in 10 to 12, codec 12 from
-      // 13; version 8 adds codec 9 (time order).
+      // in 5 and 6, codec 8 in 7 to 9, codec 11 in 10 to 12, codec 12 in 13
+      // to 15, codec 13 from 16; version 8 adds codec 9 (time order).
       if (version >= 8 && c == SectionCodec::kScanOrder) return true;
-      return c == (version >= 13  ? SectionCodec::kOctreeFaces
+      return c == (version >= 16   ? SectionCodec::kOctreePlanes
+                   : version >= 13 ? SectionCodec::kOctreeFaces
                    : version >= 10 ? SectionCodec::kOctreeChains
                    : version >= 7 ? SectionCodec::kOctreeMixed
                    : version >= 5 ? SectionCodec::kOctreeSingleChild

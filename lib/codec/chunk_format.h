@@ -81,6 +81,10 @@ enum class SectionCodec : std::uint8_t {
   // the minus neighbours' children on the shared faces, and an adaptive
   // probability map after it (format-spec/chunk.md §11.3.5).
   kOctreeFaces = 12,
+  // Geometry only (version 16): codec 12 with single children's and chains'
+  // index bits told where a plane fitted to the nearby known cells crosses
+  // the node (format-spec/chunk.md §11.3.6).
+  kOctreePlanes = 13,
 };
 
 // How the error-bounded layer codes intensity (header byte 162).

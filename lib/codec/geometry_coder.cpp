@@ -13,7 +13,10 @@
 // is codec 8 with chains: an isolated node's one-cell subtree coded with the
 // plain index models, no flag and no mixing (format-spec/chunk.md §11.3.4).
 // Codec 12 (chunk format 13) is codec 11 with a third model in every mix and
-// an adaptive probability map after it (mix_code_faces, §11.3.5).
+// an adaptive probability map after it (mix_code_faces, §11.3.5). Codec 13
+// (chunk format 16) is codec 12 with each single child's index bits (and a
+// chain's) predicted by a plane fitted to the nearby cells the decoder knows
+// (PlaneSums, §11.3.6).
 #include "codec/geometry_coder.h"
 
 #include <algorithm>
@@ -21,6 +24,10 @@
 #include <bit>
 #include <memory>
 #include <string>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "codec/octree.h"
 #include "codec/range_coder.h"
@@ -253,6 +260,222 @@ struct FaceModels {
   Apm index_apm[64];
 };
 
+// ---- Codec 13: plane prediction of a single child's index bits (§11.3.6).
+// The points: the children of the (up to) kPlaneWindow nodes before the node
+// in the level's order and the centres of the kPlaneWindow after it, those
+// within kPlaneReach cells (each axis) of it; coordinates relative to the node
+// in quarter-node units (the node spans 0..4, its children's centres are at 1
+// and 3). Every value below is an exact integer: with at most 8 kPlaneWindow +
+// kPlaneWindow points of coordinates |p| <= 4 kPlaneReach + 3 = 19 the sums
+// stay below 2^17 and the determinants below 2^50; the residual is formed in
+// 128 bits.
+constexpr std::size_t kPlaneWindow = 32;
+constexpr std::int64_t kPlaneReach = 4;
+constexpr int kPlaneClasses = 17;       // plane_class
+constexpr int kChildPlaneClasses = 9;   // child_plane_class
+static_assert(kPlaneWindow <= 32, "the scan keeps one bit per node in a 64-bit mask");
+
+// By child byte: the count of children and, over them, the sums of e_a =
+// 2 c_a + 1 (c_a: the child's bit along axis a) and of e_a e_b (a <= b, in
+// the order xx, xy, xz, yy, yz, zz).
+struct ChildMoments {
+  std::int32_t n;
+  std::int32_t e[3];
+  std::int32_t ee[6];
+};
+constexpr auto kChildMoments = [] {
+  std::array<ChildMoments, 256> t{};
+  for (int byte = 0; byte < 256; ++byte) {
+    ChildMoments m{};
+    for (int k = 0; k < 8; ++k) {
+      if (((byte >> k) & 1) == 0) continue;
+      const std::int32_t e[3] = {2 * (k & 1) + 1, 2 * ((k >> 1) & 1) + 1, 2 * (k >> 2) + 1};
+      ++m.n;
+      for (int a = 0, q = 0; a < 3; ++a) {
+        m.e[a] += e[a];
+        for (int b = a; b < 3; ++b, ++q) m.ee[q] += e[a] * e[b];
+      }
+    }
+    t[static_cast<std::size_t>(byte)] = m;
+  }
+  return t;
+}();
+// Index of (a, b) in ChildMoments::ee.
+constexpr int kPairIndex[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+
+// Sums over points of 1, p_a and p_a p_b (a <= b, in ChildMoments' order).
+// The scan adds up each neighbour's sums in the level's absolute quarter-cell
+// coordinates (4 x + e: below 2^23 at depth 21, so a product below 2^46 and a
+// sum of at most 288 of them below 2^55), then moves the origin to the node
+// once (to_node). The result is the same integers as summing the relative
+// coordinates point by point, with 10 additions a neighbour.
+struct PlaneSums {
+  std::int64_t n = 0;
+  std::int64_t s[3] = {0, 0, 0};
+  std::int64_t ss[6] = {0, 0, 0, 0, 0, 0};
+
+  // The children of a node at cell (x, y, z) whose child byte's moments are m.
+  static PlaneSums children(std::int64_t x, std::int64_t y, std::int64_t z, const ChildMoments& m) {
+    PlaneSums out;
+    const std::int64_t o[3] = {4 * x, 4 * y, 4 * z};
+    out.n = m.n;
+    for (int a = 0, q = 0; a < 3; ++a) {
+      out.s[a] = o[a] * m.n + m.e[a];
+      for (int b = a; b < 3; ++b, ++q) out.ss[q] = o[a] * o[b] * m.n + o[a] * m.e[b] + o[b] * m.e[a] + m.ee[q];
+    }
+    return out;
+  }
+  void add(const PlaneSums& m) {
+    n += m.n;
+    for (int a = 0; a < 3; ++a) s[a] += m.s[a];
+    for (int q = 0; q < 6; ++q) ss[q] += m.ss[q];
+  }
+  // One point at p.
+  void add_point(std::int64_t px, std::int64_t py, std::int64_t pz) {
+    ++n;
+    s[0] += px, s[1] += py, s[2] += pz;
+    ss[0] += px * px, ss[1] += px * py, ss[2] += px * pz, ss[3] += py * py, ss[4] += py * pz, ss[5] += pz * pz;
+  }
+  // The same points relative to the origin o: sum (p_a - o_a)(p_b - o_b) =
+  // sum p_a p_b - o_a sum p_b - o_b sum p_a + n o_a o_b (each term below 2^55).
+  void to_node(const std::int64_t* o) {
+    for (int a = 0, q = 0; a < 3; ++a) {
+      for (int b = a; b < 3; ++b, ++q) ss[q] += n * o[a] * o[b] - o[a] * s[b] - o[b] * s[a];
+    }
+    for (int a = 0; a < 3; ++a) s[a] -= n * o[a];
+  }
+  std::int64_t sum2(int a, int b) const { return ss[kPairIndex[a][b]]; }
+};
+
+constexpr std::int64_t det3(std::int64_t a, std::int64_t b, std::int64_t c, std::int64_t d, std::int64_t e,
+                            std::int64_t f, std::int64_t g, std::int64_t h, std::int64_t i) {
+  return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
+}
+
+// Bit j - begin for each node j in [begin, i) and bit 32 + j - i - 1 for each
+// in (i, end) whose cell is within kPlaneReach of (x, y, z) on every axis
+// (i - begin <= 32, end - i - 1 <= 32). The level's coordinates are below
+// 2^21, so the differences fit an int32.
+inline bool within_reach(std::int32_t d) {
+  return static_cast<std::uint32_t>(d + static_cast<std::int32_t>(kPlaneReach)) <= 2 * kPlaneReach;
+}
+std::uint64_t near_mask(const std::int32_t* lx, const std::int32_t* ly, const std::int32_t* lz, std::size_t begin,
+                        std::size_t i, std::size_t end, std::int32_t x, std::int32_t y, std::int32_t z) {
+  const auto run = [&](std::size_t from, std::size_t to) {
+    std::uint32_t bits = 0;
+    std::size_t j = from;
+#if defined(__SSE2__)
+    // Four nodes at a time: |d| <= reach as -reach - 1 < d < reach + 1.
+    const __m128i vx = _mm_set1_epi32(x), vy = _mm_set1_epi32(y), vz = _mm_set1_epi32(z);
+    const __m128i lo = _mm_set1_epi32(-static_cast<std::int32_t>(kPlaneReach) - 1);
+    const __m128i hi = _mm_set1_epi32(static_cast<std::int32_t>(kPlaneReach) + 1);
+    const auto in = [&](const std::int32_t* l, __m128i v) {
+      const __m128i d = _mm_sub_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(l)), v);
+      return _mm_and_si128(_mm_cmpgt_epi32(d, lo), _mm_cmplt_epi32(d, hi));
+    };
+    for (; j + 4 <= to; j += 4) {
+      const __m128i ok = _mm_and_si128(_mm_and_si128(in(lx + j, vx), in(ly + j, vy)), in(lz + j, vz));
+      bits |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(ok))) << (j - from);
+    }
+#endif
+    for (; j < to; ++j) {
+      const bool ok = within_reach(lx[j] - x) && within_reach(ly[j] - y) && within_reach(lz[j] - z);
+      bits |= static_cast<std::uint32_t>(ok) << (j - from);
+    }
+    return bits;
+  };
+  return std::uint64_t{run(begin, i)} | std::uint64_t{run(i + 1, end)} << 32;
+}
+
+// A 128-bit integer (GCC and Clang; __extension__ keeps -Wpedantic quiet).
+__extension__ typedef __int128 Int128;
+
+// The least-squares plane p_a = alpha + beta p_u + gamma p_v through the
+// points of `ps` along axis a (u, v the other two axes in increasing order),
+// by Cramer's rule: det is the determinant of the normal equations' matrix
+// and da, db, dg are det times alpha, beta and gamma; rss is det times the
+// residual sum of squares. Exact: with n <= 288 points of coordinates |p| <=
+// 19 the sums stay below 2^17, det and the other determinants below 2^50;
+// the products of two of them are formed in 128 bits. `ok` is false when
+// there are fewer than 3 points, they lie on a line in (u, v) (det <= 0), or
+// the plane is steeper than 2 along u or v (it then says little about a).
+struct AxisFit {
+  bool ok = false;
+  std::int64_t det = 0, da = 0, db = 0, dg = 0;
+  Int128 rss = 0;
+  // det times the plane's offset, at (u0, v0), from the coordinate c along a.
+  std::int64_t offset(std::int64_t u0, std::int64_t v0, std::int64_t c) const { return da + db * u0 + dg * v0 - c * det; }
+};
+AxisFit fit_axis(const PlaneSums& ps, int a) {
+  AxisFit f;
+  if (ps.n < 3) return f;
+  const int u = a == 0 ? 1 : 0, v = a == 2 ? 1 : 2;
+  const std::int64_t n = ps.n, su = ps.s[u], sv = ps.s[v], sa = ps.s[a];
+  const std::int64_t suu = ps.sum2(u, u), svv = ps.sum2(v, v), suv = ps.sum2(u, v);
+  const std::int64_t sua = ps.sum2(u, a), sva = ps.sum2(v, a), saa = ps.sum2(a, a);
+  f.det = det3(n, su, sv, su, suu, suv, sv, suv, svv);
+  if (f.det <= 0) return f;
+  f.da = det3(sa, su, sv, sua, suu, suv, sva, suv, svv);
+  f.db = det3(n, sa, sv, su, sua, suv, sv, sva, svv);
+  f.dg = det3(n, su, sa, su, suu, sua, sv, suv, sva);
+  if (f.db > 2 * f.det || f.db < -2 * f.det || f.dg > 2 * f.det || f.dg < -2 * f.det) return f;
+  f.rss = Int128{saa} * f.det - (Int128{f.da} * sa + Int128{f.db} * sua + Int128{f.dg} * sva);
+  f.ok = true;
+  return f;
+}
+
+// The plane class of a single child's coordinate along axis a (§11.3.6):
+// the fit along a evaluated at the child's (u0, v0) (2 c + 1 for an axis whose
+// bit c is decoded, else 2), its offset from the node's mid-plane 2 and that
+// offset against the fit's residual. 0: no fit; else 1 + 4 conf + 2 sure +
+// (offset > 0), conf 3 for |offset| >= 2, 2 for >= 1, 1 for >= 1/2, else 0,
+// sure when offset^2 >= rss / n (the offset is at least the residual's RMS).
+int plane_class(const PlaneSums& ps, int a, std::int64_t u0, std::int64_t v0) {
+  const AxisFit f = fit_axis(ps, a);
+  if (!f.ok) return 0;
+  const std::int64_t off = f.offset(u0, v0, 2);
+  const std::int64_t mag = off < 0 ? -off : off;
+  const int conf = mag >= 2 * f.det ? 3 : (mag >= f.det ? 2 : (2 * mag >= f.det ? 1 : 0));
+  // offset^2 >= (rss / det) / n  <=>  mag^2 n >= rss det (mag, rss: det times
+  // their values), both below 2^112.
+  const bool sure = Int128{mag} * mag * ps.n >= f.rss * f.det;
+  return 1 + 4 * conf + (sure ? 2 : 0) + (off > 0 ? 1 : 0);
+}
+
+// The plane of a node with several children (§11.3.6): the axis whose fit has
+// the least mean squared residual (rss / det; the first of z, y, x on a tie),
+// and whether that residual exceeds 2 per point.
+struct NodePlane {
+  int axis = -1;  // none
+  AxisFit fit;
+  bool thick = false;
+};
+NodePlane node_plane(const PlaneSums& ps) {
+  NodePlane best;
+  for (int a = 2; a >= 0; --a) {
+    const AxisFit f = fit_axis(ps, a);
+    if (!f.ok) continue;
+    // rss / det < best.rss / best.det, both below 2^102.
+    if (best.axis < 0 || f.rss * best.fit.det < best.fit.rss * f.det) best.axis = a, best.fit = f;
+  }
+  if (best.axis >= 0) best.thick = best.fit.rss > Int128{2 * ps.n} * best.fit.det;
+  return best;
+}
+
+// The class of child k of a node with several children: 0 without a plane;
+// else 1 + 2 dist + thick, dist 0..3 as the plane passes the child's centre
+// along the plane's axis closer than 1/2, 1, 2 quarter-node units, or not.
+int child_plane_class(const NodePlane& np, int k) {
+  if (np.axis < 0) return 0;
+  const int a = np.axis, u = a == 0 ? 1 : 0, v = a == 2 ? 1 : 2;
+  const auto e = [k](int axis) { return std::int64_t{2 * ((k >> axis) & 1) + 1}; };
+  const std::int64_t off = np.fit.offset(e(u), e(v), e(a));
+  const std::int64_t mag = off < 0 ? -off : off;
+  const std::int64_t det = np.fit.det;
+  const int dist = 2 * mag < det ? 0 : (mag < det ? 1 : (mag < 2 * det ? 2 : 3));
+  return 1 + 2 * dist + (np.thick ? 1 : 0);
+}
+
 // Codec 8's second models and mixers (weight sets: child bits by k and the
 // levels to the leaves, flags by lone and the levels to the leaves, index
 // bits by axis and the levels to the leaves), allocated for codecs 8, 11 and 12.
@@ -263,6 +486,18 @@ struct MixedModels {
   Mixer<32> child_mixer;
   Mixer<8> flag_mixer;
   Mixer<12> index_mixer;
+};
+
+// Codec 13's models: index models for chains (plain) and APMs for single
+// children (in place of codec 12's), by tree position t, plane class, the
+// axis's plane memory prediction and the levels to the leaves (chains) or
+// whether the axis's minus neighbour is occupied (single children); the child
+// bits' mixer weight sets (in place of codec 12's), by k, the levels to the
+// leaves and the child's plane class.
+struct PlaneModels {
+  BitModel chain_index[8 * kPlaneClasses * 3 * 4];
+  Apm index_apm[8 * kPlaneClasses * 3 * 2];
+  FaceMixer<32 * kChildPlaneClasses> child_mixer;
 };
 
 // Codec 11's chain flag: one model per number of levels left below the
@@ -277,7 +512,8 @@ struct GeometryModels {
   BitModel duplicate[kCountContexts];
   UIntModel extra;
   std::unique_ptr<MixedModels> mixed;  // codecs 8, 11 and 12
-  std::unique_ptr<FaceModels> faces;   // codec 12
+  std::unique_ptr<FaceModels> faces;   // codecs 12 and 13
+  std::unique_ptr<PlaneModels> planes;  // codec 13
 };
 
 // Visits every node of levels 0..depth-1 and codes its 8 child bits through
@@ -467,16 +703,20 @@ constexpr auto kScoreSpread = [] {
 // `true_chain(d, i)` (encoder side) is 1 when the subtree of node i of
 // level d holds one cell, for codec 11's chains.
 // kMixing: 0 for codecs 6 and 7, 1 for codecs 8 and 11 (two models mixed),
-// 2 for codec 12 (three models mixed, then the APM).
+// 2 for codec 12 (three models mixed, then the APM), 3 for codec 13 (codec
+// 12 with the plane classes of §11.3.6).
 template <int kMixing, typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                       Code& code, CodeProb& code_prob, TrueByte& true_byte, TrueChain& true_chain, Grow& grow) {
   constexpr bool mixed = kMixing >= 1;
-  constexpr bool three = kMixing == 2;
-  MixedModels* const mm = models.mixed.get();  // codec 8's, 11's and 12's, else null
-  FaceModels* const fm = models.faces.get();   // codec 12's, else null
+  constexpr bool three = kMixing >= 2;
+  constexpr bool plane = kMixing == 3;
+  MixedModels* const mm = models.mixed.get();  // codec 8's, 11's, 12's and 13's, else null
+  FaceModels* const fm = models.faces.get();   // codec 12's and 13's, else null
+  PlaneModels* const pm = models.planes.get();  // codec 13's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
-  const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns;
+  const bool chains =
+      coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns || coding == OctreeCoding::kPlanes;
   // Per node of the current level (codec 11): whether its subtree is known
   // to hold one cell (a chain), known to hold more, or not known.
   enum : std::uint8_t { kUnknown, kChain, kNotChain };
@@ -497,9 +737,28 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
   // child's are its parent's doubled plus its bit along each axis).
   std::vector<std::array<std::uint32_t, 3>> xyz_of(1, {0, 0, 0}), next_xyz;
   auto planes = std::make_unique<PlaneMemory>();
+  // Codec 13: the level's cell coordinates by axis (xyz_of's, for the
+  // plane sums' scan).
+  std::vector<std::int32_t> level_x, level_y, level_z;
+  struct RecentSums {
+    std::size_t node = SIZE_MAX;
+    PlaneSums sums;
+  };
+  std::array<RecentSums, kPlaneWindow> recent{};
   lone.assign(1, 0);
   for (int d = 0; d < depth; ++d) {
     planes->reset();
+    if constexpr (plane) {
+      for (RecentSums& r : recent) r.node = SIZE_MAX;
+      level_x.resize(nodes.size());
+      level_y.resize(nodes.size());
+      level_z.resize(nodes.size());
+      for (std::size_t i = 0; i < nodes.size(); ++i) {
+        level_x[i] = static_cast<std::int32_t>(xyz_of[i][0]);
+        level_y[i] = static_cast<std::int32_t>(xyz_of[i][1]);
+        level_z[i] = static_cast<std::int32_t>(xyz_of[i][2]);
+      }
+    }
     const int to_leaves = std::min(depth - 1 - d, 3);
     next_lone.clear();
     next_chain.clear();
@@ -548,12 +807,57 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         on_chain = code(models.chain_flag[std::min(depth - 1 - d, kChainFlagContexts - 1)], true_chain(d, i)) != 0;
         not_chain = !on_chain;
       }
+      // Codec 13: the node's plane sums (§11.3.6), made once its flags have
+      // said what it codes (index bits, or child bits): the children of the
+      // up to kPlaneWindow nodes before it and the centres of those after it
+      // that lie within kPlaneReach cells.
+      PlaneSums sums;
+      const auto gather = [&] {
+        // Which nodes lie within reach, in loops without branches (bit
+        // j - begin for a node before, 32 + j - i - 1 for one after), then
+        // the sums over those.
+        const std::size_t begin = i > kPlaneWindow ? i - kPlaneWindow : 0;
+        const std::size_t end = std::min(count, i + 1 + kPlaneWindow);
+        const auto x = static_cast<std::int32_t>(xyz[0]), y = static_cast<std::int32_t>(xyz[1]),
+                   z = static_cast<std::int32_t>(xyz[2]);
+        const std::uint64_t mask = near_mask(level_x.data(), level_y.data(), level_z.data(), begin, i, end, x, y, z);
+        for (std::uint64_t before = mask & 0xFFFFFFFFu; before != 0; before &= before - 1) {
+          const std::size_t j = begin + static_cast<std::size_t>(std::countr_zero(before));
+          // The sums of node j's children, made once (the last 32 nodes'
+          // are kept by j mod 32).
+          RecentSums& r = recent[j % kPlaneWindow];
+          if (r.node != j) {
+            r.node = j;
+            r.sums = PlaneSums::children(level_x[j], level_y[j], level_z[j], kChildMoments[occ[j]]);
+          }
+          sums.add(r.sums);
+        }
+        // A node after N: its centre, 4 x + 2.
+        for (std::uint64_t after = mask >> 32; after != 0; after &= after - 1) {
+          const std::size_t j = i + 1 + static_cast<std::size_t>(std::countr_zero(after));
+          sums.add_point(4 * std::int64_t{level_x[j]} + 2, 4 * std::int64_t{level_y[j]} + 2, 4 * std::int64_t{level_z[j]} + 2);
+        }
+        const std::int64_t origin[3] = {4 * std::int64_t{x}, 4 * std::int64_t{y}, 4 * std::int64_t{z}};
+        sums.to_node(origin);
+      };
       if (on_chain) {
         const int truth_k = kBitCount[truth] == 1 ? kBitCount[static_cast<std::uint8_t>(truth - 1)] : 0;
         int t = 1;
-        for (int a = 2; a >= 0; --a) {
-          const int axis_part = ((plane_pred[a] + 1) * 4 * 2) << 2;  // faces_a = 0, minus = 0
-          t = 2 * t + code(models.single_index[((t * 24) << 2) + axis_part + to_leaves], (truth_k >> a) & 1);
+        if constexpr (plane) {
+          gather();
+          std::int64_t at[3] = {2, 2, 2};  // the child's coordinates known so far
+          for (int a = 2; a >= 0; --a) {
+            const int cls = plane_class(sums, a, at[a == 0 ? 1 : 0], at[a == 2 ? 1 : 2]);
+            const int bit = code(pm->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves],
+                                 (truth_k >> a) & 1);
+            at[a] = 2 * bit + 1;
+            t = 2 * t + bit;
+          }
+        } else {
+          for (int a = 2; a >= 0; --a) {
+            const int axis_part = ((plane_pred[a] + 1) * 4 * 2) << 2;  // faces_a = 0, minus = 0
+            t = 2 * t + code(models.single_index[((t * 24) << 2) + axis_part + to_leaves], (truth_k >> a) & 1);
+          }
         }
         const int k = t - 8;
         byte = static_cast<std::uint8_t>(1u << k);
@@ -586,6 +890,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         // ctx = ((((t * 3 + pred + 1) * 4 + faces) * 2 + minus) << 2) | to_leaves,
         // of which all but t is the axis's.
         int t = 1;
+        std::int64_t at[3] = {2, 2, 2};  // codec 13: the child's coordinates known so far
+        if constexpr (plane) gather();
         for (int a = 2; a >= 0; --a) {
           const int faces_a = static_cast<int>((faces_mask >> (2 * a)) & 3);
           const int axis_part = (((plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2;
@@ -600,9 +906,18 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             BitModel& mb = mm->index_b[((t * 125 + hv) << 2) | to_leaves];
             if constexpr (three) {
               BitModel& mc = fm->index_c[patterns | static_cast<unsigned>(t) << 12];
-              Apm& apm = fm->index_apm[t << 3 | (plane_pred[a] + 1) << 1 | (minus_occ[a] != 0 ? 1 : 0)];
-              t = 2 * t + mix_code_faces(models.single_index[ctx], mb, mc, fm->index_mixer.w[a * 4 + to_leaves], apm,
-                                         code_prob, (truth_k >> a) & 1);
+              const int minus = minus_occ[a] != 0 ? 1 : 0;
+              Apm* apm;
+              if constexpr (plane) {
+                const int cls = plane_class(sums, a, at[a == 0 ? 1 : 0], at[a == 2 ? 1 : 2]);
+                apm = &pm->index_apm[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 2 + minus];
+              } else {
+                apm = &fm->index_apm[t << 3 | (plane_pred[a] + 1) << 1 | minus];
+              }
+              const int bit = mix_code_faces(models.single_index[ctx], mb, mc, fm->index_mixer.w[a * 4 + to_leaves], *apm,
+                                             code_prob, (truth_k >> a) & 1);
+              at[a] = 2 * bit + 1;
+              t = 2 * t + bit;
             } else {
               t = 2 * t + mix_code(models.single_index[ctx], mb, mm->index_mixer.w[a * 4 + to_leaves], code_prob,
                                    (truth_k >> a) & 1);
@@ -625,6 +940,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         // slot per (k, bits below) all the same.
         BitModel* const child_b = mixed ? &mm->child_b[faces_mask << 8] : nullptr;
         unsigned tree = 1;
+        // Codec 13: the node's plane, for the child bits' mixer weight sets.
+        NodePlane np;
+        if constexpr (plane) {
+          gather();
+          np = node_plane(sums);
+        }
         for (int k = 0; k < 8; ++k) {
           const int sh = 8 * k;
           const int ctx = static_cast<int>((low >> sh) & 0xFF) | kPlusNb[static_cast<std::size_t>(k)][byte] | (k << 6) |
@@ -641,8 +962,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             BitModel& mb = child_b[tree];
             if constexpr (three) {
               BitModel& mc = fm->child_c[patterns | static_cast<unsigned>(k) << 12];
-              bit = mix_code_faces(models.occupancy[ctx], mb, mc, fm->child_mixer.w[(k << 2) | to_leaves],
-                                   fm->child_apm[(ctx & 63) | k << 6], code_prob, (truth >> k) & 1);
+              std::int32_t* w = fm->child_mixer.w[(k << 2) | to_leaves];
+              if constexpr (plane) {
+                w = pm->child_mixer.w[((k << 2) | to_leaves) * kChildPlaneClasses + child_plane_class(np, k)];
+              }
+              bit = mix_code_faces(models.occupancy[ctx], mb, mc, w, fm->child_apm[(ctx & 63) | k << 6], code_prob,
+                                   (truth >> k) & 1);
             } else {
               bit = mix_code(models.occupancy[ctx], mb, mm->child_mixer.w[(k << 2) | to_leaves], code_prob,
                              (truth >> k) & 1);
@@ -709,6 +1034,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
 template <typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                  Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, TrueChain&& true_chain, Grow&& grow) {
+  if (coding == OctreeCoding::kPlanes) {
+    models.mixed = std::make_unique<MixedModels>();
+    models.faces = std::make_unique<FaceModels>();
+    models.planes = std::make_unique<PlaneModels>();
+    return code_octree_impl<3>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
+  }
   if (coding == OctreeCoding::kFacePatterns) {
     models.mixed = std::make_unique<MixedModels>();
     models.faces = std::make_unique<FaceModels>();
@@ -759,7 +1090,8 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
   // Codec 11: per level, the index of each node's first cell, and the cell
   // count after the last node (a node holds one cell when the next node's
   // first cell follows its own).
-  const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns;
+  const bool chains =
+      coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns || coding == OctreeCoding::kPlanes;
   std::vector<std::vector<std::uint32_t>> first_cell(chains ? static_cast<std::size_t>(depth) : 0);
   {
     std::vector<std::uint64_t> level = cells.keys;

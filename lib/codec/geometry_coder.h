@@ -43,6 +43,10 @@ enum class OctreeCoding {
   // children on the faces they share with the node, and each mixed
   // probability refined by an adaptive probability map.
   kFacePatterns,
+  // Codec 13 (format 16): codec 12 with the index bits of single children
+  // and chains also told where a plane fitted to the nearby cells the
+  // decoder knows crosses the node (format-spec/chunk.md §11.3.6).
+  kPlanes,
 };
 
 // `cells.keys` must be strictly increasing and below 8^depth, with a count

@@ -97,7 +97,7 @@ TEST_CASE("bounded: every point comes back within the tolerance, attributes exac
     }
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kOrderFreeFormatVersion);
+    CHECK(info->format_version == kOctreePlanesFormatVersion);  // octree geometry: format 16
     CHECK(info->error_bounded);
     CHECK(info->decoded_points == in.size());
   }
@@ -241,7 +241,7 @@ TEST_CASE("bounded: an intensity tolerance bounds every 16-bit intensity, float 
     REQUIRE(blob.is_ok());
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kOrderFreeFormatVersion);
+    CHECK(info->format_version == kOctreePlanesFormatVersion);
     auto out = decode_chunk(*blob);
     REQUIRE(out.is_ok());
     REQUIRE(out->size() == in.size());
@@ -430,7 +430,7 @@ TEST_CASE("bounded: truncated and corrupted blobs are rejected without crashing"
   CHECK(rejected > 0);
 }
 
-TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octree codec 12 only from version 13",
+TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octree codec 12 only in 13-15, 13 from 16",
           "[codec][bounded][reject]") {
   test::SceneOptions o;
   o.seed = 5;
@@ -442,29 +442,36 @@ TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octre
   REQUIRE(blob.is_ok());
   auto parsed = codec::parse_blob(*blob, true);
   REQUIRE(parsed.is_ok());
-  REQUIRE(parsed->header.version == kOrderFreeFormatVersion);
+  REQUIRE(parsed->header.version == kOctreePlanesFormatVersion);
   bool found = false;
   bool chains = false;
   for (const codec::SectionEntry& s : parsed->sections) {
     if (s.id == codec::SectionId::kPointColor) found = s.codec == codec::SectionCodec::kNeighbourColor;
-    if (s.id == codec::SectionId::kGeometry) chains = s.codec == codec::SectionCodec::kOctreeFaces;
+    if (s.id == codec::SectionId::kGeometry) chains = s.codec == codec::SectionCodec::kOctreePlanes;
   }
   REQUIRE(found);  // octree layers code their colours in cell order, with codec 10
-  REQUIRE(chains);  // and their octree with codec 12
+  REQUIRE(chains);  // and their octree with codec 13
   const auto refused = [](const std::vector<std::uint8_t>& b) {
     auto r = decode_chunk(b);
     REQUIRE_FALSE(r.is_ok());
     CHECK(r.status().code() == StatusCode::kCorruptData);
   };
-  // The same sections in a version-12 or version-9 header (valid checksum):
-  // refused, for codec 12; the octree said to be codec 11 in a version-13
-  // header: refused; with the octree said to be codec 8, in a version-8
-  // header: refused, for codec 10.
+  // The same sections in a version-15, 12 or 9 header (valid checksum):
+  // refused, for codec 13; the octree said to be codec 12 or 11 in a
+  // version-16 header: refused; with the octree said to be codec 8, in a
+  // version-8 header: refused, for codec 10.
   codec::ChunkHeader older = parsed->header;
+  older.version = 15;
+  refused(codec::write_blob(older, parsed->sections));
   older.version = 12;
   refused(codec::write_blob(older, parsed->sections));
   older.version = 9;
   refused(codec::write_blob(older, parsed->sections));
+  std::vector<codec::SectionEntry> as_codec12 = parsed->sections;
+  for (codec::SectionEntry& s : as_codec12) {
+    if (s.id == codec::SectionId::kGeometry) s.codec = codec::SectionCodec::kOctreeFaces;
+  }
+  refused(codec::write_blob(parsed->header, as_codec12));
   std::vector<codec::SectionEntry> as_codec11 = parsed->sections;
   for (codec::SectionEntry& s : as_codec11) {
     if (s.id == codec::SectionId::kGeometry) s.codec = codec::SectionCodec::kOctreeChains;

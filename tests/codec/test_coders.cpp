@@ -909,7 +909,7 @@ TEST_CASE("octree geometry round trips with every coding", "[coders][geometry]")
   for (const relief::codec::OctreeCoding coding :
        {relief::codec::OctreeCoding::kBitwise, relief::codec::OctreeCoding::kSingleChild,
         relief::codec::OctreeCoding::kMixed, relief::codec::OctreeCoding::kChains,
-        relief::codec::OctreeCoding::kFacePatterns}) {
+        relief::codec::OctreeCoding::kFacePatterns, relief::codec::OctreeCoding::kPlanes}) {
     for (const int depth : {0, 1, 2, 5, 12, 21}) {
       for (const bool clustered : {false, true}) {
         for (const std::size_t n : {std::size_t{1}, std::size_t{7}, std::size_t{3000}}) {
@@ -1021,7 +1021,7 @@ TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][g
   using relief::codec::OctreeCoding;
   std::mt19937_64 rng(81);
   for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed,
-                                    OctreeCoding::kChains, OctreeCoding::kFacePatterns}) {
+                                    OctreeCoding::kChains, OctreeCoding::kFacePatterns, OctreeCoding::kPlanes}) {
     for (int trial = 0; trial < 60; ++trial) {
       std::vector<std::uint8_t> stream(1 + rng() % 300);
       for (auto& b : stream) b = static_cast<std::uint8_t>(trial % 3 == 0 ? 0xFF : (trial % 3 == 1 ? 0x00 : rng()));
@@ -1038,12 +1038,50 @@ TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][g
   }
 }
 
+TEST_CASE("codec 13's plane classes code a sparsely sampled smooth surface smaller than codec 12", "[coders][geometry]") {
+  // Isolated samples of a smooth surface at a fine grid: each point's cell is
+  // a chain or a run of single children whose index bits a plane through its
+  // already-known neighbours predicts (format-spec/chunk.md §11.3.6). On cells
+  // without such structure codec 13 costs no more than a little.
+  using relief::codec::OctreeCoding;
+  std::mt19937_64 rng(91);
+  relief::codec::OccupiedCells surface;
+  {
+    std::vector<std::uint64_t> keys;
+    for (int k = 0; k < 30000; ++k) {
+      const double x = static_cast<double>(rng() % 1000000) / 1000000.0 * 4000.0;
+      const double y = static_cast<double>(rng() % 1000000) / 1000000.0 * 4000.0;
+      const double z = 2000 + 300 * std::sin(x / 900.0) + 200 * std::cos(y / 700.0) + 0.3 * x / 4000.0;
+      keys.push_back(relief::codec::morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
+                                                  static_cast<std::uint32_t>(z)));
+    }
+    std::sort(keys.begin(), keys.end());
+    keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+    surface.keys = keys;
+    surface.counts.assign(keys.size(), 1);
+  }
+  for (const bool smooth : {true, false}) {
+    const relief::codec::OccupiedCells cells = smooth ? surface : random_cells(rng, 16, 20000, false);
+    const int depth = smooth ? 12 : 16;
+    const auto faces = relief::codec::encode_geometry(cells, depth, OctreeCoding::kFacePatterns);
+    const auto planes = relief::codec::encode_geometry(cells, depth, OctreeCoding::kPlanes);
+    auto back = relief::codec::decode_geometry(planes, depth, total_points(cells), OctreeCoding::kPlanes);
+    REQUIRE(back.is_ok());
+    CHECK(back->keys == cells.keys);
+    CHECK(back->counts == cells.counts);
+    INFO("smooth " << smooth << ": " << cells.keys.size() << " cells, codec 12 " << faces.size()
+                   << " bytes, codec 13 " << planes.size());
+    CHECK(static_cast<double>(planes.size()) <= (smooth ? 0.97 : 1.01) * static_cast<double>(faces.size()));
+  }
+}
+
 TEST_CASE("octree geometry streams of the other coding, truncated or flipped fail cleanly", "[coders][geometry]") {
   using relief::codec::OctreeCoding;
   for (const auto [coding, wrong] : {std::pair{OctreeCoding::kSingleChild, OctreeCoding::kBitwise},
                                      std::pair{OctreeCoding::kMixed, OctreeCoding::kSingleChild},
                                      std::pair{OctreeCoding::kChains, OctreeCoding::kMixed},
-                                     std::pair{OctreeCoding::kFacePatterns, OctreeCoding::kChains}}) {
+                                     std::pair{OctreeCoding::kFacePatterns, OctreeCoding::kChains},
+                                     std::pair{OctreeCoding::kPlanes, OctreeCoding::kFacePatterns}}) {
     INFO("coding " << static_cast<int>(coding));
     std::mt19937_64 rng(79);
     const relief::codec::OccupiedCells cells = random_cells(rng, 14, 2000, true);
@@ -1076,7 +1114,7 @@ TEST_CASE("the octree encoder refuses cells that break its preconditions with an
   using relief::codec::OctreeCoding;
   const relief::codec::OccupiedCells good{{1, 9, 40}, {1, 2, 1}};
   for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed,
-                                    OctreeCoding::kChains, OctreeCoding::kFacePatterns}) {
+                                    OctreeCoding::kChains, OctreeCoding::kFacePatterns, OctreeCoding::kPlanes}) {
     INFO("coding " << static_cast<int>(coding));
     const auto stream = relief::codec::encode_geometry(good, 2, coding);
     REQUIRE_FALSE(stream.empty());

@@ -1,4 +1,4 @@
-// Golden vectors for chunk format versions 1 to 15 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 16 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -224,14 +224,15 @@ std::vector<Vector> vectors() {
           {"bounded_intensity_tolerance20_v12", bounded_intensity, las_scene_int, 12, true},
           // Format 13: the octree with face patterns and APMs (codec 12; the
           // scan scene keeps its geometry in time order, so it differs from
-          // format 12 in the version field and checksum alone).
-          {"bounded_rgb_intensity_v13", bounded, voxel_scene, 13},
-          {"bounded_rgb_tolerance6_v13", bounded_lossy, voxel_scene, 13},
-          {"bounded_geometry_octree_v13", bounded_geometry, octree_scene, 13},
-          {"bounded_las_attributes_v13", bounded, las_scene, 13},
-          {"bounded_las_colors8_v13", bounded, las_scene_8bit, 13},
+          // format 12 in the version field and checksum alone). Since format
+          // 16 only the scan scene is still written as format 13.
+          {"bounded_rgb_intensity_v13", bounded, voxel_scene, 13, true},
+          {"bounded_rgb_tolerance6_v13", bounded_lossy, voxel_scene, 13, true},
+          {"bounded_geometry_octree_v13", bounded_geometry, octree_scene, 13, true},
+          {"bounded_las_attributes_v13", bounded, las_scene, 13, true},
+          {"bounded_las_colors8_v13", bounded, las_scene_8bit, 13, true},
           {"bounded_las_scan_v13", bounded, las_scan_scene, 13},
-          {"bounded_intensity_tolerance20_v13", bounded_intensity, las_scene_int, 13},
+          {"bounded_intensity_tolerance20_v13", bounded_intensity, las_scene_int, 13, true},
           // Keeping the points' order (ErrorBound::keep_order): the geometry
           // in the given order (codec 9), with GPS times that never step back
           // format 13; without them (no pulse context), or with times that
@@ -244,7 +245,16 @@ std::vector<Vector> vectors() {
           // (§11.7.2), written where that is smaller: angles that repeat line
           // after line, as a scanner's do.
           {"bounded_las_scan_repeating_v15", bounded, las_scan_repeating, 15},
-          {"bounded_keep_order_las_scan_repeating_v15", bounded_keep_order, las_scan_repeating, 15}};
+          {"bounded_keep_order_las_scan_repeating_v15", bounded_keep_order, las_scan_repeating, 15},
+          // Format 16: the octree with plane classes (codec 13, §11.3.6), its
+          // LAS sections coded as format 15's; every blob whose geometry is
+          // the octree.
+          {"bounded_rgb_intensity_v16", bounded, voxel_scene, 16},
+          {"bounded_rgb_tolerance6_v16", bounded_lossy, voxel_scene, 16},
+          {"bounded_geometry_octree_v16", bounded_geometry, octree_scene, 16},
+          {"bounded_las_attributes_v16", bounded, las_scene, 16},
+          {"bounded_las_colors8_v16", bounded, las_scene_8bit, 16},
+          {"bounded_intensity_tolerance20_v16", bounded_intensity, las_scene_int, 16}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -287,7 +297,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 15 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 16 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
@@ -316,6 +326,7 @@ TEST_CASE("golden chunk blobs of format versions 1 to 15 decode (and the current
     for (const ChunkSectionInfo& s : info->sections) {
       if (s.id == 7 && v.version >= 8) {
         CHECK(s.codec == (is_scan(v.make) || keeps_order(v.params) ? 9
+                          : v.version >= 16                                  ? 13
                           : v.version >= 13                                  ? 12
                           : v.version >= 10                                  ? 11
                                                                              : 8));

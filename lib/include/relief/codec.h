@@ -61,8 +61,13 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // of what followed the same values before (a scanner's angular sampling
 // repeats line after line), and whose NIR values are coded in the context of
 // the green level's change at the same points (the bands move together); the
-// encoder writes it where those two sections are smaller so.
-inline constexpr std::uint16_t kChunkFormatVersion = 15;
+// encoder writes it where those two sections are smaller so. Version 16:
+// version 15 whose octree geometry is codec 13, each single child's index
+// bits (and each chain's) also told where a plane fitted to the nearby
+// cells the decoder knows crosses the node; the encoder writes it for every
+// blob whose geometry is the octree, its LAS sections then with version 15's
+// codings (13, 14 and 15 stay for geometry in scan order).
+inline constexpr std::uint16_t kChunkFormatVersion = 16;
 // What the error-bounded encoder writes for every other blob.
 inline constexpr std::uint16_t kOrderFreeFormatVersion = 13;
 // Geometry in the given order without GPS times, or with times that step back.
@@ -70,6 +75,8 @@ inline constexpr std::uint16_t kKeptOrderFormatVersion = 14;
 // Scan angles in time order by their successors, NIR against the colours
 // (format-spec/chunk.md §11.7, §11.7.2).
 inline constexpr std::uint16_t kLasCodingFormatVersion = 15;
+// Octree geometry with plane classes (format-spec/chunk.md §11.3.6).
+inline constexpr std::uint16_t kOctreePlanesFormatVersion = 16;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
