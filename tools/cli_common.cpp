@@ -157,7 +157,9 @@ const char* const kBoundOptionsHelp =
     "  --tolerance T          every point back within T per coordinate (grid step 2T)\n"
     "  --color-tolerance C    largest error per colour channel, 0..127 (default 0 = exact)\n"
     "  --intensity-tolerance I  largest error of a 16-bit intensity, 0..32767 (default 0 = exact)\n"
-    "  --keep-order           code and return the points in the order they were read\n";
+    "  --keep-order           code and return the points in the order they were read\n"
+    "  --fast-geometry        octree geometry without plane classes (chunk format 13): ~2x faster,\n"
+    "                         ~2 % more geometry bytes\n";
 
 std::vector<std::string> bound_option_names() { return cli_names(relief::bound_option_names()); }
 

@@ -176,7 +176,7 @@ constexpr std::size_t kOrderTrialPoints = std::size_t{1} << 18;
 enum class OrderChoice { kTry, kLayer, kCells };
 // One order wins the trial when it is smaller by more than 1/kOrderTrialMargin.
 constexpr std::size_t kOrderTrialMargin = 32;
-bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes) {
+bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes, OctreeCoding coding) {
   const std::size_t n = time_order.size();
   if (n < kOctreeTrialPoints) return true;
   const std::size_t m = n / 8;
@@ -192,7 +192,7 @@ bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::s
     i = j;
   }
   const std::uint64_t share = std::uint64_t{scan_bytes} * m / n;  // both below 2^32: no overflow
-  return encode_geometry_within(trial, depth, OctreeCoding::kPlanes, share).has_value();
+  return encode_geometry_within(trial, depth, coding, share).has_value();
 }
 
 Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
@@ -301,7 +301,12 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // smaller of the two codings of geometry and times (the octree when they
   // tie), and stops coding the octree once it is sure to lose.
   std::vector<std::uint8_t> geometry;
-  SectionCodec geometry_codec = SectionCodec::kOctreePlanes;
+  // The octree: codec 13 (format 16), or codec 12 (format 13) with
+  // ErrorBound::fast_geometry.
+  const OctreeCoding octree_coding = bound.fast_geometry ? OctreeCoding::kFacePatterns : OctreeCoding::kPlanes;
+  const SectionCodec octree_codec = bound.fast_geometry ? SectionCodec::kOctreeFaces : SectionCodec::kOctreePlanes;
+  const std::uint16_t octree_version = bound.fast_geometry ? kOrderFreeFormatVersion : kOctreePlanesFormatVersion;
+  SectionCodec geometry_codec = octree_codec;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
   if (bound.keep_order && n > 1) {
@@ -334,12 +339,12 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       const std::size_t scan_bytes = scan.geometry.size() + 1 + scan.gps.size();
       std::optional<std::vector<std::uint8_t>> octree;
       std::vector<std::uint8_t> gps_ranked;
-      if (octree_may_win(scan.order, depth, scan_bytes)) {
+      if (octree_may_win(scan.order, depth, scan_bytes, octree_coding)) {
         time_order = las_time_order(cell_las.gps_time);
-        gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, kOctreePlanesFormatVersion, cells_in_order(q, lo, order),
+        gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, octree_version, cells_in_order(q, lo, order),
                                           time_order);
         if (gps_ranked.size() <= scan_bytes) {
-          octree = encode_geometry_within(cells, depth, OctreeCoding::kPlanes, scan_bytes - gps_ranked.size());
+          octree = encode_geometry_within(cells, depth, octree_coding, scan_bytes - gps_ranked.size());
         }
       }
       if (octree) {
@@ -354,12 +359,13 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       }
     }
   }
-  if (geometry_codec == SectionCodec::kOctreePlanes && geometry.empty()) {
-    geometry = encode_geometry(cells, depth, OctreeCoding::kPlanes);
+  if (geometry_codec == octree_codec && geometry.empty()) {
+    geometry = encode_geometry(cells, depth, octree_coding);
   }
   // Format 16 for octree geometry (codec 13), its LAS sections with format
-  // 15's codings; 13, 14 or 15 (below) for geometry in scan order.
-  if (geometry_codec == SectionCodec::kOctreePlanes) h.version = kOctreePlanesFormatVersion;
+  // 15's codings (format 13 with codec 12 and fast_geometry, 15 below where
+  // its sections are smaller); 13, 14 or 15 for geometry in scan order.
+  if (geometry_codec == octree_codec) h.version = octree_version;
   std::vector<SectionEntry> refined;
   std::vector<std::vector<std::uint8_t>> payloads;
   payloads.push_back(std::move(geometry));

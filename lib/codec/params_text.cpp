@@ -97,6 +97,8 @@ std::string encode_params_to_string(const EncodeParams& p, ParamsText form) {
     if (all || b.color_tolerance != 0) add("color_tol", std::to_string(b.color_tolerance));
     if (all || b.intensity_tolerance != 0) add("intensity_tol", std::to_string(b.intensity_tolerance));
     if (all || b.keep_order) add("order", b.keep_order ? "input" : "any");
+    // Only when set: archives made without it keep their parameter text.
+    if (b.fast_geometry) add("geometry", "fast");
   }
   return s;
 }
@@ -158,6 +160,10 @@ Result<EncodeParams> encode_params_from_string(const std::string& text) {
       if (!p.bound) p.bound = ErrorBound{};
       ok = value == "input" || value == "any";
       p.bound->keep_order = value == "input";
+    } else if (key == "geometry") {
+      if (!p.bound) p.bound = ErrorBound{};
+      ok = value == "fast";
+      p.bound->fast_geometry = ok;
     } else {
       return format_error("codec parameters: unknown key '" + key + "'");
     }

@@ -735,6 +735,7 @@ ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in)
   b.color_tolerance = options.color_tolerance;
   b.intensity_tolerance = options.intensity_tolerance;
   b.keep_order = options.keep_order;
+  b.fast_geometry = options.fast_geometry;
   // The first LAS input's grid, at the finest scale among the LAS inputs.
   bool las = false;
   Vec3d finest{0, 0, 0};

@@ -198,6 +198,10 @@ Status apply_mode(const Given& g, IngestOptions& o) {
   if (o.mode == IngestMode::kResample && o.keep_order) {
     return invalid_argument(g.show("keep-order") + " applies to " + g.show("mode") + " bounded");
   }
+  RELIEF_RETURN_IF_ERROR(g.get_flag("fast-geometry", o.fast_geometry));
+  if (o.mode == IngestMode::kResample && o.fast_geometry) {
+    return invalid_argument(g.show("fast-geometry") + " applies to " + g.show("mode") + " bounded");
+  }
   return Status::ok();
 }
 
@@ -252,11 +256,11 @@ std::vector<std::string> ingest_option_names(IngestOptionSet set) {
 std::vector<std::string> ingest_flag_names(IngestOptionSet set) {
   switch (set) {
     case IngestOptionSet::kCompress:
-      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes", "keep-order", "no-spool"};
+      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes", "keep-order", "fast-geometry", "no-spool"};
     case IngestOptionSet::kAppend:
       return {"verify", "assume-crs", "no-extra-bytes"};
     case IngestOptionSet::kStream:
-      return {"verify", "keep-order"};
+      return {"verify", "keep-order", "fast-geometry"};
   }
   return {};
 }
@@ -269,14 +273,14 @@ Status apply_encode_options(const std::vector<NamedOption>& given, OptionSpellin
 }
 
 std::vector<std::string> bound_option_names() { return {"tolerance", "color-tolerance", "intensity-tolerance"}; }
-std::vector<std::string> bound_flag_names() { return {"keep-order"}; }
+std::vector<std::string> bound_flag_names() { return {"keep-order", "fast-geometry"}; }
 
 Status apply_bound_options(const std::vector<NamedOption>& given, OptionSpelling spelling, EncodeParams& params) {
   const Given g(given, spelling);
   RELIEF_RETURN_IF_ERROR(g.check_names(bound_option_names(), bound_flag_names()));
   if (!g.has("tolerance")) {
     for (const std::string& name : {std::string("color-tolerance"), std::string("intensity-tolerance"),
-                                    std::string("keep-order")}) {
+                                    std::string("keep-order"), std::string("fast-geometry")}) {
       if (g.has(name)) return invalid_argument(g.show(name) + " applies only with " + g.show("tolerance"));
     }
     return Status::ok();
@@ -291,6 +295,7 @@ Status apply_bound_options(const std::vector<NamedOption>& given, OptionSpelling
   b.color_tolerance = o.color_tolerance;
   b.intensity_tolerance = o.intensity_tolerance;
   b.keep_order = o.keep_order;
+  b.fast_geometry = o.fast_geometry;
   params.bound = b;
   return Status::ok();
 }

@@ -443,3 +443,64 @@ TEST_CASE("bounded compress --keep-order: each chunk gives its points back in in
   REQUIRE(compress_files({dir.file("in.ply")}, dir.file("c.relief"), any).is_ok());
   CHECK(runs(decode_all(dir.file("c.relief"))) > 100 * blobs.size());
 }
+
+TEST_CASE("bounded compress --fast-geometry: octree chunks in format 13 (codec 12), appends follow the archive",
+          "[ingest][bounded]") {
+  TempDir dir;
+  const PointCloud in = scene(14, 20000);
+  REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
+  IngestOptions o;
+  o.tolerance = 0.002;
+  o.threads = 2;
+  IngestOptions fast = o;
+  fast.fast_geometry = true;
+  REQUIRE(compress_files({dir.file("in.ply")}, dir.file("planes.relief"), o).is_ok());
+  REQUIRE(compress_files({dir.file("in.ply")}, dir.file("fast.relief"), fast).is_ok());
+  // The format of each chunk, and the points: the same either way.
+  const auto versions = [&](const std::string& path) {
+    std::map<int, std::size_t> out;
+    for (const auto& [key, blob] : test::archive_blobs(path)) {
+      auto info = inspect_chunk(blob);
+      REQUIRE(info.is_ok());
+      ++out[info->format_version];
+      for (const ChunkSectionInfo& s : info->sections) {
+        if (s.id == 7) CHECK(s.codec == (info->format_version == kOctreePlanesFormatVersion ? 13 : 12));
+      }
+    }
+    return out;
+  };
+  CHECK(versions(dir.file("planes.relief")) ==
+        std::map<int, std::size_t>{{kOctreePlanesFormatVersion, test::archive_blobs(dir.file("planes.relief")).size()}});
+  CHECK(versions(dir.file("fast.relief")) ==
+        std::map<int, std::size_t>{{kOrderFreeFormatVersion, test::archive_blobs(dir.file("fast.relief")).size()}});
+  const auto sorted_records = [](const PointCloud& c) {
+    std::vector<std::tuple<double, double, double, float>> r;
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      r.emplace_back(c.positions[i].x, c.positions[i].y, c.positions[i].z, c.intensities[i]);
+    }
+    std::sort(r.begin(), r.end());
+    return r;
+  };
+  CHECK(sorted_records(decode_all(dir.file("fast.relief"))) == sorted_records(decode_all(dir.file("planes.relief"))));
+  auto archive = Archive::open(dir.file("fast.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(archive.is_ok());
+  auto info = (*archive)->info();
+  REQUIRE(info.is_ok());
+  CHECK(info->codec_params.find("geometry=fast") != std::string::npos);
+  archive->reset();
+  // The archive without it keeps the parameter text of before (no key).
+  auto planes = Archive::open(dir.file("planes.relief"), Archive::Mode::kReadOnly);
+  REQUIRE(planes.is_ok());
+  CHECK((*planes)->info()->codec_params.find("geometry") == std::string::npos);
+  planes->reset();
+  // An append takes the archive's parameters: format 13 again.
+  PointCloud more = scene(15, 5000);
+  for (Vec3d& p : more.positions) p.x += 100;
+  REQUIRE(write_ply(dir.file("more.ply"), more).is_ok());
+  IngestOptions append;
+  append.threads = 2;
+  REQUIRE(append_files(dir.file("fast.relief"), {dir.file("more.ply")}, append).is_ok());
+  const auto after = versions(dir.file("fast.relief"));
+  CHECK(after.size() == 1);
+  CHECK(after.begin()->first == kOrderFreeFormatVersion);
+}

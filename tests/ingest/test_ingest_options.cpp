@@ -51,6 +51,14 @@ TEST_CASE("ingest options: values by the CLI's names reach IngestOptions", "[ing
   IngestOptions ks;
   REQUIRE(apply(IngestOptionSet::kStream, {{"keep-order", "true"}}, ks).is_ok());
   CHECK(ks.keep_order);
+  // --fast-geometry: likewise (chunk format 13 for octree geometry).
+  IngestOptions f;
+  CHECK_FALSE(f.fast_geometry);
+  REQUIRE(apply(IngestOptionSet::kCompress, {{"fast_geometry", ""}}, f).is_ok());
+  CHECK(f.fast_geometry);
+  IngestOptions fs;
+  REQUIRE(apply(IngestOptionSet::kStream, {{"fast-geometry", "true"}}, fs).is_ok());
+  CHECK(fs.fast_geometry);
 }
 
 TEST_CASE("ingest options: refused values name the option as the caller spells it", "[ingest][options]") {
@@ -92,8 +100,11 @@ TEST_CASE("ingest options: refused values name the option as the caller spells i
         "--keep-order applies to --mode bounded");
   CHECK(refused(IngestOptionSet::kCompress, {{"error_target", "1"}, {"keep_order", "true"}}, py) ==
         "keep_order applies to mode bounded");
-  // The archive fixes it for what is appended.
+  CHECK(refused(IngestOptionSet::kCompress, {{"mode", "resample"}, {"fast-geometry", ""}}, cli) ==
+        "--fast-geometry applies to --mode bounded");
+  // The archive fixes them for what is appended.
   CHECK(refused(IngestOptionSet::kAppend, {{"keep_order", ""}}, py) == "unknown option keep_order");
+  CHECK(refused(IngestOptionSet::kAppend, {{"fast_geometry", ""}}, py) == "unknown option fast_geometry");
   // Append takes only the run's own options: the archive fixes the rest.
   CHECK(refused(IngestOptionSet::kAppend, {{"tolerance", "0.1"}}, py) == "unknown option tolerance");
   CHECK(refused(IngestOptionSet::kStream, {{"assume_crs", ""}}, py) == "unknown option assume_crs");
@@ -111,7 +122,7 @@ TEST_CASE("ingest options: byte sizes", "[ingest][options]") {
 
 TEST_CASE("bound options: a single chunk's error bound, checked as the ingest checks it", "[ingest][options]") {
   EncodeParams p;
-  REQUIRE(apply_bound_options({{"tolerance", "0.005"}, {"color-tolerance", "3"}, {"keep-order", ""}},
+  REQUIRE(apply_bound_options({{"tolerance", "0.005"}, {"color-tolerance", "3"}, {"keep-order", ""}, {"fast-geometry", ""}},
                               OptionSpelling::kCli, p)
               .is_ok());
   REQUIRE(p.bound.has_value());
@@ -120,13 +131,15 @@ TEST_CASE("bound options: a single chunk's error bound, checked as the ingest ch
   CHECK(p.bound->color_tolerance == 3);
   CHECK(p.bound->intensity_tolerance == 0);
   CHECK(p.bound->keep_order);
+  CHECK(p.bound->fast_geometry);
   // Without a tolerance: nothing set, the others refused.
   EncodeParams maps;
   REQUIRE(apply_bound_options({}, OptionSpelling::kCli, maps).is_ok());
   CHECK_FALSE(maps.bound.has_value());
-  for (const char* name : {"color-tolerance", "intensity-tolerance", "keep-order"}) {
+  for (const char* name : {"color-tolerance", "intensity-tolerance", "keep-order", "fast-geometry"}) {
     INFO(name);
-    const Status s = apply_bound_options({{name, std::string(name) == "keep-order" ? "" : "2"}}, OptionSpelling::kCli, maps);
+    const bool flag = std::string(name) == "keep-order" || std::string(name) == "fast-geometry";
+    const Status s = apply_bound_options({{name, flag ? "" : "2"}}, OptionSpelling::kCli, maps);
     CHECK(s.code() == StatusCode::kInvalidArgument);
     CHECK(s.message().find("applies only with --tolerance") != std::string::npos);
   }
