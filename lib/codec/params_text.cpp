@@ -97,8 +97,9 @@ std::string encode_params_to_string(const EncodeParams& p, ParamsText form) {
     if (all || b.color_tolerance != 0) add("color_tol", std::to_string(b.color_tolerance));
     if (all || b.intensity_tolerance != 0) add("intensity_tol", std::to_string(b.intensity_tolerance));
     if (all || b.keep_order) add("order", b.keep_order ? "input" : "any");
-    // Only when set: archives made without it keep their parameter text.
-    if (b.fast_geometry) add("geometry", "fast");
+    // In the compact form only when set: archives made without it keep
+    // their parameter text.
+    if (all || b.fast_geometry) add("geometry", b.fast_geometry ? "fast" : "planes");
   }
   return s;
 }
@@ -162,8 +163,8 @@ Result<EncodeParams> encode_params_from_string(const std::string& text) {
       p.bound->keep_order = value == "input";
     } else if (key == "geometry") {
       if (!p.bound) p.bound = ErrorBound{};
-      ok = value == "fast";
-      p.bound->fast_geometry = ok;
+      ok = value == "fast" || value == "planes";
+      p.bound->fast_geometry = value == "fast";
     } else {
       return format_error("codec parameters: unknown key '" + key + "'");
     }

@@ -298,6 +298,21 @@ def test_keep_order_gives_the_points_back_in_file_order(tmp_path):
         relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "r.relief"), mode="resample", keep_order=True)
 
 
+def test_fast_geometry_writes_the_octree_as_chunk_format_13(tmp_path):
+    s = make_scene(n=8000, seed=6)
+    write_ply(tmp_path / "a.ply", s)
+    names = ("x", "y", "z", "red", "green", "blue")
+    relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "f.relief"), fast_geometry=True)
+    relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "p.relief"))
+    with relief.open(tmp_path / "f.relief") as f, relief.open(tmp_path / "p.relief") as p:
+        assert f.info["codec_params"].get("geometry") == "fast"
+        assert p.info["codec_params"]["geometry"] == "planes"
+        # The same points either way.
+        assert np.array_equal(as_rows(f.query(), names), as_rows(p.query(), names))
+    with pytest.raises(relief.InvalidArgumentError, match="fast_geometry applies to mode bounded"):
+        relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "r.relief"), mode="resample", fast_geometry=True)
+
+
 def test_las_input(tmp_path):
     s = make_scene(n=6000, seed=3)
     classification = (np.arange(6000) % 7).astype(np.uint8)

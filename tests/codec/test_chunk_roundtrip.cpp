@@ -390,6 +390,16 @@ TEST_CASE("archives store encode parameters without the keys at their defaults",
   REQUIRE(back.is_ok());
   CHECK(encode_params_to_string(*back) == encode_params_to_string(p));
   CHECK(std::signbit(back->bound->origin.x));
+  // The full form ends with every bound key; --fast-geometry appears in the
+  // compact form only when set, and reads back.
+  CHECK(encode_params_to_string(p).ends_with(";color_tol=3;intensity_tol=0;order=any;geometry=planes"));
+  p.bound->fast_geometry = true;
+  const std::string fast = encode_params_to_string(p, ParamsText::kCompact);
+  CHECK(fast == "cell=0.25;r=32;step=0.01,0.01,0.02;origin=-0,0,0.5;color_tol=3;geometry=fast");
+  auto fast_back = encode_params_from_string(fast);
+  REQUIRE(fast_back.is_ok());
+  CHECK(fast_back->bound->fast_geometry);
+  CHECK_FALSE(encode_params_from_string("cell=1;step=1,1,1;geometry=slow").is_ok());
   // The defaults of the text, not EncodeParams' own, fill what is left out.
   auto bare = encode_params_from_string("cell=2");
   REQUIRE(bare.is_ok());

@@ -488,7 +488,8 @@ TEST_CASE("bounded compress --fast-geometry: octree chunks in format 13 (codec 1
   REQUIRE(info.is_ok());
   CHECK(info->codec_params.find("geometry=fast") != std::string::npos);
   archive->reset();
-  // The archive without it keeps the parameter text of before (no key).
+  // The archive without it keeps the parameter text of before (no key in
+  // the stored, compact form; the full form says "planes").
   auto planes = Archive::open(dir.file("planes.relief"), Archive::Mode::kReadOnly);
   REQUIRE(planes.is_ok());
   CHECK((*planes)->info()->codec_params.find("geometry") == std::string::npos);
