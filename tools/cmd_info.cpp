@@ -145,13 +145,14 @@ int run_info(int argc, char** argv) {
               i.grid.origin.z, i.grid.chunk_edge);
   if (auto params = encode_params_from_string(i.codec_params); params && params->bound) {
     const ErrorBound& b = *params->bound;
-    std::printf("mode            bounded: every point within %.6g, %.6g, %.6g (x, y, z; grid step %.6g, %.6g, %.6g), "
-                "colour %s, intensity %s%s%s\n",
-                b.step.x / 2, b.step.y / 2, b.step.z / 2, b.step.x, b.step.y, b.step.z,
-                b.color_tolerance == 0 ? "exact" : ("within " + std::to_string(b.color_tolerance)).c_str(),
-                b.intensity_tolerance == 0 ? "exact" : ("within " + std::to_string(b.intensity_tolerance)).c_str(),
-                b.keep_order ? "; each chunk's points in the order they were read" : "",
-                b.fast_geometry ? "; octree geometry without plane classes (--fast-geometry)" : "");
+    std::printf(
+        "mode            bounded: every point within %.6g, %.6g, %.6g (x, y, z; grid step %.6g, %.6g, %.6g), "
+        "colour %s, intensity %s%s%s\n",
+        b.step.x / 2, b.step.y / 2, b.step.z / 2, b.step.x, b.step.y, b.step.z,
+        b.color_tolerance == 0 ? "exact" : ("within " + std::to_string(b.color_tolerance)).c_str(),
+        b.intensity_tolerance == 0 ? "exact" : ("within " + std::to_string(b.intensity_tolerance)).c_str(),
+        b.keep_order ? "; each chunk's points in the order they were read" : "",
+        b.fast_geometry ? "; octree geometry without plane classes (--fast-geometry)" : "");
   } else {
     std::printf("mode            resample: one point per occupied map pixel\n");
   }

@@ -135,12 +135,13 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
   if (time_ordered_layer) {
     RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, slots, out, time_order, order_mask, cell_pos, layer_cells));
   } else {
-    const OctreeCoding coding = geometry->codec == SectionCodec::kOctreePlanes        ? OctreeCoding::kPlanes
-                                : geometry->codec == SectionCodec::kOctreeFaces       ? OctreeCoding::kFacePatterns
-                                : geometry->codec == SectionCodec::kOctreeChains      ? OctreeCoding::kChains
-                                : geometry->codec == SectionCodec::kOctreeMixed       ? OctreeCoding::kMixed
-                                : geometry->codec == SectionCodec::kOctreeSingleChild ? OctreeCoding::kSingleChild
-                                                                                      : OctreeCoding::kBitwise;
+    const OctreeCoding coding = geometry->codec == SectionCodec::kOctreePlanes   ? OctreeCoding::kPlanes
+                                : geometry->codec == SectionCodec::kOctreeFaces  ? OctreeCoding::kFacePatterns
+                                : geometry->codec == SectionCodec::kOctreeChains ? OctreeCoding::kChains
+                                : geometry->codec == SectionCodec::kOctreeMixed  ? OctreeCoding::kMixed
+                                : geometry->codec == SectionCodec::kOctreeSingleChild
+                                    ? OctreeCoding::kSingleChild
+                                    : OctreeCoding::kBitwise;
     auto decoded = decode_geometry(geometry->payload, h.geometry_depth, n, coding);
     if (!decoded) return decoded.status().with_context("chunk blob: geometry section");
     cells = std::move(decoded).value();

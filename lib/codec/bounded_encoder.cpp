@@ -176,7 +176,8 @@ constexpr std::size_t kOrderTrialPoints = std::size_t{1} << 18;
 enum class OrderChoice { kTry, kLayer, kCells };
 // One order wins the trial when it is smaller by more than 1/kOrderTrialMargin.
 constexpr std::size_t kOrderTrialMargin = 32;
-bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes, OctreeCoding coding) {
+bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes,
+                    OctreeCoding coding) {
   const std::size_t n = time_order.size();
   if (n < kOctreeTrialPoints) return true;
   const std::size_t m = n / 8;
@@ -303,9 +304,12 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   std::vector<std::uint8_t> geometry;
   // The octree: codec 13 (format 16), or codec 12 (format 13) with
   // ErrorBound::fast_geometry.
-  const OctreeCoding octree_coding = bound.fast_geometry ? OctreeCoding::kFacePatterns : OctreeCoding::kPlanes;
-  const SectionCodec octree_codec = bound.fast_geometry ? SectionCodec::kOctreeFaces : SectionCodec::kOctreePlanes;
-  const std::uint16_t octree_version = bound.fast_geometry ? kOrderFreeFormatVersion : kOctreePlanesFormatVersion;
+  const OctreeCoding octree_coding =
+      bound.fast_geometry ? OctreeCoding::kFacePatterns : OctreeCoding::kPlanes;
+  const SectionCodec octree_codec =
+      bound.fast_geometry ? SectionCodec::kOctreeFaces : SectionCodec::kOctreePlanes;
+  const std::uint16_t octree_version =
+      bound.fast_geometry ? kOrderFreeFormatVersion : kOctreePlanesFormatVersion;
   SectionCodec geometry_codec = octree_codec;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
@@ -341,8 +345,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       std::vector<std::uint8_t> gps_ranked;
       if (octree_may_win(scan.order, depth, scan_bytes, octree_coding)) {
         time_order = las_time_order(cell_las.gps_time);
-        gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, octree_version, cells_in_order(q, lo, order),
-                                          time_order);
+        gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, octree_version,
+                                          cells_in_order(q, lo, order), time_order);
         if (gps_ranked.size() <= scan_bytes) {
           octree = encode_geometry_within(cells, depth, octree_coding, scan_bytes - gps_ranked.size());
         }
@@ -589,8 +593,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         // The section's format-15 coding, where it differs (§11.7, §11.7.2):
         // the scan angle in time order, NIR with colours.
         // (Format 16 codes them so already.)
-        const bool v15_differs = h.version < kLasCodingFormatVersion &&
-                                 ((bit == kLasScanAngle && !time_order.empty()) || (bit == kLasNir && !base.colors.empty()));
+        const bool v15_differs =
+            h.version < kLasCodingFormatVersion &&
+            ((bit == kLasScanAngle && !time_order.empty()) || (bit == kLasNir && !base.colors.empty()));
         if (cell_pos.empty() || slot < 0) {
           payloads.push_back(encode_las_attribute(bit, ordered, n, h.version, {}, time_order, base.colors));
           if (v15_differs) {

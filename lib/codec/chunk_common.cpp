@@ -67,9 +67,9 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec, std::ui
       return c == (version >= 16   ? SectionCodec::kOctreePlanes
                    : version >= 13 ? SectionCodec::kOctreeFaces
                    : version >= 10 ? SectionCodec::kOctreeChains
-                   : version >= 7 ? SectionCodec::kOctreeMixed
-                   : version >= 5 ? SectionCodec::kOctreeSingleChild
-                                  : SectionCodec::kArithmetic);
+                   : version >= 7  ? SectionCodec::kOctreeMixed
+                   : version >= 5  ? SectionCodec::kOctreeSingleChild
+                                   : SectionCodec::kArithmetic);
     case SectionId::kPointColor:
       return c == SectionCodec::kArithmetic || (version >= 9 && c == SectionCodec::kNeighbourColor);
     case SectionId::kPointIntensity:

@@ -271,8 +271,8 @@ struct FaceModels {
 // 128 bits.
 constexpr std::size_t kPlaneWindow = 32;
 constexpr std::int64_t kPlaneReach = 4;
-constexpr int kPlaneClasses = 17;       // plane_class
-constexpr int kChildPlaneClasses = 9;   // child_plane_class
+constexpr int kPlaneClasses = 17;      // plane_class
+constexpr int kChildPlaneClasses = 9;  // child_plane_class
 static_assert(kPlaneWindow <= 32, "the scan keeps one bit per node in a 64-bit mask");
 
 // By child byte: the count of children and, over them, the sums of e_a =
@@ -321,7 +321,9 @@ struct PlaneSums {
     out.n = m.n;
     for (int a = 0, q = 0; a < 3; ++a) {
       out.s[a] = o[a] * m.n + m.e[a];
-      for (int b = a; b < 3; ++b, ++q) out.ss[q] = o[a] * o[b] * m.n + o[a] * m.e[b] + o[b] * m.e[a] + m.ee[q];
+      for (int b = a; b < 3; ++b, ++q) {
+        out.ss[q] = o[a] * o[b] * m.n + o[a] * m.e[b] + o[b] * m.e[a] + m.ee[q];
+      }
     }
     return out;
   }
@@ -334,7 +336,8 @@ struct PlaneSums {
   void add_point(std::int64_t px, std::int64_t py, std::int64_t pz) {
     ++n;
     s[0] += px, s[1] += py, s[2] += pz;
-    ss[0] += px * px, ss[1] += px * py, ss[2] += px * pz, ss[3] += py * py, ss[4] += py * pz, ss[5] += pz * pz;
+    ss[0] += px * px, ss[1] += px * py, ss[2] += px * pz;
+    ss[3] += py * py, ss[4] += py * pz, ss[5] += pz * pz;
   }
   // The same points relative to the origin o: sum (p_a - o_a)(p_b - o_b) =
   // sum p_a p_b - o_a sum p_b - o_b sum p_a + n o_a o_b (each term below 2^55).
@@ -359,8 +362,9 @@ constexpr std::int64_t det3(std::int64_t a, std::int64_t b, std::int64_t c, std:
 inline bool within_reach(std::int32_t d) {
   return static_cast<std::uint32_t>(d + static_cast<std::int32_t>(kPlaneReach)) <= 2 * kPlaneReach;
 }
-std::uint64_t near_mask(const std::int32_t* lx, const std::int32_t* ly, const std::int32_t* lz, std::size_t begin,
-                        std::size_t i, std::size_t end, std::int32_t x, std::int32_t y, std::int32_t z) {
+std::uint64_t near_mask(const std::int32_t* lx, const std::int32_t* ly, const std::int32_t* lz,
+                        std::size_t begin, std::size_t i, std::size_t end, std::int32_t x, std::int32_t y,
+                        std::int32_t z) {
   const auto run = [&](std::size_t from, std::size_t to) {
     std::uint32_t bits = 0;
     std::size_t j = from;
@@ -404,7 +408,9 @@ struct AxisFit {
   std::int64_t det = 0, da = 0, db = 0, dg = 0;
   Int128 rss = 0;
   // det times the plane's offset, at (u0, v0), from the coordinate c along a.
-  std::int64_t offset(std::int64_t u0, std::int64_t v0, std::int64_t c) const { return da + db * u0 + dg * v0 - c * det; }
+  std::int64_t offset(std::int64_t u0, std::int64_t v0, std::int64_t c) const {
+    return da + db * u0 + dg * v0 - c * det;
+  }
 };
 AxisFit fit_axis(const PlaneSums& ps, int a) {
   AxisFit f;
@@ -711,12 +717,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
   constexpr bool mixed = kMixing >= 1;
   constexpr bool three = kMixing >= 2;
   constexpr bool plane = kMixing == 3;
-  MixedModels* const mm = models.mixed.get();  // codec 8's, 11's, 12's and 13's, else null
-  FaceModels* const fm = models.faces.get();   // codec 12's and 13's, else null
+  MixedModels* const mm = models.mixed.get();   // codec 8's, 11's, 12's and 13's, else null
+  FaceModels* const fm = models.faces.get();    // codec 12's and 13's, else null
   PlaneModels* const pm = models.planes.get();  // codec 13's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
-  const bool chains =
-      coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns || coding == OctreeCoding::kPlanes;
+  const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns ||
+                      coding == OctreeCoding::kPlanes;
   // Per node of the current level (codec 11): whether its subtree is known
   // to hold one cell (a chain), known to hold more, or not known.
   enum : std::uint8_t { kUnknown, kChain, kNotChain };
@@ -820,7 +826,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         const std::size_t end = std::min(count, i + 1 + kPlaneWindow);
         const auto x = static_cast<std::int32_t>(xyz[0]), y = static_cast<std::int32_t>(xyz[1]),
                    z = static_cast<std::int32_t>(xyz[2]);
-        const std::uint64_t mask = near_mask(level_x.data(), level_y.data(), level_z.data(), begin, i, end, x, y, z);
+        const std::uint64_t mask =
+            near_mask(level_x.data(), level_y.data(), level_z.data(), begin, i, end, x, y, z);
         for (std::uint64_t before = mask & 0xFFFFFFFFu; before != 0; before &= before - 1) {
           const std::size_t j = begin + static_cast<std::size_t>(std::countr_zero(before));
           // The sums of node j's children, made once (the last 32 nodes'
@@ -835,7 +842,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         // A node after N: its centre, 4 x + 2.
         for (std::uint64_t after = mask >> 32; after != 0; after &= after - 1) {
           const std::size_t j = i + 1 + static_cast<std::size_t>(std::countr_zero(after));
-          sums.add_point(4 * std::int64_t{level_x[j]} + 2, 4 * std::int64_t{level_y[j]} + 2, 4 * std::int64_t{level_z[j]} + 2);
+          sums.add_point(4 * std::int64_t{level_x[j]} + 2, 4 * std::int64_t{level_y[j]} + 2,
+                         4 * std::int64_t{level_z[j]} + 2);
         }
         const std::int64_t origin[3] = {4 * std::int64_t{x}, 4 * std::int64_t{y}, 4 * std::int64_t{z}};
         sums.to_node(origin);
@@ -848,15 +856,17 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           std::int64_t at[3] = {2, 2, 2};  // the child's coordinates known so far
           for (int a = 2; a >= 0; --a) {
             const int cls = plane_class(sums, a, at[a == 0 ? 1 : 0], at[a == 2 ? 1 : 2]);
-            const int bit = code(pm->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves],
-                                 (truth_k >> a) & 1);
+            const int bit =
+                code(pm->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves],
+                     (truth_k >> a) & 1);
             at[a] = 2 * bit + 1;
             t = 2 * t + bit;
           }
         } else {
           for (int a = 2; a >= 0; --a) {
             const int axis_part = ((plane_pred[a] + 1) * 4 * 2) << 2;  // faces_a = 0, minus = 0
-            t = 2 * t + code(models.single_index[((t * 24) << 2) + axis_part + to_leaves], (truth_k >> a) & 1);
+            t = 2 * t +
+                code(models.single_index[((t * 24) << 2) + axis_part + to_leaves], (truth_k >> a) & 1);
           }
         }
         const int k = t - 8;
@@ -914,8 +924,9 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
               } else {
                 apm = &fm->index_apm[t << 3 | (plane_pred[a] + 1) << 1 | minus];
               }
-              const int bit = mix_code_faces(models.single_index[ctx], mb, mc, fm->index_mixer.w[a * 4 + to_leaves], *apm,
-                                             code_prob, (truth_k >> a) & 1);
+              const int bit =
+                  mix_code_faces(models.single_index[ctx], mb, mc, fm->index_mixer.w[a * 4 + to_leaves], *apm,
+                                 code_prob, (truth_k >> a) & 1);
               at[a] = 2 * bit + 1;
               t = 2 * t + bit;
             } else {
@@ -966,8 +977,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
               if constexpr (plane) {
                 w = pm->child_mixer.w[((k << 2) | to_leaves) * kChildPlaneClasses + child_plane_class(np, k)];
               }
-              bit = mix_code_faces(models.occupancy[ctx], mb, mc, w, fm->child_apm[(ctx & 63) | k << 6], code_prob,
-                                   (truth >> k) & 1);
+              bit = mix_code_faces(models.occupancy[ctx], mb, mc, w, fm->child_apm[(ctx & 63) | k << 6],
+                                   code_prob, (truth >> k) & 1);
             } else {
               bit = mix_code(models.occupancy[ctx], mb, mm->child_mixer.w[(k << 2) | to_leaves], code_prob,
                              (truth >> k) & 1);
@@ -1090,8 +1101,8 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
   // Codec 11: per level, the index of each node's first cell, and the cell
   // count after the last node (a node holds one cell when the next node's
   // first cell follows its own).
-  const bool chains =
-      coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns || coding == OctreeCoding::kPlanes;
+  const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns ||
+                      coding == OctreeCoding::kPlanes;
   std::vector<std::vector<std::uint32_t>> first_cell(chains ? static_cast<std::size_t>(depth) : 0);
   {
     std::vector<std::uint64_t> level = cells.keys;

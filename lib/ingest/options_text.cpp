@@ -256,7 +256,8 @@ std::vector<std::string> ingest_option_names(IngestOptionSet set) {
 std::vector<std::string> ingest_flag_names(IngestOptionSet set) {
   switch (set) {
     case IngestOptionSet::kCompress:
-      return {"verify", "allow-sparse", "assume-crs", "no-extra-bytes", "keep-order", "fast-geometry", "no-spool"};
+      return {"verify",     "allow-sparse",  "assume-crs", "no-extra-bytes",
+              "keep-order", "fast-geometry", "no-spool"};
     case IngestOptionSet::kAppend:
       return {"verify", "assume-crs", "no-extra-bytes"};
     case IngestOptionSet::kStream:

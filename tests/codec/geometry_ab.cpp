@@ -96,7 +96,8 @@ int main(int argc, char** argv) {
         double t3 = cpu_now();
         auto db = decode_geometry(bb, depth, keys.size(), OctreeCoding::kPlanes);
         double t4 = cpu_now();
-        if (!da || !db || da->keys != cells.keys || da->counts != cells.counts || db->keys != cells.keys || db->counts != cells.counts) {
+        if (!da || !db || da->keys != cells.keys || da->counts != cells.counts || db->keys != cells.keys ||
+            db->counts != cells.counts) {
           std::fprintf(stderr, "%s g=%d: round trip FAILED\n", stem.c_str(), g);
           return 1;
         }

@@ -430,8 +430,10 @@ TEST_CASE("bounded: truncated and corrupted blobs are rejected without crashing"
   CHECK(rejected > 0);
 }
 
-TEST_CASE("bounded: colour codec 10 only for point colours from version 9, octree codec 12 only in 13-15, 13 from 16",
-          "[codec][bounded][reject]") {
+TEST_CASE(
+    "bounded: colour codec 10 only for point colours from version 9, octree codec 12 only in 13-15, 13 from "
+    "16",
+    "[codec][bounded][reject]") {
   test::SceneOptions o;
   o.seed = 5;
   o.points = 3000;

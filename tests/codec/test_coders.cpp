@@ -983,9 +983,11 @@ namespace {
 // `depth`) at most `ratio` times the older's bytes, on 20,000 random cells
 // (depth 16) at most 1 % more; the newer's stream decodes to the same cells.
 void check_newer_coding_pays(std::mt19937_64& rng, const relief::codec::OccupiedCells& structured, int depth,
-                             relief::codec::OctreeCoding older, relief::codec::OctreeCoding newer, double ratio) {
+                             relief::codec::OctreeCoding older, relief::codec::OctreeCoding newer,
+                             double ratio) {
   for (const bool on_structure : {true, false}) {
-    const relief::codec::OccupiedCells cells = on_structure ? structured : random_cells(rng, 16, 20000, false);
+    const relief::codec::OccupiedCells cells =
+        on_structure ? structured : random_cells(rng, 16, 20000, false);
     const int d = on_structure ? depth : 16;
     const auto old_bytes = relief::codec::encode_geometry(cells, d, older);
     const auto new_bytes = relief::codec::encode_geometry(cells, d, newer);
@@ -993,9 +995,10 @@ void check_newer_coding_pays(std::mt19937_64& rng, const relief::codec::Occupied
     REQUIRE(back.is_ok());
     CHECK(back->keys == cells.keys);
     CHECK(back->counts == cells.counts);
-    INFO("structured " << on_structure << ": " << cells.keys.size() << " cells, older coding " << old_bytes.size()
-                       << " bytes, newer " << new_bytes.size());
-    CHECK(static_cast<double>(new_bytes.size()) <= (on_structure ? ratio : 1.01) * static_cast<double>(old_bytes.size()));
+    INFO("structured " << on_structure << ": " << cells.keys.size() << " cells, older coding "
+                       << old_bytes.size() << " bytes, newer " << new_bytes.size());
+    CHECK(static_cast<double>(new_bytes.size()) <=
+          (on_structure ? ratio : 1.01) * static_cast<double>(old_bytes.size()));
   }
 }
 
@@ -1033,8 +1036,9 @@ TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][g
   // work bounded by the stream's size, whatever the mixer's weights do.
   using relief::codec::OctreeCoding;
   std::mt19937_64 rng(81);
-  for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed,
-                                    OctreeCoding::kChains, OctreeCoding::kFacePatterns, OctreeCoding::kPlanes}) {
+  for (const OctreeCoding coding :
+       {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed, OctreeCoding::kChains,
+        OctreeCoding::kFacePatterns, OctreeCoding::kPlanes}) {
     for (int trial = 0; trial < 60; ++trial) {
       std::vector<std::uint8_t> stream(1 + rng() % 300);
       for (auto& b : stream) b = static_cast<std::uint8_t>(trial % 3 == 0 ? 0xFF : (trial % 3 == 1 ? 0x00 : rng()));
@@ -1051,7 +1055,8 @@ TEST_CASE("octree geometry decoders stay bounded on random streams", "[coders][g
   }
 }
 
-TEST_CASE("codec 13's plane classes code a sparsely sampled smooth surface smaller than codec 12", "[coders][geometry]") {
+TEST_CASE("codec 13's plane classes code a sparsely sampled smooth surface smaller than codec 12",
+          "[coders][geometry]") {
   // Isolated samples of a smooth surface at a fine grid: each point's cell is
   // a chain or a run of single children whose index bits a plane through its
   // already-known neighbours predicts (format-spec/chunk.md §11.3.6). On cells
@@ -1065,8 +1070,8 @@ TEST_CASE("codec 13's plane classes code a sparsely sampled smooth surface small
       const double x = static_cast<double>(rng() % 1000000) / 1000000.0 * 4000.0;
       const double y = static_cast<double>(rng() % 1000000) / 1000000.0 * 4000.0;
       const double z = 2000 + 300 * std::sin(x / 900.0) + 200 * std::cos(y / 700.0) + 0.3 * x / 4000.0;
-      keys.push_back(relief::codec::morton_encode(static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y),
-                                                  static_cast<std::uint32_t>(z)));
+      keys.push_back(relief::codec::morton_encode(
+          static_cast<std::uint32_t>(x), static_cast<std::uint32_t>(y), static_cast<std::uint32_t>(z)));
     }
     std::sort(keys.begin(), keys.end());
     keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
@@ -1114,8 +1119,9 @@ TEST_CASE("octree geometry streams of the other coding, truncated or flipped fai
 TEST_CASE("the octree encoder refuses cells that break its preconditions with an empty stream", "[coders][geometry]") {
   using relief::codec::OctreeCoding;
   const relief::codec::OccupiedCells good{{1, 9, 40}, {1, 2, 1}};
-  for (const OctreeCoding coding : {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed,
-                                    OctreeCoding::kChains, OctreeCoding::kFacePatterns, OctreeCoding::kPlanes}) {
+  for (const OctreeCoding coding :
+       {OctreeCoding::kBitwise, OctreeCoding::kSingleChild, OctreeCoding::kMixed, OctreeCoding::kChains,
+        OctreeCoding::kFacePatterns, OctreeCoding::kPlanes}) {
     INFO("coding " << static_cast<int>(coding));
     const auto stream = relief::codec::encode_geometry(good, 2, coding);
     REQUIRE_FALSE(stream.empty());

@@ -326,10 +326,10 @@ TEST_CASE("golden chunk blobs of format versions 1 to 16 decode (and the current
     for (const ChunkSectionInfo& s : info->sections) {
       if (s.id == 7 && v.version >= 8) {
         CHECK(s.codec == (is_scan(v.make) || keeps_order(v.params) ? 9
-                          : v.version >= 16                                  ? 13
-                          : v.version >= 13                                  ? 12
-                          : v.version >= 10                                  ? 11
-                                                                             : 8));
+                          : v.version >= 16                        ? 13
+                          : v.version >= 13                        ? 12
+                          : v.version >= 10                        ? 11
+                                                                   : 8));
       }
       // Format 9: colours in cell order (every octree layer) are predicted from neighbours.
       if (s.id == 8 && v.version >= 9 && !is_scan(v.make) && !keeps_order(v.params)) CHECK(s.codec == 10);

@@ -444,8 +444,9 @@ TEST_CASE("bounded compress --keep-order: each chunk gives its points back in in
   CHECK(runs(decode_all(dir.file("c.relief"))) > 100 * blobs.size());
 }
 
-TEST_CASE("bounded compress --fast-geometry: octree chunks in format 13 (codec 12), appends follow the archive",
-          "[ingest][bounded]") {
+TEST_CASE(
+    "bounded compress --fast-geometry: octree chunks in format 13 (codec 12), appends follow the archive",
+    "[ingest][bounded]") {
   TempDir dir;
   const PointCloud in = scene(14, 20000);
   REQUIRE(write_ply(dir.file("in.ply"), in).is_ok());
@@ -470,9 +471,11 @@ TEST_CASE("bounded compress --fast-geometry: octree chunks in format 13 (codec 1
     return out;
   };
   CHECK(versions(dir.file("planes.relief")) ==
-        std::map<int, std::size_t>{{kOctreePlanesFormatVersion, test::archive_blobs(dir.file("planes.relief")).size()}});
+        std::map<int, std::size_t>{
+            {kOctreePlanesFormatVersion, test::archive_blobs(dir.file("planes.relief")).size()}});
   CHECK(versions(dir.file("fast.relief")) ==
-        std::map<int, std::size_t>{{kOrderFreeFormatVersion, test::archive_blobs(dir.file("fast.relief")).size()}});
+        std::map<int, std::size_t>{
+            {kOrderFreeFormatVersion, test::archive_blobs(dir.file("fast.relief")).size()}});
   const auto sorted_records = [](const PointCloud& c) {
     std::vector<std::tuple<double, double, double, float>> r;
     for (std::size_t i = 0; i < c.size(); ++i) {
@@ -481,7 +484,8 @@ TEST_CASE("bounded compress --fast-geometry: octree chunks in format 13 (codec 1
     std::sort(r.begin(), r.end());
     return r;
   };
-  CHECK(sorted_records(decode_all(dir.file("fast.relief"))) == sorted_records(decode_all(dir.file("planes.relief"))));
+  CHECK(sorted_records(decode_all(dir.file("fast.relief"))) ==
+        sorted_records(decode_all(dir.file("planes.relief"))));
   auto archive = Archive::open(dir.file("fast.relief"), Archive::Mode::kReadOnly);
   REQUIRE(archive.is_ok());
   auto info = (*archive)->info();

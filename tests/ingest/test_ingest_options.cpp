@@ -122,8 +122,9 @@ TEST_CASE("ingest options: byte sizes", "[ingest][options]") {
 
 TEST_CASE("bound options: a single chunk's error bound, checked as the ingest checks it", "[ingest][options]") {
   EncodeParams p;
-  REQUIRE(apply_bound_options({{"tolerance", "0.005"}, {"color-tolerance", "3"}, {"keep-order", ""}, {"fast-geometry", ""}},
-                              OptionSpelling::kCli, p)
+  REQUIRE(apply_bound_options(
+              {{"tolerance", "0.005"}, {"color-tolerance", "3"}, {"keep-order", ""}, {"fast-geometry", ""}},
+              OptionSpelling::kCli, p)
               .is_ok());
   REQUIRE(p.bound.has_value());
   CHECK(p.bound->step.x == 0.01);
