@@ -739,13 +739,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
   std::vector<std::uint8_t> lone, next_lone;
   std::vector<std::uint32_t> first;
   std::vector<std::uint64_t> next;
-  // Per node of the current level: its cell coordinates at the level (a
-  // child's are its parent's doubled plus its bit along each axis).
-  std::vector<std::array<std::uint32_t, 3>> xyz_of(1, {0, 0, 0}), next_xyz;
+  // Per axis, per node of the current level: its cell coordinate at the
+  // level (a child's is its parent's doubled plus its bit along the axis;
+  // below 2^21). By axis, so that codec 13's plane sums scan them four
+  // nodes at a time.
+  std::array<std::vector<std::int32_t>, 3> cell = {{{0}, {0}, {0}}}, next_cell;
   auto planes = std::make_unique<PlaneMemory>();
-  // Codec 13: the level's cell coordinates by axis (xyz_of's, for the
-  // plane sums' scan).
-  std::vector<std::int32_t> level_x, level_y, level_z;
   struct RecentSums {
     std::size_t node = SIZE_MAX;
     PlaneSums sums;
@@ -756,14 +755,6 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
     planes->reset();
     if constexpr (plane) {
       for (RecentSums& r : recent) r.node = SIZE_MAX;
-      level_x.resize(nodes.size());
-      level_y.resize(nodes.size());
-      level_z.resize(nodes.size());
-      for (std::size_t i = 0; i < nodes.size(); ++i) {
-        level_x[i] = static_cast<std::int32_t>(xyz_of[i][0]);
-        level_y[i] = static_cast<std::int32_t>(xyz_of[i][1]);
-        level_z[i] = static_cast<std::int32_t>(xyz_of[i][2]);
-      }
     }
     const int to_leaves = std::min(depth - 1 - d, 3);
     next_lone.clear();
@@ -791,7 +782,9 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
                    static_cast<unsigned>(kFacePattern[1][minus_occ[1]]) << 4 |
                    static_cast<unsigned>(kFacePattern[2][minus_occ[2]]) << 8;
       }
-      const std::array<std::uint32_t, 3> xyz = xyz_of[i];
+      const std::array<std::uint32_t, 3> xyz = {static_cast<std::uint32_t>(cell[0][i]),
+                                                static_cast<std::uint32_t>(cell[1][i]),
+                                                static_cast<std::uint32_t>(cell[2][i])};
       int plane_pred[3];
       for (int a = 0; a < 3; ++a) plane_pred[a] = planes->predict(a, xyz[a], xyz[(a + 1) % 3], xyz[(a + 2) % 3]);
       const std::uint8_t truth = true_byte(d, i);
@@ -824,10 +817,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         // the sums over those.
         const std::size_t begin = i > kPlaneWindow ? i - kPlaneWindow : 0;
         const std::size_t end = std::min(count, i + 1 + kPlaneWindow);
-        const auto x = static_cast<std::int32_t>(xyz[0]), y = static_cast<std::int32_t>(xyz[1]),
-                   z = static_cast<std::int32_t>(xyz[2]);
-        const std::uint64_t mask =
-            near_mask(level_x.data(), level_y.data(), level_z.data(), begin, i, end, x, y, z);
+        const std::int32_t x = cell[0][i], y = cell[1][i], z = cell[2][i];
+        const std::uint64_t mask = near_mask(cell[0].data(), cell[1].data(), cell[2].data(), begin, i, end, x, y, z);
         for (std::uint64_t before = mask & 0xFFFFFFFFu; before != 0; before &= before - 1) {
           const std::size_t j = begin + static_cast<std::size_t>(std::countr_zero(before));
           // The sums of node j's children, made once (the last 32 nodes'
@@ -835,15 +826,15 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           RecentSums& r = recent[j % kPlaneWindow];
           if (r.node != j) {
             r.node = j;
-            r.sums = PlaneSums::children(level_x[j], level_y[j], level_z[j], kChildMoments[occ[j]]);
+            r.sums = PlaneSums::children(cell[0][j], cell[1][j], cell[2][j], kChildMoments[occ[j]]);
           }
           sums.add(r.sums);
         }
         // A node after N: its centre, 4 x + 2.
         for (std::uint64_t after = mask >> 32; after != 0; after &= after - 1) {
           const std::size_t j = i + 1 + static_cast<std::size_t>(std::countr_zero(after));
-          sums.add_point(4 * std::int64_t{level_x[j]} + 2, 4 * std::int64_t{level_y[j]} + 2,
-                         4 * std::int64_t{level_z[j]} + 2);
+          sums.add_point(4 * std::int64_t{cell[0][j]} + 2, 4 * std::int64_t{cell[1][j]} + 2,
+                         4 * std::int64_t{cell[2][j]} + 2);
         }
         const std::int64_t origin[3] = {4 * std::int64_t{x}, 4 * std::int64_t{y}, 4 * std::int64_t{z}};
         sums.to_node(origin);
@@ -1008,11 +999,10 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
     // Neighbours and coordinates of the next level (none after the last).
     if (d + 1 < depth) {
       next_nb.assign(6 * next_count, kMissing);
-      next_xyz.resize(next_count);
+      for (std::vector<std::int32_t>& c : next_cell) c.resize(next_count);
       for (std::size_t i = 0; i < count; ++i) {
         const std::uint8_t byte = occ[i];
         const std::uint32_t* n6 = &nb[6 * i];
-        const std::array<std::uint32_t, 3> xyz = xyz_of[i];
         std::uint32_t ci = first[i];  // the children, in k order
         for (unsigned bits = byte; bits != 0; bits &= bits - 1, ++ci) {
           const int k = std::countr_zero(bits);
@@ -1026,13 +1016,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             const std::uint32_t m = n6[2 * a + c];
             out[2 * a + c] = m != kMissing ? child_index(occ[m], first[m], sibling) : kMissing;
           }
-          next_xyz[ci] = {2 * xyz[0] + static_cast<std::uint32_t>(k & 1), 2 * xyz[1] + static_cast<std::uint32_t>((k >> 1) & 1),
-                          2 * xyz[2] + static_cast<std::uint32_t>(k >> 2)};
+          for (int a = 0; a < 3; ++a) next_cell[a][ci] = 2 * cell[a][i] + ((k >> a) & 1);
         }
       }
     }
     nb.swap(next_nb);
-    xyz_of.swap(next_xyz);
+    cell.swap(next_cell);
     nodes.swap(next);
     lone.swap(next_lone);
     chain.swap(next_chain);
