@@ -332,12 +332,19 @@ struct PlaneSums {
     for (int a = 0; a < 3; ++a) s[a] += m.s[a];
     for (int q = 0; q < 6; ++q) ss[q] += m.ss[q];
   }
+  void subtract(const PlaneSums& m) {
+    n -= m.n;
+    for (int a = 0; a < 3; ++a) s[a] -= m.s[a];
+    for (int q = 0; q < 6; ++q) ss[q] -= m.ss[q];
+  }
   // One point at p.
-  void add_point(std::int64_t px, std::int64_t py, std::int64_t pz) {
-    ++n;
-    s[0] += px, s[1] += py, s[2] += pz;
-    ss[0] += px * px, ss[1] += px * py, ss[2] += px * pz;
-    ss[3] += py * py, ss[4] += py * pz, ss[5] += pz * pz;
+  static PlaneSums point(std::int64_t px, std::int64_t py, std::int64_t pz) {
+    PlaneSums out;
+    out.n = 1;
+    out.s[0] = px, out.s[1] = py, out.s[2] = pz;
+    out.ss[0] = px * px, out.ss[1] = px * py, out.ss[2] = px * pz;
+    out.ss[3] = py * py, out.ss[4] = py * pz, out.ss[5] = pz * pz;
+    return out;
   }
   // The same points relative to the origin o: sum (p_a - o_a)(p_b - o_b) =
   // sum p_a p_b - o_a sum p_b - o_b sum p_a + n o_a o_b (each term below 2^55).
@@ -539,6 +546,12 @@ constexpr auto kBitCount = [] {
   for (int v = 0; v < 256; ++v) t[static_cast<std::size_t>(v)] = static_cast<std::uint8_t>((v & 1) + t[static_cast<std::size_t>(v >> 1)]);
   return t;
 }();
+// The set bits of a 64-bit word with at most 32 low bits set (codec 13's
+// window masks).
+inline std::size_t bit_count32(std::uint64_t v) {
+  return std::size_t{kBitCount[v & 0xFF]} + kBitCount[(v >> 8) & 0xFF] + kBitCount[(v >> 16) & 0xFF] +
+         kBitCount[(v >> 24) & 0xFF];
+}
 inline std::uint32_t child_index(std::uint8_t byte, std::uint32_t first, int k) {
   if (((byte >> k) & 1) == 0) return kMissing;
   return first + kBitCount[byte & ((1u << k) - 1)];
@@ -745,16 +758,25 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
   // nodes at a time.
   std::array<std::vector<std::int32_t>, 3> cell = {{{0}, {0}, {0}}}, next_cell;
   auto planes = std::make_unique<PlaneMemory>();
-  struct RecentSums {
-    std::size_t node = SIZE_MAX;
-    PlaneSums sums;
+  // Codec 13's sliding sums over whole windows (§11.3.6): `before` over the
+  // children of the up to kPlaneWindow nodes before the current one (each
+  // node's own in `ring`, by index mod kPlaneWindow), `after` over the
+  // centres of the up to kPlaneWindow after it. A node's sums are then a
+  // window's less the nodes out of reach, or the nodes within reach added up,
+  // whichever are fewer: the same integers either way.
+  PlaneSums before, after;
+  std::array<PlaneSums, kPlaneWindow> ring{};
+  const auto centre = [&cell](std::size_t j) {
+    return PlaneSums::point(4 * std::int64_t{cell[0][j]} + 2, 4 * std::int64_t{cell[1][j]} + 2,
+                            4 * std::int64_t{cell[2][j]} + 2);
   };
-  std::array<RecentSums, kPlaneWindow> recent{};
   lone.assign(1, 0);
   for (int d = 0; d < depth; ++d) {
     planes->reset();
     if constexpr (plane) {
-      for (RecentSums& r : recent) r.node = SIZE_MAX;
+      before = PlaneSums{};
+      after = PlaneSums{};
+      for (std::size_t j = 1; j < std::min(nodes.size(), kPlaneWindow + 1); ++j) after.add(centre(j));
     }
     const int to_leaves = std::min(depth - 1 - d, 3);
     next_lone.clear();
@@ -811,6 +833,20 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
       // up to kPlaneWindow nodes before it and the centres of those after it
       // that lie within kPlaneReach cells.
       PlaneSums sums;
+      if constexpr (plane) {
+        // The windows move on by one node: node i - 1 (its child byte now
+        // known) joins `before` and node i - 1 - kPlaneWindow leaves it; node
+        // i leaves `after` and node i + kPlaneWindow joins it.
+        if (i > 0) {
+          PlaneSums& slot = ring[(i - 1) % kPlaneWindow];
+          if (i - 1 >= kPlaneWindow) before.subtract(slot);
+          slot =
+              PlaneSums::children(cell[0][i - 1], cell[1][i - 1], cell[2][i - 1], kChildMoments[occ[i - 1]]);
+          before.add(slot);
+          after.subtract(centre(i));
+          if (i + kPlaneWindow < count) after.add(centre(i + kPlaneWindow));
+        }
+      }
       const auto gather = [&] {
         // Which nodes lie within reach, in loops without branches (bit
         // j - begin for a node before, 32 + j - i - 1 for one after), then
@@ -819,23 +855,36 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         const std::size_t end = std::min(count, i + 1 + kPlaneWindow);
         const std::int32_t x = cell[0][i], y = cell[1][i], z = cell[2][i];
         const std::uint64_t mask = near_mask(cell[0].data(), cell[1].data(), cell[2].data(), begin, i, end, x, y, z);
-        for (std::uint64_t before = mask & 0xFFFFFFFFu; before != 0; before &= before - 1) {
-          const std::size_t j = begin + static_cast<std::size_t>(std::countr_zero(before));
-          // The sums of node j's children, made once (the last 32 nodes'
-          // are kept by j mod 32).
-          RecentSums& r = recent[j % kPlaneWindow];
-          if (r.node != j) {
-            r.node = j;
-            r.sums = PlaneSums::children(cell[0][j], cell[1][j], cell[2][j], kChildMoments[occ[j]]);
+        const std::uint64_t in_before = (std::uint64_t{1} << (i - begin)) - 1;
+        const std::uint64_t in_after = (std::uint64_t{1} << (end - i - 1)) - 1;
+        const std::uint64_t near_before = mask & in_before, far_before = ~mask & in_before;
+        const std::uint64_t near_after = (mask >> 32) & in_after, far_after = ~(mask >> 32) & in_after;
+        PlaneSums part;
+        // Fewer out of reach than within: take those away from the window.
+        if (2 * bit_count32(near_before) > i - begin) {
+          part = before;
+          for (std::uint64_t b = far_before; b != 0; b &= b - 1) {
+            part.subtract(ring[(begin + static_cast<std::size_t>(std::countr_zero(b))) % kPlaneWindow]);
           }
-          sums.add(r.sums);
+        } else {
+          for (std::uint64_t b = near_before; b != 0; b &= b - 1) {
+            part.add(ring[(begin + static_cast<std::size_t>(std::countr_zero(b))) % kPlaneWindow]);
+          }
         }
+        sums = part;
         // A node after N: its centre, 4 x + 2.
-        for (std::uint64_t after = mask >> 32; after != 0; after &= after - 1) {
-          const std::size_t j = i + 1 + static_cast<std::size_t>(std::countr_zero(after));
-          sums.add_point(4 * std::int64_t{cell[0][j]} + 2, 4 * std::int64_t{cell[1][j]} + 2,
-                         4 * std::int64_t{cell[2][j]} + 2);
+        if (2 * bit_count32(near_after) > end - i - 1) {
+          part = after;
+          for (std::uint64_t b = far_after; b != 0; b &= b - 1) {
+            part.subtract(centre(i + 1 + static_cast<std::size_t>(std::countr_zero(b))));
+          }
+        } else {
+          part = PlaneSums{};
+          for (std::uint64_t b = near_after; b != 0; b &= b - 1) {
+            part.add(centre(i + 1 + static_cast<std::size_t>(std::countr_zero(b))));
+          }
         }
+        sums.add(part);
         const std::int64_t origin[3] = {4 * std::int64_t{x}, 4 * std::int64_t{y}, 4 * std::int64_t{z}};
         sums.to_node(origin);
       };
