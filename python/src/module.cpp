@@ -194,6 +194,20 @@ FieldSet archive_fields(const ArchiveInfo& info, const AttributeSet& asked) {
   return f;
 }
 
+// What a batch iterator's next() returns: (array, warnings) for a batch;
+// at the end, the error raised in its place, else (None, warnings) when the
+// last call said something, else StopIteration.
+py::tuple batch_result(PointCloud batch, const FieldSet& fields, const std::vector<std::string>& warnings) {
+  std::vector<PointCloud> one;
+  one.push_back(std::move(batch));
+  return py::make_tuple(to_array(one, fields), warnings);
+}
+py::tuple end_of_batches(const Status& status, const std::vector<std::string>& warnings) {
+  if (!status) raise_status(status);
+  if (!warnings.empty()) return py::make_tuple(py::none(), warnings);
+  throw py::stop_iteration();
+}
+
 // Archive.query(batches=True) on the C++ side: next() -> (array, warnings),
 // StopIteration at the end, the query's error raised in its place.
 class BatchIterator {
@@ -217,15 +231,11 @@ class BatchIterator {
     std::vector<std::string> warnings = stream_->take_warnings();
     if (!more) {
       close();
-      if (!status) raise_status(status);
-      if (!warnings.empty()) return py::make_tuple(py::none(), warnings);
-      throw py::stop_iteration();
+      return end_of_batches(status, warnings);
     }
     FieldSet f = fields_;
     f.add(batch);
-    std::vector<PointCloud> one;
-    one.push_back(std::move(batch));
-    return py::make_tuple(to_array(one, f), warnings);
+    return batch_result(std::move(batch), f, warnings);
   }
 
   void close() {
@@ -262,13 +272,9 @@ class FileBatchIterator {
     }
     if (!status || batch.empty()) {
       close();
-      if (!status) raise_status(status);
-      if (!said.empty()) return py::make_tuple(py::none(), said);
-      throw py::stop_iteration();
+      return end_of_batches(status, said);
     }
-    std::vector<PointCloud> one;
-    one.push_back(std::move(batch));
-    return py::make_tuple(to_array(one, fields), said);
+    return batch_result(std::move(batch), fields, said);
   }
 
   py::list extra_fields() const {
