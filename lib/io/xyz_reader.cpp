@@ -219,13 +219,25 @@ Result<ColumnPlan> parse_columns(const std::string& spec, const std::string& nam
 }
 
 // Columns from a header line, when it names x, y and z. Separators: blanks,
-// ',' and ';'. A name seen twice keeps its first column; other names are
-// candidates for extra bytes, settled by XyzPointReader::start().
+// ',' and ';'. A comment marker before the names ('#' or '//', as in
+// "# x y z" or "//X,Y,Z") is not a column. A name seen twice keeps its first
+// column; other names are candidates for extra bytes, settled by
+// XyzPointReader::start().
 std::optional<ColumnPlan> plan_from_header(std::string_view line) {
   ColumnPlan plan;
   std::vector<std::string> names;  // per column, as the header gives it
   std::array<bool, kRoleCount> seen{};
   std::size_t pos = 0;
+  for (;;) {
+    while (pos < line.size() && is_blank(line[pos])) ++pos;
+    if (line.substr(pos).starts_with('#')) {
+      ++pos;
+    } else if (line.substr(pos).starts_with("//")) {
+      pos += 2;
+    } else {
+      break;
+    }
+  }
   while (pos < line.size()) {
     while (pos < line.size() && is_blank(line[pos])) ++pos;
     if (pos == line.size()) break;
