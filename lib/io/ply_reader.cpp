@@ -187,6 +187,10 @@ struct VertexPlan {
   // Colours wider than 8 bits follow the 16-bit rule (io/stream_support.h):
   // whether to shift depends on the levels of the whole file or a sample.
   bool wide_color = false;
+  // Colours of float or double properties are fractions 0..1 (as MeshLab,
+  // Blender and trimesh write and read them), each rounded to the nearest
+  // of 256 levels; a value outside 0..1 is refused.
+  bool unit_color = false;
   // The LasAttributeBits the LAS dimension properties fill.
   std::uint32_t las_bits = 0;
   // Every other scalar vertex property (normals, labels, curvature, alpha,
@@ -257,9 +261,14 @@ Result<VertexPlan> make_plan(const Element& vertex, const std::string& name, boo
       plan.prop[kGreen] = *g;
       plan.prop[kBlue] = *b;
       plan.has_color = true;
+      const auto is_float = [&](std::size_t i) {
+        const ScalarType t = vertex.properties[i].type;
+        return t == ScalarType::kFloat32 || t == ScalarType::kFloat64;
+      };
+      plan.unit_color = is_float(*r) && is_float(*g) && is_float(*b);
       for (std::size_t i : {*r, *g, *b}) {
         const ScalarType t = vertex.properties[i].type;
-        if (t != ScalarType::kUint8 && t != ScalarType::kInt8) plan.wide_color = true;
+        if (t != ScalarType::kUint8 && t != ScalarType::kInt8 && !plan.unit_color) plan.wide_color = true;
       }
       break;
     }
@@ -352,6 +361,9 @@ std::uint8_t to_level8(double v) {
   return static_cast<std::uint8_t>(v);
 }
 
+// A colour fraction 0..1 (VertexPlan::unit_color) as the nearest level.
+std::uint8_t unit_level8(double v) { return to_level8(v * 255.0 + 0.5); }
+
 // Converting an out-of-range double to float is undefined; map it to the
 // infinity it would round to, which the finiteness check then reports.
 float to_float(double v) {
@@ -429,6 +441,14 @@ Status non_finite_intensity(const std::string& name, std::uint64_t index, float 
   return format_error(vertex_label(name, index) + " has a non-finite intensity (" + format_double(v) + ")");
 }
 
+bool is_unit(double v) { return v >= 0 && v <= 1; }  // false for NaN
+
+Status colour_not_unit(const std::string& name, std::uint64_t index, double v) {
+  return format_error(vertex_label(name, index) + " has the colour value " + format_double(v) +
+                      ": colours stored as float or double are read as fractions from 0 to 1, as MeshLab and "
+                      "Blender write them; store levels 0..255 as uchar (or 0..65535 as ushort) instead");
+}
+
 // Checks n decoded points; `first` is the file index of p[0], for messages.
 // One branch-free pass in the common all-finite case; the offending index is
 // searched only on failure.
@@ -471,6 +491,7 @@ struct Layout {
   bool swap = false;
   bool has_color = false;
   bool wide_color = false;
+  bool unit_color = false;  // VertexPlan::unit_color
   bool has_intensity = false;
   int color_shift = 0;  // for wide colours narrowed while decoding
   // The properties kept as extra bytes (VertexPlan::extra_at), in order:
@@ -539,6 +560,8 @@ void decode_generic(const std::uint8_t* src, std::size_t n, const Layout& lay, V
         col[i] =
             Rgb8{narrow_level(to_level16(r), lay.color_shift), narrow_level(to_level16(g), lay.color_shift),
                  narrow_level(to_level16(b), lay.color_shift)};
+      } else if (lay.unit_color) {
+        col[i] = Rgb8{unit_level8(r), unit_level8(g), unit_level8(b)};
       } else {
         col[i] = Rgb8{to_level8(r), to_level8(g), to_level8(b)};
       }
@@ -573,6 +596,7 @@ Layout make_layout(const Element& el, const VertexPlan& plan, bool swap, bool bi
   lay.big_endian = big_endian;
   lay.has_color = plan.has_color;
   lay.wide_color = plan.wide_color;
+  lay.unit_color = plan.unit_color;
   lay.has_intensity = plan.has_intensity;
   std::vector<std::size_t> prop_offset(el.properties.size());
   for (std::size_t i = 0; i < el.properties.size(); ++i) {
@@ -835,6 +859,8 @@ class PlyPointReader final : public BatchPointReader {
   Status push_las(const std::array<double, kFieldCount>& v, std::uint64_t index, PointCloud& out) const;
   // Appends the LAS dimensions of n fixed-size records (vertex `first` on).
   Status decode_las(const std::uint8_t* src, std::size_t n, std::uint64_t first, PointCloud& out) const;
+  // Float colours (VertexPlan::unit_color) of n fixed-size records: each from 0 to 1.
+  Status check_unit_colors(const std::uint8_t* src, std::size_t n, std::uint64_t first) const;
   // Sizes out.las.extra_bytes for n points (nothing when no property is kept).
   void size_extras(PointCloud& out, std::size_t n) const;
   Status finish_trailing();
@@ -1041,6 +1067,7 @@ Result<std::size_t> PlyPointReader::read_fixed(PointCloud& out, std::vector<std:
     decode_(view.data(), n, layout_, out.positions.data() + i0, col8 ? out.colors.data() + i0 : nullptr,
             to_wide ? wide->data() + 3 * i0 : nullptr, intensity);
     RELIEF_RETURN_IF_ERROR(check_finite(out.positions.data() + i0, intensity, n, done_ + got, name()));
+    if (plan_.unit_color) RELIEF_RETURN_IF_ERROR(check_unit_colors(view.data(), n, done_ + got));
     if (layout_.extra_size > 0) {
       copy_extras(view.data(), n, layout_, out.las.extra_bytes.data() + i0 * layout_.extra_size);
     }
@@ -1066,6 +1093,11 @@ Status PlyPointReader::push_vertex(const std::array<double, kFieldCount>& v, std
       out.colors.push_back({narrow_level(to_level16(v[kRed]), color_shift_),
                             narrow_level(to_level16(v[kGreen]), color_shift_),
                             narrow_level(to_level16(v[kBlue]), color_shift_)});
+    } else if (plan_.unit_color) {
+      for (const Field f : {kRed, kGreen, kBlue}) {
+        if (!is_unit(v[f])) return colour_not_unit(name(), index, v[f]);
+      }
+      out.colors.push_back({unit_level8(v[kRed]), unit_level8(v[kGreen]), unit_level8(v[kBlue])});
     } else {
       out.colors.push_back({to_level8(v[kRed]), to_level8(v[kGreen]), to_level8(v[kBlue])});
     }
@@ -1091,6 +1123,16 @@ Status PlyPointReader::push_las(const std::array<double, kFieldCount>& v, std::u
     las[static_cast<std::size_t>(las_text_columns()[k].column)] = v[kLasField + k];
   }
   push_las_columns(las.data(), plan_.las_bits, out.las);
+  return Status::ok();
+}
+
+Status PlyPointReader::check_unit_colors(const std::uint8_t* src, std::size_t n, std::uint64_t first) const {
+  for (std::size_t i = 0; i < n; ++i, src += layout_.stride) {
+    for (const Field f : {kRed, kGreen, kBlue}) {
+      const double v = load_scalar(src + layout_.offset[f], layout_.type[f], layout_.swap);
+      if (!is_unit(v)) return colour_not_unit(name(), first + i, v);
+    }
+  }
   return Status::ok();
 }
 

@@ -482,6 +482,39 @@ TEST_CASE("PLY 16-bit colours are shifted to 8 bits only when needed", "[io]") {
   }
 }
 
+TEST_CASE("PLY float colours are fractions 0..1, each rounded to the nearest level", "[io]") {
+  // They were truncated to 0 or 1 without a word.
+  const PlyEncoding enc = GENERATE(PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian,
+                                   PlyEncoding::kBinaryBigEndian);
+  const bool dbl = GENERATE(false, true);
+  CAPTURE(encoding_label(enc), dbl);
+  auto file = [&](const std::vector<std::array<double, 3>>& rgb) {
+    BodyBuilder b(enc);
+    for (const auto& c : rgb) {
+      b.put(1.0f).put(2.0f).put(3.0f);
+      for (const double v : c) dbl ? b.put(v) : b.put(static_cast<float>(v));
+      b.end_record();
+    }
+    const std::string t = dbl ? "double" : "float";
+    return std::string("ply\n") + format_line(enc) + "element vertex " + std::to_string(rgb.size()) +
+           "\nproperty float x\nproperty float y\nproperty float z\nproperty " + t + " red\nproperty " + t +
+           " green\nproperty " + t + " blue\nend_header\n" + b.str();
+  };
+  SECTION("levels back from level / 255") {
+    const Result<PointCloud> r = parse(file({{0.0, 1.0, 128.0 / 255}, {0.5, 0.25, 17.0 / 255}}));
+    INFO(r.status().to_string());
+    REQUIRE(r.is_ok());
+    REQUIRE(r->colors.size() == 2);
+    CHECK(r->colors[0] == Rgb8{0, 255, 128});
+    CHECK(r->colors[1] == Rgb8{128, 64, 17});
+    CHECK(r->las.color_low.empty());
+  }
+  SECTION("a value outside 0..1 is refused, naming the vertex") {
+    require_format_error(parse(file({{0.5, 0.5, 0.5}, {0.2, 255.0, 0.0}})), "vertex 1 has the colour value 255");
+    require_format_error(parse(file({{-0.5, 0.5, 0.5}})), "fractions from 0 to 1");
+  }
+}
+
 // ---------------------------------------------------------------- must reject
 
 TEST_CASE("PLY rejects inputs that are not PLY or have a broken header", "[io]") {
