@@ -536,6 +536,19 @@ class LasPointReader final : public BatchPointReader {
       src_.consume(n);
     }
   }
+  // A GPS time that is NaN or infinite has no place in the archive (nor in
+  // any time order): refused here, naming the file and the point, rather
+  // than by the encoder, which knows neither. `first` is the file index of
+  // times[0]. One pass without branches when all are finite.
+  Status check_gps_times(const double* times, std::size_t n, std::uint64_t first) const {
+    double acc = 0;  // t - t is NaN exactly when t is NaN or infinite
+    for (std::size_t i = 0; i < n; ++i) acc += times[i] - times[i];
+    if (acc == 0) return Status::ok();
+    std::size_t i = 0;
+    while (std::isfinite(times[i])) ++i;
+    return format_error(name() + ": point " + std::to_string(first + i) + " (counted from 0) has a GPS time of " +
+                        format_double(times[i]) + ", not a finite number");
+  }
   Status truncated(std::uint64_t holds) const {
     return format_error(name() + ": truncated: header declares " + std::to_string(header_.point_count) +
                         " points but the file holds " + std::to_string(holds));
@@ -962,6 +975,7 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
                                                              load_le<std::uint16_t>(c + 4)}));
     }
     decode_las_optional(view.data(), n, layout_, t);
+    if (layout_.gps_offset != 0) RELIEF_RETURN_IF_ERROR(check_gps_times(out.las.gps_time.data() + i0, n, done_ + got));
     consume_points(n * stride);
     got += n;
   }
