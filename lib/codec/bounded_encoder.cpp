@@ -160,13 +160,17 @@ ScanCoding encode_in_time_order(const PointCloud& cloud, const std::vector<std::
 }  // namespace
 
 // Whether the octree could beat the time order (format 8 on, §11.3.3): for
-// a large blob, a trial codes the octree of the first eighth of the points
-// in time order (a few scan lines) within that share of the time-ordered
-// geometry and GPS sections. The trial leaves out the ranked GPS times the
-// octree would also need, so it errs towards trying; it saves coding most of
-// a losing octree (a quarter of the encoder's time on airborne scans).
-// Small blobs always try.
+// a large blob, a trial codes the octree of the first 1/kOctreeTrialShare of
+// the points in time order (a few scan lines) within that share of the
+// time-ordered geometry and GPS sections. The trial leaves out the ranked
+// GPS times the octree would also need, so it errs towards trying; it saves
+// coding most of a losing octree (a quarter of the encoder's time on
+// airborne scans). When the two are close the trial runs nearly to its end,
+// so it codes a thirty-second of the points (an eighth until codec 13) with
+// codec 12 whatever the blob's octree codec (codec 13 takes twice its time
+// for 1-3 % fewer bytes on such samples). Small blobs always try.
 constexpr std::size_t kOctreeTrialPoints = std::size_t{1} << 16;
+constexpr std::size_t kOctreeTrialShare = 32;
 
 // Sections that may follow either order are tried on a sample first from
 // this many points on (encode_bounded).
@@ -176,11 +180,10 @@ constexpr std::size_t kOrderTrialPoints = std::size_t{1} << 18;
 enum class OrderChoice { kTry, kLayer, kCells };
 // One order wins the trial when it is smaller by more than 1/kOrderTrialMargin.
 constexpr std::size_t kOrderTrialMargin = 32;
-bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes,
-                    OctreeCoding coding) {
+bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::size_t scan_bytes) {
   const std::size_t n = time_order.size();
   if (n < kOctreeTrialPoints) return true;
-  const std::size_t m = n / 8;
+  const std::size_t m = n / kOctreeTrialShare;
   std::vector<std::uint64_t> keys(m);
   for (std::size_t k = 0; k < m; ++k) keys[k] = time_order[k].key;
   std::sort(keys.begin(), keys.end());
@@ -193,7 +196,7 @@ bool octree_may_win(const std::vector<KeyedIndex>& time_order, int depth, std::s
     i = j;
   }
   const std::uint64_t share = std::uint64_t{scan_bytes} * m / n;  // both below 2^32: no overflow
-  return encode_geometry_within(trial, depth, coding, share).has_value();
+  return encode_geometry_within(trial, depth, OctreeCoding::kFacePatterns, share).has_value();
 }
 
 Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const EncodeParams& params,
@@ -343,7 +346,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       const std::size_t scan_bytes = scan.geometry.size() + 1 + scan.gps.size();
       std::optional<std::vector<std::uint8_t>> octree;
       std::vector<std::uint8_t> gps_ranked;
-      if (octree_may_win(scan.order, depth, scan_bytes, octree_coding)) {
+      if (octree_may_win(scan.order, depth, scan_bytes)) {
         time_order = las_time_order(cell_las.gps_time);
         gps_ranked = encode_las_attribute(kLasGpsTime, cell_las, n, octree_version,
                                           cells_in_order(q, lo, order), time_order);
