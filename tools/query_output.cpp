@@ -2,15 +2,42 @@
 
 #include "relief/codec.h"
 
+#include <bit>
 #include <cctype>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 
 #include "relief/io.h"
 
 namespace relief::cli {
+
+namespace {
+
+// Whether every source of the archive is a LAS/LAZ file whose header scale
+// and offset are the archive's grid (step, origin): then each point's
+// integer on that grid is the source's, which fits 32 bits at that offset.
+bool grid_is_las_sources(const ArchiveInfo& info, const Vec3d& step, const Vec3d& origin) {
+  if (info.sources.empty()) return false;
+  const auto same = [](double a, double b) { return std::fabs(a - b) <= 1e-12 * std::max(std::fabs(a), std::fabs(b)); };
+  for (const ArchiveSource& s : info.sources) {
+    const std::vector<std::uint8_t>& h = s.las.header;
+    if (h.size() < 179) return false;  // not LAS, or no header block kept
+    double v[6];
+    std::memcpy(v, h.data() + 131, sizeof v);  // x y z scale, x y z offset (little endian)
+    if constexpr (std::endian::native != std::endian::little) return false;
+    if (!same(v[0], step.x) || !same(v[1], step.y) || !same(v[2], step.z) || !same(v[3], origin.x) ||
+        !same(v[4], origin.y) || !same(v[5], origin.z)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
 
 QueryOptions query_options_from(Args& args, const std::string& command) {
   QueryOptions q;
@@ -101,6 +128,7 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   if (auto params = encode_params_from_string(info.codec_params); params && params->bound) {
     w.grid_scale = params->bound->step;
     w.grid_offset = params->bound->origin;
+    w.grid_offset_exact = grid_is_las_sources(info, params->bound->step, params->bound->origin);
   }
   if (box != nullptr && !info.bounds.empty()) {
     // The written data lies in the box and in the archive.

@@ -410,6 +410,61 @@ TEST_CASE("query and decompress: LAS output keeps coordinates within the scale",
   CHECK(std::count(d.output.begin(), d.output.end(), '\n') > 50000);
 }
 
+TEST_CASE("decompress and query to LAS keep a LAS source's offset with integers near the 32-bit limit",
+          "[cli][query][las]") {
+  // The writer placed its grid by the archive's chunk bounds, which reach
+  // beyond the points (they hold the base layer's too): the source's offset
+  // could not hold them, so it moved (other integers) or the export failed.
+  TempDir tmp;
+  relief::PointCloud in;
+  const std::int64_t top = 2147483647;  // the largest LAS integer
+  for (std::int64_t i = 0; i < 3000; ++i) {
+    const std::int64_t X = top - (i * 7919) % 2000000, Y = (i * 104729) % 3000000 - 1500000, Z = i % 1000;
+    in.positions.push_back({static_cast<double>(X) * 0.001, static_cast<double>(Y) * 0.001,
+                            static_cast<double>(Z) * 0.001});
+  }
+  in.positions.push_back({static_cast<double>(top) * 0.001, 0.0, 0.0});
+  const auto header_offset = [](const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    std::array<double, 3> o{};
+    f.seekg(155);
+    f.read(reinterpret_cast<char*>(o.data()), sizeof o);
+    return o;
+  };
+  relief::WriterOptions w;
+  w.grid_scale = relief::Vec3d{0.001, 0.001, 0.001};
+  w.grid_offset = relief::Vec3d{0, 0, 0};
+  w.grid_offset_exact = true;  // the test's own file at offset 0, whatever its bounds
+  {
+    auto writer = relief::open_point_writer(tmp.file("edge.las"), w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(in).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  }
+  REQUIRE(header_offset(tmp.file("edge.las")) == std::array<double, 3>{0, 0, 0});
+  REQUIRE(run("compress " + tmp.file("edge.las") + " -o " + tmp.file("e.relief") + " --quiet").code == 0);
+  const auto integers = [](const relief::PointCloud& c) {
+    std::vector<std::array<long long, 3>> v;
+    for (const relief::Vec3d& p : c.positions) {
+      v.push_back({std::llround(p.x / 0.001), std::llround(p.y / 0.001), std::llround(p.z / 0.001)});
+    }
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  for (const std::string cmd : {"decompress " + tmp.file("e.relief") + " -o " + tmp.file("out.las"),
+                                "query " + tmp.file("e.relief") + " --box 0,-2000,-1,2200000,2000,2 -o " +
+                                    tmp.file("out.las")}) {
+    CAPTURE(cmd);
+    const Run r = run(cmd + " --quiet");
+    INFO(r.output);
+    REQUIRE(r.code == 0);
+    CHECK(header_offset(tmp.file("out.las")) == std::array<double, 3>{0, 0, 0});
+    auto back = relief::read_point_file(tmp.file("out.las"));
+    REQUIRE(back.is_ok());
+    CHECK(integers(*back) == integers(in));
+  }
+}
+
 TEST_CASE("query and decompress --polygon: the points inside a WKT area", "[cli][query][polygon]") {
   TempDir tmp;
   const std::string a = tmp.file("k.relief");

@@ -333,6 +333,13 @@ struct WriterOptions {
   // archive's grid, so LAS integers written back are the source's).
   std::optional<Vec3d> grid_scale;
   std::optional<Vec3d> grid_offset;
+  // LAS: grid_offset is the offset of every source the points came from
+  // (LAS files of that scale and offset), whose integers all fit it: it is
+  // kept whatever expected_bounds says (a box that may reach beyond the
+  // points, as an archive's chunk bounds do), each point still checked as it
+  // is written. Otherwise a grid offset that cannot hold expected_bounds is
+  // moved by a whole number of steps.
+  bool grid_offset_exact = false;
   PlyEncoding ply_encoding = PlyEncoding::kBinaryLittleEndian;
   // LAZ: the threads that compress chunks side by side (whole chunks of
   // 50,000 points gathered, one a thread; the bytes do not change), 0 for
