@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -36,6 +37,13 @@ namespace relief {
 namespace ingest {
 
 namespace {
+
+// The shortest text that reads back as v, for messages.
+std::string number_text(double v) {
+  char buf[32];
+  const std::to_chars_result r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed);
+  return r.ec == std::errc() ? std::string(buf, r.ptr) : std::to_string(v);
+}
 
 // Memory per point of the first batch, read before the archive exists to derive
 // the cell size: the points (31) and suggest_cell_size's keys and radix
@@ -1279,6 +1287,35 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
   if ((info.las_attributes & kLasExtraBytes) != 0) {
     in.extra_bytes_vlr = info.extra_bytes_vlr;
     in.extra_bytes_size = info.extra_bytes_size;
+  }
+  // A LAS input whose integers the archive's grid cannot give back (a finer
+  // scale, or an offset between its steps) comes back within the archive's
+  // tolerance, as any other input would: said, since on its own it would
+  // have been lossless at its scale.
+  if (params.bound) {
+    const Vec3d& step = params.bound->step;
+    const Vec3d& origin = params.bound->origin;
+    for (const auto& reader : in.readers) {
+      const PointStreamInfo& ri = reader->info();
+      if (ri.las_point_format < 0 || !(ri.scale.x > 0 && ri.scale.y > 0 && ri.scale.z > 0)) continue;
+      bool on_grid = true;
+      const double sc[3] = {ri.scale.x, ri.scale.y, ri.scale.z}, of[3] = {ri.offset.x, ri.offset.y, ri.offset.z};
+      const double st[3] = {step.x, step.y, step.z}, og[3] = {origin.x, origin.y, origin.z};
+      for (int a = 0; a < 3; ++a) {
+        // Every X * scale + offset on the grid: scale a whole number of
+        // steps, offset a whole number of steps from the origin.
+        const double k = sc[a] / st[a], m = (of[a] - og[a]) / st[a];
+        on_grid = on_grid && std::fabs(k - std::round(k)) <= 1e-9 * std::max(1.0, k) && std::round(k) >= 1 &&
+                  std::fabs(m - std::round(m)) <= 1e-6;
+      }
+      if (!on_grid) {
+        in.warnings.push_back(ri.path + ": its LAS grid (scale " + number_text(ri.scale.x) + ", offset " +
+                              number_text(ri.offset.x) + " in x) is not on " + archive_path + "'s (step " +
+                              number_text(step.x) + ", origin " + number_text(origin.x) +
+                              "): its points come back within the archive's tolerance " +
+                              number_text(step.x / 2) + ", not as its own integers");
+      }
+    }
   }
   in.las_attributes |= info.las_attributes;
   if (!in.colors) in.las_attributes &= ~std::uint32_t{kLasColorLow};

@@ -313,6 +313,44 @@ TEST_CASE("bounded compress: LAS input comes back as the same LAS integers", "[i
   CHECK(ints(*reread) == ints(in));
 }
 
+TEST_CASE("append of a LAS file off the archive's grid says its integers will not come back", "[ingest][bounded]") {
+  TempDir dir;
+  test::Rng rng(9);
+  const auto las = [&](const std::string& name, double scale, double offset) {
+    PointCloud c;
+    for (int i = 0; i < 2000; ++i) {
+      c.positions.push_back({offset + std::floor(rng.uniform(0, 1000)) * scale,
+                             offset + std::floor(rng.uniform(0, 1000)) * scale, std::floor(rng.uniform(0, 100)) * scale});
+    }
+    WriterOptions w;
+    w.grid_scale = Vec3d{scale, scale, scale};
+    w.grid_offset = Vec3d{offset, offset, 0};
+    w.grid_offset_exact = true;
+    auto writer = open_point_writer(dir.file(name), w);
+    REQUIRE(writer.is_ok());
+    REQUIRE((*writer)->write(c).is_ok());
+    REQUIRE((*writer)->finish().is_ok());
+  };
+  las("cm.las", 0.01, 1000);
+  las("cm_again.las", 0.01, 1000);
+  las("cm_shifted.las", 0.02, 1000.01);  // a scale of two steps: on the grid
+  las("mm.las", 0.001, 1000);            // a finer scale
+  las("half.las", 0.01, 1000.005);       // an offset between two steps
+  REQUIRE(compress_files({dir.file("cm.las")}, dir.file("a.relief"), IngestOptions{}).is_ok());
+  const auto warned = [&](const std::string& name) {
+    auto r = append_files(dir.file("a.relief"), {dir.file(name)}, IngestOptions{});
+    REQUIRE(r.is_ok());
+    return std::any_of(r->warnings.begin(), r->warnings.end(), [&](const std::string& w) {
+      return w.find(dir.file(name) + ": its LAS grid") != std::string::npos &&
+             w.find("not as its own integers") != std::string::npos;
+    });
+  };
+  CHECK_FALSE(warned("cm_again.las"));
+  CHECK_FALSE(warned("cm_shifted.las"));
+  CHECK(warned("mm.las"));
+  CHECK(warned("half.las"));
+}
+
 TEST_CASE("bounded compress of an organised PCD: no-depth pixels skipped, fields kept, the blobs of the same PLY",
           "[ingest][bounded][extra]") {
   TempDir dir;
