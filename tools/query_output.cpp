@@ -22,7 +22,9 @@ namespace {
 // integer on that grid is the source's, which fits 32 bits at that offset.
 bool grid_is_las_sources(const ArchiveInfo& info, const Vec3d& step, const Vec3d& origin) {
   if (info.sources.empty()) return false;
-  const auto same = [](double a, double b) { return std::fabs(a - b) <= 1e-12 * std::max(std::fabs(a), std::fabs(b)); };
+  const auto same = [](double a, double b) {
+    return std::fabs(a - b) <= 1e-12 * std::max(std::fabs(a), std::fabs(b));
+  };
   for (const ArchiveSource& s : info.sources) {
     const std::vector<std::uint8_t>& h = s.las.header;
     if (h.size() < 179) return false;  // not LAS, or no header block kept

@@ -9,12 +9,12 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <cstring>
 #include <unordered_map>
 
 #include "core/memory.h"
@@ -1299,7 +1299,8 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
       const PointStreamInfo& ri = reader->info();
       if (ri.las_point_format < 0 || !(ri.scale.x > 0 && ri.scale.y > 0 && ri.scale.z > 0)) continue;
       bool on_grid = true;
-      const double sc[3] = {ri.scale.x, ri.scale.y, ri.scale.z}, of[3] = {ri.offset.x, ri.offset.y, ri.offset.z};
+      const double sc[3] = {ri.scale.x, ri.scale.y, ri.scale.z},
+                   of[3] = {ri.offset.x, ri.offset.y, ri.offset.z};
       const double st[3] = {step.x, step.y, step.z}, og[3] = {origin.x, origin.y, origin.z};
       for (int a = 0; a < 3; ++a) {
         // Every X * scale + offset on the grid: scale a whole number of

@@ -546,8 +546,9 @@ class LasPointReader final : public BatchPointReader {
     if (acc == 0) return Status::ok();
     std::size_t i = 0;
     while (std::isfinite(times[i])) ++i;
-    return format_error(name() + ": point " + std::to_string(first + i) + " (counted from 0) has a GPS time of " +
-                        format_double(times[i]) + ", not a finite number");
+    return format_error(name() + ": point " + std::to_string(first + i) +
+                        " (counted from 0) has a GPS time of " + format_double(times[i]) +
+                        ", not a finite number");
   }
   Status truncated(std::uint64_t holds) const {
     return format_error(name() + ": truncated: header declares " + std::to_string(header_.point_count) +
@@ -975,7 +976,8 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
                                                              load_le<std::uint16_t>(c + 4)}));
     }
     decode_las_optional(view.data(), n, layout_, t);
-    if (layout_.gps_offset != 0) RELIEF_RETURN_IF_ERROR(check_gps_times(out.las.gps_time.data() + i0, n, done_ + got));
+    if (layout_.gps_offset != 0)
+      RELIEF_RETURN_IF_ERROR(check_gps_times(out.las.gps_time.data() + i0, n, done_ + got));
     consume_points(n * stride);
     got += n;
   }

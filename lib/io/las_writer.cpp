@@ -1031,7 +1031,8 @@ class LasStreamWriter final : public StreamPointWriter {
         // automatic offsets round): the points stay on the same grid.
         scale = std::fabs(axis(*options_.grid_scale, a));
         offset = axis(*options_.grid_offset, a);
-        const bool exact = options_.grid_offset_exact && scale > 0 && std::isfinite(scale) && std::isfinite(offset);
+        const bool exact =
+            options_.grid_offset_exact && scale > 0 && std::isfinite(scale) && std::isfinite(offset);
         if (exact) {
           axis(q_.scale, a) = scale;
           axis(q_.offset, a) = offset;

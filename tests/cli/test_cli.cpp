@@ -420,8 +420,8 @@ TEST_CASE("decompress and query to LAS keep a LAS source's offset with integers 
   const std::int64_t top = 2147483647;  // the largest LAS integer
   for (std::int64_t i = 0; i < 3000; ++i) {
     const std::int64_t X = top - (i * 7919) % 2000000, Y = (i * 104729) % 3000000 - 1500000, Z = i % 1000;
-    in.positions.push_back({static_cast<double>(X) * 0.001, static_cast<double>(Y) * 0.001,
-                            static_cast<double>(Z) * 0.001});
+    in.positions.push_back(
+        {static_cast<double>(X) * 0.001, static_cast<double>(Y) * 0.001, static_cast<double>(Z) * 0.001});
   }
   in.positions.push_back({static_cast<double>(top) * 0.001, 0.0, 0.0});
   const auto header_offset = [](const std::string& path) {
@@ -451,9 +451,9 @@ TEST_CASE("decompress and query to LAS keep a LAS source's offset with integers 
     std::sort(v.begin(), v.end());
     return v;
   };
-  for (const std::string cmd : {"decompress " + tmp.file("e.relief") + " -o " + tmp.file("out.las"),
-                                "query " + tmp.file("e.relief") + " --box 0,-2000,-1,2200000,2000,2 -o " +
-                                    tmp.file("out.las")}) {
+  for (const std::string cmd :
+       {"decompress " + tmp.file("e.relief") + " -o " + tmp.file("out.las"),
+        "query " + tmp.file("e.relief") + " --box 0,-2000,-1,2200000,2000,2 -o " + tmp.file("out.las")}) {
     CAPTURE(cmd);
     const Run r = run(cmd + " --quiet");
     INFO(r.output);

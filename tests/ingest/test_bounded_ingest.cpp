@@ -313,14 +313,16 @@ TEST_CASE("bounded compress: LAS input comes back as the same LAS integers", "[i
   CHECK(ints(*reread) == ints(in));
 }
 
-TEST_CASE("append of a LAS file off the archive's grid says its integers will not come back", "[ingest][bounded]") {
+TEST_CASE("append of a LAS file off the archive's grid says its integers will not come back",
+          "[ingest][bounded]") {
   TempDir dir;
   test::Rng rng(9);
   const auto las = [&](const std::string& name, double scale, double offset) {
     PointCloud c;
     for (int i = 0; i < 2000; ++i) {
       c.positions.push_back({offset + std::floor(rng.uniform(0, 1000)) * scale,
-                             offset + std::floor(rng.uniform(0, 1000)) * scale, std::floor(rng.uniform(0, 100)) * scale});
+                             offset + std::floor(rng.uniform(0, 1000)) * scale,
+                             std::floor(rng.uniform(0, 100)) * scale});
     }
     WriterOptions w;
     w.grid_scale = Vec3d{scale, scale, scale};

@@ -271,8 +271,10 @@ TEST_CASE("LAS reader refuses lying extra bytes and short records", "[las][attri
     f.read(reinterpret_cast<char*>(&point_offset), 4);
     f.seekg(105);
     f.read(reinterpret_cast<char*>(&record_length), 2);
-    const double bad = GENERATE(std::numeric_limits<double>::quiet_NaN(), -std::numeric_limits<double>::infinity());
-    f.seekp(static_cast<std::streamoff>(point_offset + 7 * std::uint32_t{record_length} + 20));  // format 1's time
+    const double bad =
+        GENERATE(std::numeric_limits<double>::quiet_NaN(), -std::numeric_limits<double>::infinity());
+    f.seekp(static_cast<std::streamoff>(point_offset + 7 * std::uint32_t{record_length} +
+                                        20));  // format 1's time
     f.write(reinterpret_cast<const char*>(&bad), 8);
     f.close();
     auto r = relief::open_point_reader(path);
@@ -280,7 +282,8 @@ TEST_CASE("LAS reader refuses lying extra bytes and short records", "[las][attri
     relief::PointCloud batch;
     const relief::Result<std::size_t> got = (*r)->read(batch, 100);
     REQUIRE_FALSE(got.is_ok());
-    CHECK(got.status().message().find(path + ": point 7 (counted from 0) has a GPS time of") != std::string::npos);
+    CHECK(got.status().message().find(path + ": point 7 (counted from 0) has a GPS time of") !=
+          std::string::npos);
   }
   SECTION("record length smaller than the format needs") {
     REQUIRE(write_test_las(path, o));

@@ -484,8 +484,8 @@ TEST_CASE("PLY 16-bit colours are shifted to 8 bits only when needed", "[io]") {
 
 TEST_CASE("PLY float colours are fractions 0..1, each rounded to the nearest level", "[io]") {
   // They were truncated to 0 or 1 without a word.
-  const PlyEncoding enc = GENERATE(PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian,
-                                   PlyEncoding::kBinaryBigEndian);
+  const PlyEncoding enc =
+      GENERATE(PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian);
   const bool dbl = GENERATE(false, true);
   CAPTURE(encoding_label(enc), dbl);
   auto file = [&](const std::vector<std::array<double, 3>>& rgb) {
@@ -510,7 +510,8 @@ TEST_CASE("PLY float colours are fractions 0..1, each rounded to the nearest lev
     CHECK(r->las.color_low.empty());
   }
   SECTION("a value outside 0..1 is refused, naming the vertex") {
-    require_format_error(parse(file({{0.5, 0.5, 0.5}, {0.2, 255.0, 0.0}})), "vertex 1 has the colour value 255");
+    require_format_error(parse(file({{0.5, 0.5, 0.5}, {0.2, 255.0, 0.0}})),
+                         "vertex 1 has the colour value 255");
     require_format_error(parse(file({{-0.5, 0.5, 0.5}})), "fractions from 0 to 1");
   }
 }

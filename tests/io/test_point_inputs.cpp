@@ -284,8 +284,8 @@ TEST_CASE("CSV header names give the columns without --columns", "[io][xyz]") {
   SECTION("a comment marker apart from the names") {
     // "# x y z" and "// X,Y,Z": the marker is not a column (it shifted every
     // column by one, or refused the file for a missing column).
-    for (const char* header : {"# X Y Z R G B Reflectance\n", "//  X,Y,Z,R,G,B,Reflectance\n",
-                               "  #\tx y z red green blue i\n"}) {
+    for (const char* header :
+         {"# X Y Z R G B Reflectance\n", "//  X,Y,Z,R,G,B,Reflectance\n", "  #\tx y z red green blue i\n"}) {
       write_file(path, std::string(header) + "1 2 3 10 20 30 0.25\n4 5 6 40 50 60 0.5\n");
       const Result<PointCloud> got = read_all(path, 100);
       INFO(header << got.status().to_string());
