@@ -976,8 +976,9 @@ Result<std::size_t> LasPointReader::read_into(PointCloud& out, std::vector<std::
                                                              load_le<std::uint16_t>(c + 4)}));
     }
     decode_las_optional(view.data(), n, layout_, t);
-    if (layout_.gps_offset != 0)
+    if (layout_.gps_offset != 0) {
       RELIEF_RETURN_IF_ERROR(check_gps_times(out.las.gps_time.data() + i0, n, done_ + got));
+    }
     consume_points(n * stride);
     got += n;
   }
