@@ -314,6 +314,8 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const std::uint16_t octree_version =
       bound.fast_geometry ? kOrderFreeFormatVersion : kOctreePlanesFormatVersion;
   SectionCodec geometry_codec = octree_codec;
+  // The cell order above, kept when a scan order replaces it as the layer's.
+  std::vector<KeyedIndex> cell_order;
   std::vector<std::uint32_t> time_order;  // layer index of each time-order position
   std::vector<std::uint8_t> gps_payload;
   if (bound.keep_order && n > 1) {
@@ -323,6 +325,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     ScanCoding scan = encode_in_time_order(cloud, q, lo, depth, attr_less, true);
     geometry = std::move(scan.geometry);
     geometry_codec = SectionCodec::kScanOrder;
+    cell_order = std::move(order);
     order = std::move(scan.order);
     time_order = std::move(scan.time_order);
     gps_payload = std::move(scan.gps);
@@ -360,6 +363,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       } else {
         geometry = std::move(scan.geometry);
         geometry_codec = SectionCodec::kScanOrder;
+        cell_order = std::move(order);
         order = std::move(scan.order);
         time_order = std::move(scan.time_order);
         gps_payload = std::move(scan.gps);
@@ -384,11 +388,20 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   std::vector<std::uint32_t> cell_pos;
   std::uint8_t order_mask = 0;
   if (geometry_codec == SectionCodec::kScanOrder) {
-    std::vector<KeyedIndex> by_cell(n);
-    for (std::size_t k = 0; k < n; ++k) by_cell[k] = {order[k].key, static_cast<std::uint32_t>(k)};
-    radix_sort(by_cell, 3 * depth);  // stable: a cell's points stay in time order
+    // The layer's points in cell order, a cell's in layer order: the cell
+    // order made above, each cell's points (most cells hold one) put in
+    // layer order, as a stable sort of the layer by cell would give them.
+    std::vector<std::uint32_t> layer_pos(n);
+    for (std::size_t k = 0; k < n; ++k) layer_pos[order[k].index] = static_cast<std::uint32_t>(k);
     cell_pos.resize(n);
-    for (std::size_t j = 0; j < n; ++j) cell_pos[j] = by_cell[j].index;
+    for (std::size_t i = 0; i < n;) {
+      std::size_t j = i + 1;
+      while (j < n && cell_order[j].key == cell_order[i].key) ++j;
+      for (std::size_t t = i; t < j; ++t) cell_pos[t] = layer_pos[cell_order[t].index];
+      if (j - i > 1) std::sort(cell_pos.begin() + static_cast<std::ptrdiff_t>(i), cell_pos.begin() + static_cast<std::ptrdiff_t>(j));
+      i = j;
+    }
+    cell_order = {};
   }
   // Each section that may follow either order (its slot's bit in the mask)
   // is coded in the layer's order and in cell order and the smaller kept.
