@@ -398,7 +398,9 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       std::size_t j = i + 1;
       while (j < n && cell_order[j].key == cell_order[i].key) ++j;
       for (std::size_t t = i; t < j; ++t) cell_pos[t] = layer_pos[cell_order[t].index];
-      if (j - i > 1) std::sort(cell_pos.begin() + static_cast<std::ptrdiff_t>(i), cell_pos.begin() + static_cast<std::ptrdiff_t>(j));
+      if (j - i > 1)
+        std::sort(cell_pos.begin() + static_cast<std::ptrdiff_t>(i),
+                  cell_pos.begin() + static_cast<std::ptrdiff_t>(j));
       i = j;
     }
     cell_order = {};
