@@ -16,12 +16,16 @@ constexpr const char* kCommand = "merge";
 
 int run_merge(int argc, char** argv) {
   static const std::string usage =
-      "usage: relief merge SHARD... -o OUT.relief [--quiet]\n"
+      "usage: relief merge SHARD... -o OUT.relief [--pyramid auto|on|off] [--quiet]\n"
       "Joins the shard archives of a sharded build (shard-encode) into one new archive: the\n"
       "chunk rows are copied as they are, under one spatial index and one scan. The shards must\n"
-      "come from one plan (same grid, codec parameters, CRS, attributes and sources) and hold\n"
-      "disjoint chunks. OUT appears only when complete and is never overwritten.\n";
-  Args args(argc, argv, {"--help", "--quiet"}, {"-o"});
+      "come from one plan (same grid, codec parameters, CRS, attributes and sources), hold\n"
+      "disjoint chunks and, together, every point of the plan's inputs (a missing shard is\n"
+      "refused). OUT appears only when complete and is never overwritten.\n"
+      "  --pyramid auto|on|off  the level-of-detail pyramid, built from the merged chunks as\n"
+      "                         'relief compress --pyramid' builds it (default auto: for 10 M\n"
+      "                         points or more)\n";
+  Args args(argc, argv, {"--help", "--quiet"}, {"-o", "--pyramid"});
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -30,7 +34,19 @@ int run_merge(int argc, char** argv) {
   if (args.positional().empty()) return usage_error(kCommand, "expected at least one shard");
   const auto out = args.get("-o");
   if (!out) return usage_error(kCommand, "missing -o OUT.relief");
-  auto r = merge_archives(args.positional(), *out);
+  MergeOptions options;
+  if (const auto p = args.get("--pyramid")) {
+    if (*p == "auto") {
+      options.pyramid = PyramidMode::kAuto;
+    } else if (*p == "on") {
+      options.pyramid = PyramidMode::kOn;
+    } else if (*p == "off") {
+      options.pyramid = PyramidMode::kOff;
+    } else {
+      return usage_error(kCommand, "--pyramid must be auto, on or off, got '" + *p + "'");
+    }
+  }
+  auto r = merge_archives(args.positional(), *out, options);
   if (!r) return fail(kCommand, r.status());
   if (!args.has("--quiet")) {
     std::printf("%s: %llu shards -> %llu chunks, %llu points, %s of blobs\n", out->c_str(),

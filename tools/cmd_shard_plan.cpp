@@ -25,7 +25,8 @@ int run_shard_plan(int argc, char** argv) {
       "  --ranges N             key ranges = shards (default: about 8 M points each; at most 512)\n"
       "  --quiet                print nothing but errors and warnings\n"
       "Every option of 'relief compress' (below) is taken and recorded in the plan\n"
-      "(--chunk-edge, --allow-sparse, --assume-crs, --crs, --columns...).\n\n") +
+      "(--chunk-edge, --allow-sparse, --assume-crs, --crs, --columns...), but --pyramid,\n"
+      "which 'relief merge' takes.\n\n") +
       kInputsHelp + "\n" + kModeOptionsHelp + "\n" + kIngestOptionsHelp + "\n" + kEncodeOptionsHelp;
   // Every option compress takes (the same library parser), plus --ranges.
   std::vector<std::string> options = ingest_cli_options(IngestOptionSet::kCompress);
@@ -43,6 +44,11 @@ int run_shard_plan(int argc, char** argv) {
   if (!input_error.empty()) return usage_error(kCommand, input_error);
   const auto out = args.get("-o");
   if (!out) return usage_error(kCommand, "missing -o PLAN");
+  // The pyramid is built from the merged chunks, by merge.
+  if (args.get("--pyramid")) {
+    return usage_error(kCommand, "--pyramid is not part of the plan: give it to 'relief merge', which builds the "
+                                 "pyramid from the merged chunks");
+  }
   ShardPlanOptions po;
   IngestOptions& o = po.ingest;
   if (const std::string err = parse_ingest_options(args, IngestOptionSet::kCompress, o); !err.empty()) {

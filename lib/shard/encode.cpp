@@ -1,6 +1,7 @@
 // Stage 2 of a sharded build: one key range's points from every input's
 // partition file -> a shard archive, encoded exactly as compress_files
 // encodes those chunks (same grouping, split rule, parameters, pipeline).
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -29,6 +30,13 @@ Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, co
   if (range >= plan.range_count()) {
     return invalid_argument("range " + std::to_string(range) + " of a plan of " + std::to_string(plan.range_count()) +
                             " ranges");
+  }
+  // A retried task replaces its earlier shard; any other file is left alone.
+  if (struct stat st {}; ::stat(out.c_str(), &st) == 0) {
+    if (!S_ISREG(st.st_mode) || !Archive::open(out, Archive::Mode::kReadOnly)) {
+      return io_error(out + ": already exists and is not a Relief archive (shard-encode replaces only an earlier "
+                            "shard, never another file)");
+    }
   }
   RELIEF_ASSIGN_OR_RETURN(const EncodeParams params, encode_params_from_string(plan.archive_params));
   EncodeParams chunk_params = params;

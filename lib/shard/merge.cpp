@@ -135,6 +135,19 @@ Result<MergeResult> merge_archives(const std::vector<std::string>& shards, const
   std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
     return std::tie(a.key, a.shard, a.id) < std::tie(b.key, b.shard, b.id);
   });
+  // Together the shards hold every point of the plan's inputs (their
+  // sources, the same in each, count them): a shard left out would make an
+  // archive that looks complete.
+  std::uint64_t held = 0, planned = 0;
+  for (const Shard& s : opened) held += s.info.input_points;
+  for (const ArchiveSource& src : opened[0].info.sources) planned += src.point_count;
+  if (held != planned) {
+    return invalid_argument("the " + std::to_string(opened.size()) + " shards hold " + std::to_string(held) +
+                            " points, their plan's inputs " + std::to_string(planned) +
+                            (held < planned ? ": a shard of the plan is missing (every key range's shard-encode "
+                                              "output must be merged)"
+                                            : ": not the shards of one build"));
+  }
 
   const ArchiveInfo& first = opened[0].info;
   core::remove_stale_temps_beside(out);  // left by killed tasks of this host writing `out`

@@ -86,6 +86,10 @@ Result<ShardPlan> plan_shards(const std::vector<std::string>& given, const Shard
   if (options.ranges > kMaxShardRanges) {
     return invalid_argument("at most " + std::to_string(kMaxShardRanges) + " key ranges");
   }
+  if (o.pyramid != PyramidMode::kAuto) {
+    return invalid_argument("the pyramid is not part of a plan: merge builds it from the merged chunks "
+                            "(MergeOptions::pyramid, relief merge --pyramid)");
+  }
   RELIEF_RETURN_IF_ERROR(validate_build_options(o));
   // open_inputs makes the LAS decisions of compress (the union of the
   // attribute sets, one Extra Bytes layout: different VLRs are refused there,

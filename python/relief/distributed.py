@@ -149,14 +149,14 @@ def _encode_task(cli, plan_path, parts_dir, shard_path, index, threads, memory, 
     return shard_path
 
 
-def _merge_task(cli, shards, merged_path, kill_once):
+def _merge_task(cli, shards, merged_path, kill_once, merge_args=()):
     cli = find_cli(cli)
     # A retried merge starts over: its output is a work file, moved into place
     # by the client.
     for suffix in ("", "-wal", "-journal"):
         if os.path.exists(merged_path + suffix):
             os.unlink(merged_path + suffix)
-    _run(cli, "merge", list(shards) + ["-o", merged_path])
+    _run(cli, "merge", list(shards) + ["-o", merged_path] + list(merge_args))
     _maybe_die(kill_once, "merge", 0)
     return merged_path
 
@@ -201,7 +201,8 @@ def compress(inputs, archive, client=None, *, ranges=None, work_dir=None, keep_w
     tmp_per_task: a directory on each worker for those files, e.g. local
         scratch ("$TMPDIR" is expanded on the worker); None = beside the shard.
     options: ``relief compress`` options as keywords (plan_options), e.g.
-        tolerance=0.002, chunk_edge=10, columns="x,y,z,i".
+        tolerance=0.002, chunk_edge=10, columns="x,y,z,i"; ``pyramid`` goes to
+        the merge (``relief merge --pyramid``), which builds the pyramid.
 
     Returns a dict: archive, inputs, ranges, shards. Raises FileExistsError when
     the archive exists (never overwritten), ReliefCliError when a stage fails.
@@ -218,7 +219,21 @@ def compress(inputs, archive, client=None, *, ranges=None, work_dir=None, keep_w
     parts = os.path.join(work, "parts")
     os.makedirs(parts, exist_ok=True)
     plan_path = os.path.join(work, "plan.txt")
-    args = plan_options(options) + list(_raw_plan_args or [])
+    # The pyramid is built by the merge, from the merged chunks.
+    merge_args = []
+    if options.get("pyramid") is not None:
+        merge_args = plan_options({"pyramid": options.pop("pyramid")})
+    raw = list(_raw_plan_args or [])
+    for k, arg in enumerate(raw):
+        if arg == "--pyramid" and k + 1 < len(raw):
+            merge_args = [arg, raw[k + 1]]
+            del raw[k:k + 2]
+            break
+        if arg.startswith("--pyramid="):
+            merge_args = ["--pyramid", arg.split("=", 1)[1]]
+            del raw[k]
+            break
+    args = plan_options(options) + raw
     if ranges is not None:
         args += ["--ranges", str(int(ranges))]
 
@@ -242,7 +257,7 @@ def compress(inputs, archive, client=None, *, ranges=None, work_dir=None, keep_w
                                 key="relief-encode-%d-%s" % (r, tag))
                   for r in range(n_ranges)]
         merged_path = os.path.join(work, "merged.relief")
-        merged = client.submit(_merge_task, relief_cli, shards, merged_path, _test_kill_once,
+        merged = client.submit(_merge_task, relief_cli, shards, merged_path, _test_kill_once, merge_args,
                                key="relief-merge-" + tag)
         merged.result()
     finally:

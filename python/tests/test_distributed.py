@@ -16,7 +16,8 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from relief import distributed as rd  # noqa: E402  (python/ on PYTHONPATH)
+import relief  # noqa: E402  (python/ on PYTHONPATH)
+from relief import distributed as rd  # noqa: E402
 
 PLY_DTYPE = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("red", "u1"), ("green", "u1"),
                       ("blue", "u1"), ("intensity", "<f4")])
@@ -150,6 +151,21 @@ def test_same_archive_as_one_box(cluster, scene, tmp_path):
     by_dir = str(tmp_path / "dir.relief")
     rd.compress(os.path.dirname(inputs[0]), by_dir, client=cluster, ranges=4, **OPTIONS)
     assert archive_content(by_dir) == want
+
+
+def test_pyramid_goes_to_the_merge(cluster, scene, tmp_path):
+    # shard-plan refuses --pyramid (the plan dropped it, and the merge built
+    # no pyramid below 10 M points): the driver gives it to the merge.
+    inputs, _ = scene
+    one = str(tmp_path / "one.relief")
+    subprocess.run([rd.find_cli(), "compress"] + inputs + ["-o", one, "--quiet", "--pyramid", "on"] +
+                   rd.plan_options(OPTIONS), check=True)
+    out = str(tmp_path / "dask.relief")
+    rd.compress(inputs, out, client=cluster, ranges=4, pyramid="on", **OPTIONS)
+    assert archive_content(out) == archive_content(one)
+    with relief.open(out) as a, relief.open(one) as b:
+        levels = a.info["scans"][0]["pyramid"]
+        assert levels and levels == b.info["scans"][0]["pyramid"]
 
 
 def test_worker_killed_mid_build(cluster, scene, tmp_path):

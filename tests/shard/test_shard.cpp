@@ -530,7 +530,15 @@ TEST_CASE("sharded build: the merged archive's pyramid equals a one-box compress
   };
   const auto want = levels_of(dir.file("one.relief"));
   REQUIRE(want.size() >= 2);
-  const std::vector<std::string> shards = build_shards(inputs, o, 3, dir.file("work"), nullptr);
+  // The plan takes no pyramid (merge builds it): refused if given.
+  ShardPlanOptions po;
+  po.ingest = o;
+  auto refused = plan_shards(inputs, po);
+  REQUIRE_FALSE(refused.is_ok());
+  CHECK(refused.status().message().find("merge builds it") != std::string::npos);
+  IngestOptions plan_options = o;
+  plan_options.pyramid = PyramidMode::kAuto;
+  const std::vector<std::string> shards = build_shards(inputs, plan_options, 3, dir.file("work"), nullptr);
   MergeOptions mo;
   mo.pyramid = PyramidMode::kOn;
   auto merged = merge_archives(shards, dir.file("merged.relief"), mo);
@@ -588,6 +596,17 @@ TEST_CASE("sharded build: stages and merge refuse what does not fit", "[shard]")
     CHECK(r.status().code() == StatusCode::kInvalidArgument);
     CHECK(r.status().message().find("given twice") != std::string::npos);
     CHECK_FALSE(std::filesystem::exists(dir.file("m.relief")));
+  }
+  SECTION("a shard left out") {
+    // It made an archive of fewer points that said it was complete.
+    const std::vector<std::string> three = build_shards(inputs, o, 3, dir.file("c"));
+    REQUIRE(three.size() == 3);
+    auto r = merge_archives({three[0], three[2]}, dir.file("m.relief"));
+    REQUIRE_FALSE(r.is_ok());
+    CHECK(r.status().code() == StatusCode::kInvalidArgument);
+    CHECK(r.status().message().find("a shard of the plan is missing") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir.file("m.relief")));
+    CHECK(merge_archives(three, dir.file("m.relief")).is_ok());
   }
   SECTION("overlapping shards (two plans' ranges)") {
     const std::vector<std::string> one = build_shards(inputs, o, 1, dir.file("b"));
@@ -869,5 +888,31 @@ TEST_CASE("sharded build: the CLI stages and merge, with their exit codes", "[sh
   CHECK(twice.code == 11);
   CHECK(twice.output.find("s0.relief") != std::string::npos);
   CHECK(run_cli(cli, "merge -o " + dir.file("m3.relief")).code == 2);
+  // A shard left out is refused; --pyramid goes to merge, not to the plan.
+  auto missing = run_cli(cli, "merge " + dir.file("s1.relief") + " -o " + dir.file("m4.relief"));
+  CHECK(missing.code == 11);
+  CHECK(missing.output.find("a shard of the plan is missing") != std::string::npos);
+  CHECK(run_cli(cli, "shard-plan " + in + " -o " + dir.file("p2.txt") + " --chunk-edge 1.5 --pyramid on").code == 2);
+  REQUIRE(run_cli(cli, "merge " + shards + " -o " + dir.file("m5.relief") + " --pyramid on --quiet").code == 0);
+  REQUIRE(run_cli(cli, "compress " + in + " -o " + dir.file("one-p.relief") + " --chunk-edge 1.5 --pyramid on --quiet")
+              .code == 0);
+  const auto pyramid_of = [&](const std::string& a) {
+    auto r = run_cli(cli, "info " + a + " --json");
+    const std::size_t at = r.output.find("\"pyramid\"");
+    return at == std::string::npos ? std::string() : r.output.substr(at, r.output.find(']', at) - at);
+  };
+  CHECK(pyramid_of(dir.file("m5.relief")).find("\"level\"") != std::string::npos);
+  CHECK(rows_of(dir.file("m5.relief")) == rows_of(dir.file("one.relief")));
+  CHECK(run_cli(cli, "merge " + shards + " -o " + dir.file("m6.relief") + " --pyramid sometimes").code == 2);
+  // shard-encode replaces an earlier shard but no other file (an input, here).
+  const std::string input_copy = dir.file("input-copy.ply");
+  std::filesystem::copy_file(inputs[0], input_copy);
+  auto over = run_cli(cli, "shard-encode " + plan + " --range 0 --dir " + dir.file("parts") + " -o " + input_copy);
+  CHECK(over.code == 12);
+  CHECK(over.output.find("not a Relief archive") != std::string::npos);
+  CHECK(std::filesystem::file_size(input_copy) == std::filesystem::file_size(inputs[0]));
+  CHECK(run_cli(cli, "shard-encode " + plan + " --range 0 --dir " + dir.file("parts") + " -o " + dir.file("s0.relief") +
+                         " --quiet")
+            .code == 0);
   CHECK(run_cli(cli, "shard-encode " + plan + " --dir " + dir.file("parts") + " -o x.relief").code == 2);
 }

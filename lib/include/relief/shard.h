@@ -141,8 +141,9 @@ struct EncodeShardOptions {
 
 // Stage 2: reads range `range`'s partition file of every input from `dir`
 // (every manifest must be there) and encodes its chunks into a new archive at
-// `out` (replaced if it exists: a retried task). The shard holds the plan's
-// metadata and the sources with their point counts.
+// `out` (an archive there is replaced: a retried task; any other file there
+// is refused, kIoError). The shard holds the plan's metadata and the sources
+// with their point counts.
 Result<IngestResult> encode_shard(const ShardPlan& plan, std::uint32_t range, const std::string& dir,
                                   const std::string& out, const EncodeShardOptions& options = {});
 
