@@ -17,6 +17,7 @@ library code checks them for both. Every failure the library reports raises
 
 import builtins as _builtins
 import json as _json
+import operator as _operator
 import os as _os
 import socket as _socket
 import warnings as _warnings
@@ -120,6 +121,27 @@ def _invalid(message):
     return _make_error(1, "invalid-argument", message)
 
 
+def _whole(value, what, lo, hi):
+    """A whole-number argument within [lo, hi] (numpy integers too), else
+    InvalidArgumentError naming it: the C++ side would raise a bare TypeError
+    for a negative or too large value."""
+    try:
+        v = None if isinstance(value, bool) else _operator.index(value)
+    except TypeError:
+        v = None
+    if v is None or not lo <= v <= hi:
+        raise _invalid(f"{what} must be a whole number from {lo} to {hi}, got {value!r}")
+    return v
+
+
+def _path(value, what):
+    """A path argument (str, bytes or os.PathLike) as text; anything else is a TypeError
+    (None made a file named 'None')."""
+    if isinstance(value, (str, bytes, _os.PathLike)):
+        return _os.fsdecode(value)
+    raise TypeError(f"{what} must be a path (str, bytes or os.PathLike), got {type(value).__name__}")
+
+
 def _option_text(name, value):
     # The library parses options as the CLI's text; bool first (it is an int).
     if isinstance(value, bool):
@@ -132,9 +154,10 @@ def _option_text(name, value):
 
 
 def _ingest(command, inputs, archive, options, progress):
-    if isinstance(inputs, (str, bytes)) or not hasattr(inputs, "__iter__"):
+    if isinstance(inputs, (str, bytes, _os.PathLike)) or not hasattr(inputs, "__iter__"):
         inputs = [inputs]
-    inputs = [str(p) for p in inputs]
+    inputs = [_path(p, f"{command}(): an input") for p in inputs]
+    archive = _path(archive, f"{command}(): the archive")
     known = set(_relief.option_names(command, False)) | set(_relief.option_names(command, True))
     given = []
     for name, value in options.items():
@@ -146,7 +169,7 @@ def _ingest(command, inputs, archive, options, progress):
         given.append((name, _option_text(name, value)))
     if progress is not None and not callable(progress):
         raise TypeError("progress must be callable")
-    return _relief.ingest(command, inputs, str(archive), given, progress)
+    return _relief.ingest(command, inputs, archive, given, progress)
 
 
 def compress(inputs, archive, *, progress=None, **options):
@@ -272,7 +295,7 @@ class Archive:
     """An open archive (read-only). Use :func:`open`."""
 
     def __init__(self, path):
-        self._reader = _relief.Reader(str(path))
+        self._reader = _relief.Reader(_path(path, "open(): the archive"))
         self._info = None
         self.last_preview = None
 
@@ -340,9 +363,11 @@ class Archive:
                 raise TypeError(
                     f"query() got an unexpected keyword argument '{name}' (options: {', '.join(_QUERY_OPTIONS)})"
                 )
-        threads = options.get("threads", 0)
+        lod = _whole(1 if lod is None else lod, "query(): lod", 1, 1024)
+        threads = _whole(options.get("threads", 0), "query(): threads", 0, 1024)
         skip_corrupt = bool(options.get("skip_corrupt", False))
-        max_points = options.get("max_points") or 0
+        max_points = options.get("max_points")
+        max_points = 0 if max_points is None else _whole(max_points, "query(): max_points", 1, 1 << 50)
         attributes = _attribute_list(options.get("attributes"))
         polygon = _polygon_text(options.get("polygon"), "query")
         polygon_crs = options.get("polygon_crs") or ""
@@ -377,6 +402,7 @@ class Archive:
         so asking for few is quick. ``polygon`` and ``polygon_crs``: only the
         points inside this area, as ``query``.
         """
+        threads = _whole(threads, "stats(): threads", 0, 1024)
         text, messages = self._reader.stats_json(_box_values(box), threads, bool(skip_corrupt),
                                                  _attribute_list(attributes), _polygon_text(polygon, "stats"),
                                                  polygon_crs or "")
@@ -418,16 +444,17 @@ class Archive:
         The figures of the drawing (points read and drawn, chunks decoded,
         bytes read, pixel size, level of detail) are in ``last_preview``.
         """
-        if lod is not None and int(lod) < 1:
-            raise _invalid(f"preview(): lod must be from 1 to 1024, got {lod}")
+        lod = 0 if lod is None else _whole(lod, "preview(): lod", 1, 1024)
+        width = _whole(width, "preview(): width", 16, 8192)
+        threads = _whole(threads, "preview(): threads", 0, 1024)
         encoding = ""
         if path is not None:
             ext = _os.path.splitext(str(path))[1].lower()
             if ext not in (".png", ".jpg", ".jpeg"):
                 raise _invalid(f"preview(): {path}: the image is written as PNG (.png) or JPEG (.jpg, .jpeg)")
             encoding = "png" if ext == ".png" else "jpeg"
-        image, figures, data = self._reader.preview(_box_values(box), int(lod or 0), int(width), str(view),
-                                                    float(azimuth), float(elevation), int(threads), encoding)
+        image, figures, data = self._reader.preview(_box_values(box), lod, width, str(view),
+                                                    float(azimuth), float(elevation), threads, encoding)
         self.last_preview = figures
         if data is not None:
             # Beside the image, named after this host and process (as the
@@ -538,14 +565,14 @@ def check(path):
     Returns ``{"format_version", "intact", "checked", "problems"}`` (a line
     per check made and per damage found); raises only when the file cannot be
     checked at all (missing, not an archive, a newer format)."""
-    return _relief.check(str(path))
+    return _relief.check(_path(path, "check(): the archive"))
 
 
 def stats(path, *, attributes=None):
     """What a point file (LAS, LAZ, PLY, XYZ/CSV, PCD) holds, summarised as
     ``Archive.stats`` summarises an archive (the same dict): compare the two
     to check an archive against its source."""
-    return _json.loads(_relief.file_stats_json(str(path), _attribute_list(attributes)))
+    return _json.loads(_relief.file_stats_json(_path(path, "stats(): the file"), _attribute_list(attributes)))
 
 
 def read(path, *, attributes=None, columns=None, extra_bytes=True, batches=False, batch_points=1 << 20):
@@ -569,11 +596,11 @@ def read(path, *, attributes=None, columns=None, extra_bytes=True, batches=False
     when its batch is reached.
     """
     if batches:
-        it = _relief.read_batches(str(path), _attribute_list(attributes), columns or "", bool(extra_bytes),
-                                  int(batch_points))
+        it = _relief.read_batches(_path(path, "read(): the file"), _attribute_list(attributes), columns or "",
+                                  bool(extra_bytes), _whole(batch_points, "read(): batch_points", 1, 1 << 40))
         return _file_batches(it, _described(it.extra_fields()))
-    array, messages, described = _relief.read_points(str(path), _attribute_list(attributes), columns or "",
-                                                     bool(extra_bytes))
+    array, messages, described = _relief.read_points(_path(path, "read(): the file"), _attribute_list(attributes),
+                                                     columns or "", bool(extra_bytes))
     _warn_all(messages)
     return _with_extra_fields(array, _described(described))
 
@@ -680,7 +707,8 @@ def write(path, points, *, crs=None, scale=None):
     extra = None
     if extra_parts:
         extra = np.ascontiguousarray(np.concatenate(extra_parts, axis=1) if len(extra_parts) > 1 else extra_parts[0])
-    written, messages = _relief.write_points(str(path), columns, extra, b"".join(descriptors), crs or "",
+    written, messages = _relief.write_points(_path(path, "write(): the file"), columns, extra,
+                                             b"".join(descriptors), crs or "",
                                              0.0 if scale is None else float(scale))
     _warn_all(messages)
     return written

@@ -528,9 +528,27 @@ def test_bad_queries(xyz_archive):
             a.query(lod=5000, batches=True)
         with pytest.raises(TypeError, match="colour"):
             a.query(colour=True)
+        # Whole numbers out of the C++ types' range: relief errors with their
+        # code, not pybind11's bare TypeError.
+        for call in (lambda: a.query(lod=-1), lambda: a.query(lod=2**32 + 2), lambda: a.query(threads=-1),
+                     lambda: a.query(threads=2**40), lambda: a.query(max_points=-5), lambda: a.query(lod=2.0),
+                     lambda: a.query(threads=True), lambda: a.query(lod=-1, batches=True),
+                     lambda: a.preview(lod=10**12), lambda: a.preview(width=-3), lambda: a.stats(threads=-1)):
+            with pytest.raises(relief.InvalidArgumentError, match="whole number") as e:
+                call()
+            assert e.value.code == 1
+        assert len(a.query(lod=None)) == len(a.query())  # None: every point, as lod=1
+        assert len(a.query(lod=np.int64(4))) == len(a.query(lod=4))
     with pytest.raises(ValueError, match="closed"):
         a.query()
     assert a.closed
+    # A path that is not a path (None made a file named 'None').
+    with pytest.raises(TypeError, match="path"):
+        relief.open(None)
+    with pytest.raises(TypeError, match="path"):
+        relief.compress(path, None)
+    with pytest.raises(TypeError, match="path"):
+        relief.compress([path, 3], "x.relief")
 
 
 def test_progress_exception_stops_the_ingest(tmp_path, scene):
