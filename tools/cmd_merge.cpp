@@ -36,15 +36,9 @@ int run_merge(int argc, char** argv) {
   if (!out) return usage_error(kCommand, "missing -o OUT.relief");
   MergeOptions options;
   if (const auto p = args.get("--pyramid")) {
-    if (*p == "auto") {
-      options.pyramid = PyramidMode::kAuto;
-    } else if (*p == "on") {
-      options.pyramid = PyramidMode::kOn;
-    } else if (*p == "off") {
-      options.pyramid = PyramidMode::kOff;
-    } else {
-      return usage_error(kCommand, "--pyramid must be auto, on or off, got '" + *p + "'");
-    }
+    const std::optional<PyramidMode> mode = pyramid_mode_from_text(*p);
+    if (!mode) return usage_error(kCommand, "--pyramid must be auto, on or off, got '" + *p + "'");
+    options.pyramid = *mode;
   }
   auto r = merge_archives(args.positional(), *out, options);
   if (!r) return fail(kCommand, r.status());

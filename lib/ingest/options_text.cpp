@@ -207,15 +207,9 @@ Status apply_mode(const Given& g, IngestOptions& o) {
 
 Status apply_run(const Given& g, IngestOptions& o) {
   if (auto m = g.get("pyramid")) {
-    if (*m == "auto") {
-      o.pyramid = PyramidMode::kAuto;
-    } else if (*m == "on") {
-      o.pyramid = PyramidMode::kOn;
-    } else if (*m == "off") {
-      o.pyramid = PyramidMode::kOff;
-    } else {
-      return invalid_argument(g.show("pyramid") + " must be auto, on or off, got '" + *m + "'");
-    }
+    const std::optional<PyramidMode> mode = pyramid_mode_from_text(*m);
+    if (!mode) return invalid_argument(g.show("pyramid") + " must be auto, on or off, got '" + *m + "'");
+    o.pyramid = *mode;
   }
   if (auto m = g.get("memory")) {
     o.memory_budget = parse_byte_size(*m);
@@ -238,6 +232,13 @@ void append_names(std::vector<std::string>& out, const std::vector<std::string>&
 }
 
 }  // namespace
+
+std::optional<PyramidMode> pyramid_mode_from_text(std::string_view text) {
+  if (text == "auto") return PyramidMode::kAuto;
+  if (text == "on") return PyramidMode::kOn;
+  if (text == "off") return PyramidMode::kOff;
+  return std::nullopt;
+}
 
 std::vector<std::string> encode_option_names() { return kEncodeNames; }
 

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -43,6 +44,8 @@ enum class IngestMode { kBounded, kResample };
 
 // Whether an ingest builds the scan's level-of-detail pyramid (build_pyramid).
 enum class PyramidMode { kAuto, kOn, kOff };
+// "auto", "on" or "off" (the --pyramid option's words); nullopt for anything else.
+std::optional<PyramidMode> pyramid_mode_from_text(std::string_view text);
 // kAuto builds a pyramid for scans of at least this many points: below, a
 // whole-scan preview decodes in about a second from the chunks themselves.
 inline constexpr std::uint64_t kPyramidAutoMinPoints = 10'000'000;
