@@ -28,6 +28,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "codec/octree.h"
 #include "codec/range_coder.h"
@@ -369,9 +372,50 @@ constexpr std::int64_t det3(std::int64_t a, std::int64_t b, std::int64_t c, std:
 inline bool within_reach(std::int32_t d) {
   return static_cast<std::uint32_t>(d + static_cast<std::int32_t>(kPlaneReach)) <= 2 * kPlaneReach;
 }
+#if defined(__x86_64__)
+// The same bits eight nodes at a time, where the CPU has AVX2 (the window's
+// 32 nodes a side in four steps instead of eight).
+__attribute__((target("avx2"))) inline __m256i in_reach8(const std::int32_t* l, __m256i v, __m256i lo,
+                                                         __m256i hi) {
+  const __m256i d = _mm256_sub_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(l)), v);
+  return _mm256_and_si256(_mm256_cmpgt_epi32(d, lo), _mm256_cmpgt_epi32(hi, d));
+}
+__attribute__((target("avx2"))) std::uint32_t near_run_avx2(const std::int32_t* lx, const std::int32_t* ly,
+                                                            const std::int32_t* lz, std::size_t from,
+                                                            std::size_t to, std::int32_t x, std::int32_t y,
+                                                            std::int32_t z) {
+  std::uint32_t bits = 0;
+  std::size_t j = from;
+  const __m256i vx = _mm256_set1_epi32(x), vy = _mm256_set1_epi32(y), vz = _mm256_set1_epi32(z);
+  const __m256i lo = _mm256_set1_epi32(-static_cast<std::int32_t>(kPlaneReach) - 1);
+  const __m256i hi = _mm256_set1_epi32(static_cast<std::int32_t>(kPlaneReach) + 1);
+  for (; j + 8 <= to; j += 8) {
+    const __m256i ok =
+        _mm256_and_si256(_mm256_and_si256(in_reach8(lx + j, vx, lo, hi), in_reach8(ly + j, vy, lo, hi)),
+                         in_reach8(lz + j, vz, lo, hi));
+    bits |= static_cast<std::uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(ok))) << (j - from);
+  }
+  for (; j < to; ++j) {
+    const bool ok = within_reach(lx[j] - x) && within_reach(ly[j] - y) && within_reach(lz[j] - z);
+    bits |= static_cast<std::uint32_t>(ok) << (j - from);
+  }
+  return bits;
+}
+bool cpu_has_avx2() {
+  static const bool has = __builtin_cpu_supports("avx2") != 0;
+  return has;
+}
+#endif
+
 std::uint64_t near_mask(const std::int32_t* lx, const std::int32_t* ly, const std::int32_t* lz,
                         std::size_t begin, std::size_t i, std::size_t end, std::int32_t x, std::int32_t y,
                         std::int32_t z) {
+#if defined(__x86_64__)
+  if (cpu_has_avx2()) {
+    return std::uint64_t{near_run_avx2(lx, ly, lz, begin, i, x, y, z)} |
+           std::uint64_t{near_run_avx2(lx, ly, lz, i + 1, end, x, y, z)} << 32;
+  }
+#endif
   const auto run = [&](std::size_t from, std::size_t to) {
     std::uint32_t bits = 0;
     std::size_t j = from;
