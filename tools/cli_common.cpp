@@ -34,6 +34,17 @@ int usage_error(const std::string& command, const std::string& message) {
   return kExitUsage;
 }
 
+std::string memory_option(const std::string& text, std::uint64_t& budget) {
+  IngestOptions parsed;
+  if (Status st =
+          apply_ingest_options(IngestOptionSet::kAppend, {{"memory", text}}, OptionSpelling::kCli, parsed);
+      !st) {
+    return st.message();
+  }
+  budget = parsed.memory_budget;
+  return {};
+}
+
 int interrupted(const std::string& command, const std::string& what) {
   std::cerr << "relief " << command << ": interrupted" << what << "\n";
   return kExitInterrupted;

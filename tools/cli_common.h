@@ -32,6 +32,9 @@ int usage_error(const std::string& command, const std::string& message);
 // kExitInterrupted.
 inline constexpr int kExitInterrupted = 130;  // 128 + SIGINT, as shells report it
 int interrupted(const std::string& command, const std::string& what);
+// A --memory SIZE value read and checked as compress reads it (the same rules
+// and messages): the budget in bytes in `budget`, or the error message.
+std::string memory_option(const std::string& text, std::uint64_t& budget);
 
 // A tiny option parser: `--name value`, `--name=value`, `-o value`, flags and
 // positionals. Unknown options are an error.

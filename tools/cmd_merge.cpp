@@ -16,7 +16,8 @@ constexpr const char* kCommand = "merge";
 
 int run_merge(int argc, char** argv) {
   static const std::string usage =
-      "usage: relief merge SHARD... -o OUT.relief [--pyramid auto|on|off] [--quiet]\n"
+      "usage: relief merge SHARD... -o OUT.relief [--pyramid auto|on|off] [--threads N] [--memory SIZE]\n"
+      "                    [--quiet]\n"
       "Joins the shard archives of a sharded build (shard-encode) into one new archive: the\n"
       "chunk rows are copied as they are, under one spatial index and one scan. The shards must\n"
       "come from one plan (same grid, codec parameters, CRS, attributes and sources), hold\n"
@@ -24,8 +25,10 @@ int run_merge(int argc, char** argv) {
       "refused). OUT appears only when complete and is never overwritten.\n"
       "  --pyramid auto|on|off  the level-of-detail pyramid, built from the merged chunks as\n"
       "                         'relief compress --pyramid' builds it (default auto: for 10 M\n"
-      "                         points or more)\n";
-  Args args(argc, argv, {"--help", "--quiet"}, {"-o", "--pyramid"});
+      "                         points or more)\n"
+      "  --threads N            threads that build the pyramid (default: all cores)\n"
+      "  --memory SIZE          its working memory, e.g. 512M, 2G (default 1G)\n";
+  Args args(argc, argv, {"--help", "--quiet"}, {"-o", "--pyramid", "--threads", "--memory"});
   if (args.has("--help")) {
     std::cout << usage;
     return kExitOk;
@@ -40,6 +43,12 @@ int run_merge(int argc, char** argv) {
     if (!mode) return usage_error(kCommand, "--pyramid must be auto, on or off, got '" + *p + "'");
     options.pyramid = *mode;
   }
+  options.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
+  if (const auto m = args.get("--memory")) {
+    if (const std::string err = memory_option(*m, options.memory_budget); !err.empty())
+      return usage_error(kCommand, err);
+  }
+  if (!args.ok()) return usage_error(kCommand, args.error());
   auto r = merge_archives(args.positional(), *out, options);
   if (!r) return fail(kCommand, r.status());
   if (!args.has("--quiet")) {

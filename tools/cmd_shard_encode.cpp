@@ -43,13 +43,8 @@ int run_shard_encode(int argc, char** argv) {
   o.threads = static_cast<unsigned>(args.get_int("--threads", 0, 0, 1024));
   o.verify_blobs = args.has("--verify");
   if (const auto m = args.get("--memory")) {
-    // Read and checked as compress reads it (same rules, same messages).
-    IngestOptions parsed;
-    if (Status st = apply_ingest_options(IngestOptionSet::kAppend, {{"memory", *m}}, OptionSpelling::kCli, parsed);
-        !st) {
-      return usage_error(kCommand, st.message());
-    }
-    o.memory_budget = parsed.memory_budget;
+    if (const std::string err = memory_option(*m, o.memory_budget); !err.empty())
+      return usage_error(kCommand, err);
   }
   if (const auto t = args.get("--tmp")) o.tmp_dir = *t;
   if (!args.ok()) return usage_error(kCommand, args.error());
