@@ -9,18 +9,20 @@
 namespace relief::cli {
 
 int run_append(int argc, char** argv) {
-  static const std::string usage = std::string(
-      "usage: relief append ARCHIVE IN... [options]\n"
-      "Adds point files to an existing archive with the archive's grid and codec parameters.\n"
-      "If it fails, the archive is left as it was.\n"
-      "  --assume-crs           inputs whose CRS differs from the archive's (or each other's):\n"
-      "                         keep the archive's (with a warning) instead of refusing (exit 11)\n"
-      "  --crs CRS              the new inputs' CRS, as 'relief compress --crs' (it must be the\n"
-      "                         archive's, unless --assume-crs; an archive without one takes it)\n"
-      "  --no-extra-bytes       drop the inputs' extra bytes (LAS/LAZ extra bytes, PLY properties\n"
-      "                         and PCD fields beyond x y z, colour and intensity)\n"
-      "  --attributes LIST      read only these attributes of the inputs (as compress); the\n"
-      "                         archive's others are 0 for the new points\n\n") +
+  static const std::string usage =
+      std::string(
+          "usage: relief append ARCHIVE IN... [options]\n"
+          "Adds point files to an existing archive with the archive's grid and codec parameters.\n"
+          "If it fails, the archive is left as it was; Ctrl-C (exit 130) keeps the chunks committed so far,\n"
+          "as an incomplete scan.\n"
+          "  --assume-crs           inputs whose CRS differs from the archive's (or each other's):\n"
+          "                         keep the archive's (with a warning) instead of refusing (exit 11)\n"
+          "  --crs CRS              the new inputs' CRS, as 'relief compress --crs' (it must be the\n"
+          "                         archive's, unless --assume-crs; an archive without one takes it)\n"
+          "  --no-extra-bytes       drop the inputs' extra bytes (LAS/LAZ extra bytes, PLY properties\n"
+          "                         and PCD fields beyond x y z, colour and intensity)\n"
+          "  --attributes LIST      read only these attributes of the inputs (as compress); the\n"
+          "                         archive's others are 0 for the new points\n\n") +
       kInputsHelp + "\n" + kIngestOptionsHelp;
   std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kAppend);
   flags.insert(flags.end(), {"--help", "--quiet"});

@@ -67,11 +67,13 @@ int run_compress(int argc, char** argv) {
   end_progress_line();
   if (!r) {
     if (o.cancel->load()) {
-      // Stopped in the pass that fixes the grid, the archive does not exist yet.
+      // Stopped in the pass that fixes the grid, or before the scan began,
+      // there is no archive.
       struct stat st {};
       return ::stat(out->c_str(), &st) != 0
-                 ? interrupted(kCommand, " before " + *out + " was created")
-                 : interrupted(kCommand, "; " + *out + " keeps the chunks committed so far (an incomplete scan)");
+                 ? interrupted(kCommand, " before anything was committed; " + *out + " not written")
+                 : interrupted(kCommand,
+                               "; " + *out + " keeps the chunks committed so far (an incomplete scan)");
     }
     return fail(kCommand, r.status());
   }

@@ -2,6 +2,7 @@
 
 #include "relief/codec.h"
 
+#include <atomic>
 #include <bit>
 #include <cctype>
 #include <charconv>
@@ -99,6 +100,10 @@ QueryOptions query_options_from(Args& args, const std::string& command) {
 
 int run_query_to_file(const std::string& command, const std::string& archive_path, const Box3d* box,
                       const std::string& out_path, const QueryOptions& options, bool quiet) {
+  // Ctrl-C or SIGTERM stops the query at the next batch; the writer then
+  // goes without a commit, which removes its temporary file (exit 130).
+  // Caught from here on, before the writer creates that file.
+  const std::atomic<bool>* cancel = install_interrupt_flag();
   auto reader = ArchiveReader::open(archive_path);
   if (!reader) return fail(command, reader.status());
   const ArchiveInfo& info = (*reader)->info();
@@ -166,12 +171,17 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   QueryProgress progress(out_path == "-" ? "standard output" : out_path, whole ? info.decoded_points : 0,
                          quiet || out_path == "-");
   const PointSink sink = [&](const PointCloud& batch) {
+    if (cancel->load()) return io_error(out_path + ": interrupted");
     Status s = (*writer)->write(batch);
     progress.count(batch.size());
     return s;
   };
   auto stats = box != nullptr ? (*reader)->query(*box, options, sink) : (*reader)->query_all(options, sink);
   end_progress_line();
+  if (cancel->load()) {
+    writer->reset();  // removes the temporary file
+    return interrupted(command, out_path == "-" ? std::string() : "; " + out_path + " not written");
+  }
   if (!stats) return fail(command, stats.status());
   if (Status s = (*writer)->finish(); !s) return fail(command, s);
   for (const std::string& said : (*writer)->take_warnings()) {

@@ -1208,10 +1208,16 @@ Result<IngestResult> compress_files(const std::vector<std::string>& given, const
   auto result = run_ingest(*archive, grid, params, in, std::move(first), options,
                            default_tmp_parent(archive_path, options));
   if (!result) {
-    const bool interrupted = options.cancel != nullptr && options.cancel->load();
+    bool keep = options.cancel != nullptr && options.cancel->load();
+    if (keep) {
+      // An interruption keeps what is committed, when there is something:
+      // stopped before its scan began, the archive would hold nothing.
+      auto info = archive->info();
+      keep = info && !info->scans.empty();
+    }
     archive.reset();
-    // A clean failure leaves no archive; an interruption keeps what is committed.
-    if (!interrupted) remove_archive_files(archive_path);
+    // A clean failure leaves no archive.
+    if (!keep) remove_archive_files(archive_path);
     return result.status();
   }
   // One file, or no archive: a full disk can stop SQLite folding its log in.

@@ -188,7 +188,8 @@ def compress(inputs, archive, *, progress=None, **options):
     seconds, phase: "scanning" (the pass over every point that fixes the grid), "reading", "encoding",
     "pyramid", "done"); an exception it raises (or Ctrl-C) stops the ingest and
     propagates, and the archive keeps the chunks committed so far (an
-    incomplete scan; no archive when it stops while scanning), as after Ctrl-C in the CLI.
+    incomplete scan; no archive when it stops before any is committed), as after Ctrl-C in
+    the CLI.
 
     Returns a dict: points_read, points_decoded, chunks_written, blob_bytes,
     seconds, cell_size, chunk_edge, scan_id, spooled_bytes (decoded LAZ and text

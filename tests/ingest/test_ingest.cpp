@@ -601,9 +601,61 @@ TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "
   // Signalled as soon as it spills, long before a 3 M-point ingest ends.
   CHECK(WEXITSTATUS(status) == 130);
   CHECK(fs::is_empty(tmp.file("spill")));
-  auto archive = Archive::open(out, Archive::Mode::kReadOnly);
-  REQUIRE(archive.is_ok());
-  CHECK((*archive)->info().is_ok());
+  // Stopped while distributing into buckets, before its scan began: nothing
+  // was committed, so the new archive is not kept (it was kept empty).
+  CHECK_FALSE(fs::exists(out));
+}
+
+TEST_CASE("Ctrl-C during decompress or query -o leaves no output file", "[ingest][crash]") {
+  // Both went down with the signal, leaving their temporary output beside
+  // the destination.
+  TempDir tmp;
+  const std::string archive = tmp.file("a.relief");
+  {
+    PointCloud big = scene(12, 2000000);
+    REQUIRE(write_ply(tmp.file("big.ply"), big).is_ok());
+  }
+  REQUIRE(compress_files({tmp.file("big.ply")}, archive, IngestOptions{}).is_ok());
+  fs::remove(tmp.file("big.ply"));
+  const auto temp_outputs = [&] {
+    std::vector<std::string> out;
+    for (const auto& e : fs::directory_iterator(tmp.path())) {
+      const std::string name = e.path().filename().string();
+      if (name.find(".tmp-") != std::string::npos) out.push_back(name);
+    }
+    return out;
+  };
+  for (const char* mode : {"decompress", "query"}) {
+    CAPTURE(mode);
+    const std::string out = tmp.file(std::string("out-") + mode + ".las");
+    const pid_t pid = ::fork();
+    REQUIRE(pid >= 0);
+    if (pid == 0) {
+      const std::string c = cli();
+      if (std::string(mode) == "decompress") {
+        ::execl(c.c_str(), c.c_str(), "decompress", archive.c_str(), "-o", out.c_str(), "--threads", "1",
+                "--quiet", static_cast<char*>(nullptr));
+      } else {
+        ::execl(c.c_str(), c.c_str(), "query", archive.c_str(), "--box", "-1e9,-1e9,-1e9,1e9,1e9,1e9", "-o",
+                out.c_str(), "--threads", "1", "--quiet", static_cast<char*>(nullptr));
+      }
+      ::_exit(127);
+    }
+    // Interrupt once the output's temporary file exists (the writer opened it).
+    bool writing = false;
+    for (int i = 0; i < 2000 && !writing; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      writing = !temp_outputs().empty();
+    }
+    ::kill(pid, SIGINT);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    REQUIRE(writing);
+    REQUIRE(WIFEXITED(status));
+    CHECK(WEXITSTATUS(status) == 130);
+    CHECK(temp_outputs().empty());
+    CHECK_FALSE(fs::exists(out));
+  }
 }
 
 TEST_CASE("a failed relief stream leaves no archive, or the archive as before", "[ingest][stream][cli]") {
