@@ -822,9 +822,11 @@ class SkipFirst final : public PointReader {
 
 }  // namespace
 
-Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                         int map_resolution, Box3d* bounds, OrderFreeSample* extra, InputSet* keep_from,
-                                         const PointCloud* first, Spool* spool, const IngestOptions* run) {
+Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs,
+                                        const ReaderOptions& reader_options, int map_resolution,
+                                        Box3d* bounds, OrderFreeSample* extra, InputSet* keep_from,
+                                        const PointCloud* first, Spool* spool, const IngestOptions* run,
+                                        std::size_t read_batch) {
   // The points whose position hash falls below a threshold, halved whenever
   // more than 2k are kept: the final set is {p : h(p) < t} for the largest
   // power-of-two t that keeps at most 2k, whatever the order of the points.
@@ -911,7 +913,7 @@ Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, 
   }
   {
     // One batch ahead, as the main pass.
-    Prefetcher prefetch(readers, spool != nullptr ? spool->batch_points() : kReadBatchPoints, 1,
+    Prefetcher prefetch(readers, spool != nullptr ? spool->batch_points() : read_batch, 1,
                         already != nullptr ? already->size() : 0, nullptr);
     ReadBatch read;
     for (;;) {
@@ -1074,10 +1076,11 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     std::shared_ptr<Spool> spool = keep == nullptr && sample == nullptr && options.spool && !tmp_parent.empty()
                                        ? start_spool(in, tmp_parent, static_cast<std::size_t>(plan.read_batch))
                                        : nullptr;
-    RELIEF_ASSIGN_OR_RETURN(const OrderFreeCells cells,
-                            order_free_cells(inputs, ingest_reader_options(options), params.map_resolution,
-                                             &all_bounds, sample, keep != nullptr || spool != nullptr ? &in : nullptr, &first,
-                                             spool.get(), &options));
+    RELIEF_ASSIGN_OR_RETURN(
+        const OrderFreeCells cells,
+        order_free_cells(inputs, ingest_reader_options(options), params.map_resolution, &all_bounds, sample,
+                         keep != nullptr || spool != nullptr ? &in : nullptr, &first, spool.get(), &options,
+                         static_cast<std::size_t>(plan.read_batch)));
     if (spool != nullptr && spool->failure().empty()) {
       // The pass read the spooled inputs through the ingest's readers (input
       // 0 after `first`): the ingest reads them from the spool.

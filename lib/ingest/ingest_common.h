@@ -256,10 +256,15 @@ struct OrderFreeSample {
 // appended to the spool (Spool::append, then Spool::finish) and not kept;
 // the others are opened anew. With `run`, the pass reports its progress
 // (phase "scanning") and stops ("interrupted") when run->cancel is set.
-Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs, const ReaderOptions& reader_options,
-                                        int map_resolution, Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr,
+// `read_batch`: points per read without a spool (the budget's, so that the
+// batch read ahead and the one hashed stay within it; the sample does not
+// depend on it).
+Result<OrderFreeCells> order_free_cells(const std::vector<std::string>& inputs,
+                                        const ReaderOptions& reader_options, int map_resolution,
+                                        Box3d* bounds = nullptr, OrderFreeSample* extra = nullptr,
                                         InputSet* keep_from = nullptr, const PointCloud* first = nullptr,
-                                        Spool* spool = nullptr, const IngestOptions* run = nullptr);
+                                        Spool* spool = nullptr, const IngestOptions* run = nullptr,
+                                        std::size_t read_batch = std::size_t{1} << 20);
 
 // ---- The steps of a new archive's build, shared by compress_files and the
 // sharded build (lib/shard), so both make the same decisions.
