@@ -215,6 +215,26 @@ class Reader final : public ArchiveReader {
     return run(refs, box, options, sink);
   }
 
+  // The share of `bounds` (a row's) that lies inside `box`, axis by axis; an
+  // axis on which the row is flat counts 1 when it lies within the box.
+  static double share_inside(const Box3d& bounds, const Box3d& box) {
+    if (bounds.empty()) return 1;
+    double share = 1;
+    const double lo[3] = {bounds.min.x, bounds.min.y, bounds.min.z},
+                 hi[3] = {bounds.max.x, bounds.max.y, bounds.max.z};
+    const double blo[3] = {box.min.x, box.min.y, box.min.z}, bhi[3] = {box.max.x, box.max.y, box.max.z};
+    for (int a = 0; a < 3; ++a) {
+      const double extent = hi[a] - lo[a];
+      const double inside = std::min(hi[a], bhi[a]) - std::max(lo[a], blo[a]);
+      if (!(extent > 0)) {
+        share *= lo[a] >= blo[a] && lo[a] <= bhi[a] ? 1.0 : 0.0;
+      } else {
+        share *= std::clamp(inside / extent, 0.0, 1.0);
+      }
+    }
+    return share;
+  }
+
   // What a query reads: chunk and pyramid rows, each with the level of
   // detail to decode it at, and a cut for a max_points query that even the
   // top of the pyramid cannot meet.
@@ -307,7 +327,22 @@ class Reader final : public ArchiveReader {
         for (const PyramidLevel& l : scan.levels) candidates.insert(l.level);
       }
     }
-    std::uint64_t estimate = 0;
+    // The points a level gives the box: each row's in proportion to the share
+    // of its bounds inside the box (exact for a row wholly inside; the rows'
+    // whole counts chose levels far coarser than a box needs). Rows a
+    // polygon leaves out are not read: they do not count.
+    const auto in_box = [&](const Plan& p) {
+      double points = 0;
+      for (const ChunkRef& ref : p.refs) {
+        if (options.polygon &&
+            (ref.bounds.empty() || options.polygon->classify(ref.bounds) == Polygon2D::Overlap::kOutside)) {
+          continue;
+        }
+        points += static_cast<double>(ref.decoded_points) * share_inside(ref.bounds, box);
+      }
+      return points;
+    };
+    double estimate = 0;
     for (const int g : candidates) {
       const auto choose = [g](const ScanPyramid& scan) {
         int best = 0;
@@ -317,23 +352,16 @@ class Reader final : public ArchiveReader {
         return best;
       };
       RELIEF_ASSIGN_OR_RETURN(plan, gather(base, box, choose, cache));
-      estimate = 0;
-      for (const ChunkRef& ref : plan.refs) {
-        // Rows a polygon leaves out are not read: they do not count.
-        if (options.polygon && (ref.bounds.empty() ||
-                                options.polygon->classify(ref.bounds) == Polygon2D::Overlap::kOutside)) {
-          continue;
-        }
-        estimate += ref.decoded_points;
-      }
-      if (estimate <= options.max_points) {
+      estimate = in_box(plan);
+      if (estimate <= static_cast<double>(options.max_points)) {
         plan.lods.assign(plan.refs.size(), 1);
+        plan.cap = options.max_points;  // the estimate may fall short: never more
         return plan;
       }
     }
     // Even the top holds more: thin every row to about max_points, then cut.
-    const auto lod = static_cast<std::uint32_t>(
-        std::min<std::uint64_t>((estimate + options.max_points - 1) / options.max_points, 1u << 30));
+    const double per_point = std::ceil(estimate / static_cast<double>(options.max_points));
+    const auto lod = static_cast<std::uint32_t>(std::clamp(per_point, 1.0, static_cast<double>(1u << 30)));
     plan.lods.assign(plan.refs.size(), lod);
     plan.cap = options.max_points;
     return plan;

@@ -242,6 +242,32 @@ TEST_CASE("max_points picks the finest level that fits and never exceeds the lim
   CHECK(r.status().code() == StatusCode::kInvalidArgument);
 }
 
+TEST_CASE("max_points in a small box counts the rows' points inside it", "[pyramid]") {
+  // The rows' whole counts chose levels far coarser than the box needed and
+  // thinned below the top to a few points, or none (10 asked, 1 given).
+  TempDir tmp;
+  auto reader = ArchiveReader::open(build(tmp, "a", terrain(4, 300000)));
+  REQUIRE(reader.is_ok());
+  const double inf = std::numeric_limits<double>::infinity();
+  const Box3d box{{10.0, 10.0, -inf}, {14.0, 14.0, inf}};  // 1/64 of the area
+  QueryStats stats;
+  const std::size_t inside = run_query(**reader, &box, &stats, QueryOptions{}).size();
+  REQUIRE(inside > 2000);
+  for (const std::uint64_t limit :
+       {std::uint64_t{1}, std::uint64_t{10}, std::uint64_t{100}, std::uint64_t{1000}}) {
+    CAPTURE(limit);
+    QueryOptions o;
+    o.max_points = limit;
+    const std::size_t got = run_query(**reader, &box, &stats, o).size();
+    CHECK(got <= limit);
+    CHECK(got * 16 >= limit);
+  }
+  QueryOptions all;
+  all.max_points = inside;
+  CHECK(run_query(**reader, &box, &stats, all).size() == inside);
+  CHECK(stats.pyramid_level == 0);
+}
+
 TEST_CASE("max_points within a polygon counts only the rows the polygon reaches", "[pyramid][polygon]") {
   TempDir tmp;
   auto reader = ArchiveReader::open(build(tmp, "a", terrain(3, 300000)));
