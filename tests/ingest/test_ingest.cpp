@@ -12,11 +12,12 @@
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
-#include <tuple>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include "relief/archive.h"
 #include "relief/codec.h"
@@ -568,6 +569,41 @@ TEST_CASE("decompress and query of a killed ingest's archive return every commit
   CHECK(ply_points(tmp.file("skip.ply")) == committed);
 }
 
+namespace {
+
+// Runs the CLI with `args` and sends it SIGINT once `ready()` holds (polled
+// every 2 ms, for at most 4 s): whether it became ready, and the exit status
+// (-1 when the child did not exit normally).
+struct Interrupted {
+  bool ready = false;
+  int exit_code = -1;
+};
+Interrupted interrupt_when(const std::vector<std::string>& args, const std::function<bool()>& ready) {
+  const std::string c = cli();
+  std::vector<char*> argv;
+  argv.push_back(const_cast<char*>(c.c_str()));
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::execv(c.c_str(), argv.data());
+    ::_exit(127);
+  }
+  Interrupted r;
+  for (int i = 0; i < 2000 && !r.ready; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    r.ready = ready();
+  }
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  if (WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
+  return r;
+}
+
+}  // namespace
+
 TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "[ingest][crash]") {
   TempDir tmp;
   {
@@ -576,30 +612,14 @@ TEST_CASE("Ctrl-C during an external-sort ingest removes the temporary files", "
   }
   fs::create_directories(tmp.file("spill"));
   const std::string out = tmp.file("i.relief");
-  const pid_t pid = ::fork();
-  REQUIRE(pid >= 0);
-  if (pid == 0) {
-    const std::string c = cli();
-    const std::string in = tmp.file("big.ply");
-    const std::string spill = tmp.file("spill");
-    // 64 MiB cannot hold 3 M points: the bucket files are used.
-    ::execl(c.c_str(), c.c_str(), "compress", in.c_str(), "-o", out.c_str(), "--cell", "0.05", "--chunk-edge",
-            "0.8", "--memory", "64M", "--threads", "1", "--tmp", spill.c_str(), "--quiet", static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  // Interrupt once the bucket directory exists.
-  bool spilled = false;
-  for (int i = 0; i < 1000 && !spilled; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    spilled = !fs::is_empty(tmp.file("spill"));
-  }
-  ::kill(pid, SIGINT);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  REQUIRE(spilled);
-  REQUIRE(WIFEXITED(status));
-  // Signalled as soon as it spills, long before a 3 M-point ingest ends.
-  CHECK(WEXITSTATUS(status) == 130);
+  // 64 MiB cannot hold 3 M points: the bucket files are used. Interrupted
+  // once the bucket directory fills, long before a 3 M-point ingest ends.
+  const Interrupted r =
+      interrupt_when({"compress", tmp.file("big.ply"), "-o", out, "--cell", "0.05", "--chunk-edge", "0.8",
+                      "--memory", "64M", "--threads", "1", "--tmp", tmp.file("spill"), "--quiet"},
+                     [&] { return !fs::is_empty(tmp.file("spill")); });
+  REQUIRE(r.ready);
+  CHECK(r.exit_code == 130);
   CHECK(fs::is_empty(tmp.file("spill")));
   // Stopped while distributing into buckets, before its scan began: nothing
   // was committed, so the new archive is not kept (it was kept empty).
@@ -625,34 +645,16 @@ TEST_CASE("Ctrl-C during decompress or query -o leaves no output file", "[ingest
     }
     return out;
   };
-  for (const char* mode : {"decompress", "query"}) {
-    CAPTURE(mode);
-    const std::string out = tmp.file(std::string("out-") + mode + ".las");
-    const pid_t pid = ::fork();
-    REQUIRE(pid >= 0);
-    if (pid == 0) {
-      const std::string c = cli();
-      if (std::string(mode) == "decompress") {
-        ::execl(c.c_str(), c.c_str(), "decompress", archive.c_str(), "-o", out.c_str(), "--threads", "1",
-                "--quiet", static_cast<char*>(nullptr));
-      } else {
-        ::execl(c.c_str(), c.c_str(), "query", archive.c_str(), "--box", "-1e9,-1e9,-1e9,1e9,1e9,1e9", "-o",
-                out.c_str(), "--threads", "1", "--quiet", static_cast<char*>(nullptr));
-      }
-      ::_exit(127);
-    }
-    // Interrupt once the output's temporary file exists (the writer opened it).
-    bool writing = false;
-    for (int i = 0; i < 2000 && !writing; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(2));
-      writing = !temp_outputs().empty();
-    }
-    ::kill(pid, SIGINT);
-    int status = 0;
-    ::waitpid(pid, &status, 0);
-    REQUIRE(writing);
-    REQUIRE(WIFEXITED(status));
-    CHECK(WEXITSTATUS(status) == 130);
+  const std::string out = tmp.file("out.las");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"decompress", archive, "-o", out, "--threads", "1", "--quiet"},
+        std::vector<std::string>{"query", archive, "--box", "-1e9,-1e9,-1e9,1e9,1e9,1e9", "-o", out,
+                                 "--threads", "1", "--quiet"}}) {
+    CAPTURE(args[0]);
+    // Interrupted once the output's temporary file exists (the writer opened it).
+    const Interrupted r = interrupt_when(args, [&] { return !temp_outputs().empty(); });
+    REQUIRE(r.ready);
+    CHECK(r.exit_code == 130);
     CHECK(temp_outputs().empty());
     CHECK_FALSE(fs::exists(out));
   }
