@@ -15,6 +15,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <tuple>
 #include <unordered_map>
 
 #include "core/memory.h"
@@ -98,12 +99,19 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
   }
   set.colors = true;
   set.intensity = true;
+  // An input with colour (intensity) and one without: the archive keeps one
+  // attribute set, so the colours (intensities) go, with a warning.
+  std::string colour_with, colour_without, intensity_with, intensity_without;
   for (const std::string& path : inputs) {
     // Open to check it and take its info, then closed until it is read.
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<PointReader> r, open_lazy_reader(path, reader_options));
     const PointStreamInfo& info = r->info();
     set.colors = set.colors && info.has_colors;
     set.intensity = set.intensity && info.has_intensity;
+    std::string& colour_name = info.has_colors ? colour_with : colour_without;
+    if (colour_name.empty()) colour_name = path;
+    std::string& intensity_name = info.has_intensity ? intensity_with : intensity_without;
+    if (intensity_name.empty()) intensity_name = path;
     if (info.point_count) {
       set.estimated_points += *info.point_count;
     } else {
@@ -165,6 +173,16 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
     src.las = info.las_metadata;
     set.sources.push_back(src);
     set.readers.push_back(std::move(r));
+  }
+  for (const auto& [what, with, without] : {std::tuple<const char*, const std::string&, const std::string&>{
+                                                "colours", colour_with, colour_without},
+                                            {"intensities", intensity_with, intensity_without}}) {
+    if (!with.empty() && !without.empty()) {
+      set.warnings.push_back(with + " has " + what + " but " + without +
+                             " has none: one archive holds one attribute "
+                             "set, so the " +
+                             what + " of every input are dropped (compress them apart to keep them)");
+    }
   }
   // Colour low bytes only travel with colours.
   if (!set.colors) set.las_attributes &= ~std::uint32_t{kLasColorLow};

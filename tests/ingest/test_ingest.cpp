@@ -569,6 +569,37 @@ TEST_CASE("decompress and query of a killed ingest's archive return every commit
   CHECK(ply_points(tmp.file("skip.ply")) == committed);
 }
 
+TEST_CASE("compress of inputs with and without colour or intensity says what it drops", "[ingest]") {
+  // The archive keeps one attribute set: the colours went without a word.
+  TempDir tmp;
+  PointCloud coloured = scene(21, 3000);
+  PointCloud plain = scene(22, 3000);
+  plain.colors.clear();
+  plain.intensities.clear();
+  REQUIRE(write_ply(tmp.file("coloured.ply"), coloured).is_ok());
+  REQUIRE(write_ply(tmp.file("plain.ply"), plain).is_ok());
+  REQUIRE(write_ply(tmp.file("coloured2.ply"), scene(23, 3000)).is_ok());
+  const auto said = [](const IngestResult& r, const std::string& what) {
+    return std::count_if(r.warnings.begin(), r.warnings.end(), [&](const std::string& w) {
+      return w.find(" has " + what + " but ") != std::string::npos &&
+             w.find("are dropped") != std::string::npos;
+    });
+  };
+  auto mixed =
+      compress_files({tmp.file("plain.ply"), tmp.file("coloured.ply")}, tmp.file("m.relief"), small_chunks());
+  REQUIRE(mixed.is_ok());
+  CHECK(said(*mixed, "colours") == 1);
+  CHECK(said(*mixed, "intensities") == 1);
+  auto info = (*Archive::open(tmp.file("m.relief"), Archive::Mode::kReadOnly))->info();
+  REQUIRE(info.is_ok());
+  CHECK_FALSE(info->has_colors);
+  auto same = compress_files({tmp.file("coloured.ply"), tmp.file("coloured2.ply")}, tmp.file("s.relief"),
+                             small_chunks());
+  REQUIRE(same.is_ok());
+  CHECK(said(*same, "colours") == 0);
+  CHECK(said(*same, "intensities") == 0);
+}
+
 namespace {
 
 // Runs the CLI with `args` and sends it SIGINT once `ready()` holds (polled
