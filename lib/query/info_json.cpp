@@ -133,18 +133,21 @@ std::string json_attributes(const ArchiveInfo& i) {
 }
 
 // The LAS source: point format, version, extra bytes and their typed fields
-// (null when the archive has no LAS attributes).
+// (null when the archive has no LAS attributes; version null when no input was
+// LAS, e.g. a PLY's extra properties).
 std::string json_las(const ArchiveInfo& i) {
   if (i.las_point_format < 0) return "null";
-  std::string out = "{\"point_format\": " + std::to_string(i.las_point_format) +
-                    ", \"version\": " + json_string("1." + std::to_string(i.las_version_minor)) +
-                    ", \"gps_time_type\": " +
-                    (i.las_gps_time_type == GpsTimeType::kUnknown ? std::string("null")
-                                                                   : json_string(gps_time_type_name(i.las_gps_time_type))) +
-                    ", \"color_levels\": " +
-                    ((i.las_attributes & kLasColorLow) == 0 ? std::string("null")
-                                                            : std::string(i.las_colors_8bit ? "8" : "16")) +
-                    ", \"extra_bytes_per_point\": " + std::to_string(i.extra_bytes_size) + ", \"extra_bytes\": [";
+  std::string out =
+      "{\"point_format\": " + std::to_string(i.las_point_format) + ", \"version\": " +
+      (i.las_version_minor >= 0 ? json_string("1." + std::to_string(i.las_version_minor))
+                                : std::string("null")) +
+      ", \"gps_time_type\": " +
+      (i.las_gps_time_type == GpsTimeType::kUnknown ? std::string("null")
+                                                    : json_string(gps_time_type_name(i.las_gps_time_type))) +
+      ", \"color_levels\": " +
+      ((i.las_attributes & kLasColorLow) == 0 ? std::string("null")
+                                              : std::string(i.las_colors_8bit ? "8" : "16")) +
+      ", \"extra_bytes_per_point\": " + std::to_string(i.extra_bytes_size) + ", \"extra_bytes\": [";
   bool first = true;
   for (const ExtraBytesField& f : archive_extra_bytes_fields(i)) {
     out += std::string(first ? "" : ", ") + "{\"name\": " + json_string(f.name) + ", \"type\": " +
