@@ -62,15 +62,28 @@ Result<PreviewResult> render_preview(ArchiveReader& reader, const PreviewRequest
   q.threads = request.threads;
   bool pyramid = false;
   for (const ScanPyramid& scan : info.pyramid) pyramid = pyramid || !scan.levels.empty();
+  const double dx = frame.max.x - frame.min.x, dy = frame.max.y - frame.min.y;
+  const double rows = options.view == PreviewView::kTop && dx > 0
+                          ? std::clamp(options.width * dy / dx, 1.0, static_cast<double>(kMaxPreviewSide))
+                          : static_cast<double>(options.width);
+  const double budget = kPreviewPointsPerPixel * options.width * rows;
   if (!request.lod && pyramid) {
     // A point budget instead of a fraction: the time then stays the same
     // whatever the size of the archive (the pyramid's coarse levels).
-    const double dx = frame.max.x - frame.min.x, dy = frame.max.y - frame.min.y;
-    const double rows = options.view == PreviewView::kTop && dx > 0
-                            ? std::clamp(options.width * dy / dx, 1.0, static_cast<double>(kMaxPreviewSide))
-                            : static_cast<double>(options.width);
     q.lod = 1;
-    q.max_points = static_cast<std::uint64_t>(kPreviewPointsPerPixel * options.width * rows);
+    q.max_points = static_cast<std::uint64_t>(budget);
+  } else if (!request.lod) {
+    // Without a pyramid, lod 16 unless the box holds fewer than 16 budgets
+    // of points (its share of the archive's x-y bounds): then the lod that
+    // fills the budget, so a small archive is not drawn as scattered dots.
+    const Box3d& all = info.bounds;
+    const double area = (all.max.x - all.min.x) * (all.max.y - all.min.y);
+    const double inside = std::max(0.0, std::min(all.max.x, box.max.x) - std::max(all.min.x, box.min.x)) *
+                          std::max(0.0, std::min(all.max.y, box.max.y) - std::max(all.min.y, box.min.y));
+    const double share = area > 0 ? std::clamp(inside / area, 0.0, 1.0) : 1.0;
+    const double points = static_cast<double>(info.decoded_points) * share;
+    q.lod = static_cast<std::uint32_t>(
+        std::clamp(std::ceil(points / budget), 1.0, static_cast<double>(kDefaultPreviewLod)));
   }
   std::mutex draw_mutex;  // the reader promises batches in order, not on which thread
   const PointSink sink = [&](const PointCloud& batch) {

@@ -153,7 +153,9 @@ struct PreviewRequest {
   std::optional<Box3d> box;
   // Level of detail (1..kMaxQueryLod). Unset: an archive with a level-of-detail
   // pyramid reads the finest level that gives at most
-  // kPreviewPointsPerPixel points per pixel of the image, one without lod 16.
+  // kPreviewPointsPerPixel points per pixel of the image; one without, lod 16,
+  // or the finer lod that gives about that many when the box holds fewer
+  // than 16 times as many points.
   std::optional<std::uint32_t> lod;
   PreviewOptions options;  // use_colors is set from the archive
   unsigned threads = 0;    // decoder threads (0 = all cores)
