@@ -13,8 +13,8 @@ constexpr const char* kCommand = "query";
 constexpr const char* kUsageText =
     "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L | --max-points N] [--class C,...]\n"
     "                    [--first-returns] [--last-returns] [--attributes LIST] [--polygon AREA [--polygon-crs CRS]] -o OUT\n"
-    "Writes the archive's points inside the box (bounds included) and the polygon, when given\n"
-    "(then --box is optional). Only the chunks they touch are read and decoded.\n"
+    "Writes the archive's points inside the box (faces included, to the rounding of decoded coordinates)\n"
+    "and the polygon, when given (then --box is optional). Only the chunks they touch are read and decoded.\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"
     "  --lod L          level of detail: a spatially uniform ~1/L of the points (1..1024, default 1);\n"
     "                   read from the archive's pyramid where it has one\n"

@@ -145,7 +145,7 @@ class Reader final : public ArchiveReader {
     if (box.min.x > box.max.x || box.min.y > box.max.y || box.min.z > box.max.z) {
       return invalid_argument("query box is empty or inverted (a min is above its max)");
     }
-    return query_within(box, options, sink);
+    return query_within(with_rounding_margin(box), options, sink);
   }
 
   Result<QueryStats> query_all(const QueryOptions& options, const PointSink& sink) override {
@@ -157,6 +157,37 @@ class Reader final : public ArchiveReader {
   }
 
  private:
+  // The box grown by the rounding of decoded coordinates. A point is a grid
+  // cell's centre (origin + index x step) or a decoded value computed in
+  // double, so a point a user reads as 169.55 (and types as a face) may be
+  // 169.54999999999998: each finite face moves out by 2^-46 of the largest
+  // finite magnitude on its axis (the box's, the archive's bounds'), 64 to
+  // 128 units in the last place, and never by more than an eighth of the
+  // archive's grid step, so no point a step outside comes in.
+  Box3d with_rounding_margin(Box3d box) const {
+    double step[3] = {0, 0, 0};
+    if (const Result<EncodeParams> params = encode_params_from_string(info_.codec_params); params && params->bound) {
+      step[0] = params->bound->step.x;
+      step[1] = params->bound->step.y;
+      step[2] = params->bound->step.z;
+    }
+    const Box3d& a = info_.bounds;
+    const auto grow = [&](double& lo, double& hi, double a_lo, double a_hi, double axis_step) {
+      double m = 0;
+      for (const double v : {lo, hi, a.empty() ? 0.0 : a_lo, a.empty() ? 0.0 : a_hi}) {
+        if (std::isfinite(v)) m = std::max(m, std::abs(v));
+      }
+      double margin = std::ldexp(m, -46);
+      if (axis_step > 0) margin = std::min(margin, axis_step / 8);
+      lo -= margin;  // an infinite face stays infinite
+      hi += margin;
+    };
+    grow(box.min.x, box.max.x, a.min.x, a.max.x, step[0]);
+    grow(box.min.y, box.max.y, a.min.y, a.max.y, step[1]);
+    grow(box.min.z, box.max.z, a.min.z, a.max.z, step[2]);
+    return box;
+  }
+
   // The polygon in the archive's CRS: converted when it names another one.
   Result<std::shared_ptr<const Polygon2D>> polygon_here(const QueryOptions& options) const {
     const std::string& from = options.polygon->crs();

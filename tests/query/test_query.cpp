@@ -7,8 +7,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
+#include <random>
 #include <thread>
 
 #include "relief/archive.h"
@@ -103,6 +105,47 @@ TEST_CASE("a box query returns exactly the full decompress's points inside the b
     CHECK(got.colors.size() == got.size());
     CHECK(stats.points == got.size());
   }
+}
+
+TEST_CASE("a box whose faces are coordinates as printed returns the points on them", "[query]") {
+  // A LAS file at 1 cm with offsets 1000 and 2000: x = X * 0.01 + 1000 is
+  // 169.54999999999995 in double for X = -83045, which prints, and is
+  // typed, as 169.55. The faces are inclusive, so the points on them come back.
+  TempDir tmp;
+  std::mt19937_64 rng(11);
+  PointCloud cloud;
+  std::map<std::int32_t, std::size_t> per_x;
+  for (int i = 0; i < 3000; ++i) {
+    const auto ix = static_cast<std::int32_t>(-83100 + static_cast<int>(rng() % 200));
+    const auto iy = static_cast<std::int32_t>(static_cast<int>(rng() % 5000));
+    const auto iz = static_cast<std::int32_t>(static_cast<int>(rng() % 300));
+    cloud.positions.push_back({ix * 0.01 + 1000.0, iy * 0.01 + 2000.0, iz * 0.01});
+    ++per_x[ix];
+  }
+  WriterOptions w;
+  w.grid_scale = Vec3d{0.01, 0.01, 0.01};
+  w.grid_offset = Vec3d{1000.0, 2000.0, 0.0};
+  auto writer = open_point_writer(tmp.file("edge.las"), w);
+  REQUIRE(writer.is_ok());
+  REQUIRE((*writer)->write(cloud).is_ok());
+  REQUIRE((*writer)->finish().is_ok());
+  REQUIRE(compress_files({tmp.file("edge.las")}, tmp.file("edge.relief"), IngestOptions{}).is_ok());
+  auto reader = ArchiveReader::open(tmp.file("edge.relief"));
+  REQUIRE(reader.is_ok());
+  int checked = 0;
+  for (const auto& [ix, count] : per_x) {
+    if (checked++ % 7 != 0) continue;
+    char text[64];
+    std::snprintf(text, sizeof text, "%.2f", ix * 0.01 + 1000.0);
+    const double face = std::strtod(text, nullptr);
+    const Box3d plane{{face, 1900, -10}, {face, 2100, 10}};
+    INFO("x = " << text << " (X = " << ix << ")");
+    CHECK(run_query(**reader, &plane).size() == count);
+    // Half a step beside it: none.
+    const Box3d beside{{face + 0.005, 1900, -10}, {face + 0.005, 2100, 10}};
+    CHECK(run_query(**reader, &beside).size() == 0);
+  }
+  CHECK(checked > 20);
 }
 
 TEST_CASE("chunks reach the sink in index order whatever the threads, and a failing sink stops the query",

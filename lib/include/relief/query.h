@@ -97,7 +97,9 @@ class ArchiveReader {
   virtual const std::string& path() const = 0;
   virtual const ArchiveInfo& info() const = 0;
 
-  // Streams every decoded point inside `box` (closed: min <= p <= max) to
+  // Streams every decoded point inside `box` (closed: min <= p <= max, each
+  // face moved out by the rounding of decoded coordinates: 2^-46 of the
+  // largest magnitude on its axis, at most 1/8 of the grid step) to
   // `sink`. Chunks come from the spatial index; only they are read and
   // decoded, in parallel, at most a few at a time (memory stays bounded by a
   // few chunks whatever the box). An empty or inverted box is kInvalidArgument.
