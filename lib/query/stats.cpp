@@ -22,8 +22,9 @@ void ValueSummary::add(double v) {
   }
   if (count == 0 || v < min) min = v;
   if (count == 0 || v > max) max = v;
-  const double t = sum + v;
-  sum_error += std::abs(sum) >= std::abs(v) ? (sum - t) + v : (v - t) + sum;
+  const long double x = v;
+  const long double t = sum + x;
+  sum_error += std::abs(sum) >= std::abs(x) ? (sum - t) + x : (x - t) + sum;
   sum = t;
   ++count;
 }

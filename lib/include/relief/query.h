@@ -130,11 +130,15 @@ struct ValueSummary {
   // The sum, compensated (Neumaier): sum + sum_error is within about an ulp
   // of the exact sum whatever the order of the values, so the mean of an
   // archive and of its source agree (GPS times near 4e8 summed naively over
-  // 700 k points drift by 1e-5).
-  double sum = 0, sum_error = 0;
+  // 700 k points drift by 1e-5). In long double, whose exponent reaches
+  // 2^16383 on x86-64 and AArch64, so finite doubles (up to 1.8e308, as a
+  // float64 extra bytes field may hold) never overflow the sum to inf or NaN.
+  long double sum = 0, sum_error = 0;
   std::uint64_t non_finite = 0;
   void add(double v);
-  double mean() const { return count > 0 ? (sum + sum_error) / static_cast<double>(count) : 0.0; }
+  double mean() const {
+    return count > 0 ? static_cast<double>((sum + sum_error) / static_cast<long double>(count)) : 0.0;
+  }
 };
 
 // Per attribute, for the points of an archive (or a box): each `has_*` says
