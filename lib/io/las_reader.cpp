@@ -526,6 +526,10 @@ class LasPointReader final : public BatchPointReader {
   Status start_laz(const ProjectionRecords& records);
   // Whether record `r` of `length` bytes is kept (else says why, as a warning).
   bool keep_record(const LasVlr& r, std::uint64_t length, const std::string& which);
+  // The first Extra Bytes record describes the extra bytes; a later one that
+  // differs from it is ignored, with a warning.
+  void keep_extra_bytes_record(std::span<const std::uint8_t> payload, const std::string& which,
+                               ProjectionRecords& records);
   Status fetch_chunk(std::uint64_t offset, std::size_t bytes, std::vector<std::uint8_t>& out);
   // The next decoded records: the file's bytes, or for LAZ decompressed ones.
   Status fill_points(std::size_t stride, std::span<const std::uint8_t>& view);
@@ -608,6 +612,14 @@ Status LasPointReader::start() {
   info_.extra_bytes_size = static_cast<std::uint32_t>(layout_.extra_size);
   info_.las_point_format = header_.format;
   info_.las_version_minor = header_.version_minor;
+  for (const auto& [axis, scale] : {std::pair{"x", header_.scale.x}, std::pair{"y", header_.scale.y},
+                                     std::pair{"z", header_.scale.z}}) {
+    if (scale < 0) {
+      info_.warnings.push_back(name() + ": the " + axis + " scale factor is negative (" + format_double(scale) +
+                               "): the coordinates are kept, but LAS output writes them at scale " +
+                               format_double(-scale) + ", so their integers come back negated");
+    }
+  }
   if (header_.format == 4 || header_.format == 5 || header_.format == 9 || header_.format == 10) {
     info_.warnings.push_back(name() + ": point format " + std::to_string(header_.format) +
                              " carries wave packet descriptors (where each pulse's waveform lies), which are not "
@@ -704,7 +716,7 @@ Status LasPointReader::read_vlrs(ProjectionRecords& records) {
       if (laszip) {
         if (!records.laszip) records.laszip.emplace(view.begin(), view.begin() + length);
       } else if (extra) {
-        if (!records.extra_bytes) records.extra_bytes.emplace(view.begin(), view.begin() + length);
+        keep_extra_bytes_record(view.first(static_cast<std::size_t>(length)), which, records);
       } else {
         keep_projection_record(record_id, view.first(length), records);
       }
@@ -766,7 +778,7 @@ Status LasPointReader::read_evlrs(ProjectionRecords& records) {
       RELIEF_RETURN_IF_ERROR(evlr_src.fill(len, view));
       if (view.size() < len) return format_error(which + " is cut short by the end of the file");
       if (extra) {
-        if (!records.extra_bytes) records.extra_bytes.emplace(view.begin(), view.begin() + len);
+        keep_extra_bytes_record(view.first(len), which, records);
       } else {
         keep_projection_record(record_id, view.first(len), records);
       }
@@ -778,6 +790,16 @@ Status LasPointReader::read_evlrs(ProjectionRecords& records) {
     pos += length;
   }
   return Status::ok();
+}
+
+void LasPointReader::keep_extra_bytes_record(std::span<const std::uint8_t> payload, const std::string& which,
+                                             ProjectionRecords& records) {
+  if (!records.extra_bytes) {
+    records.extra_bytes.emplace(payload.begin(), payload.end());
+  } else if (!std::equal(payload.begin(), payload.end(), records.extra_bytes->begin(), records.extra_bytes->end())) {
+    info_.warnings.push_back(which + " is a second Extra Bytes record that differs from the first: the first "
+                             "describes the extra bytes and this one is ignored");
+  }
 }
 
 bool LasPointReader::keep_record(const LasVlr& r, std::uint64_t length, const std::string& which) {

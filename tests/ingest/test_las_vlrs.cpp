@@ -199,6 +199,45 @@ TEST_CASE("a LAS record too large to keep is dropped with a warning", "[las][arc
   CHECK(i.warnings[0].find("not kept") != std::string::npos);
 }
 
+TEST_CASE("a second Extra Bytes record that differs, and a negative scale factor, are warned about",
+          "[las][archive][vlr]") {
+  TempDir dir;
+  // Two Extra Bytes records: the first (one uint16 "a") describes the 2 extra
+  // bytes; the second (one int16 "b") is ignored, no longer without a word.
+  TestLasOptions o = tile(3, 9, {TestVlr{"LASF_Spec", 4, "second", relief::test::extra_bytes_descriptor(4, 0, "b"),
+                                         false}});
+  o.extra = 2;
+  o.extra_bytes_vlr = relief::test::extra_bytes_descriptor(3, 0, "a");
+  const std::string twice = dir.file("twice.las");
+  REQUIRE(relief::test::write_test_las(twice, o));
+  const relief::PointStreamInfo i = info_of(twice);
+  CHECK(i.extra_bytes_vlr == std::string(o.extra_bytes_vlr.begin(), o.extra_bytes_vlr.end()));
+  REQUIRE(i.warnings.size() == 1);
+  CHECK(i.warnings[0].find(twice) != std::string::npos);
+  CHECK(i.warnings[0].find("second Extra Bytes record that differs") != std::string::npos);
+  // The same record twice is no conflict.
+  TestLasOptions same = o;
+  same.vlrs = {TestVlr{"LASF_Spec", 4, "again", o.extra_bytes_vlr, false}};
+  const std::string again = dir.file("again.las");
+  REQUIRE(relief::test::write_test_las(again, same));
+  CHECK(info_of(again).warnings.empty());
+
+  // A negative x scale: the coordinates are kept (and come back), the
+  // integers of LAS output are negated; say so.
+  const std::string negative = dir.file("negative.las");
+  REQUIRE(relief::test::write_test_las(negative, tile(1, 3, {})));
+  {
+    std::fstream f(negative, std::ios::in | std::ios::out | std::ios::binary);
+    const double minus = -0.01;
+    f.seekp(131);
+    f.write(reinterpret_cast<const char*>(&minus), sizeof minus);
+  }
+  const auto run = relief::test::run_cli(cli(), "compress " + negative + " -o " + dir.file("n.relief"));
+  CHECK(run.code == 0);
+  CHECK(run.output.find(negative + ": the x scale factor is negative (-0.01)") != std::string::npos);
+  CHECK(run.output.find("integers come back negated") != std::string::npos);
+}
+
 TEST_CASE("an aborted scan leaves no LAS records, damaged rows are refused by name", "[las][archive][vlr]") {
   TempDir dir;
   const std::string in = dir.file("in.las");
