@@ -307,9 +307,11 @@ class ChunkDecoderBase : public ChunkDecoder {
     first_.assign(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(rl_));
     return Status::ok();
   }
+  // A damaged input file: kFormatError (exit 13), as a truncated or lying
+  // one is; kCorruptData (14) says an archive is damaged.
   Status corrupt(const std::string& what) const {
-    if (unchunked_) return corrupt_data(name_ + ": LAZ point data (one unchunked stream, compressor 1): " + what);
-    return corrupt_data(name_ + ": LAZ chunk " + std::to_string(index_ + 1) + ": " + what);
+    if (unchunked_) return format_error(name_ + ": LAZ point data (one unchunked stream, compressor 1): " + what);
+    return format_error(name_ + ": LAZ chunk " + std::to_string(index_ + 1) + ": " + what);
   }
   // The encoder's stream ends exactly where its decoder stops reading, so
   // bytes left over mean the point count (or the chunk size) is wrong.
