@@ -71,6 +71,7 @@ int run_preview(int argc, char** argv) {
   if (ext != ".png" && !jpeg) {
     return usage_error(kCommand, "-o " + *out_path + ": preview writes PNG (.png) or JPEG (.jpg, .jpeg)");
   }
+  if (Status s = refuse_output_onto_input(*out_path, args.positional()[0]); !s) return fail(kCommand, s);
 
   PreviewRequest request;
   PreviewOptions& popt = request.options;

@@ -112,6 +112,7 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   // The LAS attributes written: those asked for, the colour low bytes with the colours.
   const std::uint32_t las_kept = info.las_attributes & want.las_kept();
   WriterOptions w;
+  w.read_from = archive_path;
   w.threads = options.threads;
   w.colors = info.has_colors && want.colors;
   w.intensity = info.has_intensity && want.intensity;

@@ -11,6 +11,8 @@
 #include <string>
 #include <string_view>
 
+#include <sys/stat.h>
+
 #include "io/point_writers.h"
 #include "io/readers.h"
 #include "io/stream_support.h"
@@ -224,8 +226,19 @@ Result<std::vector<std::string>> read_input_list(const std::string& path) {
   return out;
 }
 
+Status refuse_output_onto_input(const std::string& output, const std::string& input) {
+  struct stat out {}, in {};
+  if (::stat(output.c_str(), &out) == 0 && ::stat(input.c_str(), &in) == 0 && out.st_dev == in.st_dev &&
+      out.st_ino == in.st_ino) {
+    return invalid_argument(output + ": is " + input +
+                            ", the file being read; writing the output there would replace it");
+  }
+  return Status::ok();
+}
+
 Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options) {
   if (path == "-") return open_xyz_writer(path, options, ' ');
+  if (!options.read_from.empty()) RELIEF_RETURN_IF_ERROR(refuse_output_onto_input(path, options.read_from));
   const std::string ext = lower(std::filesystem::path(path).extension().string());
   const auto it = std::find_if(kWriterExtensions.begin(), kWriterExtensions.end(),
                                [&](const WriterExtension& e) { return e.extension == ext; });

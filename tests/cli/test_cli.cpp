@@ -518,6 +518,30 @@ TEST_CASE("query and decompress --polygon: the points inside a WKT area", "[cli]
   CHECK(run("query " + a + " -o " + tmp.file("o.ply")).output.find("missing --box (or --polygon)") != std::string::npos);
 }
 
+TEST_CASE("query, decompress and preview refuse to write their output over the archive they read", "[cli][query]") {
+  // An archive is opened by its content whatever its name: arch.las, read and
+  // written to arch.las, was replaced by the query's points.
+  TempDir tmp;
+  REQUIRE(run("compress " + sample() + " -o " + tmp.file("k.relief") + " --quiet").code == 0);
+  for (const char* name : {"arch.las", "arch.ply", "arch.png"}) {
+    const std::string a = tmp.file(name);
+    fs::copy_file(tmp.file("k.relief"), a);
+    const std::string before = file_bytes(a);
+    const std::string cmd = std::string(name) == "arch.png" ? "preview " + a + " -o " + a
+                            : std::string(name) == "arch.ply" ? "decompress " + a + " -o " + tmp.file("./arch.ply")
+                                                              : "query " + a + " --box -10,-10,10,10 -o " + a;
+    const Run r = run(cmd);
+    INFO(cmd << "\n" << r.output);
+    CHECK(r.code == 11);
+    CHECK(r.output.find("the file being read") != std::string::npos);
+    CHECK(file_bytes(a) == before);
+  }
+  // Through a hard link too.
+  fs::create_hard_link(tmp.file("k.relief"), tmp.file("link.ply"));
+  CHECK(run("decompress " + tmp.file("k.relief") + " -o " + tmp.file("link.ply")).code == 11);
+  CHECK(run("info " + tmp.file("k.relief")).code == 0);
+}
+
 TEST_CASE("query and info: clear errors for bad archives and boxes", "[cli][query]") {
   TempDir tmp;
   REQUIRE(run("compress " + sample() + " -o " + tmp.file("k.relief") + " --quiet").code == 0);

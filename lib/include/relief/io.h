@@ -316,6 +316,10 @@ int extra_bytes_base_type(int data_type);
 struct WriterOptions {
   bool colors = false;
   bool intensity = false;
+  // A file the points are read from (an archive being queried): the writer
+  // refuses a destination that is that file (the same device and inode, by
+  // whatever name), which renaming its output into place would replace.
+  std::string read_from;
   // LAS: coordinate reference system to write back: WKT (1 or 2), or from
   // older archives "EPSG:<code>" or "GeoTIFF keys: <key>=<value>, ...".
   std::string crs;
@@ -403,5 +407,10 @@ class PointWriter {
 // .xyz/.txt/.csv (text "x y z [r g b] [i]"). "-" writes XYZ text to stdout.
 // The file is written beside the destination and renamed by finish().
 Result<std::unique_ptr<PointWriter>> open_point_writer(const std::string& path, const WriterOptions& options);
+
+// kInvalidArgument when `output` exists and is `input` (the same device and
+// inode, by whatever name): an output renamed into place there would replace
+// the file being read.
+Status refuse_output_onto_input(const std::string& output, const std::string& input);
 
 }  // namespace relief
