@@ -2194,6 +2194,19 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
     remove_database_files(temp);
     return status;
   }
+  // The name is ours now (the move never replaces a file). Log files under it
+  // belong to an archive deleted without them (a killed writer's -wal and
+  // -shm, a -journal): SQLite would replay them into this one when it opens
+  // it, so they go first.
+  for (const char* suffix : {"-wal", "-shm", "-journal"}) {
+    std::error_code removed;
+    const std::string log = path + suffix;
+    if (fs::exists(fs::symlink_status(log, removed)) && !fs::remove(log, removed)) {
+      remove_database_files(path);
+      return io_error(path + ": cannot remove " + log + ", left by an archive deleted without it (" +
+                      removed.message() + "); SQLite would replay it into the new archive");
+    }
+  }
   sync_directory_of(path);
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<SqliteArchive> archive,
                           open_sqlite(path, Mode::kReadWrite, true, nullptr));

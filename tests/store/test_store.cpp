@@ -1123,6 +1123,41 @@ std::string joined(const std::vector<std::string>& lines) {
   return all;
 }
 
+TEST_CASE("a new archive does not take the log files a deleted one left under its name", "[store]") {
+  // A writer killed mid-run leaves A.relief-wal (and -shm); the user deletes
+  // A.relief and compresses again. SQLite replayed the old log into the new
+  // file when the writer switched it to WAL: a malformed schema, or the old
+  // run's scan inside the new archive.
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  {
+    auto old = create_ok(path);
+    const std::int64_t scan = begin_ok(*old, {{"old.ply", "ply", 100, "", 0}});
+    std::vector<ChunkRow> rows;
+    for (int i = 0; i < 40; ++i) rows.push_back(make_row({i, 0, 0}, scan, box_of({25.0 * i + 1, 1, 1}, {25.0 * i + 2, 2, 2}), 40, 3000, 1));
+    put_ok(*old, rows);
+    REQUIRE(fs::exists(path + "-wal"));
+    fs::copy_file(path + "-wal", dir.file("kept-wal"));
+    fs::copy_file(path + "-shm", dir.file("kept-shm"));
+  }
+  fs::remove(path);
+  fs::copy_file(dir.file("kept-wal"), path + "-wal");
+  fs::copy_file(dir.file("kept-shm"), path + "-shm");
+  fs::copy_file(dir.file("kept-wal"), path + "-journal");
+  {
+    auto fresh = create_ok(path);
+    const ArchiveInfo info = info_ok(*fresh);
+    CHECK(info.scans.empty());
+    CHECK(info.chunk_count == 0);
+    REQUIRE(fresh->close().is_ok());
+  }
+  const ArchiveCheck check = check_ok(path);
+  INFO(joined(check.problems));
+  CHECK(check.problems.empty());
+  CHECK_FALSE(fs::exists(path + "-wal"));
+  CHECK_FALSE(fs::exists(path + "-journal"));
+}
+
 TEST_CASE("an intact archive passes check_archive", "[store][check]") {
   TempDir dir;
   const std::string path = dir.file("a.relief");
