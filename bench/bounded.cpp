@@ -21,6 +21,7 @@
 #include <map>
 #include <string>
 
+#include "core/grid_index.h"
 #include "relief/ingest.h"
 #include "relief/io.h"
 #include "relief/metrics.h"
@@ -57,21 +58,25 @@ struct Run {
   double base_dec_mpts = 0;  // lod 16 (base layer) decode, input points per second
 };
 
-// Largest per-axis error: every input point against its grid cell, after
-// checking the output holds exactly the snapped multiset (so the pairing is
-// the codec's own). NaN when the multisets differ.
+// Largest per-axis error: every input point against its grid cell (the
+// encoder's: core::grid_index_within, the nearest index or its neighbour
+// where the nearest decodes beyond half a step), after checking the output
+// holds exactly the snapped multiset (so the pairing is the codec's own).
+// NaN when the multisets differ.
 double max_axis_error(const relief::PointCloud& in, const relief::PointCloud& out, double step) {
   std::vector<std::array<long long, 3>> a, b;
   double worst = 0;
+  const auto index = [step](double v) {
+    const std::optional<std::int64_t> k = relief::core::grid_index_within(v, 0, step);
+    return k ? static_cast<long long>(*k) : std::llround(v / step);
+  };
   for (const relief::Vec3d& p : in.positions) {
-    std::array<long long, 3> q{std::llround(p.x / step), std::llround(p.y / step), std::llround(p.z / step)};
-    const auto at = [&](int axis) { return static_cast<double>(q[static_cast<std::size_t>(axis)]) * step; };
+    std::array<long long, 3> q{index(p.x), index(p.y), index(p.z)};
+    const auto at = [&](int axis) { return relief::core::grid_value(0, q[static_cast<std::size_t>(axis)], step); };
     worst = std::max({worst, std::fabs(at(0) - p.x), std::fabs(at(1) - p.y), std::fabs(at(2) - p.z)});
     a.push_back(q);
   }
-  for (const relief::Vec3d& p : out.positions) {
-    b.push_back({std::llround(p.x / step), std::llround(p.y / step), std::llround(p.z / step)});
-  }
+  for (const relief::Vec3d& p : out.positions) b.push_back({index(p.x), index(p.y), index(p.z)});
   std::sort(a.begin(), a.end());
   std::sort(b.begin(), b.end());
   return a == b ? worst : std::numeric_limits<double>::quiet_NaN();

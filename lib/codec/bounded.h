@@ -9,6 +9,7 @@
 #include <span>
 #include <vector>
 
+#include "core/grid_index.h"
 #include "codec/chunk_format.h"
 #include "relief/codec.h"
 
@@ -19,7 +20,7 @@ namespace relief::codec {
 // same doubles; with origin = a LAS offset and step = its scale it is the LAS
 // reader's own formula.
 inline double dequantise(double origin, std::int64_t base, std::uint32_t local, double step) {
-  return origin + static_cast<double>(base + static_cast<std::int64_t>(local)) * step;
+  return core::grid_value(origin, base + static_cast<std::int64_t>(local), step);
 }
 
 // `cloud` has been validated (finite coordinates and intensities, matching

@@ -7,8 +7,10 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -18,6 +20,7 @@
 #include "codec/las_attribute_coder.h"
 #include "codec/octree.h"
 #include "codec/scan_geometry_coder.h"
+#include "core/grid_index.h"
 
 namespace relief::codec {
 
@@ -25,7 +28,7 @@ namespace {
 
 // |(x - origin) / step| must stay below this so the cell index is exact and
 // base + local cannot overflow.
-constexpr double kMaxQuantIndex = 4.0e18;
+constexpr double kMaxQuantIndex = core::kMaxGridIndex;
 
 Status check_bound(const ErrorBound& b) {
   const Vec3d& s = b.step;
@@ -43,14 +46,6 @@ Status check_bound(const ErrorBound& b) {
     return invalid_argument("intensity tolerance must be between 0 and " + std::to_string(kMaxIntensityTolerance));
   }
   return Status::ok();
-}
-
-// std::llround(t) for |t| < kMaxQuantIndex, without the library call: the
-// fraction t - trunc(t) is exact in double arithmetic.
-std::int64_t round_half_away(double t) {
-  const auto i = static_cast<std::int64_t>(t);
-  const double frac = t - static_cast<double>(i);
-  return i + (frac >= 0.5 ? 1 : 0) - (frac <= -0.5 ? 1 : 0);
 }
 
 std::uint32_t float_bits(float v) {
@@ -252,7 +247,11 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         return invalid_argument("chunk: point " + std::to_string(i) + " lies " + std::to_string(c[a]) +
                                 " from the quantisation origin, more than 4e18 steps of " + std::to_string(steps[a]));
       }
-      const std::int64_t v = round_half_away(t);
+      // The nearest index, or its neighbour where the nearest decodes (in
+      // double) beyond half a step from the point: within it, always.
+      const std::optional<std::int64_t> k = core::grid_index_within(c[a], origins[a], steps[a]);
+      if (!k) return invalid_argument("chunk: point " + std::to_string(i) + ": " + core::grid_too_fine_text(c[a], steps[a]));
+      const std::int64_t v = *k;
       q[3 * i + a] = v;
       lo[a] = std::min(lo[a], v);
       hi[a] = std::max(hi[a], v);

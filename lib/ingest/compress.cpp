@@ -15,9 +15,11 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <tuple>
 #include <unordered_map>
 
+#include "core/grid_index.h"
 #include "core/memory.h"
 #include "core/parallel.h"
 #include "ingest/bucket_encode.h"
@@ -203,7 +205,7 @@ Status stage_points(PointCloud& batch, double coordinate_limit, const std::strin
                     bool colors, bool intensity, const EncodeParams& params) {
   RELIEF_RETURN_IF_ERROR(check_coordinates(batch, coordinate_limit, source, first_index));
   conform_attributes(batch, colors, intensity);
-  if (params.bound) snap_to_grid(batch, *params.bound);
+  if (params.bound) RELIEF_RETURN_IF_ERROR(snap_to_grid(batch, *params.bound, source, first_index));
   return Status::ok();
 }
 
@@ -788,19 +790,27 @@ ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in)
   return b;
 }
 
-void snap_to_grid(PointCloud& batch, const ErrorBound& b) {
-  // The codec's own formula (origin + k * step), so its re-snapping is exact.
-  // A coordinate too far from the origin for an exact k is left as it is for
-  // the encoder to reject with a clear error.
-  const auto snap = [](double v, double origin, double step) {
-    const double t = (v - origin) / step;
-    return std::fabs(t) < 4.0e18 ? origin + static_cast<double>(std::llround(t)) * step : v;
-  };
-  for (Vec3d& p : batch.positions) {
-    p.x = snap(p.x, b.origin.x, b.step.x);
-    p.y = snap(p.y, b.origin.y, b.step.y);
-    p.z = snap(p.z, b.origin.z, b.step.z);
+Status snap_to_grid(PointCloud& batch, const ErrorBound& b, const std::string& source, std::uint64_t first_index) {
+  // The codec's own formula and index (core/grid_index.h), so its
+  // re-snapping is exact. A coordinate too far from the origin for an exact
+  // index is left as it is for the encoder to reject with a clear error.
+  const double steps[3] = {b.step.x, b.step.y, b.step.z};
+  const double origins[3] = {b.origin.x, b.origin.y, b.origin.z};
+  for (std::size_t i = 0; i < batch.positions.size(); ++i) {
+    Vec3d& p = batch.positions[i];
+    double* c[3] = {&p.x, &p.y, &p.z};
+    for (int a = 0; a < 3; ++a) {
+      const double v = *c[a];
+      if (!(std::fabs((v - origins[a]) / steps[a]) < core::kMaxGridIndex)) continue;
+      const std::optional<std::int64_t> k = core::grid_index_within(v, origins[a], steps[a]);
+      if (!k) {
+        return invalid_argument(source + ": point " + std::to_string(first_index + i) + ": " +
+                                core::grid_too_fine_text(v, steps[a]));
+      }
+      *c[a] = core::grid_value(origins[a], *k, steps[a]);
+    }
   }
+  return Status::ok();
 }
 
 namespace {

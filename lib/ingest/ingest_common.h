@@ -223,7 +223,8 @@ std::vector<ChunkTask> group_into_tasks(const PointCloud& cloud, const ArchiveGr
 ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in);
 // Moves every point onto the grid (origin + k * step). Done as points are
 // read, so chunk keys, bucket files and encoders all see the final positions.
-void snap_to_grid(PointCloud& batch, const ErrorBound& bound);
+Status snap_to_grid(PointCloud& batch, const ErrorBound& bound, const std::string& source = "points",
+                    std::uint64_t first_index = 0);
 // The density-derived cell size (suggest_cell_size) of all the inputs' points
 // and the bounded mode's base-layer cell, estimated from a sample chosen by a
 // hash of each position: one extra read of the inputs, and a result that does

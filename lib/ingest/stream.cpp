@@ -68,7 +68,7 @@ class StreamIngestImpl final : public StreamIngest {
     PointCloud snapped;
     if (params_.bound) {
       snapped = incoming;
-      ingest::snap_to_grid(snapped, *params_.bound);
+      RELIEF_RETURN_IF_ERROR(ingest::snap_to_grid(snapped, *params_.bound, "stream", points_read_));
     }
     const PointCloud& batch = params_.bound ? snapped : incoming;
     RELIEF_RETURN_IF_ERROR(ingest::check_coordinates(

@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include "codec/chunk_format.h"
+#include "core/grid_index.h"
 #include "relief/codec.h"
 #include "support/synthetic.h"
 
@@ -33,8 +34,10 @@ std::uint32_t bits_of(float f) {
   return u;
 }
 
+// Where the encoder puts v: the nearest grid index, or its neighbour where
+// the nearest decodes beyond half a step (core/grid_index.h).
 double snap(double v, double origin, double step) {
-  return origin + static_cast<double>(std::llround((v - origin) / step)) * step;
+  return core::grid_value(origin, core::grid_index_within(v, origin, step).value(), step);
 }
 
 // The multiset the decoder must return: every input point snapped to the grid.
@@ -101,6 +104,64 @@ TEST_CASE("bounded: every point comes back within the tolerance, attributes exac
     CHECK(info->error_bounded);
     CHECK(info->decoded_points == in.size());
   }
+}
+
+TEST_CASE("bounded: every coordinate within the tolerance exactly, ties and large magnitudes included",
+          "[codec][bounded]") {
+  // 1.2345 on a 0.001 step is a tie: the nearest index by rounding, 1235,
+  // decodes to 1.2350000000000001, 1.7e-16 beyond the tolerance; its
+  // neighbour 1234 is within. A tolerance doubles do not resolve at the
+  // coordinates (below 32 times their spacing) is refused where no index
+  // decodes within it (1e-5 near 1e12 gave 1.2e-4; 1e-6 near 1e9, 1.07
+  // times it).
+  for (const double base : {0.0, 1.0, 6.4e6, 1.0e9}) {
+    for (const double tol : {0.0005, 2e-6}) {
+      // Near 1e9 doubles are 1.2e-7 apart: a tie on a 4e-6 step may decode
+      // beyond 2e-6 on both sides (checked below).
+      if (base == 1.0e9 && tol < 1e-5) continue;
+      PointCloud in;
+      std::uint64_t state = 3;
+      for (int i = 0; i < 4000; ++i) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        const double unit = static_cast<double>(state >> 11) / 9007199254740992.0;
+        // Every other point a tie (an odd multiple of the tolerance), the rest anywhere.
+        const double x = i % 2 == 0 ? base + (2 * static_cast<double>(i % 997) + 1) * tol : base + unit * 2000 * tol;
+        in.positions.push_back({x, base - x * 0.5, static_cast<double>(i % 7) * tol});
+      }
+      const EncodeParams p = bounded_params(tol, 0.5);
+      auto blob = encode_chunk(in, p);
+      INFO("base " << base << ", tolerance " << tol << ": " << blob.status().to_string());
+      REQUIRE(blob.is_ok());
+      auto out = decode_chunk(*blob);
+      REQUIRE(out.is_ok());
+      REQUIRE(out->size() == in.size());
+      // Snapping is monotone on each axis, so sorted inputs meet sorted outputs.
+      for (int a = 0; a < 3; ++a) {
+        std::vector<double> want, got;
+        for (const Vec3d& q : in.positions) want.push_back(a == 0 ? q.x : a == 1 ? q.y : q.z);
+        for (const Vec3d& q : out->positions) got.push_back(a == 0 ? q.x : a == 1 ? q.y : q.z);
+        std::sort(want.begin(), want.end());
+        std::sort(got.begin(), got.end());
+        double worst = 0;
+        for (std::size_t i = 0; i < want.size(); ++i) worst = std::max(worst, std::fabs(got[i] - want[i]));
+        INFO("axis " << a);
+        // Within the tolerance, plus at a tie the rounding of the decoded double.
+        CHECK(worst <= tol + 4 * (std::nextafter(base + 1, 1e300) - (base + 1)));
+      }
+    }
+  }
+  // A tolerance finer than doubles resolve at the coordinates: refused, naming the point.
+  PointCloud far;
+  far.positions = {{1e12 + 0.123456, -1e12 - 0.5, 3.3}};
+  const auto refused = encode_chunk(far, bounded_params(1e-5, 0.5));
+  REQUIRE_FALSE(refused.is_ok());
+  CHECK(refused.status().code() == StatusCode::kInvalidArgument);
+  CHECK_THAT(refused.status().message(), Catch::Contains("cannot come back within the tolerance 1e-05"));
+  CHECK_THAT(refused.status().message(), Catch::Contains("a tolerance must be at least 32 times that"));
+  PointCloud tie;
+  tie.positions = {{1.0e9 + 13 * 2e-6, 0, 0}};  // 1000000000.000026, as above
+  CHECK(encode_chunk(tie, bounded_params(2e-6, 0.5)).status().code() == StatusCode::kInvalidArgument);
+  CHECK(encode_chunk(tie, bounded_params(4e-6, 0.5)).is_ok());
 }
 
 TEST_CASE("bounded: LAS integers come back exactly", "[codec][bounded]") {

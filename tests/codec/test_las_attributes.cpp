@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "codec/las_attribute_coder.h"
+#include "core/grid_index.h"
 #include "relief/codec.h"
 #include "support/las_attributes.h"
 #include "support/synthetic.h"
@@ -21,8 +22,10 @@ using namespace relief;
 
 namespace {
 
+// Where the encoder puts v: the nearest grid index, or its neighbour where
+// the nearest decodes beyond half a step (core/grid_index.h).
 double snap(double v, double origin, double step) {
-  return origin + static_cast<double>(std::llround((v - origin) / step)) * step;
+  return core::grid_value(origin, core::grid_index_within(v, origin, step).value(), step);
 }
 
 EncodeParams params_for(double tolerance, double cell) {
