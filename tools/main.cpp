@@ -1,6 +1,12 @@
 // relief: compress point clouds into queryable archives (Golla & Klein 2015).
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <iostream>
+#include <new>
 #include <string>
 
 #include "cli_common.h"
@@ -33,10 +39,38 @@ constexpr const char* kUsage =
     "\n"
     "Run 'relief <command> --help' for the options of a command.\n";
 
+// Runs the command. Out of memory on this thread unwinds (writers remove
+// their temporary files, a new archive is removed) to a clear message.
+int dispatch(const std::string& command, int sub_argc, char** sub_argv);
+
+// A worker thread out of memory cannot unwind to main(): say so plainly
+// rather than "terminate called after throwing ...", and exit with the
+// limit code (its temporary files are left for the next run of that output
+// to remove, as a killed run's are).
+[[noreturn]] void on_terminate() {
+  const char* what = "an unexpected exception";
+  if (const std::exception_ptr e = std::current_exception()) {
+    try {
+      std::rethrow_exception(e);
+    } catch (const std::bad_alloc&) {
+      what = "out of memory";
+    } catch (...) {
+    }
+  }
+  std::fprintf(stderr, "relief: %s: the process could not allocate what it needed (a lower --memory, fewer "
+                       "--threads, or a higher memory limit)\n", what);
+  std::_Exit(16);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   relief::retain_freed_memory();
+  // A file-size limit (ulimit -f) makes a write fail with EFBIG, reported
+  // like a full disk (exit 12, nothing half-written kept), instead of
+  // killing the process with SIGXFSZ.
+  std::signal(SIGXFSZ, SIG_IGN);
+  std::set_terminate(on_terminate);
   if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0 ||
       std::strcmp(argv[1], "help") == 0) {
     std::cout << kUsage;
@@ -47,8 +81,28 @@ int main(int argc, char** argv) {
     return 0;
   }
   const std::string command = argv[1];
-  const int sub_argc = argc - 2;
-  char** sub_argv = argv + 2;
+  int rc = 0;
+  try {
+    rc = dispatch(command, argc - 2, argv + 2);
+  } catch (const std::bad_alloc&) {
+    std::cerr << "relief " << command
+              << ": out of memory: the process could not allocate what it needed (a lower --memory, fewer "
+                 "--threads, or a higher memory limit)\n";
+    return 16;
+  }
+  // Output that never arrived is a failure, not success: stdout on a full
+  // disk or a closed pipe.
+  const bool flushed = std::fflush(stdout) == 0 && std::ferror(stdout) == 0 && std::cout.flush();
+  if (!flushed && rc == relief::cli::kExitOk) {
+    std::cerr << "relief " << command << ": standard output: write failed (" << std::strerror(errno) << ")\n";
+    return relief::cli::exit_code_for(relief::io_error("standard output"));
+  }
+  return rc;
+}
+
+namespace {
+
+int dispatch(const std::string& command, int sub_argc, char** sub_argv) {
   if (command == "compress") return relief::cli::run_compress(sub_argc, sub_argv);
   if (command == "append") return relief::cli::run_append(sub_argc, sub_argv);
   if (command == "stream") return relief::cli::run_stream(sub_argc, sub_argv);
@@ -69,3 +123,5 @@ int main(int argc, char** argv) {
   std::cerr << "relief: unknown command '" << command << "'\nsee 'relief --help'\n";
   return relief::cli::kExitUsage;
 }
+
+}  // namespace

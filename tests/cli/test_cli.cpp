@@ -542,6 +542,28 @@ TEST_CASE("query, decompress and preview refuse to write their output over the a
   CHECK(run("info " + tmp.file("k.relief")).code == 0);
 }
 
+TEST_CASE("a full standard output and a file size limit are I/O errors, not success or a signal", "[cli]") {
+  TempDir tmp;
+  REQUIRE(run("compress " + sample() + " -o " + tmp.file("k.relief") + " --quiet").code == 0);
+  const std::string a = tmp.file("k.relief");
+  // /dev/full: every write fails with ENOSPC. info, stats and check said nothing and exited 0.
+  for (const std::string cmd : {"info " + a, "info --json " + a, "stats " + a, "check " + a}) {
+    INFO(cmd);
+    CHECK(run(cmd + " >/dev/full").code == 12);
+  }
+  // ulimit -f: writes beyond the limit fail with EFBIG instead of killing the process (SIGXFSZ,
+  // exit 153) with its temporary file left.
+  const relief::test::CliRun limited =
+      relief::test::run_cli("ulimit -f 64; exec " + std::string(RELIEF_CLI), "decompress " + a + " -o " +
+                                                                                 tmp.file("out.las") + " --quiet");
+  INFO(limited.output);
+  CHECK(limited.code == 12);
+  CHECK(limited.output.find("File too large") != std::string::npos);
+  std::size_t left = 0;
+  for (const auto& e : fs::directory_iterator(tmp.path())) left += e.path().filename().string().rfind("out.las", 0) == 0;
+  CHECK(left == 0);
+}
+
 TEST_CASE("query and info: clear errors for bad archives and boxes", "[cli][query]") {
   TempDir tmp;
   REQUIRE(run("compress " + sample() + " -o " + tmp.file("k.relief") + " --quiet").code == 0);
