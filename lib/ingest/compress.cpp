@@ -1018,6 +1018,11 @@ Status validate_build_options(const IngestOptions& options) {
   if (options.codec.cell_size > kMaxCoordinateMagnitude) {
     return invalid_argument("cell size must be at most 2^50");
   }
+  // The step (twice the tolerance) is bounded as a cell is: a tolerance of
+  // 8.9e307 overflowed the chunk keys (a chunk "(9223372036854775807, ...)").
+  if (!(options.tolerance >= 0) || options.tolerance > kMaxCoordinateMagnitude / 2) {
+    return invalid_argument("tolerance must be a positive number up to 2^49 (0 = automatic)");
+  }
   return Status::ok();
 }
 

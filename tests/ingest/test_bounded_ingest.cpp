@@ -104,6 +104,13 @@ TEST_CASE("bounded compress: every point back within the tolerance, attributes e
   std::sort(got.begin(), got.end());
   CHECK(worst <= 0.002 * (1 + 1e-9));
   CHECK(want == got);
+  // A tolerance beyond 2^49 (a step beyond 2^50, as a cell) is refused before anything is
+  // written: 8.9e307 overflowed the chunk keys.
+  o.tolerance = 8.9e307;
+  const auto huge = compress_files({dir.file("in.ply")}, dir.file("huge.relief"), o);
+  CHECK(huge.status().code() == StatusCode::kInvalidArgument);
+  CHECK_THAT(huge.status().message(), Catch::Contains("tolerance must be a positive number up to 2^49"));
+  CHECK_FALSE(std::filesystem::exists(dir.file("huge.relief")));
 }
 
 TEST_CASE("bounded compress: the same blobs whatever --memory, --threads and point order", "[ingest][bounded]") {
