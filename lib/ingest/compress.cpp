@@ -1303,6 +1303,14 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
     if (info.has_intensity && !in.intensity) {
       return invalid_argument(archive_path + " has intensity but the new input has none");
     }
+    // The other way round the archive keeps its attribute set: say what goes,
+    // as compress does for inputs with and without them.
+    if (!info.has_colors && in.colors) {
+      in.warnings.push_back(archive_path + " has no colours, so the new input's colours are dropped");
+    }
+    if (!info.has_intensity && in.intensity) {
+      in.warnings.push_back(archive_path + " has no intensity, so the new input's intensities are dropped");
+    }
     in.colors = info.has_colors;
     in.intensity = info.has_intensity;
   }

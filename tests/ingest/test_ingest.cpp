@@ -598,6 +598,16 @@ TEST_CASE("compress of inputs with and without colour or intensity says what it 
   REQUIRE(same.is_ok());
   CHECK(said(*same, "colours") == 0);
   CHECK(said(*same, "intensities") == 0);
+  // An append of coloured points to the archive without colours keeps its set, and says so.
+  auto added = append_files(tmp.file("m.relief"), {tmp.file("coloured2.ply")}, small_chunks());
+  REQUIRE(added.is_ok());
+  const auto dropped = [&](const std::string& what) {
+    return std::count_if(added->warnings.begin(), added->warnings.end(), [&](const std::string& w) {
+      return w.find(tmp.file("m.relief") + " has no " + what) != std::string::npos;
+    });
+  };
+  CHECK(dropped("colours, so the new input's colours are dropped") == 1);
+  CHECK(dropped("intensity, so the new input's intensities are dropped") == 1);
 }
 
 namespace {
