@@ -179,8 +179,12 @@ std::string chunk_label(const ChunkRef& ref) {
 // a row needs its blob's overflow pages plus one page for its record and one
 // each for the entries it makes in the three b-tree indexes and the R*Tree,
 // scattered among older entries (kFramesPerRow); removing it rewrites at most
-// those same five pages; interior pages, the freelist trunks, scan, source
-// and metadata rows take a fixed allowance (kFixedFrames).
+// those same five pages plus the freelist trunk pages that list its freed
+// overflow pages (one per page_size / 4 - 2 of them, and one more), never
+// the freed pages themselves: writers turn SQLite's secure_delete off (Debian
+// builds it on, and zeroing every freed page made an undo as large as the
+// append); interior pages, scan, source and metadata rows take a fixed
+// allowance (kFixedFrames).
 constexpr std::uint64_t kFramesPerRow = 5;
 constexpr std::uint64_t kFixedFrames = 64;
 constexpr std::uint64_t kWalFrameHeader = 24;
@@ -857,6 +861,8 @@ class SqliteArchive final : public Archive {
   Status write_meta_checksum();
   Status upgrade_to_current_version();
   Status check_room(const std::vector<ChunkRow>& rows) const;
+  // Freelist trunk pages that removing `rows` may write (their overflow pages listed).
+  std::uint64_t trunk_pages(const std::vector<ChunkRow>& rows) const;
   Result<bool> scan_exists(std::int64_t scan_id);
   Status refresh_scan_summary();
   // The archive's CRS and its source form, from relief_scan and relief_source
@@ -889,6 +895,7 @@ class SqliteArchive final : public Archive {
   bool bounds_index_ = false;  // version 2: relief_chunk_bounds exists
   std::uint64_t page_size_ = 4096;     // read when opened for writing
   std::uint64_t rows_written_ = 0;     // by this handle: what an abort may have to remove
+  std::uint64_t trunks_written_ = 0;   // freelist trunk pages removing those rows may write
   bool created_ = false;
   ArchiveGrid grid_;  // fixed at creation, read once on open
   mutable std::array<std::unique_ptr<Statement>, static_cast<std::size_t>(Sql::kCount)> statements_;
@@ -1117,8 +1124,13 @@ Status SqliteArchive::initialise(bool verify_meta) {
     wal_ = true;
     // NORMAL in WAL mode: a commit survives a crash of the process at once
     // and a power loss from the next checkpoint on; never corrupts the file.
-    RELIEF_RETURN_IF_ERROR(store::exec(db(), "PRAGMA synchronous = NORMAL; PRAGMA foreign_keys = ON", path_,
-                                       "configure the connection"));
+    // secure_delete off (Debian's SQLite has it on): removing what a failed
+    // append added then frees its pages without rewriting each one, so the
+    // undo fits the room check_room keeps on a full disk.
+    RELIEF_RETURN_IF_ERROR(store::exec(db(),
+                                       "PRAGMA synchronous = NORMAL; PRAGMA foreign_keys = ON; "
+                                       "PRAGMA secure_delete = OFF",
+                                       path_, "configure the connection"));
     if (format_version_ < kArchiveFormatVersion) {
       RELIEF_RETURN_IF_ERROR(upgrade_to_current_version());
       bounds_index_ = true;
@@ -1341,18 +1353,31 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
   return scan_id;
 }
 
+std::uint64_t SqliteArchive::trunk_pages(const std::vector<ChunkRow>& rows) const {
+  const std::uint64_t overflow_page = page_size_ - 4;
+  const std::uint64_t per_trunk = page_size_ / 4 - 2;
+  std::uint64_t pages = 0;
+  for (const ChunkRow& row : rows) pages += row.blob.size() / overflow_page + 1;
+  return pages / per_trunk + 1;
+}
+
 Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
   if (created_) return Status::ok();
   const std::uint64_t frame = page_size_ + kWalFrameHeader;
   const std::uint64_t overflow_page = page_size_ - 4;  // 4 bytes link the overflow chain
   std::uint64_t need = kFixedFrames;
   for (const ChunkRow& row : rows) need += row.blob.size() / overflow_page + 1 + kFramesPerRow;
-  const std::uint64_t reserve = kFixedFrames + kFramesPerRow * (rows_written_ + rows.size());
-  const std::uint64_t wanted = (need + reserve) * frame;
+  const std::uint64_t reserve =
+      kFixedFrames + kFramesPerRow * (rows_written_ + rows.size()) + trunks_written_ + trunk_pages(rows);
+  // Twice the batch: the WAL takes it, and the checkpoint that follows its
+  // commit writes the same pages into the archive file while the WAL keeps
+  // its size (a 13 MB disk took an 11 MB WAL and a 2.4 MB file, and the
+  // commit failed with the check passed).
+  const std::uint64_t wanted = (2 * need + reserve) * frame;
   const std::uint64_t room = wal_room(path_);
   if (wanted <= room) return Status::ok();
   return io_error(path_ + ": the disk is full: adding " + std::to_string(rows.size()) + " chunks needs " +
-                  megabytes(need * frame) + " and undoing this run " + megabytes(reserve * frame) + ", but only " +
+                  megabytes(2 * need * frame) + " (the log and the file) and undoing this run " + megabytes(reserve * frame) + ", but only " +
                   megabytes(room) + " can still be written");
 }
 
@@ -1484,6 +1509,7 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
   }
   RELIEF_RETURN_IF_ERROR(transaction.commit());
   rows_written_ += rows.size();
+  trunks_written_ += trunk_pages(rows);
 
   for (std::size_t i = 0; i < rows.size(); ++i) {
     rows[i].ref.id = assigned[i].first;
@@ -1698,6 +1724,7 @@ Status SqliteArchive::put_level_chunks(int level, std::vector<ChunkRow>& rows) {
   }
   RELIEF_RETURN_IF_ERROR(transaction.commit());
   rows_written_ += rows.size();
+  trunks_written_ += trunk_pages(rows);
   for (std::size_t i = 0; i < rows.size(); ++i) {
     rows[i].ref.id = assigned[i].first;
     rows[i].ref.seq = assigned[i].second;

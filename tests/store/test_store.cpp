@@ -1646,5 +1646,51 @@ TEST_CASE("room to undo is kept on archives a handle opened, not on ones it crea
   CHECK(info.scans.empty());
 }
 
+TEST_CASE("a failed append of large blobs is undone within the room kept", "[store][diskfull]") {
+  // Debian's SQLite zeroes every freed page (secure_delete): removing the
+  // rows of a failed append rewrote all their overflow pages, an undo as
+  // large as the append, which a full disk cannot take. Writers turn it off.
+  TempDir dir;
+  const std::string old = dir.file("old.relief");
+  create_ok(old);
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(fs::file_size(old) + (4u << 20));
+    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(10);
+    auto opened = Archive::open(old, Archive::Mode::kReadWrite);
+    if (!opened) ::_exit(11);
+    auto scan = (*opened)->begin_scan({});
+    if (!scan) ::_exit(12);
+    Status status;
+    int batches = 0;
+    for (int b = 0; b < 40 && status.is_ok(); ++b, ++batches) {
+      std::vector<ChunkRow> rows;
+      for (int i = 0; i < 2; ++i) {
+        const double x = 25.0 * (2 * b + i);
+        rows.push_back(make_row({2 * b + i, 0, 0}, *scan, cube(x + 1, x + 2), 5, 150000,
+                                static_cast<std::uint64_t>(2 * b + i)));
+      }
+      status = (*opened)->put_chunks(rows);
+    }
+    if (status.is_ok()) ::_exit(13);
+    if (status.code() != StatusCode::kIoError || status.message().find("the disk is full") == std::string::npos) {
+      ::_exit(14);
+    }
+    if (batches < 3) ::_exit(15);  // some committed, so there is something to undo
+    ::_exit((*opened)->abort_scan(*scan).is_ok() ? 0 : 16);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
+  const ArchiveInfo info = info_ok(*open_ok(old, Archive::Mode::kReadOnly));
+  CHECK(info.chunk_count == 0);
+  CHECK(info.scans.empty());
+  CHECK(check_ok(old).problems.empty());
+}
+
 }  // namespace
 }  // namespace relief
