@@ -7,6 +7,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "relief/archive.h"
+#include "relief/query.h"
 
 namespace relief::cli {
 
@@ -44,7 +45,8 @@ int run_check(int argc, char** argv) {
     if (!writer) return fail(kCommand, writer.status());
     if (Status closed = (*writer)->close(); !closed) return fail(kCommand, closed);
   }
-  const Result<ArchiveCheck> result = check_archive(path, check_progress_printer(path, args.has("--quiet")));
+  const Result<ArchiveCheck> result =
+      check_archive(path, check_progress_printer(path, args.has("--quiet")), chunk_row_check());
   end_progress_line();
   if (!result) return fail(kCommand, result.status());
   std::printf("archive   %s (format version %d)\n", path.c_str(), result->format_version);

@@ -115,6 +115,21 @@ Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob) {
   return info_of(parsed, blob.size());
 }
 
+std::string chunk_counts_problem(std::uint64_t input_points, std::uint64_t decoded_points,
+                                 std::span<const std::uint8_t> blob) {
+  const Result<ChunkInfo> info = inspect_chunk(blob);
+  if (!info) return "its blob does not parse: " + info.status().message();
+  std::string problem;
+  const auto differ = [&](const char* what, std::uint64_t row, std::uint64_t held) {
+    if (row == held) return;
+    problem += (problem.empty() ? "" : "; ") + std::string("its row says ") + std::to_string(row) + " " + what +
+               " points, its blob " + std::to_string(held);
+  };
+  differ("decoded", decoded_points, info->decoded_points);
+  differ("input", input_points, info->input_points);
+  return problem;
+}
+
 std::string chunk_section_label(int id) {
   switch (id) {
     case 1: return "tree";

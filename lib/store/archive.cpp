@@ -825,7 +825,9 @@ class SqliteArchive final : public Archive {
   sqlite3* connection() const { return connection_.get(); }
   Status verify_meta_checksum() const;
   // check_archive's chunk and index checks; damage goes to `report`.
-  Status check_chunks(CheckReport& report) const;
+  Status check_chunks(CheckReport& report, const ChunkRowCheck& row_check) const;
+  // Empty, or how a row's bounds lie beyond its key's cube of the grid.
+  std::string bounds_outside_key(const ChunkRef& ref) const;
 
   const std::string& path() const override { return path_; }
   Status close() override;
@@ -2363,21 +2365,78 @@ Status text_rows_problems(sqlite3* db, const char* sql, const std::string& path,
 
 }  // namespace
 
-Status SqliteArchive::check_chunks(CheckReport& report) const {
+// The one chunk codec (format-spec/archive.md 2.4: 1 = Relief chunk blob).
+constexpr std::uint32_t kChunkCodecRelief = 1;
+// How far a row's bounds may reach beyond its key's cube, in chunk edges:
+// the base layer's points, rebuilt from its maps, may lie a little outside
+// (up to 1.5 % of an edge in the archives measured); a row moved to another
+// key lies a whole edge off.
+constexpr double kBoundsOverhang = 0.25;
+
+std::string SqliteArchive::bounds_outside_key(const ChunkRef& ref) const {
+  if (ref.bounds.empty()) return {};
+  const double edge = grid_.chunk_edge;
+  const std::int64_t key[3] = {ref.key.ix, ref.key.iy, ref.key.iz};
+  const double origin[3] = {grid_.origin.x, grid_.origin.y, grid_.origin.z};
+  const double lo[3] = {ref.bounds.min.x, ref.bounds.min.y, ref.bounds.min.z};
+  const double hi[3] = {ref.bounds.max.x, ref.bounds.max.y, ref.bounds.max.z};
+  for (int a = 0; a < 3; ++a) {
+    const double cube = origin[a] + static_cast<double>(key[a]) * edge;
+    if (lo[a] < cube - kBoundsOverhang * edge || hi[a] > cube + edge + kBoundsOverhang * edge) {
+      return "its bounds (" + format_double(lo[a]) + " .. " + format_double(hi[a]) + " on axis " +
+             std::string(1, static_cast<char>('x' + a)) + ") lie outside its key's cube (" + format_double(cube) +
+             " .. " + format_double(cube + edge) + ")";
+    }
+  }
+  return {};
+}
+
+Status SqliteArchive::check_chunks(CheckReport& report, const ChunkRowCheck& row_check) const {
   // One snapshot: a writer appending or aborting meanwhile must not look
   // like a chunk without its index entry.
   Transaction transaction(db(), path_);
   RELIEF_RETURN_IF_ERROR(transaction.begin(Transaction::Kind::kRead));
   RELIEF_ASSIGN_OR_RETURN(const std::vector<ChunkRef> refs, all_chunks());
-  // Blobs: read_chunk verifies each CRC-32.
+  std::set<std::int64_t> scans;
+  {
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> ids,
+                            Statement::prepare(db(), "SELECT id FROM relief_scan", path_, "list the scans"));
+    for (;;) {
+      RELIEF_ASSIGN_OR_RETURN(const bool row, ids->step());
+      if (!row) break;
+      scans.insert(ids->column_int64(0));
+    }
+  }
+  // Blobs: read_chunk verifies each CRC-32; then the row against the grid,
+  // the scans and (row_check) what the blob holds.
   const std::uint64_t total = refs.size();
   report.stage("chunk blobs", 0, total);
   for (std::uint64_t i = 0; i < total; ++i) {
     const Result<ChunkRow> row = read_chunk(refs[i].id);
-    if (!row) report.problem(row.status().message());
+    const std::string label = path_ + ": " + chunk_label(refs[i]);
+    if (!row) {
+      report.problem(row.status().message());
+    } else {
+      if (row->codec != kChunkCodecRelief) {
+        report.problem(label + ": codec " + std::to_string(row->codec) +
+                       ", which no reader knows (damaged, or written by a newer Relief)");
+      }
+      if (scans.count(refs[i].scan_id) == 0) {
+        report.problem(label + ": names scan " + std::to_string(refs[i].scan_id) + ", which does not exist");
+      }
+      if (const std::string outside = bounds_outside_key(refs[i]); !outside.empty()) {
+        report.problem(label + ": " + outside);
+      }
+      if (row_check) {
+        if (const std::string wrong = row_check(refs[i], row->blob); !wrong.empty()) {
+          report.problem(label + ": " + wrong);
+        }
+      }
+    }
     report.stage("chunk blobs", i + 1, total);
   }
-  report.checked(std::to_string(refs.size()) + " chunk blobs against their CRC-32");
+  report.checked(std::to_string(refs.size()) + " chunk blobs against their CRC-32, and their rows' codec, scan" +
+                 std::string(row_check ? ", counts" : "") + " and bounds");
   RELIEF_ASSIGN_OR_RETURN(const bool pyramid, pyramid_tables_exist());
   if (pyramid) {
     // Every pyramid row, finished or not: each level's nodes by a box query
@@ -2489,7 +2548,8 @@ Status SqliteArchive::check_chunks(CheckReport& report) const {
   return transaction.commit();
 }
 
-Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress) {
+Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress,
+                                  const ChunkRowCheck& row_check) {
   Status init_status;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<SqliteArchive> archive,
                           open_sqlite(path, Archive::Mode::kReadOnly, false, &init_status));
@@ -2542,7 +2602,7 @@ Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress&
       report.checked(archive->format_version() >= 3
                          ? "scans and sources (their LAS headers and records, the CRS checksum relief_meta crs_crc32)"
                          : "scans and sources (their LAS headers and records)");
-      attempt(archive->check_chunks(report), "the chunks");
+      attempt(archive->check_chunks(report, row_check), "the chunks");
     } else {
       report.checked("chunks and spatial index: not checked (the archive's schema or grid is unusable)");
     }

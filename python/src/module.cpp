@@ -538,7 +538,7 @@ PYBIND11_MODULE(_relief, m) {
         Result<ArchiveCheck> r = Status(internal_error("check did not run"));
         {
           py::gil_scoped_release release;
-          r = check_archive(path);
+          r = check_archive(path, nullptr, chunk_row_check());
         }
         if (!r) raise_status(r.status());
         py::dict d;

@@ -1260,6 +1260,36 @@ TEST_CASE("an index entry naming no chunk is reported", "[store][check]") {
   CHECK_THAT(joined(check_ok(path).problems), Catch::Contains("spatial index entry 999 names no chunk"));
 }
 
+TEST_CASE("check reports a chunk row whose codec, scan, key or counts are wrong", "[store][check]") {
+  // Each passed as intact: a row moved to another key, naming no scan, or of
+  // an unknown codec; counts against the blob are the codec's to say
+  // (ChunkRowCheck, relief/query.h chunk_row_check).
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  fill_row_of_chunks(path, 5);
+  CHECK(check_ok(path).problems.empty());
+  {
+    RawDb raw(path);
+    raw.exec("UPDATE relief_chunk SET ix = ix + 10 WHERE id = 1");
+    raw.exec("UPDATE relief_chunk SET scan_id = 999 WHERE id = 2");
+    raw.exec("UPDATE relief_chunk SET codec = 7 WHERE id = 3");
+  }
+  const std::string problems = joined(check_ok(path).problems);
+  CHECK_THAT(problems, Catch::Contains("(id 1): its bounds (26 .. 27 on axis x) lie outside its key's cube (275 .. 300)"));
+  CHECK_THAT(problems, Catch::Contains("(id 2): names scan 999, which does not exist"));
+  CHECK_THAT(problems, Catch::Contains("(id 3): codec 7, which no reader knows"));
+  // The row check sees each row and blob whose CRC-32 matches.
+  std::vector<std::int64_t> seen;
+  const Result<ArchiveCheck> asked = check_archive(path, nullptr, [&](const ChunkRef& row, std::span<const std::uint8_t> blob) {
+    seen.push_back(row.id);
+    return row.id == 4 && blob.size() == 64 ? std::string("row 4 disagrees") : std::string();
+  });
+  REQUIRE(asked.is_ok());
+  std::sort(seen.begin(), seen.end());
+  CHECK(seen == std::vector<std::int64_t>{1, 2, 3, 4, 5});
+  CHECK_THAT(joined(asked->problems), Catch::Contains("(id 4): row 4 disagrees"));
+}
+
 TEST_CASE("damaged metadata fails its checksum on open and in check", "[store][check]") {
   TempDir dir;
   const std::string path = dir.file("a.relief");

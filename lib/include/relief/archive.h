@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -299,13 +300,22 @@ struct ArchiveCheck {
 // SQLite check, every few thousand of SQLite's instructions.
 using CheckProgress = std::function<void(const char* stage, std::uint64_t done, std::uint64_t total)>;
 
+// What a chunk row says against what its blob holds, for check_archive to
+// ask of each blob whose CRC-32 matches (the store keeps blobs opaque: the
+// codec answers, e.g. relief::chunk_row_problem in relief/codec.h). Returns
+// the damage found, empty when the row and its blob agree.
+using ChunkRowCheck = std::function<std::string(const ChunkRef& row, std::span<const std::uint8_t> blob)>;
+
 // Checks a whole archive without trusting any part of it: SQLite's own
 // integrity check, the metadata checksum (absent in version 1), the CRS
-// checksum (from version 3), every blob's CRC-32, and the spatial index
+// checksum (from version 3), every blob's CRC-32, each chunk row's codec,
+// scan (one that exists) and bounds (within its key's cube of the grid),
+// `row_check` on each row and blob when given, and the spatial index
 // against the chunk table (every chunk with bounds has exactly one index
 // entry with those bounds, found by a box query; every entry names a chunk).
 // Damage goes to `problems`; an error is returned only when the file cannot
 // be checked at all (missing, not an archive, newer version). Reads only.
-Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress = nullptr);
+Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress = nullptr,
+                                  const ChunkRowCheck& row_check = nullptr);
 
 }  // namespace relief

@@ -249,6 +249,11 @@ Result<PointCloud> decode_chunk(std::span<const std::uint8_t> blob, const Decode
 
 // Reads and validates the header and section table only.
 Result<ChunkInfo> inspect_chunk(std::span<const std::uint8_t> blob);
+// Empty when a blob holds the counts its archive row gives (input and decoded
+// points), else what differs (or why the blob does not parse): for
+// check_archive's ChunkRowCheck (relief/query.h chunk_row_check).
+std::string chunk_counts_problem(std::uint64_t input_points, std::uint64_t decoded_points,
+                                 std::span<const std::uint8_t> blob);
 // The same from the first bytes of a blob of `blob_size` bytes: its first
 // kChunkHeadBytes (or all of it, when shorter) hold the header and section
 // table. Nothing after them is read, so the checksum is not verified.

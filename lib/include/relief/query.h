@@ -176,6 +176,10 @@ struct ArchiveStats {
 // (coarse levels read from the base layer carry no LAS attributes but a
 // classification, which would summarise as zeros) or max_points.
 // `progress`, when set, hears the points of each batch as it is summarised.
+// The codec's check of each chunk row against its blob (the counts it
+// gives), for check_archive: relief check passes it.
+ChunkRowCheck chunk_row_check();
+
 Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, const QueryOptions& options,
                                    const std::function<void(std::uint64_t points)>& progress = {});
 // The same of a point file (any format open_point_reader reads), read whole
