@@ -1187,11 +1187,30 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
       while (grid.chunk_edge <= widest) grid.chunk_edge *= 2;
     }
   }
-  if (bounded && options.chunk_edge == 0) {
+  double edge_capped_by_step = 0;
+  if (bounded) {
     // A chunk spans at most 2^21 grid steps (the octree's depth limit), with
-    // room for points snapped half a step beyond its faces.
+    // room for points snapped half a step beyond its faces: the automatic
+    // edge halves to fit; a given one that does not, over inputs that span
+    // more than that, is refused now rather than by the encoder after a pass
+    // over every point.
     const double finest = std::min({params.bound->step.x, params.bound->step.y, params.bound->step.z});
-    while (grid.chunk_edge / finest > std::ldexp(1.0, 21) - 4) grid.chunk_edge /= 2;
+    const double most = (std::ldexp(1.0, 21) - 4) * finest;
+    const double extent =
+        all_bounds.empty() ? 0.0
+                           : std::max({all_bounds.max.x - all_bounds.min.x, all_bounds.max.y - all_bounds.min.y,
+                                       all_bounds.max.z - all_bounds.min.z});
+    if (options.chunk_edge > 0 && grid.chunk_edge > most && extent > most) {
+      return invalid_argument("--chunk-edge " + number_text(grid.chunk_edge) + " spans " +
+                              number_text(grid.chunk_edge / finest) + " grid steps of " + number_text(finest) +
+                              " (twice the tolerance), more than a chunk holds (2^21), and the inputs span " +
+                              number_text(extent) + ": use a chunk edge up to " +
+                              number_text(most) + " or a larger --tolerance");
+    }
+    while (grid.chunk_edge > most) {
+      grid.chunk_edge /= 2;
+      edge_capped_by_step = finest;
+    }
   }
   if (!(grid.chunk_edge > 0) || !std::isfinite(grid.chunk_edge) || grid.chunk_edge > kMaxCoordinateMagnitude) {
     return invalid_argument("chunk edge must be a positive number up to 2^50");
@@ -1202,7 +1221,9 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   }
   RELIEF_RETURN_IF_ERROR(
       check_coordinates(first, max_coordinate_magnitude(params.cell_size, grid.chunk_edge), inputs[0], 0));
-  if (!options.allow_sparse) RELIEF_RETURN_IF_ERROR(check_sample_density(first, grid, params.cell_size, inputs[0]));
+  if (!options.allow_sparse) {
+    RELIEF_RETURN_IF_ERROR(check_sample_density(first, grid, params.cell_size, inputs[0], edge_capped_by_step));
+  }
   BuildParameters built;
   built.params = params;
   built.grid = grid;

@@ -131,8 +131,10 @@ inline constexpr std::size_t kDensitySamplePoints = std::size_t{1} << 17;
 // fewer than 2 points in a cell or 16 in a chunk: a cell or chunk edge far too
 // small for the data, which would make an archive far larger than its input.
 // Samples under 10,000 points pass; only the first kDensitySamplePoints count.
+// edge_capped_by_step > 0: the automatic chunk edge was halved to 2^21 grid
+// steps of that size, so the hint names the tolerance, not --chunk-edge.
 Status check_sample_density(const PointCloud& sample, const ArchiveGrid& grid, double cell_size,
-                            const std::string& source);
+                            const std::string& source, double edge_capped_by_step = 0);
 // "colours and intensity", "colours, no intensity", ... for mismatch messages.
 std::string attribute_list(bool colors, bool intensity);
 

@@ -113,6 +113,35 @@ TEST_CASE("bounded compress: every point back within the tolerance, attributes e
   CHECK_FALSE(std::filesystem::exists(dir.file("huge.relief")));
 }
 
+TEST_CASE("a tolerance that caps the chunk edge is named as the cause, a given edge beyond it refused up front",
+          "[ingest][bounded]") {
+  // A chunk spans at most 2^21 grid steps: at a 1e-6 tolerance, 4.19 units.
+  // The density hint said "a larger --chunk-edge", which then failed after a
+  // whole pass with "the points span 47746369 quantisation steps".
+  TempDir dir;
+  PointCloud sparse;
+  std::uint64_t state = 5;
+  for (int i = 0; i < 20000; ++i) {
+    double c[3];
+    for (double& v : c) {
+      state = state * 6364136223846793005ull + 1442695040888963407ull;
+      v = static_cast<double>(state >> 11) / 9007199254740992.0 * 1000;
+    }
+    sparse.positions.push_back({c[0], c[1], c[2]});
+  }
+  REQUIRE(write_ply(dir.file("sparse.ply"), sparse).is_ok());
+  IngestOptions o;
+  o.tolerance = 1e-6;
+  const auto capped = compress_files({dir.file("sparse.ply")}, dir.file("a.relief"), o);
+  CHECK(capped.status().code() == StatusCode::kLimitExceeded);
+  CHECK_THAT(capped.status().message(), Catch::Contains("use a larger --tolerance"));
+  o.chunk_edge = 100;
+  const auto given = compress_files({dir.file("sparse.ply")}, dir.file("a.relief"), o);
+  CHECK(given.status().code() == StatusCode::kInvalidArgument);
+  CHECK_THAT(given.status().message(), Catch::Contains("use a chunk edge up to 4.194296 or a larger --tolerance"));
+  CHECK_FALSE(std::filesystem::exists(dir.file("a.relief")));
+}
+
 TEST_CASE("bounded compress: the same blobs whatever --memory, --threads and point order", "[ingest][bounded]") {
   TempDir dir;
   const PointCloud in = scene(8, 120000);
