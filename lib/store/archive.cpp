@@ -2205,11 +2205,22 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
     return invalid_argument(path + ": page size " + std::to_string(page_size) +
                             " is not a power of two from 512 to 65536");
   }
+  if (path.empty()) return invalid_argument("the archive path is empty");
   std::error_code ec;
   if (fs::exists(fs::symlink_status(path, ec))) {
     return io_error(path + ": already exists (an archive is never overwritten)");
   }
   RELIEF_RETURN_IF_ERROR(check_grid(path, grid));
+  {
+    // Said plainly (SQLite's own message on a read-only file system is
+    // "unable to open database file (No such file or directory)").
+    const fs::path parent = fs::path(path).parent_path();
+    const std::string dir = parent.empty() ? "." : parent.string();
+    if (::access(dir.c_str(), W_OK) != 0 && (errno == EROFS || errno == EACCES)) {
+      return io_error(path + ": cannot create the archive: " + dir + " is not writable (" + std::strerror(errno) +
+                      ")");
+    }
+  }
 
   // Built beside the target and renamed into place when complete: a crash
   // during creation leaves at most a temporary file, never a half-made

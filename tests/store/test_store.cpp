@@ -386,8 +386,16 @@ TEST_CASE("create refuses existing paths and bad places and leaves nothing behin
     Result<std::unique_ptr<Archive>> archive = Archive::create(path, grid_25m(), "", "");
     CHECK(archive.status().code() == StatusCode::kIoError);
     CHECK(starts_with(archive.status().message(), path + ": "));
+    // Said plainly, not as SQLite's "unable to open database file (No such file or directory)".
+    CHECK_THAT(archive.status().message(), Catch::Contains("is not writable (Permission denied)"));
     fs::permissions(locked, fs::perms::owner_all);
     CHECK(fs::is_empty(locked));
+  }
+
+  SECTION("an empty path") {
+    const Result<std::unique_ptr<Archive>> archive = Archive::create("", grid_25m(), "", "");
+    CHECK(archive.status().code() == StatusCode::kInvalidArgument);
+    CHECK(archive.status().message() == "the archive path is empty");
   }
 
   SECTION("invalid grid") {
