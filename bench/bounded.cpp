@@ -72,7 +72,9 @@ double max_axis_error(const relief::PointCloud& in, const relief::PointCloud& ou
   };
   for (const relief::Vec3d& p : in.positions) {
     std::array<long long, 3> q{index(p.x), index(p.y), index(p.z)};
-    const auto at = [&](int axis) { return relief::core::grid_value(0, q[static_cast<std::size_t>(axis)], step); };
+    const auto at = [&](int axis) {
+      return relief::core::grid_value(0, q[static_cast<std::size_t>(axis)], step);
+    };
     worst = std::max({worst, std::fabs(at(0) - p.x), std::fabs(at(1) - p.y), std::fabs(at(2) - p.z)});
     a.push_back(q);
   }

@@ -11,8 +11,10 @@ namespace relief::cli {
 namespace {
 constexpr const char* kCommand = "query";
 constexpr const char* kUsageText =
-    "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L | --max-points N] [--class C,...]\n"
-    "                    [--first-returns] [--last-returns] [--attributes LIST] [--polygon AREA [--polygon-crs CRS]] -o OUT\n"
+    "usage: relief query ARCHIVE --box xmin,ymin,zmin,xmax,ymax,zmax [--lod L | --max-points N] [--class "
+    "C,...]\n"
+    "                    [--first-returns] [--last-returns] [--attributes LIST] [--polygon AREA "
+    "[--polygon-crs CRS]] -o OUT\n"
     "Writes the archive's points inside the box (faces included, to the rounding of decoded coordinates)\n"
     "and the polygon, when given (then --box is optional). Only the chunks they touch are read and decoded.\n"
     "  --box B          6 numbers, or 4 (xmin,ymin,xmax,ymax) for all heights\n"

@@ -48,18 +48,24 @@ int dispatch(const std::string& command, int sub_argc, char** sub_argv);
 // limit code (its temporary files are left for the next run of that output
 // to remove, as a killed run's are).
 [[noreturn]] void on_terminate() {
-  const char* what = "an unexpected exception";
+  bool out_of_memory = false;
   if (const std::exception_ptr e = std::current_exception()) {
     try {
       std::rethrow_exception(e);
     } catch (const std::bad_alloc&) {
-      what = "out of memory";
+      out_of_memory = true;
     } catch (...) {
     }
   }
-  std::fprintf(stderr, "relief: %s: the process could not allocate what it needed (a lower --memory, fewer "
-                       "--threads, or a higher memory limit)\n", what);
-  std::_Exit(16);
+  if (out_of_memory) {
+    std::fputs(
+        "relief: out of memory: the process could not allocate what it needed (a lower --memory, fewer "
+        "--threads, or a higher memory limit)\n",
+        stderr);
+    std::_Exit(16);
+  }
+  std::fputs("relief: internal error: an unexpected exception ended the process\n", stderr);
+  std::_Exit(17);
 }
 
 }  // namespace

@@ -9,8 +9,8 @@
 #include <span>
 #include <vector>
 
-#include "core/grid_index.h"
 #include "codec/chunk_format.h"
+#include "core/grid_index.h"
 #include "relief/codec.h"
 
 namespace relief::codec {

@@ -122,8 +122,8 @@ std::string chunk_counts_problem(std::uint64_t input_points, std::uint64_t decod
   std::string problem;
   const auto differ = [&](const char* what, std::uint64_t row, std::uint64_t held) {
     if (row == held) return;
-    problem += (problem.empty() ? "" : "; ") + std::string("its row says ") + std::to_string(row) + " " + what +
-               " points, its blob " + std::to_string(held);
+    problem += (problem.empty() ? "" : "; ") + std::string("its row says ") + std::to_string(row) + " " +
+               what + " points, its blob " + std::to_string(held);
   };
   differ("decoded", decoded_points, info->decoded_points);
   differ("input", input_points, info->input_points);

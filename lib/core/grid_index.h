@@ -64,10 +64,11 @@ inline std::optional<std::int64_t> grid_index_within(double v, double origin, do
 inline std::string grid_too_fine_text(double v, double step) {
   const double spacing = double_spacing(v);
   char text[360];
-  std::snprintf(text, sizeof text,
-                "coordinate %.17g cannot come back within the tolerance %.9g: doubles near it are %.9g apart, "
-                "and a tolerance must be at least %.0f times that (%.9g)",
-                v, step / 2, spacing, kMinStepsPerSpacing / 2, spacing * kMinStepsPerSpacing / 2);
+  std::snprintf(
+      text, sizeof text,
+      "coordinate %.17g cannot come back within the tolerance %.9g: doubles near it are %.9g apart, "
+      "and a tolerance must be at least %.0f times that (%.9g)",
+      v, step / 2, spacing, kMinStepsPerSpacing / 2, spacing * kMinStepsPerSpacing / 2);
   return text;
 }
 

@@ -790,7 +790,8 @@ ErrorBound resolve_error_bound(const IngestOptions& options, const InputSet& in)
   return b;
 }
 
-Status snap_to_grid(PointCloud& batch, const ErrorBound& b, const std::string& source, std::uint64_t first_index) {
+Status snap_to_grid(PointCloud& batch, const ErrorBound& b, const std::string& source,
+                    std::uint64_t first_index) {
   // The codec's own formula and index (core/grid_index.h), so its
   // re-snapping is exact. A coordinate too far from the origin for an exact
   // index is left as it is for the encoder to reject with a clear error.
@@ -1197,15 +1198,16 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
     const double finest = std::min({params.bound->step.x, params.bound->step.y, params.bound->step.z});
     const double most = (std::ldexp(1.0, 21) - 4) * finest;
     const double extent =
-        all_bounds.empty() ? 0.0
-                           : std::max({all_bounds.max.x - all_bounds.min.x, all_bounds.max.y - all_bounds.min.y,
-                                       all_bounds.max.z - all_bounds.min.z});
+        all_bounds.empty()
+            ? 0.0
+            : std::max({all_bounds.max.x - all_bounds.min.x, all_bounds.max.y - all_bounds.min.y,
+                        all_bounds.max.z - all_bounds.min.z});
     if (options.chunk_edge > 0 && grid.chunk_edge > most && extent > most) {
-      return invalid_argument("--chunk-edge " + number_text(grid.chunk_edge) + " spans " +
-                              number_text(grid.chunk_edge / finest) + " grid steps of " + number_text(finest) +
-                              " (twice the tolerance), more than a chunk holds (2^21), and the inputs span " +
-                              number_text(extent) + ": use a chunk edge up to " +
-                              number_text(most) + " or a larger --tolerance");
+      return invalid_argument(
+          "--chunk-edge " + number_text(grid.chunk_edge) + " spans " + number_text(grid.chunk_edge / finest) +
+          " grid steps of " + number_text(finest) +
+          " (twice the tolerance), more than a chunk holds (2^21), and the inputs span " +
+          number_text(extent) + ": use a chunk edge up to " + number_text(most) + " or a larger --tolerance");
     }
     while (grid.chunk_edge > most) {
       grid.chunk_edge /= 2;
@@ -1222,7 +1224,8 @@ Result<BuildParameters> derive_build_parameters(const std::vector<std::string>& 
   RELIEF_RETURN_IF_ERROR(
       check_coordinates(first, max_coordinate_magnitude(params.cell_size, grid.chunk_edge), inputs[0], 0));
   if (!options.allow_sparse) {
-    RELIEF_RETURN_IF_ERROR(check_sample_density(first, grid, params.cell_size, inputs[0], edge_capped_by_step));
+    RELIEF_RETURN_IF_ERROR(
+        check_sample_density(first, grid, params.cell_size, inputs[0], edge_capped_by_step));
   }
   BuildParameters built;
   built.params = params;

@@ -612,10 +612,11 @@ Status LasPointReader::start() {
   info_.extra_bytes_size = static_cast<std::uint32_t>(layout_.extra_size);
   info_.las_point_format = header_.format;
   info_.las_version_minor = header_.version_minor;
-  for (const auto& [axis, scale] : {std::pair{"x", header_.scale.x}, std::pair{"y", header_.scale.y},
-                                     std::pair{"z", header_.scale.z}}) {
+  for (const auto& [axis, scale] :
+       {std::pair{"x", header_.scale.x}, std::pair{"y", header_.scale.y}, std::pair{"z", header_.scale.z}}) {
     if (scale < 0) {
-      info_.warnings.push_back(name() + ": the " + axis + " scale factor is negative (" + format_double(scale) +
+      info_.warnings.push_back(name() + ": the " + axis + " scale factor is negative (" +
+                               format_double(scale) +
                                "): the coordinates are kept, but LAS output writes them at scale " +
                                format_double(-scale) + ", so their integers come back negated");
     }
@@ -796,8 +797,10 @@ void LasPointReader::keep_extra_bytes_record(std::span<const std::uint8_t> paylo
                                              ProjectionRecords& records) {
   if (!records.extra_bytes) {
     records.extra_bytes.emplace(payload.begin(), payload.end());
-  } else if (!std::equal(payload.begin(), payload.end(), records.extra_bytes->begin(), records.extra_bytes->end())) {
-    info_.warnings.push_back(which + " is a second Extra Bytes record that differs from the first: the first "
+  } else if (!std::equal(payload.begin(), payload.end(), records.extra_bytes->begin(),
+                         records.extra_bytes->end())) {
+    info_.warnings.push_back(which +
+                             " is a second Extra Bytes record that differs from the first: the first "
                              "describes the extra bytes and this one is ignored");
   }
 }

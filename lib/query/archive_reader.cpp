@@ -166,7 +166,8 @@ class Reader final : public ArchiveReader {
   // archive's grid step, so no point a step outside comes in.
   Box3d with_rounding_margin(Box3d box) const {
     double step[3] = {0, 0, 0};
-    if (const Result<EncodeParams> params = encode_params_from_string(info_.codec_params); params && params->bound) {
+    if (const Result<EncodeParams> params = encode_params_from_string(info_.codec_params);
+        params && params->bound) {
       step[0] = params->bound->step.x;
       step[1] = params->bound->step.y;
       step[2] = params->bound->step.z;

@@ -1379,8 +1379,8 @@ Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
   const std::uint64_t room = wal_room(path_);
   if (wanted <= room) return Status::ok();
   return io_error(path_ + ": the disk is full: adding " + std::to_string(rows.size()) + " chunks needs " +
-                  megabytes(2 * need * frame) + " (the log and the file) and undoing this run " + megabytes(reserve * frame) + ", but only " +
-                  megabytes(room) + " can still be written");
+                  megabytes(2 * need * frame) + " (the log and the file) and undoing this run " +
+                  megabytes(reserve * frame) + ", but only " + megabytes(room) + " can still be written");
 }
 
 // Binds a chunk row's columns, ix .. blob in the order of relief_chunk (and
@@ -2217,8 +2217,8 @@ Result<std::unique_ptr<Archive>> Archive::create(const std::string& path, const 
     const fs::path parent = fs::path(path).parent_path();
     const std::string dir = parent.empty() ? "." : parent.string();
     if (::access(dir.c_str(), W_OK) != 0 && (errno == EROFS || errno == EACCES)) {
-      return io_error(path + ": cannot create the archive: " + dir + " is not writable (" + std::strerror(errno) +
-                      ")");
+      return io_error(path + ": cannot create the archive: " + dir + " is not writable (" +
+                      std::strerror(errno) + ")");
     }
   }
 
@@ -2395,8 +2395,8 @@ std::string SqliteArchive::bounds_outside_key(const ChunkRef& ref) const {
     const double cube = origin[a] + static_cast<double>(key[a]) * edge;
     if (lo[a] < cube - kBoundsOverhang * edge || hi[a] > cube + edge + kBoundsOverhang * edge) {
       return "its bounds (" + format_double(lo[a]) + " .. " + format_double(hi[a]) + " on axis " +
-             std::string(1, static_cast<char>('x' + a)) + ") lie outside its key's cube (" + format_double(cube) +
-             " .. " + format_double(cube + edge) + ")";
+             std::string(1, static_cast<char>('x' + a)) + ") lie outside its key's cube (" +
+             format_double(cube) + " .. " + format_double(cube + edge) + ")";
     }
   }
   return {};
@@ -2446,7 +2446,8 @@ Status SqliteArchive::check_chunks(CheckReport& report, const ChunkRowCheck& row
     }
     report.stage("chunk blobs", i + 1, total);
   }
-  report.checked(std::to_string(refs.size()) + " chunk blobs against their CRC-32, and their rows' codec, scan" +
+  report.checked(std::to_string(refs.size()) +
+                 " chunk blobs against their CRC-32, and their rows' codec, scan" +
                  std::string(row_check ? ", counts" : "") + " and bounds");
   RELIEF_ASSIGN_OR_RETURN(const bool pyramid, pyramid_tables_exist());
   if (pyramid) {
@@ -2560,7 +2561,7 @@ Status SqliteArchive::check_chunks(CheckReport& report, const ChunkRowCheck& row
 }
 
 Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress,
-                                  const ChunkRowCheck& row_check) {
+                                   const ChunkRowCheck& row_check) {
   Status init_status;
   RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<SqliteArchive> archive,
                           open_sqlite(path, Archive::Mode::kReadOnly, false, &init_status));

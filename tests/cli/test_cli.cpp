@@ -518,7 +518,8 @@ TEST_CASE("query and decompress --polygon: the points inside a WKT area", "[cli]
   CHECK(run("query " + a + " -o " + tmp.file("o.ply")).output.find("missing --box (or --polygon)") != std::string::npos);
 }
 
-TEST_CASE("query, decompress and preview refuse to write their output over the archive they read", "[cli][query]") {
+TEST_CASE("query, decompress and preview refuse to write their output over the archive they read",
+          "[cli][query]") {
   // An archive is opened by its content whatever its name: arch.las, read and
   // written to arch.las, was replaced by the query's points.
   TempDir tmp;
@@ -528,8 +529,9 @@ TEST_CASE("query, decompress and preview refuse to write their output over the a
     fs::copy_file(tmp.file("k.relief"), a);
     const std::string before = file_bytes(a);
     const std::string cmd = std::string(name) == "arch.png" ? "preview " + a + " -o " + a
-                            : std::string(name) == "arch.ply" ? "decompress " + a + " -o " + tmp.file("./arch.ply")
-                                                              : "query " + a + " --box -10,-10,10,10 -o " + a;
+                            : std::string(name) == "arch.ply"
+                                ? "decompress " + a + " -o " + tmp.file("./arch.ply")
+                                : "query " + a + " --box -10,-10,10,10 -o " + a;
     const Run r = run(cmd);
     INFO(cmd << "\n" << r.output);
     CHECK(r.code == 11);
@@ -554,13 +556,14 @@ TEST_CASE("a full standard output and a file size limit are I/O errors, not succ
   // ulimit -f: writes beyond the limit fail with EFBIG instead of killing the process (SIGXFSZ,
   // exit 153) with its temporary file left.
   const relief::test::CliRun limited =
-      relief::test::run_cli("ulimit -f 64; exec " + std::string(RELIEF_CLI), "decompress " + a + " -o " +
-                                                                                 tmp.file("out.las") + " --quiet");
+      relief::test::run_cli("ulimit -f 64; exec " + std::string(RELIEF_CLI),
+                            "decompress " + a + " -o " + tmp.file("out.las") + " --quiet");
   INFO(limited.output);
   CHECK(limited.code == 12);
   CHECK(limited.output.find("File too large") != std::string::npos);
   std::size_t left = 0;
-  for (const auto& e : fs::directory_iterator(tmp.path())) left += e.path().filename().string().rfind("out.las", 0) == 0;
+  for (const auto& e : fs::directory_iterator(tmp.path()))
+    left += e.path().filename().string().rfind("out.las", 0) == 0;
   CHECK(left == 0);
 }
 

@@ -125,7 +125,8 @@ TEST_CASE("bounded: every coordinate within the tolerance exactly, ties and larg
         state = state * 6364136223846793005ull + 1442695040888963407ull;
         const double unit = static_cast<double>(state >> 11) / 9007199254740992.0;
         // Every other point a tie (an odd multiple of the tolerance), the rest anywhere.
-        const double x = i % 2 == 0 ? base + (2 * static_cast<double>(i % 997) + 1) * tol : base + unit * 2000 * tol;
+        const double x =
+            i % 2 == 0 ? base + (2 * static_cast<double>(i % 997) + 1) * tol : base + unit * 2000 * tol;
         in.positions.push_back({x, base - x * 0.5, static_cast<double>(i % 7) * tol});
       }
       const EncodeParams p = bounded_params(tol, 0.5);

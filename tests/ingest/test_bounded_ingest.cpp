@@ -113,8 +113,9 @@ TEST_CASE("bounded compress: every point back within the tolerance, attributes e
   CHECK_FALSE(std::filesystem::exists(dir.file("huge.relief")));
 }
 
-TEST_CASE("a tolerance that caps the chunk edge is named as the cause, a given edge beyond it refused up front",
-          "[ingest][bounded]") {
+TEST_CASE(
+    "a tolerance that caps the chunk edge is named as the cause, a given edge beyond it refused up front",
+    "[ingest][bounded]") {
   // A chunk spans at most 2^21 grid steps: at a 1e-6 tolerance, 4.19 units.
   // The density hint said "a larger --chunk-edge", which then failed after a
   // whole pass with "the points span 47746369 quantisation steps".
@@ -138,7 +139,8 @@ TEST_CASE("a tolerance that caps the chunk edge is named as the cause, a given e
   o.chunk_edge = 100;
   const auto given = compress_files({dir.file("sparse.ply")}, dir.file("a.relief"), o);
   CHECK(given.status().code() == StatusCode::kInvalidArgument);
-  CHECK_THAT(given.status().message(), Catch::Contains("use a chunk edge up to 4.194296 or a larger --tolerance"));
+  CHECK_THAT(given.status().message(),
+             Catch::Contains("use a chunk edge up to 4.194296 or a larger --tolerance"));
   CHECK_FALSE(std::filesystem::exists(dir.file("a.relief")));
 }
 

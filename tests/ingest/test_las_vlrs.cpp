@@ -204,8 +204,8 @@ TEST_CASE("a second Extra Bytes record that differs, and a negative scale factor
   TempDir dir;
   // Two Extra Bytes records: the first (one uint16 "a") describes the 2 extra
   // bytes; the second (one int16 "b") is ignored, no longer without a word.
-  TestLasOptions o = tile(3, 9, {TestVlr{"LASF_Spec", 4, "second", relief::test::extra_bytes_descriptor(4, 0, "b"),
-                                         false}});
+  TestLasOptions o =
+      tile(3, 9, {TestVlr{"LASF_Spec", 4, "second", relief::test::extra_bytes_descriptor(4, 0, "b"), false}});
   o.extra = 2;
   o.extra_bytes_vlr = relief::test::extra_bytes_descriptor(3, 0, "a");
   const std::string twice = dir.file("twice.las");

@@ -148,7 +148,8 @@ TEST_CASE("a box whose faces are coordinates as printed returns the points on th
   CHECK(checked > 20);
 }
 
-TEST_CASE("check with the codec's row check reports a row whose point counts contradict its blob", "[query]") {
+TEST_CASE("check with the codec's row check reports a row whose point counts contradict its blob",
+          "[query]") {
   // decoded_points of 2^62 passed as intact; info then said 4.6e18 points and
   // query --max-points 100 returned one point.
   TempDir tmp;
@@ -158,13 +159,14 @@ TEST_CASE("check with the codec's row check reports a row whose point counts con
   CHECK(intact->problems.empty());
   sqlite3* db = nullptr;
   REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK);
-  REQUIRE(sqlite3_exec(db, "UPDATE relief_chunk SET decoded_points = 4611686018427387904 WHERE id = 2", nullptr,
-                       nullptr, nullptr) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(db, "UPDATE relief_chunk SET decoded_points = 4611686018427387904 WHERE id = 2",
+                       nullptr, nullptr, nullptr) == SQLITE_OK);
   sqlite3_close(db);
   auto damaged = check_archive(path, nullptr, chunk_row_check());
   REQUIRE(damaged.is_ok());
   REQUIRE(damaged->problems.size() == 1);
-  CHECK_THAT(damaged->problems[0], Catch::Contains("(id 2): its row says 4611686018427387904 decoded points, its blob "));
+  CHECK_THAT(damaged->problems[0],
+             Catch::Contains("(id 2): its row says 4611686018427387904 decoded points, its blob "));
 }
 
 TEST_CASE("chunks reach the sink in index order whatever the threads, and a failing sink stops the query",

@@ -1142,7 +1142,9 @@ TEST_CASE("a new archive does not take the log files a deleted one left under it
     auto old = create_ok(path);
     const std::int64_t scan = begin_ok(*old, {{"old.ply", "ply", 100, "", 0}});
     std::vector<ChunkRow> rows;
-    for (int i = 0; i < 40; ++i) rows.push_back(make_row({i, 0, 0}, scan, box_of({25.0 * i + 1, 1, 1}, {25.0 * i + 2, 2, 2}), 40, 3000, 1));
+    for (int i = 0; i < 40; ++i)
+      rows.push_back(
+          make_row({i, 0, 0}, scan, box_of({25.0 * i + 1, 1, 1}, {25.0 * i + 2, 2, 2}), 40, 3000, 1));
     put_ok(*old, rows);
     REQUIRE(fs::exists(path + "-wal"));
     fs::copy_file(path + "-wal", dir.file("kept-wal"));
@@ -1283,15 +1285,18 @@ TEST_CASE("check reports a chunk row whose codec, scan, key or counts are wrong"
     raw.exec("UPDATE relief_chunk SET codec = 7 WHERE id = 3");
   }
   const std::string problems = joined(check_ok(path).problems);
-  CHECK_THAT(problems, Catch::Contains("(id 1): its bounds (26 .. 27 on axis x) lie outside its key's cube (275 .. 300)"));
+  CHECK_THAT(
+      problems,
+      Catch::Contains("(id 1): its bounds (26 .. 27 on axis x) lie outside its key's cube (275 .. 300)"));
   CHECK_THAT(problems, Catch::Contains("(id 2): names scan 999, which does not exist"));
   CHECK_THAT(problems, Catch::Contains("(id 3): codec 7, which no reader knows"));
   // The row check sees each row and blob whose CRC-32 matches.
   std::vector<std::int64_t> seen;
-  const Result<ArchiveCheck> asked = check_archive(path, nullptr, [&](const ChunkRef& row, std::span<const std::uint8_t> blob) {
-    seen.push_back(row.id);
-    return row.id == 4 && blob.size() == 64 ? std::string("row 4 disagrees") : std::string();
-  });
+  const Result<ArchiveCheck> asked =
+      check_archive(path, nullptr, [&](const ChunkRef& row, std::span<const std::uint8_t> blob) {
+        seen.push_back(row.id);
+        return row.id == 4 && blob.size() == 64 ? std::string("row 4 disagrees") : std::string();
+      });
   REQUIRE(asked.is_ok());
   std::sort(seen.begin(), seen.end());
   CHECK(seen == std::vector<std::int64_t>{1, 2, 3, 4, 5});
@@ -1714,7 +1719,8 @@ TEST_CASE("a failed append of large blobs is undone within the room kept", "[sto
       status = (*opened)->put_chunks(rows);
     }
     if (status.is_ok()) ::_exit(13);
-    if (status.code() != StatusCode::kIoError || status.message().find("the disk is full") == std::string::npos) {
+    if (status.code() != StatusCode::kIoError ||
+        status.message().find("the disk is full") == std::string::npos) {
       ::_exit(14);
     }
     if (batches < 3) ::_exit(15);  // some committed, so there is something to undo

@@ -316,6 +316,6 @@ using ChunkRowCheck = std::function<std::string(const ChunkRef& row, std::span<c
 // Damage goes to `problems`; an error is returned only when the file cannot
 // be checked at all (missing, not an archive, newer version). Reads only.
 Result<ArchiveCheck> check_archive(const std::string& path, const CheckProgress& progress = nullptr,
-                                  const ChunkRowCheck& row_check = nullptr);
+                                   const ChunkRowCheck& row_check = nullptr);
 
 }  // namespace relief
