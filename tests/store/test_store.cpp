@@ -1639,6 +1639,25 @@ TEST_CASE("a writer closing while a reader is connected leaves its data in the f
 namespace relief {
 namespace {
 
+// Runs `body` in a child process whose files may not grow beyond `bytes`
+// (RLIMIT_FSIZE, a full disk for one file; SIGXFSZ ignored, so writes fail
+// with EFBIG) and returns its exit code: `body`'s, 10 when the limit could
+// not be set, -1 when the child did not exit.
+int exit_code_with_file_limit(std::uint64_t bytes, const std::function<int()>& body) {
+  const pid_t pid = ::fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(bytes);
+    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(10);
+    ::_exit(body());
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
 TEST_CASE("room to undo is kept on archives a handle opened, not on ones it created", "[store][diskfull]") {
   TempDir dir;
   const std::string fresh = dir.file("fresh.relief");
@@ -1654,35 +1673,26 @@ TEST_CASE("room to undo is kept on archives a handle opened, not on ones it crea
   };
   // 2 MB more per file: plenty for 200 small rows (~1 MB of WAL), not for
   // them plus the room to remove them again (~4 MB by the store's bound).
-  const pid_t pid = ::fork();
-  REQUIRE(pid >= 0);
-  if (pid == 0) {
-    ::signal(SIGXFSZ, SIG_IGN);
-    struct rlimit limit {};
-    limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(fs::file_size(old) + (2u << 20));
-    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(10);
+  const int code = exit_code_with_file_limit(fs::file_size(old) + (2u << 20), [&] {
     {
       auto created = Archive::create(fresh, grid_25m(), "", "test");
-      if (!created) ::_exit(11);
+      if (!created) return 11;
       auto scan = (*created)->begin_scan({});
       std::vector<ChunkRow> rows = rows_for(scan ? *scan : 0);
-      if (!scan || !(*created)->put_chunks(rows)) ::_exit(12);  // a new archive: no reserve
+      if (!scan || !(*created)->put_chunks(rows)) return 12;  // a new archive: no reserve
     }
     auto opened = Archive::open(old, Archive::Mode::kReadWrite);
-    if (!opened) ::_exit(13);
+    if (!opened) return 13;
     auto scan = (*opened)->begin_scan({});
     std::vector<ChunkRow> rows = rows_for(scan ? *scan : 0);
     const Status status = (*opened)->put_chunks(rows);
-    if (status.is_ok()) ::_exit(14);
+    if (status.is_ok()) return 14;
     const bool full = status.code() == StatusCode::kIoError &&
                       status.message().find(old + ": the disk is full") == 0;
-    if (!full) ::_exit(15);
-    ::_exit((*opened)->abort_scan(*scan).is_ok() ? 0 : 16);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  REQUIRE(WIFEXITED(status));
-  CHECK(WEXITSTATUS(status) == 0);
+    if (!full) return 15;
+    return (*opened)->abort_scan(*scan).is_ok() ? 0 : 16;
+  });
+  CHECK(code == 0);
   CHECK(info_ok(*open_ok(fresh, Archive::Mode::kReadOnly)).chunk_count == 200);
   const ArchiveInfo info = info_ok(*open_ok(old, Archive::Mode::kReadOnly));
   CHECK(info.chunk_count == 0);
@@ -1696,17 +1706,11 @@ TEST_CASE("a failed append of large blobs is undone within the room kept", "[sto
   TempDir dir;
   const std::string old = dir.file("old.relief");
   create_ok(old);
-  const pid_t pid = ::fork();
-  REQUIRE(pid >= 0);
-  if (pid == 0) {
-    ::signal(SIGXFSZ, SIG_IGN);
-    struct rlimit limit {};
-    limit.rlim_cur = limit.rlim_max = static_cast<rlim_t>(fs::file_size(old) + (4u << 20));
-    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(10);
+  const int code = exit_code_with_file_limit(fs::file_size(old) + (4u << 20), [&] {
     auto opened = Archive::open(old, Archive::Mode::kReadWrite);
-    if (!opened) ::_exit(11);
+    if (!opened) return 11;
     auto scan = (*opened)->begin_scan({});
-    if (!scan) ::_exit(12);
+    if (!scan) return 12;
     Status status;
     int batches = 0;
     for (int b = 0; b < 40 && status.is_ok(); ++b, ++batches) {
@@ -1718,18 +1722,14 @@ TEST_CASE("a failed append of large blobs is undone within the room kept", "[sto
       }
       status = (*opened)->put_chunks(rows);
     }
-    if (status.is_ok()) ::_exit(13);
-    if (status.code() != StatusCode::kIoError ||
-        status.message().find("the disk is full") == std::string::npos) {
-      ::_exit(14);
+    if (status.is_ok()) return 13;
+    if (status.code() != StatusCode::kIoError || status.message().find("the disk is full") == std::string::npos) {
+      return 14;
     }
-    if (batches < 3) ::_exit(15);  // some committed, so there is something to undo
-    ::_exit((*opened)->abort_scan(*scan).is_ok() ? 0 : 16);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  REQUIRE(WIFEXITED(status));
-  CHECK(WEXITSTATUS(status) == 0);
+    if (batches < 3) return 15;  // some committed, so there is something to undo
+    return (*opened)->abort_scan(*scan).is_ok() ? 0 : 16;
+  });
+  CHECK(code == 0);
   const ArchiveInfo info = info_ok(*open_ok(old, Archive::Mode::kReadOnly));
   CHECK(info.chunk_count == 0);
   CHECK(info.scans.empty());
