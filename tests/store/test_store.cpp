@@ -1723,7 +1723,8 @@ TEST_CASE("a failed append of large blobs is undone within the room kept", "[sto
       status = (*opened)->put_chunks(rows);
     }
     if (status.is_ok()) return 13;
-    if (status.code() != StatusCode::kIoError || status.message().find("the disk is full") == std::string::npos) {
+    if (status.code() != StatusCode::kIoError ||
+        status.message().find("the disk is full") == std::string::npos) {
       return 14;
     }
     if (batches < 3) return 15;  // some committed, so there is something to undo
