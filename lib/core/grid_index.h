@@ -67,7 +67,7 @@ inline std::string grid_too_fine_text(double v, double step) {
   std::snprintf(
       text, sizeof text,
       "coordinate %.17g cannot come back within the tolerance %.9g: doubles near it are %.9g apart, "
-      "and a tolerance must be at least %.0f times that (%.9g)",
+      "and a tolerance of %.0f times that (%.9g) or more is always kept there",
       v, step / 2, spacing, kMinStepsPerSpacing / 2, spacing * kMinStepsPerSpacing / 2);
   return text;
 }
