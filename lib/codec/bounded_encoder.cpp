@@ -250,9 +250,10 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       // The nearest index, or its neighbour where the nearest decodes (in
       // double) beyond half a step from the point: within it, always.
       const std::optional<std::int64_t> k = core::grid_index_within(c[a], origins[a], steps[a]);
-      if (!k)
+      if (!k) {
         return invalid_argument("chunk: point " + std::to_string(i) + ": " +
                                 core::grid_too_fine_text(c[a], steps[a]));
+      }
       const std::int64_t v = *k;
       q[3 * i + a] = v;
       lo[a] = std::min(lo[a], v);

@@ -96,17 +96,13 @@ Status check_sample_density(const PointCloud& sample, const ArchiveGrid& grid, d
   const auto per = [n](std::uint64_t k) { return format_number(static_cast<double>(n) / static_cast<double>(k)); };
   const std::string what = source + ": the first " + std::to_string(n) + " points fall into ";
   // A chunk edge the tolerance capped cannot grow: say which knob moves it.
-  const std::string hint =
+  const std::string remedy =
       edge_capped_by_step > 0
-          ? "; the archive would be many times larger than the input. The chunk edge is at most 2^21 grid "
-            "steps of " +
-                format_number(edge_capped_by_step) +
-                " (twice the tolerance): use a larger --tolerance, or --allow-sparse "
-                "(IngestOptions::allow_sparse) "
-                "to go ahead"
-          : "; the archive would be many times larger than the input. Use a larger --cell (or leave it to "
-            "the point "
-            "density), a larger --chunk-edge, or --allow-sparse (IngestOptions::allow_sparse) to go ahead";
+          ? "The chunk edge is at most 2^21 grid steps of " + format_number(edge_capped_by_step) +
+                " (twice the tolerance): use a larger --tolerance"
+          : std::string("Use a larger --cell (or leave it to the point density), a larger --chunk-edge");
+  const std::string hint = "; the archive would be many times larger than the input. " + remedy +
+                           ", or --allow-sparse (IngestOptions::allow_sparse) to go ahead";
   if (cell_count * kMinPointsPerCell > n) {
     return limit_exceeded(what + std::to_string(cell_count) + " cells of " + format_number(cell_size) + " (" +
                           per(cell_count) + " points per cell; at least " + std::to_string(kMinPointsPerCell) +

@@ -227,8 +227,8 @@ Result<std::vector<std::string>> read_input_list(const std::string& path) {
 }
 
 Status refuse_output_onto_input(const std::string& output, const std::string& input) {
-  struct stat out {
-  }, in{};
+  struct stat out {};
+  struct stat in {};
   if (::stat(output.c_str(), &out) == 0 && ::stat(input.c_str(), &in) == 0 && out.st_dev == in.st_dev &&
       out.st_ino == in.st_ino) {
     return invalid_argument(output + ": is " + input +

@@ -310,8 +310,9 @@ class ChunkDecoderBase : public ChunkDecoder {
   // A damaged input file: kFormatError (exit 13), as a truncated or lying
   // one is; kCorruptData (14) says an archive is damaged.
   Status corrupt(const std::string& what) const {
-    if (unchunked_)
+    if (unchunked_) {
       return format_error(name_ + ": LAZ point data (one unchunked stream, compressor 1): " + what);
+    }
     return format_error(name_ + ": LAZ chunk " + std::to_string(index_ + 1) + ": " + what);
   }
   // The encoder's stream ends exactly where its decoder stops reading, so

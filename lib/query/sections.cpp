@@ -1,7 +1,9 @@
 // Where an archive's bytes go (relief/query.h archive_sections): every
-// chunk's section table, summed by section.
+// chunk's section table, summed by section; and the codec's check of a chunk
+// row against its blob (chunk_row_check).
 #include <array>
 #include <cstdio>
+#include <span>
 #include <string>
 
 #include "query/json_text.h"
@@ -23,6 +25,12 @@ std::string chunk_name(const ChunkRef& ref) {
 }
 
 }  // namespace
+
+ChunkRowCheck chunk_row_check() {
+  return [](const ChunkRef& row, std::span<const std::uint8_t> blob) {
+    return chunk_counts_problem(row.input_points, row.decoded_points, blob);
+  };
+}
 
 Result<ArchiveSections> archive_sections(const Archive& archive,
                                          const std::function<void(std::uint64_t points)>& progress) {

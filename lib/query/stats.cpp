@@ -11,16 +11,9 @@
 #include <vector>
 
 #include "query/json_text.h"
-#include "relief/codec.h"
 #include "relief/query.h"
 
 namespace relief {
-
-ChunkRowCheck chunk_row_check() {
-  return [](const ChunkRef& row, std::span<const std::uint8_t> blob) {
-    return chunk_counts_problem(row.input_points, row.decoded_points, blob);
-  };
-}
 
 void ValueSummary::add(double v) {
   if (!std::isfinite(v)) {

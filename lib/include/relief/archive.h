@@ -302,7 +302,7 @@ using CheckProgress = std::function<void(const char* stage, std::uint64_t done, 
 
 // What a chunk row says against what its blob holds, for check_archive to
 // ask of each blob whose CRC-32 matches (the store keeps blobs opaque: the
-// codec answers, e.g. relief::chunk_row_problem in relief/codec.h). Returns
+// codec answers: relief::chunk_row_check in relief/query.h). Returns
 // the damage found, empty when the row and its blob agree.
 using ChunkRowCheck = std::function<std::string(const ChunkRef& row, std::span<const std::uint8_t> blob)>;
 

@@ -169,6 +169,10 @@ struct ArchiveStats {
   std::vector<std::pair<std::string, ValueSummary>> extra;
 };
 
+// The codec's check of each chunk row against its blob (the counts it
+// gives), for check_archive: relief check passes it.
+ChunkRowCheck chunk_row_check();
+
 // Decodes the points in `box` (every point when null) with the attributes
 // `options.attributes` names (and the query's filters) and summarises them.
 // Only what is asked for is decoded, so `--attributes classification` is a
@@ -176,10 +180,6 @@ struct ArchiveStats {
 // (coarse levels read from the base layer carry no LAS attributes but a
 // classification, which would summarise as zeros) or max_points.
 // `progress`, when set, hears the points of each batch as it is summarised.
-// The codec's check of each chunk row against its blob (the counts it
-// gives), for check_archive: relief check passes it.
-ChunkRowCheck chunk_row_check();
-
 Result<ArchiveStats> archive_stats(ArchiveReader& reader, const Box3d* box, const QueryOptions& options,
                                    const std::function<void(std::uint64_t points)>& progress = {});
 // The same of a point file (any format open_point_reader reads), read whole
