@@ -2379,10 +2379,10 @@ Status text_rows_problems(sqlite3* db, const char* sql, const std::string& path,
 // The one chunk codec (format-spec/archive.md 2.4: 1 = Relief chunk blob).
 constexpr std::uint32_t kChunkCodecRelief = 1;
 // How far a row's bounds may reach beyond its key's cube, in chunk edges:
-// the base layer's points, rebuilt from its maps, may lie a little outside
-// (up to 1.5 % of an edge in the archives measured); a row moved to another
-// key lies a whole edge off.
-constexpr double kBoundsOverhang = 0.25;
+// the base layer's points, rebuilt from its maps, may lie outside it (1.5 %
+// of an edge in default archives, 18.6 % with cells 100 times the edge); a
+// row under a key two or more away from its own lies beyond this.
+constexpr double kBoundsOverhang = 1.0;
 
 std::string SqliteArchive::bounds_outside_key(const ChunkRef& ref) const {
   if (ref.bounds.empty()) return {};
