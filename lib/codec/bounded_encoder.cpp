@@ -26,10 +26,6 @@ namespace relief::codec {
 
 namespace {
 
-// |(x - origin) / step| must stay below this so the cell index is exact and
-// base + local cannot overflow.
-constexpr double kMaxQuantIndex = core::kMaxGridIndex;
-
 Status check_bound(const ErrorBound& b) {
   const Vec3d& s = b.step;
   const Vec3d& o = b.origin;
@@ -242,14 +238,14 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
     const Vec3d& p = cloud.positions[i];
     const double c[3] = {p.x, p.y, p.z};
     for (int a = 0; a < 3; ++a) {
-      const double t = (c[a] - origins[a]) / steps[a];
-      if (!(std::fabs(t) < kMaxQuantIndex)) {
-        return invalid_argument("chunk: point " + std::to_string(i) + " lies " + std::to_string(c[a]) +
-                                " from the quantisation origin, more than 4e18 steps of " + std::to_string(steps[a]));
-      }
       // The nearest index, or its neighbour where the nearest decodes (in
       // double) beyond half a step from the point: within it, always.
       const std::optional<std::int64_t> k = core::grid_index_within(c[a], origins[a], steps[a]);
+      if (!k && !core::grid_index_in_range(c[a], origins[a], steps[a])) {
+        return invalid_argument("chunk: point " + std::to_string(i) + " lies " + std::to_string(c[a]) +
+                                " from the quantisation origin, more than 4e18 steps of " +
+                                std::to_string(steps[a]));
+      }
       if (!k) {
         return invalid_argument("chunk: point " + std::to_string(i) + ": " +
                                 core::grid_too_fine_text(c[a], steps[a]));

@@ -17,8 +17,15 @@ inline double grid_value(double origin, std::int64_t k, double step) {
   return origin + static_cast<double>(k) * step;
 }
 
-// Indices beyond this are refused (a double then no longer tells them apart).
+// Indices beyond this are refused: a double then no longer tells them apart,
+// and base + local in a blob's header could overflow.
 inline constexpr double kMaxGridIndex = 4.0e18;
+
+// Whether v lies within kMaxGridIndex steps of the origin: asked only when
+// grid_index_within found no index, to tell that case from a step too fine.
+inline bool grid_index_in_range(double v, double origin, double step) {
+  return std::fabs((v - origin) / step) < kMaxGridIndex;
+}
 
 // The spacing of doubles at |v| (one unit in the last place).
 inline double double_spacing(double v) { return std::nextafter(std::fabs(v), HUGE_VAL) - std::fabs(v); }
@@ -41,7 +48,7 @@ inline constexpr double kMinStepsPerSpacing = 64;
 // file's at its own scale and offset, decodes to itself and always does.)
 inline std::optional<std::int64_t> grid_index_within(double v, double origin, double step) {
   const double t = (v - origin) / step;
-  if (!(std::fabs(t) < kMaxGridIndex)) return std::nullopt;
+  if (!(std::fabs(t) < kMaxGridIndex)) return std::nullopt;  // grid_index_in_range's test
   const auto i = static_cast<std::int64_t>(t);
   const double frac = t - static_cast<double>(i);  // exact
   const std::int64_t k = i + (frac >= 0.5 ? 1 : 0) - (frac <= -0.5 ? 1 : 0);

@@ -802,8 +802,8 @@ Status snap_to_grid(PointCloud& batch, const ErrorBound& b, const std::string& s
     double* c[3] = {&p.x, &p.y, &p.z};
     for (int a = 0; a < 3; ++a) {
       const double v = *c[a];
-      if (!(std::fabs((v - origins[a]) / steps[a]) < core::kMaxGridIndex)) continue;
       const std::optional<std::int64_t> k = core::grid_index_within(v, origins[a], steps[a]);
+      if (!k && !core::grid_index_in_range(v, origins[a], steps[a])) continue;
       if (!k) {
         return invalid_argument(source + ": point " + std::to_string(first_index + i) + ": " +
                                 core::grid_too_fine_text(v, steps[a]));

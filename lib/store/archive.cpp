@@ -863,7 +863,9 @@ class SqliteArchive final : public Archive {
   Status write_meta_checksum();
   Status upgrade_to_current_version();
   Status check_room(const std::vector<ChunkRow>& rows) const;
-  // Freelist trunk pages that removing `rows` may write (their overflow pages listed).
+  // The overflow pages `rows`' blobs take (counted one more each), and the
+  // freelist trunk pages that list them when the rows are removed.
+  std::uint64_t overflow_pages(const std::vector<ChunkRow>& rows) const;
   std::uint64_t trunk_pages(const std::vector<ChunkRow>& rows) const;
   Result<bool> scan_exists(std::int64_t scan_id);
   Status refresh_scan_summary();
@@ -1355,20 +1357,22 @@ Result<std::int64_t> SqliteArchive::begin_scan(const std::vector<ArchiveSource>&
   return scan_id;
 }
 
-std::uint64_t SqliteArchive::trunk_pages(const std::vector<ChunkRow>& rows) const {
-  const std::uint64_t overflow_page = page_size_ - 4;
-  const std::uint64_t per_trunk = page_size_ / 4 - 2;
+std::uint64_t SqliteArchive::overflow_pages(const std::vector<ChunkRow>& rows) const {
+  const std::uint64_t overflow_page = page_size_ - 4;  // 4 bytes link the overflow chain
   std::uint64_t pages = 0;
   for (const ChunkRow& row : rows) pages += row.blob.size() / overflow_page + 1;
-  return pages / per_trunk + 1;
+  return pages;
+}
+
+std::uint64_t SqliteArchive::trunk_pages(const std::vector<ChunkRow>& rows) const {
+  const std::uint64_t per_trunk = page_size_ / 4 - 2;
+  return overflow_pages(rows) / per_trunk + 1;
 }
 
 Status SqliteArchive::check_room(const std::vector<ChunkRow>& rows) const {
   if (created_) return Status::ok();
   const std::uint64_t frame = page_size_ + kWalFrameHeader;
-  const std::uint64_t overflow_page = page_size_ - 4;  // 4 bytes link the overflow chain
-  std::uint64_t need = kFixedFrames;
-  for (const ChunkRow& row : rows) need += row.blob.size() / overflow_page + 1 + kFramesPerRow;
+  const std::uint64_t need = kFixedFrames + overflow_pages(rows) + kFramesPerRow * rows.size();
   const std::uint64_t reserve =
       kFixedFrames + kFramesPerRow * (rows_written_ + rows.size()) + trunks_written_ + trunk_pages(rows);
   // Twice the batch: the WAL takes it, and the checkpoint that follows its
