@@ -169,8 +169,8 @@ const char* const kBoundOptionsHelp =
     "  --color-tolerance C    largest error per colour channel, 0..127 (default 0 = exact)\n"
     "  --intensity-tolerance I  largest error of a 16-bit intensity, 0..32767 (default 0 = exact)\n"
     "  --keep-order           code and return the points in the order they were read\n"
-    "  --fast-geometry        octree geometry without plane classes (chunk format 13): ~2x faster,\n"
-    "                         ~2 % more geometry bytes\n";
+    "  --fast-geometry        octree geometry without plane and near classes (chunk format 13):\n"
+    "                         ~2.3x faster, ~4 % more geometry bytes\n";
 
 std::vector<std::string> bound_option_names() { return cli_names(relief::bound_option_names()); }
 

@@ -152,7 +152,7 @@ int run_info(int argc, char** argv) {
         b.color_tolerance == 0 ? "exact" : ("within " + std::to_string(b.color_tolerance)).c_str(),
         b.intensity_tolerance == 0 ? "exact" : ("within " + std::to_string(b.intensity_tolerance)).c_str(),
         b.keep_order ? "; each chunk's points in the order they were read" : "",
-        b.fast_geometry ? "; octree geometry without plane classes (--fast-geometry)" : "");
+        b.fast_geometry ? "; octree geometry without plane and near classes (--fast-geometry)" : "");
   } else {
     std::printf("mode            resample: one point per occupied map pixel\n");
   }

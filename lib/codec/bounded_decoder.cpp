@@ -135,7 +135,8 @@ Result<PointCloud> decode_bounded_points(const ParsedBlob& blob, const Attribute
   if (time_ordered_layer) {
     RELIEF_RETURN_IF_ERROR(decode_time_ordered_layer(blob, slots, out, time_order, order_mask, cell_pos, layer_cells));
   } else {
-    const OctreeCoding coding = geometry->codec == SectionCodec::kOctreePlanes   ? OctreeCoding::kPlanes
+    const OctreeCoding coding = geometry->codec == SectionCodec::kOctreeNearest  ? OctreeCoding::kNearest
+                                : geometry->codec == SectionCodec::kOctreePlanes ? OctreeCoding::kPlanes
                                 : geometry->codec == SectionCodec::kOctreeFaces  ? OctreeCoding::kFacePatterns
                                 : geometry->codec == SectionCodec::kOctreeChains ? OctreeCoding::kChains
                                 : geometry->codec == SectionCodec::kOctreeMixed  ? OctreeCoding::kMixed

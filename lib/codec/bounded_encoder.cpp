@@ -199,7 +199,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   const bool has_i = cloud.has_intensity();
 
   ChunkHeader h;
-  // 13: geometry codec 9 (time order; 16 below for the octree, codec 13), colour codec 6 or 10, voted LAS
+  // 13: geometry codec 9 (time order; 17 below for the octree, codec 14), colour codec 6 or 10, voted LAS
   // bytes, an intensity tolerance; 14 (below) for keep_order's scan order
   // without GPS times or with times that step back.
   h.version = kOrderFreeFormatVersion;
@@ -303,14 +303,14 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // smaller of the two codings of geometry and times (the octree when they
   // tie), and stops coding the octree once it is sure to lose.
   std::vector<std::uint8_t> geometry;
-  // The octree: codec 13 (format 16), or codec 12 (format 13) with
+  // The octree: codec 14 (format 17), or codec 12 (format 13) with
   // ErrorBound::fast_geometry.
   const OctreeCoding octree_coding =
-      bound.fast_geometry ? OctreeCoding::kFacePatterns : OctreeCoding::kPlanes;
+      bound.fast_geometry ? OctreeCoding::kFacePatterns : OctreeCoding::kNearest;
   const SectionCodec octree_codec =
-      bound.fast_geometry ? SectionCodec::kOctreeFaces : SectionCodec::kOctreePlanes;
+      bound.fast_geometry ? SectionCodec::kOctreeFaces : SectionCodec::kOctreeNearest;
   const std::uint16_t octree_version =
-      bound.fast_geometry ? kOrderFreeFormatVersion : kOctreePlanesFormatVersion;
+      bound.fast_geometry ? kOrderFreeFormatVersion : kOctreeNearestFormatVersion;
   SectionCodec geometry_codec = octree_codec;
   // The cell order above, kept when a scan order replaces it as the layer's.
   std::vector<KeyedIndex> cell_order;
@@ -371,7 +371,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   if (geometry_codec == octree_codec && geometry.empty()) {
     geometry = encode_geometry(cells, depth, octree_coding);
   }
-  // Format 16 for octree geometry (codec 13), its LAS sections with format
+  // Format 17 for octree geometry (codec 14), its LAS sections with format
   // 15's codings (format 13 with codec 12 and fast_geometry, 15 below where
   // its sections are smaller); 13, 14 or 15 for geometry in scan order.
   if (geometry_codec == octree_codec) h.version = octree_version;
@@ -608,7 +608,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
         const int slot = order_slot(bit);
         // The section's format-15 coding, where it differs (§11.7, §11.7.2):
         // the scan angle in time order, NIR with colours.
-        // (Format 16 codes them so already.)
+        // (Formats 16 and 17 code them so already.)
         const bool v15_differs =
             h.version < kLasCodingFormatVersion &&
             ((bit == kLasScanAngle && !time_order.empty()) || (bit == kLasNir && !base.colors.empty()));

@@ -64,7 +64,8 @@ bool codec_allowed(SectionId id, SectionCodec c, ImageCodec image_codec, std::ui
       // in 5 and 6, codec 8 in 7 to 9, codec 11 in 10 to 12, codec 12 in 13
       // to 15, codec 13 from 16; version 8 adds codec 9 (time order).
       if (version >= 8 && c == SectionCodec::kScanOrder) return true;
-      return c == (version >= 16   ? SectionCodec::kOctreePlanes
+      return c == (version >= 17   ? SectionCodec::kOctreeNearest
+                   : version >= 16 ? SectionCodec::kOctreePlanes
                    : version >= 13 ? SectionCodec::kOctreeFaces
                    : version >= 10 ? SectionCodec::kOctreeChains
                    : version >= 7  ? SectionCodec::kOctreeMixed

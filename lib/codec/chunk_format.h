@@ -85,6 +85,10 @@ enum class SectionCodec : std::uint8_t {
   // index bits told where a plane fitted to the nearby known cells crosses
   // the node (format-spec/chunk.md §11.3.6).
   kOctreePlanes = 13,
+  // Geometry only (version 17): codec 13 with those index bits also told
+  // which half of the node lies nearer the known points around it
+  // (format-spec/chunk.md §11.3.7).
+  kOctreeNearest = 14,
 };
 
 // How the error-bounded layer codes intensity (header byte 162).

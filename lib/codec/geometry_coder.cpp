@@ -16,7 +16,9 @@
 // an adaptive probability map after it (mix_code_faces, §11.3.5). Codec 13
 // (chunk format 16) is codec 12 with each single child's index bits (and a
 // chain's) predicted by a plane fitted to the nearby cells the decoder knows
-// (PlaneSums, §11.3.6).
+// (PlaneSums, §11.3.6). Codec 14 (chunk format 17) is codec 13 with those
+// index bits also told which of the two halves lies nearer the known points
+// around the node (near_class, §11.3.7).
 #include "codec/geometry_coder.h"
 
 #include <algorithm>
@@ -557,6 +559,70 @@ struct PlaneModels {
   FaceMixer<32 * kChildPlaneClasses> child_mixer;
 };
 
+// ---- Codec 14: near classes (§11.3.7). A single child's or a chain's index
+// bit along axis a, with the points the plane sums count listed: which of
+// the two halves of the node along a (the child's coordinates on the other
+// axes as far as known) lies nearer the nearest of them, by how much, and
+// whether either lies near one. 0 without any point, else 1..16.
+constexpr int kNearClasses = 17;
+// Codec 14's index classes: codec 13's plane class when there is a plane
+// and the bit is along z; the near class (17..32) when there is no plane;
+// for an x or y bit with a plane, the plane class by a coarse near class
+// (33..80).
+constexpr int kIndexClasses = kPlaneClasses + (kNearClasses - 1) + 3 * (kPlaneClasses - 1);
+
+// Codec 14's models: codec 13's, by its index classes in place of the plane
+// classes (the child bits' weight sets are codec 13's, in PlaneModels).
+struct NearModels {
+  BitModel chain_index[8 * kIndexClasses * 3 * 4];
+  Apm index_apm[8 * kIndexClasses * 3 * 2];
+};
+
+// Points in quarter-node units relative to the node, as the plane sums count
+// them: at most 8 per node before it and one per node after.
+constexpr std::size_t kMaxNearPoints = 8 * kPlaneWindow + kPlaneWindow;
+struct NearPoints {
+  std::size_t n = 0;
+  std::int32_t p[kMaxNearPoints][3];
+};
+
+// The near class of an index bit along axis a, the child's coordinates so far
+// `at` (2 c + 1 for a decoded axis, else 2): with d_h the least squared
+// distance from the centre of half h (2 h + 1 along a, `at` on the others) to
+// a point, m = |d_1 - d_0| and r = min(d_0, d_1): 1 + (d_1 > d_0) + 2 q +
+// 8 (r < 24), q = 0 for m = 0, 1 for m < 8, 2 for m < 32, else 3. `strong`
+// is set when q >= 2. (Squared distances stay below 3 * 22^2.)
+int near_class(const NearPoints& np, int a, const std::int64_t* at, bool& strong) {
+  strong = false;
+  if (np.n == 0) return 0;
+  const int u = a == 0 ? 1 : 0, v = a == 2 ? 1 : 2;
+  const auto cu = static_cast<std::int32_t>(at[u]), cv = static_cast<std::int32_t>(at[v]);
+  std::int32_t d0 = INT32_MAX, d1 = INT32_MAX;
+  for (std::size_t j = 0; j < np.n; ++j) {
+    const std::int32_t* p = np.p[j];
+    const std::int32_t eu = p[u] - cu, ev = p[v] - cv;
+    const std::int32_t side = eu * eu + ev * ev;
+    const std::int32_t e0 = p[a] - 1, e1 = p[a] - 3;
+    d0 = std::min(d0, side + e0 * e0);
+    d1 = std::min(d1, side + e1 * e1);
+  }
+  const std::int32_t m = d1 > d0 ? d1 - d0 : d0 - d1;
+  const int q = m == 0 ? 0 : (m < 8 ? 1 : (m < 32 ? 2 : 3));
+  strong = q >= 2;
+  return 1 + (d1 > d0 ? 1 : 0) + 2 * q + (std::min(d0, d1) < 24 ? 8 : 0);
+}
+
+// Codec 14's class of an index bit along axis a, from codec 13's plane class
+// (0 without a plane) and the near class (§11.3.7).
+int index_class(int plane_cls, int a, const NearPoints& np, const std::int64_t* at) {
+  if (plane_cls != 0 && a == 2) return plane_cls;
+  bool strong = false;
+  const int near = near_class(np, a, at, strong);
+  if (plane_cls == 0) return near == 0 ? 0 : kPlaneClasses + near - 1;
+  const int coarse = strong ? 1 + ((near - 1) & 1) : 0;
+  return kPlaneClasses + kNearClasses - 1 + (plane_cls - 1) + (kPlaneClasses - 1) * coarse;
+}
+
 // Codec 11's chain flag: one model per number of levels left below the
 // node (capped).
 constexpr int kChainFlagContexts = 16;
@@ -570,7 +636,8 @@ struct GeometryModels {
   UIntModel extra;
   std::unique_ptr<MixedModels> mixed;  // codecs 8, 11 and 12
   std::unique_ptr<FaceModels> faces;   // codecs 12 and 13
-  std::unique_ptr<PlaneModels> planes;  // codec 13
+  std::unique_ptr<PlaneModels> planes;  // codecs 13 and 14
+  std::unique_ptr<NearModels> near;     // codec 14
 };
 
 // Visits every node of levels 0..depth-1 and codes its 8 child bits through
@@ -767,19 +834,22 @@ constexpr auto kScoreSpread = [] {
 // level d holds one cell, for codec 11's chains.
 // kMixing: 0 for codecs 6 and 7, 1 for codecs 8 and 11 (two models mixed),
 // 2 for codec 12 (three models mixed, then the APM), 3 for codec 13 (codec
-// 12 with the plane classes of §11.3.6).
+// 12 with the plane classes of §11.3.6), 4 for codec 14 (codec 13 with the
+// near classes of §11.3.7).
 template <int kMixing, typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                       Code& code, CodeProb& code_prob, TrueByte& true_byte, TrueChain& true_chain, Grow& grow) {
   constexpr bool mixed = kMixing >= 1;
   constexpr bool three = kMixing >= 2;
-  constexpr bool plane = kMixing == 3;
+  constexpr bool plane = kMixing >= 3;
+  constexpr bool nearest = kMixing == 4;
   MixedModels* const mm = models.mixed.get();   // codec 8's, 11's, 12's and 13's, else null
   FaceModels* const fm = models.faces.get();    // codec 12's and 13's, else null
-  PlaneModels* const pm = models.planes.get();  // codec 13's, else null
+  PlaneModels* const pm = models.planes.get();  // codec 13's and 14's, else null
+  NearModels* const nm = models.near.get();     // codec 14's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
   const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns ||
-                      coding == OctreeCoding::kPlanes;
+                      coding == OctreeCoding::kPlanes || coding == OctreeCoding::kNearest;
   // Per node of the current level (codec 11): whether its subtree is known
   // to hold one cell (a chain), known to hold more, or not known.
   enum : std::uint8_t { kUnknown, kChain, kNotChain };
@@ -877,6 +947,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
       // up to kPlaneWindow nodes before it and the centres of those after it
       // that lie within kPlaneReach cells.
       PlaneSums sums;
+      NearPoints near;  // codec 14: the points the sums count, one by one
       if constexpr (plane) {
         // The windows move on by one node: node i - 1 (its child byte now
         // known) joins `before` and node i - 1 - kPlaneWindow leaves it; node
@@ -891,7 +962,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
           if (i + kPlaneWindow < count) after.add(centre(i + kPlaneWindow));
         }
       }
-      const auto gather = [&] {
+      const auto gather = [&](bool with_points) {
         // Which nodes lie within reach, in loops without branches (bit
         // j - begin for a node before, 32 + j - i - 1 for one after), then
         // the sums over those.
@@ -931,18 +1002,45 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         sums.add(part);
         const std::int64_t origin[3] = {4 * std::int64_t{x}, 4 * std::int64_t{y}, 4 * std::int64_t{z}};
         sums.to_node(origin);
+        if (nearest && with_points) {
+          // The same points, relative to N: a node before's children, a
+          // node after's centre.
+          near.n = 0;
+          for (std::uint64_t b = near_before; b != 0; b &= b - 1) {
+            const std::size_t j = begin + static_cast<std::size_t>(std::countr_zero(b));
+            const std::int32_t o[3] = {4 * (cell[0][j] - x) + 1, 4 * (cell[1][j] - y) + 1,
+                                       4 * (cell[2][j] - z) + 1};
+            for (unsigned bits = occ[j]; bits != 0; bits &= bits - 1) {
+              const int k = std::countr_zero(bits);
+              std::int32_t* q = near.p[near.n++];
+              q[0] = o[0] + 2 * (k & 1), q[1] = o[1] + (k & 2), q[2] = o[2] + ((k >> 1) & 2);
+            }
+          }
+          for (std::uint64_t b = near_after; b != 0; b &= b - 1) {
+            const std::size_t j = i + 1 + static_cast<std::size_t>(std::countr_zero(b));
+            std::int32_t* q = near.p[near.n++];
+            q[0] = 4 * (cell[0][j] - x) + 2, q[1] = 4 * (cell[1][j] - y) + 2, q[2] = 4 * (cell[2][j] - z) + 2;
+          }
+        }
       };
       if (on_chain) {
         const int truth_k = kBitCount[truth] == 1 ? kBitCount[static_cast<std::uint8_t>(truth - 1)] : 0;
         int t = 1;
         if constexpr (plane) {
-          gather();
+          gather(true);
           std::int64_t at[3] = {2, 2, 2};  // the child's coordinates known so far
           for (int a = 2; a >= 0; --a) {
             const int cls = plane_class(sums, a, at[a == 0 ? 1 : 0], at[a == 2 ? 1 : 2]);
-            const int bit =
-                code(pm->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves],
-                     (truth_k >> a) & 1);
+            BitModel* m;
+            if constexpr (nearest) {
+              m = &nm->chain_index[((t * kIndexClasses + index_class(cls, a, near, at)) * 3 + plane_pred[a] +
+                                    1) *
+                                       4 +
+                                   to_leaves];
+            } else {
+              m = &pm->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves];
+            }
+            const int bit = code(*m, (truth_k >> a) & 1);
             at[a] = 2 * bit + 1;
             t = 2 * t + bit;
           }
@@ -985,7 +1083,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         // of which all but t is the axis's.
         int t = 1;
         std::int64_t at[3] = {2, 2, 2};  // codec 13: the child's coordinates known so far
-        if constexpr (plane) gather();
+        if constexpr (plane) gather(true);
         for (int a = 2; a >= 0; --a) {
           const int faces_a = static_cast<int>((faces_mask >> (2 * a)) & 3);
           const int axis_part = (((plane_pred[a] + 1) * 4 + faces_a) * 2 + (minus_occ[a] != 0 ? 1 : 0)) << 2;
@@ -1004,7 +1102,14 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
               Apm* apm;
               if constexpr (plane) {
                 const int cls = plane_class(sums, a, at[a == 0 ? 1 : 0], at[a == 2 ? 1 : 2]);
-                apm = &pm->index_apm[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 2 + minus];
+                if constexpr (nearest) {
+                  apm = &nm->index_apm[((t * kIndexClasses + index_class(cls, a, near, at)) * 3 +
+                                        plane_pred[a] + 1) *
+                                           2 +
+                                       minus];
+                } else {
+                  apm = &pm->index_apm[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 2 + minus];
+                }
               } else {
                 apm = &fm->index_apm[t << 3 | (plane_pred[a] + 1) << 1 | minus];
               }
@@ -1038,7 +1143,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
         // Codec 13: the node's plane, for the child bits' mixer weight sets.
         NodePlane np;
         if constexpr (plane) {
-          gather();
+          gather(false);
           np = node_plane(sums);
         }
         for (int k = 0; k < 8; ++k) {
@@ -1127,6 +1232,13 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
 template <typename Code, typename CodeProb, typename TrueByte, typename TrueChain, typename Grow>
 bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::vector<std::uint64_t>& nodes,
                  Code&& code, CodeProb&& code_prob, TrueByte&& true_byte, TrueChain&& true_chain, Grow&& grow) {
+  if (coding == OctreeCoding::kNearest) {
+    models.mixed = std::make_unique<MixedModels>();
+    models.faces = std::make_unique<FaceModels>();
+    models.planes = std::make_unique<PlaneModels>();
+    models.near = std::make_unique<NearModels>();
+    return code_octree_impl<4>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
+  }
   if (coding == OctreeCoding::kPlanes) {
     models.mixed = std::make_unique<MixedModels>();
     models.faces = std::make_unique<FaceModels>();
@@ -1184,7 +1296,7 @@ std::optional<std::vector<std::uint8_t>> encode_geometry_within(const OccupiedCe
   // count after the last node (a node holds one cell when the next node's
   // first cell follows its own).
   const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns ||
-                      coding == OctreeCoding::kPlanes;
+                      coding == OctreeCoding::kPlanes || coding == OctreeCoding::kNearest;
   std::vector<std::vector<std::uint32_t>> first_cell(chains ? static_cast<std::size_t>(depth) : 0);
   {
     std::vector<std::uint64_t> level = cells.keys;

@@ -47,6 +47,10 @@ enum class OctreeCoding {
   // and chains also told where a plane fitted to the nearby cells the
   // decoder knows crosses the node (format-spec/chunk.md §11.3.6).
   kPlanes,
+  // Codec 14 (format 17): codec 13 with those index bits also told which
+  // half of the node lies nearer the known points around it
+  // (format-spec/chunk.md §11.3.7).
+  kNearest,
 };
 
 // `cells.keys` must be strictly increasing and below 8^depth, with a count

@@ -1,8 +1,9 @@
-// A/B tool (not a test; bench/README.md): geometry section bytes and CPU time of codec 12
-// (face patterns and APMs) vs codec 13 (plane classes) on whole files at G-PCC's grids (step =
-// max extent / 2^g), one chunk per file. Usage: geometry_ab FILE.ply... [--grids 10,11,12,13,14]
+// A/B tool (not a test; bench/README.md): geometry section bytes and CPU time of codec 13
+// (plane classes) vs codec 14 (near classes) on whole files at G-PCC's grids (step = max
+// extent / 2^g), one chunk per file. Usage: geometry_ab FILE.ply... [--grids 10,11,12,13,14]
 // [--repeat N] (Until chunk format 10 it compared codec 7 with codec 8, until format 13 codec 8
-// with codec 11, until format 16 codec 11 with codec 12: bench/README.md keeps those figures.)
+// with codec 11, until format 16 codec 11 with codec 12, until format 17 codec 12 with codec
+// 13: bench/README.md keeps those figures.)
 #include <time.h>
 
 #include <algorithm>
@@ -88,13 +89,13 @@ int main(int argc, char** argv) {
       std::vector<std::uint8_t> a, bb;
       for (int r = 0; r < repeat; ++r) {
         double t0 = cpu_now();
-        a = encode_geometry(cells, depth, OctreeCoding::kFacePatterns);
+        a = encode_geometry(cells, depth, OctreeCoding::kPlanes);
         double t1 = cpu_now();
-        bb = encode_geometry(cells, depth, OctreeCoding::kPlanes);
+        bb = encode_geometry(cells, depth, OctreeCoding::kNearest);
         double t2 = cpu_now();
-        auto da = decode_geometry(a, depth, keys.size(), OctreeCoding::kFacePatterns);
+        auto da = decode_geometry(a, depth, keys.size(), OctreeCoding::kPlanes);
         double t3 = cpu_now();
-        auto db = decode_geometry(bb, depth, keys.size(), OctreeCoding::kPlanes);
+        auto db = decode_geometry(bb, depth, keys.size(), OctreeCoding::kNearest);
         double t4 = cpu_now();
         if (!da || !db || da->keys != cells.keys || da->counts != cells.counts || db->keys != cells.keys ||
             db->counts != cells.counts) {

@@ -100,7 +100,7 @@ TEST_CASE("bounded: every point comes back within the tolerance, attributes exac
     }
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kOctreePlanesFormatVersion);  // octree geometry: format 16
+    CHECK(info->format_version == kOctreeNearestFormatVersion);  // octree geometry: format 17
     CHECK(info->error_bounded);
     CHECK(info->decoded_points == in.size());
   }
@@ -303,7 +303,7 @@ TEST_CASE("bounded: an intensity tolerance bounds every 16-bit intensity, float 
     REQUIRE(blob.is_ok());
     auto info = inspect_chunk(*blob);
     REQUIRE(info.is_ok());
-    CHECK(info->format_version == kOctreePlanesFormatVersion);
+    CHECK(info->format_version == kOctreeNearestFormatVersion);
     auto out = decode_chunk(*blob);
     REQUIRE(out.is_ok());
     REQUIRE(out->size() == in.size());
@@ -493,8 +493,9 @@ TEST_CASE("bounded: truncated and corrupted blobs are rejected without crashing"
 }
 
 TEST_CASE(
-    "bounded: colour codec 10 only for point colours from version 9, octree codec 12 only in 13-15, 13 from "
-    "16",
+    "bounded: colour codec 10 only for point colours from version 9, octree codec 12 only in 13-15, 13 in "
+    "16, "
+    "14 from 17",
     "[codec][bounded][reject]") {
   test::SceneOptions o;
   o.seed = 5;
@@ -506,31 +507,38 @@ TEST_CASE(
   REQUIRE(blob.is_ok());
   auto parsed = codec::parse_blob(*blob, true);
   REQUIRE(parsed.is_ok());
-  REQUIRE(parsed->header.version == kOctreePlanesFormatVersion);
+  REQUIRE(parsed->header.version == kOctreeNearestFormatVersion);
   bool found = false;
   bool chains = false;
   for (const codec::SectionEntry& s : parsed->sections) {
     if (s.id == codec::SectionId::kPointColor) found = s.codec == codec::SectionCodec::kNeighbourColor;
-    if (s.id == codec::SectionId::kGeometry) chains = s.codec == codec::SectionCodec::kOctreePlanes;
+    if (s.id == codec::SectionId::kGeometry) chains = s.codec == codec::SectionCodec::kOctreeNearest;
   }
   REQUIRE(found);  // octree layers code their colours in cell order, with codec 10
-  REQUIRE(chains);  // and their octree with codec 13
+  REQUIRE(chains);  // and their octree with codec 14
   const auto refused = [](const std::vector<std::uint8_t>& b) {
     auto r = decode_chunk(b);
     REQUIRE_FALSE(r.is_ok());
     CHECK(r.status().code() == StatusCode::kCorruptData);
   };
-  // The same sections in a version-15, 12 or 9 header (valid checksum):
-  // refused, for codec 13; the octree said to be codec 12 or 11 in a
-  // version-16 header: refused; with the octree said to be codec 8, in a
+  // The same sections in a version-16, 15, 12 or 9 header (valid checksum):
+  // refused, for codec 14; the octree said to be codec 13, 12 or 11 in a
+  // version-17 header: refused; with the octree said to be codec 8, in a
   // version-8 header: refused, for codec 10.
   codec::ChunkHeader older = parsed->header;
+  older.version = 16;
+  refused(codec::write_blob(older, parsed->sections));
   older.version = 15;
   refused(codec::write_blob(older, parsed->sections));
   older.version = 12;
   refused(codec::write_blob(older, parsed->sections));
   older.version = 9;
   refused(codec::write_blob(older, parsed->sections));
+  std::vector<codec::SectionEntry> as_codec13 = parsed->sections;
+  for (codec::SectionEntry& s : as_codec13) {
+    if (s.id == codec::SectionId::kGeometry) s.codec = codec::SectionCodec::kOctreePlanes;
+  }
+  refused(codec::write_blob(parsed->header, as_codec13));
   std::vector<codec::SectionEntry> as_codec12 = parsed->sections;
   for (codec::SectionEntry& s : as_codec12) {
     if (s.id == codec::SectionId::kGeometry) s.codec = codec::SectionCodec::kOctreeFaces;

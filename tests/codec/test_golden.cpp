@@ -1,4 +1,4 @@
-// Golden vectors for chunk format versions 1 to 16 (format-spec/vectors/). A decoder
+// Golden vectors for chunk format versions 1 to 17 (format-spec/vectors/). A decoder
 // change that alters what an old blob means, or an encoder change that alters
 // the bytes, fails here. Regenerate deliberately with
 //   RELIEF_REGENERATE_GOLDEN=1 ./test_codec "[golden]"
@@ -247,14 +247,22 @@ std::vector<Vector> vectors() {
           {"bounded_las_scan_repeating_v15", bounded, las_scan_repeating, 15},
           {"bounded_keep_order_las_scan_repeating_v15", bounded_keep_order, las_scan_repeating, 15},
           // Format 16: the octree with plane classes (codec 13, §11.3.6), its
-          // LAS sections coded as format 15's; every blob whose geometry is
-          // the octree.
-          {"bounded_rgb_intensity_v16", bounded, voxel_scene, 16},
-          {"bounded_rgb_tolerance6_v16", bounded_lossy, voxel_scene, 16},
-          {"bounded_geometry_octree_v16", bounded_geometry, octree_scene, 16},
-          {"bounded_las_attributes_v16", bounded, las_scene, 16},
-          {"bounded_las_colors8_v16", bounded, las_scene_8bit, 16},
-          {"bounded_intensity_tolerance20_v16", bounded_intensity, las_scene_int, 16}};
+          // LAS sections coded as format 15's; every blob whose geometry was
+          // the octree until format 17.
+          {"bounded_rgb_intensity_v16", bounded, voxel_scene, 16, true},
+          {"bounded_rgb_tolerance6_v16", bounded_lossy, voxel_scene, 16, true},
+          {"bounded_geometry_octree_v16", bounded_geometry, octree_scene, 16, true},
+          {"bounded_las_attributes_v16", bounded, las_scene, 16, true},
+          {"bounded_las_colors8_v16", bounded, las_scene_8bit, 16, true},
+          {"bounded_intensity_tolerance20_v16", bounded_intensity, las_scene_int, 16, true},
+          // Format 17: the octree with plane and near classes (codec 14,
+          // §11.3.7); every blob whose geometry is the octree.
+          {"bounded_rgb_intensity_v17", bounded, voxel_scene, 17},
+          {"bounded_rgb_tolerance6_v17", bounded_lossy, voxel_scene, 17},
+          {"bounded_geometry_octree_v17", bounded_geometry, octree_scene, 17},
+          {"bounded_las_attributes_v17", bounded, las_scene, 17},
+          {"bounded_las_colors8_v17", bounded, las_scene_8bit, 17},
+          {"bounded_intensity_tolerance20_v17", bounded_intensity, las_scene_int, 17}};
 }
 
 std::string vector_path(const std::string& name, const char* ext) {
@@ -297,7 +305,7 @@ std::vector<std::uint8_t> slurp(const std::string& path) {
 
 }  // namespace
 
-TEST_CASE("golden chunk blobs of format versions 1 to 16 decode (and the current ones re-encode) identically",
+TEST_CASE("golden chunk blobs of format versions 1 to 17 decode (and the current ones re-encode) identically",
           "[golden]") {
   const bool regenerate = std::getenv("RELIEF_REGENERATE_GOLDEN") != nullptr;
   for (const Vector& v : vectors()) {
@@ -326,6 +334,7 @@ TEST_CASE("golden chunk blobs of format versions 1 to 16 decode (and the current
     for (const ChunkSectionInfo& s : info->sections) {
       if (s.id == 7 && v.version >= 8) {
         CHECK(s.codec == (is_scan(v.make) || keeps_order(v.params) ? 9
+                          : v.version >= 17                        ? 14
                           : v.version >= 16                        ? 13
                           : v.version >= 13                        ? 12
                           : v.version >= 10                        ? 11

@@ -77,7 +77,7 @@ TEST_CASE("LAS attributes: every combination of carried attributes round-trips e
     REQUIRE(info.is_ok());
     // 16 for octree geometry; with GPS times in scan order, 13, or 15 where
     // the scan angles in time order code smaller by their successors.
-    CHECK((info->format_version == kOctreePlanesFormatVersion ||
+    CHECK((info->format_version == kOctreeNearestFormatVersion ||
            (info->format_version == kOrderFreeFormatVersion && (bits & kLasGpsTime) != 0) ||
            (info->format_version == kLasCodingFormatVersion && (bits & kLasScanAngle) != 0 &&
             (bits & kLasGpsTime) != 0)));
@@ -484,7 +484,7 @@ TEST_CASE("format 15: NIR that moves with the green band is coded against the co
   const EncodeParams p = params_for(0.002, 1.0);
   auto blob = encode_chunk(in, p);
   REQUIRE(blob.is_ok());
-  // (An octree blob: format 16, which codes NIR so too.)
+  // (An octree blob: format 17, which codes NIR so too.)
   CHECK(inspect_chunk(*blob)->format_version >= kLasCodingFormatVersion);
   auto out = decode_chunk(*blob);
   REQUIRE(out.is_ok());
@@ -696,10 +696,11 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
   REQUIRE(quantised->size() > 165);
   CHECK(((*quantised)[164] | (*quantised)[165] << 8) == 20);
   write("seed-v13-intensity-tolerance.rlfc", *quantised, 13);
-  // Format 16 with every attribute (NIR, colour low bytes, extra bytes too),
+  // Format 17 with every attribute (NIR, colour low bytes, extra bytes too),
   // the colours predicted from neighbours (codec 10), the octree with chains,
-  // face patterns, APMs and plane classes (codec 13). (seed-v13-las-attributes
-  // and seed-v13-octree were written here before format 16, with codec 12.)
+  // face patterns, APMs, plane and near classes (codec 14). (seed-v13-* and
+  // seed-v16-* were written here before formats 16 and 17, with codecs 12
+  // and 13.)
   PointCloud in = scene(12, 120, true);
   test::add_las_attributes(in, 0xFFF, 3, 12, false);
   EncodeParams p = params_for(0.005, 2.0);
@@ -707,24 +708,24 @@ TEST_CASE("LAS attributes: write the fuzz seeds", "[.seed]") {
   auto all = encode_chunk(in, p);
   REQUIRE(all.is_ok());
   CHECK(inspect_chunk(*all)->las_attributes == 0xFFF);
-  write("seed-v16-las-attributes.rlfc", *all, 16);
-  // Format 16, geometry alone on a dense terrain: most of the octree's
-  // decisions are codec 13's mixed ones (child bits, flags, index bits).
+  write("seed-v17-las-attributes.rlfc", *all, 17);
+  // Format 17, geometry alone on a dense terrain: most of the octree's
+  // decisions are codec 14's mixed ones (child bits, flags, index bits).
   PointCloud dense = scene(13, 900, false);
   dense.intensities.clear();
   auto octree = encode_chunk(dense, params_for(0.02, 2.0));
   REQUIRE(octree.is_ok());
   for (const ChunkSectionInfo& s : inspect_chunk(*octree)->sections) {
-    if (s.id == 7) CHECK(s.codec == 13);
+    if (s.id == 7) CHECK(s.codec == 14);
   }
-  write("seed-v16-octree.rlfc", *octree, 16);
-  // Format 16 on a sparse, noisy surface: chains and single children whose
-  // index bits take plane classes of every kind.
+  write("seed-v17-octree.rlfc", *octree, 17);
+  // Format 17 on a sparse, noisy surface: chains and single children whose
+  // index bits take plane and near classes of every kind.
   PointCloud sparse = scene(16, 400, false);
   sparse.intensities.clear();
   auto chains = encode_chunk(sparse, params_for(0.0005, 2.0));
   REQUIRE(chains.is_ok());
-  write("seed-v16-chains.rlfc", *chains, 16);
+  write("seed-v17-chains.rlfc", *chains, 17);
   // Format 14: keep_order without GPS times, the geometry in the given order
   // with no pulse context (codec 9), the scan's returns, flags, angles, user
   // data and source IDs with their plain coding in that order; and colours
@@ -817,7 +818,7 @@ TEST_CASE("classification map: lying flags and sections are refused", "[codec][l
   EncodeParams bounded = params_for(0.002, 0.5);
   auto v3 = encode_chunk(in, bounded);
   REQUIRE(v3.is_ok());
-  REQUIRE(inspect_chunk(*v3)->format_version == kOctreePlanesFormatVersion);
+  REQUIRE(inspect_chunk(*v3)->format_version == kOctreeNearestFormatVersion);
   DecodeOptions nocrc;
   nocrc.verify_checksum = false;
   const auto corrupt = [&](std::vector<std::uint8_t> b) {

@@ -102,7 +102,7 @@ void check_octree_with_shuffled_times(const PointCloud& in, const EncodeParams& 
   }
   auto octree = encode_chunk(shuffled, p);
   REQUIRE(octree.is_ok());
-  CHECK(geometry_codec(*octree) == 13);  // the octree (codec 13 from format 16)
+  CHECK(geometry_codec(*octree) == 14);  // the octree (codec 14 from format 17)
   auto back = decode_chunk(*octree);
   REQUIRE(back.is_ok());
   CHECK(records(*back) == snapped_records(shuffled, 0.01));

@@ -543,14 +543,14 @@ TEST_CASE(
       REQUIRE(info.is_ok());
       ++out[info->format_version];
       for (const ChunkSectionInfo& s : info->sections) {
-        if (s.id == 7) CHECK(s.codec == (info->format_version == kOctreePlanesFormatVersion ? 13 : 12));
+        if (s.id == 7) CHECK(s.codec == (info->format_version == kOctreeNearestFormatVersion ? 14 : 12));
       }
     }
     return out;
   };
   CHECK(versions(dir.file("planes.relief")) ==
         std::map<int, std::size_t>{
-            {kOctreePlanesFormatVersion, test::archive_blobs(dir.file("planes.relief")).size()}});
+            {kOctreeNearestFormatVersion, test::archive_blobs(dir.file("planes.relief")).size()}});
   CHECK(versions(dir.file("fast.relief")) ==
         std::map<int, std::size_t>{
             {kOrderFreeFormatVersion, test::archive_blobs(dir.file("fast.relief")).size()}});

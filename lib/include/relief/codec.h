@@ -66,8 +66,11 @@ enum class FillMethod : std::uint8_t { kBlockProjection = 0, kPushPull = 1, kBox
 // bits (and each chain's) also told where a plane fitted to the nearby
 // cells the decoder knows crosses the node; the encoder writes it for every
 // blob whose geometry is the octree, its LAS sections then with version 15's
-// codings (13, 14 and 15 stay for geometry in scan order).
-inline constexpr std::uint16_t kChunkFormatVersion = 16;
+// codings (13, 14 and 15 stay for geometry in scan order). Version 17:
+// version 16 whose octree geometry is codec 14, those index bits also told
+// which half of the node lies nearer the known points around it; the
+// encoder writes it where it wrote 16 (16 stays readable).
+inline constexpr std::uint16_t kChunkFormatVersion = 17;
 // What the error-bounded encoder writes for every other blob.
 inline constexpr std::uint16_t kOrderFreeFormatVersion = 13;
 // Geometry in the given order without GPS times, or with times that step back.
@@ -77,6 +80,8 @@ inline constexpr std::uint16_t kKeptOrderFormatVersion = 14;
 inline constexpr std::uint16_t kLasCodingFormatVersion = 15;
 // Octree geometry with plane classes (format-spec/chunk.md §11.3.6).
 inline constexpr std::uint16_t kOctreePlanesFormatVersion = 16;
+// Octree geometry with plane and near classes (format-spec/chunk.md §11.3.7).
+inline constexpr std::uint16_t kOctreeNearestFormatVersion = 17;
 
 // The error-bounded mode: every input point comes back as exactly one point,
 // each coordinate within step / 2 of the input. Coordinates are snapped to the
