@@ -433,9 +433,10 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
   // (empty when not made). Sets the slot's bit when cell order is kept.
   const auto keep = [&](int slot, OrderChoice choice, std::vector<std::uint8_t> in_layer,
                         std::vector<std::uint8_t> in_cells) {
-    const bool cell_order = choice == OrderChoice::kCells || (choice == OrderChoice::kTry && !cell_pos.empty() &&
-                                                              in_cells.size() < in_layer.size());
-    if (cell_order) {
+    const bool keep_cells =
+        choice == OrderChoice::kCells ||
+        (choice == OrderChoice::kTry && !cell_pos.empty() && in_cells.size() < in_layer.size());
+    if (keep_cells) {
       order_mask = static_cast<std::uint8_t>(order_mask | (1u << slot));
       return in_cells;
     }
