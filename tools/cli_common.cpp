@@ -68,6 +68,12 @@ Args::Args(int argc, char** argv, std::vector<std::string> flags, std::vector<st
   std::string numeric_option;  // the option whose numeric value came last
   for (int i = 0; i < argc; ++i) {
     std::string a = argv[i];
+    // "--" ends the options, as POSIX utilities have it: what follows is
+    // positional, even when it starts with '-' (a file named "-x.ply").
+    if (a == "--") {
+      positional_.insert(positional_.end(), argv + i + 1, argv + argc);
+      return;
+    }
     const std::string after = numeric_option;
     numeric_option.clear();
     if (!after.empty() && is_number(a)) {

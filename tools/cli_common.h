@@ -37,7 +37,8 @@ int interrupted(const std::string& command, const std::string& what);
 std::string memory_option(const std::string& text, std::uint64_t& budget);
 
 // A tiny option parser: `--name value`, `--name=value`, `-o value`, flags and
-// positionals. Unknown options are an error.
+// positionals; `--` ends the options (every later argument is positional).
+// Unknown options are an error.
 class Args {
  public:
   // `flags` take no value; `options` take one.

@@ -247,6 +247,33 @@ TEST_CASE("usage errors print the error and one hint line, not the whole help", 
   CHECK(std::count(unknown.output.begin(), unknown.output.end(), '\n') == 2);
 }
 
+TEST_CASE("a double dash ends the options: later arguments are positional, even starting with a dash",
+          "[cli]") {
+  TempDir tmp;
+  fs::copy_file(std::string(RELIEF_SOURCE_DIR) + "/tests/data/simple.las", tmp.file("-scan.las"));
+  // Names relative to the directory, so they start with '-'.
+  const auto run_in = [&](const std::string& args) {
+    return relief::test::run_cli("cd '" + tmp.path().string() + "' && " + RELIEF_CLI, args);
+  };
+  const Run refused = run_in("compress -scan.las -o a.relief --quiet");
+  CHECK(refused.code == 2);
+  CHECK(has(refused, "unknown option -scan.las"));
+  const Run c = run_in("compress -o -a.relief --quiet -- -scan.las");
+  INFO(c.output);
+  REQUIRE(c.code == 0);
+  const Run i = run_in("info --json -- -a.relief");
+  CHECK(i.code == 0);
+  CHECK(has(i, "\"points_in\""));
+  // After --, an option's name is an input too: here a second archive, a usage error.
+  const Run two = run_in("info -- -a.relief --json");
+  CHECK(two.code == 2);
+  CHECK_FALSE(has(two, "unknown option"));
+  // Every subcommand parses its arguments the same way.
+  const Run a = run_in("append --quiet -- -a.relief -scan.las");
+  INFO(a.output);
+  CHECK(a.code == 0);
+}
+
 TEST_CASE("compress warns on stderr when a PLY holds more vertices than its header declares", "[cli][ingest]") {
   TempDir tmp;
   std::string text = "ply\nformat ascii 1.0\nelement vertex 40\nproperty float x\nproperty float y\n"
