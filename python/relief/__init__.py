@@ -337,7 +337,8 @@ class Archive:
 
         ``batches=True``: an iterator of arrays, one per decoded batch, with
         at most a few batches in memory at a time; close it (or let it go)
-        to stop the query early. ``options``: ``threads`` (decoder threads, 0
+        to stop the query early. Closing the archive stops it too: its next
+        batch raises ValueError. ``options``: ``threads`` (decoder threads, 0
         = all cores), ``skip_corrupt`` (skip damaged chunks with a
         RuntimeWarning instead of raising CorruptDataError), ``max_points``
         (instead of ``lod``: at most that many points, from the finest level
@@ -473,7 +474,9 @@ class Archive:
         return image
 
     def close(self):
-        """Closes the archive; later queries raise ValueError."""
+        """Closes the archive; later queries raise ValueError, and so does the
+        next batch of a ``query(batches=True)`` iteration still in progress
+        (its query is stopped here)."""
         self._reader.close()
 
     def __enter__(self):

@@ -59,7 +59,13 @@ void BatchStream::close() {
     queue_.clear();
     changed_.notify_all();
   }
+  const std::lock_guard<std::mutex> lock(join_mutex_);
   if (worker_.joinable()) worker_.join();
+}
+
+void BatchStream::close_for_archive() {
+  archive_closed_ = true;
+  close();
 }
 
 }  // namespace relief::python

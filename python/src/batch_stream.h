@@ -3,6 +3,7 @@
 // kQueueBatches, so at most that many decoded batches wait, whatever the box.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
@@ -35,8 +36,13 @@ class BatchStream {
   bool next(PointCloud& batch, Status& status);
   // Warnings (skipped corrupt chunks) since the last call.
   std::vector<std::string> take_warnings();
-  // Stops the query and waits for the worker; idempotent.
+  // Stops the query and waits for the worker; idempotent, and safe from
+  // several threads at once (the iterator's close and the archive's).
   void close();
+  // close() on behalf of the archive that was closed under the iteration:
+  // the iterator then refuses next() instead of ending quietly.
+  void close_for_archive();
+  bool archive_closed() const { return archive_closed_; }
 
  private:
   void run(std::optional<Box3d> box, QueryOptions options);
@@ -48,7 +54,9 @@ class BatchStream {
   std::vector<std::string> warnings_;
   bool done_ = false;      // the worker has finished
   bool stopping_ = false;  // the consumer gave up
+  std::atomic<bool> archive_closed_{false};
   Status status_;
+  std::mutex join_mutex_;  // one close() joins the worker, the others wait for it
   std::thread worker_;
 };
 

@@ -209,11 +209,12 @@ py::tuple end_of_batches(const Status& status, const std::vector<std::string>& w
 }
 
 // Archive.query(batches=True) on the C++ side: next() -> (array, warnings),
-// StopIteration at the end, the query's error raised in its place.
+// StopIteration at the end, the query's error raised in its place; once the
+// archive is closed, ValueError (as a query of the closed archive raises).
 class BatchIterator {
  public:
-  BatchIterator(std::unique_ptr<BatchStream> stream, FieldSet fields)
-      : stream_(std::move(stream)), fields_(fields) {}
+  BatchIterator(std::shared_ptr<BatchStream> stream, FieldSet fields, std::string path)
+      : stream_(std::move(stream)), fields_(fields), path_(std::move(path)) {}
   ~BatchIterator() {
     py::gil_scoped_release release;
     stream_.reset();
@@ -221,14 +222,19 @@ class BatchIterator {
 
   py::tuple next() {
     if (!stream_) throw py::stop_iteration();
+    // Held while the GIL is released: a close() from another thread then
+    // stops the stream but does not destroy it under this call.
+    const std::shared_ptr<BatchStream> stream = stream_;
+    refuse_closed_archive(*stream);
     PointCloud batch;
     Status status;
     bool more = false;
     {
       py::gil_scoped_release release;
-      more = stream_->next(batch, status);
+      more = stream->next(batch, status);
     }
-    std::vector<std::string> warnings = stream_->take_warnings();
+    refuse_closed_archive(*stream);  // closed while this call waited
+    std::vector<std::string> warnings = stream->take_warnings();
     if (!more) {
       close();
       return end_of_batches(status, warnings);
@@ -240,14 +246,19 @@ class BatchIterator {
 
   void close() {
     if (!stream_) return;
+    const std::shared_ptr<BatchStream> stream = std::move(stream_);
     py::gil_scoped_release release;
-    stream_->close();
-    stream_.reset();
+    stream->close();
   }
 
  private:
-  std::unique_ptr<BatchStream> stream_;
+  void refuse_closed_archive(const BatchStream& stream) const {
+    if (stream.archive_closed()) throw py::value_error("the archive " + path_ + " is closed");
+  }
+
+  std::shared_ptr<BatchStream> stream_;
   FieldSet fields_;
+  std::string path_;
 };
 
 // relief.read(batches=True) on the C++ side: next() -> (array, warnings),
@@ -387,8 +398,23 @@ class Reader {
     // Refused here, before any batch, as query() refuses it.
     if (Status s = check_attributes((*own)->info(), q.attributes, path_); !s) raise_status(s);
     const FieldSet fields = archive_fields((*own)->info(), q.attributes);
-    auto stream = std::make_unique<BatchStream>(std::move(own).value(), box, std::move(q));
-    return std::make_unique<BatchIterator>(std::move(stream), fields);
+    auto stream = std::make_shared<BatchStream>(std::move(own).value(), box, std::move(q));
+    bool closed = false;
+    {
+      const std::lock_guard<std::mutex> lock(streams_mutex_);
+      // Forget the streams already gone, so a long-open archive's list stays short.
+      std::erase_if(streams_, [](const std::weak_ptr<BatchStream>& s) { return s.expired(); });
+      closed = closed_;  // by another thread while the stream's reader opened
+      if (!closed) streams_.push_back(stream);
+    }
+    if (closed) {
+      {
+        py::gil_scoped_release release;
+        stream->close();
+      }
+      throw py::value_error("the archive " + path_ + " is closed");
+    }
+    return std::make_unique<BatchIterator>(std::move(stream), fields, path_);
   }
 
   // A preview image as an (height, width, 3) uint8 array, the figures of
@@ -442,8 +468,19 @@ class Reader {
     return py::make_tuple(pixels, figures, file);
   }
 
+  // Also stops the batch queries still running (their worker threads end
+  // here): their iterators raise ValueError from then on.
   void close() {
     py::gil_scoped_release release;
+    std::vector<std::weak_ptr<BatchStream>> streams;
+    {
+      const std::lock_guard<std::mutex> lock(streams_mutex_);
+      closed_ = true;
+      streams.swap(streams_);
+    }
+    for (const std::weak_ptr<BatchStream>& s : streams) {
+      if (const std::shared_ptr<BatchStream> stream = s.lock()) stream->close_for_archive();
+    }
     const std::lock_guard<std::mutex> lock(mutex_);
     reader_.reset();
   }
@@ -460,6 +497,9 @@ class Reader {
   std::string path_;
   std::mutex mutex_;
   std::unique_ptr<ArchiveReader> reader_;
+  std::mutex streams_mutex_;
+  bool closed_ = false;                              // close() was called (streams_mutex_)
+  std::vector<std::weak_ptr<BatchStream>> streams_;  // the batch queries started, to stop on close()
 };
 
 // A synthetic cloud carrying `las` (LasAttributeBits) with known values, for

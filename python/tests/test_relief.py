@@ -147,6 +147,32 @@ def test_batches_stopped_early_and_beside_other_queries(xyz_archive):
         assert len(a.query()) == a.info["points_decoded"]
 
 
+def _threads():
+    return len(os.listdir("/proc/self/task"))
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
+def test_closing_the_archive_stops_a_batch_iteration_in_progress(xyz_archive):
+    path, _ = xyz_archive
+    a = relief.open(path)
+    before = _threads()
+    it = a.query(batches=True, threads=1)
+    assert len(next(it)) > 0
+    assert _threads() > before  # the query's worker
+    not_started = a.query(batches=True, threads=1)
+    a.close()
+    assert _threads() == before  # both workers stopped by close()
+    with pytest.raises(ValueError, match="closed"):
+        next(it)
+    with pytest.raises(ValueError, match="closed"):
+        next(not_started)
+    with pytest.raises(StopIteration):  # the generator has ended
+        next(it)
+    with pytest.raises(ValueError, match="closed"):
+        a.query(batches=True)
+    a.close()  # twice is harmless
+
+
 @pytest.mark.parametrize("dims", [3, 2])
 def test_box_query(xyz_archive, scene, dims):
     path, _ = xyz_archive
