@@ -98,6 +98,49 @@ void select(PointCloud& cloud, const Box3d& box, bool clip_box, const LasFilter&
   if (order.size() != cloud.size()) cloud = cloud.gathered(order);
 }
 
+__extension__ typedef unsigned __int128 Uint128;
+
+// Each row's share of a max_points query's limit `cap` when its rows hold
+// `counts` points in the box, more than the limit in all: the limit split at
+// the rows' running totals (row i keeps floor(cap * C_i / T) -
+// floor(cap * C_(i-1) / T) of its c_i, C the running total, T the sum), so
+// cap points in all and no row more than it holds. Empty when they fit (or
+// when rows' counts claim 2^64 points or more in all: only a damaged row's
+// could, and the query's cut at the limit stands in).
+std::vector<std::uint64_t> quotas(const std::vector<std::uint64_t>& counts, std::uint64_t cap) {
+  Uint128 total = 0;
+  for (const std::uint64_t c : counts) total += c;
+  if (total <= cap || (total >> 64) != 0) return {};
+  std::vector<std::uint64_t> out(counts.size());
+  Uint128 running = 0;
+  std::uint64_t before = 0;
+  for (std::size_t i = 0; i < counts.size(); ++i) {
+    running += counts[i];
+    const auto upto = static_cast<std::uint64_t>(running * cap / total);
+    out[i] = upto - before;
+    before = upto;
+  }
+  return out;
+}
+
+// Keeps `keep` of the cloud's points (`expected` of them when the row's
+// count held; otherwise as many as it has), evenly spaced in decoding order
+// as a level of detail thins a chunk: point j of n stays when
+// floor((j + 1) keep / n) > floor(j keep / n).
+void thin(PointCloud& cloud, std::uint64_t keep, std::uint64_t expected) {
+  const std::uint64_t n = cloud.size();
+  if (n != expected) keep = std::min(keep, n);
+  if (keep >= n) return;
+  std::vector<std::uint32_t> order;
+  order.reserve(static_cast<std::size_t>(keep));
+  for (std::uint64_t j = 0; j < n; ++j) {
+    const auto a = static_cast<Uint128>(j) * keep / n;
+    const auto b = static_cast<Uint128>(j + 1) * keep / n;
+    if (b > a) order.push_back(static_cast<std::uint32_t>(j));
+  }
+  cloud = cloud.gathered(order);
+}
+
 void clip(PointCloud& cloud, const Box3d& box) {
   if (!cloud.las.empty()) {
     select(cloud, box, true, LasFilter{}, 1);
@@ -448,6 +491,7 @@ class Reader final : public ArchiveReader {
     // sink in index order: reading, decoding and the sink (often a file
     // writer) overlap, and at most `wave` chunks are in memory.
     struct Slot {
+      std::size_t index = 0;  // in refs
       ChunkRef ref;
       std::uint32_t lod = 1;
       bool crossed = false;  // by the polygon's edges
@@ -456,6 +500,7 @@ class Reader final : public ArchiveReader {
       Status status;
     };
     const auto read = [&](std::size_t i, Slot& s) {
+      s.index = i;
       s.ref = refs[i];
       s.lod = filter.any() ? 1 : plan.lods[i];
       s.crossed = crossed[i];
@@ -490,6 +535,45 @@ class Reader final : public ArchiveReader {
       }
       keep_attributes(s.points, options.attributes);
     };
+    // A max_points query whose rows hold more points in the box than the
+    // limit: each row keeps its quota, evenly spread over its points.
+    std::vector<std::uint64_t> in_box, quota;
+    if (plan.cap > 0) {
+      // A row's points in the box: its decoded_points when it lies wholly
+      // inside the box (and polygon), is decoded whole and filtered by
+      // nothing; otherwise counted by decoding it (a first pass over the rows
+      // that cross the box's faces or the polygon's edges, as many chunks in
+      // memory at once as the query's), unless even every row's whole count
+      // fits the limit.
+      in_box.assign(refs.size(), 0);
+      std::vector<std::size_t> uncertain;
+      Uint128 most = 0;
+      bool bounded = true;
+      for (std::size_t i = 0; i < refs.size(); ++i) {
+        const bool whole = plan.lods[i] == 1;
+        if (whole && !filter.any() && !crossed[i] && contains(box, refs[i].bounds)) {
+          in_box[i] = refs[i].decoded_points;
+        } else {
+          uncertain.push_back(i);
+        }
+        bounded = bounded && whole;
+        most += refs[i].decoded_points;
+      }
+      if (!bounded || most > plan.cap) {
+        RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(
+            uncertain.size(), threads, wave, [&](std::size_t k, Slot& s) { read(uncertain[k], s); }, decode,
+            [&](std::size_t, Slot& s, bool&) -> Status {
+              if (!s.status && !options.skip_corrupt) return s.status;
+              in_box[s.index] = s.status ? s.points.size() : 0;  // skipped (and reported) by the second pass
+              return Status::ok();
+            }));
+        quota = quotas(in_box, plan.cap);
+      }
+    }
+    const auto decode_and_thin = [&](std::size_t i, Slot& s) {
+      decode(i, s);
+      if (s.status && !quota.empty()) thin(s.points, quota[s.index], in_box[s.index]);
+    };
     const auto deliver = [&](std::size_t, Slot& s, bool& stop) -> Status {
       if (!s.status) {
         if (!options.skip_corrupt) return s.status;
@@ -509,7 +593,8 @@ class Reader final : public ArchiveReader {
       stop = plan.cap > 0 && stats.points >= plan.cap;
       return Status::ok();
     };
-    RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(refs.size(), threads, wave, read, decode, deliver));
+    RELIEF_RETURN_IF_ERROR(
+        ordered_pipeline<Slot>(refs.size(), threads, wave, read, decode_and_thin, deliver));
     stats.blob_bytes_read = archive_->blob_bytes_read() - bytes_before;
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return stats;

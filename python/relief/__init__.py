@@ -342,9 +342,10 @@ class Archive:
         = all cores), ``skip_corrupt`` (skip damaged chunks with a
         RuntimeWarning instead of raising CorruptDataError), ``max_points``
         (instead of ``lod``: at most that many points, from the finest level
-        of the archive's level-of-detail pyramid that fits), ``attributes``
-        (the fields wanted beside x, y, z, by the names ``info["attributes"]``
-        lists, e.g. ``["classification", "gps_time"]`` or ``"rgb,intensity"``;
+        of the archive's level-of-detail pyramid that fits, thinned evenly
+        over the box when its nodes hold more, as ``query --max-points``),
+        ``attributes`` (the fields wanted beside x, y, z, by the names
+        ``info["attributes"]`` lists, e.g. ``["classification", "gps_time"]`` or ``"rgb,intensity"``;
         ``[]`` or ``"none"`` for x, y, z alone; default all: the others are
         not decoded, which is faster; a name the archive lacks raises
         InvalidArgumentError), ``polygon`` (only the points inside this x-y

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <random>
 
 #include "relief/archive.h"
 #include "relief/ingest.h"
@@ -266,6 +267,85 @@ TEST_CASE("max_points in a small box counts the rows' points inside it", "[pyram
   all.max_points = inside;
   CHECK(run_query(**reader, &box, &stats, all).size() == inside);
   CHECK(stats.pyramid_level == 0);
+}
+
+TEST_CASE("max_points thins every part of the box alike when the rows' bounds overstate their share of it",
+          "[pyramid]") {
+  // 8 x 8 m in 2 m chunks, points uniform in x and y and in z 0..1 but for
+  // 2 % at z 1.9: the box (z up to 1) takes about half of each row's bounds,
+  // so the estimate is about half its points. The level chosen held more
+  // than the limit and was cut at it: the last chunks' corner of the box
+  // came back empty.
+  TempDir tmp;
+  std::mt19937_64 random(11);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  PointCloud cloud;
+  for (int i = 0; i < 40000; ++i) {
+    cloud.positions.push_back({8 * unit(random), 8 * unit(random), i % 50 == 0 ? 1.9 : unit(random)});
+    cloud.colors.push_back({100, 150, 200});
+    cloud.intensities.push_back(500.0f);
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  const Box3d box{{-inf, -inf, -1.0}, {inf, inf, 1.0}};
+  for (const PyramidMode mode : {PyramidMode::kOff, PyramidMode::kOn}) {
+    IngestOptions io = options(mode);
+    io.codec.cell_size = 0.02;
+    io.allow_sparse = true;
+    auto reader = ArchiveReader::open(build(tmp, mode == PyramidMode::kOn ? "on" : "off", cloud, io));
+    REQUIRE(reader.is_ok());
+    const PointCloud all = run_query(**reader, &box, nullptr, QueryOptions{});
+    REQUIRE(all.size() > 35000);
+    // Points by 2 x 2 m cell (a chunk's area) and by quadrant of the box.
+    const auto cells = [](const PointCloud& c) {
+      std::map<std::pair<int, int>, double> out;
+      for (const Vec3d& p : c.positions)
+        out[{std::clamp(int(p.x / 2), 0, 3), std::clamp(int(p.y / 2), 0, 3)}] += 1;
+      return out;
+    };
+    const auto quadrants = [](const PointCloud& c) {
+      std::map<std::pair<int, int>, double> out;
+      for (const Vec3d& p : c.positions) out[{p.x < 4 ? 0 : 1, p.y < 4 ? 0 : 1}] += 1;
+      return out;
+    };
+    const auto in_cells = cells(all), in_quadrants = quadrants(all);
+    REQUIRE(in_cells.size() == 16);
+    // Just below the count (the finest level fits by its estimate), and far
+    // below it (thinned below the top level, or the chunks without pyramid).
+    for (const double fraction : {0.9, 0.2, 0.01}) {
+      CAPTURE(mode, fraction);
+      QueryOptions o;
+      o.max_points = static_cast<std::uint64_t>(fraction * static_cast<double>(all.size()));
+      QueryStats stats;
+      const PointCloud got = run_query(**reader, &box, &stats, o);
+      CHECK(got.size() <= o.max_points);
+      // (A pyramid level may hold far fewer: levels differ by a factor.)
+      if (stats.pyramid_level == 0) CHECK(got.size() * 2 >= o.max_points);
+      const double rate = static_cast<double>(got.size()) / static_cast<double>(all.size());
+      const auto got_quadrants = quadrants(got);
+      for (const auto& [q, n] : in_quadrants) {
+        CAPTURE(q.first, q.second, n);
+        const auto it = got_quadrants.find(q);
+        const double kept = it == got_quadrants.end() ? 0.0 : it->second;
+        CHECK(kept >= 0.8 * rate * n);
+        CHECK(kept <= 1.2 * rate * n);
+      }
+      if (fraction > 0.5) {
+        const auto got_cells = cells(got);
+        for (const auto& [c, n] : in_cells) {
+          CAPTURE(c.first, c.second, n);
+          const auto it = got_cells.find(c);
+          const double kept = it == got_cells.end() ? 0.0 : it->second;
+          CHECK(kept >= 0.8 * rate * n);
+        }
+      }
+      // The same points whatever the threads.
+      for (const unsigned threads : {1u, 3u}) {
+        o.threads = threads;
+        const PointCloud again = run_query(**reader, &box, nullptr, o);
+        CHECK(again.positions == got.positions);
+      }
+    }
+  }
 }
 
 TEST_CASE("max_points within a polygon counts only the rows the polygon reaches", "[pyramid][polygon]") {

@@ -44,9 +44,15 @@ struct QueryOptions {
   bool last_returns = false;
   // At most this many points (0 = no limit; then `lod` must be 1): the
   // finest level of the pyramid (or the chunks themselves) whose nodes in the
-  // box hold at most this many, so the answer is a spatially uniform subset;
-  // when even the top level holds more, its nodes are thinned further and the
-  // answer is cut at the limit.
+  // box hold at most this many by the share of their bounds inside it, so the
+  // answer is a spatially uniform subset; when even the top level holds more,
+  // its nodes are decoded at a coarser level of detail. When the rows read
+  // then hold more than the limit in the box (counted exactly: those crossing
+  // the box's faces or the polygon's edges, or read at a level of detail, are
+  // decoded once beforehand), each keeps its share of the limit, evenly
+  // spread over its points: exactly the limit comes back, thinned alike
+  // everywhere in the box, the same points whatever the threads
+  // (format-spec/archive.md §9).
   std::uint64_t max_points = 0;
   // The attributes each batch carries beyond x, y and z: the archive's
   // that this set names (default: all). Chunks skip decoding the others
