@@ -579,11 +579,16 @@ struct NearModels {
 };
 
 // Points in quarter-node units relative to the node, as the plane sums count
-// them: at most 8 per node before it and one per node after.
+// them: at most 8 per node before it and one per node after. By axis, so that
+// the distances below are computed several points at a time.
 constexpr std::size_t kMaxNearPoints = 8 * kPlaneWindow + kPlaneWindow;
 struct NearPoints {
   std::size_t n = 0;
-  std::int32_t p[kMaxNearPoints][3];
+  std::int32_t c[3][kMaxNearPoints];
+  void add(std::int32_t x, std::int32_t y, std::int32_t z) {
+    c[0][n] = x, c[1][n] = y, c[2][n] = z;
+    ++n;
+  }
 };
 
 // The near class of an index bit along axis a, the child's coordinates so far
@@ -591,18 +596,21 @@ struct NearPoints {
 // distance from the centre of half h (2 h + 1 along a, `at` on the others) to
 // a point, m = |d_1 - d_0| and r = min(d_0, d_1): 1 + (d_1 > d_0) + 2 q +
 // 8 (r < 24), q = 0 for m = 0, 1 for m < 8, 2 for m < 32, else 3. `strong`
-// is set when q >= 2. (Squared distances stay below 3 * 22^2.)
+// is set when q >= 2. (Coordinates lie within -15..19, so squared distances
+// are at most 3 * 18^2.)
 int near_class(const NearPoints& np, int a, const std::int64_t* at, bool& strong) {
   strong = false;
   if (np.n == 0) return 0;
   const int u = a == 0 ? 1 : 0, v = a == 2 ? 1 : 2;
   const auto cu = static_cast<std::int32_t>(at[u]), cv = static_cast<std::int32_t>(at[v]);
+  const std::int32_t* const pu = np.c[u];
+  const std::int32_t* const pv = np.c[v];
+  const std::int32_t* const pa = np.c[a];
   std::int32_t d0 = INT32_MAX, d1 = INT32_MAX;
   for (std::size_t j = 0; j < np.n; ++j) {
-    const std::int32_t* p = np.p[j];
-    const std::int32_t eu = p[u] - cu, ev = p[v] - cv;
+    const std::int32_t eu = pu[j] - cu, ev = pv[j] - cv;
     const std::int32_t side = eu * eu + ev * ev;
-    const std::int32_t e0 = p[a] - 1, e1 = p[a] - 3;
+    const std::int32_t e0 = pa[j] - 1, e1 = pa[j] - 3;
     d0 = std::min(d0, side + e0 * e0);
     d1 = std::min(d1, side + e1 * e1);
   }
@@ -1012,14 +1020,12 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
                                        4 * (cell[2][j] - z) + 1};
             for (unsigned bits = occ[j]; bits != 0; bits &= bits - 1) {
               const int k = std::countr_zero(bits);
-              std::int32_t* q = near.p[near.n++];
-              q[0] = o[0] + 2 * (k & 1), q[1] = o[1] + (k & 2), q[2] = o[2] + ((k >> 1) & 2);
+              near.add(o[0] + 2 * (k & 1), o[1] + (k & 2), o[2] + ((k >> 1) & 2));
             }
           }
           for (std::uint64_t b = near_after; b != 0; b &= b - 1) {
             const std::size_t j = i + 1 + static_cast<std::size_t>(std::countr_zero(b));
-            std::int32_t* q = near.p[near.n++];
-            q[0] = 4 * (cell[0][j] - x) + 2, q[1] = 4 * (cell[1][j] - y) + 2, q[2] = 4 * (cell[2][j] - z) + 2;
+            near.add(4 * (cell[0][j] - x) + 2, 4 * (cell[1][j] - y) + 2, 4 * (cell[2][j] - z) + 2);
           }
         }
       };
