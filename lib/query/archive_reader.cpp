@@ -310,6 +310,11 @@ class Reader final : public ArchiveReader {
     return share;
   }
 
+  // A max_points query reads a level (or the top's rows whole) estimated at
+  // up to this many times the limit, and thins it to the limit, before it
+  // takes a coarser level or a level of detail from the base layer.
+  static constexpr double kMaxPointsOverread = 4.0;
+
   // What a query reads: chunk and pyramid rows, each with the level of
   // detail to decode it at, and a cut for a max_points query that even the
   // top of the pyramid cannot meet.
@@ -417,7 +422,18 @@ class Reader final : public ArchiveReader {
       }
       return points;
     };
+    // The finest level whose estimate fits; or, when that estimate is below
+    // half the limit and the level just finer is estimated at no more than
+    // kMaxPointsOverread times it, that finer one, thinned evenly to the
+    // limit by the exact count (run): a level's estimate falls short or long
+    // by its rows' bounds, and the levels differ by 3x or more, so the
+    // coarser level alone could give the box a small fraction of the points
+    // asked for.
+    const auto cap = static_cast<double>(options.max_points);
+    Plan finer;
+    double finer_estimate = 0;
     double estimate = 0;
+    bool have_finer = false;
     for (const int g : candidates) {
       const auto choose = [g](const ScanPyramid& scan) {
         int best = 0;
@@ -428,17 +444,39 @@ class Reader final : public ArchiveReader {
       };
       RELIEF_ASSIGN_OR_RETURN(plan, gather(base, box, choose, cache));
       estimate = in_box(plan);
-      if (estimate <= static_cast<double>(options.max_points)) {
+      if (estimate <= cap) {
+        if (have_finer && 2 * estimate < cap && finer_estimate <= kMaxPointsOverread * cap)
+          plan = std::move(finer);
         plan.lods.assign(plan.refs.size(), 1);
-        plan.cap = options.max_points;  // the estimate may fall short: never more
+        plan.cap = options.max_points;  // counted exactly and thinned by run: never more
         return plan;
       }
+      // The finest level above the limit so far is the one just finer than
+      // the next candidate.
+      finer = plan;
+      finer_estimate = estimate;
+      have_finer = true;
     }
-    // Even the top holds more: thin every row to about max_points, then cut.
-    const double per_point = std::ceil(estimate / static_cast<double>(options.max_points));
-    const auto lod = static_cast<std::uint32_t>(std::clamp(per_point, 1.0, static_cast<double>(1u << 30)));
-    plan.lods.assign(plan.refs.size(), lod);
     plan.cap = options.max_points;
+    if (estimate <= kMaxPointsOverread * cap) {
+      // Even the top holds more, but not many more: its rows whole, thinned
+      // evenly to the limit by the exact count (their own points, attributes
+      // and all, rather than a level of detail's).
+      plan.lods.assign(plan.refs.size(), 1);
+      return plan;
+    }
+    // Far more: each row at the level of detail that leaves it up to
+    // kMaxPointsOverread times its share of the limit, that share at least
+    // one point (one level of detail for all left every row empty under a
+    // small limit), the level 2 or more (read from the base layer, as cheap
+    // for a row barely in the box as for any), then thinned to the limit by
+    // the exact count.
+    for (const ChunkRef& ref : plan.refs) {
+      const double points = static_cast<double>(ref.decoded_points) * share_inside(ref.bounds, box);
+      const double share = std::max(1.0, std::floor(cap * points / estimate));
+      const double lod = std::floor(points / (kMaxPointsOverread * share));
+      plan.lods.push_back(static_cast<std::uint32_t>(std::clamp(lod, 2.0, static_cast<double>(1u << 30))));
+    }
     return plan;
   }
 

@@ -10,6 +10,8 @@
 #include <limits>
 #include <map>
 #include <random>
+#include <set>
+#include <tuple>
 
 #include "relief/archive.h"
 #include "relief/ingest.h"
@@ -59,6 +61,7 @@ PointCloud run_query(ArchiveReader& r, const Box3d* box, QueryStats* stats, cons
     REQUIRE(b.colors.size() == b.size());
     REQUIRE(b.intensities.size() == b.size());
     all.positions.insert(all.positions.end(), b.positions.begin(), b.positions.end());
+    all.intensities.insert(all.intensities.end(), b.intensities.begin(), b.intensities.end());
     return Status::ok();
   };
   auto s = box ? r.query(*box, o, sink) : r.query_all(o, sink);
@@ -222,18 +225,27 @@ TEST_CASE("max_points picks the finest level that fits and never exceeds the lim
   // Everything fits: every point, from the chunks.
   CHECK(count(1'000'000, stats) == 300000);
   CHECK(stats.pyramid_level == 0);
-  // Exactly a level fits, then one point less: the next level.
+  // Exactly a level fits; one point less: the same level thinned evenly to
+  // the limit (within 4 times it); below a quarter of the level: the next
+  // level when that one fits.
   for (std::size_t i = 0; i + 1 < p.levels.size(); ++i) {
+    CAPTURE(i, p.levels[i].points, p.levels[i + 1].points);
     CHECK(count(p.levels[i].points, stats) == p.levels[i].points);
     CHECK(stats.pyramid_level == p.levels[i].level);
-    CHECK(count(p.levels[i].points - 1, stats) == p.levels[i + 1].points);
-    CHECK(stats.pyramid_level == p.levels[i + 1].level);
+    CHECK(count(p.levels[i].points - 1, stats) == p.levels[i].points - 1);
+    CHECK(stats.pyramid_level == p.levels[i].level);
+    const std::uint64_t quarter = p.levels[i].points / 4 - 1;
+    if (p.levels[i + 1].points <= quarter) {
+      CHECK(count(quarter, stats) == p.levels[i + 1].points);
+      CHECK(stats.pyramid_level == p.levels[i + 1].level);
+    }
   }
-  // Below the top level: thinned, then cut at the limit.
+  // Below the top level: the top's rows whole and thinned to the limit, or
+  // each at a level of detail that leaves it about its share, then thinned:
+  // the limit exactly, one point too.
   for (const std::uint64_t limit : {std::uint64_t{1}, std::uint64_t{100}, p.levels.back().points - 1}) {
-    const std::size_t got = count(limit, stats);
-    CHECK(got <= limit);
-    CHECK(got * 4 >= limit);
+    CAPTURE(limit);
+    CHECK(count(limit, stats) == limit);
     CHECK(stats.pyramid_level == p.levels.back().level);
   }
   QueryOptions both;
@@ -344,6 +356,66 @@ TEST_CASE("max_points thins every part of the box alike when the rows' bounds ov
         const PointCloud again = run_query(**reader, &box, nullptr, o);
         CHECK(again.positions == got.positions);
       }
+    }
+  }
+}
+
+TEST_CASE("max_points near the box's count reads the points themselves, and a small limit is met too",
+          "[pyramid]") {
+  // 8 x 8 m in 2 m chunks; in every chunk 40 % of the points lie in its
+  // first 0.2 m along x, the rest uniform, so a box from 0.3 to 1.9 m along
+  // x overstates the chunks' share of it (0.8 of their bounds, 0.48 of their
+  // points). A limit at or just below the box's count was met from a
+  // coarser level or the base layer's level of detail: a fraction of the
+  // points, not the points (LAS attributes zero); a limit of 1 came back
+  // empty.
+  TempDir tmp;
+  std::mt19937_64 random(17);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  PointCloud cloud;
+  for (int i = 0; i < 40000; ++i) {
+    const double cx = 2.0 * static_cast<double>(i % 4), cy = 2.0 * static_cast<double>((i / 4) % 4);
+    const double lx = i % 5 < 2 ? 0.2 * unit(random) : 2.0 * unit(random);
+    cloud.positions.push_back({cx + lx, cy + 2.0 * unit(random), unit(random)});
+    cloud.colors.push_back({100, 150, 200});
+    cloud.intensities.push_back(static_cast<float>(i % 1000));
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  const Box3d box{{0.3, -inf, -inf}, {1.9, inf, inf}};
+  for (const PyramidMode mode : {PyramidMode::kOff, PyramidMode::kOn}) {
+    CAPTURE(mode);
+    IngestOptions io = options(mode);
+    io.codec.cell_size = 0.02;
+    io.allow_sparse = true;
+    auto reader = ArchiveReader::open(build(tmp, mode == PyramidMode::kOn ? "on" : "off", cloud, io));
+    REQUIRE(reader.is_ok());
+    const PointCloud all = run_query(**reader, &box, nullptr, QueryOptions{});
+    REQUIRE(all.size() > 3000);
+    std::set<std::pair<std::tuple<double, double, double>, float>> points;
+    for (std::size_t i = 0; i < all.size(); ++i) {
+      points.insert({{all.positions[i].x, all.positions[i].y, all.positions[i].z}, all.intensities[i]});
+    }
+    for (const std::uint64_t limit : {std::uint64_t{all.size()}, std::uint64_t{all.size() - 1}}) {
+      CAPTURE(limit);
+      QueryOptions o;
+      o.max_points = limit;
+      QueryStats stats;
+      const PointCloud got = run_query(**reader, &box, &stats, o);
+      CHECK(got.size() == limit);
+      CHECK(stats.pyramid_level == 0);
+      // The box's own points, intensities and all.
+      std::size_t own = 0;
+      for (std::size_t i = 0; i < got.size(); ++i) {
+        own +=
+            points.count({{got.positions[i].x, got.positions[i].y, got.positions[i].z}, got.intensities[i]});
+      }
+      CHECK(own == got.size());
+    }
+    for (const std::uint64_t limit : {1, 2, 7}) {
+      CAPTURE(limit);
+      QueryOptions o;
+      o.max_points = limit;
+      CHECK(run_query(**reader, &box, nullptr, o).size() == limit);
     }
   }
 }

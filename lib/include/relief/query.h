@@ -44,9 +44,12 @@ struct QueryOptions {
   bool last_returns = false;
   // At most this many points (0 = no limit; then `lod` must be 1): the
   // finest level of the pyramid (or the chunks themselves) whose nodes in the
-  // box hold at most this many by the share of their bounds inside it, so the
-  // answer is a spatially uniform subset; when even the top level holds more,
-  // its nodes are decoded at a coarser level of detail. When the rows read
+  // box hold at most this many by the share of their bounds inside it (or
+  // the level just finer, when that one's estimate is at most 4 times the
+  // limit and the fitting level's below half of it), so the answer is a
+  // spatially uniform subset; when even the top level holds more, its nodes
+  // whole (up to 4 times the limit), or each at the level of detail that
+  // leaves it a few times its share of the limit. When the rows read
   // then hold more than the limit in the box (counted exactly: those crossing
   // the box's faces or the polygon's edges, or read at a level of detail, are
   // decoded once beforehand), each keeps its share of the limit, evenly
