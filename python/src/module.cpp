@@ -542,6 +542,13 @@ py::array synthetic_las_batch(std::size_t n, std::uint32_t las, std::uint32_t ex
 PYBIND11_MODULE(_relief, m) {
   m.doc() = "C++ side of the relief package (use `import relief`).";
   m.attr("__version__") = RELIEF_VERSION;
+  // pybind11 (2.10, Debian 12) looks numpy's C API up on first use inside a
+  // function-local static whose guard it holds while it imports numpy, which
+  // can let another thread take the GIL: two threads making their first
+  // array at once then wait on each other for ever (the guard and the GIL;
+  // fixed upstream in pybind11 2.12). Looked up here, while the module is
+  // imported, so no query makes the first array.
+  (void)py::array_t<std::uint8_t>(0);
   m.def("_set_error_factory", [](py::object f) { error_factory = new py::object(std::move(f)); });
   m.def("status_codes", [] {
     py::dict d;

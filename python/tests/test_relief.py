@@ -1044,3 +1044,35 @@ def test_check_an_intact_and_a_damaged_archive(tmp_path, scene):
     (tmp_path / "not.relief").write_bytes(b"hello")
     with pytest.raises(relief.FormatError):
         relief.check(tmp_path / "not.relief")
+
+
+_FIRST_QUERIES_SCRIPT = r"""
+import sys, threading
+import relief
+path = sys.argv[1]
+def work():
+    with relief.open(path) as a:
+        sum(len(b) for b in a.query(batches=True))
+        len(a.query())
+threads = [threading.Thread(target=work) for _ in range(3)]
+for t in threads:
+    t.start()
+for t in threads:
+    t.join()
+print("done")
+"""
+
+
+def test_threads_making_their_first_queries_at_once_do_not_wait_on_each_other(tmp_path):
+    # pybind11 2.10 looked numpy's C API up on the first array made, holding a
+    # static's guard while importing numpy: two threads making their first
+    # arrays at once could wait on each other for ever (3 of 3 runs on the
+    # aerial tile's archive hung before the module made one at import). A
+    # fresh interpreter, so that no array has been made yet.
+    write_ply(tmp_path / "a.ply", make_scene(n=60000, seed=13))
+    relief.compress(str(tmp_path / "a.ply"), str(tmp_path / "a.relief"), chunk_edge=2.0)
+    for _ in range(3):
+        r = subprocess.run([sys.executable, "-c", _FIRST_QUERIES_SCRIPT, str(tmp_path / "a.relief")],
+                           capture_output=True, text=True, timeout=120, env=dict(os.environ))
+        assert r.returncode == 0, r.stderr
+        assert r.stdout.strip() == "done"
