@@ -281,6 +281,32 @@ TEST_CASE("max_points in a small box counts the rows' points inside it", "[pyram
   CHECK(stats.pyramid_level == 0);
 }
 
+// 40,000 points at `at(i, unit)` (unit() a uniform draw in [0, 1), seeded),
+// one colour, intensity i % 1000: the max_points tests' clouds.
+template <typename At>
+PointCloud sampled_cloud(std::uint64_t seed, At at) {
+  std::mt19937_64 random(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  const auto unit = [&] { return uniform(random); };
+  PointCloud cloud;
+  for (int i = 0; i < 40000; ++i) {
+    cloud.positions.push_back(at(i, unit));
+    cloud.colors.push_back({100, 150, 200});
+    cloud.intensities.push_back(static_cast<float>(i % 1000));
+  }
+  return cloud;
+}
+
+// `cloud` in 2 m chunks of 0.02 m cells, with or without its pyramid.
+std::unique_ptr<ArchiveReader> open_fine(const TempDir& tmp, const PointCloud& cloud, PyramidMode mode) {
+  IngestOptions io = options(mode);
+  io.codec.cell_size = 0.02;
+  io.allow_sparse = true;
+  auto reader = ArchiveReader::open(build(tmp, mode == PyramidMode::kOn ? "on" : "off", cloud, io));
+  REQUIRE(reader.is_ok());
+  return std::move(*reader);
+}
+
 TEST_CASE("max_points thins every part of the box alike when the rows' bounds overstate their share of it",
           "[pyramid]") {
   // 8 x 8 m in 2 m chunks, points uniform in x and y and in z 0..1 but for
@@ -289,23 +315,15 @@ TEST_CASE("max_points thins every part of the box alike when the rows' bounds ov
   // than the limit and was cut at it: the last chunks' corner of the box
   // came back empty.
   TempDir tmp;
-  std::mt19937_64 random(11);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  PointCloud cloud;
-  for (int i = 0; i < 40000; ++i) {
-    cloud.positions.push_back({8 * unit(random), 8 * unit(random), i % 50 == 0 ? 1.9 : unit(random)});
-    cloud.colors.push_back({100, 150, 200});
-    cloud.intensities.push_back(500.0f);
-  }
+  const PointCloud cloud = sampled_cloud(11, [](int i, const auto& unit) {
+    const double x = 8 * unit(), y = 8 * unit();
+    return Vec3d{x, y, i % 50 == 0 ? 1.9 : unit()};
+  });
   const double inf = std::numeric_limits<double>::infinity();
   const Box3d box{{-inf, -inf, -1.0}, {inf, inf, 1.0}};
   for (const PyramidMode mode : {PyramidMode::kOff, PyramidMode::kOn}) {
-    IngestOptions io = options(mode);
-    io.codec.cell_size = 0.02;
-    io.allow_sparse = true;
-    auto reader = ArchiveReader::open(build(tmp, mode == PyramidMode::kOn ? "on" : "off", cloud, io));
-    REQUIRE(reader.is_ok());
-    const PointCloud all = run_query(**reader, &box, nullptr, QueryOptions{});
+    const std::unique_ptr<ArchiveReader> reader = open_fine(tmp, cloud, mode);
+    const PointCloud all = run_query(*reader, &box, nullptr, QueryOptions{});
     REQUIRE(all.size() > 35000);
     // Points by 2 x 2 m cell (a chunk's area) and by quadrant of the box.
     const auto cells = [](const PointCloud& c) {
@@ -328,7 +346,7 @@ TEST_CASE("max_points thins every part of the box alike when the rows' bounds ov
       QueryOptions o;
       o.max_points = static_cast<std::uint64_t>(fraction * static_cast<double>(all.size()));
       QueryStats stats;
-      const PointCloud got = run_query(**reader, &box, &stats, o);
+      const PointCloud got = run_query(*reader, &box, &stats, o);
       CHECK(got.size() <= o.max_points);
       // (A pyramid level may hold far fewer: levels differ by a factor.)
       if (stats.pyramid_level == 0) CHECK(got.size() * 2 >= o.max_points);
@@ -353,7 +371,7 @@ TEST_CASE("max_points thins every part of the box alike when the rows' bounds ov
       // The same points whatever the threads.
       for (const unsigned threads : {1u, 3u}) {
         o.threads = threads;
-        const PointCloud again = run_query(**reader, &box, nullptr, o);
+        const PointCloud again = run_query(*reader, &box, nullptr, o);
         CHECK(again.positions == got.positions);
       }
     }
@@ -370,26 +388,18 @@ TEST_CASE("max_points near the box's count reads the points themselves, and a sm
   // points, not the points (LAS attributes zero); a limit of 1 came back
   // empty.
   TempDir tmp;
-  std::mt19937_64 random(17);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  PointCloud cloud;
-  for (int i = 0; i < 40000; ++i) {
+  const PointCloud cloud = sampled_cloud(17, [](int i, const auto& unit) {
     const double cx = 2.0 * static_cast<double>(i % 4), cy = 2.0 * static_cast<double>((i / 4) % 4);
-    const double lx = i % 5 < 2 ? 0.2 * unit(random) : 2.0 * unit(random);
-    cloud.positions.push_back({cx + lx, cy + 2.0 * unit(random), unit(random)});
-    cloud.colors.push_back({100, 150, 200});
-    cloud.intensities.push_back(static_cast<float>(i % 1000));
-  }
+    const double lx = i % 5 < 2 ? 0.2 * unit() : 2.0 * unit();
+    const double y = cy + 2.0 * unit();
+    return Vec3d{cx + lx, y, unit()};
+  });
   const double inf = std::numeric_limits<double>::infinity();
   const Box3d box{{0.3, -inf, -inf}, {1.9, inf, inf}};
   for (const PyramidMode mode : {PyramidMode::kOff, PyramidMode::kOn}) {
     CAPTURE(mode);
-    IngestOptions io = options(mode);
-    io.codec.cell_size = 0.02;
-    io.allow_sparse = true;
-    auto reader = ArchiveReader::open(build(tmp, mode == PyramidMode::kOn ? "on" : "off", cloud, io));
-    REQUIRE(reader.is_ok());
-    const PointCloud all = run_query(**reader, &box, nullptr, QueryOptions{});
+    const std::unique_ptr<ArchiveReader> reader = open_fine(tmp, cloud, mode);
+    const PointCloud all = run_query(*reader, &box, nullptr, QueryOptions{});
     REQUIRE(all.size() > 3000);
     std::set<std::pair<std::tuple<double, double, double>, float>> points;
     for (std::size_t i = 0; i < all.size(); ++i) {
@@ -400,7 +410,7 @@ TEST_CASE("max_points near the box's count reads the points themselves, and a sm
       QueryOptions o;
       o.max_points = limit;
       QueryStats stats;
-      const PointCloud got = run_query(**reader, &box, &stats, o);
+      const PointCloud got = run_query(*reader, &box, &stats, o);
       CHECK(got.size() == limit);
       CHECK(stats.pyramid_level == 0);
       // The box's own points, intensities and all.
@@ -415,7 +425,7 @@ TEST_CASE("max_points near the box's count reads the points themselves, and a sm
       CAPTURE(limit);
       QueryOptions o;
       o.max_points = limit;
-      CHECK(run_query(**reader, &box, nullptr, o).size() == limit);
+      CHECK(run_query(*reader, &box, nullptr, o).size() == limit);
     }
   }
 }
