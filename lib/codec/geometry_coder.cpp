@@ -642,8 +642,8 @@ struct GeometryModels {
   BitModel chain_flag[kChainFlagContexts];
   BitModel duplicate[kCountContexts];
   UIntModel extra;
-  std::unique_ptr<MixedModels> mixed;  // codecs 8, 11 and 12
-  std::unique_ptr<FaceModels> faces;   // codecs 12 and 13
+  std::unique_ptr<MixedModels> mixed;   // codecs 8 and 11 to 14
+  std::unique_ptr<FaceModels> faces;    // codecs 12 to 14
   std::unique_ptr<PlaneModels> planes;  // codecs 13 and 14
   std::unique_ptr<NearModels> near;     // codec 14
 };
@@ -851,8 +851,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
   constexpr bool three = kMixing >= 2;
   constexpr bool plane = kMixing >= 3;
   constexpr bool nearest = kMixing == 4;
-  MixedModels* const mm = models.mixed.get();   // codec 8's, 11's, 12's and 13's, else null
-  FaceModels* const fm = models.faces.get();    // codec 12's and 13's, else null
+  MixedModels* const mm = models.mixed.get();   // codec 8's and 11's to 14's, else null
+  FaceModels* const fm = models.faces.get();    // codec 12's to 14's, else null
   PlaneModels* const pm = models.planes.get();  // codec 13's and 14's, else null
   NearModels* const nm = models.near.get();     // codec 14's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
@@ -1039,10 +1039,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
             const int cls = plane_class(sums, a, at[a == 0 ? 1 : 0], at[a == 2 ? 1 : 2]);
             BitModel* m;
             if constexpr (nearest) {
-              m = &nm->chain_index[((t * kIndexClasses + index_class(cls, a, near, at)) * 3 + plane_pred[a] +
-                                    1) *
-                                       4 +
-                                   to_leaves];
+              const int index_cls = index_class(cls, a, near, at);
+              m = &nm->chain_index[((t * kIndexClasses + index_cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves];
             } else {
               m = &pm->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves];
             }
@@ -1109,10 +1107,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
               if constexpr (plane) {
                 const int cls = plane_class(sums, a, at[a == 0 ? 1 : 0], at[a == 2 ? 1 : 2]);
                 if constexpr (nearest) {
-                  apm = &nm->index_apm[((t * kIndexClasses + index_class(cls, a, near, at)) * 3 +
-                                        plane_pred[a] + 1) *
-                                           2 +
-                                       minus];
+                  const int index_cls = index_class(cls, a, near, at);
+                  apm = &nm->index_apm[((t * kIndexClasses + index_cls) * 3 + plane_pred[a] + 1) * 2 + minus];
                 } else {
                   apm = &pm->index_apm[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 2 + minus];
                 }
