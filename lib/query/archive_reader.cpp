@@ -411,6 +411,9 @@ class Reader final : public ArchiveReader {
     // of its bounds inside the box (exact for a row wholly inside; the rows'
     // whole counts chose levels far coarser than a box needs). Rows a
     // polygon leaves out are not read: they do not count.
+    const auto row_in_box = [&](const ChunkRef& ref) {
+      return static_cast<double>(ref.decoded_points) * share_inside(ref.bounds, box);
+    };
     const auto in_box = [&](const Plan& p) {
       double points = 0;
       for (const ChunkRef& ref : p.refs) {
@@ -418,7 +421,7 @@ class Reader final : public ArchiveReader {
             (ref.bounds.empty() || options.polygon->classify(ref.bounds) == Polygon2D::Overlap::kOutside)) {
           continue;
         }
-        points += static_cast<double>(ref.decoded_points) * share_inside(ref.bounds, box);
+        points += row_in_box(ref);
       }
       return points;
     };
@@ -472,7 +475,7 @@ class Reader final : public ArchiveReader {
     // for a row barely in the box as for any), then thinned to the limit by
     // the exact count.
     for (const ChunkRef& ref : plan.refs) {
-      const double points = static_cast<double>(ref.decoded_points) * share_inside(ref.bounds, box);
+      const double points = row_in_box(ref);
       const double share = std::max(1.0, std::floor(cap * points / estimate));
       const double lod = std::floor(points / (kMaxPointsOverread * share));
       plan.lods.push_back(static_cast<std::uint32_t>(std::clamp(lod, 2.0, static_cast<double>(1u << 30))));
