@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <string>
 
 #include "relief/io.h"
 
@@ -38,6 +39,23 @@ bool grid_is_las_sources(const ArchiveInfo& info, const Vec3d& step, const Vec3d
     }
   }
   return true;
+}
+
+// What the query read, for its summary line: the level of detail of its rows
+// (a range when a max_points plan gave them different ones), the pyramid
+// level it read from, and whether it thinned its points to the limit.
+std::string plan_summary(const QueryStats& stats, const QueryOptions& options) {
+  std::string text = "lod ";
+  if (stats.lod_max == 0) {
+    text += std::to_string(options.lod);  // no row was read
+  } else if (stats.lod_min == stats.lod_max) {
+    text += std::to_string(stats.lod_min);
+  } else {
+    text += std::to_string(stats.lod_min) + "-" + std::to_string(stats.lod_max) + " by chunk";
+  }
+  if (stats.pyramid_level > 0) text += ", up to pyramid level " + std::to_string(stats.pyramid_level);
+  if (stats.thinned) text += ", thinned evenly to " + std::to_string(options.max_points);
+  return text;
 }
 
 }  // namespace
@@ -190,13 +208,14 @@ int run_query_to_file(const std::string& command, const std::string& archive_pat
   }
   const double secs = seconds_since(t0);
   if (!quiet && out_path != "-") {
-    std::fprintf(stderr,
-                 "%s: %llu points from %llu of %llu chunks (%s read, %llu skipped), lod %u, %.3f s, %.2f M points/s\n",
-                 out_path.c_str(), static_cast<unsigned long long>(stats->points),
-                 static_cast<unsigned long long>(stats->chunks_decoded),
-                 static_cast<unsigned long long>(info.chunk_count), format_bytes(stats->blob_bytes_read).c_str(),
-                 static_cast<unsigned long long>(stats->chunks_skipped), options.lod, secs,
-                 secs > 0 ? static_cast<double>(stats->points) / secs * 1e-6 : 0.0);
+    std::fprintf(
+        stderr,
+        "%s: %llu points from %llu of %llu chunks (%s read, %llu skipped), %s, %.3f s, %.2f M points/s\n",
+        out_path.c_str(), static_cast<unsigned long long>(stats->points),
+        static_cast<unsigned long long>(stats->chunks_decoded),
+        static_cast<unsigned long long>(info.chunk_count), format_bytes(stats->blob_bytes_read).c_str(),
+        static_cast<unsigned long long>(stats->chunks_skipped), plan_summary(*stats, options).c_str(), secs,
+        secs > 0 ? static_cast<double>(stats->points) / secs * 1e-6 : 0.0);
   }
   return kExitOk;
 }

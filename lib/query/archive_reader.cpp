@@ -521,6 +521,11 @@ class Reader final : public ArchiveReader {
     // A filter needs every point's LAS attributes: the full layer, with the
     // level of detail applied to the matching points here.
     const std::uint32_t every = filter.any() ? options.lod : 1;
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+      const std::uint32_t lod = filter.any() ? every : plan.lods[i];
+      stats.lod_min = i == 0 ? lod : std::min(stats.lod_min, lod);
+      stats.lod_max = std::max(stats.lod_max, lod);
+    }
     // What the chunks decode: the attributes asked for and those the filters read.
     // (The colour low bytes go with the colours.)
     AttributeSet decoded = options.attributes;
@@ -552,11 +557,15 @@ class Reader final : public ArchiveReader {
         s.status = row.status();
       }
     };
-    const auto decode = [&](std::size_t, Slot& s) {
+    // The counting pass of a max_points query needs only how many points
+    // each row has in the box: x y z and what the filters read.
+    AttributeSet counted = AttributeSet::none();
+    counted.las = filter.bits;
+    const auto decode_as = [&](Slot& s, const AttributeSet& attributes) {
       if (!s.status) return;
       DecodeOptions dec;
       dec.lod = s.lod;
-      dec.attributes = decoded;
+      dec.attributes = attributes;
       auto pts = decode_chunk(s.blob, dec);
       std::vector<std::uint8_t>().swap(s.blob);
       if (!pts) {
@@ -567,7 +576,7 @@ class Reader final : public ArchiveReader {
       s.points = std::move(pts).value();
       // Every batch carries the archive's LAS attributes, whatever the
       // chunk's scan or layer had.
-      conform_las_attributes(s.points, info_.las_attributes & decoded.las, info_.extra_bytes_size);
+      conform_las_attributes(s.points, info_.las_attributes & attributes.las, info_.extra_bytes_size);
       if (lows_are_colors_ && !s.points.las.color_low.empty()) s.points.las.color_low = s.points.colors;
       if (filter.any() || s.crossed) {
         select(s.points, box, !contains(box, s.ref.bounds), filter, every, s.crossed ? options.polygon.get() : nullptr);
@@ -576,6 +585,8 @@ class Reader final : public ArchiveReader {
       }
       keep_attributes(s.points, options.attributes);
     };
+    const auto decode = [&](std::size_t, Slot& s) { decode_as(s, decoded); };
+    const auto count = [&](std::size_t, Slot& s) { decode_as(s, counted); };
     // A max_points query whose rows hold more points in the box than the
     // limit: each row keeps its quota, evenly spread over its points.
     std::vector<std::uint64_t> in_box, quota;
@@ -602,13 +613,14 @@ class Reader final : public ArchiveReader {
       }
       if (!bounded || most > plan.cap) {
         RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(
-            uncertain.size(), threads, wave, [&](std::size_t k, Slot& s) { read(uncertain[k], s); }, decode,
+            uncertain.size(), threads, wave, [&](std::size_t k, Slot& s) { read(uncertain[k], s); }, count,
             [&](std::size_t, Slot& s, bool&) -> Status {
               if (!s.status && !options.skip_corrupt) return s.status;
               in_box[s.index] = s.status ? s.points.size() : 0;  // skipped (and reported) by the second pass
               return Status::ok();
             }));
         quota = quotas(in_box, plan.cap);
+        stats.thinned = !quota.empty();
       }
     }
     const auto decode_and_thin = [&](std::size_t i, Slot& s) {

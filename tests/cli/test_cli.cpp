@@ -404,6 +404,23 @@ TEST_CASE("query and decompress: LAS output keeps coordinates within the scale",
   }
   CHECK(worst <= 0.00005 + 1e-12);  // half the 0.1 mm scale
   CHECK(las->colors == ply->colors);
+  // The summary line says what was read: the level of detail, and whether a
+  // point limit thinned the points (it said "lod 1" whatever the plan).
+  const std::string q =
+      "query " + tmp.file("k.relief") + " --box -0.5,-0.2,-2.1,0.5,0.5,-0.5 -o " + tmp.file("s.ply");
+  const Run whole = run(q);
+  REQUIRE(whole.code == 0);
+  CHECK(whole.output.find(std::to_string(ply->size()) + " points from") != std::string::npos);
+  CHECK(whole.output.find(", lod 1, ") != std::string::npos);
+  CHECK(whole.output.find("thinned") == std::string::npos);
+  const Run coarse = run(q + " --lod 8");
+  REQUIRE(coarse.code == 0);
+  CHECK(coarse.output.find(", lod 8, ") != std::string::npos);
+  const Run limited = run(q + " --max-points " + std::to_string(ply->size() - 10));
+  REQUIRE(limited.code == 0);
+  CHECK(limited.output.find(std::to_string(ply->size() - 10) + " points from") != std::string::npos);
+  CHECK(limited.output.find(", lod 1, thinned evenly to " + std::to_string(ply->size() - 10) + ", ") !=
+        std::string::npos);
   // decompress to stdout as XYZ text.
   const Run d = run("decompress " + tmp.file("k.relief") + " -o - --quiet");
   CHECK(d.code == 0);

@@ -205,9 +205,14 @@ TEST_CASE("a coarse query reads the pyramid: far fewer bytes, about 1/L of the p
     run_query(**reader, &box, &direct, o);
     CHECK(direct.pyramid_level == 0);
     CHECK(direct.blob_bytes_read == full_stats.blob_bytes_read);
+    CHECK(direct.lod_min == lod);
+    CHECK(direct.lod_max == lod);
+    CHECK_FALSE(direct.thinned);
   }
   // lod 1 never reads the pyramid.
   CHECK(full_stats.pyramid_level == 0);
+  CHECK(full_stats.lod_min == 1);
+  CHECK(full_stats.lod_max == 1);
 }
 
 TEST_CASE("max_points picks the finest level that fits and never exceeds the limit", "[pyramid]") {
@@ -413,6 +418,11 @@ TEST_CASE("max_points near the box's count reads the points themselves, and a sm
       const PointCloud got = run_query(*reader, &box, &stats, o);
       CHECK(got.size() == limit);
       CHECK(stats.pyramid_level == 0);
+      // Read whole, and thinned only below the box's count (what the CLI's
+      // summary line says).
+      CHECK(stats.lod_min == 1);
+      CHECK(stats.lod_max == 1);
+      CHECK(stats.thinned == (limit < all.size()));
       // The box's own points, intensities and all.
       std::size_t own = 0;
       for (std::size_t i = 0; i < got.size(); ++i) {

@@ -82,6 +82,14 @@ struct QueryStats {
   std::uint64_t points = 0;           // points delivered
   double seconds = 0;
   int pyramid_level = 0;              // coarsest pyramid level read (0: chunks only)
+  // The levels of detail the rows were read at (1: each row's every point;
+  // L: a spatially uniform ~1/L of them, from its base layer or, with a LAS
+  // filter, of the points that match). A max_points plan may give rows
+  // different ones. 0 when no row was read.
+  std::uint32_t lod_min = 0, lod_max = 0;
+  // A max_points query thinned its rows evenly to the limit (their points
+  // in the box were more than max_points).
+  bool thinned = false;
 };
 
 // Batches carry the archive's attributes (ArchiveInfo: colours, intensity,
