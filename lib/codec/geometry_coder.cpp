@@ -547,15 +547,20 @@ struct MixedModels {
   Mixer<12> index_mixer;
 };
 
-// Codec 13's models: index models for chains (plain) and APMs for single
-// children (in place of codec 12's), by tree position t, plane class, the
-// axis's plane memory prediction and the levels to the leaves (chains) or
-// whether the axis's minus neighbour is occupied (single children); the child
-// bits' mixer weight sets (in place of codec 12's), by k, the levels to the
-// leaves and the child's plane class.
+// Codecs 13 and 14: index models for chains (plain) and APMs for single
+// children (in place of codec 12's), by tree position t, the index bit's
+// class (kClasses of them: codec 13's plane classes, codec 14's index
+// classes), the axis's plane memory prediction and the levels to the leaves
+// (chains) or whether the axis's minus neighbour is occupied (single
+// children).
+template <int kClasses>
+struct IndexModels {
+  BitModel chain_index[8 * kClasses * 3 * 4];
+  Apm index_apm[8 * kClasses * 3 * 2];
+};
+// Codec 13's and 14's child bits' mixer weight sets (in place of codec
+// 12's), by k, the levels to the leaves and the child's plane class.
 struct PlaneModels {
-  BitModel chain_index[8 * kPlaneClasses * 3 * 4];
-  Apm index_apm[8 * kPlaneClasses * 3 * 2];
   FaceMixer<32 * kChildPlaneClasses> child_mixer;
 };
 
@@ -571,12 +576,11 @@ constexpr int kNearClasses = 17;
 // (33..80).
 constexpr int kIndexClasses = kPlaneClasses + (kNearClasses - 1) + 3 * (kPlaneClasses - 1);
 
-// Codec 14's models: codec 13's, by its index classes in place of the plane
-// classes (the child bits' weight sets are codec 13's, in PlaneModels).
-struct NearModels {
-  BitModel chain_index[8 * kIndexClasses * 3 * 4];
-  Apm index_apm[8 * kIndexClasses * 3 * 2];
-};
+// Codec 14's index models are codec 13's by its index classes in place of
+// the plane classes (the child bits' weight sets are codec 13's, in
+// PlaneModels); each codec allocates only its own.
+using PlaneIndexModels = IndexModels<kPlaneClasses>;
+using NearModels = IndexModels<kIndexClasses>;
 
 // Points in quarter-node units relative to the node, as the plane sums count
 // them: at most 8 per node before it and one per node after. By axis, so that
@@ -645,7 +649,8 @@ struct GeometryModels {
   std::unique_ptr<MixedModels> mixed;   // codecs 8 and 11 to 14
   std::unique_ptr<FaceModels> faces;    // codecs 12 to 14
   std::unique_ptr<PlaneModels> planes;  // codecs 13 and 14
-  std::unique_ptr<NearModels> near;     // codec 14
+  std::unique_ptr<PlaneIndexModels> plane_index;  // codec 13
+  std::unique_ptr<NearModels> near;               // codec 14
 };
 
 // Visits every node of levels 0..depth-1 and codes its 8 child bits through
@@ -854,7 +859,8 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
   MixedModels* const mm = models.mixed.get();   // codec 8's and 11's to 14's, else null
   FaceModels* const fm = models.faces.get();    // codec 12's to 14's, else null
   PlaneModels* const pm = models.planes.get();  // codec 13's and 14's, else null
-  NearModels* const nm = models.near.get();     // codec 14's, else null
+  PlaneIndexModels* const pim = models.plane_index.get();  // codec 13's, else null
+  NearModels* const nm = models.near.get();                // codec 14's, else null
   const bool single_mode = coding == OctreeCoding::kSingleChild || mixed;
   const bool chains = coding == OctreeCoding::kChains || coding == OctreeCoding::kFacePatterns ||
                       coding == OctreeCoding::kPlanes || coding == OctreeCoding::kNearest;
@@ -1042,7 +1048,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
               const int index_cls = index_class(cls, a, near, at);
               m = &nm->chain_index[((t * kIndexClasses + index_cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves];
             } else {
-              m = &pm->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves];
+              m = &pim->chain_index[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 4 + to_leaves];
             }
             const int bit = code(*m, (truth_k >> a) & 1);
             at[a] = 2 * bit + 1;
@@ -1110,7 +1116,7 @@ bool code_octree_impl(int depth, OctreeCoding coding, GeometryModels& models, st
                   const int index_cls = index_class(cls, a, near, at);
                   apm = &nm->index_apm[((t * kIndexClasses + index_cls) * 3 + plane_pred[a] + 1) * 2 + minus];
                 } else {
-                  apm = &pm->index_apm[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 2 + minus];
+                  apm = &pim->index_apm[((t * kPlaneClasses + cls) * 3 + plane_pred[a] + 1) * 2 + minus];
                 }
               } else {
                 apm = &fm->index_apm[t << 3 | (plane_pred[a] + 1) << 1 | minus];
@@ -1245,6 +1251,7 @@ bool code_octree(int depth, OctreeCoding coding, GeometryModels& models, std::ve
     models.mixed = std::make_unique<MixedModels>();
     models.faces = std::make_unique<FaceModels>();
     models.planes = std::make_unique<PlaneModels>();
+    models.plane_index = std::make_unique<PlaneIndexModels>();
     return code_octree_impl<3>(depth, coding, models, nodes, code, code_prob, true_byte, true_chain, grow);
   }
   if (coding == OctreeCoding::kFacePatterns) {
