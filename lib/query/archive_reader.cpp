@@ -323,6 +323,9 @@ class Reader final : public ArchiveReader {
     std::vector<std::uint32_t> lods;
     std::uint64_t cap = 0;  // 0 = none
     int level = 0;
+    // A max_points plan's finer levels, the next finer first, each read
+    // whole, for when this one's exact count falls short of the limit.
+    std::vector<Plan> finer;
   };
 
   // The pyramid rows of `level` in the box, of the scans whose pyramid
@@ -433,10 +436,33 @@ class Reader final : public ArchiveReader {
     // coarser level alone could give the box a small fraction of the points
     // asked for.
     const auto cap = static_cast<double>(options.max_points);
-    Plan finer;
-    double finer_estimate = 0;
+    // A level's rows whole when the level is estimated at up to
+    // kMaxPointsOverread times the limit (thinned evenly to the limit by the
+    // exact count: their own points, attributes and all, rather than a level
+    // of detail's). Far more: each row at the level of detail that leaves it
+    // up to kMaxPointsOverread times its share of the limit, that share at
+    // least one point (one level of detail for all left every row empty
+    // under a small limit), the level 2 or more (read from the base layer, as
+    // cheap for a row barely in the box as for any), then thinned to the
+    // limit by the exact count.
+    const auto set_lods = [&](Plan& p, double estimate) {
+      p.cap = options.max_points;  // counted exactly and thinned by run: never more
+      p.lods.clear();
+      if (estimate <= kMaxPointsOverread * cap) {
+        p.lods.assign(p.refs.size(), 1);
+        return;
+      }
+      for (const ChunkRef& ref : p.refs) {
+        const double points = row_in_box(ref);
+        const double share = std::max(1.0, std::floor(cap * points / estimate));
+        const double lod = std::floor(points / (kMaxPointsOverread * share));
+        p.lods.push_back(static_cast<std::uint32_t>(std::clamp(lod, 2.0, static_cast<double>(1u << 30))));
+      }
+    };
+    // The levels above the limit so far, finest first, with their estimates;
+    // the last is the one just finer than the next candidate.
+    std::vector<std::pair<Plan, double>> above;
     double estimate = 0;
-    bool have_finer = false;
     for (const int g : candidates) {
       const auto choose = [g](const ScanPyramid& scan) {
         int best = 0;
@@ -448,37 +474,30 @@ class Reader final : public ArchiveReader {
       RELIEF_ASSIGN_OR_RETURN(plan, gather(base, box, choose, cache));
       estimate = in_box(plan);
       if (estimate <= cap) {
-        if (have_finer && 2 * estimate < cap && finer_estimate <= kMaxPointsOverread * cap)
-          plan = std::move(finer);
-        plan.lods.assign(plan.refs.size(), 1);
-        plan.cap = options.max_points;  // counted exactly and thinned by run: never more
+        if (!above.empty() && 2 * estimate < cap && above.back().second <= kMaxPointsOverread * cap) {
+          plan = std::move(above.back().first);
+          estimate = above.back().second;
+          above.pop_back();
+        }
+        set_lods(plan, estimate);
+        // The finer levels, next finer first, for when this one, counted
+        // exactly, gives the box fewer points than the limit: its rows'
+        // bounds overstated their share of the box, a coarse level's maps
+        // (one height per pixel) lost what lies above or below a surface, or
+        // a level of detail left a row fewer points than its share.
+        for (auto it = above.rbegin(); it != above.rend(); ++it) {
+          set_lods(plan.finer.emplace_back(std::move(it->first)), it->second);
+        }
         return plan;
       }
-      // The finest level above the limit so far is the one just finer than
-      // the next candidate.
-      finer = plan;
-      finer_estimate = estimate;
-      have_finer = true;
+      above.emplace_back(plan, estimate);
     }
-    plan.cap = options.max_points;
-    if (estimate <= kMaxPointsOverread * cap) {
-      // Even the top holds more, but not many more: its rows whole, thinned
-      // evenly to the limit by the exact count (their own points, attributes
-      // and all, rather than a level of detail's).
-      plan.lods.assign(plan.refs.size(), 1);
-      return plan;
-    }
-    // Far more: each row at the level of detail that leaves it up to
-    // kMaxPointsOverread times its share of the limit, that share at least
-    // one point (one level of detail for all left every row empty under a
-    // small limit), the level 2 or more (read from the base layer, as cheap
-    // for a row barely in the box as for any), then thinned to the limit by
-    // the exact count.
-    for (const ChunkRef& ref : plan.refs) {
-      const double points = row_in_box(ref);
-      const double share = std::max(1.0, std::floor(cap * points / estimate));
-      const double lod = std::floor(points / (kMaxPointsOverread * share));
-      plan.lods.push_back(static_cast<std::uint32_t>(std::clamp(lod, 2.0, static_cast<double>(1u << 30))));
+    // Even the top holds more than the limit (the last of `above`); the
+    // finer levels as above, should its levels of detail give too few.
+    set_lods(plan, estimate);
+    above.pop_back();
+    for (auto it = above.rbegin(); it != above.rend(); ++it) {
+      set_lods(plan.finer.emplace_back(std::move(it->first)), it->second);
     }
     return plan;
   }
@@ -499,33 +518,29 @@ class Reader final : public ArchiveReader {
     RELIEF_ASSIGN_OR_RETURN(Plan plan, make_plan(base, box, options, filter.any()));
     // With a polygon: rows wholly outside it are dropped unread, and only
     // those it crosses are tested point by point.
-    std::vector<bool> crossed(plan.refs.size(), false);
-    if (options.polygon) {
-      Plan kept = plan;
-      kept.refs.clear();
-      kept.lods.clear();
+    std::vector<bool> crossed;
+    const auto restrict_to_polygon = [&] {
+      crossed.assign(plan.refs.size(), false);
+      if (!options.polygon) return;
+      std::vector<ChunkRef> refs;
+      std::vector<std::uint32_t> lods;
       crossed.clear();
       for (std::size_t i = 0; i < plan.refs.size(); ++i) {
         const Polygon2D::Overlap o = plan.refs[i].bounds.empty() ? Polygon2D::Overlap::kOutside
                                                                  : options.polygon->classify(plan.refs[i].bounds);
         if (o == Polygon2D::Overlap::kOutside) continue;
-        kept.refs.push_back(plan.refs[i]);
-        kept.lods.push_back(plan.lods[i]);
+        refs.push_back(plan.refs[i]);
+        lods.push_back(plan.lods[i]);
         crossed.push_back(o == Polygon2D::Overlap::kPartial);
       }
-      plan = std::move(kept);
-    }
-    const std::vector<ChunkRef>& refs = plan.refs;
-    stats.chunks_in_index = refs.size();
-    stats.pyramid_level = plan.level;
+      plan.refs = std::move(refs);
+      plan.lods = std::move(lods);
+    };
+    restrict_to_polygon();
+    const std::vector<ChunkRef>& refs = plan.refs;  // plan may yet become a finer one (below)
     // A filter needs every point's LAS attributes: the full layer, with the
     // level of detail applied to the matching points here.
     const std::uint32_t every = filter.any() ? options.lod : 1;
-    for (std::size_t i = 0; i < refs.size(); ++i) {
-      const std::uint32_t lod = filter.any() ? every : plan.lods[i];
-      stats.lod_min = i == 0 ? lod : std::min(stats.lod_min, lod);
-      stats.lod_max = std::max(stats.lod_max, lod);
-    }
     // What the chunks decode: the attributes asked for and those the filters read.
     // (The colour low bytes go with the colours.)
     AttributeSet decoded = options.attributes;
@@ -590,13 +605,13 @@ class Reader final : public ArchiveReader {
     // A max_points query whose rows hold more points in the box than the
     // limit: each row keeps its quota, evenly spread over its points.
     std::vector<std::uint64_t> in_box, quota;
-    if (plan.cap > 0) {
+    while (plan.cap > 0) {
       // A row's points in the box: its decoded_points when it lies wholly
       // inside the box (and polygon), is decoded whole and filtered by
       // nothing; otherwise counted by decoding it (a first pass over the rows
       // that cross the box's faces or the polygon's edges, as many chunks in
       // memory at once as the query's), unless even every row's whole count
-      // fits the limit.
+      // fits the limit and there is no finer level to fall back on.
       in_box.assign(refs.size(), 0);
       std::vector<std::size_t> uncertain;
       Uint128 most = 0;
@@ -611,7 +626,7 @@ class Reader final : public ArchiveReader {
         bounded = bounded && whole;
         most += refs[i].decoded_points;
       }
-      if (!bounded || most > plan.cap) {
+      if (!bounded || most > plan.cap || !plan.finer.empty()) {
         RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(
             uncertain.size(), threads, wave, [&](std::size_t k, Slot& s) { read(uncertain[k], s); }, count,
             [&](std::size_t, Slot& s, bool&) -> Status {
@@ -619,9 +634,35 @@ class Reader final : public ArchiveReader {
               in_box[s.index] = s.status ? s.points.size() : 0;  // skipped (and reported) by the second pass
               return Status::ok();
             }));
+        Uint128 total = 0;
+        for (const std::uint64_t c : in_box) total += c;
+        // Fewer than the limit (see make_plan): the next finer level, counted
+        // in turn, when its rows are read whole, or when this level gave
+        // fewer than half the limit (then at its rows' levels of detail).
+        const auto read_whole = [](const Plan& p) {
+          return std::all_of(p.lods.begin(), p.lods.end(), [](std::uint32_t l) { return l == 1; });
+        };
+        if (total < plan.cap && !plan.finer.empty() &&
+            (2 * total < plan.cap || read_whole(plan.finer.front()))) {
+          std::vector<Plan> rest(std::make_move_iterator(plan.finer.begin() + 1),
+                                 std::make_move_iterator(plan.finer.end()));
+          Plan next = std::move(plan.finer.front());
+          plan = std::move(next);
+          plan.finer = std::move(rest);
+          restrict_to_polygon();
+          continue;
+        }
         quota = quotas(in_box, plan.cap);
         stats.thinned = !quota.empty();
       }
+      break;
+    }
+    stats.chunks_in_index = refs.size();
+    stats.pyramid_level = plan.level;
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+      const std::uint32_t lod = filter.any() ? every : plan.lods[i];
+      stats.lod_min = i == 0 ? lod : std::min(stats.lod_min, lod);
+      stats.lod_max = std::max(stats.lod_max, lod);
     }
     const auto decode_and_thin = [&](std::size_t i, Slot& s) {
       decode(i, s);

@@ -440,6 +440,49 @@ TEST_CASE("max_points near the box's count reads the points themselves, and a sm
   }
 }
 
+TEST_CASE("max_points reads a finer level when the level it chose, counted, gives the box too few points",
+          "[pyramid]") {
+  // 32 x 32 m in 2 m chunks of 0.25 m cells, 90 % of the points in a 0.1 m
+  // slab at the bottom, the rest up to 8 m. The top level's maps (one height
+  // per pixel of 16 m cells) keep little but the slab, so a box over the top
+  // half gets a point or none from it at the level of detail its estimate
+  // (half its node's points) asks for: limits of 1, 20 and 60 gave 0, 1
+  // and 1 points, with 30,000 in the box.
+  TempDir tmp;
+  std::mt19937_64 random(23);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  PointCloud cloud;
+  for (int i = 0; i < 300000; ++i) {
+    const double x = 32 * unit(random), y = 32 * unit(random);
+    cloud.positions.push_back({x, y, i % 10 == 0 ? 8 * unit(random) : 0.1 * unit(random)});
+    cloud.colors.push_back({100, 150, 200});
+    cloud.intensities.push_back(static_cast<float>(i % 1000));
+  }
+  auto opened = ArchiveReader::open(build(tmp, "a", cloud));
+  REQUIRE(opened.is_ok());
+  const std::unique_ptr<ArchiveReader> reader = std::move(*opened);
+  REQUIRE(reader->info().pyramid.at(0).levels.size() >= 3);
+  const double inf = std::numeric_limits<double>::infinity();
+  const Box3d box{{-inf, -inf, 4.0}, {inf, inf, inf}};
+  for (const std::uint64_t limit : {1, 20, 60, 250, 700}) {
+    CAPTURE(limit);
+    QueryOptions o;
+    o.max_points = limit;
+    QueryStats stats;
+    const PointCloud got = run_query(*reader, &box, &stats, o);
+    INFO("level " << stats.pyramid_level << ", lod " << stats.lod_min << "-" << stats.lod_max << ", "
+                  << stats.chunks_decoded << " rows, " << stats.blob_bytes_read << " bytes");
+    CHECK(got.size() == limit);
+    CHECK(stats.thinned);
+    CHECK(stats.pyramid_level > 0);  // not the chunks: a few kB read
+    CHECK(stats.blob_bytes_read < 200000);
+    for (const Vec3d& p : got.positions) CHECK(p.z >= 4.0);
+    // The same points whatever the threads.
+    o.threads = 3;
+    CHECK(run_query(*reader, &box, nullptr, o).positions == got.positions);
+  }
+}
+
 TEST_CASE("max_points within a polygon counts only the rows the polygon reaches", "[pyramid][polygon]") {
   TempDir tmp;
   auto reader = ArchiveReader::open(build(tmp, "a", terrain(3, 300000)));
