@@ -1,5 +1,7 @@
 #include "io/byte_source.h"
 
+#include <cctype>
+
 #include "core/file_io.h"
 
 #include <fcntl.h>
@@ -122,6 +124,29 @@ Status ByteSource::read_more(std::size_t want) {
     }
   }
   return Status::ok();
+}
+
+Result<ByteSource::Rest> ByteSource::read_rest() {
+  constexpr std::size_t kBlock = std::size_t{1} << 16;
+  Rest rest;
+  bool blank = true;
+  for (;;) {
+    std::span<const std::uint8_t> view;
+    RELIEF_RETURN_IF_ERROR(fill(kBlock, view));
+    if (view.empty()) break;
+    rest.bytes += view.size();
+    for (const std::uint8_t c : view) {
+      if (c == '\n') {
+        if (!blank) ++rest.lines;
+        blank = true;
+      } else if (!std::isspace(c)) {
+        blank = false;
+      }
+    }
+    consume(view.size());
+  }
+  if (!blank) ++rest.lines;
+  return rest;
 }
 
 Status ByteSource::skip(std::uint64_t n, std::uint64_t& skipped) {

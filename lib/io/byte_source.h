@@ -39,6 +39,14 @@ class ByteSource {
   // only when the input ended first.
   Status skip(std::uint64_t n, std::uint64_t& skipped);
 
+  // What is left of the input, read to its end: its bytes, and its lines
+  // holding anything but white space (a last line without a newline too).
+  struct Rest {
+    std::uint64_t bytes = 0;
+    std::uint64_t lines = 0;
+  };
+  Result<Rest> read_rest();
+
   // Copies bytes [offset, offset + out.size()) of the input into `out`,
   // independently of the sequential position, for formats read out of order
   // (E57). `got` is less than out.size() only at the end of the input.

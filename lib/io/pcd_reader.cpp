@@ -559,6 +559,9 @@ class PcdPointReader final : public PointReader {
   static constexpr std::size_t kNoAlpha = ~std::size_t{0};
   std::vector<std::uint8_t> expanded_;  // binary_compressed records; src_ reads them
   std::uint64_t done_ = 0;  // records consumed, kept or skipped
+  bool rest_checked_ = false;
+  // Warns of records (or bytes) after the last point the header declares.
+  Status note_extra_points();
 };
 
 Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, Values& v) {
@@ -602,6 +605,10 @@ Status PcdPointReader::parse_ascii(std::string_view line, std::uint64_t index, V
     if (!ok)
       return point_error(index,
                          quoted(tok) + " in column " + std::to_string(c + 1) + " is not a valid value");
+  }
+  if (!next_token(line, pos).empty()) {
+    return point_error(index,
+                       "more values than the " + std::to_string(header_.columns) + " the header declares");
   }
   return Status::ok();
 }
@@ -683,7 +690,31 @@ Result<std::size_t> PcdPointReader::read(PointCloud& batch, std::size_t max_poin
       ++done_;
     }
   }
+  if (done_ == header_.point_count && !rest_checked_) {
+    rest_checked_ = true;
+    RELIEF_RETURN_IF_ERROR(note_extra_points());
+  }
   return got;
+}
+
+Status PcdPointReader::note_extra_points() {
+  // After binary_compressed records nothing is left to see (their size is
+  // checked against POINTS); after binary ones the bytes, after ascii ones
+  // the lines that are not blank.
+  if (header_.data == PcdData::kBinaryCompressed) return Status::ok();
+  RELIEF_ASSIGN_OR_RETURN(const ByteSource::Rest rest, src_.read_rest());
+  const bool ascii = header_.data == PcdData::kAscii;
+  const std::uint64_t extra = ascii ? rest.lines : rest.bytes / header_.point_size;
+  if (extra > 0) {
+    info_.warnings.push_back(name() + ": the header declares " + std::to_string(header_.point_count) +
+                             " points but " + std::to_string(header_.point_count + extra) +
+                             " follow; the last " + std::to_string(extra) + " were ignored");
+  } else if (!ascii && rest.bytes > 0) {
+    info_.warnings.push_back(name() + ": " + std::to_string(rest.bytes) + " bytes follow the last of the " +
+                             std::to_string(header_.point_count) +
+                             " points the header declares; they were ignored");
+  }
+  return Status::ok();
 }
 
 Status PcdPointReader::expand_compressed() {

@@ -45,8 +45,6 @@ using ply::ScalarType;
 // whole-file reader reserves at most this much up front and vectors grow as
 // data actually arrives.
 constexpr std::uint64_t kBlindReserve = std::uint64_t{1} << 16;
-// Bytes looked at per step when counting lines after the last vertex.
-constexpr std::size_t kTrailingScanBlock = std::size_t{1} << 16;
 // ascii records are one per line; a line this long is not a point record.
 constexpr std::size_t kMaxAsciiLine = std::size_t{4} << 20;
 
@@ -867,6 +865,7 @@ class PlyPointReader final : public BatchPointReader {
   // When the vertex element is the file's last: records after the declared
   // count become a warning in info().warnings (the header count is kept).
   Status note_extra_vertices();
+  Status note_leftover();
 
   const std::string& name() const { return input_.name; }
   const Element& vertex() const { return header_.elements[vertex_el_]; }
@@ -995,6 +994,19 @@ Result<std::size_t> PlyPointReader::read_into(PointCloud& out, std::vector<std::
       RELIEF_RETURN_IF_ERROR(finish_trailing());
     } else if (vertex_el_ + 1 == header_.elements.size()) {
       RELIEF_RETURN_IF_ERROR(note_extra_vertices());
+    } else {
+      // Elements follow the vertices (faces): walked, so that a vertex count
+      // below the records present does not pass for faces silently (the
+      // extra vertices then make faces cut short, or bytes left over). The
+      // vertices read stand (a stream needs no faces): a warning.
+      if (Status s = finish_trailing(); !s) {
+        if (s.code() != StatusCode::kFormatError) return s;  // cannot read
+        info_.warnings.push_back(
+            s.message() + " (after the " + std::to_string(vertex().count) +
+            " vertices the header declares: is that count right?); the vertices were read");
+      } else {
+        RELIEF_RETURN_IF_ERROR(note_leftover());
+      }
     }
   }
   return got;
@@ -1009,23 +1021,8 @@ Status PlyPointReader::note_extra_vertices() {
   if (fixed_binary_) {
     extra = *rem / layout_.stride;
   } else if (header_.encoding == PlyEncoding::kAscii) {
-    // Non-blank lines after the last declared vertex.
-    bool blank = true;
-    for (;;) {
-      std::span<const std::uint8_t> view;
-      RELIEF_RETURN_IF_ERROR(src_.fill(kTrailingScanBlock, view));
-      if (view.empty()) break;
-      for (const std::uint8_t c : view) {
-        if (c == '\n') {
-          if (!blank) ++extra;
-          blank = true;
-        } else if (!std::isspace(c)) {
-          blank = false;
-        }
-      }
-      src_.consume(view.size());
-    }
-    if (!blank) ++extra;
+    RELIEF_ASSIGN_OR_RETURN(const ByteSource::Rest rest, src_.read_rest());
+    extra = rest.lines;  // non-blank lines after the last declared vertex
   } else {
     info_.warnings.push_back(name() + ": " + std::to_string(*rem) + " bytes follow the last of the " +
                              std::to_string(vertex().count) + " vertices the header declares; they were ignored");
@@ -1036,6 +1033,17 @@ Status PlyPointReader::note_extra_vertices() {
                              std::to_string(vertex().count + extra) + " follow; the last " + std::to_string(extra) +
                              " were ignored");
   }
+  return Status::ok();
+}
+
+Status PlyPointReader::note_leftover() {
+  RELIEF_ASSIGN_OR_RETURN(const ByteSource::Rest rest, src_.read_rest());
+  const bool ascii = header_.encoding == PlyEncoding::kAscii;
+  if (ascii ? rest.lines == 0 : rest.bytes == 0) return Status::ok();
+  info_.warnings.push_back(name() + ": " + std::to_string(ascii ? rest.lines : rest.bytes) +
+                           (ascii ? " lines" : " bytes") + " follow the last element the header declares (" +
+                           header_.elements.back().name + "); they were ignored (is its count of " +
+                           std::to_string(vertex().count) + " vertices right?)");
   return Status::ok();
 }
 

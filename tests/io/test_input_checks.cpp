@@ -82,6 +82,87 @@ TEST_CASE("PLY: no warning when the count is right or other elements follow", "[
   CHECK(points == 3);
 }
 
+TEST_CASE("PLY: a vertex count below the records present is found when faces follow too", "[io]") {
+  // 10 vertices more than declared, then a face element: the extra vertices
+  // were taken for the faces without a word (ascii), or read as faces
+  // (binary), and dropped.
+  TempDir tmp;
+  const std::string faces = "element face 1\nproperty list uchar int vertex_indices\n|";
+  std::uint64_t points = 0;
+  write_ply(tmp.file("less.ply"), false, 990, 1000, faces + "3 0 1 2\n");
+  const relief::PointStreamInfo info = read_all(tmp.file("less.ply"), points);
+  CHECK(points == 990);
+  REQUIRE(info.warnings.size() == 1);
+  CHECK(info.warnings[0].find(tmp.file("less.ply")) != std::string::npos);
+  // The face element took the first extra vertex's line; 9 and the face's are left.
+  CHECK(info.warnings[0].find("10 lines follow the last element the header declares (face)") !=
+        std::string::npos);
+  CHECK(info.warnings[0].find("990 vertices") != std::string::npos);
+  // Binary, 5 faces: the first extra vertex (990.0f: bytes 00 80 77 44) read
+  // as faces, the second of 0x80 indices, runs past the end.
+  std::string tail = "element face 5\nproperty list uchar int vertex_indices\n|";
+  for (int f = 0; f < 5; ++f) {
+    tail += '\x03';
+    for (const std::int32_t i : {0, 1, 2}) tail.append(reinterpret_cast<const char*>(&i), 4);
+  }
+  write_ply(tmp.file("less.bin.ply"), true, 990, 1000, tail);
+  const relief::PointStreamInfo bin = read_all(tmp.file("less.bin.ply"), points);
+  CHECK(points == 990);
+  REQUIRE(bin.warnings.size() == 1);
+  CHECK(bin.warnings[0].find(tmp.file("less.bin.ply")) != std::string::npos);
+  CHECK(bin.warnings[0].find("'face' elements") != std::string::npos);
+  CHECK(bin.warnings[0].find("after the 990 vertices the header declares: is that count right?") !=
+        std::string::npos);
+}
+
+TEST_CASE("PCD: records beyond POINTS are a warning, an ascii line with more values than FIELDS an error",
+          "[io]") {
+  TempDir tmp;
+  const auto header = [](int points, const char* data) {
+    return "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " + std::to_string(points) +
+           "\nHEIGHT 1\nPOINTS " + std::to_string(points) + "\nDATA " + data + "\n";
+  };
+  for (const bool binary : {false, true}) {
+    INFO((binary ? "binary" : "ascii"));
+    const std::string path = tmp.file(binary ? "more.bin.pcd" : "more.pcd");
+    {
+      std::ofstream out(path, std::ios::binary);
+      out << header(990, binary ? "binary" : "ascii");
+      for (int i = 0; i < 1000; ++i) {
+        const float v[3] = {static_cast<float>(i), 1.0f, 2.0f};
+        if (binary) {
+          out.write(reinterpret_cast<const char*>(v), sizeof v);
+        } else {
+          out << v[0] << " " << v[1] << " " << v[2] << "\n";
+        }
+      }
+      if (!binary) out << "\n\n";  // blank lines are no records
+    }
+    std::uint64_t points = 0;
+    const relief::PointStreamInfo info = read_all(path, points);
+    CHECK(points == 990);
+    REQUIRE(info.warnings.size() == 1);
+    CHECK(info.warnings[0].find(path) != std::string::npos);
+    CHECK(info.warnings[0].find("declares 990 points but 1000 follow; the last 10 were ignored") !=
+          std::string::npos);
+  }
+  const std::string exact = tmp.file("exact.pcd");
+  std::ofstream(exact) << header(2, "ascii") << "1 2 3\n4 5 6\n\n";
+  std::uint64_t points = 0;
+  CHECK(read_all(exact, points).warnings.empty());
+  CHECK(points == 2);
+  const std::string extra = tmp.file("extra.pcd");
+  std::ofstream(extra) << header(2, "ascii") << "1 2 3 4\n5 6 7\n";
+  auto reader = relief::open_point_reader(extra);
+  REQUIRE(reader.is_ok());
+  relief::PointCloud batch;
+  const auto n = (*reader)->read(batch, 100);
+  REQUIRE_FALSE(n.is_ok());
+  CHECK(n.status().code() == relief::StatusCode::kFormatError);
+  CHECK(n.status().message().find("point 0: more values than the 3 the header declares") !=
+        std::string::npos);
+}
+
 TEST_CASE("LAS: a point format byte is LAZ only when a real format lies under the compression bits", "[io]") {
   TempDir tmp;
   relief::test::SceneOptions o;
