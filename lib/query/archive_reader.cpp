@@ -481,7 +481,7 @@ class Reader final : public ArchiveReader {
         }
         set_lods(plan, estimate);
         // The finer levels, next finer first, for when this one, counted
-        // exactly, gives the box fewer points than the limit: its rows'
+        // exactly, gives the box fewer than half the limit: its rows'
         // bounds overstated their share of the box, a coarse level's maps
         // (one height per pixel) lost what lies above or below a surface, or
         // a level of detail left a row fewer points than its share.
@@ -636,14 +636,11 @@ class Reader final : public ArchiveReader {
             }));
         Uint128 total = 0;
         for (const std::uint64_t c : in_box) total += c;
-        // Fewer than the limit (see make_plan): the next finer level, counted
-        // in turn, when its rows are read whole, or when this level gave
-        // fewer than half the limit (then at its rows' levels of detail).
-        const auto read_whole = [](const Plan& p) {
-          return std::all_of(p.lods.begin(), p.lods.end(), [](std::uint32_t l) { return l == 1; });
-        };
-        if (total < plan.cap && !plan.finer.empty() &&
-            (2 * total < plan.cap || read_whole(plan.finer.front()))) {
+        // Fewer than half the limit (see make_plan): the next finer level,
+        // counted in turn. (Between half and all of it the level stands: a
+        // preview's budget is met from the level that fits it, not from one
+        // 3 to 4 times larger.)
+        if (2 * total < plan.cap && !plan.finer.empty()) {
           std::vector<Plan> rest(std::make_move_iterator(plan.finer.begin() + 1),
                                  std::make_move_iterator(plan.finer.end()));
           Plan next = std::move(plan.finer.front());
