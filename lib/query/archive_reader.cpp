@@ -611,22 +611,24 @@ class Reader final : public ArchiveReader {
       // nothing; otherwise counted by decoding it (a first pass over the rows
       // that cross the box's faces or the polygon's edges, as many chunks in
       // memory at once as the query's), unless even every row's whole count
-      // fits the limit and there is no finer level to fall back on.
+      // fits the limit and either there is no finer level to fall back on or
+      // the rows known to lie inside hold half the limit already.
       in_box.assign(refs.size(), 0);
       std::vector<std::size_t> uncertain;
-      Uint128 most = 0;
+      Uint128 most = 0, least = 0;
       bool bounded = true;
       for (std::size_t i = 0; i < refs.size(); ++i) {
         const bool whole = plan.lods[i] == 1;
         if (whole && !filter.any() && !crossed[i] && contains(box, refs[i].bounds)) {
           in_box[i] = refs[i].decoded_points;
+          least += in_box[i];
         } else {
           uncertain.push_back(i);
         }
         bounded = bounded && whole;
         most += refs[i].decoded_points;
       }
-      if (!bounded || most > plan.cap || !plan.finer.empty()) {
+      if (!bounded || most > plan.cap || (!plan.finer.empty() && 2 * least < plan.cap)) {
         RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(
             uncertain.size(), threads, wave, [&](std::size_t k, Slot& s) { read(uncertain[k], s); }, count,
             [&](std::size_t, Slot& s, bool&) -> Status {
