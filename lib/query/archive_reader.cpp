@@ -323,8 +323,11 @@ class Reader final : public ArchiveReader {
     std::vector<std::uint32_t> lods;
     std::uint64_t cap = 0;  // 0 = none
     int level = 0;
-    // A max_points plan's finer levels, the next finer first, each read
-    // whole, for when this one's exact count falls short of the limit.
+    // A max_points plan: the points its rows are estimated to give the box
+    // (at their levels of detail), and its finer levels, the next finer
+    // first, for when its exact count falls short of both the limit and that
+    // estimate by more than half (run).
+    double expected = 0;
     std::vector<Plan> finer;
   };
 
@@ -448,21 +451,36 @@ class Reader final : public ArchiveReader {
     const auto set_lods = [&](Plan& p, double estimate) {
       p.cap = options.max_points;  // counted exactly and thinned by run: never more
       p.lods.clear();
+      p.expected = estimate;
       if (estimate <= kMaxPointsOverread * cap) {
         p.lods.assign(p.refs.size(), 1);
         return;
       }
+      p.expected = 0;
       for (const ChunkRef& ref : p.refs) {
         const double points = row_in_box(ref);
         const double share = std::max(1.0, std::floor(cap * points / estimate));
-        const double lod = std::floor(points / (kMaxPointsOverread * share));
-        p.lods.push_back(static_cast<std::uint32_t>(std::clamp(lod, 2.0, static_cast<double>(1u << 30))));
+        const double lod =
+            std::clamp(std::floor(points / (kMaxPointsOverread * share)), 2.0, static_cast<double>(1u << 30));
+        p.lods.push_back(static_cast<std::uint32_t>(lod));
+        p.expected += points / lod;
       }
     };
-    // The levels above the limit so far, finest first, with their estimates;
-    // the last is the one just finer than the next candidate.
-    std::vector<std::pair<Plan, double>> above;
-    double estimate = 0;
+    // The levels above the limit so far, finest first: each plan with its
+    // estimate and its level's points (all scans'); the last is the one just
+    // finer than the next candidate.
+    struct Above {
+      Plan plan;
+      double estimate = 0;
+      double total = 0;
+    };
+    std::vector<Above> above;
+    double estimate = 0, total = 0;
+    const auto add_finer = [&](Plan& p) {
+      for (auto it = above.rbegin(); it != above.rend(); ++it) {
+        set_lods(p.finer.emplace_back(std::move(it->plan)), it->estimate);
+      }
+    };
     for (const int g : candidates) {
       const auto choose = [g](const ScanPyramid& scan) {
         int best = 0;
@@ -473,32 +491,45 @@ class Reader final : public ArchiveReader {
       };
       RELIEF_ASSIGN_OR_RETURN(plan, gather(base, box, choose, cache));
       estimate = in_box(plan);
+      total = 0;
+      for (const ScanPyramid& scan : info_.pyramid) {
+        const int level = scan.levels.empty() ? 0 : choose(scan);
+        double points = static_cast<double>(scan.base_points);
+        for (const PyramidLevel& l : scan.levels) {
+          if (l.level == level) points = static_cast<double>(l.points);
+        }
+        total += points;
+      }
       if (estimate <= cap) {
-        if (!above.empty() && 2 * estimate < cap && above.back().second <= kMaxPointsOverread * cap) {
-          plan = std::move(above.back().first);
-          estimate = above.back().second;
+        if (!above.empty() && 2 * estimate < cap && above.back().estimate <= kMaxPointsOverread * cap) {
+          plan = std::move(above.back().plan);
+          estimate = above.back().estimate;
+          total = above.back().total;
           above.pop_back();
         }
         set_lods(plan, estimate);
-        // The finer levels, next finer first, for when this one, counted
-        // exactly, gives the box fewer than half the limit: its rows'
-        // bounds overstated their share of the box, a coarse level's maps
-        // (one height per pixel) lost what lies above or below a surface, or
-        // a level of detail left a row fewer points than its share.
-        for (auto it = above.rbegin(); it != above.rend(); ++it) {
-          set_lods(plan.finer.emplace_back(std::move(it->first)), it->second);
+        // What the next finer level's estimate says this one should give, by
+        // the levels' sizes: a level whose maps (one height per pixel) lost
+        // what lies above or below a surface has no row in such a part of
+        // the box, an estimate of 0 there.
+        if (!above.empty() && above.back().total > 0) {
+          plan.expected = std::max(plan.expected, above.back().estimate * total / above.back().total);
         }
+        // The finer levels, next finer first, for when this one, counted
+        // exactly, gives the box fewer than half the limit and half that
+        // expectation: its rows' bounds overstated their share of the box,
+        // a coarse level's maps lost part of it, or a level of detail left a
+        // row fewer points than its share.
+        add_finer(plan);
         return plan;
       }
-      above.emplace_back(plan, estimate);
+      above.push_back({plan, estimate, total});
     }
     // Even the top holds more than the limit (the last of `above`); the
     // finer levels as above, should its levels of detail give too few.
     set_lods(plan, estimate);
     above.pop_back();
-    for (auto it = above.rbegin(); it != above.rend(); ++it) {
-      set_lods(plan.finer.emplace_back(std::move(it->first)), it->second);
-    }
+    add_finer(plan);
     return plan;
   }
 
@@ -628,7 +659,12 @@ class Reader final : public ArchiveReader {
         bounded = bounded && whole;
         most += refs[i].decoded_points;
       }
-      if (!bounded || most > plan.cap || (!plan.finer.empty() && 2 * least < plan.cap)) {
+      // A fallback to a finer level needs fewer than half of the limit and
+      // of the level's own estimate (a level that gives what it was
+      // estimated to, as a whole archive's levels do, stands).
+      const double shortfall = std::min(static_cast<double>(plan.cap), plan.expected);
+      if (!bounded || most > plan.cap ||
+          (!plan.finer.empty() && 2 * static_cast<double>(least) < shortfall)) {
         RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(
             uncertain.size(), threads, wave, [&](std::size_t k, Slot& s) { read(uncertain[k], s); }, count,
             [&](std::size_t, Slot& s, bool&) -> Status {
@@ -638,11 +674,11 @@ class Reader final : public ArchiveReader {
             }));
         Uint128 total = 0;
         for (const std::uint64_t c : in_box) total += c;
-        // Fewer than half the limit (see make_plan): the next finer level,
-        // counted in turn. (Between half and all of it the level stands: a
-        // preview's budget is met from the level that fits it, not from one
-        // 3 to 4 times larger.)
-        if (2 * total < plan.cap && !plan.finer.empty()) {
+        // Fewer than half the limit and half the estimate (see make_plan):
+        // the next finer level, counted in turn. (Between half and all of the
+        // limit the level stands: a preview's budget is met from the level
+        // that fits it, not from one 3 to 4 times larger.)
+        if (2 * static_cast<double>(total) < shortfall && !plan.finer.empty()) {
           std::vector<Plan> rest(std::make_move_iterator(plan.finer.begin() + 1),
                                  std::make_move_iterator(plan.finer.end()));
           Plan next = std::move(plan.finer.front());
