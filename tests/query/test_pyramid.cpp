@@ -481,6 +481,26 @@ TEST_CASE("max_points reads a finer level when the level it chose, counted, give
     o.threads = 3;
     CHECK(run_query(*reader, &box, nullptr, o).positions == got.positions);
   }
+  // A level that gives what it was estimated to stands, however far below
+  // the limit: a whole-archive query (a preview's) of a limit more than
+  // twice a level that the next finer one exceeds 4 times reads that level
+  // alone, not the finer one.
+  const ScanPyramid& p = reader->info().pyramid.at(0);
+  bool tried = false;
+  for (std::size_t i = 0; i + 1 < p.levels.size(); ++i) {
+    const std::uint64_t coarse = p.levels[i + 1].points, limit = 2 * coarse + 2;
+    if (p.levels[i].points <= 4 * limit) continue;
+    CAPTURE(i, p.levels[i].points, coarse);
+    tried = true;
+    QueryOptions o;
+    o.max_points = limit;
+    QueryStats stats;
+    CHECK(run_query(*reader, nullptr, &stats, o).size() == coarse);
+    CHECK(stats.pyramid_level == p.levels[i + 1].level);
+    CHECK(stats.blob_bytes_read == p.levels[i + 1].blob_bytes);
+    CHECK_FALSE(stats.thinned);
+  }
+  CHECK(tried);
 }
 
 TEST_CASE("max_points within a polygon counts only the rows the polygon reaches", "[pyramid][polygon]") {
