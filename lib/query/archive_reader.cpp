@@ -476,9 +476,20 @@ class Reader final : public ArchiveReader {
     };
     std::vector<Above> above;
     double estimate = 0, total = 0;
+    // What the next finer level's estimate says a plan read whole, of
+    // `points` in all, should give the box, by the levels' sizes: a
+    // level whose maps (one height per pixel) lost what lies above or below
+    // a surface has no row in such a part of the box, an estimate of 0 there.
+    // (set_lods reads a plan's rows all whole or all at levels of detail.)
+    const auto expect_from = [](Plan& p, double points, const Above& finer) {
+      const bool whole = p.lods.empty() || p.lods.front() == 1;
+      if (whole && finer.total > 0) p.expected = std::max(p.expected, finer.estimate * points / finer.total);
+    };
     const auto add_finer = [&](Plan& p) {
       for (auto it = above.rbegin(); it != above.rend(); ++it) {
-        set_lods(p.finer.emplace_back(std::move(it->plan)), it->estimate);
+        Plan& f = p.finer.emplace_back(std::move(it->plan));
+        set_lods(f, it->estimate);
+        if (std::next(it) != above.rend()) expect_from(f, it->total, *std::next(it));
       }
     };
     for (const int g : candidates) {
@@ -508,13 +519,7 @@ class Reader final : public ArchiveReader {
           above.pop_back();
         }
         set_lods(plan, estimate);
-        // What the next finer level's estimate says this one should give, by
-        // the levels' sizes: a level whose maps (one height per pixel) lost
-        // what lies above or below a surface has no row in such a part of
-        // the box, an estimate of 0 there.
-        if (!above.empty() && above.back().total > 0) {
-          plan.expected = std::max(plan.expected, above.back().estimate * total / above.back().total);
-        }
+        if (!above.empty()) expect_from(plan, total, above.back());
         // The finer levels, next finer first, for when this one, counted
         // exactly, gives the box fewer than half the limit and half that
         // expectation: its rows' bounds overstated their share of the box,
