@@ -641,6 +641,9 @@ class Reader final : public ArchiveReader {
     // A max_points query whose rows hold more points in the box than the
     // limit: each row keeps its quota, evenly spread over its points.
     std::vector<std::uint64_t> in_box, quota;
+    // The finer levels to fall back on, in turn (see make_plan).
+    std::vector<Plan> finer = std::move(plan.finer);
+    std::size_t next_finer = 0;
     while (plan.cap > 0) {
       // A row's points in the box: its decoded_points when it lies wholly
       // inside the box (and polygon), is decoded whole and filtered by
@@ -669,7 +672,7 @@ class Reader final : public ArchiveReader {
       // estimated to, as a whole archive's levels do, stands).
       const double shortfall = std::min(static_cast<double>(plan.cap), plan.expected);
       if (!bounded || most > plan.cap ||
-          (!plan.finer.empty() && 2 * static_cast<double>(least) < shortfall)) {
+          (next_finer < finer.size() && 2 * static_cast<double>(least) < shortfall)) {
         RELIEF_RETURN_IF_ERROR(ordered_pipeline<Slot>(
             uncertain.size(), threads, wave, [&](std::size_t k, Slot& s) { read(uncertain[k], s); }, count,
             [&](std::size_t, Slot& s, bool&) -> Status {
@@ -683,12 +686,8 @@ class Reader final : public ArchiveReader {
         // the next finer level, counted in turn. (Between half and all of the
         // limit the level stands: a preview's budget is met from the level
         // that fits it, not from one 3 to 4 times larger.)
-        if (2 * static_cast<double>(total) < shortfall && !plan.finer.empty()) {
-          std::vector<Plan> rest(std::make_move_iterator(plan.finer.begin() + 1),
-                                 std::make_move_iterator(plan.finer.end()));
-          Plan next = std::move(plan.finer.front());
-          plan = std::move(next);
-          plan.finer = std::move(rest);
+        if (2 * static_cast<double>(total) < shortfall && next_finer < finer.size()) {
+          plan = std::move(finer[next_finer++]);
           restrict_to_polygon();
           continue;
         }
