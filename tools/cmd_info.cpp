@@ -135,11 +135,18 @@ int run_info(int argc, char** argv) {
   std::printf("points          %llu in, %llu decodable\n", static_cast<unsigned long long>(i.input_points),
               static_cast<unsigned long long>(i.decoded_points));
   std::printf("chunks          %llu\n", static_cast<unsigned long long>(i.chunk_count));
-  if (i.bounds.empty()) {
+  const auto print_box = [](const char* label, const Box3d& b) {
+    std::printf("%-16s[%.6f, %.6f, %.6f] .. [%.6f, %.6f, %.6f]\n", label, b.min.x, b.min.y, b.min.z, b.max.x,
+                b.max.y, b.max.z);
+  };
+  if (i.point_bounds.empty()) {
     std::printf("bounds          (empty)\n");
   } else {
-    std::printf("bounds          [%.6f, %.6f, %.6f] .. [%.6f, %.6f, %.6f]\n", i.bounds.min.x, i.bounds.min.y,
-                i.bounds.min.z, i.bounds.max.x, i.bounds.max.y, i.bounds.max.z);
+    print_box("bounds", i.point_bounds);
+    // Coarse levels of detail rebuild points from the maps, which may reach
+    // beyond the points: what a preview or LOD query can return.
+    if (i.bounds.min != i.point_bounds.min || i.bounds.max != i.point_bounds.max)
+      print_box("lod bounds", i.bounds);
   }
   std::printf("grid            origin (%.6g, %.6g, %.6g), chunk edge %.6g\n", i.grid.origin.x, i.grid.origin.y,
               i.grid.origin.z, i.grid.chunk_edge);

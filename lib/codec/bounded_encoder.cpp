@@ -769,6 +769,7 @@ Result<std::vector<std::uint8_t>> encode_bounded(const PointCloud& cloud, const 
       b.add(base_stats.decoded_bounds.max);
     }
     stats->decoded_bounds = b;
+    stats->point_bounds = refined_bounds;
   }
   return write_blob(h, sections);
 }

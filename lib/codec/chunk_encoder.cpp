@@ -651,6 +651,7 @@ Status Encoder::decoded_stats(const std::vector<std::uint8_t>& coded_heights, En
   }
   out.decoded_points = header.decoded_points;
   out.decoded_bounds = bounds;
+  out.point_bounds = bounds;
   return Status::ok();
 }
 

@@ -65,10 +65,10 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
     if (!decoded) return internal_error("a freshly encoded chunk does not decode: " + decoded.status().message());
     const Box3d b = decoded->bounds();
     const Box3d& s = stats.decoded_bounds;
-    // Error-bounded blobs index the union of every point and the base layer.
-    const bool bounds_ok = p.bound ? (decoded->empty() || (b.min.x >= s.min.x && b.min.y >= s.min.y && b.min.z >= s.min.z &&
-                                                           b.max.x <= s.max.x && b.max.y <= s.max.y && b.max.z <= s.max.z))
-                                   : (b.min == s.min && b.max == s.max);
+    const Box3d& e = stats.point_bounds;
+    // Error-bounded blobs index the union of every point and the base layer;
+    // their points' own bounds are exact.
+    const bool bounds_ok = decoded->empty() ? e.empty() : b.min == e.min && b.max == e.max && s.contains(b);
     if (decoded->size() != stats.decoded_points || !bounds_ok) {
       return internal_error("a freshly encoded chunk decodes to other points than the encoder expects");
     }
@@ -76,6 +76,10 @@ Status ChunkPipeline::encode_one(ChunkTask& task, ChunkRow& row) const {
   row.ref.key = task.key;
   row.ref.scan_id = scan_id_;
   row.ref.bounds = stats.decoded_bounds;
+  if (stats.point_bounds.min != stats.decoded_bounds.min ||
+      stats.point_bounds.max != stats.decoded_bounds.max) {
+    row.ref.point_bounds = stats.point_bounds;
+  }
   row.ref.input_points = task.source != nullptr ? task.count : task.points.size();
   row.ref.decoded_points = stats.decoded_points;
   row.ref.blob_size = blob->size();

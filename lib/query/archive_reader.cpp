@@ -24,11 +24,6 @@ namespace {
 // handful of chunks whatever the box.
 constexpr unsigned kChunksPerThreadPerWave = 2;
 
-bool contains(const Box3d& outer, const Box3d& inner) {
-  return outer.min.x <= inner.min.x && outer.min.y <= inner.min.y && outer.min.z <= inner.min.z &&
-         outer.max.x >= inner.max.x && outer.max.y >= inner.max.y && outer.max.z >= inner.max.z;
-}
-
 std::string chunk_name(const ChunkRef& r) {
   return "chunk (" + std::to_string(r.key.ix) + "," + std::to_string(r.key.iy) + "," + std::to_string(r.key.iz) +
          ") seq " + std::to_string(r.seq) + " (id " + std::to_string(r.id) + ")";
@@ -630,8 +625,9 @@ class Reader final : public ArchiveReader {
       conform_las_attributes(s.points, info_.las_attributes & attributes.las, info_.extra_bytes_size);
       if (lows_are_colors_ && !s.points.las.color_low.empty()) s.points.las.color_low = s.points.colors;
       if (filter.any() || s.crossed) {
-        select(s.points, box, !contains(box, s.ref.bounds), filter, every, s.crossed ? options.polygon.get() : nullptr);
-      } else if (!contains(box, s.ref.bounds)) {
+        select(s.points, box, !box.contains(s.ref.bounds), filter, every,
+               s.crossed ? options.polygon.get() : nullptr);
+      } else if (!box.contains(s.ref.bounds)) {
         clip(s.points, box);
       }
       keep_attributes(s.points, options.attributes);
@@ -658,7 +654,7 @@ class Reader final : public ArchiveReader {
       bool bounded = true;
       for (std::size_t i = 0; i < refs.size(); ++i) {
         const bool whole = plan.lods[i] == 1;
-        if (whole && !filter.any() && !crossed[i] && contains(box, refs[i].bounds)) {
+        if (whole && !filter.any() && !crossed[i] && box.contains(refs[i].bounds)) {
           in_box[i] = refs[i].decoded_points;
           least += in_box[i];
         } else {

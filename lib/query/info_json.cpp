@@ -249,14 +249,18 @@ std::string archive_info_json(const ArchiveInfo& i, const std::string& path) {
   appendf(out, "  \"points_in\": %llu,\n", static_cast<unsigned long long>(i.input_points));
   appendf(out, "  \"points_decoded\": %llu,\n", static_cast<unsigned long long>(i.decoded_points));
   appendf(out, "  \"chunks\": %llu,\n", static_cast<unsigned long long>(i.chunk_count));
-  if (i.bounds.empty()) {
-    appendf(out, "  \"bounds\": null,\n");
-  } else {
-    appendf(out, "  \"bounds\": {\"min\": [%s, %s, %s], \"max\": [%s, %s, %s]},\n",
-            json_number(i.bounds.min.x).c_str(), json_number(i.bounds.min.y).c_str(),
-            json_number(i.bounds.min.z).c_str(), json_number(i.bounds.max.x).c_str(),
-            json_number(i.bounds.max.y).c_str(), json_number(i.bounds.max.z).c_str());
-  }
+  const auto box = [&](const char* name, const Box3d& b) {
+    if (b.empty()) {
+      appendf(out, "  \"%s\": null,\n", name);
+    } else {
+      appendf(out, "  \"%s\": {\"min\": [%s, %s, %s], \"max\": [%s, %s, %s]},\n", name,
+              json_number(b.min.x).c_str(), json_number(b.min.y).c_str(), json_number(b.min.z).c_str(),
+              json_number(b.max.x).c_str(), json_number(b.max.y).c_str(), json_number(b.max.z).c_str());
+    }
+  };
+  // The points' bounds, and those of what any level of detail returns.
+  box("bounds", i.point_bounds);
+  box("lod_bounds", i.bounds);
   appendf(out, "  \"grid\": {\"origin\": [%s, %s, %s], \"chunk_edge\": %s},\n",
           json_number(i.grid.origin.x).c_str(), json_number(i.grid.origin.y).c_str(),
           json_number(i.grid.origin.z).c_str(), json_number(i.grid.chunk_edge).c_str());

@@ -314,6 +314,10 @@ enum class Sql : std::size_t {
   kIndexInsert,
   kIndexDeleteOfScan,
   kChunkDeleteOfScan,
+  kExtentInsert,
+  kExtentDeleteOfScan,
+  kExtentOfChunk,
+  kPointBounds,
   kFindChunks,
   kFindIdsByBounds,
   kFindIdsByBoundsV1,
@@ -455,6 +459,31 @@ SqlText sql_text(Sql id) {
               "(SELECT id FROM relief_chunk WHERE scan_id = ?1)"};
     case Sql::kChunkDeleteOfScan:
       return {"delete chunks", "DELETE FROM relief_chunk WHERE scan_id = ?1"};
+    case Sql::kExtentInsert:
+      return {"record a chunk's point bounds",
+              "INSERT INTO relief_chunk_extent(id, min_x, min_y, min_z, max_x, max_y, max_z) "
+              "VALUES(?1, ?2, ?3, ?4, ?5, ?6, ?7)"};
+    case Sql::kExtentDeleteOfScan:
+      return {"delete chunks' point bounds",
+              "DELETE FROM relief_chunk_extent WHERE id IN (SELECT id FROM relief_chunk WHERE scan_id = ?1)"};
+    case Sql::kExtentOfChunk:
+      return {"read a chunk's point bounds",
+              "SELECT min_x, min_y, min_z, max_x, max_y, max_z FROM relief_chunk_extent WHERE id = ?1"};
+    case Sql::kPointBounds:
+      // A chunk's own bounds where it has no usable extent row (none, or a
+      // damaged one: not a box within the chunk's bounds, which read_chunk
+      // and check report); extent rows of no chunk (left by a writer that
+      // does not know the table) do not count.
+      return {
+          "sum chunks' point bounds",
+          "SELECT MIN(IIF(ok, ex0, x0)), MIN(IIF(ok, ey0, y0)), MIN(IIF(ok, ez0, z0)), "
+          "MAX(IIF(ok, ex1, x1)), MAX(IIF(ok, ey1, y1)), MAX(IIF(ok, ez1, z1)) FROM ("
+          "SELECT c.min_x AS x0, c.min_y AS y0, c.min_z AS z0, c.max_x AS x1, c.max_y AS y1, c.max_z AS z1, "
+          "e.min_x AS ex0, e.min_y AS ey0, e.min_z AS ez0, e.max_x AS ex1, e.max_y AS ey1, e.max_z AS ez1, "
+          "COALESCE(e.min_x >= c.min_x AND e.min_y >= c.min_y AND e.min_z >= c.min_z AND "
+          "e.max_x <= c.max_x AND e.max_y <= c.max_y AND e.max_z <= c.max_z AND e.min_x <= e.max_x AND "
+          "e.min_y <= e.max_y AND e.min_z <= e.max_z, 0) AS ok "
+          "FROM relief_chunk AS c LEFT JOIN relief_chunk_extent AS e ON e.id = c.id)"};
     case Sql::kFindChunks:
       // Every index entry the box hits, beside the chunk row it names (NULLs
       // when there is none): find_chunks checks one against the other.
@@ -573,6 +602,20 @@ class RowReader {
       return std::nullopt;
     }
     return statement_.column_double(column);
+  }
+
+  // Six REAL columns from `first` on (min x, y, z, max x, y, z), none NULL.
+  Box3d box(int first, const char* name) {
+    std::array<double, 6> v{};
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const std::optional<double> value = real_or_null(first + static_cast<int>(i), name);
+      if (!value) fail(name, "is NULL");
+      v[i] = value.value_or(0.0);
+    }
+    Box3d b;
+    b.min = {v[0], v[1], v[2]};
+    b.max = {v[3], v[4], v[5]};
+    return b;
   }
 
   std::string text(int column, const char* name) {
@@ -888,6 +931,7 @@ class SqliteArchive final : public Archive {
   Status remove_unused_level_rows(std::int64_t unused_up_to);
   Status read_pyramid(ArchiveInfo& info) const;
   Result<ChunkRow> read_row(Sql sql, std::int64_t id, const char* what) const;
+  Result<Box3d> chunk_point_bounds(std::int64_t id, const Box3d& bounds) const;
 
   std::string path_;
   // Declared before the statements so that it is destroyed after them: a
@@ -905,6 +949,8 @@ class SqliteArchive final : public Archive {
   mutable std::array<std::unique_ptr<Statement>, static_cast<std::size_t>(Sql::kCount)> statements_;
   // Atomic so another thread may read it while the owner reads chunks.
   mutable std::atomic<std::uint64_t> blob_bytes_read_{0};
+  // Whether relief_chunk_extent exists, once looked up (it is never dropped).
+  mutable std::optional<bool> extent_table_;
 };
 
 SqliteArchive::~SqliteArchive() {
@@ -1437,6 +1483,11 @@ Status SqliteArchive::check_rows(const std::vector<ChunkRow>& rows, const char* 
     if (ref.input_points > kMaxStoredCount || ref.decoded_points > kMaxStoredCount) {
       return invalid_argument(which + "point counts too large to store");
     }
+    const Box3d& e = ref.point_bounds;
+    if (box_has_nan(e)) return invalid_argument(which + "point bounds contain NaN");
+    if (!e.empty() && (ref.bounds.empty() || !box_is_finite(e) || !ref.bounds.contains(e))) {
+      return invalid_argument(which + "point bounds are not finite or not within the chunk's bounds");
+    }
     checksums[i] = blob_crc32(row.blob);
     scan_ids.insert(ref.scan_id);
   }
@@ -1467,6 +1518,15 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
   RELIEF_ASSIGN_OR_RETURN(Statement * next_seq, statement(Sql::kChunkNextSeq));
   RELIEF_ASSIGN_OR_RETURN(Statement * insert, statement(Sql::kChunkInsert));
   RELIEF_ASSIGN_OR_RETURN(Statement * index, statement(Sql::kIndexInsert));
+  // Point bounds narrower than a row's go to relief_chunk_extent, created by
+  // the first write that has some (a resampling archive never has any).
+  Statement* extent = nullptr;
+  if (std::any_of(rows.begin(), rows.end(), [](const ChunkRow& r) { return !r.ref.point_bounds.empty(); })) {
+    RELIEF_RETURN_IF_ERROR(store::exec(db(), store::compact_sql(store::kCreateExtentSql).c_str(), path_,
+                                       "create the point bounds table"));
+    extent_table_.reset();  // looked up again after this transaction, whatever its fate
+    RELIEF_ASSIGN_OR_RETURN(extent, statement(Sql::kExtentInsert));
+  }
   // Written back only after COMMIT: on failure the caller's rows are untouched.
   std::vector<std::pair<std::int64_t, std::uint32_t>> assigned(rows.size());
   for (std::size_t i = 0; i < rows.size(); ++i) {
@@ -1509,6 +1569,18 @@ Status SqliteArchive::put_chunks(std::vector<ChunkRow>& rows) {
       index->bind_double(6, ref.bounds.min.z);
       index->bind_double(7, ref.bounds.max.z);
       const Status status = index->run();
+      if (!status.is_ok()) return append_detail(status, which);
+    }
+    if (const Box3d& e = ref.point_bounds; !e.empty()) {
+      StatementScope scope(*extent);
+      extent->bind_int64(1, id);
+      extent->bind_double(2, e.min.x);
+      extent->bind_double(3, e.min.y);
+      extent->bind_double(4, e.min.z);
+      extent->bind_double(5, e.max.x);
+      extent->bind_double(6, e.max.y);
+      extent->bind_double(7, e.max.z);
+      const Status status = extent->run();
       if (!status.is_ok()) return append_detail(status, which);
     }
     assigned[i] = {id, static_cast<std::uint32_t>(seq)};
@@ -1575,6 +1647,13 @@ Status SqliteArchive::abort_scan(std::int64_t scan_id) {
   RELIEF_ASSIGN_OR_RETURN(const bool las_table, table_exists(store::kSourceLasTable));
   if (las_table) {
     RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kSourceLasDeleteOfScan));
+    StatementScope scope(*statement);
+    statement->bind_int64(1, scan_id);
+    RELIEF_RETURN_IF_ERROR(statement->run());
+  }
+  RELIEF_ASSIGN_OR_RETURN(const bool extent_table, table_exists(store::kExtentTable));
+  if (extent_table) {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kExtentDeleteOfScan));
     StatementScope scope(*statement);
     statement->bind_int64(1, scan_id);
     RELIEF_RETURN_IF_ERROR(statement->run());
@@ -2011,7 +2090,32 @@ Result<std::vector<ChunkRef>> SqliteArchive::all_chunks() const {
 }
 
 Result<ChunkRow> SqliteArchive::read_chunk(std::int64_t id) const {
-  return read_row(Sql::kReadChunk, id, "chunk");
+  RELIEF_ASSIGN_OR_RETURN(ChunkRow row, read_row(Sql::kReadChunk, id, "chunk"));
+  RELIEF_ASSIGN_OR_RETURN(row.ref.point_bounds, chunk_point_bounds(id, row.ref.bounds));
+  return row;
+}
+
+// A chunk's relief_chunk_extent row, or empty (its bounds are its points').
+// A row that is not a finite box within the chunk's bounds is damage.
+Result<Box3d> SqliteArchive::chunk_point_bounds(std::int64_t id, const Box3d& bounds) const {
+  if (!extent_table_) {
+    RELIEF_ASSIGN_OR_RETURN(const bool exists, table_exists(store::kExtentTable));
+    extent_table_ = exists;
+  }
+  if (!*extent_table_) return Box3d{};
+  RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kExtentOfChunk));
+  StatementScope scope(*statement);
+  statement->bind_int64(1, id);
+  RELIEF_ASSIGN_OR_RETURN(const bool found, statement->step());
+  if (!found) return Box3d{};
+  RowReader reader(*statement, path_, "relief_chunk_extent row " + std::to_string(id));
+  const Box3d e = reader.box(0, "min_x..max_z");
+  RELIEF_RETURN_IF_ERROR(reader.status());
+  if (e.empty() || !box_is_finite(e) || bounds.empty() || !bounds.contains(e)) {
+    return corrupt_data(path_ + ": relief_chunk_extent row " + std::to_string(id) +
+                        ": the point bounds are not a finite box within the chunk's bounds");
+  }
+  return e;
 }
 
 Result<std::vector<std::uint8_t>> SqliteArchive::read_chunk_head(std::int64_t id, std::size_t max_bytes) const {
@@ -2144,6 +2248,20 @@ Result<ArchiveInfo> SqliteArchive::info() const {
       info.bounds.min = {*bounds[0], *bounds[1], *bounds[2]};
       info.bounds.max = {*bounds[3], *bounds[4], *bounds[5]};
     }
+  }
+  info.point_bounds = info.bounds;
+  RELIEF_ASSIGN_OR_RETURN(const bool extents, table_exists(store::kExtentTable));
+  if (extents && !info.bounds.empty()) {
+    RELIEF_ASSIGN_OR_RETURN(Statement * statement, statement(Sql::kPointBounds));
+    StatementScope scope(*statement);
+    RELIEF_ASSIGN_OR_RETURN(const bool row, statement->step());
+    if (!row) return internal_error(path_ + ": sum chunks' point bounds: no result row");
+    RowReader reader(*statement, path_, "chunk point bounds");
+    const Box3d b = reader.box(0, "bounds");
+    RELIEF_RETURN_IF_ERROR(reader.status());
+    // Damaged extent rows (outside their chunks' bounds) must not widen or
+    // empty what is reported: read_chunk and check name them.
+    if (!b.empty() && box_is_finite(b) && info.bounds.contains(b)) info.point_bounds = b;
   }
   {
     std::vector<std::int64_t> source_ids;
@@ -2453,6 +2571,27 @@ Status SqliteArchive::check_chunks(CheckReport& report, const ChunkRowCheck& row
   report.checked(std::to_string(refs.size()) +
                  " chunk blobs against their CRC-32, and their rows' codec, scan" +
                  std::string(row_check ? ", counts" : "") + " and bounds");
+  RELIEF_ASSIGN_OR_RETURN(const bool extents, table_exists(store::kExtentTable));
+  if (extents) {
+    // Each row's point bounds were checked by read_chunk above (a finite box
+    // within its chunk's bounds); rows naming no chunk are not damage.
+    RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> count,
+                            Statement::prepare(db(),
+                                               "SELECT COUNT(*), COUNT(c.id) FROM relief_chunk_extent AS e "
+                                               "LEFT JOIN relief_chunk AS c ON c.id = e.id",
+                                               path_, "count the chunks' point bounds"));
+    RELIEF_ASSIGN_OR_RETURN(const bool row, count->step());
+    const std::int64_t rows = row ? count->column_int64(0) : 0;
+    const std::int64_t named = row ? count->column_int64(1) : 0;
+    std::string line =
+        std::to_string(named) + " chunks' point bounds (relief_chunk_extent), each within its chunk's bounds";
+    if (rows > named) {
+      line +=
+          "; " + std::to_string(rows - named) +
+          " rows that name no chunk (left by a writer that does not know the table), which readers ignore";
+    }
+    report.checked(line);
+  }
   RELIEF_ASSIGN_OR_RETURN(const bool pyramid, pyramid_tables_exist());
   if (pyramid) {
     // Every pyramid row, finished or not: each level's nodes by a box query

@@ -83,6 +83,25 @@ inline constexpr char kBoundsIndex[] = "relief_chunk_bounds";
 inline constexpr char kCreateBoundsIndexSql[] =
     "CREATE INDEX IF NOT EXISTS relief_chunk_bounds ON relief_chunk(min_x, max_x, min_y, max_y, min_z, max_z)";
 
+// The exact bounds of the points a full decode of a chunk returns, for the
+// chunks whose row bounds (which cover the base layer a coarse level of detail
+// decodes too) are wider (format-spec/archive.md §2.6). An optional table,
+// created by the first writer that stores such a chunk: readers that do not
+// know it take the row bounds, which contain these, so the format version
+// does not change. A row whose id names no chunk is ignored.
+inline constexpr char kExtentTable[] = "relief_chunk_extent";
+inline constexpr char kCreateExtentSql[] = R"sql(
+CREATE TABLE IF NOT EXISTS relief_chunk_extent (
+  id    INTEGER PRIMARY KEY,
+  min_x REAL NOT NULL,
+  min_y REAL NOT NULL,
+  min_z REAL NOT NULL,
+  max_x REAL NOT NULL,
+  max_y REAL NOT NULL,
+  max_z REAL NOT NULL
+);
+)sql";
+
 // The level-of-detail pyramid (format-spec/archive.md §9). Optional tables,
 // created by the first writer that stores a pyramid: readers that do not know
 // them read the archive's full-resolution chunks as before, so the format

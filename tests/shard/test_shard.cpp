@@ -165,6 +165,8 @@ void check_same_metadata(const ArchiveInfo& a, const ArchiveInfo& b) {
   CHECK(a.blob_bytes == b.blob_bytes);
   CHECK(a.bounds.min == b.bounds.min);
   CHECK(a.bounds.max == b.bounds.max);
+  CHECK(a.point_bounds.min == b.point_bounds.min);  // merge carries relief_chunk_extent
+  CHECK(a.point_bounds.max == b.point_bounds.max);
   REQUIRE(a.sources.size() == b.sources.size());
   for (std::size_t i = 0; i < a.sources.size(); ++i) {
     CHECK(a.sources[i].path == b.sources[i].path);

@@ -1168,6 +1168,80 @@ TEST_CASE("a new archive does not take the log files a deleted one left under it
   CHECK_FALSE(fs::exists(path + "-journal"));
 }
 
+TEST_CASE("point bounds narrower than a row's are kept beside it, summed by info and removed with their scan",
+          "[store]") {
+  TempDir dir;
+  const std::string path = dir.file("a.relief");
+  auto archive = create_ok(path);
+  const std::int64_t s1 = begin_ok(*archive);
+  // Row 0's points lie within its bounds (a base layer overhangs them), row
+  // 1 has none narrower; the archive's point bounds take row 1's bounds.
+  std::vector<ChunkRow> rows = {make_row({0, 0, 0}, s1, box_of({-1, -1, -1}, {26, 26, 26}), 100, 1000, 1),
+                                make_row({1, 0, 0}, s1, box_of({25, 2, 3}, {40, 4, 5}), 100, 1000, 2)};
+  rows[0].ref.point_bounds = box_of({0.5, 0.25, 0}, {24, 25, 25});
+  {
+    RawDb raw(path);
+    CHECK(raw.integer("SELECT COUNT(*) FROM sqlite_master WHERE name = 'relief_chunk_extent'") == 0);
+  }
+  put_ok(*archive, rows);
+  REQUIRE(archive->finish_scan(s1, false, false, "").is_ok());
+  ArchiveInfo info = info_ok(*archive);
+  CHECK(info.bounds.min == Vec3d{-1, -1, -1});
+  CHECK(info.bounds.max == Vec3d{40, 26, 26});
+  CHECK(info.point_bounds.min == Vec3d{0.5, 0.25, 0});
+  CHECK(info.point_bounds.max == Vec3d{40, 25, 25});
+  CHECK(read_ok(*archive, rows[0].ref.id).ref.point_bounds.min == Vec3d{0.5, 0.25, 0});
+  CHECK(read_ok(*archive, rows[1].ref.id).ref.point_bounds.empty());
+  {
+    RawDb raw(path);
+    CHECK(raw.integer("SELECT COUNT(*) FROM relief_chunk_extent") == 1);
+  }
+
+  // Refused before anything is written: point bounds outside the row's.
+  const std::int64_t s2 = begin_ok(*archive);
+  std::vector<ChunkRow> bad = {make_row({2, 0, 0}, s2, cube(50, 60), 10, 100, 3)};
+  bad[0].ref.point_bounds = cube(49, 55);
+  CHECK(archive->put_chunks(bad).code() == StatusCode::kInvalidArgument);
+  bad[0].ref.point_bounds = box_of({51, 51, 51}, {52, 52, kInf});
+  CHECK(archive->put_chunks(bad).code() == StatusCode::kInvalidArgument);
+  bad[0].ref.point_bounds = cube(51, 59);
+  put_ok(*archive, bad);
+  CHECK(info_ok(*archive).point_bounds.max == Vec3d{59, 59, 59});
+  REQUIRE(archive->abort_scan(s2).is_ok());
+  info = info_ok(*archive);
+  CHECK(info.point_bounds.max == Vec3d{40, 25, 25});
+  {
+    RawDb raw(path);
+    CHECK(raw.integer("SELECT COUNT(*) FROM relief_chunk_extent") == 1);
+  }
+  archive.reset();
+
+  SECTION("a row of no chunk (a writer that does not know the table removed it) is ignored") {
+    {
+      RawDb raw(path);
+      raw.exec("INSERT INTO relief_chunk_extent VALUES(9999, -500, -500, -500, 500, 500, 500)");
+    }
+    auto reader = open_ok(path, Archive::Mode::kReadOnly);
+    CHECK(info_ok(*reader).point_bounds.min == Vec3d{0.5, 0.25, 0});
+    const ArchiveCheck check = check_ok(path);
+    CHECK(check.problems.empty());
+    CHECK_THAT(joined(check.checked), Catch::Contains("1 rows that name no chunk"));
+  }
+  SECTION("a damaged row is corrupt data for read_chunk and check, and not reported by info") {
+    {
+      RawDb raw(path);
+      raw.exec("UPDATE relief_chunk_extent SET max_x = 30");  // beyond the chunk's bounds
+    }
+    auto reader = open_ok(path, Archive::Mode::kReadOnly);
+    CHECK(info_ok(*reader).point_bounds.min == Vec3d{-1, -1, -1});
+    const Result<ChunkRow> row = reader->read_chunk(rows[0].ref.id);
+    CHECK(row.status().code() == StatusCode::kCorruptData);
+    CHECK_THAT(row.status().message(), Catch::StartsWith(path + ": relief_chunk_extent row "));
+    const ArchiveCheck check = check_ok(path);
+    CHECK_THAT(joined(check.problems), Catch::Contains("point bounds are not a finite box within"));
+  }
+}
+
 TEST_CASE("an intact archive passes check_archive", "[store][check]") {
   TempDir dir;
   const std::string path = dir.file("a.relief");

@@ -144,7 +144,15 @@ struct ArchiveInfo {
   std::uint64_t decoded_points = 0;
   std::uint64_t chunk_count = 0;
   std::uint64_t blob_bytes = 0;
-  Box3d bounds;  // of the decoded points; empty for an empty archive
+  // Of every point any query can return, a coarse level of detail's included
+  // (the union of the chunk rows' bounds); empty for an empty archive.
+  Box3d bounds;
+  // Of the points a full decode returns (every point of an error-bounded
+  // archive, exact), within `bounds`: what `relief info` reports. Archives
+  // written before relief_chunk_extent (format-spec/archive.md §2.6) give
+  // `bounds` here, which may reach beyond the points by the base layer's
+  // overhang.
+  Box3d point_bounds;
   std::uint64_t file_bytes = 0;  // size of the SQLite file (+ WAL) on disk
   std::vector<ArchiveSource> sources;
   std::vector<ArchiveScan> scans;
@@ -159,7 +167,12 @@ struct ChunkRef {
   ChunkKey key;
   std::uint32_t seq = 0;  // 0, 1, ... for several blobs in one voxel (appended scans)
   std::int64_t scan_id = 0;
-  Box3d bounds;           // of the decoded points, exact (double)
+  Box3d bounds;  // of the decoded points at any level of detail, exact (double)
+  // Of the points a full decode (lod 1) returns, exact, when they lie within
+  // narrower bounds than `bounds` (an error-bounded blob whose base layer
+  // reaches beyond its points); empty: the same as `bounds`. Written to
+  // relief_chunk_extent by put_chunks, filled by read_chunk.
+  Box3d point_bounds;
   std::uint64_t input_points = 0;
   std::uint64_t decoded_points = 0;
   std::uint64_t blob_size = 0;

@@ -225,7 +225,11 @@ struct ChunkInfo {
 // What a full decode of a blob will return, known to the encoder.
 struct EncodeStats {
   std::uint32_t decoded_points = 0;
-  Box3d decoded_bounds;  // exact bounds of decode_chunk's points (lod 1)
+  // Exact bounds of every point any level of detail decodes (for an
+  // error-bounded blob, its points and its base layer's), and of decode_chunk's
+  // points (lod 1) alone.
+  Box3d decoded_bounds;
+  Box3d point_bounds;
   // An intensity tolerance was asked for, but the intensities are not all
   // whole numbers 0..65535: they were kept exact.
   bool intensities_kept_exact = false;

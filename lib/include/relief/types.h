@@ -38,6 +38,11 @@ struct Box3d {
     max.y = p.y > max.y ? p.y : max.y;
     max.z = p.z > max.z ? p.z : max.z;
   }
+  // Whether `inner` lies within this box (closed; faces may touch).
+  bool contains(const Box3d& inner) const {
+    return min.x <= inner.min.x && min.y <= inner.min.y && min.z <= inner.min.z && max.x >= inner.max.x &&
+           max.y >= inner.max.y && max.z >= inner.max.z;
+  }
   // Length of the diagonal; 0 for an empty box.
   double diagonal() const;
   Vec3d extent() const;
