@@ -31,25 +31,41 @@
 // pose (a unit quaternion w x y z, then a translation) is applied in double
 // precision. A point whose cartesianInvalidState (or sphericalInvalidState
 // for spherical scans) is 1 (a direction without a range) or 2 (no return)
-// is skipped and counted in PointStreamInfo::skipped_points. intensity
-// becomes PointCloud::intensities; colorRed/Green/Blue (Integer, minimum at
-// least 0) 8-bit levels when the largest maximum is at most 255, else 16-bit
-// levels (at most 65535) kept exactly as colour and LasAttributes::color_low;
-// timeStamp the LAS GPS time; returnIndex (from 0) and returnCount the LAS
-// return number and number of returns when their declared ranges fit LAS's
-// 4 bits. Every other field (rowIndex, columnIndex, colour or intensity
-// invalid flags, a lone colour channel, extension fields ...) is kept as LAS
-// extra bytes under its name (ReaderOptions::extra_bytes; else skipped with
-// one warning). Images (images2D) and other metadata are ignored.
+// is skipped and counted in PointStreamInfo::skipped_points, before any of
+// its other values is looked at (a NaN, or a value above its field's
+// maximum, in a skipped point is no error). intensity becomes
+// PointCloud::intensities, 0 for a point whose isIntensityInvalid is not 0;
+// timeStamp the LAS GPS time, 0 for a point whose isTimeStampInvalid is not
+// 0 (an intensity or time that is not finite is an error on any other
+// point). colorRed/Green/Blue (Integer, levels in 0..65535) have the range
+// of the scan's colorLimits (colorRedMinimum .. colorRedMaximum and so on),
+// else of each field's minimum .. maximum: when every range lies in 0..255
+// (and every field's maximum too) the levels are kept as 8-bit levels;
+// when every range is 0..65535, as 16-bit levels, exactly; else a level v
+// of range lo..hi becomes the 16-bit level round((v - lo) * 65535 / (hi -
+// lo)), clamped to 0..65535 (0 when lo == hi). 16-bit levels are kept as
+// colour and LasAttributes::color_low. returnIndex (from 0) and
+// returnCount become the LAS return number and number of returns when
+// their declared ranges fit LAS's 4 bits. Every other field (rowIndex,
+// columnIndex, colour or intensity invalid flags, a lone colour channel,
+// extension fields ...) is kept as LAS extra bytes under its name
+// (ReaderOptions::extra_bytes; else skipped with one warning), of the
+// narrowest type that holds its declared range in every scan. A scan whose
+// recordCount is 0 is not read at all (neither its section, whose
+// fileOffset may be 0, nor its prototype). Images (images2D) and other
+// metadata are ignored.
 //
 // Errors: another major version, a page whose CRC does not match, offsets
 // or lengths outside the file, a scan whose bytestreams end before its
 // recordCount, a value outside its field's declared range, String or nested
-// fields, any codec but bitpack (kUnsupported), scans that carry different
-// attributes. Memory is bounded by the XML section (at most kMaxXml bytes and
-// kMaxXmlElements elements) plus a buffer per field (a bytestream buffer is at
-// most 64 KiB), never by a count the file states; every loop over packets is
-// bounded by the section's bytes.
+// fields, any codec but bitpack (kUnsupported), scans with points that
+// carry different attributes. Memory is bounded by the XML section (at most
+// kMaxXml bytes, parsed in one piece, and kMaxXmlElements elements of at
+// most kMaxXmlAttributes attributes, only the few the reader uses kept, and
+// names, attribute values and text of at most kMaxXmlToken bytes each) plus
+// a buffer per field (a bytestream buffer is at most 64 KiB), never by a
+// count the file states; every loop over packets is bounded by the
+// section's bytes.
 
 #include <expat.h>
 
@@ -93,6 +109,10 @@ constexpr int kMaxXmlDepth = 64;
 // hostile section (an element costs about 150 bytes in it, however short
 // its text).
 constexpr std::size_t kMaxXmlElements = std::size_t{1} << 20;
+// An element of E57 has a handful of attributes (and its names, values and
+// text are short): these bound what one element may hold.
+constexpr std::size_t kMaxXmlAttributes = 1024;
+constexpr std::size_t kMaxXmlToken = std::size_t{1} << 20;
 // Far above the fields of a real prototype (a dozen), and a buffer of up to
 // 64 KiB each.
 constexpr std::size_t kMaxFields = 256;
@@ -122,17 +142,34 @@ std::uint32_t crc32c(const std::uint8_t* p, std::size_t n) {
 }
 
 // ---- A tiny DOM of the XML section: names, attributes, text, children.
+
+// The attributes the reader reads (XmlNode::attribute); the others are dropped.
+constexpr std::array<std::string_view, 8> kKeptAttributes = {
+    "type", "minimum", "maximum", "scale", "offset", "precision", "fileOffset", "recordCount"};
+
 struct XmlNode {
   std::string name;
-  std::vector<std::pair<std::string, std::string>> attributes;
+  // The kept attributes packed: for each, 1 + the index of its name in
+  // kKeptAttributes as one byte, its value, a NUL (which XML text cannot hold).
+  std::string attributes;
   std::string text;
   std::vector<XmlNode> children;
 
-  const std::string* attribute(std::string_view key) const {
-    for (const auto& [k, v] : attributes) {
-      if (k == key) return &v;
+  std::optional<std::string_view> attribute(std::string_view key) const {
+    std::string_view rest = attributes;
+    while (!rest.empty()) {
+      const std::size_t end = rest.find('\0', 1);
+      if (kKeptAttributes[static_cast<std::size_t>(rest[0] - 1)] == key) return rest.substr(1, end - 1);
+      rest.remove_prefix(end + 1);
     }
-    return nullptr;
+    return std::nullopt;
+  }
+  void keep_attribute(std::string_view key, std::string_view value) {
+    const auto at = std::find(kKeptAttributes.begin(), kKeptAttributes.end(), key);
+    if (at == kKeptAttributes.end()) return;
+    attributes += static_cast<char>(at - kKeptAttributes.begin() + 1);
+    attributes += value;
+    attributes += '\0';
   }
   const XmlNode* child(std::string_view key) const {
     for (const XmlNode& c : children) {
@@ -140,10 +177,7 @@ struct XmlNode {
     }
     return nullptr;
   }
-  std::string type() const {
-    const std::string* t = attribute("type");
-    return t ? *t : std::string();
-  }
+  std::string type() const { return std::string(attribute("type").value_or(std::string_view())); }
 };
 
 struct XmlBuilder {
@@ -170,6 +204,20 @@ struct XmlBuilder {
       b->fail("more than " + std::to_string(kMaxXmlElements) + " elements");
       return;
     }
+    const std::size_t name_length = std::strlen(name);
+    if (name_length > kMaxXmlToken) {
+      b->fail("an element name of " + std::to_string(name_length) + " bytes; at most " +
+              std::to_string(kMaxXmlToken) + " are read");
+      return;
+    }
+    std::size_t count = 0;
+    while (attrs[2 * count] != nullptr) {
+      if (++count > kMaxXmlAttributes) {
+        b->fail("element " + quoted(std::string_view(name, std::min<std::size_t>(name_length, 64))) +
+                " has more than " + std::to_string(kMaxXmlAttributes) + " attributes");
+        return;
+      }
+    }
     XmlNode* node = nullptr;
     if (b->stack.empty()) {
       if (b->have_root) return b->fail("more than one root element");
@@ -179,8 +227,21 @@ struct XmlBuilder {
       b->stack.back()->children.emplace_back();
       node = &b->stack.back()->children.back();
     }
-    node->name = name;
-    for (std::size_t i = 0; attrs[i] != nullptr; i += 2) node->attributes.emplace_back(attrs[i], attrs[i + 1]);
+    node->name.assign(name, name_length);
+    for (std::size_t i = 0; attrs[i] != nullptr; i += 2) {
+      const std::size_t value_length = std::strlen(attrs[i + 1]);
+      if (value_length > kMaxXmlToken) {
+        b->fail("attribute " +
+                quoted(std::string_view(attrs[i], std::min<std::size_t>(std::strlen(attrs[i]), 64))) +
+                " of element " + quoted(std::string_view(name, std::min<std::size_t>(name_length, 64))) +
+                " is " + std::to_string(value_length) + " bytes long; at most " +
+                std::to_string(kMaxXmlToken) + " are read");
+        return;
+      }
+      // Only the attributes the reader looks at are kept: the tree stays a
+      // small multiple of the section's size whatever else elements carry.
+      node->keep_attribute(attrs[i], std::string_view(attrs[i + 1], value_length));
+    }
     b->stack.push_back(node);
   }
   static void on_end(void* self, const XML_Char*) {
@@ -189,7 +250,14 @@ struct XmlBuilder {
   }
   static void on_text(void* self, const XML_Char* s, int len) {
     auto* b = static_cast<XmlBuilder*>(self);
-    if (!b->stack.empty() && len > 0) b->stack.back()->text.append(s, static_cast<std::size_t>(len));
+    if (!b->error.empty() || b->stack.empty() || len <= 0) return;
+    std::string& text = b->stack.back()->text;
+    if (text.size() + static_cast<std::size_t>(len) > kMaxXmlToken) {
+      b->fail("element " + quoted(std::string_view(b->stack.back()->name).substr(0, 64)) + " has more than " +
+              std::to_string(kMaxXmlToken) + " bytes of text");
+      return;
+    }
+    text.append(s, static_cast<std::size_t>(len));
   }
   // E57 has no use for entities; refusing their declarations keeps entity
   // expansion (the "billion laughs") out of the question.
@@ -278,11 +346,22 @@ std::size_t extra_type_size(int t) {
   }
 }
 
-// The narrowest LAS type that holds every value a field declares.
-int extra_type_of(const Field& f) {
-  if (f.type == FieldType::kFloat) return f.single ? kF32 : kF64;
-  if (f.type == FieldType::kScaledInteger) return kF64;
-  const std::int64_t lo = f.minimum, hi = f.maximum;
+// The narrowest LAS type that holds every value the fields declare: the
+// field of one name in every scan, so that each scan's values fit.
+int extra_type_of(const std::vector<const Field*>& fields) {
+  bool integers = false, floats = false, doubles = false;
+  std::int64_t lo = std::numeric_limits<std::int64_t>::max(), hi = std::numeric_limits<std::int64_t>::min();
+  for (const Field* f : fields) {
+    if (f->type == FieldType::kInteger) {
+      integers = true;
+      lo = std::min(lo, f->minimum);
+      hi = std::max(hi, f->maximum);
+    } else {
+      floats = true;
+      doubles = doubles || f->type == FieldType::kScaledInteger || !f->single;
+    }
+  }
+  if (floats) return doubles || integers ? kF64 : kF32;
   if (lo >= 0) {
     if (hi <= 0xFF) return kU8;
     if (hi <= 0xFFFF) return kU16;
@@ -297,16 +376,24 @@ int extra_type_of(const Field& f) {
 
 // One scan: where its points are, how many, its fields and its pose.
 struct Scan {
+  std::size_t index = 0;  // its place in data3D
   std::uint64_t file_offset = 0;
   std::uint64_t record_count = 0;
   std::vector<Field> fields;
   bool spherical = false;
   bool colors = false;
   bool wide_colors = false;  // 16-bit levels
+  bool scaled_colors = false;  // 16-bit levels scaled from [color_lo, color_hi]
+  std::array<double, 3> color_lo{}, color_hi{};
   std::uint32_t las = 0;     // LasAttributeBits
   std::array<double, 9> rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};  // row major
   std::array<double, 3> translation{0, 0, 0};
   bool has_pose = false;
+  // Indices in fields (SIZE_MAX when absent): the state that marks a point
+  // invalid, the flags that mark its intensity or its time invalid.
+  std::size_t invalid_state = std::numeric_limits<std::size_t>::max();
+  std::size_t intensity_invalid = std::numeric_limits<std::size_t>::max();
+  std::size_t time_invalid = std::numeric_limits<std::size_t>::max();
 };
 
 // A field's bytestream: its buffer of the current data packet and the bits
@@ -489,22 +576,23 @@ class E57PointReader final : public PointReader {
     XML_SetElementHandler(b.parser, &XmlBuilder::on_start, &XmlBuilder::on_end);
     XML_SetCharacterDataHandler(b.parser, &XmlBuilder::on_text);
     XML_SetEntityDeclHandler(b.parser, &XmlBuilder::on_entity);
-    std::vector<std::uint8_t> chunk(static_cast<std::size_t>(logical_page_) * 64);
-    std::uint64_t left = xml_length_;
-    do {
-      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(left, chunk.size()));
-      RELIEF_RETURN_IF_ERROR(read_logical(at, n, chunk.data(), "the XML section"));
-      at += n;
-      left -= n;
-      const XML_Status st = XML_Parse(b.parser, reinterpret_cast<const char*>(chunk.data()), static_cast<int>(n),
-                                      left == 0 ? XML_TRUE : XML_FALSE);
-      if (!b.error.empty()) return error("the XML section: " + b.error);
-      if (st != XML_STATUS_OK) {
-        return error("the XML section is not well-formed XML: " +
-                     std::string(XML_ErrorString(XML_GetErrorCode(b.parser))) + " at line " +
-                     std::to_string(XML_GetCurrentLineNumber(b.parser)));
-      }
-    } while (left > 0);
+    // The whole section in one buffer and one parse: fed in pieces, expat 2.5
+    // rescans a token that spans them from its start at every piece
+    // (CVE-2023-52425), quadratic in a long attribute or a long start tag.
+    // Its own buffer (XML_GetBuffer) is the only copy of the section.
+    if (xml_length_ == 0) return error("the XML section is empty");
+    const int n = static_cast<int>(xml_length_);  // at most kMaxXml
+    void* buffer = XML_GetBuffer(b.parser, n);
+    if (buffer == nullptr) return internal_error(name() + ": cannot allocate the XML section's buffer");
+    RELIEF_RETURN_IF_ERROR(read_logical(at, static_cast<std::size_t>(xml_length_),
+                                        static_cast<std::uint8_t*>(buffer), "the XML section"));
+    const XML_Status st = XML_ParseBuffer(b.parser, n, XML_TRUE);
+    if (!b.error.empty()) return error("the XML section: " + b.error);
+    if (st != XML_STATUS_OK) {
+      return error("the XML section is not well-formed XML: " +
+                   std::string(XML_ErrorString(XML_GetErrorCode(b.parser))) + " at line " +
+                   std::to_string(XML_GetCurrentLineNumber(b.parser)));
+    }
     if (!b.have_root) return error("the XML section is empty");
     root = std::move(b.root);
     return Status::ok();
@@ -557,15 +645,15 @@ class E57PointReader final : public PointReader {
     const std::string type = node.type();
     const std::string what = where + ": field " + quoted(f.name);
     const auto whole_attr = [&](const char* key, std::int64_t& out) -> Status {
-      const std::string* v = node.attribute(key);
-      if (v != nullptr && !parse_whole(*v, out)) {
+      const std::optional<std::string_view> v = node.attribute(key);
+      if (v && !parse_whole(*v, out)) {
         return error(what + ": " + key + " " + quoted(*v) + " is not a 64-bit integer");
       }
       return Status::ok();
     };
     const auto real_attr = [&](const char* key, double& out) -> Status {
-      const std::string* v = node.attribute(key);
-      if (v != nullptr && !parse_real(*v, out)) return error(what + ": " + key + " " + quoted(*v) + " is not a number");
+      const std::optional<std::string_view> v = node.attribute(key);
+      if (v && !parse_real(*v, out)) return error(what + ": " + key + " " + quoted(*v) + " is not a number");
       return Status::ok();
     };
     if (type == "Integer" || type == "ScaledInteger") {
@@ -586,11 +674,11 @@ class E57PointReader final : public PointReader {
     }
     if (type == "Float") {
       f.type = FieldType::kFloat;
-      const std::string* p = node.attribute("precision");
-      if (p != nullptr && *p != "single" && *p != "double") {
+      const std::optional<std::string_view> p = node.attribute("precision");
+      if (p && *p != "single" && *p != "double") {
         return error(what + ": precision " + quoted(*p) + " is neither \"single\" nor \"double\"");
       }
-      f.single = p != nullptr && *p == "single";
+      f.single = p.has_value() && *p == "single";
       f.bits = f.single ? 32 : 64;
       return Status::ok();
     }
@@ -600,7 +688,7 @@ class E57PointReader final : public PointReader {
   }
 
   // Gives each field of `scan` its role (see the top of the file).
-  Status assign_roles(Scan& scan, const std::string& where) {
+  Status assign_roles(const XmlNode& scan_node, Scan& scan, const std::string& where) {
     const auto find = [&](std::string_view key) -> Field* {
       for (Field& f : scan.fields) {
         if (f.name == key) return &f;
@@ -646,19 +734,41 @@ class E57PointReader final : public PointReader {
     Field* green = find("colorGreen");
     Field* blue = find("colorBlue");
     if (red && green && blue) {
-      std::int64_t largest = 0;
-      for (Field* c : {red, green, blue}) {
-        if (c->type != FieldType::kInteger || c->minimum < 0 || c->maximum > 65535) {
-          return error(where + ": colour field " + quoted(c->name) +
+      // The levels' range: the scan's colorLimits, else each field's own.
+      const XmlNode* limits = scan_node.child("colorLimits");
+      static constexpr std::array<const char*, 3> kMinimum = {"colorRedMinimum", "colorGreenMinimum",
+                                                              "colorBlueMinimum"};
+      static constexpr std::array<const char*, 3> kMaximum = {"colorRedMaximum", "colorGreenMaximum",
+                                                              "colorBlueMaximum"};
+      const std::array<Field*, 3> channels = {red, green, blue};
+      bool bytes = true, words = true;  // 0..255 levels, 0..65535 levels, as stored
+      for (std::size_t c = 0; c < 3; ++c) {
+        const Field* f = channels[c];
+        if (f->type != FieldType::kInteger || f->minimum < 0 || f->maximum > 65535) {
+          return error(where + ": colour field " + quoted(f->name) +
                        " is not an Integer with levels in 0..255 or 0..65535");
         }
-        largest = std::max(largest, c->maximum);
+        double& lo = scan.color_lo[c];
+        double& hi = scan.color_hi[c];
+        lo = static_cast<double>(f->minimum);
+        hi = static_cast<double>(f->maximum);
+        if (limits != nullptr) {
+          RELIEF_RETURN_IF_ERROR(float_value(limits, kMinimum[c], lo, lo, where + " colorLimits"));
+          RELIEF_RETURN_IF_ERROR(float_value(limits, kMaximum[c], hi, hi, where + " colorLimits"));
+          if (!(lo < hi)) {
+            return error(where + ": colorLimits " + kMinimum[c] + " " + format_double(lo) + " is not below " +
+                         kMaximum[c] + " " + format_double(hi));
+          }
+        }
+        bytes = bytes && lo >= 0 && hi <= 255 && f->maximum <= 255;
+        words = words && lo == 0 && hi == 65535;
       }
       red->role = Role::kRed;
       green->role = Role::kGreen;
       blue->role = Role::kBlue;
       scan.colors = true;
-      scan.wide_colors = largest > 255;
+      scan.wide_colors = !bytes;
+      scan.scaled_colors = !bytes && !words;
       if (scan.wide_colors) scan.las |= kLasColorLow;
     }
     if (Field* t = find("timeStamp")) {
@@ -674,17 +784,23 @@ class E57PointReader final : public PointReader {
       r->role = Role::kReturnCount;
       scan.las |= kLasNumberOfReturns;
     }
-    std::size_t extra_at = 0;
+    const auto index_of = [&](std::string_view key, Role role) {
+      for (std::size_t k = 0; k < scan.fields.size(); ++k) {
+        if (scan.fields[k].name == key && scan.fields[k].role == role) return k;
+      }
+      return std::numeric_limits<std::size_t>::max();
+    };
+    scan.invalid_state =
+        index_of(scan.spherical ? "sphericalInvalidState" : "cartesianInvalidState", Role::kInvalidState);
+    scan.intensity_invalid = index_of("isIntensityInvalid", Role::kExtra);
+    scan.time_invalid = index_of("isTimeStampInvalid", Role::kExtra);
+    // The extra fields' types are decided over every scan (read_scans).
     for (Field& f : scan.fields) {
       if (f.role != Role::kExtra) continue;
       if (!keep_extras_) {
         f.role = Role::kSkip;
         continue;
       }
-      f.extra_type = extra_type_of(f);
-      f.extra_size = extra_type_size(f.extra_type);
-      f.extra_at = extra_at;  // the kept fields in prototype order
-      extra_at += f.extra_size;
       scan.las |= kLasExtraBytes;
     }
     return Status::ok();
@@ -694,7 +810,6 @@ class E57PointReader final : public PointReader {
     if (root.name != "e57Root") return error("the XML section's root is " + quoted(root.name) + ", not e57Root");
     const XmlNode* data3d = root.child("data3D");
     std::uint64_t total = 0;
-    std::vector<std::string> skipped;
     for (std::size_t s = 0; data3d != nullptr && s < data3d->children.size(); ++s) {
       const XmlNode& node = data3d->children[s];
       const std::string where = scan_name(s);
@@ -704,14 +819,19 @@ class E57PointReader final : public PointReader {
         return error(where + ": its points are a " + quoted(points->type()) + ", not a CompressedVector");
       }
       Scan scan;
-      const std::string* offset = points->attribute("fileOffset");
-      const std::string* count = points->attribute("recordCount");
-      if (offset == nullptr || !parse_whole(*offset, scan.file_offset)) {
+      scan.index = s;
+      const std::optional<std::string_view> offset = points->attribute("fileOffset");
+      const std::optional<std::string_view> count = points->attribute("recordCount");
+      if (!offset || !parse_whole(*offset, scan.file_offset)) {
         return error(where + ": its points have no valid fileOffset");
       }
-      if (count == nullptr || !parse_whole(*count, scan.record_count)) {
+      if (!count || !parse_whole(*count, scan.record_count)) {
         return error(where + ": its points have no valid recordCount");
       }
+      // A scan without points is not read at all: neither its section
+      // (libE57Format gives fileOffset 0 to one never written) nor its
+      // prototype, which need not match the other scans'.
+      if (scan.record_count == 0) continue;
       if (const XmlNode* codecs = points->child("codecs"); codecs != nullptr && !codecs->children.empty()) {
         std::string names;
         for (const XmlNode& codec : codecs->children) {
@@ -734,39 +854,15 @@ class E57PointReader final : public PointReader {
         scan.fields.emplace_back();
         RELIEF_RETURN_IF_ERROR(read_field(f, scan.fields.back(), where));
       }
-      RELIEF_RETURN_IF_ERROR(assign_roles(scan, where));
+      RELIEF_RETURN_IF_ERROR(assign_roles(node, scan, where));
       RELIEF_RETURN_IF_ERROR(read_pose(node, scan, where));
       if (scan.record_count > std::numeric_limits<std::uint64_t>::max() - total) {
         return error(where + ": the scans' recordCounts add up past 2^64");
       }
       total += scan.record_count;
-      // Attributes: the same in every scan, since a stream has one set.
-      if (s == 0) {
-        first_las_ = scan.las;
-        first_colors_ = scan.colors;
-        first_intensity_ = has_role(scan, Role::kIntensity);
-        for (const Field& f : scan.fields) {
-          if (f.role == Role::kExtra) extra_names_.push_back({f.name, f.extra_type});
-          if (f.role == Role::kSkip) skipped.push_back(f.name);
-        }
-      } else {
-        std::vector<KeptField> extras;
-        for (const Field& f : scan.fields) {
-          if (f.role == Role::kExtra) extras.push_back({f.name, f.extra_type});
-        }
-        const bool same_extras =
-            extras.size() == extra_names_.size() &&
-            std::equal(extras.begin(), extras.end(), extra_names_.begin(), [](const KeptField& a, const KeptField& b) {
-              return a.name == b.name && a.data_type == b.data_type;
-            });
-        if (scan.las != first_las_ || scan.colors != first_colors_ ||
-            has_role(scan, Role::kIntensity) != first_intensity_ || !same_extras) {
-          return error(where + " carries other attributes than scan 0 (colours, intensity, times, returns or "
-                               "other fields, or their types); every scan of a file must carry the same");
-        }
-      }
       scans_.push_back(std::move(scan));
     }
+    RELIEF_RETURN_IF_ERROR(same_attributes());
     info_.point_count = total;
     info_.has_colors = first_colors_;
     info_.has_intensity = first_intensity_;
@@ -777,6 +873,55 @@ class E57PointReader final : public PointReader {
       for (const KeptField& k : extra_names_) extra_size_ += extra_type_size(k.data_type);
       info_.extra_bytes_size = static_cast<std::uint32_t>(extra_size_);
       scratch_.assign(extra_size_, 0);
+    }
+    return Status::ok();
+  }
+
+  // Attributes: the same in every scan read (a stream has one set), the
+  // first scan's. An extra field takes the narrowest type that holds its
+  // values in every scan (rowIndex and columnIndex of grids of other sizes).
+  Status same_attributes() {
+    if (scans_.empty()) return Status::ok();
+    const Scan& first = scans_.front();
+    first_las_ = first.las;
+    first_colors_ = first.colors;
+    first_intensity_ = has_role(first, Role::kIntensity);
+    std::vector<std::string> skipped;
+    std::vector<std::vector<const Field*>> extras;  // [kept field][scan]
+    for (const Field& f : first.fields) {
+      if (f.role == Role::kExtra) {
+        extra_names_.push_back({f.name, 0});
+        extras.push_back({&f});
+      }
+      if (f.role == Role::kSkip) skipped.push_back(f.name);
+    }
+    for (std::size_t s = 1; s < scans_.size(); ++s) {
+      const Scan& scan = scans_[s];
+      std::size_t kept = 0;
+      bool same_extras = true;
+      for (const Field& f : scan.fields) {
+        if (f.role != Role::kExtra) continue;
+        same_extras = same_extras && kept < extras.size() && f.name == extra_names_[kept].name;
+        if (same_extras) extras[kept].push_back(&f);
+        ++kept;
+      }
+      if (scan.las != first_las_ || scan.colors != first_colors_ ||
+          has_role(scan, Role::kIntensity) != first_intensity_ || !same_extras || kept != extras.size()) {
+        return error(scan_name(scan.index) + " carries other attributes than " + scan_name(first.index) +
+                     ": its colours, intensity, times, returns or other fields differ; every scan of a file "
+                     "must carry the same (scans without points aside)");
+      }
+    }
+    for (std::size_t k = 0; k < extras.size(); ++k) extra_names_[k].data_type = extra_type_of(extras[k]);
+    for (Scan& scan : scans_) {
+      std::size_t kept = 0, at = 0;
+      for (Field& f : scan.fields) {
+        if (f.role != Role::kExtra) continue;
+        f.extra_type = extra_names_[kept++].data_type;
+        f.extra_size = extra_type_size(f.extra_type);
+        f.extra_at = at;  // the kept fields in prototype order
+        at += f.extra_size;
+      }
     }
     if (!skipped.empty()) {
       std::string list;
@@ -794,8 +939,8 @@ class E57PointReader final : public PointReader {
 
   Status open_scan(std::size_t s) {
     scan_ = &scans_[s];
-    scan_index_ = s;
-    const std::string where = scan_name(s);
+    scan_index_ = scans_[s].index;
+    const std::string where = scan_name(scan_index_);
     std::uint64_t start = 0;
     RELIEF_RETURN_IF_ERROR(to_logical(scan_->file_offset, start, where + ": the points' fileOffset"));
     std::array<std::uint8_t, kSectionHeaderSize> h{};
@@ -918,16 +1063,23 @@ class E57PointReader final : public PointReader {
     return Status::ok();
   }
 
+  Status above_maximum(const Field& f) const {
+    return record_error("field " + quoted(f.name) + " holds a value above its maximum " +
+                        std::to_string(f.maximum));
+  }
+
   Status record_error(const std::string& what) const {
     const std::uint64_t record = scan_->record_count - left_;
     return error(scan_name(scan_index_) + ": record " + std::to_string(record) + ": " + what);
   }
 
   // Decodes one record of every field into values_ (and ints_ for integer
-  // fields), then makes it a point of `batch` unless it is marked invalid.
+  // fields), then makes it a point of `batch` unless it is marked invalid:
+  // an invalid point is skipped before any of its other values is checked.
   Status read_record(PointCloud& batch, bool& kept) {
     kept = false;
     const std::vector<Field>& fields = scan_->fields;
+    std::size_t above = fields.size();  // the first field above its maximum
     for (std::size_t k = 0; k < fields.size(); ++k) {
       const Field& f = fields[k];
       std::uint64_t raw = 0;
@@ -939,20 +1091,30 @@ class E57PointReader final : public PointReader {
         continue;
       }
       if (raw > static_cast<std::uint64_t>(f.maximum) - static_cast<std::uint64_t>(f.minimum)) {
-        return record_error("field " + quoted(f.name) + " holds a value above its maximum " +
-                            std::to_string(f.maximum));
+        if (f.role == Role::kInvalidState) return above_maximum(f);
+        above = std::min(above, k);
       }
       ints_[k] = static_cast<std::int64_t>(static_cast<std::uint64_t>(f.minimum) + raw);
       values_[k] = f.type == FieldType::kScaledInteger ? static_cast<double>(ints_[k]) * f.scale + f.offset
                                                         : static_cast<double>(ints_[k]);
     }
+    if (scan_->invalid_state < fields.size()) {
+      const double state = values_[scan_->invalid_state];
+      if (state == 1 || state == 2) {  // a direction without a range, or no return
+        ++info_.skipped_points;
+        return Status::ok();
+      }
+    }
+    if (above < fields.size()) return above_maximum(fields[above]);
+    const auto flagged = [&](std::size_t k) { return k < fields.size() && values_[k] != 0; };
+    const bool intensity_invalid = flagged(scan_->intensity_invalid);
+    const bool time_invalid = flagged(scan_->time_invalid);
     double p[3] = {0, 0, 0};
     double sph[3] = {0, 0, 0};
     float intensity = 0;
     std::array<std::int64_t, 3> levels{};
     double time = 0;
     std::uint8_t return_number = 0, returns = 0;
-    bool invalid = false;
     for (std::size_t k = 0; k < fields.size(); ++k) {
       const Field& f = fields[k];
       const double v = values_[k];
@@ -968,9 +1130,9 @@ class E57PointReader final : public PointReader {
           sph[static_cast<int>(f.role) - static_cast<int>(Role::kRange)] = v;
           break;
         case Role::kInvalidState:
-          invalid = v == 1 || v == 2;  // a direction without a range, or no return
           break;
         case Role::kIntensity:
+          if (intensity_invalid) break;  // 0
           if (!(std::fabs(v) <= static_cast<double>(std::numeric_limits<float>::max()))) {
             return record_error("intensity " + format_double(v) + " is not a finite float");
           }
@@ -979,9 +1141,13 @@ class E57PointReader final : public PointReader {
         case Role::kRed:
         case Role::kGreen:
         case Role::kBlue:
-          levels[static_cast<int>(f.role) - static_cast<int>(Role::kRed)] = ints_[k];
+          levels[static_cast<std::size_t>(static_cast<int>(f.role) - static_cast<int>(Role::kRed))] =
+              ints_[k];
           break;
         case Role::kTime:
+          if (time_invalid) break;  // 0
+          if (!std::isfinite(v))
+            return record_error("timeStamp " + format_double(v) + " is not a finite number");
           time = v;
           break;
         case Role::kReturnIndex:
@@ -996,10 +1162,6 @@ class E57PointReader final : public PointReader {
         case Role::kSkip:
           break;
       }
-    }
-    if (invalid) {
-      ++info_.skipped_points;
-      return Status::ok();
     }
     if (scan_->spherical) {
       const double r = sph[0], az = sph[1], el = sph[2];
@@ -1023,6 +1185,13 @@ class E57PointReader final : public PointReader {
     }
     batch.positions.push_back(out);
     if (scan_->colors) {
+      if (scan_->scaled_colors) {
+        for (std::size_t c = 0; c < 3; ++c) {
+          const double lo = scan_->color_lo[c], hi = scan_->color_hi[c];
+          const double level = hi > lo ? (static_cast<double>(levels[c]) - lo) * 65535 / (hi - lo) : 0;
+          levels[c] = std::lround(std::clamp(level, 0.0, 65535.0));
+        }
+      }
       if (scan_->wide_colors) {
         batch.colors.push_back({static_cast<std::uint8_t>(levels[0] >> 8), static_cast<std::uint8_t>(levels[1] >> 8),
                                 static_cast<std::uint8_t>(levels[2] >> 8)});

@@ -79,6 +79,7 @@ struct Scan {
   std::optional<std::uint64_t> record_count;  // instead of the fields' value count
   std::optional<std::uint64_t> file_offset;   // instead of the section's
   std::string codecs;                         // inner XML of <codecs>
+  std::string extra_xml;                      // more children of the scan's element (colorLimits ...)
 };
 
 inline std::string real_text(double v) {
@@ -209,7 +210,7 @@ inline std::vector<std::uint8_t> write(const std::vector<Scan>& scans) {
            std::to_string(records) + "\"><prototype type=\"Structure\">";
     for (const Field& f : s.fields) xml += field_xml(f);
     xml += "</prototype><codecs type=\"Vector\" allowHeterogeneousChildren=\"1\">" + s.codecs + "</codecs></points>";
-    xml += "<images2D type=\"Vector\"/></vectorChild>\n";
+    xml += s.extra_xml + "<images2D type=\"Vector\"/></vectorChild>\n";
     scans_xml += xml;
   }
   const std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"

@@ -7,11 +7,13 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -355,6 +357,174 @@ TEST_CASE("E57: damaged and unsupported files are refused, naming the file and t
     spit(path, std::vector<std::uint8_t>(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(cut)));
     CHECK_FALSE(error_of(path).empty());
   }
+}
+
+TEST_CASE("E57: an invalid point is skipped before its other values are checked", "[io][e57]") {
+  TempDir dir;
+  const double nan = std::nan("");
+  // Point 1: no return, with NaN coordinates, intensity and time and a row
+  // above its maximum; point 2: valid, its intensity and time flagged
+  // invalid (and NaN); points 0 and 3 valid.
+  e57::Scan s;
+  s.fields = {e57::Field::real("cartesianX", {1, nan, 3, 4}),
+              e57::Field::real("cartesianY", {1, nan, 3, 4}),
+              e57::Field::real("cartesianZ", {1, nan, 3, 4}),
+              e57::Field::integer("cartesianInvalidState", 0, 2, {0, 2, 0, 0}),
+              e57::Field::real("intensity", {0.5, nan, nan, 0.25}),
+              e57::Field::integer("isIntensityInvalid", 0, 1, {0, 0, 1, 0}),
+              e57::Field::real("timeStamp", {10, nan, nan, 13}),
+              e57::Field::integer("isTimeStampInvalid", 0, 1, {0, 0, 1, 0}),
+              e57::Field::integer("rowIndex", 0, 5, {0, 7, 2, 3})};
+  spit(dir.file("skip.e57"), e57::write({s}));
+  const Read got = read_all(dir.file("skip.e57"), 2);
+  CHECK(got.info.skipped_points == 1);
+  REQUIRE(got.cloud.size() == 3);
+  require_point(got.cloud.positions[1], 3, 3, 3);
+  CHECK(got.cloud.intensities == std::vector<float>{0.5f, 0.0f, 0.25f});
+  CHECK(got.cloud.las.gps_time == std::vector<double>{10, 0, 13});
+  // The flags stay fields of their own.
+  CHECK(got.info.extra_bytes_size == 3);
+
+  // On a valid point that does not flag it, a NaN intensity or time is an
+  // error naming the record, and so is a value above its maximum.
+  const std::string path = dir.file("bad.e57");
+  auto bad = s;
+  bad.fields[5].ints[2] = 0;
+  spit(path, e57::write({bad}));
+  require_error(path, "scan 0 (data3D child 0): record 2: intensity nan is not a finite float");
+  bad = s;
+  bad.fields[7].ints[2] = 0;
+  spit(path, e57::write({bad}));
+  require_error(path, "scan 0 (data3D child 0): record 2: timeStamp nan is not a finite number");
+  bad = s;
+  bad.fields[3].ints[1] = 0;
+  bad.fields[0].reals[1] = bad.fields[1].reals[1] = bad.fields[2].reals[1] = 2;
+  bad.fields[4].reals[1] = bad.fields[6].reals[1] = 1;
+  spit(path, e57::write({bad}));
+  require_error(path,
+                "scan 0 (data3D child 0): record 1: field 'rowIndex' holds a value above its maximum 5");
+  bad.fields[8].ints[1] = 1;
+  bad.fields[6].reals[1] = std::numeric_limits<double>::infinity();
+  spit(path, e57::write({bad}));
+  require_error(path, "scan 0 (data3D child 0): record 1: timeStamp inf is not a finite number");
+}
+
+TEST_CASE("E57: colours of other ranges than 0..255 and 0..65535 are scaled to 16 bits", "[io][e57]") {
+  TempDir dir;
+  const int n = 64;
+  std::vector<std::int64_t> r, g, b;
+  for (int i = 0; i < n; ++i) {
+    r.push_back((i * 16) % 1024);
+    g.push_back(1023 - (i * 16) % 1024);
+    b.push_back((i * 37) % 1024);
+  }
+  const auto scaled = [](std::int64_t v, double lo, double hi) {
+    return std::clamp<long>(std::lround((static_cast<double>(v) - lo) * 65535 / (hi - lo)), 0, 65535);
+  };
+  const std::string limits =
+      "<colorLimits type=\"Structure\"><colorRedMinimum type=\"Integer\">0</colorRedMinimum><colorRedMaximum "
+      "type=\"Integer\">1023</colorRedMaximum><colorGreenMinimum type=\"Integer\">0</colorGreenMinimum>"
+      "<colorGreenMaximum type=\"Integer\">1023</colorGreenMaximum><colorBlueMinimum "
+      "type=\"Integer\">0</colorBlueMinimum><colorBlueMaximum "
+      "type=\"Integer\">1023</colorBlueMaximum></colorLimits>";
+  // 10-bit levels: the range of colorLimits, or else of the fields (here
+  // 0..1023 but for blue's 0..2047, of which 1023 is about half).
+  for (const bool with_limits : {true, false}) {
+    INFO("colorLimits " << with_limits);
+    e57::Scan s = scan_with(
+        n, {e57::Field::integer("colorRed", 0, 1023, r), e57::Field::integer("colorGreen", 0, 1023, g),
+            e57::Field::integer("colorBlue", 0, with_limits ? 1023 : 2047, b)});
+    if (with_limits) s.extra_xml = limits;
+    spit(dir.file("c10.e57"), e57::write({s}));
+    const Read got = read_all(dir.file("c10.e57"), 10);
+    REQUIRE(got.info.has_colors);
+    CHECK(got.info.las_attributes == kLasColorLow);
+    REQUIRE(got.cloud.las.color_low.size() == n);
+    for (int i = 0; i < n; ++i) {
+      const Rgb8 c = got.cloud.colors[i], lo = got.cloud.las.color_low[i];
+      REQUIRE(las_color_level(c.r, lo.r, false) == scaled(r[i], 0, 1023));
+      REQUIRE(las_color_level(c.g, lo.g, false) == scaled(g[i], 0, 1023));
+      REQUIRE(las_color_level(c.b, lo.b, false) == scaled(b[i], 0, with_limits ? 1023 : 2047));
+    }
+  }
+  // 16-bit fields whose colorLimits say 0..255: levels above 255 are clamped.
+  e57::Scan s = scan_with(3, {e57::Field::integer("colorRed", 0, 65535, {0, 128, 300}),
+                              e57::Field::integer("colorGreen", 0, 65535, {255, 1, 2}),
+                              e57::Field::integer("colorBlue", 0, 65535, {3, 4, 5})});
+  s.extra_xml =
+      "<colorLimits type=\"Structure\"><colorRedMaximum type=\"Integer\">255</colorRedMaximum>"
+      "<colorGreenMaximum type=\"Integer\">255</colorGreenMaximum><colorBlueMaximum "
+      "type=\"Integer\">255</colorBlueMaximum></colorLimits>";
+  spit(dir.file("c255.e57"), e57::write({s}));
+  const Read got = read_all(dir.file("c255.e57"), 10);
+  REQUIRE(got.cloud.las.color_low.size() == 3);
+  CHECK(las_color_level(got.cloud.colors[0].r, got.cloud.las.color_low[0].r, false) == 0);
+  CHECK(las_color_level(got.cloud.colors[1].r, got.cloud.las.color_low[1].r, false) == 128 * 257);
+  CHECK(las_color_level(got.cloud.colors[2].r, got.cloud.las.color_low[2].r, false) == 65535);
+  CHECK(las_color_level(got.cloud.colors[0].g, got.cloud.las.color_low[0].g, false) == 65535);
+}
+
+TEST_CASE("E57: scans of other grid sizes and scans without points", "[io][e57]") {
+  TempDir dir;
+  // rowIndex 0..100 (u8 alone) and 0..1000 (u16): both as u16.
+  std::vector<std::int64_t> rows_a, rows_b;
+  for (int i = 0; i < 20; ++i) {
+    rows_a.push_back(i * 5);
+    rows_b.push_back(i * 50);
+  }
+  e57::Scan a = scan_with(20, {e57::Field::integer("rowIndex", 0, 100, rows_a)});
+  e57::Scan b = scan_with(20, {e57::Field::integer("rowIndex", 0, 1000, rows_b)});
+  // Scans without points: one with another prototype, one never written
+  // (fileOffset 0, as libE57Format leaves it).
+  e57::Scan other = scan_with(0, {e57::Field::integer("colorRed", 0, 255, {})});
+  e57::Scan unwritten = scan_with(0, {e57::Field::real("intensity", {})});
+  unwritten.file_offset = 0;
+  spit(dir.file("grids.e57"), e57::write({other, a, unwritten, b}));
+  const Read got = read_all(dir.file("grids.e57"), 7);
+  CHECK(got.info.point_count == 40);
+  CHECK_FALSE(got.info.has_colors);
+  CHECK_FALSE(got.info.has_intensity);
+  CHECK(got.info.las_attributes == kLasExtraBytes);
+  REQUIRE(got.info.extra_bytes_size == 2);
+  REQUIRE(got.cloud.size() == 40);
+  for (std::size_t i = 0; i < 40; ++i) {
+    const std::int64_t want = i < 20 ? rows_a[i] : rows_b[i - 20];
+    REQUIRE(got.cloud.las.extra_bytes[2 * i] + 256 * got.cloud.las.extra_bytes[2 * i + 1] == want);
+  }
+  // Messages name scans by their place in data3D, empty ones counted.
+  b.fields[3].ints[4] = 1023;  // above rowIndex's maximum, within its 10 bits
+  spit(dir.file("grids.e57"), e57::write({other, a, unwritten, b}));
+  require_error(dir.file("grids.e57"),
+                "scan 3 (data3D child 3): record 4: field 'rowIndex' holds a value above");
+  // Scans with points still must carry the same attributes.
+  spit(dir.file("grids.e57"), e57::write({other, a, unwritten, scan_with(3, {})}));
+  require_error(dir.file("grids.e57"),
+                "scan 3 (data3D child 3) carries other attributes than scan 1 (data3D child 1)");
+}
+
+TEST_CASE("E57: XML elements with too many attributes, or too long ones, are refused", "[io][e57]") {
+  TempDir dir;
+  const std::string path = dir.file("xml.e57");
+  e57::Scan s = scan_with(3, {});
+  s.extra_xml = "<note a=\"" + std::string((std::size_t{1} << 20) + 1, 'b') + "\"/>";
+  spit(path, e57::write({s}));
+  require_error(
+      path,
+      "the XML section: attribute 'a' of element 'note' is 1048577 bytes long; at most 1048576 are read");
+  s.extra_xml = "<note>" + std::string((std::size_t{1} << 20) + 1, 'b') + "</note>";
+  spit(path, e57::write({s}));
+  require_error(path, "the XML section: element 'note' has more than 1048576 bytes of text");
+  s.extra_xml = "<note";
+  for (int i = 0; i < 1025; ++i) s.extra_xml += " a" + std::to_string(i) + "=\"\"";
+  s.extra_xml += "/>";
+  spit(path, e57::write({s}));
+  require_error(path, "the XML section: element 'note' has more than 1024 attributes");
+  // Up to the limits, the file reads (the attributes not read are dropped).
+  s.extra_xml = "<note";
+  for (int i = 0; i < 1024; ++i) s.extra_xml += " a" + std::to_string(i) + "=\"\"";
+  s.extra_xml += ">" + std::string(std::size_t{1} << 20, 'b') + "</note>";
+  spit(path, e57::write({s}));
+  CHECK(read_all(path, 10).cloud.size() == 3);
 }
 
 TEST_CASE("E57: relief compress reads one end to end", "[io][e57][cli]") {
