@@ -180,6 +180,50 @@ struct XmlNode {
   std::string type() const { return std::string(attribute("type").value_or(std::string_view())); }
 };
 
+// The name of the first start tag of `xml` with more than kMaxXmlAttributes
+// attributes (counted as the '=' outside quoted values), if any: expat reads
+// all of a tag's attributes (some 100 bytes of its memory each) before it
+// hands them over, so an absurd tag is refused before it is parsed.
+std::optional<std::string_view> overfull_tag(std::string_view xml) {
+  std::size_t i = 0;
+  const auto skip_past = [&](std::string_view end) {
+    const std::size_t at = xml.find(end, i);
+    i = at == std::string_view::npos ? xml.size() : at + end.size();
+  };
+  while ((i = xml.find('<', i)) != std::string_view::npos) {
+    const std::string_view rest = xml.substr(i);
+    if (rest.starts_with("<!--")) {
+      skip_past("-->");
+    } else if (rest.starts_with("<![CDATA[")) {
+      skip_past("]]>");
+    } else if (rest.starts_with("<?")) {
+      skip_past("?>");
+    } else if (rest.starts_with("<!")) {
+      skip_past(">");
+    } else {
+      const std::size_t start = ++i;
+      std::size_t name_end = std::string_view::npos;
+      std::size_t equals = 0;
+      char quote = 0;
+      for (; i < xml.size(); ++i) {
+        const char c = xml[i];
+        if (quote != 0) {
+          if (c == quote) quote = 0;
+        } else if (c == '"' || c == '\'') {
+          quote = c;
+        } else if (c == '>') {
+          break;
+        } else if (c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '/' || c == '=') {
+          name_end = std::min(name_end, i);
+          if (c == '=' && ++equals > kMaxXmlAttributes)
+            return xml.substr(start, std::min<std::size_t>(name_end - start, 64));
+        }
+      }
+    }
+  }
+  return std::nullopt;
+}
+
 struct XmlBuilder {
   XML_Parser parser = nullptr;
   XmlNode root;
@@ -586,6 +630,10 @@ class E57PointReader final : public PointReader {
     if (buffer == nullptr) return internal_error(name() + ": cannot allocate the XML section's buffer");
     RELIEF_RETURN_IF_ERROR(read_logical(at, static_cast<std::size_t>(xml_length_),
                                         static_cast<std::uint8_t*>(buffer), "the XML section"));
+    if (const auto tag = overfull_tag(std::string_view(static_cast<const char*>(buffer), xml_length_))) {
+      return error("the XML section: element " + quoted(*tag) + " has more than " +
+                   std::to_string(kMaxXmlAttributes) + " attributes");
+    }
     const XML_Status st = XML_ParseBuffer(b.parser, n, XML_TRUE);
     if (!b.error.empty()) return error("the XML section: " + b.error);
     if (st != XML_STATUS_OK) {

@@ -519,6 +519,12 @@ TEST_CASE("E57: XML elements with too many attributes, or too long ones, are ref
   s.extra_xml += "/>";
   spit(path, e57::write({s}));
   require_error(path, "the XML section: element 'note' has more than 1024 attributes");
+  // '=' in comments, CDATA, text and quoted values are no attributes.
+  const std::string equals(2000, '=');
+  s.extra_xml = "<!-- " + equals + " --><note a=\"" + equals + ">\" b='" + equals + "'><![CDATA[" + equals +
+                "]]>" + equals + "</note>";
+  spit(path, e57::write({s}));
+  CHECK(read_all(path, 10).cloud.size() == 3);
   // Up to the limits, the file reads (the attributes not read are dropped).
   s.extra_xml = "<note";
   for (int i = 0; i < 1024; ++i) s.extra_xml += " a" + std::to_string(i) + "=\"\"";
