@@ -32,7 +32,6 @@
 #include <algorithm>
 #include <bit>
 #include <cctype>
-#include <type_traits>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -44,9 +43,9 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <utility>
 #include <vector>
-
 
 namespace relief {
 
@@ -679,6 +678,37 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
+// PROJ's answers depend only on the text asked about (and proj.db, which does
+// not change under a running process), and each costs milliseconds: a reader
+// of many tiles in one CRS asks the same questions once per file (a thousand
+// tiles: seconds; under the sanitizers far more). The last few successful
+// answers are kept, per question; errors are not (they name the caller's file).
+template <typename V>
+class Memo {
+ public:
+  template <typename F>
+  Result<V> get(const std::string& key, F&& compute) {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      for (const auto& [k, v] : entries_) {
+        if (k == key) return v;
+      }
+    }
+    Result<V> r = compute();
+    if (r.is_ok()) {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (entries_.size() >= kEntries) entries_.erase(entries_.begin());
+      entries_.emplace_back(key, *r);
+    }
+    return r;
+  }
+
+ private:
+  static constexpr std::size_t kEntries = 16;
+  std::mutex mu_;
+  std::vector<std::pair<std::string, V>> entries_;
+};
+
 }  // namespace
 
 std::string geotiff_source_text(const GeoTiffRecords& records) {
@@ -719,28 +749,9 @@ bool parse_geotiff_source_text(const std::string& text, GeoTiffRecords& out) {
   return have_keys;
 }
 
-Result<CrsDefinition> crs_from_geotiff(const GeoTiffRecords& records, const std::string& where) {
-  Context ctx = new_context();
-  if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
-  return geotiff_to_wkt2(ctx.get(), records, where);
-}
+namespace {
 
-Result<std::string> wkt_to_wkt2(const std::string& wkt, const std::string& where) {
-  Context ctx = new_context();
-  if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
-  if (wkt.empty()) return invalid_argument(where + ": no CRS");
-  RELIEF_ASSIGN_OR_RETURN(Pj crs, parse_wkt(ctx.get(), wkt, where));
-  return as_wkt2(ctx.get(), crs.get(), where);
-}
-
-Result<std::string> crs_to_wkt2(const std::string& text, const std::string& where) {
-  Context ctx = new_context();
-  if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
-  RELIEF_ASSIGN_OR_RETURN(Pj crs, parse_any(ctx.get(), text, where));
-  return as_wkt2(ctx.get(), crs.get(), where);
-}
-
-Result<CrsSummary> describe_crs(const std::string& text, const std::string& where) {
+Result<CrsSummary> describe_uncached(const std::string& text, const std::string& where) {
   Context ctx = new_context();
   if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
   RELIEF_ASSIGN_OR_RETURN(Pj crs, parse_any(ctx.get(), text, where));
@@ -777,12 +788,52 @@ Result<CrsSummary> describe_crs(const std::string& text, const std::string& wher
   return s;
 }
 
+}  // namespace
+
+Result<CrsDefinition> crs_from_geotiff(const GeoTiffRecords& records, const std::string& where) {
+  static Memo<CrsDefinition> memo;
+  return memo.get(geotiff_source_text(records), [&]() -> Result<CrsDefinition> {
+    Context ctx = new_context();
+    if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
+    return geotiff_to_wkt2(ctx.get(), records, where);
+  });
+}
+
+Result<std::string> wkt_to_wkt2(const std::string& wkt, const std::string& where) {
+  static Memo<std::string> memo;
+  return memo.get(wkt, [&]() -> Result<std::string> {
+    Context ctx = new_context();
+    if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
+    if (wkt.empty()) return invalid_argument(where + ": no CRS");
+    RELIEF_ASSIGN_OR_RETURN(Pj crs, parse_wkt(ctx.get(), wkt, where));
+    return as_wkt2(ctx.get(), crs.get(), where);
+  });
+}
+
+Result<std::string> crs_to_wkt2(const std::string& text, const std::string& where) {
+  static Memo<std::string> memo;
+  return memo.get(text, [&]() -> Result<std::string> {
+    Context ctx = new_context();
+    if (!ctx) return internal_error(where + ": PROJ: cannot create a context");
+    RELIEF_ASSIGN_OR_RETURN(Pj crs, parse_any(ctx.get(), text, where));
+    return as_wkt2(ctx.get(), crs.get(), where);
+  });
+}
+
+Result<CrsSummary> describe_crs(const std::string& text, const std::string& where) {
+  static Memo<CrsSummary> memo;
+  return memo.get(text, [&] { return describe_uncached(text, where); });
+}
+
 Result<bool> crs_equivalent(const std::string& a, const std::string& b) {
-  Context ctx = new_context();
-  if (!ctx) return internal_error("PROJ: cannot create a context");
-  RELIEF_ASSIGN_OR_RETURN(Pj pa, parse_any(ctx.get(), a, "CRS " + crs_label(a)));
-  RELIEF_ASSIGN_OR_RETURN(Pj pb, parse_any(ctx.get(), b, "CRS " + crs_label(b)));
-  return proj_is_equivalent_to_with_ctx(ctx.get(), pa.get(), pb.get(), PJ_COMP_EQUIVALENT) != 0;
+  static Memo<bool> memo;
+  return memo.get(a + '\0' + b, [&]() -> Result<bool> {
+    Context ctx = new_context();
+    if (!ctx) return internal_error("PROJ: cannot create a context");
+    RELIEF_ASSIGN_OR_RETURN(Pj pa, parse_any(ctx.get(), a, "CRS " + crs_label(a)));
+    RELIEF_ASSIGN_OR_RETURN(Pj pb, parse_any(ctx.get(), b, "CRS " + crs_label(b)));
+    return proj_is_equivalent_to_with_ctx(ctx.get(), pa.get(), pb.get(), PJ_COMP_EQUIVALENT) != 0;
+  });
 }
 
 std::string crs_label(const std::string& text) {

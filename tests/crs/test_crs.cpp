@@ -334,6 +334,39 @@ TEST_CASE("damaged WKT goes to PROJ's WKT parser, names and codes to its lookup"
   CHECK(equivalent(*good, "EPSG:2154"));
 }
 
+TEST_CASE("answers kept for a CRS asked about again are the same, errors name each caller", "[crs]") {
+  // lib/crs keeps PROJ's last answers (a reader of many tiles asks the same
+  // question per file); what comes back must not depend on that.
+  const Result<std::string> first = wkt_to_wkt2(kWkt1Lambert93, "a.las: WKT VLR");
+  const Result<std::string> again = wkt_to_wkt2(kWkt1Lambert93, "b.las: WKT VLR");
+  REQUIRE(first.is_ok());
+  REQUIRE(again.is_ok());
+  CHECK(*first == *again);
+  const GeoTiffRecords lcc = user_defined_lcc();
+  const Result<CrsDefinition> d1 = crs_from_geotiff(lcc, "a.las");
+  const Result<CrsDefinition> d2 = crs_from_geotiff(lcc, "b.las");
+  REQUIRE(d1.is_ok());
+  REQUIRE(d2.is_ok());
+  CHECK(d1->wkt == d2->wkt);
+  CHECK(d1->source == d2->source);
+  CHECK(describe_crs("EPSG:2154", "x")->name == describe_crs("EPSG:2154", "y")->name);
+  CHECK(*crs_equivalent(*first, "EPSG:2154"));
+  CHECK(*crs_equivalent(*first, "EPSG:2154"));
+  CHECK_FALSE(*crs_equivalent(*first, "EPSG:4326"));
+  // Failures are not kept: each names its own caller.
+  for (const char* file : {"a.las", "b.las"}) {
+    const Result<std::string> bad = wkt_to_wkt2("PROJCS[\"broken\"", std::string(file) + ": WKT VLR");
+    REQUIRE_FALSE(bad.is_ok());
+    CHECK_THAT(bad.status().message(), Catch::StartsWith(std::string(file) + ": WKT VLR"));
+  }
+  // More CRSs than are kept, then the first again: still the same answer.
+  for (const int code : {2154, 4326, 25832, 25833, 32631, 32632, 32633, 3857, 27572, 2056, 31467, 28992, 3035,
+                         3034, 4258, 4269, 26910, 26911}) {
+    REQUIRE(describe_crs("EPSG:" + std::to_string(code), "code")->epsg == code);
+  }
+  CHECK(wkt_to_wkt2(kWkt1Lambert93, "c.las: WKT VLR").value() == *first);
+}
+
 TEST_CASE("GeoTIFF records through LAS come back verbatim", "[crs]") {
   TempDir dir;
   const GeoTiffRecords lcc = user_defined_lcc();
