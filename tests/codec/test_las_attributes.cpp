@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -16,6 +17,7 @@
 #include "core/grid_index.h"
 #include "relief/codec.h"
 #include "support/las_attributes.h"
+#include "support/sanitized.h"
 #include "support/synthetic.h"
 
 using namespace relief;
@@ -68,6 +70,10 @@ TEST_CASE("LAS attributes: every combination of carried attributes round-trips e
   const PointCloud base = scene(3, 60, true);
   const EncodeParams p = params_for(0.002, 2.0);
   for (std::uint32_t bits = 1; bits < (1u << 12); ++bits) {
+    // Under the sanitizers: every attribute alone, every pair, all but one,
+    // and one combination in eight of the rest.
+    const int carried = std::popcount(bits);
+    if (test::kSanitized && carried > 2 && carried < 11 && bits % 8 != 1) continue;
     INFO("attributes " << bits);
     PointCloud in = base;
     test::add_las_attributes(in, bits, 1 + bits % 64, bits, (bits & 1) != 0);

@@ -13,6 +13,7 @@
 
 #include "laz/laz_test_util.h"
 #include "relief/laz.h"
+#include "support/sanitized.h"
 
 using namespace relief::laztest;
 
@@ -157,7 +158,7 @@ long first_difference(const std::vector<std::uint8_t>& a, const std::vector<std:
 TEST_CASE("LAZ writer: random records of every format come back exactly", "[laz][writer]") {
   for (const int format : {0, 1, 2, 3, 6, 7, 8}) {
     for (const std::size_t extra : {std::size_t{0}, std::size_t{1}, std::size_t{3}, std::size_t{20}}) {
-      for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+      for (std::uint64_t seed = 1; seed <= (test::kSanitized ? 1u : 3u); ++seed) {
         DYNAMIC_SECTION("format " << format << ", " << extra << " extra bytes, seed " << seed) {
           const std::size_t rl = base_size(format) + extra;
           const auto records = random_records(format, rl, 6000, seed * 100 + static_cast<std::uint64_t>(format));
