@@ -21,8 +21,9 @@ int run_append(int argc, char** argv) {
           "                         archive's, unless --assume-crs; an archive without one takes it)\n"
           "  --no-extra-bytes       drop the inputs' extra bytes (LAS/LAZ extra bytes, PLY properties\n"
           "                         and PCD fields beyond x y z, colour and intensity)\n"
-          "  --attributes LIST      read only these attributes of the inputs (as compress); the\n"
-          "                         archive's others are 0 for the new points\n\n") +
+          "  --attributes LIST      read only these attributes of the inputs (as compress): the\n"
+          "                         archive's LAS attributes left out are 0 for the new points;\n"
+          "                         its colours and intensity cannot be left out\n\n") +
       kInputsHelp + "\n" + kIngestOptionsHelp;
   std::vector<std::string> flags = ingest_cli_flags(IngestOptionSet::kAppend);
   flags.insert(flags.end(), {"--help", "--quiet"});

@@ -176,6 +176,8 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
     set.sources.push_back(src);
     set.readers.push_back(std::move(r));
   }
+  set.colors_missing_from = colour_without;
+  set.intensity_missing_from = intensity_without;
   for (const auto& [what, with, without] : {std::tuple<const char*, const std::string&, const std::string&>{
                                                 "colours", colour_with, colour_without},
                                             {"intensities", intensity_with, intensity_without}}) {
@@ -1321,11 +1323,20 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
                          (info.las_attributes & kLasColorLow) != 0;
   if (info.chunk_count > 0) {
     // Keep one attribute set per archive so every chunk decodes alike.
+    // Named: the first input without them, and --attributes when it left them out.
+    const auto refuse = [&](const char* what, const char* name, const std::string& from, bool kept) {
+      return invalid_argument(archive_path + " has " + what + " but " +
+                              (kept ? from + " has none: every point of an archive carries its " + what +
+                                          " (compress it into an archive of its own)"
+                                    : "--attributes leaves them out of " + from +
+                                          ": every point of an archive " + "carries its " + what + " (add " +
+                                          name + " to the list)"));
+    };
     if (info.has_colors && !in.colors) {
-      return invalid_argument(archive_path + " has colours but the new input has none");
+      return refuse("colours", "rgb", in.colors_missing_from, options.reader.attributes.colors);
     }
     if (info.has_intensity && !in.intensity) {
-      return invalid_argument(archive_path + " has intensity but the new input has none");
+      return refuse("intensity", "intensity", in.intensity_missing_from, options.reader.attributes.intensity);
     }
     // The other way round the archive keeps its attribute set: say what goes,
     // as compress does for inputs with and without them.

@@ -25,6 +25,9 @@ struct InputSet {
   std::vector<ArchiveSource> sources;
   bool colors = false;     // every input has colours
   bool intensity = false;  // every input has intensity
+  // The first input without colours (intensity), when some input has none.
+  std::string colors_missing_from;
+  std::string intensity_missing_from;
   std::uint64_t estimated_points = 0;
   std::uint64_t known_total = 0;
   bool all_counts_known = true;

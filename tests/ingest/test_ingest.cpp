@@ -249,6 +249,35 @@ TEST_CASE("a failed append leaves the archive as it was", "[ingest]") {
   CHECK(after.blob_bytes == before.blob_bytes);
 }
 
+TEST_CASE("an append without the archive's colours or intensity is refused naming the input", "[ingest]") {
+  TempDir tmp;
+  REQUIRE(write_ply(tmp.file("a.ply"), scene(4, 5000)).is_ok());  // colours and intensity
+  REQUIRE(compress_files({tmp.file("a.ply")}, tmp.file("x.relief"), small_chunks()).is_ok());
+  PointCloud plain = scene(5, 5000);
+  plain.colors.clear();
+  REQUIRE(write_ply(tmp.file("b.ply"), scene(6, 5000)).is_ok());
+  REQUIRE(write_ply(tmp.file("plain.ply"), plain).is_ok());
+  auto r = append_files(tmp.file("x.relief"), {tmp.file("b.ply"), tmp.file("plain.ply")}, small_chunks());
+  REQUIRE_FALSE(r.is_ok());
+  CHECK(r.status().code() == StatusCode::kInvalidArgument);
+  CHECK_THAT(r.status().message(), Catch::StartsWith(tmp.file("x.relief") + " has colours but " +
+                                                     tmp.file("plain.ply") + " has none"));
+  // --attributes leaving them out is named as the cause.
+  IngestOptions o = small_chunks();
+  o.reader.attributes.colors = false;
+  r = append_files(tmp.file("x.relief"), {tmp.file("b.ply")}, o);
+  REQUIRE_FALSE(r.is_ok());
+  CHECK_THAT(r.status().message(), Catch::Contains("--attributes leaves them out of " + tmp.file("b.ply")));
+  CHECK_THAT(r.status().message(), Catch::Contains("add rgb to the list"));
+  o = small_chunks();
+  o.reader.attributes.intensity = false;
+  r = append_files(tmp.file("x.relief"), {tmp.file("b.ply")}, o);
+  REQUIRE_FALSE(r.is_ok());
+  CHECK_THAT(r.status().message(),
+             Catch::StartsWith(tmp.file("x.relief") + " has intensity but --attributes"));
+  CHECK((*Archive::open(tmp.file("x.relief"), Archive::Mode::kReadOnly))->info()->scans.size() == 1);
+}
+
 TEST_CASE("bad inputs to compress leave no archive", "[ingest]") {
   TempDir tmp;
   const std::string out = tmp.file("x.relief");
