@@ -2,6 +2,7 @@
 // PreviewRenderer, reading as few points as the image needs.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <mutex>
 
 #include "relief/render.h"
@@ -63,6 +64,13 @@ Result<PreviewResult> render_preview(ArchiveReader& reader, const PreviewRequest
   bool pyramid = false;
   for (const ScanPyramid& scan : info.pyramid) pyramid = pyramid || !scan.levels.empty();
   const double dx = frame.max.x - frame.min.x, dy = frame.max.y - frame.min.y;
+  if (!std::isfinite(dx) || !std::isfinite(dy) || !std::isfinite(frame.max.z - frame.min.z)) {
+    char text[200];
+    std::snprintf(text, sizeof text, "x %.9g .. %.9g, y %.9g .. %.9g, z %.9g .. %.9g", frame.min.x,
+                  frame.max.x, frame.min.y, frame.max.y, frame.min.z, frame.max.z);
+    return invalid_argument(std::string("the preview's box is wider than doubles can measure (") + text +
+                            "): give a smaller box");
+  }
   const double rows = options.view == PreviewView::kTop && dx > 0
                           ? std::clamp(options.width * dy / dx, 1.0, static_cast<double>(kMaxPreviewSide))
                           : static_cast<double>(options.width);

@@ -135,11 +135,21 @@ def _whole(value, what, lo, hi):
 
 
 def _path(value, what):
-    """A path argument (str, bytes or os.PathLike) as text; anything else is a TypeError
-    (None made a file named 'None')."""
-    if isinstance(value, (str, bytes, _os.PathLike)):
-        return _os.fsdecode(value)
-    raise TypeError(f"{what} must be a path (str, bytes or os.PathLike), got {type(value).__name__}")
+    """A path argument (str, bytes or os.PathLike) as text, or as bytes when its name is not
+    UTF-8 (a file name os.listdir gives with surrogate escapes: the library takes the bytes);
+    anything else is a TypeError (None made a file named 'None'), a NUL inside an
+    InvalidArgumentError (the name would end there)."""
+    if not isinstance(value, (str, bytes, _os.PathLike)):
+        raise TypeError(f"{what} must be a path (str, bytes or os.PathLike), got {type(value).__name__}")
+    text = _os.fsdecode(value)
+    if "\0" in text:
+        raise InvalidArgumentError(f"{what} {text!r} holds a NUL character, which no file name can", 1,
+                                   "invalid-argument")
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return _os.fsencode(value)
+    return text
 
 
 def _option_text(name, value):

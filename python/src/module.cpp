@@ -159,7 +159,9 @@ QueryOptions query_options(std::uint32_t lod, unsigned threads, bool skip_corrup
     Result<Polygon2D> area = Polygon2D::from_arg(polygon);
     if (!area) raise_status(area.status());
     if (!polygon_crs.empty()) {
-      if (Status s = area->set_crs(polygon_crs, "polygon_crs"); !s) raise_status(s);
+      // An argument, not a file: a CRS that does not parse is a bad value (as the CLI's usage error).
+      if (Status s = area->set_crs(polygon_crs, "polygon_crs"); !s)
+        raise_status(invalid_argument(s.message()));
     }
     q.polygon = std::make_shared<const Polygon2D>(std::move(area).value());
   }

@@ -86,6 +86,34 @@ def test_info_is_the_clis_json(xyz_archive):
         assert a.info == json.loads(out)
 
 
+def test_paths_that_are_not_utf8_work_and_a_nul_is_refused(tmp_path, scene):
+    # A name os.listdir gives with surrogate escapes reaches the library as its bytes.
+    raw = os.fsencode(str(tmp_path)) + b"/pts\xff.xyz"
+    write_xyz(os.fsdecode(raw), scene)
+    archive = os.fsencode(str(tmp_path)) + b"/a\xffb.relief"
+    relief.compress(raw, archive, columns="x,y,z,r,g,b,i", chunk_edge=8)
+    listed = [n for n in os.listdir(tmp_path) if n.endswith(".relief")]
+    assert listed == ["a\udcffb.relief"]
+    with relief.open(tmp_path / listed[0]) as a:
+        assert a.info["points_in"] == len(scene["x"])
+    with relief.open(archive) as a:
+        assert len(a.query(None)) == len(scene["x"])
+    with pytest.raises(relief.InvalidArgumentError, match="holds a NUL character") as e:
+        relief.open(str(tmp_path / "a.relief") + "\0.tmp")
+    assert e.value.code == 1
+    with pytest.raises(relief.InvalidArgumentError, match="NUL"):
+        relief.compress(raw, str(tmp_path / "x.relief\0"), columns="x,y,z,r,g,b,i")
+    assert not (tmp_path / "x.relief").exists()
+
+
+def test_a_polygon_crs_that_is_not_one_is_an_invalid_argument(xyz_archive):
+    path, _ = xyz_archive
+    with relief.open(path) as a:
+        with pytest.raises(relief.InvalidArgumentError, match="polygon_crs") as e:
+            a.query(polygon="POLYGON((0 0,1 0,1 1,0 0))", polygon_crs="EPSG:99999")
+        assert e.value.code == 1
+
+
 def test_sections_account_for_every_blob_byte(xyz_archive):
     path, _ = xyz_archive
     with relief.open(path) as a:

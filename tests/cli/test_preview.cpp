@@ -491,6 +491,11 @@ TEST_CASE("relief preview: errors exit with documented codes and leave no file",
     CHECK(h.code == 0);
     CHECK(h.output.find("usage: relief preview") != std::string::npos);
   }
+  SECTION("a box wider than doubles measure: invalid argument (11), not a NaN's undefined conversion") {
+    const Run r = run_cli("preview " + a.colored + " --box -1e308,-1e308,1e308,1e308 -o " + out);
+    CHECK(r.code == 11);
+    CHECK(r.output.find("wider than doubles can measure") != std::string::npos);
+  }
   SECTION("missing archive: I/O error (12) naming it") {
     const Run r = run_cli("preview " + tmp.file("nope.relief") + " -o " + out);
     CHECK(r.code == 12);
