@@ -118,6 +118,72 @@ std::vector<std::uint64_t> quotas(const std::vector<std::uint64_t>& counts, std:
   return out;
 }
 
+// quotas() when rows stand for different numbers of points each (`weights`:
+// a row of a coarse pyramid level stands for the points of its scan's
+// chunks), so that each row's share of `cap` is in proportion to the points
+// it stands for, up to the points it holds (what a row cannot use goes to
+// the others, in proportion again). The same as quotas() when the weights
+// are all equal.
+std::vector<std::uint64_t> weighted_quotas(const std::vector<std::uint64_t>& counts,
+                                           const std::vector<double>& weights, std::uint64_t cap) {
+  if (std::adjacent_find(weights.begin(), weights.end(), std::not_equal_to<>()) == weights.end()) {
+    return quotas(counts, cap);
+  }
+  Uint128 total = 0;
+  for (const std::uint64_t c : counts) total += c;
+  if (total <= cap || (total >> 64) != 0) return {};
+  const std::size_t n = counts.size();
+  std::vector<std::uint64_t> out(n, 0);
+  std::vector<bool> full(n, false);
+  std::uint64_t remaining = cap;
+  const auto weighted = [&] {
+    long double w = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!full[i]) w += static_cast<long double>(weights[i]) * static_cast<long double>(counts[i]);
+    }
+    return w;
+  };
+  // Rows whose share is all they hold take it; the rest is shared anew. A
+  // row leaves per round: a few rounds are enough for the shares to settle,
+  // and a bounded number keeps a hostile archive's rows from costing n^2.
+  constexpr int kRounds = 64;
+  for (int round = 0; round < kRounds; ++round) {
+    const long double w = weighted();
+    if (w <= 0) break;
+    bool took = false;
+    for (std::size_t i = 0; i < n; ++i) {
+      const long double wc = static_cast<long double>(weights[i]) * static_cast<long double>(counts[i]);
+      if (full[i] || counts[i] == 0 || static_cast<long double>(remaining) * wc / w < counts[i]) continue;
+      out[i] = counts[i];
+      full[i] = true;
+      remaining -= std::min(remaining, counts[i]);
+      took = true;
+    }
+    if (!took) break;
+  }
+  // The rest at the running totals of the weighted counts, as quotas(); the
+  // last row's total is `remaining` itself (no rounding loses a point).
+  const long double w = weighted();
+  std::size_t last = n;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!full[i] && counts[i] > 0) last = i;
+  }
+  long double running = 0;
+  std::uint64_t before = 0;
+  for (std::size_t i = 0; i < n && w > 0; ++i) {
+    if (full[i] || counts[i] == 0) continue;
+    running += static_cast<long double>(weights[i]) * static_cast<long double>(counts[i]);
+    const std::uint64_t upto = i == last
+                                   ? remaining
+                                   : static_cast<std::uint64_t>(std::min(
+                                         static_cast<long double>(remaining),
+                                         std::floor(static_cast<long double>(remaining) * running / w)));
+    out[i] = std::min(counts[i], upto - std::min(upto, before));
+    before = std::max(before, upto);
+  }
+  return out;
+}
+
 // Keeps `keep` of the cloud's points (`expected` of them when the row's
 // count held; otherwise as many as it has), evenly spaced in decoding order
 // as a level of detail thins a chunk: point j of n stays when
@@ -310,6 +376,22 @@ class Reader final : public ArchiveReader {
   // takes a coarser level or a level of detail from the base layer.
   static constexpr double kMaxPointsOverread = 4.0;
 
+  // The points a row stands for per point it holds: 1 for a chunk, the
+  // scan's chunks' points over its level's for a pyramid row (a level holds
+  // about a quarter of the one below: such a row's points are a sample).
+  double stands_for(const ChunkRef& ref) const {
+    if (ref.level == 0) return 1.0;
+    for (const ScanPyramid& scan : info_.pyramid) {
+      if (scan.scan_id != ref.scan_id) continue;
+      for (const PyramidLevel& l : scan.levels) {
+        if (l.level == ref.level && l.points > 0) {
+          return std::max(1.0, static_cast<double>(scan.base_points) / static_cast<double>(l.points));
+        }
+      }
+    }
+    return 1.0;
+  }
+
   // What a query reads: chunk and pyramid rows, each with the level of
   // detail to decode it at, and a cut for a max_points query that even the
   // top of the pyramid cannot meet.
@@ -402,8 +484,18 @@ class Reader final : public ArchiveReader {
     }
     // max_points: the finest level g (each scan at its coarsest stored level
     // up to g, or its chunks) whose rows in the box hold at most max_points.
+    // Only when every scan with chunks in the box has a pyramid: the levels
+    // of one with none would be its chunks, thinned by levels of detail to a
+    // share of the limit that a coarse level of the others cannot meet.
+    std::set<std::int64_t> without_pyramid;
+    for (const ScanPyramid& scan : info_.pyramid) {
+      if (scan.levels.empty()) without_pyramid.insert(scan.scan_id);
+    }
+    const bool every_scan = std::none_of(base.begin(), base.end(), [&](const ChunkRef& ref) {
+      return without_pyramid.count(ref.scan_id) > 0;
+    });
     std::set<int> candidates = {0};
-    if (options.use_pyramid && !filtered) {
+    if (options.use_pyramid && !filtered && every_scan) {
       for (const ScanPyramid& scan : info_.pyramid) {
         for (const PyramidLevel& l : scan.levels) candidates.insert(l.level);
       }
@@ -452,9 +544,22 @@ class Reader final : public ArchiveReader {
         return;
       }
       p.expected = 0;
+      // Each row's share of the limit by the points it stands for (rows of
+      // scans read at different levels of the pyramid, or at none).
+      std::vector<double> weight;
+      double weighted = 0;
       for (const ChunkRef& ref : p.refs) {
+        weight.push_back(stands_for(ref));
+        weighted += row_in_box(ref) * weight.back();
+      }
+      const bool uniform =
+          std::adjacent_find(weight.begin(), weight.end(), std::not_equal_to<>()) == weight.end();
+      for (std::size_t i = 0; i < p.refs.size(); ++i) {
+        const ChunkRef& ref = p.refs[i];
         const double points = row_in_box(ref);
-        const double share = std::max(1.0, std::floor(cap * points / estimate));
+        const double share =
+            std::max(1.0, std::floor(uniform || weighted <= 0 ? cap * points / estimate
+                                                              : cap * points * weight[i] / weighted));
         const double lod =
             std::clamp(std::floor(points / (kMaxPointsOverread * share)), 2.0, static_cast<double>(1u << 30));
         p.lods.push_back(static_cast<std::uint32_t>(lod));
@@ -507,7 +612,15 @@ class Reader final : public ArchiveReader {
         total += points;
       }
       if (estimate <= cap) {
-        if (!above.empty() && 2 * estimate < cap && above.back().estimate <= kMaxPointsOverread * cap) {
+        // Also when the level reads scans at different levels (one whose
+        // pyramid stops short of this level, read finer): counted whole, the
+        // scans read coarser would give the box less than their share.
+        const bool mixed =
+            std::adjacent_find(plan.refs.begin(), plan.refs.end(), [&](const ChunkRef& a, const ChunkRef& b) {
+              return stands_for(a) != stands_for(b);
+            }) != plan.refs.end();
+        if (!above.empty() && (2 * estimate < cap || mixed) &&
+            above.back().estimate <= kMaxPointsOverread * cap) {
           plan = std::move(above.back().plan);
           estimate = above.back().estimate;
           total = above.back().total;
@@ -687,7 +800,11 @@ class Reader final : public ArchiveReader {
           restrict_to_polygon();
           continue;
         }
-        quota = quotas(in_box, plan.cap);
+        // A row stands for its level's sample of its scan, and a point
+        // decoded at level of detail L for L of the row's.
+        std::vector<double> weights;
+        for (std::size_t i = 0; i < refs.size(); ++i) weights.push_back(stands_for(refs[i]) * plan.lods[i]);
+        quota = weighted_quotas(in_box, weights, plan.cap);
         stats.thinned = !quota.empty();
       }
       break;

@@ -17,6 +17,7 @@
 #include "relief/ingest.h"
 #include "relief/io.h"
 #include "relief/query.h"
+#include "support/sanitized.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
 
@@ -601,6 +602,54 @@ TEST_CASE("an append brings its own pyramid, removing the scan removes it", "[py
   QueryStats stats;
   for (const Vec3d& p : run_query(**reader, nullptr, &stats, q).positions) REQUIRE(p.x <= kSize);
   CHECK(stats.pyramid_level >= 1);
+}
+
+TEST_CASE("max_points gives each scan its share of the limit, whatever level of the pyramid it is read at",
+          "[pyramid]") {
+  // Scan A (100 k points) has a pyramid; scan B lies over the same area 100 m
+  // higher, without one (appended with --pyramid off) or with a shallower one
+  // (20 k points). A row of a coarse level stands for the points of the
+  // level below it: its share of the limit counts them, or A's rows (a
+  // level's few hundred points) got 28 of 2,000 points and B 1,972.
+  TempDir tmp;
+  const std::string path = build(tmp, "a", terrain(5, 100000));
+  for (const bool b_pyramid : {false, true}) {
+    DYNAMIC_SECTION("scan B " << (b_pyramid ? "with a shallower pyramid" : "without a pyramid")) {
+      const std::size_t b_points = b_pyramid ? 20000 : 100000;
+      REQUIRE(write_ply(tmp.file("b.ply"), terrain(6, b_points, {0, 0, 100})).is_ok());
+      const std::string copy = tmp.file(b_pyramid ? "ab2.relief" : "ab1.relief");
+      std::filesystem::copy_file(path, copy);
+      auto appended =
+          append_files(copy, {tmp.file("b.ply")}, options(b_pyramid ? PyramidMode::kOn : PyramidMode::kOff));
+      REQUIRE(appended.is_ok());
+      auto reader = ArchiveReader::open(copy);
+      REQUIRE(reader.is_ok());
+      REQUIRE((*reader)->info().pyramid.size() == 2);
+      CHECK((*reader)->info().pyramid[1].levels.empty() == !b_pyramid);
+      const double want_a = 100000.0 / static_cast<double>(100000 + b_points);
+      // (One limit under the sanitizers: the rest repeat the same paths.)
+      const std::vector<std::uint64_t> limits =
+          test::kSanitized ? std::vector<std::uint64_t>{20000} : std::vector<std::uint64_t>{200, 2000, 20000};
+      for (const std::uint64_t limit : limits) {
+        for (const bool whole : {true, false}) {
+          INFO("limit " << limit << (whole ? ", whole archive" : ", a box over half of it"));
+          QueryOptions q;
+          q.max_points = limit;
+          QueryStats stats;
+          const Box3d half{{0, 0, -1000}, {kSize / 2, kSize, 1000}};
+          const PointCloud got = run_query(**reader, whole ? nullptr : &half, &stats, q);
+          REQUIRE(got.size() <= limit);
+          CHECK(got.size() >= limit / 2);
+          std::size_t a = 0;
+          for (const Vec3d& p : got.positions) a += p.z < 50 ? 1 : 0;
+          const double share =
+              static_cast<double>(a) / static_cast<double>(std::max<std::size_t>(1, got.size()));
+          CHECK(share > 0.75 * want_a);
+          CHECK(share < 1.25 * want_a);
+        }
+      }
+    }
+  }
 }
 
 TEST_CASE("pyramid rows are ignored until the scan's pyramid is recorded finished", "[pyramid]") {
