@@ -9,6 +9,7 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -67,6 +68,28 @@ std::string gps_time_kind(GpsTimeType t) {
 std::string gps_time_clash(const std::string& path, GpsTimeType type, const std::string& other, GpsTimeType other_type) {
   return path + " has " + gps_time_kind(type) + " but " + other + " has " + gps_time_kind(other_type) +
          " (LAS global encoding bit 0); one archive holds one kind of GPS time";
+}
+
+// GPS times of an input that does not say what they count, taken as the
+// archive's GPS week time: each must be seconds of a week (0 <= t < 604800),
+// or it is another kind of time, which the archive would write back wrong.
+Status check_week_times(const PointCloud& batch, const InputSet& in, std::size_t reader,
+                        const std::string& source, std::uint64_t first_index) {
+  if (in.las_gps_time_type != GpsTimeType::kWeek || reader >= in.time_kind_unknown.size() ||
+      !in.time_kind_unknown[reader]) {
+    return Status::ok();
+  }
+  constexpr double kSecondsPerWeek = 604800.0;
+  for (std::size_t i = 0; i < batch.las.gps_time.size(); ++i) {
+    const double t = batch.las.gps_time[i];
+    if (t >= 0 && t < kSecondsPerWeek) continue;
+    char text[64];
+    std::snprintf(text, sizeof text, "%.17g", t);
+    return invalid_argument(source + ": point " + std::to_string(first_index + i) + ": GPS time " + text +
+                            " is not seconds of a GPS week (0 to 604800), the kind of " + in.gps_time_from +
+                            "'s; one archive holds one kind of GPS time");
+  }
+  return Status::ok();
 }
 
 std::uint64_t file_size_or_zero(const std::string& path) {
@@ -168,6 +191,8 @@ Result<InputSet> open_inputs(const std::vector<std::string>& inputs, const Reade
                                                set.las_gps_time_type));
       }
     }
+    set.time_kind_unknown.push_back((info.las_attributes & kLasGpsTime) != 0 &&
+                                    info.las_gps_time_type == GpsTimeType::kUnknown);
     ArchiveSource src;
     src.path = path;
     src.format = info.format;
@@ -390,6 +415,8 @@ Result<IngestResult> run_ingest(Archive& archive, const ArchiveGrid& grid, const
     const auto full_stage = [&](ReadBatch& b) -> Status {
       RELIEF_RETURN_IF_ERROR(stage_points(b.points, coordinate_limit, in.sources[b.reader].path,
                                           staged_per_source[b.reader], in.colors, in.intensity, params));
+      RELIEF_RETURN_IF_ERROR(
+          check_week_times(b.points, in, b.reader, in.sources[b.reader].path, staged_per_source[b.reader]));
       staged_per_source[b.reader] += b.points.size();
       if (in.split_wide_levels) split_wide_levels(b.points, *in.readers[b.reader]);
       // LAS attributes the archive carries and this input lacks: zeros.
@@ -1364,6 +1391,7 @@ Result<IngestResult> append_files(const std::string& archive_path, const std::ve
                                            info.las_gps_time_type));
   }
   if (info.las_gps_time_type != GpsTimeType::kUnknown) {
+    if (in.gps_time_from.empty()) in.gps_time_from = archive_path;
     in.las_gps_time_type = info.las_gps_time_type;
   } else if ((info.las_attributes & kLasGpsTime) != 0 && in.las_gps_time_type != GpsTimeType::kUnknown) {
     in.warnings.push_back(archive_path + " holds GPS times of an unrecorded kind (made before Relief kept it); the " +

@@ -45,6 +45,10 @@ struct InputSet {
   // gps_time_from names the first input that said.
   GpsTimeType las_gps_time_type = GpsTimeType::kUnknown;
   std::string gps_time_from;
+  // Per reader: it has GPS times but says not what they count (a text
+  // column): they take the set's kind, so under GPS week time they must lie
+  // within a week (check_week_times).
+  std::vector<bool> time_kind_unknown;
   std::string crs;  // WKT2 of the first input that has one
   std::string crs_from;  // that input's path
   // CRS decisions the user should hear of (inputs without a CRS among ones

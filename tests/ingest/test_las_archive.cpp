@@ -639,6 +639,27 @@ TEST_CASE("inputs whose GPS times count differently are refused, naming both", "
   // The same kind appends.
   REQUIRE(relief::append_files(archive, {las_with_time(dir, "week2.las", 3, 0, 4)}, {}).is_ok());
   CHECK(archive_info(archive).las_gps_time_type == relief::GpsTimeType::kWeek);
+  // Text GPS times say not what they count: they take the archive's week
+  // time when they lie within a week, and are refused, named, when not.
+  const auto csv = [&](const std::string& name, const char* second_time) {
+    const std::string path = dir.file(name);
+    std::ofstream(path) << "x,y,z,intensity,gps_time\n1,2,3,7,100.5\n2,2,3,9," << second_time << "\n";
+    return path;
+  };
+  const relief::ArchiveInfo week_before = archive_info(archive);
+  auto text = relief::append_files(archive, {csv("standard.csv", "1.0e9")}, {});
+  REQUIRE_FALSE(text.is_ok());
+  CHECK(text.status().code() == relief::StatusCode::kInvalidArgument);
+  CHECK_THAT(text.status().message(),
+             Catch::StartsWith(dir.file("standard.csv") +
+                               ": point 1: GPS time 1000000000 is not seconds of a GPS week"));
+  CHECK(archive_info(archive).chunk_count == week_before.chunk_count);
+  REQUIRE(relief::append_files(archive, {csv("week.csv", "604799.5")}, {}).is_ok());
+  // And beside a LAS file of week time in one compress.
+  auto both = relief::compress_files({week, csv("late.csv", "-1")}, dir.file("z.relief"), {});
+  REQUIRE_FALSE(both.is_ok());
+  CHECK_THAT(both.status().message(), Catch::Contains("GPS time -1 is not seconds of a GPS week"));
+  CHECK_THAT(both.status().message(), Catch::Contains("the kind of " + week));
 }
 
 TEST_CASE("compress --attributes keeps only those attributes of the inputs", "[las][archive][needs-codec-attrs]") {
