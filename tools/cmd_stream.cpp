@@ -228,6 +228,7 @@ int run_stream(int argc, char** argv) {
   if (layout.text) {
     for (const std::string& w : layout.text->take_warnings()) std::cerr << "relief stream: warning: " << w << "\n";
   }
+  for (const std::string& w : done->warnings) std::cerr << "relief stream: warning: " << w << "\n";
   if (!quiet) {
     if (interrupted->load()) std::cerr << "relief stream: interrupted; everything received is in " << archive << "\n";
     print_ingest_summary(archive, *done);

@@ -127,12 +127,19 @@ class StreamIngestImpl final : public StreamIngest {
     std::vector<ChunkKey> all;
     for (const auto& [key, p] : buffered_) all.push_back(key);
     RELIEF_RETURN_IF_ERROR(flush(all));
-    RELIEF_ASSIGN_OR_RETURN(const PyramidResult pyramid,
-                            ingest::build_scan_pyramid(*archive_, scan_id_, points_read_, options_.ingest,
-                                                       ingest::default_tmp_parent(path_, options_.ingest),
-                                                       progress_));
-    RELIEF_RETURN_IF_ERROR(archive_->set_source_points(scan_id_, points_read_));
-    RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, crs_));
+    // A stream that brought no point leaves an existing archive as it was:
+    // no empty scan, no source of 0 points (a new archive stays, empty).
+    const bool nothing = !created_ && points_read_ == 0;
+    PyramidResult pyramid;
+    if (nothing) {
+      RELIEF_RETURN_IF_ERROR(archive_->abort_scan(scan_id_));
+    } else {
+      RELIEF_ASSIGN_OR_RETURN(
+          pyramid, ingest::build_scan_pyramid(*archive_, scan_id_, points_read_, options_.ingest,
+                                              ingest::default_tmp_parent(path_, options_.ingest), progress_));
+      RELIEF_RETURN_IF_ERROR(archive_->set_source_points(scan_id_, points_read_));
+      RELIEF_RETURN_IF_ERROR(archive_->finish_scan(scan_id_, colors_, intensity_, crs_));
+    }
     finished_ = true;
     if (Status closed = archive_->close(); !closed) {
       if (!created_) return Status(closed.code(), closed.message() + kept_in_wal_note(path_));
@@ -144,6 +151,10 @@ class StreamIngestImpl final : public StreamIngest {
                                               grid_.chunk_edge, scan_id_, progress_);
     result.pyramid = pyramid;
     if (!pyramid.skipped.empty()) result.warnings.push_back(pyramid.skipped);
+    if (nothing) {
+      result.scan_id = 0;
+      result.warnings.push_back(path_ + ": the stream brought no point; the archive is as it was");
+    }
     return result;
   }
 

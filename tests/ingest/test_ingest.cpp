@@ -28,6 +28,7 @@
 #include "support/dense_surface.h"
 #include "support/limited_vfs.h"
 #include "support/open_file_limit.h"
+#include "support/run_cli.h"
 #include "support/sanitized.h"
 #include "support/synthetic.h"
 #include "support/temp_dir.h"
@@ -755,6 +756,20 @@ TEST_CASE("a failed relief stream leaves no archive, or the archive as before", 
   SECTION("a new archive is removed") {
     CHECK(stream(tmp.file("new.relief")) == 13);
     CHECK(tmp.entries() == std::vector<std::string>{"bad.xyz"});
+  }
+  SECTION("an empty stream leaves an existing archive as it was, and says so") {
+    const std::string x = tmp.file("x.relief");
+    { std::ofstream(tmp.file("two.xyz")) << "1 2 3\n4 5 6\n"; }
+    REQUIRE(std::system((cli() + " stream " + x + " --cell 0.25 --quiet < " + tmp.file("two.xyz")).c_str()) ==
+            0);
+    const auto scans = [&] {
+      return (*Archive::open(x, Archive::Mode::kReadOnly))->info().value().scans.size();
+    };
+    REQUIRE(scans() == 1);
+    const test::CliRun r = test::run_cli(cli(), "stream " + x + " < /dev/null");
+    CHECK(r.code == 0);
+    CHECK(r.output.find("the stream brought no point; the archive is as it was") != std::string::npos);
+    CHECK(scans() == 1);
   }
   SECTION("an existing archive is as before") {
     PointCloud a = scene(15, 20000);
