@@ -931,7 +931,7 @@ class SqliteArchive final : public Archive {
   Status remove_unused_level_rows(std::int64_t unused_up_to);
   Status read_pyramid(ArchiveInfo& info) const;
   Result<ChunkRow> read_row(Sql sql, std::int64_t id, const char* what) const;
-  Result<Box3d> chunk_point_bounds(std::int64_t id, const Box3d& bounds) const;
+  Result<Box3d> chunk_point_bounds(std::int64_t id, const Box3d& bounds, std::string* damage = nullptr) const;
 
   std::string path_;
   // Declared before the statements so that it is destroyed after them: a
@@ -2096,8 +2096,11 @@ Result<ChunkRow> SqliteArchive::read_chunk(std::int64_t id) const {
 }
 
 // A chunk's relief_chunk_extent row, or empty (its bounds are its points').
-// A row that is not a finite box within the chunk's bounds is damage.
-Result<Box3d> SqliteArchive::chunk_point_bounds(std::int64_t id, const Box3d& bounds) const {
+// A row that is not a finite box within the chunk's bounds is damage: not
+// used (empty), and said in `damage` for check. A query does not fail for it:
+// nothing but the archive's reported bounds depends on the row.
+Result<Box3d> SqliteArchive::chunk_point_bounds(std::int64_t id, const Box3d& bounds,
+                                                std::string* damage) const {
   if (!extent_table_) {
     RELIEF_ASSIGN_OR_RETURN(const bool exists, table_exists(store::kExtentTable));
     extent_table_ = exists;
@@ -2110,12 +2113,14 @@ Result<Box3d> SqliteArchive::chunk_point_bounds(std::int64_t id, const Box3d& bo
   if (!found) return Box3d{};
   RowReader reader(*statement, path_, "relief_chunk_extent row " + std::to_string(id));
   const Box3d e = reader.box(0, "min_x..max_z");
-  RELIEF_RETURN_IF_ERROR(reader.status());
-  if (e.empty() || !box_is_finite(e) || bounds.empty() || !bounds.contains(e)) {
-    return corrupt_data(path_ + ": relief_chunk_extent row " + std::to_string(id) +
-                        ": the point bounds are not a finite box within the chunk's bounds");
+  std::string problem = reader.status().message();
+  if (problem.empty() && (e.empty() || !box_is_finite(e) || bounds.empty() || !bounds.contains(e))) {
+    problem = path_ + ": relief_chunk_extent row " + std::to_string(id) +
+              ": the point bounds are not a finite box within the chunk's bounds";
   }
-  return e;
+  if (problem.empty()) return e;
+  if (damage != nullptr) *damage = std::move(problem);
+  return Box3d{};
 }
 
 Result<std::vector<std::uint8_t>> SqliteArchive::read_chunk_head(std::int64_t id, std::size_t max_bytes) const {
@@ -2565,6 +2570,9 @@ Status SqliteArchive::check_chunks(CheckReport& report, const ChunkRowCheck& row
           report.problem(label + ": " + wrong);
         }
       }
+      std::string damage;
+      RELIEF_RETURN_IF_ERROR(chunk_point_bounds(refs[i].id, refs[i].bounds, &damage).status());
+      if (!damage.empty()) report.problem(damage);
     }
     report.stage("chunk blobs", i + 1, total);
   }
@@ -2573,8 +2581,8 @@ Status SqliteArchive::check_chunks(CheckReport& report, const ChunkRowCheck& row
                  std::string(row_check ? ", counts" : "") + " and bounds");
   RELIEF_ASSIGN_OR_RETURN(const bool extents, table_exists(store::kExtentTable));
   if (extents) {
-    // Each row's point bounds were checked by read_chunk above (a finite box
-    // within its chunk's bounds); rows naming no chunk are not damage.
+    // Each row's point bounds were checked with its chunk above (a finite
+    // box within the chunk's bounds); rows naming no chunk are not damage.
     RELIEF_ASSIGN_OR_RETURN(std::unique_ptr<Statement> count,
                             Statement::prepare(db(),
                                                "SELECT COUNT(*), COUNT(c.id) FROM relief_chunk_extent AS e "
